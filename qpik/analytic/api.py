@@ -1,0 +1,132 @@
+"""Public closed-form API: ``ik``, ``redundancy_parameter``, ``feasible_intervals``."""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from qpik.analytic.intervals import FeasibleIntervals
+from qpik.analytic.solver import AnalyticSolver
+from qpik.errors import InputError, NoClosedFormError
+from qpik.robots.robot import Robot
+from qpik.validate import finite_array, joint_vector
+from qpik.validate import pose as check_pose
+
+_SOLVERS = {
+    "offset_shoulder": ("qpik.analytic.offset_shoulder", "OffsetShoulderSolver"),
+    "srs": ("qpik.analytic.srs", "SRSSolver"),
+}
+_instances: dict[int, AnalyticSolver] = {}
+
+
+def solver_for(robot: Robot) -> AnalyticSolver:
+    """The closed-form solver of ``robot`` (cached per robot object)."""
+    if robot.closed_form not in _SOLVERS:
+        raise NoClosedFormError(
+            f"{robot.name} has no closed-form IK (only offset-shoulder and S-R-S arms do); "
+            "use qpik.Controller.solve_ik instead"
+        )
+    key = id(robot)
+    if key not in _instances:
+        module, cls = _SOLVERS[robot.closed_form]
+        _instances[key] = getattr(importlib.import_module(module), cls)(robot)
+    return _instances[key]
+
+
+@dataclass
+class IKSolutions:
+    """Every closed-form branch for one pose (or a batch of poses).
+
+    Attributes:
+        q: joint angles (rad, wrapped to (-pi, pi]): (B, n) or (N, B, n). Rows of
+            invalid branches are finite but meaningless.
+        valid: (B,) or (N, B) bool, the branch reaches the pose.
+        within_limits: (B,) or (N, B) bool, valid and inside the joint limits.
+        singular: (B,) or (N, B) bool, a singular case (defined, documented result).
+        branch: (B,) public branch ids (seed 000 Table 2 numbers 1-16, or S-R-S 0-7).
+        param: the redundancy parameter (rad): float or (N,).
+        param_name: ``"delta"`` or ``"psi"``.
+    """
+
+    q: np.ndarray
+    valid: np.ndarray
+    within_limits: np.ndarray
+    singular: np.ndarray
+    branch: np.ndarray
+    param: float | np.ndarray
+    param_name: str
+
+    def __len__(self) -> int:
+        return self.q.shape[-2]
+
+    def table(self) -> str:
+        """A text table of the branches of a single pose (degrees are not used: rad)."""
+        if self.q.ndim != 2:
+            raise InputError("table() needs a single pose; index a batch first")
+        head = f"{'branch':>6} " + " ".join(f"{'q' + str(j + 1):>7}" for j in range(self.q.shape[1]))
+        lines = [head + "  valid  limits  singular"]
+        for i, b in enumerate(self.branch):
+            row = " ".join(f"{v:7.3f}" for v in self.q[i])
+            flags = f"{'yes' if self.valid[i] else 'no':>6} {'in' if self.within_limits[i] else 'out':>6}"
+            lines.append(f"{b:>6} {row} {flags} {'yes' if self.singular[i] else '':>8}")
+        return "\n".join(lines)
+
+
+def ik(robot: Robot, pose: np.ndarray, param: float | np.ndarray, project: bool = False) -> IKSolutions:
+    """All closed-form branches for ``pose`` at redundancy parameter ``param``.
+
+    Args:
+        robot: an arm with a closed form (``nammoto7``: δ, ``iiwa14``: ψ).
+        pose: end-effector pose in the base frame, (4, 4) or (N, 4, 4).
+        param: δ or ψ in rad; a float, or (N,) for a batch (a float is
+            broadcast over the batch).
+        project: project a non-orthonormal rotation onto SO(3) instead of
+            raising :class:`qpik.RotationError`.
+
+    An unreachable pose gives ``valid = False`` rows, never an exception.
+    """
+    solver = solver_for(robot)
+    T, batched = check_pose(pose, "pose", project)
+    if not batched:
+        p = finite_array(param, "param")
+        if p.ndim != 0:
+            raise InputError(f"param: expected a float for a single pose, got shape {p.shape}")
+        q, valid, singular = solver.solve_one(T, float(p))
+        par: float | np.ndarray = float(p)
+    else:
+        p = np.broadcast_to(finite_array(param, "param"), (T.shape[0],)) if np.ndim(param) == 0 else None
+        if p is None:
+            p = finite_array(param, "param", (T.shape[0],))
+        q, valid, singular = solver.solve_batch(T, np.asarray(p, dtype=float))
+        par = np.asarray(p, dtype=float)
+    inside = np.all((q >= robot.q_min) & (q <= robot.q_max), axis=-1)
+    return IKSolutions(
+        q=q,
+        valid=valid,
+        within_limits=valid & inside,
+        singular=singular,
+        branch=np.array(solver.branch_ids),
+        param=par,
+        param_name=solver.param_name,
+    )
+
+
+def redundancy_parameter(robot: Robot, q: np.ndarray) -> tuple[float | np.ndarray, int | np.ndarray]:
+    """The redundancy parameter (rad) and branch id of a configuration (n,) or batch (N, n)."""
+    solver = solver_for(robot)
+    qa, batched = joint_vector(q, robot.dof)
+    param, branch = solver.parameter(np.atleast_2d(qa))
+    if batched:
+        return param, branch
+    return float(param[0]), int(branch[0])
+
+
+def feasible_intervals(robot: Robot, pose: np.ndarray, project: bool = False) -> FeasibleIntervals:
+    """Per branch, the exact set of δ/ψ (rad) keeping all joints in limits; see :class:`FeasibleIntervals`."""
+    solver = solver_for(robot)
+    T, batched = check_pose(pose, "pose", project)
+    if batched:
+        raise InputError("pose: feasible_intervals takes one pose (4, 4)")
+    return solver.feasible_intervals(T)

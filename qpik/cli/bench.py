@@ -1,0 +1,28 @@
+"""``qpik bench``: speed of qpik beside its peers (same process, ratios)."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from qpik.bench import BENCHES
+
+    p = sub.add_parser("bench", help="time qpik next to mink, ssik and other solvers")
+    p.add_argument("which", nargs="*", metavar="BENCH", help=f"benches to run: {', '.join(BENCHES)} (default: all)")
+    p.add_argument("--repeat", type=int, default=2000, help="timed calls per row")
+    p.set_defaults(func=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    from qpik.bench import BENCHES, render
+
+    unknown = sorted(set(args.which) - set(BENCHES))
+    if unknown:
+        raise SystemExit(f"qpik bench: unknown bench {', '.join(unknown)}; choose from {', '.join(BENCHES)}")
+    for name in args.which or BENCHES:
+        module = importlib.import_module(f"qpik.bench.{name}")
+        print(render(module.TITLE, module.run(args)))
+        print()
+    return 0

@@ -1,0 +1,255 @@
+r"""Denavit–Hartenberg chains: FK, geometric Jacobian, kinematic Hessian, manipulability.
+
+One :class:`DHChain` holds a DH table in either convention:
+
+- ``standard``: :math:`A_i = R_z(\theta_i + o_i)\,T_z(d_i)\,T_x(a_i)\,R_x(\alpha_i)`
+  (seed 000, eq. 1); joint *i* turns about the z axis of frame *i-1*.
+- ``modified`` (Craig): :math:`A_i = R_x(\alpha_{i-1})\,T_x(a_{i-1})\,R_z(\theta_i + o_i)\,T_z(d_i)`;
+  joint *i* turns about the z axis of frame *i*.
+
+Frame 0 is ``base`` (a constant transform from the world), the end-effector is
+``frame_n @ tool``. The expressions are written once in :mod:`qpik.symbolic`
+and evaluated three ways: numpy over a batch, CasADi symbols, and a compiled
+CasADi function for one configuration (the fast path, :mod:`qpik.compiled`).
+
+Conventions: metres and radians; the geometric Jacobian rows are
+``[v; ω]`` of the end-effector origin, both in the base (world) frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Literal
+
+import casadi as ca
+import numpy as np
+
+from qpik import symbolic as sy
+from qpik.compiled import Compiled
+from qpik.symbolic import Frame, Ops, Scalar
+from qpik.validate import finite_array, joint_vector
+
+Convention = Literal["standard", "modified"]
+
+
+@dataclass(frozen=True)
+class DHChain:
+    """A revolute serial chain described by a DH table.
+
+    Attributes:
+        a, d, alpha, offset: DH parameters per joint (m, m, rad, rad), shape (n,).
+            In the ``modified`` convention ``a[i]`` and ``alpha[i]`` are Craig's
+            :math:`a_{i-1}`, :math:`\alpha_{i-1}` (they precede joint *i*).
+        convention: ``"standard"`` or ``"modified"``.
+        base: (4, 4) world-from-frame-0 transform.
+        tool: (4, 4) frame-n-from-end-effector transform.
+    """
+
+    a: tuple[float, ...]
+    d: tuple[float, ...]
+    alpha: tuple[float, ...]
+    offset: tuple[float, ...] = ()
+    convention: Convention = "standard"
+    base: np.ndarray = field(default_factory=lambda: np.eye(4))
+    tool: np.ndarray = field(default_factory=lambda: np.eye(4))
+
+    def __post_init__(self) -> None:
+        n = len(self.a)
+        if not (len(self.d) == len(self.alpha) == n) or (self.offset and len(self.offset) != n):
+            raise ValueError("DHChain: a, d, alpha (and offset) must have the same length")
+        if self.convention not in ("standard", "modified"):
+            raise ValueError(f"DHChain: unknown convention {self.convention!r}")
+        object.__setattr__(self, "offset", tuple(self.offset) or (0.0,) * n)
+        for name in ("base", "tool"):
+            finite_array(getattr(self, name), f"DHChain.{name}", (4, 4))
+
+    @property
+    def dof(self) -> int:
+        return len(self.a)
+
+    # ---- the one definition -------------------------------------------------
+
+    def frames_expr(self, q: list[Scalar], ops: Ops) -> list[Frame]:
+        """Frames 0..n and the end-effector, as :mod:`qpik.symbolic` frames.
+
+        Returns ``n + 2`` frames: ``[base, frame_1, ..., frame_n, ee]``.
+        """
+        frames = [sy.frame_of(self.base)]
+        for i in range(self.dof):
+            th = q[i] + self.offset[i] if self.offset[i] else q[i]
+            c, s = ops.cos(th), ops.sin(th)
+            ca_, sa = sy.snap(np.cos(self.alpha[i])), sy.snap(np.sin(self.alpha[i]))
+            if self.convention == "standard":
+                R = sy.matmul(sy.rot_z(c, s), sy.rot_x(ca_, sa))
+                p = (sy.mul(self.a[i], c), sy.mul(self.a[i], s), self.d[i])
+            else:
+                Rx = sy.rot_x(ca_, sa)
+                R = sy.matmul(Rx, sy.rot_z(c, s))
+                p = sy.vadd((self.a[i], 0.0, 0.0), sy.matvec(Rx, (0.0, 0.0, self.d[i])))
+            frames.append(sy.compose(frames[-1], (R, p)))
+        frames.append(sy.compose(frames[-1], sy.frame_of(self.tool)))
+        return frames
+
+    def axes_expr(self, frames: list[Frame]) -> list[tuple[sy.Vec, sy.Vec]]:
+        """Joint axes as (unit axis z_i, point p_i on the axis), world frame."""
+        idx = range(self.dof) if self.convention == "standard" else range(1, self.dof + 1)
+        return [(sy.col(frames[k][0], 2), frames[k][1]) for k in idx]
+
+    def jacobian_expr(self, frames: list[Frame]) -> tuple[list[sy.Vec], list[sy.Vec]]:
+        """Columns of the geometric Jacobian: (linear parts, angular parts)."""
+        pe = frames[-1][1]
+        axes = self.axes_expr(frames)
+        jv = [sy.cross(z, sy.vsub(pe, p)) for z, p in axes]
+        jw = [z for z, _ in axes]
+        return jv, jw
+
+    def hessian_expr(self, frames: list[Frame]) -> list[list[tuple[sy.Vec, sy.Vec]]]:
+        r"""Kinematic Hessian: ``H[k][j] = ∂J[:, j]/∂q_k`` as (linear, angular) parts.
+
+        For revolute joints with axes :math:`z_i` and linear columns :math:`J_{v,i}`:
+        :math:`∂J_{v,j}/∂q_k = z_{\min(j,k)} \times J_{v,\max(j,k)}`, and
+        :math:`∂z_j/∂q_k = z_k \times z_j` for :math:`k < j`, else 0.
+        """
+        jv, jw = self.jacobian_expr(frames)
+        zero = (0.0, 0.0, 0.0)
+        H = []
+        for k in range(self.dof):
+            row = []
+            for j in range(self.dof):
+                lo, hi = min(j, k), max(j, k)
+                hv = sy.cross(jw[lo], jv[hi])
+                hw = sy.cross(jw[k], jw[j]) if k < j else zero
+                row.append((hv, hw))
+            H.append(row)
+        return H
+
+    # ---- CasADi -------------------------------------------------------------
+
+    @cached_property
+    def casadi_functions(self) -> dict[str, ca.Function]:
+        """CasADi functions of ``q`` (n,): ``fk`` -> (4,4), ``jacobian`` -> (6,n),
+        ``fk_jacobian`` -> both, ``frames`` -> (4, 4*(n+2)) side by side,
+        ``hessian`` -> (6*n, n) with rows ``[k*6:(k+1)*6]`` = ∂J/∂q_k."""
+        q = ca.SX.sym("q", self.dof)
+        frames = self.frames_expr([q[i] for i in range(self.dof)], sy.CASADI)
+        T = _frame_to_sx(frames[-1])
+        jv, jw = self.jacobian_expr(frames)
+        J = ca.horzcat(*[ca.vertcat(*v, *w) for v, w in zip(jv, jw)])
+        H = self.hessian_expr(frames)
+        Hs = ca.vertcat(*[ca.horzcat(*[ca.vertcat(*hv, *hw) for hv, hw in row]) for row in H])
+        F = ca.horzcat(*[_frame_to_sx(f) for f in frames])
+        return {
+            "fk": ca.Function("fk", [q], [T]),
+            "jacobian": ca.Function("jacobian", [q], [J]),
+            "fk_jacobian": ca.Function("fk_jacobian", [q], [T, J]),
+            "frames": ca.Function("frames", [q], [F]),
+            "hessian": ca.Function("hessian", [q], [Hs]),
+        }
+
+    @cached_property
+    def _compiled(self) -> dict[str, Compiled]:
+        return {k: Compiled(f) for k, f in self.casadi_functions.items()}
+
+    # ---- numeric API --------------------------------------------------------
+
+    def _batch(self, q: np.ndarray) -> list[Frame]:
+        return self.frames_expr([q[:, i] for i in range(self.dof)], sy.NUMPY)
+
+    def fk(self, q: np.ndarray) -> np.ndarray:
+        """End-effector pose in the world frame: q (n,) -> (4, 4); q (N, n) -> (N, 4, 4)."""
+        q, batched = joint_vector(q, self.dof)
+        if not batched:
+            return self._compiled["fk"](q)[0].copy()
+        return _frame_to_np(self._batch(q)[-1], len(q))
+
+    def frames(self, q: np.ndarray) -> np.ndarray:
+        """World poses of ``[base, frame_1..frame_n, ee]``: (n+2, 4, 4) or (N, n+2, 4, 4)."""
+        q, batched = joint_vector(q, self.dof)
+        if not batched:
+            F = self._compiled["frames"](q)[0]
+            return F.reshape(4, self.dof + 2, 4).transpose(1, 0, 2).copy()
+        fr = self._batch(q)
+        return np.stack([_frame_to_np(f, len(q)) for f in fr], axis=1)
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """Geometric Jacobian ``[v; ω]`` (world frame): (6, n) or (N, 6, n)."""
+        q, batched = joint_vector(q, self.dof)
+        if not batched:
+            return self._compiled["jacobian"](q)[0].copy()
+        return self._jac_np(self._batch(q), len(q))
+
+    def fk_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pose and Jacobian together (one kinematics pass)."""
+        q, batched = joint_vector(q, self.dof)
+        if not batched:
+            T, J = self._compiled["fk_jacobian"](q)
+            return T.copy(), J.copy()
+        fr = self._batch(q)
+        return _frame_to_np(fr[-1], len(q)), self._jac_np(fr, len(q))
+
+    def _jac_np(self, fr: list[Frame], n: int) -> np.ndarray:
+        jv, jw = self.jacobian_expr(fr)
+        cols = [sy.stack([*v, *w], sy.NUMPY, (n,)) for v, w in zip(jv, jw)]
+        return np.stack(cols, axis=-1)
+
+    def hessian(self, q: np.ndarray) -> np.ndarray:
+        """Kinematic Hessian ``H[..., k, :, j] = ∂J[:, j]/∂q_k``: (n, 6, n) or (N, n, 6, n)."""
+        q, batched = joint_vector(q, self.dof)
+        n = self.dof
+        if not batched:
+            return self._compiled["hessian"](q)[0].reshape(n, 6, n).copy()
+        H = self.hessian_expr(self._batch(q))
+        return np.stack(
+            [np.stack([sy.stack([*hv, *hw], sy.NUMPY, (len(q),)) for hv, hw in row], axis=-1) for row in H],
+            axis=1,
+        )
+
+    def manipulability(self, q: np.ndarray, translational: bool = False) -> np.ndarray | float:
+        """Yoshikawa's index sqrt(det(J Jᵀ)) (seed 002, eq. 6); ``translational`` uses J[:3].
+
+        Returns a float for q (n,) and an array (N,) for q (N, n).
+        """
+        J = self.jacobian(q)
+        if translational:
+            J = J[..., :3, :]
+        m = np.sqrt(np.maximum(np.linalg.det(J @ np.swapaxes(J, -1, -2)), 0.0))
+        return float(m) if m.ndim == 0 else m
+
+    def manipulability_gradient(self, q: np.ndarray, translational: bool = False) -> np.ndarray:
+        r"""∂m/∂q from the kinematic Hessian: (n,) or (N, n).
+
+        With :math:`A = J J^T`, :math:`∂m/∂q_k = m\,\mathrm{tr}(A^{-1} J H_k^T)`
+        where :math:`H_k = ∂J/∂q_k`. At a singular configuration (m = 0) the
+        pseudo-inverse is used, which gives 0 for the rank-deficient part.
+        """
+        J = self.jacobian(q)
+        H = self.hessian(q)
+        return manipulability_gradient_from(J, H, translational)
+
+
+def manipulability_gradient_from(J: np.ndarray, H: np.ndarray, translational: bool = False) -> np.ndarray:
+    """∇m from a Jacobian (..., 6, n) and Hessian (..., n, 6, n); see :meth:`DHChain.manipulability_gradient`."""
+    if translational:
+        J, H = J[..., :3, :], H[..., :3, :]
+    A = J @ np.swapaxes(J, -1, -2)
+    m = np.sqrt(np.maximum(np.linalg.det(A), 0.0))
+    B = np.linalg.pinv(A) @ J  # (..., r, n)
+    return m[..., None] * np.einsum("...rj,...krj->...k", B, H)
+
+
+def _frame_to_sx(f: Frame) -> ca.SX:
+    R, p = f
+    rows = [ca.horzcat(*R[i], p[i]) for i in range(3)]
+    return ca.vertcat(*rows, ca.DM([[0, 0, 0, 1]]))
+
+
+def _frame_to_np(f: Frame, n: int) -> np.ndarray:
+    R, p = f
+    T = np.zeros((n, 4, 4))
+    for i in range(3):
+        for j in range(3):
+            T[:, i, j] = R[i][j]
+        T[:, i, 3] = p[i]
+    T[:, 3, 3] = 1.0
+    return T

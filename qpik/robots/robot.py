@@ -1,0 +1,146 @@
+"""A robot: a DH chain plus limits, home configuration and link capsules."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+
+from qpik.robots.dh import DHChain
+from qpik.validate import joint_vector
+
+if TYPE_CHECKING:
+    import mujoco
+
+ClosedForm = Literal["offset_shoulder", "srs"] | None
+
+
+@dataclass(frozen=True)
+class LinkCapsule:
+    """A capsule rigidly attached to link ``link`` (1..n, the body moved by joint ``link``).
+
+    ``p0``, ``p1`` (3,) are the segment end points in DH frame ``link``
+    coordinates (metres); ``radius`` in metres. A zero-length segment is a sphere.
+    """
+
+    link: int
+    p0: np.ndarray
+    p1: np.ndarray
+    radius: float
+
+
+@dataclass(frozen=True)
+class Robot:
+    """A 7-DOF arm of the catalog (or a user's own DH arm).
+
+    Attributes:
+        name: catalog name.
+        chain: the kinematic model (:class:`DHChain`).
+        q_min, q_max: joint position limits (rad), shape (n,).
+        v_max: joint velocity limits (rad/s), shape (n,).
+        q_home: a home configuration (rad), shape (n,).
+        capsules: one :class:`LinkCapsule` per moving link.
+        closed_form: which analytic IK applies: ``"offset_shoulder"`` (δ),
+            ``"srs"`` (ψ) or ``None``.
+        source: where the numbers come from.
+    """
+
+    name: str
+    chain: DHChain
+    q_min: np.ndarray
+    q_max: np.ndarray
+    v_max: np.ndarray
+    q_home: np.ndarray
+    capsules: tuple[LinkCapsule, ...] = ()
+    closed_form: ClosedForm = None
+    source: str = ""
+    notes: str = field(default="", compare=False)
+
+    @property
+    def dof(self) -> int:
+        return self.chain.dof
+
+    # kinematics (see DHChain for shapes and frames)
+    def fk(self, q: np.ndarray) -> np.ndarray:
+        """End-effector pose (4, 4) in the base/world frame; batched (N, 4, 4)."""
+        return self.chain.fk(q)
+
+    def frames(self, q: np.ndarray) -> np.ndarray:
+        """World poses of ``[base, frame_1..frame_n, ee]``: (n+2, 4, 4); batched (N, n+2, 4, 4)."""
+        return self.chain.frames(q)
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """Geometric Jacobian ``[v; ω]`` in the world frame: (6, n); batched (N, 6, n)."""
+        return self.chain.jacobian(q)
+
+    def fk_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pose and Jacobian from one kinematics pass."""
+        return self.chain.fk_jacobian(q)
+
+    def hessian(self, q: np.ndarray) -> np.ndarray:
+        """Kinematic Hessian ``H[k] = ∂J/∂q_k``: (n, 6, n); batched (N, n, 6, n)."""
+        return self.chain.hessian(q)
+
+    def manipulability(self, q: np.ndarray, translational: bool = False) -> np.ndarray | float:
+        """Yoshikawa's sqrt(det(J Jᵀ)) (unitless mix of m and rad); batched (N,)."""
+        return self.chain.manipulability(q, translational)
+
+    def manipulability_gradient(self, q: np.ndarray, translational: bool = False) -> np.ndarray:
+        """∂m/∂q (per rad) from the kinematic Hessian: (n,); batched (N, n)."""
+        return self.chain.manipulability_gradient(q, translational)
+
+    def within_limits(self, q: np.ndarray, tol: float = 0.0) -> np.ndarray | bool:
+        """Whether every joint of q (n,) or (N, n) is in [q_min - tol, q_max + tol]."""
+        q, _ = joint_vector(q, self.dof)
+        ok = np.all((q >= self.q_min - tol) & (q <= self.q_max + tol), axis=-1)
+        return bool(ok) if ok.ndim == 0 else ok
+
+    def capsule_segments(self, q: np.ndarray) -> np.ndarray:
+        """World end points of every capsule: (C, 2, 3); batched (N, C, 2, 3)."""
+        F = self.frames(q)
+        out = []
+        for c in self.capsules:
+            Fk = F[..., c.link, :, :]
+            pts = np.stack([c.p0, c.p1])  # (2, 3)
+            out.append(np.einsum("...ij,pj->...pi", Fk[..., :3, :3], pts) + Fk[..., None, :3, 3])
+        return np.stack(out, axis=-3)
+
+    @cached_property
+    def capsule_radii(self) -> np.ndarray:
+        return np.array([c.radius for c in self.capsules])
+
+    def to_mjcf(self) -> str:
+        """The MJCF twin: one body per link, capsules as geoms, end-effector site ``ee``."""
+        from qpik.robots.mjcf import to_mjcf
+
+        return to_mjcf(self)
+
+    def mj_model(self) -> mujoco.MjModel:
+        """The MJCF twin compiled by MuJoCo."""
+        import mujoco
+
+        return mujoco.MjModel.from_xml_string(self.to_mjcf())
+
+
+def default_capsules(chain: DHChain, radii: tuple[float, ...]) -> tuple[LinkCapsule, ...]:
+    """One capsule per link, from its joint's axis point to the next joint's (or the ee).
+
+    The points are taken at q = 0 and expressed in the link's DH frame, where
+    they are constant for any q.
+    """
+    F = chain.frames(np.zeros(chain.dof))
+    n = chain.dof
+    axis_frames = range(0, n) if chain.convention == "standard" else range(1, n + 1)
+    pts = [F[k, :3, 3] for k in axis_frames] + [F[n + 1, :3, 3]]
+    caps = []
+    for k in range(1, n + 1):
+        inv = np.linalg.inv(F[k])
+        p0, p1 = (inv[:3, :3] @ p + inv[:3, 3] for p in (pts[k - 1], pts[k]))
+        caps.append(LinkCapsule(k, _clean(p0), _clean(p1), radii[k - 1]))
+    return tuple(caps)
+
+
+def _clean(p: np.ndarray) -> np.ndarray:
+    return np.where(np.abs(p) < 1e-12, 0.0, p)
