@@ -1,0 +1,50 @@
+"""``qpik render``: a PNG of one or several configurations of an arm."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from qpik.cli.args import add_robot, floats
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("render", help="draw configurations of an arm to a PNG (MuJoCo, offscreen)")
+    add_robot(p)
+    p.add_argument(
+        "--q",
+        action="append",
+        type=floats,
+        metavar="Q",
+        help='joint angles in rad, "q1,...,q7" (repeat for more; default: home)',
+    )
+    p.add_argument("-o", "--out", type=Path, default=Path("pose.png"), help="PNG file to write")
+    p.add_argument("--overlay", action="store_true", help="draw every configuration in one picture")
+    p.add_argument("--cols", type=int, default=None, help="tiles per row")
+    p.add_argument("--size", type=floats, default=None, metavar="W,H", help="tile size in pixels (default 480,400)")
+    p.set_defaults(func=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from qpik.errors import InputError
+    from qpik.render import RenderUnavailable, render_configurations
+    from qpik.robots.catalog import load_robot
+
+    robot = load_robot(args.robot)
+    bad = [q.shape[0] for q in args.q or () if q.shape != (robot.dof,)]
+    if bad:
+        raise InputError(f"--q: expected {robot.dof} angles, got {bad[0]}")
+    qs = np.array(args.q) if args.q else robot.q_home[None]
+    size = (480, 400) if args.size is None else tuple(int(s) for s in args.size)
+    if len(size) != 2:
+        raise InputError(f"--size: expected W,H, got {args.size}")
+    try:
+        render_configurations(robot, qs, args.out, cols=args.cols, size=size, overlay=args.overlay)
+    except RenderUnavailable as exc:
+        print(f"qpik render: nothing drawn: {exc}", file=sys.stderr)
+        return 0
+    print(f"wrote {args.out} ({len(qs)} configuration{'s' if len(qs) > 1 else ''} of {robot.name})")
+    return 0
