@@ -45,7 +45,9 @@ class Compiled:
 
     def __call__(self, *args: np.ndarray) -> Sequence[np.ndarray]:
         for dst, src in zip(self._args, args):
-            # column-major flatten for matrix inputs
-            dst[:] = np.asarray(src, dtype=float).reshape(-1, order="F") if np.ndim(src) > 1 else src
+            if type(src) is np.ndarray and src.ndim == 1:
+                dst[:] = src  # the common case, without conversions
+            else:  # column-major flatten for matrix inputs
+                dst[:] = np.asarray(src, dtype=float).reshape(-1, order="F")
         self._eval()
         return self._views

@@ -45,8 +45,8 @@ class Ops:
     floor: Callable[[Scalar], Scalar]
 
     def wrap(self, x: Scalar) -> Scalar:
-        """Wrap an angle to (-pi, pi]."""
-        return x - 2.0 * np.pi * self.floor((x + np.pi) / (2.0 * np.pi)) if not _const(x) else _wrap_const(x)
+        """Wrap an angle to (-pi, pi]: ``x + 2π floor((π - x) / 2π)`` (so -π maps to π)."""
+        return x + 2.0 * np.pi * self.floor((np.pi - x) / (2.0 * np.pi)) if not _const(x) else _wrap_const(x)
 
     def safe_sqrt(self, x: Scalar) -> Scalar:
         """sqrt(max(x, 0)): never NaN for a slightly negative argument."""
@@ -54,7 +54,7 @@ class Ops:
 
 
 def _wrap_const(x: float) -> float:
-    return float(x - 2.0 * np.pi * np.floor((x + np.pi) / (2.0 * np.pi)))
+    return float(x + 2.0 * np.pi * np.floor((np.pi - x) / (2.0 * np.pi)))
 
 
 def _np_where(c: Scalar, a: Scalar, b: Scalar) -> Scalar:

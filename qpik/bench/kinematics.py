@@ -1,0 +1,98 @@
+"""Pose + Jacobian of the end effector: qpik beside mink and raw MuJoCo on the same arm.
+
+For each arm, mink runs on qpik's MJCF twin (:meth:`Robot.mj_model`, site
+``ee``); the twin's pose and Jacobian are first checked against qpik's (mink
+returns the Jacobian in the site frame, so it is rotated to the base frame).
+Rows per arm:
+
+- qpik single configuration, ``robot.fk_jacobian(q)`` (validated input, copied outputs);
+- mink: ``cfg.update(q)``, ``get_frame_jacobian("ee", "site")``,
+  ``get_transform_frame_to_world("ee", "site")``;
+- raw MuJoCo, the floor under mink: ``mj_kinematics + mj_comPos + mj_jacSite``
+  (no pose copy, no frame change);
+- qpik batched, ``robot.fk_jacobian(Q)`` with Q (10000, 7), reported per configuration.
+
+Configurations are drawn once, uniformly inside the limits; the single-q rows
+cycle through the first 1000 of them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+from collections.abc import Callable
+
+import mink
+import mujoco
+import numpy as np
+
+from qpik.bench import Row, time_calls
+from qpik.robots.catalog import load_robot
+from qpik.robots.robot import Robot
+
+TITLE = "kinematics: end-effector pose + geometric Jacobian (qpik vs mink vs raw MuJoCo)"
+ARMS = ("iiwa14", "panda", "nammoto7", "zheng7")
+BATCH = 10_000
+
+
+def run(args: argparse.Namespace) -> list[Row]:
+    rows: list[Row] = []
+    for name in ARMS:
+        rows += _arm_rows(name, args.repeat)
+    return rows
+
+
+def _arm_rows(name: str, repeat: int) -> list[Row]:
+    robot = load_robot(name)
+    Q = np.random.default_rng(0).uniform(robot.q_min, robot.q_max, size=(BATCH, robot.dof))
+    model = robot.mj_model()
+    cfg = mink.Configuration(model)
+    data = mujoco.MjData(model)
+    site = model.site("ee").id
+    jp, jr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+
+    def qpik_single(q: np.ndarray) -> object:
+        return robot.fk_jacobian(q)
+
+    def mink_single(q: np.ndarray) -> tuple[np.ndarray, mink.SE3]:
+        cfg.update(q)
+        return cfg.get_frame_jacobian("ee", "site"), cfg.get_transform_frame_to_world("ee", "site")
+
+    def raw_single(q: np.ndarray) -> None:
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        mujoco.mj_jacSite(model, data, jp, jr, site)
+
+    agree = _twin_error(robot, Q[:100], mink_single)
+
+    def cycled(fn: Callable[[np.ndarray], object]) -> Callable[[], object]:
+        it = itertools.cycle(Q[:1000])
+        return lambda: fn(next(it))
+
+    mink_label = f"{name}: mink"
+    rows = []
+    for label, fn, ref, note in [
+        (f"{name}: qpik fk_jacobian (1 q)", qpik_single, mink_label, ""),
+        (mink_label, mink_single, None, f"(twin agrees with qpik to {agree:.0e})"),
+        (f"{name}: raw mujoco (floor)", raw_single, mink_label, ""),
+    ]:
+        t = time_calls(cycled(fn), repeat)
+        rows.append(Row(label, float(np.median(t)), ref, float(np.percentile(t, 99)), float(t.max()), note))
+    tb = time_calls(lambda: robot.fk_jacobian(Q), max(3, repeat // 400), warmup=1)
+    per_q = float(np.median(tb)) / BATCH
+    rows.append(Row(f"{name}: qpik batched N={BATCH}, per q", per_q, mink_label, note=f"({1 / per_q:.2e} q/s)"))
+    return rows
+
+
+def _twin_error(robot: Robot, Q: np.ndarray, mink_single: Callable[[np.ndarray], tuple]) -> float:
+    """Largest difference of pose and base-frame Jacobian between qpik and mink on the twin."""
+    err = 0.0
+    for q in Q:
+        T, J = robot.fk_jacobian(q)
+        J_site, pose = mink_single(q)
+        Tm = pose.as_matrix()
+        R = Tm[:3, :3]
+        J_base = np.vstack([R @ J_site[:3], R @ J_site[3:]])
+        err = max(err, np.abs(Tm - T).max(), np.abs(J_base - J).max())
+    return err

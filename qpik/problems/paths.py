@@ -1,0 +1,118 @@
+r"""Named end-effector paths for ``[target] path = "..."`` in problem files.
+
+A path is a time-parametrised target: :meth:`TargetPath.pose` (4, 4) and the
+feed-forward :meth:`TargetPath.twist` ``[v; ω]`` (6,), both in the base frame,
+for ``0 <= t <= duration`` (s). Both accept a scalar ``t`` or an array ``t``
+(K,), which gives (K, 4, 4) and (K, 6).
+
+A path formula is registered by name with :func:`path_formula`; its builder
+receives the robot and the ``[target.path_params]`` table and returns a
+:class:`TargetPath`. Unknown or missing parameters raise ``KeyError``/
+``ValueError`` subclasses that the loader reports with the file name.
+
+Registered formulas:
+
+- ``zheng2019`` — seed 002, eq. (19), from the initial configuration ``q0``
+  (default the paper's ``(0, 1.0472, -0.5236, -2.0944, 0, 1.5708, -1.5708)``)
+  with initial pose :math:`(R_0, p_0) = \mathrm{fk}(q_0)` and constant
+  orientation :math:`R_0`. Read literally, eq. (19) is
+  :math:`p(t) = p_0 + (0.4\cos 0.5t,\; 0.4\sin t,\; 0.2 e^{-0.2t})`, which
+  starts 0.45 m away from :math:`p_0` (``reading = "literal"``). The
+  ``"relative"`` reading subtracts the value at t = 0 so that the path starts
+  at the initial pose:
+  :math:`p(t) = p_0 + (0.4(\cos 0.5t - 1),\; 0.4\sin t,\; 0.2(e^{-0.2t} - 1))`.
+  Both have the velocity :math:`\dot p = (-0.2\sin 0.5t,\; 0.4\cos t,\; -0.04 e^{-0.2t})`
+  and ω = 0. Parameters: ``reading`` (required: ``"relative"`` or
+  ``"literal"``), ``duration`` (s, default 20), ``q0`` (7 floats, optional).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from qpik.robots.robot import Robot
+from qpik.validate import finite_array
+
+
+@dataclass(frozen=True)
+class TargetPath:
+    """A position path with a constant orientation (the form of every registered formula).
+
+    Attributes:
+        name: the formula's registry name.
+        duration: end time (s).
+        q0: initial configuration (rad) the path starts from, shape (7,), or ``None``.
+        rotation: the constant end-effector orientation, (3, 3), base frame.
+        position: ``t -> p(t)``, maps (K,) times to (K, 3) positions (m, base frame).
+        velocity: ``t -> ṗ(t)``, (K,) -> (K, 3) (m/s, base frame).
+    """
+
+    name: str
+    duration: float
+    q0: np.ndarray | None
+    rotation: np.ndarray
+    position: Callable[[np.ndarray], np.ndarray]
+    velocity: Callable[[np.ndarray], np.ndarray]
+
+    def pose(self, t: float | np.ndarray) -> np.ndarray:
+        """Target pose at time ``t`` (s): (4, 4), or (K, 4, 4) for ``t`` of shape (K,)."""
+        ts = np.atleast_1d(np.asarray(t, dtype=float))
+        T = np.zeros((len(ts), 4, 4))
+        T[:, :3, :3] = self.rotation
+        T[:, :3, 3] = self.position(ts)
+        T[:, 3, 3] = 1.0
+        return T[0] if np.ndim(t) == 0 else T
+
+    def twist(self, t: float | np.ndarray) -> np.ndarray:
+        """Feed-forward twist ``[v; ω]`` (m/s, rad/s, base frame) at ``t``: (6,) or (K, 6)."""
+        ts = np.atleast_1d(np.asarray(t, dtype=float))
+        V = np.zeros((len(ts), 6))
+        V[:, :3] = self.velocity(ts)
+        return V[0] if np.ndim(t) == 0 else V
+
+
+PathBuilder = Callable[[Robot, dict[str, Any]], TargetPath]
+PATHS: dict[str, PathBuilder] = {}
+
+
+def path_formula(name: str) -> Callable[[PathBuilder], PathBuilder]:
+    """Decorator: register ``builder(robot, params) -> TargetPath`` under ``name``."""
+
+    def register(builder: PathBuilder) -> PathBuilder:
+        PATHS[name] = builder
+        return builder
+
+    return register
+
+
+ZHENG2019_Q0 = (0.0, 1.0472, -0.5236, -2.0944, 0.0, 1.5708, -1.5708)
+
+
+@path_formula("zheng2019")
+def zheng2019(robot: Robot, params: dict[str, Any]) -> TargetPath:
+    """Seed 002, eq. (19); see the module docstring for the two readings."""
+    unknown = set(params) - {"reading", "duration", "q0"}
+    if unknown:
+        raise ValueError(f"unknown parameter(s) {', '.join(sorted(unknown))}; known: reading, duration, q0")
+    reading = params.get("reading")
+    if reading not in ("relative", "literal"):
+        raise ValueError(f"reading must be 'relative' or 'literal', got {reading!r}")
+    duration = float(params.get("duration", 20.0))
+    if not duration > 0:
+        raise ValueError(f"duration must be > 0 s, got {duration}")
+    q0 = finite_array(params.get("q0", ZHENG2019_Q0), "q0", (robot.dof,))
+    T0 = robot.fk(q0)
+
+    def wave(t: np.ndarray) -> np.ndarray:
+        return np.stack([0.4 * np.cos(0.5 * t), 0.4 * np.sin(t), 0.2 * np.exp(-0.2 * t)], axis=-1)
+
+    def velocity(t: np.ndarray) -> np.ndarray:
+        return np.stack([-0.2 * np.sin(0.5 * t), 0.4 * np.cos(t), -0.04 * np.exp(-0.2 * t)], axis=-1)
+
+    # literal: p0 + wave(t); relative: the same curve moved so that it starts at p0
+    origin = T0[:3, 3] - (wave(np.zeros(1))[0] if reading == "relative" else 0.0)
+    return TargetPath("zheng2019", duration, q0, T0[:3, :3].copy(), lambda t: origin + wave(t), velocity)

@@ -1,0 +1,408 @@
+r"""Problem files (``problems/*.toml``) and the typed :class:`Problem` they load into.
+
+Format (TOML; every key below is the whole vocabulary: an unknown key is an error)::
+
+    name = "..."              # optional, defaults to the file stem
+    kind = "ik"               # required: "ik" | "track" | "reach" | "plan"
+    description = "..."       # optional, one line
+    source = "..."            # optional: paper, equations, tables
+
+    [robot]
+    name = "nammoto7"         # required: a catalog name (qpik.CATALOG)
+    q_min = [7 floats]        # optional overrides (rad), each shape (7,)
+    q_max = [7 floats]        #   (rad)
+    v_max = [7 floats]        #   (rad/s, > 0)
+    q_home = [7 floats]       #   (rad)
+
+    [target]                  # required; exactly one of the five forms:
+    # 1. explicit pose(s), 4x4 rows; one pose or a list of poses
+    pose = [[r11, r12, r13, px], [..], [..], [0, 0, 0, 1]]
+    # 2. rotation + position. `rotation` is written BY ROWS: its COLUMNS are the
+    #    end-effector axes (n, t, b) = (x, y, z) in the base frame (m for position)
+    rotation = [[nx, tx, bx], [ny, ty, by], [nz, tz, bz]]
+    position = [px, py, pz]
+    sweep = { axis = "z", start = 0.3, stop = 0.9, num = 25 }   # optional: the
+    #    pose is repeated with position[axis] = linspace(start, stop, num)
+    project = true            # forms 1-2, optional (default false): project the
+    #    rotation onto SO(3); without it a rotation that is not orthonormal
+    #    within 1e-6 is an error
+    # 3. joint configuration(s) (rad): poses = fk(q); q (7,) or (N, 7)
+    q = [7 floats]
+    # 4. seeded random set: q = np.random.default_rng(seed).uniform(q_min, q_max,
+    #    size=(count, 7)) (limits after overrides), poses = fk(q)
+    random = { seed = 0, count = 100 }
+    # 5. a named path formula (qpik.problems.paths.PATHS) and its parameters
+    path = "zheng2019"
+    [target.path_params]
+    reading = "relative"
+
+    [parameter]               # kinds "ik" and "plan" only, optional; exactly one of:
+    value = -0.80             #   the redundancy parameter δ or ψ (rad)
+    values = [-0.8, 0.0]      #   a list
+    sweep = { start = -3.14159, stop = 3.14159, num = 73 }   # linspace, inclusive
+
+    [[obstacles]]             # optional, any number; `name` is optional on each
+    type = "sphere"           # center (3,), radius > 0
+    # type = "capsule"        # p0 (3,), p1 (3,), radius > 0
+    # type = "box"            # center (3,), half_extents (3,) > 0, rotation (3x3 rows, optional)
+    # type = "halfspace"      # normal (3,) != 0, offset: the free side is normal·x >= offset
+
+    [solver]                  # optional, free-form: passed to the runner (dt, gains, ...)
+    [expected]                # optional, free-form: figures from the paper; lists of
+                              # numbers become arrays (e.g. q = [[..7..], ...]: float (16, 7))
+
+Kinds and targets: ``ik`` and ``reach`` need poses (forms 1-4), ``track`` a path
+(form 5), ``plan`` either.
+
+All positions and obstacle data are in the robot's base frame, metres. Errors
+raise :class:`qpik.errors.ProblemFileError` naming the file and the field.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from qpik.errors import InputError, ProblemFileError, UnknownRobotError
+from qpik.problems.paths import PATHS, TargetPath
+from qpik.robots.catalog import load_robot
+from qpik.robots.robot import Robot
+from qpik.validate import finite_array
+from qpik.validate import pose as check_pose
+
+Kind = Literal["ik", "track", "reach", "plan"]
+KINDS: tuple[str, ...] = ("ik", "track", "reach", "plan")
+
+# obstacle type -> (required fields with shapes, optional fields with shapes)
+OBSTACLES: dict[str, tuple[dict[str, tuple[int, ...]], dict[str, tuple[int, ...]]]] = {
+    "sphere": ({"center": (3,), "radius": ()}, {}),
+    "capsule": ({"p0": (3,), "p1": (3,), "radius": ()}, {}),
+    "box": ({"center": (3,), "half_extents": (3,)}, {"rotation": (3, 3)}),
+    "halfspace": ({"normal": (3,), "offset": ()}, {}),
+}
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """One problem file, checked and converted.
+
+    Attributes:
+        name, kind, description, source: as in the file (``name`` defaults to the stem).
+        robot: the catalog robot with the file's limit overrides applied.
+        poses: target poses (N, 4, 4), base frame, or ``None`` for a path target.
+        q_targets: (N, 7) configurations the poses were made from (target forms
+            ``q`` and ``random``), else ``None``.
+        path: the :class:`~qpik.problems.paths.TargetPath` of form ``path``, else ``None``.
+        params: redundancy parameter values (M,) in rad, or ``None``.
+        obstacles: one dict per obstacle: ``type``, ``name`` and its fields as
+            float arrays (3,) / (3, 3) or floats; a box always has a ``rotation``
+            (identity by default), a half-space a unit ``normal`` (the offset is
+            rescaled with it).
+        solver: the ``[solver]`` table.
+        expected: the ``[expected]`` table, numeric lists as arrays (int if all are integers, else float).
+        file: the path it was read from.
+    """
+
+    name: str
+    kind: Kind
+    description: str
+    source: str
+    robot: Robot
+    poses: np.ndarray | None
+    q_targets: np.ndarray | None
+    path: TargetPath | None
+    params: np.ndarray | None
+    obstacles: list[dict[str, Any]]
+    solver: dict[str, Any]
+    expected: dict[str, Any]
+    file: Path
+
+
+def problems_folder() -> Path:
+    """The problem folder: ``./problems`` if it exists, else the one beside the qpik sources."""
+    here = Path.cwd() / "problems"
+    if here.is_dir():
+        return here
+    import qpik
+
+    return Path(qpik.__file__).resolve().parents[1] / "problems"
+
+
+def problem_files(folder: Path | None = None) -> list[Path]:
+    """The ``*.toml`` files of ``folder`` (default :func:`problems_folder`), sorted by name."""
+    return sorted((folder or problems_folder()).glob("*.toml"))
+
+
+def list_problems(folder: Path | None = None) -> list[Problem]:
+    """Every problem of ``folder`` (default :func:`problems_folder`), loaded, sorted by file name."""
+    return [load(f) for f in problem_files(folder)]
+
+
+def find_problem(name_or_path: str | Path) -> Path:
+    """A file path as given if it exists, else ``<problems folder>/<name>.toml``."""
+    p = Path(name_or_path)
+    if p.is_file():
+        return p
+    candidate = problems_folder() / f"{p.name}.toml"
+    if candidate.is_file():
+        return candidate
+    raise ProblemFileError(f"{name_or_path}: no such file, and no problem of that name in {problems_folder()}")
+
+
+def load(path: str | Path) -> Problem:
+    """Read and check one problem file; see the module docstring for the format."""
+    return _Reader(Path(path)).problem()
+
+
+class _Reader:
+    """Reads one file; every error names the file and the field."""
+
+    def __init__(self, file: Path):
+        self.file = file
+
+    def fail(self, field: str, message: str) -> ProblemFileError:
+        return ProblemFileError(f"{self.file}: {field}: {message}")
+
+    # ---- generic checks -----------------------------------------------------
+
+    def table(self, value: Any, field: str, required: set[str], optional: set[str] = frozenset()) -> dict[str, Any]:
+        if not isinstance(value, dict):
+            raise self.fail(field, f"expected a table, got {type(value).__name__}")
+        missing = required - set(value)
+        if missing:
+            raise self.fail(field, f"missing {', '.join(sorted(missing))}")
+        unknown = set(value) - required - set(optional)
+        if unknown:
+            raise self.fail(field, f"unknown key(s) {', '.join(sorted(unknown))}")
+        return value
+
+    def array(self, value: Any, field: str, shape: tuple[int | None, ...]) -> np.ndarray:
+        try:
+            return finite_array(value, field, shape).copy()
+        except InputError as exc:
+            raise ProblemFileError(f"{self.file}: {exc}") from None
+
+    def stacked(self, value: Any, field: str, shape: tuple[int, ...]) -> np.ndarray:
+        """One item of ``shape`` or a list of them, as (N, *shape)."""
+        arr = self.array(value, field, None)
+        return self.array(arr[None] if arr.ndim == len(shape) else arr, field, (None, *shape))
+
+    def free(self, value: Any, field: str) -> dict[str, Any]:
+        """A free-form table."""
+        if not isinstance(value, dict):
+            raise self.fail(field, f"expected a table, got {type(value).__name__}")
+        return value
+
+    def number(self, value: Any, field: str, positive: bool = False) -> float:
+        x = float(self.array(value, field, ()))
+        if positive and not x > 0:
+            raise self.fail(field, f"must be > 0, got {x}")
+        return x
+
+    def count(self, value: Any, field: str) -> int:
+        if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+            raise self.fail(field, f"expected an integer >= 1, got {value!r}")
+        return value
+
+    def text(self, value: Any, field: str) -> str:
+        if not isinstance(value, str):
+            raise self.fail(field, f"expected a string, got {type(value).__name__}")
+        return value
+
+    def poses(self, T: np.ndarray, field: str, project: bool) -> np.ndarray:
+        try:
+            T, _ = check_pose(T, field, project)
+        except InputError as exc:  # includes RotationError
+            raise ProblemFileError(f"{self.file}: {exc}") from None
+        return T.reshape(-1, 4, 4)
+
+    # ---- sections -----------------------------------------------------------
+
+    def problem(self) -> Problem:
+        try:
+            with open(self.file, "rb") as fh:
+                data = tomllib.load(fh)
+        except FileNotFoundError:
+            raise ProblemFileError(f"{self.file}: no such file") from None
+        except tomllib.TOMLDecodeError as exc:
+            raise ProblemFileError(f"{self.file}: not valid TOML ({exc})") from None
+        optional = {"name", "description", "source", "parameter", "obstacles", "solver", "expected"}
+        self.table(data, "top level", {"kind", "robot", "target"}, optional)
+        kind = self.text(data["kind"], "kind")
+        if kind not in KINDS:
+            raise self.fail("kind", f"unknown kind {kind!r}; known: {', '.join(KINDS)}")
+        robot = self.robot(data["robot"])
+        poses, q_targets, path = self.target(data["target"], robot)
+        if kind == "track" and path is None:
+            raise self.fail("target", "kind 'track' needs a path target (target.path)")
+        if kind in ("ik", "reach") and poses is None:
+            raise self.fail("target", f"kind {kind!r} needs poses (pose, rotation+position, q or random), not a path")
+        params = None
+        if "parameter" in data:
+            if kind not in ("ik", "plan"):
+                raise self.fail("parameter", f"only kinds 'ik' and 'plan' take a parameter, not {kind!r}")
+            params = self.parameter(data["parameter"])
+        obstacles = data.get("obstacles", [])
+        if not isinstance(obstacles, list):
+            raise self.fail("obstacles", "expected an array of tables ([[obstacles]])")
+        return Problem(
+            name=self.text(data.get("name", self.file.stem), "name"),
+            kind=kind,  # type: ignore[arg-type]
+            description=self.text(data.get("description", ""), "description"),
+            source=self.text(data.get("source", ""), "source"),
+            robot=robot,
+            poses=poses,
+            q_targets=q_targets,
+            path=path,
+            params=params,
+            obstacles=[self.obstacle(o, f"obstacles[{i}]") for i, o in enumerate(obstacles)],
+            solver=self.free(data.get("solver", {}), "solver"),
+            expected={k: _numeric(v) for k, v in self.free(data.get("expected", {}), "expected").items()},
+            file=self.file,
+        )
+
+    def robot(self, value: Any) -> Robot:
+        overrides = ("q_min", "q_max", "v_max", "q_home")
+        tbl = self.table(value, "robot", {"name"}, set(overrides))
+        try:
+            robot = load_robot(self.text(tbl["name"], "robot.name"))
+        except UnknownRobotError as exc:
+            raise self.fail("robot.name", str(exc)) from None
+        changes = {k: self.array(tbl[k], f"robot.{k}", (robot.dof,)) for k in overrides if k in tbl}
+        if not changes:
+            return robot
+        robot = dataclasses.replace(robot, **changes)
+        if not np.all(robot.q_min < robot.q_max):
+            raise self.fail("robot", "q_min must be < q_max on every joint")
+        if not np.all(robot.v_max > 0):
+            raise self.fail("robot.v_max", "must be > 0 on every joint")
+        return robot
+
+    def target(self, value: Any, robot: Robot) -> tuple[np.ndarray | None, np.ndarray | None, TargetPath | None]:
+        forms = {
+            "pose": ({"pose"}, {"project"}),
+            "rotation": ({"rotation", "position"}, {"project", "sweep"}),
+            "q": ({"q"}, set()),
+            "random": ({"random"}, set()),
+            "path": ({"path"}, {"path_params"}),
+        }
+        if not isinstance(value, dict):
+            raise self.fail("target", "expected a table")
+        given = [f for f in forms if f in value or (f == "rotation" and "position" in value)]
+        if len(given) != 1:
+            names = "pose | rotation+position | q | random | path"
+            raise self.fail("target", f"give exactly one of {names}; got {', '.join(given) or 'none'}")
+        form = given[0]
+        required, optional = forms[form]
+        tbl = self.table(value, "target", required, optional)
+        project = tbl.get("project", False)
+        if not isinstance(project, bool):
+            raise self.fail("target.project", "expected true or false")
+        if form == "pose":
+            T = self.stacked(tbl["pose"], "target.pose", (4, 4))
+            return self.poses(T, "target.pose", project), None, None
+        if form == "rotation":
+            T = np.eye(4)
+            T[:3, :3] = self.array(tbl["rotation"], "target.rotation", (3, 3))
+            T[:3, 3] = self.array(tbl["position"], "target.position", (3,))
+            T = self.poses(T, "target.rotation", project)
+            if "sweep" in tbl:
+                T = self.sweep(T[0], tbl["sweep"])
+            return T, None, None
+        if form == "q":
+            q = self.stacked(tbl["q"], "target.q", (robot.dof,))
+            return robot.fk(q), q, None
+        if form == "random":
+            rnd = self.table(tbl["random"], "target.random", {"seed", "count"})
+            seed = rnd["seed"]
+            if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
+                raise self.fail("target.random.seed", f"expected an integer >= 0, got {seed!r}")
+            count = self.count(rnd["count"], "target.random.count")
+            q = np.random.default_rng(seed).uniform(robot.q_min, robot.q_max, size=(count, robot.dof))
+            return robot.fk(q), q, None
+        name = self.text(tbl["path"], "target.path")
+        if name not in PATHS:
+            raise self.fail("target.path", f"unknown path {name!r}; known: {', '.join(sorted(PATHS))}")
+        params = self.free(tbl.get("path_params", {}), "target.path_params")
+        try:
+            path = PATHS[name](robot, params)
+        except (ValueError, TypeError) as exc:  # InputError is a ValueError
+            raise self.fail("target.path_params", str(exc)) from None
+        return None, None, path
+
+    def sweep(self, T: np.ndarray, value: Any) -> np.ndarray:
+        tbl = self.table(value, "target.sweep", {"axis", "start", "stop", "num"})
+        axes = {"x": 0, "y": 1, "z": 2}
+        if tbl["axis"] not in axes:
+            raise self.fail("target.sweep.axis", f"expected 'x', 'y' or 'z', got {tbl['axis']!r}")
+        values = np.linspace(
+            self.number(tbl["start"], "target.sweep.start"),
+            self.number(tbl["stop"], "target.sweep.stop"),
+            self.count(tbl["num"], "target.sweep.num"),
+        )
+        out = np.repeat(T[None], len(values), axis=0)
+        out[:, axes[tbl["axis"]], 3] = values
+        return out
+
+    def parameter(self, value: Any) -> np.ndarray:
+        if not isinstance(value, dict) or len(set(value) & {"value", "values", "sweep"}) != 1:
+            raise self.fail("parameter", "give exactly one of value, values, sweep")
+        tbl = self.table(value, "parameter", set(), {"value", "values", "sweep"})
+        if "value" in tbl:
+            return self.array(tbl["value"], "parameter.value", ()).reshape(1)
+        if "values" in tbl:
+            return self.array(tbl["values"], "parameter.values", (None,))
+        sw = self.table(tbl["sweep"], "parameter.sweep", {"start", "stop", "num"})
+        return np.linspace(
+            self.number(sw["start"], "parameter.sweep.start"),
+            self.number(sw["stop"], "parameter.sweep.stop"),
+            self.count(sw["num"], "parameter.sweep.num"),
+        )
+
+    def obstacle(self, value: Any, field: str) -> dict[str, Any]:
+        if not isinstance(value, dict) or "type" not in value:
+            raise self.fail(field, "expected a table with a 'type'")
+        kind = value["type"]
+        if kind not in OBSTACLES:
+            raise self.fail(f"{field}.type", f"unknown obstacle type {kind!r}; known: {', '.join(OBSTACLES)}")
+        required, optional = OBSTACLES[kind]
+        tbl = self.table(value, field, {"type", *required}, {"name", *optional})
+        out: dict[str, Any] = {"type": kind, "name": self.text(tbl.get("name", field), f"{field}.name")}
+        for key, shape in {**required, **optional}.items():
+            if key in tbl:
+                x = self.array(tbl[key], f"{field}.{key}", shape)
+                out[key] = float(x) if shape == () else x
+        if "radius" in out and not out["radius"] > 0:
+            raise self.fail(f"{field}.radius", f"must be > 0, got {out['radius']}")
+        if kind == "box":
+            if not np.all(out["half_extents"] > 0):
+                raise self.fail(f"{field}.half_extents", "must be > 0 on every axis")
+            T = np.eye(4)
+            T[:3, :3] = out.get("rotation", np.eye(3))
+            out["rotation"] = self.poses(T, f"{field}.rotation", project=False)[0, :3, :3]
+        if kind == "halfspace":
+            norm = float(np.linalg.norm(out["normal"]))
+            if norm < 1e-12:
+                raise self.fail(f"{field}.normal", "must be nonzero")
+            out["normal"] = out["normal"] / norm
+            out["offset"] = out["offset"] / norm
+        return out
+
+
+def _numeric(value: Any) -> Any:
+    """A list of numbers (or of equal-length lists) as an int or float array; anything else unchanged."""
+    if isinstance(value, list) and value:
+        try:
+            arr = np.asarray(value)
+        except ValueError:  # ragged
+            return value
+        if arr.dtype.kind in "iu":
+            return arr.astype(np.int64)
+        if arr.dtype.kind == "f":
+            return arr.astype(float)
+    return value

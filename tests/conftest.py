@@ -1,0 +1,91 @@
+"""Shared fixtures, hypothesis strategies and finite-difference helpers.
+
+Use them from any test module (pytest imports this file automatically; import
+the helpers with ``from conftest import ...``):
+
+- ``ARMS``: the names of the built-in arms; the ``robot`` fixture is
+  parametrised over them (``def test_x(robot): ...`` runs once per arm).
+- ``random_q(robot, n, seed, margin=0.0)``: ``(n, 7)`` configurations drawn
+  uniformly inside ``[q_min + margin, q_max - margin]`` (a numpy generator
+  seeded with ``seed``). Draw many at once so that 10,000 configurations cost
+  one batched call; hypothesis then draws the *seed*::
+
+      @settings(max_examples=5, deadline=None)
+      @given(seed=SEEDS)
+      def test_something(robot, seed):
+          q = random_q(robot, 2000, seed)
+
+- ``q_within_limits(robot)``: a hypothesis strategy of one ``(7,)``
+  configuration inside the limits (shrinks joint by joint), for tests that
+  need single draws.
+- ``fd(f, q, eps=1e-6)``: central finite differences of any ``f(q) -> array``;
+  works on one ``q`` (n,) and on a batch ``(N, n)`` when ``f`` is batched.
+  Returns ``(..., n)`` with the derivative index last: for ``f`` returning
+  (N, 4, 4), the result is (N, 4, 4, n).
+- ``fd_geometric_jacobian(fk, q, eps=1e-6)``: the geometric Jacobian
+  ``[v; ω]`` (base frame) from FK alone: ``v = ∂p/∂q``, and the angular part
+  from the rotation derivative, ``[ω_k]_× = (∂R/∂q_k) Rᵀ``. Shapes as ``fk``:
+  (6, n) for one q, (N, 6, n) for a batch.
+
+Central differences with ``eps = 1e-6`` have truncation error ~eps² and
+round-off ~1e-16/eps, so agreement to 1e-6 (absolute) is a meaningful test.
+"""
+
+from __future__ import annotations
+
+import os
+
+# MuJoCo picks its GL backend at first import; test modules may import mujoco
+# before qpik, so default to software rendering here too (see qpik/__init__.py).
+os.environ.setdefault("MUJOCO_GL", "osmesa")
+
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+from hypothesis import strategies as st
+
+import qpik
+
+ARMS = ("nammoto7", "iiwa14", "zheng7", "panda")
+SEEDS = st.integers(min_value=0, max_value=2**32 - 1)
+
+
+@pytest.fixture(params=ARMS, scope="session")
+def robot(request: pytest.FixtureRequest) -> qpik.Robot:
+    """Each built-in arm in turn (session scope: robots are immutable, so hypothesis may reuse it)."""
+    return qpik.load_robot(request.param)
+
+
+def random_q(robot: qpik.Robot, n: int, seed: int, margin: float = 0.0) -> np.ndarray:
+    """``(n, dof)`` configurations uniform in ``[q_min + margin, q_max - margin]`` (rad)."""
+    rng = np.random.default_rng(seed)
+    return rng.uniform(robot.q_min + margin, robot.q_max - margin, size=(n, robot.dof))
+
+
+def q_within_limits(robot: qpik.Robot) -> st.SearchStrategy[np.ndarray]:
+    """Hypothesis strategy: one configuration ``(dof,)`` inside the joint limits."""
+    joints = [st.floats(lo, hi, allow_nan=False) for lo, hi in zip(robot.q_min, robot.q_max)]
+    return st.tuples(*joints).map(np.array)
+
+
+def fd(f: Callable[[np.ndarray], np.ndarray], q: np.ndarray, eps: float = 1e-6) -> np.ndarray:
+    """Central differences ``∂f/∂q_k``, stacked on a new last axis: (..., n)."""
+    q = np.asarray(q, dtype=float)
+    cols = []
+    for k in range(q.shape[-1]):
+        dq = np.zeros_like(q)
+        dq[..., k] = eps
+        cols.append((np.asarray(f(q + dq)) - np.asarray(f(q - dq))) / (2 * eps))
+    return np.stack(cols, axis=-1)
+
+
+def fd_geometric_jacobian(fk: Callable[[np.ndarray], np.ndarray], q: np.ndarray, eps: float = 1e-6) -> np.ndarray:
+    """Geometric Jacobian ``[v; ω]`` (base frame) by central differences of ``fk``: (6, n) or (N, 6, n)."""
+    T = fk(q)
+    dT = fd(fk, q, eps)  # (..., 4, 4, n)
+    Jv = dT[..., :3, 3, :]
+    # W_k = (∂R/∂q_k) Rᵀ is skew: W = [ω]_×, ω = (W21, W02, W10)
+    W = np.einsum("...ijk,...lj->...kil", dT[..., :3, :3, :], T[..., :3, :3])  # (..., n, 3, 3)
+    Jw = np.stack([W[..., 2, 1], W[..., 0, 2], W[..., 1, 0]], axis=-2)
+    return np.concatenate([Jv, Jw], axis=-2)
