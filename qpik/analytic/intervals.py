@@ -76,13 +76,28 @@ def assemble(breaks: np.ndarray, feasible_at: Callable[[np.ndarray], np.ndarray]
     Returns:
         Sorted disjoint closed intervals in [-pi, pi].
     """
+    return assemble_many(breaks, lambda m: np.asarray(feasible_at(m), dtype=bool)[:, None])[0]
+
+
+def assemble_many(breaks: np.ndarray, feasible_at: Callable[[np.ndarray], np.ndarray]) -> list[list[Interval]]:
+    """:func:`assemble` for B branches that share breakpoints: ``feasible_at`` maps (M,) to (M, B) booleans.
+
+    One call of ``feasible_at`` classifies every gap of every branch (one
+    batched IK evaluation). Returns one interval list per branch.
+    """
     b = np.unique(np.round(wrap(np.asarray(breaks, dtype=float).ravel()), 15))
     if b.size == 0:
-        return [(-np.pi, np.pi)] if bool(feasible_at(np.array([0.0]))[0]) else []
+        ok = np.asarray(feasible_at(np.array([0.0])), dtype=bool)[0]
+        return [[(-np.pi, np.pi)] if o else [] for o in ok]
     # gaps (b[i], b[i+1]) and the wrap-around gap (b[-1], b[0] + 2π)
     lo = b
     hi = np.append(b[1:], b[0] + TWO_PI)
     ok = np.asarray(feasible_at(wrap(0.5 * (lo + hi))), dtype=bool)
+    return [_merge(lo, hi, ok[:, j]) for j in range(ok.shape[1])]
+
+
+def _merge(lo: np.ndarray, hi: np.ndarray, ok: np.ndarray) -> list[Interval]:
+    """Join the feasible gaps (lo[i], hi[i]) into sorted disjoint intervals of [-pi, pi]."""
     out: list[Interval] = []
     for i in np.flatnonzero(ok):
         a, c = float(lo[i]), float(hi[i])

@@ -23,6 +23,9 @@ from qpik import symbolic as sy
 from qpik.compiled import Compiled
 from qpik.symbolic import Mat, Ops, Scalar, Vec
 
+MANY_CHUNK = 32
+"""Parameters per call of the compiled sweep :meth:`AnalyticSolver.solve_many`."""
+
 if TYPE_CHECKING:
     from qpik.robots.robot import Robot
 
@@ -104,12 +107,46 @@ class AnalyticSolver(ABC):
         Q, valid, singular = self._compiled(T, np.array([param]))
         return Q.copy(), valid > 0.5, singular > 0.5
 
+    @cached_property
+    def _compiled_many(self) -> Compiled:
+        T = ca.SX.sym("T", 4, 4)
+        params = ca.SX.sym(self.param_name, MANY_CHUNK)
+        out = self.casadi_function.map(MANY_CHUNK)(ca.repmat(T, 1, MANY_CHUNK), params.T)
+        return Compiled(ca.Function(f"ik_{self.kind}_many", [T, params], list(out)))
+
+    def solve_many(self, T: np.ndarray, params: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One pose (4, 4), parameters (M,): q (M, B, n), valid (M, B), singular (M, B).
+
+        The compiled path in chunks of ``MANY_CHUNK`` parameters: for a sweep of
+        one pose (feasible intervals) it is much faster than :meth:`solve_batch`,
+        whose cost for small M is Python overhead.
+        """
+        params = np.asarray(params, dtype=float).ravel()
+        M, B, n = params.size, self.n_branches, self.robot.dof
+        Q, valid, singular = np.empty((M, B, n)), np.empty((M, B), bool), np.empty((M, B), bool)
+        f = self._compiled_many
+        chunk = np.empty(MANY_CHUNK)
+        for i in range(0, M, MANY_CHUNK):
+            m = min(MANY_CHUNK, M - i)
+            chunk[:m] = params[i : i + m]
+            chunk[m:] = params[i]
+            q, v, s = f(T, chunk)
+            Q[i : i + m] = q.reshape(B, MANY_CHUNK, n).transpose(1, 0, 2)[:m]
+            valid[i : i + m] = v.T[:m] > 0.5  # (B, chunk) outputs
+            singular[i : i + m] = s.T[:m] > 0.5
+        return Q, valid, singular
+
     def solve_batch(self, T: np.ndarray, param: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Poses (N, 4, 4), parameters (N,): q (N, B, n), valid (N, B), singular (N, B)."""
         N = T.shape[0]
         R, p = sy.frame_of_batch(T)
         br = self.branches(R, p, param, sy.NUMPY)
-        Q = np.stack([sy.stack(row, sy.NUMPY, (N,)) for row in br.q], axis=1)
+        # fill (B, n, N) contiguously (fast), return the (N, B, n) view
+        Q = np.empty((len(br.q), len(br.q[0]), N))
+        for b, row in enumerate(br.q):
+            for j, x in enumerate(row):
+                Q[b, j] = x
+        Q = Q.transpose(2, 0, 1)
         valid = sy.stack(br.valid, sy.NUMPY, (N,)) > 0.5
         singular = sy.stack(br.singular, sy.NUMPY, (N,)) > 0.5
         return Q, valid, singular

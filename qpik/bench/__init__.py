@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-BENCHES = ("kinematics",)
+BENCHES = ("kinematics", "analytic")
 
 
 @dataclass

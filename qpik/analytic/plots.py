@@ -1,0 +1,321 @@
+r"""Pictures of the closed form (matplotlib, Agg; every function returns a ``Figure``).
+
+- :func:`selfmotion_map` — the self-motion of one pose: each joint against the
+  redundancy parameter (δ or ψ) over (-π, π], one curve per branch, the joint
+  limits, the parameter ranges where a chosen branch leaves the limits (the
+  complement of :func:`qpik.feasible_intervals`) shaded, singular values marked,
+  and a panel with every branch's feasible set.
+- :func:`sweep_figure` — joint angles of one branch along a sweep (a position
+  coordinate or the parameter), one panel per curve set (seed 000 Figs. 15/16).
+- :func:`stick_grid` — one 3-D stick figure per configuration (seed 000 Fig. 10).
+- :func:`stick_overlay` — configurations overlaid in 3-D and projected on the
+  x-y plane (seed 000 Figs. 12/13).
+- :func:`branch_pictures` — the branch poses as a PNG, rendered by
+  :mod:`qpik.render` when OpenGL is available, else by :func:`stick_grid`.
+
+Stick figures join the origins of the DH frames ``[base, frame_1..frame_n, ee]``
+(``Robot.frames``); lengths in metres, world (base) frame.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.figure import Figure
+
+from qpik.analytic.api import IKSolutions, feasible_intervals, ik
+from qpik.analytic.intervals import FeasibleIntervals, Interval
+from qpik.robots.robot import Robot
+
+PI = np.pi
+SYMBOL = {"delta": "δ", "psi": "ψ"}
+INFEASIBLE_GID = "infeasible"  # gid of the shaded spans (for readers of the figure)
+SINGULAR_GID = "singular"
+
+
+def symbol(param_name: str) -> str:
+    """The Greek letter of a redundancy parameter name (``"delta"`` -> ``"δ"``)."""
+    return SYMBOL.get(param_name, param_name)
+
+
+def branch_colors(branches: Sequence[int]) -> dict[int, tuple]:
+    """One distinct colour per branch id (tab20 for up to 20 branches)."""
+    cmap = plt.get_cmap("tab20" if len(branches) > 10 else "tab10")
+    return {int(b): cmap(i % cmap.N) for i, b in enumerate(branches)}
+
+
+def infeasible_spans(intervals: list[Interval]) -> list[Interval]:
+    """Complement in [-π, π] of sorted disjoint closed intervals (open ends dropped)."""
+    out: list[Interval] = []
+    start = -PI
+    for lo, hi in intervals:
+        if lo > start:
+            out.append((start, lo))
+        start = max(start, hi)
+    if start < PI:
+        out.append((start, PI))
+    return out
+
+
+def selfmotion_samples(robot: Robot, pose: np.ndarray, num: int = 721, project: bool = False) -> IKSolutions:
+    """Every branch at ``num`` parameter values evenly spaced over [-π, π], one batched call.
+
+    Returns batched :class:`IKSolutions` (``q`` (num, B, n), ``param`` (num,)).
+    """
+    T = np.broadcast_to(np.asarray(pose, dtype=float), (num, 4, 4))
+    return ik(robot, T, np.linspace(-PI, PI, num), project=project)
+
+
+def _broken(x: np.ndarray, y: np.ndarray, ok: np.ndarray, jump: float = PI / 2) -> tuple[np.ndarray, np.ndarray]:
+    """``y`` with NaN where not ``ok``, and a NaN gap inserted at every jump larger than ``jump`` (wraps)."""
+    y = np.where(ok, y, np.nan)
+    cut = np.flatnonzero(np.abs(np.diff(y)) > jump) + 1
+    return np.insert(x, cut, np.nan), np.insert(y, cut, np.nan)
+
+
+def selfmotion_map(
+    robot: Robot,
+    pose: np.ndarray,
+    branches: Sequence[int] | None = None,
+    shade_branch: int | None = None,
+    num: int = 721,
+    project: bool = False,
+    title: str | None = None,
+) -> Figure:
+    """Self-motion map of one pose: q_j(param) per branch, limits, infeasible ranges, singular values.
+
+    Args:
+        robot: an arm with a closed form.
+        pose: end-effector pose (4, 4) in the base frame.
+        branches: public branch ids to draw (default: all).
+        shade_branch: the branch whose infeasible parameter ranges are shaded
+            (grey spans, ``gid="infeasible"``; default: the first drawn branch).
+            They are the complement in [-π, π] of ``feasible_intervals(robot, pose)``
+            for that branch — exact breakpoints, not the sampled curves.
+        num: parameter samples over [-π, π] for the curves.
+        project: project a non-orthonormal rotation onto SO(3).
+
+    Layout: a 4×2 grid; panels 1–7 are the joints (rad against rad, one line per
+    branch labelled ``"branch b"``, limits dashed, singular values of the drawn
+    branches dotted vertical lines with ``gid="singular"``); panel 8 shows the
+    feasible set of every branch as bars.
+    """
+    sols = selfmotion_samples(robot, pose, num, project)
+    fi = feasible_intervals(robot, pose, project=project)
+    ids = [int(b) for b in sols.branch]
+    draw = ids if branches is None else [int(b) for b in branches]
+    shade = draw[0] if shade_branch is None else int(shade_branch)
+    colors = branch_colors(ids)
+    x = np.asarray(sols.param)
+    sym = symbol(sols.param_name)
+    spans = infeasible_spans(fi[shade])
+    singular = sorted({float(s) for b in draw for s in fi.singular[fi.index(b)]}) if fi.singular else []
+
+    fig, axes = plt.subplots(4, 2, figsize=(12, 13), sharex=True, constrained_layout=True)
+    for j, ax in enumerate(axes.flat[: robot.dof]):
+        for lo, hi in spans:
+            ax.axvspan(lo, hi, color="0.85", zorder=0, gid=INFEASIBLE_GID)
+        for s in singular:
+            ax.axvline(s, color="k", ls=":", lw=1.0, gid=SINGULAR_GID)
+        for b in draw:
+            i = ids.index(b)
+            xs, ys = _broken(x, sols.q[:, i, j], sols.valid[:, i])
+            top = b == shade
+            ax.plot(xs, ys, color=colors[b], lw=2.4 if top else 1.1, zorder=3 if top else 2, label=f"branch {b}")
+        for lim in (robot.q_min[j], robot.q_max[j]):
+            ax.axhline(lim, color="firebrick", ls="--", lw=1.0)
+        ax.set_ylim(-3.3, 3.3)
+        ax.set_ylabel(f"θ{j + 1} [rad]" if sols.param_name == "delta" else f"q{j + 1} [rad]")
+        ax.grid(alpha=0.3)
+    _feasible_panel(axes.flat[7], fi, draw, shade, colors)
+    for ax in axes[-1]:
+        ax.set_xlabel(f"{sym} [rad]")
+        ax.set_xlim(-PI, PI)
+        ax.set_xticks(np.linspace(-PI, PI, 5), ["−π", "−π/2", "0", "π/2", "π"])
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside right center", fontsize=8, title="branch (no.)")
+    p = np.asarray(pose, dtype=float)[:3, 3]
+    fig.suptitle(
+        title
+        or (
+            f"{robot.name}: self-motion in {sym} at p = ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m\n"
+            f"grey: {sym} where branch {shade} leaves the joint limits; red dashed: limits; "
+            f"dotted: singular {sym}"
+        ),
+        fontsize=11,
+    )
+    return fig
+
+
+def _feasible_panel(ax: plt.Axes, fi: FeasibleIntervals, draw: list[int], shade: int, colors: dict) -> None:
+    """Bars of the feasible parameter set of each drawn branch (exact intervals)."""
+    for k, b in enumerate(draw):
+        segs = [(lo, hi - lo) for lo, hi in fi[b]]
+        ax.broken_barh(segs, (k - 0.35, 0.7), color=colors[b], alpha=1.0 if b == shade else 0.6)
+        for s in fi.singular[fi.index(b)] if fi.singular else []:
+            ax.plot([s, s], [k - 0.45, k + 0.45], color="k", lw=1.5)
+    ax.set_yticks(range(len(draw)), [str(b) for b in draw], fontsize=7)
+    ax.set_ylim(len(draw) - 0.5, -0.5)
+    ax.set_ylabel("branch")
+    ax.set_title(f"feasible {symbol(fi.param_name)} per branch (within limits)", fontsize=9)
+    ax.grid(alpha=0.3, axis="x")
+
+
+def sweep_figure(
+    robot: Robot,
+    x: np.ndarray,
+    curves: Sequence[tuple[str, np.ndarray, np.ndarray]],
+    xlabel: str,
+    title: str,
+) -> Figure:
+    """Joint angles along a sweep, one panel per curve set (seed 000 Figs. 15 and 16).
+
+    Args:
+        x: sweep coordinate (S,), e.g. p_z in metres.
+        curves: ``(panel title, q (S, n) rad, ok (S,) bool)``; points with
+            ``ok`` False (branch invalid) are not drawn; points outside the
+            joint limits are marked with a cross.
+        xlabel, title: axis label and figure title.
+    """
+    fig, axes = plt.subplots(
+        1, len(curves), figsize=(6 * len(curves) + 1, 4.8), sharey=True, squeeze=False, layout="constrained"
+    )
+    cmap = plt.get_cmap("tab10")
+    for ax, (label, q, ok) in zip(axes[0], curves):
+        for j in range(q.shape[1]):
+            xs, ys = _broken(x, q[:, j], ok)
+            ax.plot(xs, ys, color=cmap(j), lw=1.8, label=f"θ{j + 1}")
+            bad = ok & ((q[:, j] < robot.q_min[j]) | (q[:, j] > robot.q_max[j]))
+            ax.plot(x[bad], q[bad, j], "x", color=cmap(j), ms=7, mew=2)
+        ax.set_title(label, fontsize=10)
+        ax.set_xlabel(xlabel)
+        ax.grid(alpha=0.3)
+    axes[0, 0].set_ylabel("joint angle [rad]")
+    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside right center", fontsize=9)
+    fig.suptitle(title + "\n(× = outside the joint limits)", fontsize=11)
+    return fig
+
+
+def stick_points(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """Origins of ``[base, frame_1..frame_n, ee]`` (m, world frame): (n+2, 3); batched (K, n+2, 3)."""
+    return robot.frames(q)[..., :3, 3]
+
+
+def _draw_stick(ax: plt.Axes, pts: np.ndarray, color, label: str | None = None, dims: tuple[int, ...] = (0, 1, 2)):
+    ax.plot(*(pts[:, d] for d in dims), "-o", color=color, lw=2, ms=3, label=label)
+    ax.plot(*(pts[-1:, d] for d in dims), "s", color=color, ms=6)
+
+
+def _equal_3d(ax, pts: np.ndarray) -> None:
+    """Equal scales on a 3-D axes: a cube around every point of ``pts`` (..., 3)."""
+    lo, hi = pts.reshape(-1, 3).min(axis=0), pts.reshape(-1, 3).max(axis=0)
+    c, r = 0.5 * (lo + hi), 0.55 * max(hi - lo)
+    ax.set_xlim(c[0] - r, c[0] + r)
+    ax.set_ylim(c[1] - r, c[1] + r)
+    ax.set_zlim(c[2] - r, c[2] + r)
+    ax.set_box_aspect((1, 1, 1))
+
+
+def stick_grid(robot: Robot, qs: np.ndarray, labels: Sequence[str], cols: int = 4, title: str = "") -> Figure:
+    """One 3-D stick figure per configuration ``qs`` (K, n), same axes limits (seed 000 Fig. 10)."""
+    pts = stick_points(robot, np.atleast_2d(qs))
+    K = pts.shape[0]
+    rows = -(-K // cols)
+    fig = plt.figure(figsize=(3.2 * cols, 3.2 * rows + 0.6), layout="constrained")
+    for k in range(K):
+        ax = fig.add_subplot(rows, cols, k + 1, projection="3d")
+        ax.plot([0.0], [0.0], [0.0], "k^", ms=6)
+        _draw_stick(ax, pts[k], "tab:blue")
+        _equal_3d(ax, pts)
+        ax.set_title(labels[k], fontsize=9)
+        ax.tick_params(labelsize=6)
+        ax.view_init(elev=25, azim=-60)
+    fig.suptitle(title, fontsize=11)
+    return fig
+
+
+def stick_overlay(robot: Robot, qs: np.ndarray, labels: Sequence[str], title: str = "") -> Figure:
+    """Configurations ``qs`` (K, n) overlaid: 3-D (left) and projected on the x-y plane (right).
+
+    Seed 000 Figs. 12/13: the same end-effector pose at several δ; the elbow
+    sweeps while the hand stays put.
+    """
+    pts = stick_points(robot, np.atleast_2d(qs))
+    cmap = plt.get_cmap("viridis")
+    colors = [cmap(k / max(1, len(pts) - 1)) for k in range(len(pts))]
+    fig = plt.figure(figsize=(13, 6.2), layout="constrained")
+    ax3 = fig.add_subplot(1, 2, 1, projection="3d")
+    ax2 = fig.add_subplot(1, 2, 2)
+    for k, p in enumerate(pts):
+        _draw_stick(ax3, p, colors[k], labels[k])
+        _draw_stick(ax2, p, colors[k], labels[k], dims=(0, 1))
+    ax3.plot([0.0], [0.0], [0.0], "k^", ms=7)
+    ax2.plot([0.0], [0.0], "k^", ms=7)
+    _equal_3d(ax3, pts)
+    ax3.view_init(elev=20, azim=-50)
+    ax3.set_xlabel("x [m]")
+    ax3.set_ylabel("y [m]")
+    ax3.set_zlabel("z [m]")
+    ax3.set_title("3-D", fontsize=10)
+    ax2.set_aspect("equal")
+    ax2.set_xlabel("x [m]")
+    ax2.set_ylabel("y [m]")
+    ax2.set_title("projection on the x-y plane", fontsize=10)
+    ax2.grid(alpha=0.3)
+    ax2.legend(fontsize=8, loc="best")
+    fig.suptitle(title, fontsize=11)
+    return fig
+
+
+def branch_pictures(
+    robot: Robot, sols: IKSolutions, path: Path, cols: int | None = None, only_valid: bool = True
+) -> str:
+    """Write the branch poses of one pose's :class:`IKSolutions` to the PNG ``path``.
+
+    Tries :func:`qpik.render.render_configurations` (MuJoCo, needs OpenGL);
+    when that is unavailable, draws :func:`stick_grid`. Returns ``"render"``,
+    ``"sticks"`` (what was used) or ``"none"`` (no branch reaches the pose: the
+    PNG says so).
+    """
+    keep = sols.valid if only_valid else np.ones(len(sols), bool)
+    qs = sols.q[keep]
+    sym = symbol(sols.param_name)
+    par = float(np.asarray(sols.param))
+    labels = [
+        f"branch {b}  {sols.param_name} = {par:.2f}" + ("" if lim else "  (out of limits)")
+        for b, lim in zip(sols.branch[keep], sols.within_limits[keep])
+    ]
+    cols = cols or min(4, max(1, len(qs)))
+    path = Path(path)
+    if not len(qs):
+        fig = plt.figure(figsize=(6, 2))
+        fig.text(0.5, 0.5, f"{robot.name}: no branch reaches this pose at {sym} = {par:.2f}", ha="center")
+        save(fig, path)
+        return "none"
+    from qpik.render import RenderUnavailable, render_configurations
+
+    try:
+        render_configurations(robot, qs, path, cols=cols, labels=labels)
+        return "render"
+    except RenderUnavailable:
+        pass
+    title = f"{robot.name}: the {len(qs)} branches at {sym} = {par:.2f} rad (stick figures: DH frame origins)"
+    fig = stick_grid(robot, qs, labels, cols=cols, title=title)
+    save(fig, path)
+    return "sticks"
+
+
+def save(fig: Figure, path: Path, dpi: int = 110) -> Path:
+    """Write ``fig`` as PNG (creating the folder) and close it."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path

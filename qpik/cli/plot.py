@@ -1,0 +1,60 @@
+"""``qpik plot``: pictures of the closed form for one pose.
+
+- ``selfmotion``: every joint against δ/ψ over (-π, π], one curve per branch,
+  joint limits, the ranges where the shaded branch leaves the limits, singular values;
+- ``branches``: every valid branch at one δ/ψ (MuJoCo picture, or stick figures).
+
+The pose comes from the pose options of ``qpik ik`` or from a problem file
+(its robot, first pose and first parameter value).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from qpik.cli.args import add_robot, floats
+from qpik.cli.ik import add_pose, pose_from_args
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("plot", help="self-motion map or branch poses of one pose (PNG)")
+    p.add_argument("what", choices=("selfmotion", "branches"), help="which picture")
+    add_robot(p, required=False)
+    g = add_pose(p)
+    g.add_argument("--problem", help="problem file (or name in problems/): its robot, first pose and parameter")
+    p.add_argument("--param", "-p", type=float, help="δ/ψ (rad) for 'branches'")
+    p.add_argument("--branches", type=floats, help="branch ids to draw in 'selfmotion' (default: all)")
+    p.add_argument("--shade", type=int, help="branch whose infeasible δ/ψ ranges are shaded (default: first drawn)")
+    p.add_argument("-o", "--out", type=Path, required=True, help="PNG file to write")
+    p.set_defaults(func=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    from qpik import ik, load_robot
+    from qpik.analytic.plots import branch_pictures, save, selfmotion_map
+    from qpik.validate import pose as check_pose
+
+    param = args.param
+    if args.problem:
+        from qpik.problems import find_problem, load
+
+        problem = load(find_problem(args.problem))
+        robot, T = problem.robot, problem.poses[0]
+        if param is None and problem.params is not None:
+            param = float(problem.params[0])
+    else:
+        if args.robot is None:
+            raise SystemExit("qpik plot: --robot is required unless --problem is given")
+        robot = load_robot(args.robot)
+        T, _ = check_pose(pose_from_args(args, robot), "pose", args.project)
+    if args.what == "selfmotion":
+        branches = None if args.branches is None else [int(b) for b in args.branches]
+        save(selfmotion_map(robot, T, branches=branches, shade_branch=args.shade), args.out)
+        print(f"self-motion map of {robot.name} written to {args.out}")
+        return 0
+    if param is None:
+        raise SystemExit("qpik plot branches: --param is required")
+    how = branch_pictures(robot, ik(robot, T, param), args.out)
+    print(f"branch poses of {robot.name} at {param:.4f} rad written to {args.out} ({how})")
+    return 0

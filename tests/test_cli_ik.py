@@ -1,0 +1,84 @@
+"""``qpik ik`` and ``qpik plot``: the printed branches are checked by forward kinematics."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import qpik
+from qpik.cli import main
+
+TABLE4_ROT = "0.18 0.63 0.76 -0.16 0.78 -0.61 -0.97 -0.01 0.25"  # eqs. (33)-(35) as rows (n, t, b columns)
+
+
+def _rows(text: str) -> list[list[str]]:
+    """The branch rows of the table: lines whose first field is an integer branch id."""
+    return [ln.split() for ln in text.splitlines() if ln.split() and ln.split()[0].isdigit()]
+
+
+def _q(row: list[str]) -> np.ndarray:
+    return np.array([float(v) for v in row[1:8]])
+
+
+@pytest.mark.parametrize("name, count", [("nammoto7", 16), ("iiwa14", 8)])
+def test_ik_prints_every_branch_with_fk_residual(capsys, name: str, count: int) -> None:
+    robot = qpik.load_robot(name)
+    q = np.random.default_rng(7).uniform(0.7 * robot.q_min, 0.7 * robot.q_max)
+    code = main(["ik", "--robot", name, "--q", " ".join(repr(float(v)) for v in q)])
+    assert code == 0
+    out = capsys.readouterr().out
+    rows = _rows(out)
+    assert len(rows) == count
+    valid = [r for r in rows if r[8] == "yes"]
+    assert valid
+    T = robot.fk(q)
+    for r in valid:
+        pos, rot = float(r[-2]), float(r[-1])
+        assert pos < 1e-9 and rot < 1e-9
+        # the printed angles (3 decimals) land within rounding of the pose: an independent FK check
+        assert np.linalg.norm(robot.fk(_q(r))[:3, 3] - T[:3, 3]) < 5e-3
+    # the parameter of q was used, so one printed branch is q itself (to the printed precision)
+    assert min(np.abs(_q(r) - q).max() for r in valid) < 1e-3
+
+
+def test_ik_position_rotation_with_projection(capsys) -> None:
+    code = main(
+        ["ik", "-r", "nammoto7", "--position=-0.18,0.41,0.41", "--rotation", TABLE4_ROT, "--param", "-0.8", "--project"]
+    )
+    assert code == 0
+    rows = _rows(capsys.readouterr().out)
+    assert len(rows) == 16
+    # Table 4 of seed 000, row 1 (2 decimals)
+    assert np.abs(_q(rows[0]) - [1.12, -0.77, 1.40, -0.61, -0.28, 0.60, 0.96]).max() < 0.05
+
+
+def test_ik_pose_of_16_numbers(capsys) -> None:
+    robot = qpik.load_robot("iiwa14")
+    T = robot.fk(robot.q_home)
+    assert main(["ik", "-r", "iiwa14", "--pose", " ".join(repr(float(v)) for v in T.ravel()), "-p", "0.2"]) == 0
+    rows = _rows(capsys.readouterr().out)
+    assert len(rows) == 8
+    for r in rows:
+        if r[8] == "yes":
+            assert float(r[-2]) < 1e-9
+
+
+def test_ik_rejects_a_rotation_that_is_not_orthonormal(capsys) -> None:
+    code = main(["ik", "-r", "nammoto7", "--position=-0.18,0.41,0.41", "--rotation", TABLE4_ROT, "--param", "-0.8"])
+    assert code == 2
+    assert "project" in capsys.readouterr().err
+
+
+def test_ik_needs_a_param_without_q() -> None:
+    with pytest.raises(SystemExit):
+        main(["ik", "-r", "iiwa14", "--position", "0.5 0 0.5"])
+
+
+def test_plot_selfmotion_and_branches_write_pngs(tmp_path, capsys) -> None:
+    a, b = tmp_path / "sm.png", tmp_path / "br.png"
+    assert main(["plot", "selfmotion", "--problem", "nammoto2012_table4", "-o", str(a)]) == 0
+    assert (
+        main(["plot", "branches", "-r", "iiwa14", "--q", "0.3 0.5 -0.2 -1.2 0.4 0.9 0.1", "-p", "0.5", "-o", str(b)])
+        == 0
+    )
+    assert a.stat().st_size > 10_000 and b.stat().st_size > 10_000

@@ -1,0 +1,296 @@
+"""Closed-form IK of the offset-shoulder arm (nammoto7): checked by FK, finite differences and dense δ sweeps."""
+
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+from conftest import SEEDS, random_q
+from hypothesis import given, settings
+
+import qpik
+from qpik.analytic.api import solver_for
+from qpik.analytic.intervals import wrap
+from qpik.errors import InputError, RotationError
+from qpik.problems import load as load_problem
+
+ROOT = Path(__file__).resolve().parents[1]
+ROBOT = qpik.load_robot("nammoto7")
+SOLVER = solver_for(ROBOT)
+
+
+def pose_error(T: np.ndarray, T_ref: np.ndarray) -> np.ndarray:
+    """Max position error (m) and max rotation-entry error, (...,) each."""
+    return np.abs(T[..., :3, 3] - T_ref[..., :3, 3]).max(-1), np.abs(T[..., :3, :3] - T_ref[..., :3, :3]).max((-2, -1))
+
+
+def well_conditioned(q: np.ndarray, tol: float = 1e-2) -> np.ndarray:
+    """Away from the elbow (cos θ4 = 0), shoulder (cos θ3 cos θ4 = 0) and wrist (sin θ6 = 0) singularities
+    and from the base axis: there a joint error of 1e-8 is ill-conditioning, not a bug."""
+    w = ROBOT.frames(q)[:, 5, :3, 3]
+    c3, c4, s6 = np.cos(q[:, 2]), np.cos(q[:, 3]), np.sin(q[:, 5])
+    return (np.abs(c4) > tol) & (np.abs(c3 * c4) > tol) & (np.abs(s6) > tol) & (np.hypot(w[:, 0], w[:, 1]) > tol)
+
+
+# ---- seed 000, Table 4 -----------------------------------------------------
+
+
+def test_table4_reproduced():
+    problem = load_problem(ROOT / "problems" / "nammoto2012_table4.toml")
+    T, delta = problem.poses[0], float(problem.params[0])
+    sol = qpik.ik(problem.robot, T, delta)
+    expected = np.asarray(problem.expected["q"], float)
+    assert list(sol.branch) == list(problem.expected["branches"])
+    assert sol.valid.all()
+    assert np.abs(wrap(sol.q - expected)).max() <= problem.expected["tolerance"]
+    dp, dR = pose_error(ROBOT.fk(sol.q), T)  # T is the projected pose
+    assert dp.max() < 1e-9 and dR.max() < 1e-9
+
+
+# ---- FK, round trip, inverse map -------------------------------------------
+
+
+@settings(max_examples=5, deadline=None)
+@given(SEEDS)
+def test_every_valid_branch_reproduces_the_pose(seed):
+    q = random_q(ROBOT, 2000, seed)
+    T = ROBOT.fk(q)
+    delta = np.random.default_rng(seed).uniform(-np.pi, np.pi, len(q))  # any δ, not only the generating one
+    sol = qpik.ik(ROBOT, T, delta)
+    assert np.all(np.isfinite(sol.q))
+    assert np.all((sol.q > -np.pi) & (sol.q <= np.pi))
+    F = ROBOT.fk(sol.q.reshape(-1, 7)).reshape(len(q), 16, 4, 4)
+    dp, dR = pose_error(F, T[:, None])
+    assert dp[sol.valid].max() < 1e-9 and dR[sol.valid].max() < 1e-9
+    assert sol.valid.any(axis=1).mean() > 0.5
+
+
+@settings(max_examples=5, deadline=None)
+@given(SEEDS)
+def test_generating_configuration_is_a_branch_at_its_delta(seed):
+    q = random_q(ROBOT, 2000, seed)
+    delta, branch = qpik.redundancy_parameter(ROBOT, q)
+    assert np.all((delta > -np.pi / 2) & (delta <= np.pi / 2))
+    sol = qpik.ik(ROBOT, ROBOT.fk(q), delta)
+    Q = sol.q[np.arange(len(q)), branch - 1]
+    good = well_conditioned(q)
+    assert good.mean() > 0.8
+    assert sol.valid[np.arange(len(q)), branch - 1].all()
+    assert np.abs(wrap(Q - q))[good].max() < 1e-8
+    # near-singular ones: the branch still reproduces the pose
+    dp, dR = pose_error(ROBOT.fk(Q), ROBOT.fk(q))
+    assert dp.max() < 1e-9 and dR.max() < 1e-9
+
+
+@settings(max_examples=3, deadline=None)
+@given(SEEDS)
+def test_redundancy_parameter_inverts_ik(seed):
+    rng = np.random.default_rng(seed)
+    T = ROBOT.fk(random_q(ROBOT, 500, seed))
+    delta = rng.uniform(-np.pi, np.pi, len(T))
+    sol = qpik.ik(ROBOT, T, delta)
+    n, k = np.nonzero(sol.valid)
+    q = sol.q[n, k]
+    d2, b2 = qpik.redundancy_parameter(ROBOT, q)
+    # (δ, k) and (δ + π, k ± 8) are the same configuration; the map returns |δ| <= π/2
+    same = (np.abs(wrap(d2 - delta[n])) < 1e-9) & (b2 == k + 1)
+    shifted = (np.abs(wrap(d2 - delta[n] - np.pi)) < 1e-9) & (b2 == (k + 8) % 16 + 1)
+    good = well_conditioned(q)
+    assert np.all((same | shifted)[good])
+
+
+# ---- near-singular and singular configurations -----------------------------
+
+
+def _near(seed: int, n: int, joint: int, centre: float) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    q = random_q(ROBOT, n, seed)
+    eps = 10.0 ** rng.uniform(-7, -3, n) * rng.choice([-1, 1], n)
+    q[:, joint] = centre + eps
+    return q
+
+
+@pytest.mark.parametrize(("joint", "centre"), [(5, 0.0), (3, np.pi / 2), (3, -np.pi / 2), (2, np.pi / 2)])
+def test_near_singular_configurations(joint, centre):
+    q = _near(joint, 2000, joint, centre)
+    T = ROBOT.fk(q)
+    delta, branch = qpik.redundancy_parameter(ROBOT, q)
+    sol = qpik.ik(ROBOT, T, delta)
+    idx = (np.arange(len(q)), branch - 1)
+    assert sol.valid[idx].all()
+    dp, dR = pose_error(ROBOT.fk(sol.q[idx]), T)
+    assert dp.max() < 1e-9 and dR.max() < 1e-9
+
+
+@pytest.mark.parametrize(("joint", "value"), [(5, 0.0), (3, np.pi / 2), (3, -np.pi / 2)])
+def test_exactly_singular_configurations_are_flagged(joint, value):
+    q = random_q(ROBOT, 500, 7)
+    q[:, joint] = value
+    T = ROBOT.fk(q)
+    delta, branch = qpik.redundancy_parameter(ROBOT, q)
+    sol = qpik.ik(ROBOT, T, delta)
+    idx = (np.arange(len(q)), branch - 1)
+    assert sol.singular[idx].all()
+    dp, dR = pose_error(ROBOT.fk(sol.q[idx]), T)  # sqrt(eps)-conditioned at the singularity
+    assert dp.max() < 1e-7 and dR.max() < 1e-7
+
+
+def test_wrist_centre_on_or_near_the_base_axis():
+    rng = np.random.default_rng(3)
+    n = 400
+    R = ROBOT.fk(random_q(ROBOT, n, 3))[:, :3, :3]
+    off = np.zeros((n, 2))
+    off[n // 2 :] = rng.normal(size=(n - n // 2, 2)) * 10.0 ** rng.uniform(-12, -4, (n - n // 2, 1))
+    w = np.column_stack([off, rng.uniform(0.0, 0.6, n)])
+    T = np.tile(np.eye(4), (n, 1, 1))
+    T[:, :3, :3] = R
+    T[:, :3, 3] = w - 0.065 * R[:, :, 2]  # eq. (5): w = p + d7 b, d7 = 0.065
+    delta = rng.uniform(-np.pi, np.pi, n)
+    sol = qpik.ik(ROBOT, T, delta)
+    assert np.all(np.isfinite(sol.q)) and sol.valid.any()
+    assert sol.singular[: n // 2].all()  # exactly on the axis
+    F = ROBOT.fk(sol.q.reshape(-1, 7)).reshape(n, 16, 4, 4)
+    dp, dR = pose_error(F, T[:, None])
+    assert dp[sol.valid].max() < 1e-9 and dR[sol.valid].max() < 1e-9
+    # on the axis atan2(wy, wx) := 0, so θ1[1] = δ (documented convention)
+    assert np.abs(wrap(sol.q[: n // 2, :8, 0] - delta[: n // 2, None])).max() < 1e-12
+
+
+# ---- three evaluations agree; exact derivatives ----------------------------
+
+
+def test_batch_single_and_casadi_agree():
+    q = random_q(ROBOT, 20, 11)
+    T = ROBOT.fk(q)
+    delta = np.random.default_rng(11).uniform(-np.pi, np.pi, len(q))
+    Qb, vb, sb = SOLVER.solve_batch(T, delta)
+    for i in range(len(q)):
+        Q1, v1, s1 = SOLVER.solve_one(T[i], delta[i])
+        Qc, vc, _ = SOLVER.casadi_function(ca.DM(T[i]), ca.DM(delta[i]))
+        assert np.abs(wrap(Q1 - Qb[i])).max() < 1e-12
+        assert np.abs(wrap(np.array(Qc) - Qb[i])).max() < 1e-12
+        assert np.array_equal(v1, vb[i]) and np.array_equal(np.array(vc).ravel() > 0.5, vb[i])
+        assert np.array_equal(s1, sb[i])
+    Qm, vm, sm = SOLVER.solve_many(T[0], delta)
+    Qr, vr, sr = SOLVER.solve_batch(np.broadcast_to(T[0], T.shape), delta)
+    assert np.abs(wrap(Qm - Qr)).max() < 1e-12 and np.array_equal(vm, vr) and np.array_equal(sm, sr)
+
+
+def test_casadi_jacobian_wrt_delta_matches_finite_differences():
+    Ts = ca.SX.sym("T", 4, 4)
+    d = ca.SX.sym("d")
+    Q = SOLVER.casadi_function(Ts, d)[0]
+    dQ = ca.Function("dQ", [Ts, d], [ca.jacobian(ca.vec(Q), d)])
+    q = random_q(ROBOT, 10, 5)
+    q = q[well_conditioned(q, 0.1)]
+    checked = 0
+    for Ti, di in zip(ROBOT.fk(q), qpik.redundancy_parameter(ROBOT, q)[0]):
+        _, valid, sing = SOLVER.solve_one(Ti, di)
+        J = np.array(dQ(Ti, di)).reshape(7, 16).T  # column-major vec of (16, 7)
+        h = 1e-6
+        fd = wrap(SOLVER.solve_one(Ti, di + h)[0] - SOLVER.solve_one(Ti, di - h)[0]) / (2 * h)
+        ok = valid & ~sing
+        assert np.abs(J[ok] - fd[ok]).max() < 1e-5 * max(1.0, np.abs(fd[ok]).max())
+        checked += ok.sum()
+    assert checked >= 20
+
+
+# ---- feasible δ intervals ---------------------------------------------------
+
+
+def _sweep_check(T: np.ndarray, n_delta: int) -> None:
+    fi = qpik.feasible_intervals(ROBOT, T)
+    d = np.linspace(-np.pi, np.pi, n_delta)
+    q, valid, _ = SOLVER.solve_batch(np.broadcast_to(T, (n_delta, 4, 4)), d)
+    ok = valid & np.all((q >= ROBOT.q_min) & (q <= ROBOT.q_max), axis=-1)
+    for k in range(16):
+        ivs = fi.intervals[k]
+        inside = fi.contains(k + 1, d)
+        ends = np.array([x for iv in ivs for x in iv if abs(abs(x) - np.pi) > 1e-12])
+        far = np.abs(d[:, None] - ends[None]).min(axis=1) > 1e-6 if ends.size else np.ones(n_delta, bool)
+        assert np.array_equal(inside[far], ok[far, k]), f"branch {k + 1}"
+        if ends.size:  # every boundary is a true change of feasibility (at ±1e-6, or closer for a short interval)
+            all_ends = np.unique(np.concatenate([ends, [-np.pi, np.pi]]))
+            gap = np.diff(all_ends)
+            i = np.searchsorted(all_ends, ends)
+            h = np.minimum(1e-6, 0.4 * np.minimum(gap[i - 1], gap[np.minimum(i, gap.size - 1)]))
+            e = np.concatenate([ends - h, ends + h])
+            qe, ve, _ = SOLVER.solve_many(T, e)
+            oke = ve & np.all((qe >= ROBOT.q_min) & (qe <= ROBOT.q_max), axis=-1)
+            m = ends.size
+            assert np.all(oke[:m, k] != oke[m:, k]), f"branch {k + 1}: a boundary is not a feasibility change"
+        for lo, hi in ivs:
+            assert -np.pi <= lo <= hi <= np.pi
+
+
+@settings(max_examples=50, deadline=None)
+@given(SEEDS)
+def test_feasible_intervals_exact_on_random_poses(seed):
+    for T in ROBOT.fk(random_q(ROBOT, 10, seed)):  # 500 poses in all
+        _sweep_check(T, 2000)
+
+
+@settings(max_examples=5, deadline=None)
+@given(SEEDS)
+def test_feasible_intervals_exact_dense(seed):
+    for T in ROBOT.fk(random_q(ROBOT, 2, seed)):
+        _sweep_check(T, 10000)
+
+
+def test_feasible_intervals_table4_and_singular_points():
+    problem = load_problem(ROOT / "problems" / "nammoto2012_table4.toml")
+    T = problem.poses[0]
+    _sweep_check(T, 10000)
+    fi = qpik.feasible_intervals(ROBOT, T)
+    assert fi.contains(1, -0.80)  # Table 4's rows are within the catalog limits
+    for k in range(16):
+        if fi.singular[k]:
+            _, v, s = SOLVER.solve_many(T, np.array(fi.singular[k]))
+            assert np.all(v[:, k] & s[:, k])
+
+
+# ---- bad input ---------------------------------------------------------------
+
+
+def test_bad_input():
+    T = ROBOT.fk(ROBOT.q_home)
+    bad = T.copy()
+    bad[0, 3] = np.nan
+    with pytest.raises(InputError, match="pose"):
+        qpik.ik(ROBOT, bad, 0.0)
+    with pytest.raises(InputError):
+        qpik.ik(ROBOT, T[:3], 0.0)
+    with pytest.raises(InputError, match="param"):
+        qpik.ik(ROBOT, T, np.nan)
+    with pytest.raises(InputError):
+        qpik.ik(ROBOT, np.stack([T, T]), np.zeros(3))
+    skew = T.copy()
+    skew[:3, :3] *= 1.01
+    with pytest.raises(RotationError):
+        qpik.ik(ROBOT, skew, 0.0)
+    assert qpik.ik(ROBOT, skew, 0.0, project=True).valid.any()
+    with pytest.raises(InputError):
+        qpik.redundancy_parameter(ROBOT, np.zeros(6))
+    with pytest.raises(InputError):
+        qpik.feasible_intervals(ROBOT, np.stack([T, T]))
+
+
+def test_unreachable_pose_is_invalid_not_an_error():
+    T = np.eye(4)
+    T[:3, 3] = (3.0, 0.0, 0.5)
+    sol = qpik.ik(ROBOT, T, 0.3)
+    assert not sol.valid.any() and np.all(np.isfinite(sol.q))
+    sols = qpik.ik(ROBOT, np.stack([T, T]), np.array([0.0, 1.0]))
+    assert not sols.valid.any() and np.all(np.isfinite(sols.q))
+    fi = qpik.feasible_intervals(ROBOT, T)
+    assert all(iv == [] for iv in fi.intervals)
+
+
+def test_chain_structure_is_checked():
+    import dataclasses
+
+    from qpik.analytic.offset_shoulder import OffsetShoulderSolver
+
+    other = dataclasses.replace(ROBOT, chain=qpik.load_robot("iiwa14").chain)
+    with pytest.raises(InputError, match="offset-shoulder"):
+        OffsetShoulderSolver(other)
