@@ -1,0 +1,386 @@
+r"""Closed-form IK of an S-R-S arm (KUKA iiwa type) in the arm angle ψ: 8 branches.
+
+Method of Shimizu et al. 2008 (seed 003), written for the DH table of DESIGN.md
+(standard DH, a = 0, α = (−π/2, π/2, π/2, −π/2, −π/2, π/2, 0), d = (d_bs, 0,
+d_se, 0, d_ew, 0, d_wt)). For this table the chain factors as
+
+.. math::
+
+    R = M_s\,R_y(-\theta_4)\,M_w,\qquad M_s = R_z(\theta_1)R_y(\theta_2)R_z(\theta_3) = {}^0R_3\,R_x(\pi/2)^T,
+    \qquad M_w = R_z(\theta_5)R_y(\theta_6)R_z(\theta_7) = {}^4R_7,
+
+    x_{sw} = W - S = M_s\,(-d_{ew}\sin\theta_4,\ 0,\ d_{se} + d_{ew}\cos\theta_4)^T,
+
+with shoulder :math:`S = (0, 0, d_{bs})`, wrist :math:`W = p - d_{wt} R e_z`,
+elbow :math:`E = S + M_s (0, 0, d_{se})`, all in DH frame 0 (a world pose is
+first mapped through the chain's constant ``base`` and ``tool`` transforms). Both spherical joints
+are ZYZ Euler triples; the elbow is a rotation about the y axis.
+
+**Elbow.** :math:`\cos\theta_4 = (|x_{sw}|^2 - d_{se}^2 - d_{ew}^2)/(2 d_{se} d_{ew})`,
+two signs.
+
+**Reference plane and arm angle.** The reference configuration is the
+*virtual* one with θ3 = 0 that reaches the same wrist point with the same θ4 and
+has joint 1 turned toward the wrist: :math:`\theta_1^0 = \mathrm{atan2}(y_{sw}, x_{sw})`,
+:math:`\theta_2^0 = \mathrm{atan2}(\sqrt{x_{sw}^2 + y_{sw}^2}, z_{sw})
+- \mathrm{atan2}(-d_{ew}\sin\theta_4, d_{se} + d_{ew}\cos\theta_4)`,
+:math:`M_s^0 = R_z(\theta_1^0) R_y(\theta_2^0)`. Its arm plane is the vertical
+plane through S and W (the plane of :math:`u_{sw}` and the base z axis); the
+elbow lies on the side of the S–W line toward +z for θ4 < 0 and away from it
+for θ4 > 0. The arm angle ψ rotates the whole arm about
+:math:`u_{sw} = x_{sw}/|x_{sw}|` (right hand):
+
+.. math::
+
+    M_s(\psi) = R_\psi M_s^0 = A_s\sin\psi + B_s\cos\psi + C_s,\quad
+    A_s = [u]_\times M_s^0,\ B_s = -[u]_\times^2 M_s^0,\ C_s = u u^T M_s^0,
+
+    M_w(\psi) = R_y(\theta_4) M_s(\psi)^T R = A_w\sin\psi + B_w\cos\psi + C_w,\quad
+    A_w = R_y(\theta_4) A_s^T R \text{ (same for } B, C).
+
+:meth:`SRSSolver.branches` evaluates :math:`R_\psi` by Rodrigues' formula; the
+coefficient form (seed 003) serves the feasible intervals (:mod:`qpik.analytic.srs_intervals`).
+
+Equivalently, ψ is the signed angle about :math:`u_{sw}` from the horizontal
+normal of the reference plane, :math:`n^0 = M_s^0 e_y = (-\sin\theta_1^0, \cos\theta_1^0, 0)`,
+to the joint-4 axis direction :math:`n = M_s e_y` (the normal of the arm plane
+S–E–W); this is how :meth:`SRSSolver.parameter` computes it. Because it uses the
+joint-4 axis and not the elbow point, ψ stays defined when the elbow is
+stretched (θ4 = 0), and the two elbow branches then coincide.
+
+**Joints.** From :math:`M = R_z(a) R_y(b) R_z(c)` (:func:`zyz`):
+tan-type :math:`a = \mathrm{atan2}(\sigma M_{12}, \sigma M_{02})` (θ1, θ5) and
+:math:`c = \mathrm{atan2}(\sigma M_{21}, -\sigma M_{20})` (θ3, θ7); cos-type
+:math:`\cos b = M_{22}` (θ2, θ6), b of the sign σ. In code c is taken from the
+remainder :math:`R_z(a)^T M = R_y(b) R_z(c)` (row 1 is :math:`(\sin c, \cos c, 0)`),
+which equals the tan form but stays exact near a singularity.
+
+**Branches** (public ids 0–7)::
+
+    branch = 4·[θ2 < 0] + 2·[θ4 < 0] + [θ6 < 0]
+
+so bit 2 is the shoulder sign, bit 1 the elbow sign, bit 0 the wrist sign
+(branch 0: θ2, θ4, θ6 ≥ 0). The shoulder pair differs by
+(θ1 + π, −θ2, θ3 + π), the wrist pair by (θ5 + π, −θ6, θ7 + π).
+
+**Singular cases** (defined results, ``singular`` flag set, every valid
+branch still reaches the pose):
+
+- *shoulder*, |sin θ2| < ``SINGULAR_TOL``: only θ1 ± θ3 is determined. θ1 is
+  set to its limit as ψ increases through the singular value,
+  :math:`\theta_1 = \mathrm{atan2}(\sigma\,\partial_\psi M_{12}, \sigma\,\partial_\psi M_{02})`
+  (0 if that vanishes too), and θ3 takes the rest (remainder formula).
+- *wrist*, |sin θ6| < ``SINGULAR_TOL``: the same for θ5 (limit) and θ7 (rest).
+- *wrist centre on the base z axis* (:math:`\sqrt{x_{sw}^2+y_{sw}^2} < ` ``SINGULAR_TOL``
+  :math:`|x_{sw}|`): the reference plane is undefined and ψ jumps with the
+  azimuth of :math:`x_{sw}`. The formulas above are kept (they hold for any
+  nonzero azimuth, however small); only an exactly vertical :math:`x_{sw}` uses
+  the fallback :math:`\theta_1^0 = 0` (reference plane = base x–z plane).
+- *elbow stretched or folded*, |sin θ4| < ``SINGULAR_TOL``: the two elbow
+  branches coincide; ψ is still defined (joint-4 axis, above).
+
+An unreachable pose (:math:`|x_{sw}| > d_{se} + d_{ew}` or
+:math:`< |d_{se} - d_{ew}|`) gives ``valid = 0`` on every branch; cos θ4 is
+clamped so that q stays finite.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from qpik import symbolic as sy
+from qpik.analytic import trig
+from qpik.analytic.intervals import FeasibleIntervals, wrap
+from qpik.analytic.solver import AnalyticSolver, Branches
+from qpik.errors import NoClosedFormError
+from qpik.symbolic import Mat, Ops, Scalar, Vec
+
+if TYPE_CHECKING:
+    from qpik.analytic.srs_intervals import PsiIntervals
+    from qpik.robots.dh import DHChain
+    from qpik.robots.robot import Robot
+
+SINGULAR_TOL = 1e-10
+"""A sine below this (|sin θ2|, |sin θ4|, |sin θ6|, horizontal/total length of x_sw) marks a singular case."""
+
+ALPHA = (-np.pi / 2, np.pi / 2, np.pi / 2, -np.pi / 2, -np.pi / 2, np.pi / 2, 0.0)
+"""The DH twist pattern the closed form is written for."""
+
+_TINY = 1e-300  # guards exact zeros only (atan2(0, 0) and its derivative)
+
+
+@dataclass(frozen=True)
+class SRSGeometry:
+    """Link lengths (m) and the constant base/tool frames of an S-R-S chain."""
+
+    d_bs: float
+    d_se: float
+    d_ew: float
+    d_wt: float
+    base_inv: sy.Frame
+    tool_inv: sy.Frame
+
+    @classmethod
+    def from_chain(cls, chain: DHChain) -> SRSGeometry:
+        """Read d_bs = d[0], d_se = d[2], d_ew = d[4], d_wt = d[6]; raise if the table is not this S-R-S form."""
+        problems = []
+        if chain.dof != 7 or chain.convention != "standard":
+            problems.append(f"need 7 joints in the standard convention, got {chain.dof} ({chain.convention})")
+        else:
+            if any(abs(x) > 1e-12 for x in chain.a):
+                problems.append(f"a must be 0, got {chain.a}")
+            if any(abs(chain.d[i]) > 1e-12 for i in (1, 3, 5)):
+                problems.append(f"d[1], d[3], d[5] must be 0, got {chain.d}")
+            if any(abs(x - y) > 1e-12 for x, y in zip(chain.alpha, ALPHA)):
+                problems.append(f"alpha must be (-pi/2, pi/2, pi/2, -pi/2, -pi/2, pi/2, 0), got {chain.alpha}")
+            if any(abs(x) > 1e-12 for x in chain.offset):
+                problems.append(f"joint offsets must be 0, got {chain.offset}")
+            if chain.d[2] <= 0 or chain.d[4] <= 0:
+                problems.append(f"d_se = d[2] and d_ew = d[4] must be positive, got {chain.d[2]}, {chain.d[4]}")
+        if problems:
+            raise NoClosedFormError("S-R-S closed form does not apply: " + "; ".join(problems))
+        return cls(
+            d_bs=float(chain.d[0]),
+            d_se=float(chain.d[2]),
+            d_ew=float(chain.d[4]),
+            d_wt=float(chain.d[6]),
+            base_inv=sy.frame_of(np.linalg.inv(chain.base)),
+            tool_inv=sy.frame_of(np.linalg.inv(chain.tool)),
+        )
+
+
+@dataclass
+class ArmSetup:
+    r"""Everything that depends on the pose only (chain frame).
+
+    Attributes:
+        R: end-effector rotation.
+        u: unit shoulder-to-wrist vector :math:`u_{sw}`.
+        elbows: per elbow sign (θ4 >= 0, then θ4 <= 0): ``(θ4, cos θ4, sin θ4, M_s^0)``.
+        valid: 1 where the wrist centre is reachable.
+        singular: 1 where the reference plane is undefined or the elbow is stretched/folded.
+    """
+
+    R: Mat
+    u: Vec
+    elbows: tuple[tuple[Scalar, Scalar, Scalar, Mat], ...]
+    valid: Scalar
+    singular: Scalar
+
+    def wrist(self, e: int, Ms: Mat) -> Mat:
+        r""":math:`M_w = R_y(\theta_4) M_s^T R` for elbow sign ``e``."""
+        _, c4, s4, _ = self.elbows[e]
+        return sy.matmul(rot_y(c4, s4), sy.matmul(sy.transpose(Ms), self.R))
+
+    def coefficients(self, e: int) -> tuple[tuple[Mat, Mat, Mat], tuple[Mat, Mat, Mat]]:
+        r"""``((A_s, B_s, C_s), (A_w, B_w, C_w))`` of elbow sign ``e``: :math:`M(\psi) = A\sin\psi + B\cos\psi + C`.
+
+        :math:`A_s = [u]_\times M_s^0`, :math:`B_s = -[u]_\times^2 M_s^0`, :math:`C_s = u u^T M_s^0`
+        (the expansion of :math:`R_\psi M_s^0`), and :math:`A_w = R_y(\theta_4) A_s^T R`, etc.
+        """
+        M0 = self.elbows[e][3]
+        K = skew(self.u)
+        A_s = sy.matmul(K, M0)
+        B_s = mscale(-1.0, sy.matmul(K, A_s))
+        C_s = sy.matmul(outer(self.u), M0)
+        shoulder = (A_s, B_s, C_s)
+        return shoulder, tuple(self.wrist(e, X) for X in shoulder)  # type: ignore[return-value]
+
+
+# ---- small rotation helpers -------------------------------------------------
+
+
+def rot_y(c: Scalar, s: Scalar) -> Mat:
+    return ((c, 0.0, s), (0.0, 1.0, 0.0), (sy.neg(s), 0.0, c))
+
+
+def skew(u: Vec) -> Mat:
+    return ((0.0, sy.neg(u[2]), u[1]), (u[2], 0.0, sy.neg(u[0])), (sy.neg(u[1]), u[0], 0.0))
+
+
+def outer(u: Vec) -> Mat:
+    return tuple(tuple(sy.mul(u[i], u[j]) for j in range(3)) for i in range(3))  # type: ignore[return-value]
+
+
+def mscale(s: Scalar, M: Mat) -> Mat:
+    return tuple(tuple(sy.mul(s, x) for x in row) for row in M)  # type: ignore[return-value]
+
+
+def rotation_about(u: Vec, s: Scalar, c: Scalar) -> Mat:
+    r"""Rodrigues: :math:`R_\psi = c\,I + s\,[u]_\times + (1 - c)\,u u^T` (s = sin ψ, c = cos ψ)."""
+    K, U, d = skew(u), outer(u), 1.0 - c
+    return tuple(
+        tuple(sy.add(sy.lin((s, K[i][j]), (d, U[i][j])), c if i == j else 0.0) for j in range(3)) for i in range(3)
+    )  # type: ignore[return-value]
+
+
+def either(a: Scalar, b: Scalar, ops: Ops) -> Scalar:
+    """Logical or of two 0/1 flags."""
+    return ops.fmax(a, b)
+
+
+# ---- the pose-dependent part ------------------------------------------------
+
+
+def reference_azimuth(x_sw: Vec, ops: Ops) -> tuple[Scalar, Scalar, Scalar]:
+    r"""``(cos θ1⁰, sin θ1⁰, singular)``: joint 1 of the reference configuration faces the wrist.
+
+    :math:`\theta_1^0 = \mathrm{atan2}(y_{sw}, x_{sw})`; an exactly vertical
+    :math:`x_{sw}` uses θ1⁰ = 0. ``singular`` is 1 where the horizontal part of
+    :math:`x_{sw}` is below ``SINGULAR_TOL`` times its length.
+    """
+    x, y, z = x_sw
+    h2 = x * x + y * y
+    flat = h2 < _TINY
+    xs = ops.where(flat, 1.0, x)
+    ys = ops.where(flat, 0.0, y)
+    h = ops.sqrt(xs * xs + ys * ys)
+    singular = h2 < SINGULAR_TOL**2 * (h2 + z * z)
+    return xs / h, ys / h, singular
+
+
+def arm_setup(R: Mat, p: Vec, geo: SRSGeometry, ops: Ops) -> ArmSetup:
+    """θ4 and the reference shoulder rotation of both elbow signs, for a pose ``(R, p)`` in the world frame."""
+    R, p = sy.compose(sy.compose(geo.base_inv, (R, p)), geo.tool_inv)
+    w = sy.vsub(p, sy.vscale(geo.d_wt, sy.col(R, 2)))
+    x_sw = (w[0], w[1], sy.sub(w[2], geo.d_bs))
+    r2 = sy.dot(x_sw, x_sw)
+    u = sy.vscale(1.0 / ops.sqrt(ops.fmax(r2, _TINY)), x_sw)
+    c4 = (r2 - geo.d_se**2 - geo.d_ew**2) / (2.0 * geo.d_se * geo.d_ew)
+    t4, _, valid = trig.acos2(c4, ops)
+    c4 = ops.fmin(ops.fmax(c4, -1.0), 1.0)
+    s4 = ops.sin(t4)
+    c1, s1, ref_singular = reference_azimuth(x_sw, ops)
+    # elevation of x_sw from the vertical, in the plane of azimuth θ1⁰
+    hz = sy.lin((c1, x_sw[0]), (s1, x_sw[1]))
+    rz = ops.sqrt(ops.fmax(hz * hz + x_sw[2] * x_sw[2], _TINY))
+    sa, ca_ = hz / rz, x_sw[2] / rz
+    Rz1 = sy.rot_z(c1, s1)
+    elbows = []
+    for sign in (1.0, -1.0):
+        s4e = sy.mul(sign, s4)
+        v0, v1 = sy.mul(-geo.d_ew, s4e), sy.add(geo.d_se, sy.mul(geo.d_ew, c4))
+        nv = ops.sqrt(ops.fmax(v0 * v0 + v1 * v1, _TINY))
+        sp, cp = v0 / nv, v1 / nv
+        # θ2⁰ = atan2(hz, z) - atan2(v0, v1)
+        M0 = sy.matmul(Rz1, rot_y(ca_ * cp + sa * sp, sa * cp - ca_ * sp))
+        elbows.append((sy.mul(sign, t4), c4, s4e, M0))
+    elbow_singular = ops.fabs(s4) < SINGULAR_TOL
+    return ArmSetup(R, u, tuple(elbows), valid, either(ref_singular, elbow_singular, ops))
+
+
+# ---- the ψ-dependent part ---------------------------------------------------
+
+
+def zyz(M: Mat, dcol: tuple[Scalar, Scalar], ops: Ops) -> tuple[Scalar, Scalar, Scalar, Scalar]:
+    r"""ZYZ angles ``(a, b, c, singular)`` of :math:`M = R_z(a) R_y(b) R_z(c)` with b ∈ [0, π].
+
+    ``dcol`` is :math:`\partial_\psi (M_{02}, M_{12})`: where
+    :math:`|\sin b| < ` ``SINGULAR_TOL`` it gives a its limit for increasing ψ
+    (0 if it vanishes too). b and c follow from a:
+    :math:`b = \mathrm{atan2}(\cos a\,M_{02} + \sin a\,M_{12}, M_{22})`,
+    :math:`c = \mathrm{atan2}(\cos a\,M_{10} - \sin a\,M_{00}, \cos a\,M_{11} - \sin a\,M_{01})`.
+    """
+    x, y = M[0][2], M[1][2]
+    singular = x * x + y * y < SINGULAR_TOL**2
+    x, y = ops.where(singular, dcol[0], x), ops.where(singular, dcol[1], y)
+    flat = x * x + y * y < _TINY
+    x, y = ops.where(flat, 1.0, x), ops.where(flat, 0.0, y)
+    h = ops.sqrt(x * x + y * y)
+    ca_, sa = x / h, y / h
+    a = trig.angle(y, x, ops)
+    b = trig.angle(ca_ * M[0][2] + sa * M[1][2], M[2][2], ops)
+    c = trig.angle(ca_ * M[1][0] - sa * M[0][0], ca_ * M[1][1] - sa * M[0][1], ops)
+    return a, b, c, singular
+
+
+def flip(a: Scalar, b: Scalar, c: Scalar, ops: Ops) -> tuple[Scalar, Scalar, Scalar]:
+    """The other sign of a ZYZ triple: (a + π, −b, c + π), all in (−π, π]."""
+    return trig.flip(a, ops), ops.where(b < np.pi, -b, b), trig.flip(c, ops)
+
+
+def branch_signs(k: int) -> tuple[int, int, int]:
+    """(shoulder, elbow, wrist) indices 0 (angle >= 0) or 1 (angle < 0) of public branch ``k``."""
+    return (k >> 2) & 1, (k >> 1) & 1, k & 1
+
+
+class SRSSolver(AnalyticSolver):
+    """Closed-form IK of an S-R-S arm (``iiwa14``) in the arm angle ψ; see the module docstring.
+
+    Branch ids 0–7: ``branch = 4·[θ2 < 0] + 2·[θ4 < 0] + [θ6 < 0]``.
+    """
+
+    kind = "srs"
+    param_name = "psi"
+    branch_ids = tuple(range(8))
+
+    def __init__(self, robot: Robot):
+        super().__init__(robot)
+        self.geometry = SRSGeometry.from_chain(robot.chain)
+
+    def branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
+        r"""All 8 branches at arm angle ``param`` (rad) for the pose ``(R, p)`` (world frame).
+
+        :math:`M_s = R_\psi M_s^0`, :math:`M_w = R_y(\theta_4) M_s^T R`; the ψ-derivatives
+        used at singular points are :math:`\partial_\psi M_s = [u]_\times M_s` and
+        :math:`\partial_\psi M_w e_z = -R_y(\theta_4) M_s^T (u \times R e_z)`.
+        """
+        setup = arm_setup(R, p, self.geometry, ops)
+        u = setup.u
+        Rpsi = rotation_about(u, ops.sin(param), ops.cos(param))
+        u_x_z = sy.cross(u, sy.col(setup.R, 2))
+        per_elbow = []
+        for e, (t4, c4, s4, M0) in enumerate(setup.elbows):
+            Ms = sy.matmul(Rpsi, M0)
+            Mw = setup.wrist(e, Ms)
+            ds = sy.cross(u, sy.col(Ms, 2))
+            dw = sy.matvec(rot_y(c4, s4), sy.matvec(sy.transpose(Ms), u_x_z))
+            *shoulder, s_sing = zyz(Ms, (ds[0], ds[1]), ops)
+            *wrist, w_sing = zyz(Mw, (sy.neg(dw[0]), sy.neg(dw[1])), ops)
+            both = (tuple(shoulder), flip(*shoulder, ops)), (tuple(wrist), flip(*wrist, ops))
+            per_elbow.append((t4, *both, either(s_sing, w_sing, ops)))
+        q, valid, singular = [], [], []
+        for k in self.branch_ids:
+            i_s, i_e, i_w = branch_signs(k)
+            t4, shoulder, wrist, sing = per_elbow[i_e]
+            q.append([*shoulder[i_s], t4, *wrist[i_w]])
+            valid.append(setup.valid)
+            singular.append(either(sing, setup.singular, ops))
+        return Branches(q, valid, singular)
+
+    def parameter(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r"""Arm angle ψ (rad) and branch id of configurations ``q`` (N, 7): ((N,), (N,) int).
+
+        ψ = signed angle about :math:`u_{sw}` from :math:`n^0` to the joint-4 axis
+        :math:`n = M_s e_y` (module docstring), so that ``ik(fk(q), ψ)`` holds q in
+        branch ``4·[θ2<0] + 2·[θ4<0] + [θ6<0]``.
+        """
+        q = np.asarray(q, dtype=float)
+        g = self.geometry
+        C, S = np.cos(q[:, :4]), np.sin(q[:, :4])
+        Ms = sy.matmul(sy.matmul(sy.rot_z(C[:, 0], S[:, 0]), rot_y(C[:, 1], S[:, 1])), sy.rot_z(C[:, 2], S[:, 2]))
+        x_sw = sy.matvec(Ms, (-g.d_ew * S[:, 3], 0.0, g.d_se + g.d_ew * C[:, 3]))
+        c1, s1, _ = reference_azimuth(x_sw, sy.NUMPY)
+        n0 = (-s1, c1, 0.0)
+        n = sy.col(Ms, 1)
+        sin_psi = sy.dot(x_sw, sy.cross(n0, n)) / np.sqrt(sy.dot(x_sw, x_sw))
+        psi = wrap(np.arctan2(sin_psi, sy.dot(n0, n)))
+        branch = 4 * (q[:, 1] < 0) + 2 * (q[:, 3] < 0) + (q[:, 5] < 0)
+        return psi, branch.astype(int)
+
+    @cached_property
+    def _intervals(self) -> PsiIntervals:
+        from qpik.analytic.srs_intervals import PsiIntervals  # srs_intervals builds on this module
+
+        return PsiIntervals(self)
+
+    def feasible_intervals(self, T: np.ndarray) -> FeasibleIntervals:
+        """Per branch, the exact ψ set (union of closed intervals) keeping every joint within limits.
+
+        See :class:`qpik.analytic.srs_intervals.PsiIntervals`. ``T``: (4, 4) pose, world frame.
+        """
+        return self._intervals(T)
