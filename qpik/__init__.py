@@ -15,6 +15,7 @@ if (
     _os.environ["MUJOCO_GL"] = "osmesa"
 
 from qpik.analytic import FeasibleIntervals, IKSolutions, feasible_intervals, ik, redundancy_parameter
+from qpik.control import Controller, StepInfo
 from qpik.errors import (
     InfeasibleError,
     InputError,
@@ -30,6 +31,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "CATALOG",
+    "Controller",
     "DHChain",
     "FeasibleIntervals",
     "IKSolutions",
@@ -40,6 +42,7 @@ __all__ = [
     "QpikError",
     "Robot",
     "RotationError",
+    "StepInfo",
     "UnknownRobotError",
     "UnreachableError",
     "feasible_intervals",

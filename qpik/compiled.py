@@ -1,19 +1,85 @@
-"""Fast numeric evaluation of CasADi functions for one input at a time.
+"""Fast numeric evaluation of CasADi functions.
 
 A CasADi ``Function`` called from Python spends ~25 µs converting arguments;
-its ``buffer()`` interface evaluates the same SX program in a few µs by
-reading and writing preallocated numpy arrays in place. :class:`Compiled`
-wraps that: the single-configuration paths of qpik (FK + Jacobian, the
-closed-form IK) are CasADi functions traced from the same source as the
+its ``buffer()`` interface evaluates the same program in a few µs by reading
+and writing preallocated numpy arrays in place. :class:`Compiled` wraps that:
+the single-configuration paths of qpik (FK + Jacobian, the closed-form IK,
+capsule distances) are CasADi functions traced from the same source as the
 batched numpy path and the symbolic path (:mod:`qpik.symbolic`).
+
+:func:`native` goes one step further: it has CasADi generate C for a
+function, compiles it once with the system C compiler (``cc``) and caches the
+shared library on disk, keyed by a hash of the source. CasADi's SX virtual
+machine costs a few ns per instruction; machine code is several times faster,
+which matters for the large functions (IK of all branches, distances of all
+capsule/obstacle pairs, mapped sweeps). Where no compiler works, or with
+``QPIK_NATIVE=0``, the virtual machine is used: same results, slower.
 """
 
 from __future__ import annotations
 
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+import warnings
 from collections.abc import Sequence
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
+
+CFLAGS = ("-O2", "-shared", "-fPIC")
+_native_failed: str | None = None  # why native compilation is off in this process
+
+
+def cache_dir() -> Path:
+    """Where compiled functions are kept: ``$QPIK_CACHE``, else ``$XDG_CACHE_HOME/qpik``, else ``~/.cache/qpik``."""
+    if os.environ.get("QPIK_CACHE"):
+        return Path(os.environ["QPIK_CACHE"])
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "qpik"
+
+
+def native(fn: ca.Function) -> ca.Function:
+    """``fn`` as machine code (cached shared library), or ``fn`` itself when that is not possible.
+
+    The result computes the same outputs (IEEE arithmetic, no fast-math) and
+    has the same inputs and outputs, so callers cannot tell the difference
+    except by speed.
+    """
+    global _native_failed
+    if os.environ.get("QPIK_NATIVE", "1") == "0" or _native_failed:
+        return fn
+    compiler = shutil.which(os.environ.get("CC", "cc"))
+    if compiler is None:
+        _native_failed = "no C compiler (cc) on PATH"
+        return fn
+    name = fn.name()
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+            gen.add(fn)
+            gen.generate(tmp + os.sep)
+            source = Path(tmp, f"{name}.c").read_bytes()
+            key = hashlib.sha256(source + " ".join(CFLAGS).encode() + ca.__version__.encode()).hexdigest()[:20]
+            folder = cache_dir()
+            folder.mkdir(parents=True, exist_ok=True)
+            lib = folder / f"{name}_{key}.so"
+            if not lib.exists():
+                partial = folder / f"{lib.name}.{os.getpid()}.tmp"
+                subprocess.run(
+                    [compiler, *CFLAGS, str(Path(tmp, f"{name}.c")), "-o", str(partial), "-lm"],
+                    check=True,
+                    capture_output=True,
+                )
+                os.replace(partial, lib)  # atomic: concurrent processes never see a partial library
+        return ca.external(name, str(lib))
+    except (OSError, subprocess.CalledProcessError, RuntimeError) as exc:
+        _native_failed = f"{type(exc).__name__}: {exc}"
+        warnings.warn(f"qpik: native compilation off, using CasADi's virtual machine ({_native_failed})", stacklevel=2)
+        return fn
 
 
 class Compiled:
@@ -21,6 +87,8 @@ class Compiled:
 
     Args:
         fn: a CasADi ``Function`` with dense inputs and outputs.
+        compile: evaluate machine code from :func:`native` rather than CasADi's
+            virtual machine (same results).
 
     Calling it with numpy inputs returns *views* of internal output buffers
     shaped like the CasADi outputs (row-major ``(rows, cols)``, squeezed to 1-D
@@ -28,8 +96,9 @@ class Compiled:
     they must outlive it.
     """
 
-    def __init__(self, fn: ca.Function):
-        self.fn = fn
+    def __init__(self, fn: ca.Function, compile: bool = True):
+        self.fn = native(fn) if compile else fn
+        fn = self.fn
         self._buf, self._eval = fn.buffer()
         self._args = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
         self._res = [np.zeros(fn.nnz_out(i)) for i in range(fn.n_out())]

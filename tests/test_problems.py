@@ -101,7 +101,7 @@ def test_zheng2019_path(tmp_path, reading):
     text = (FOLDER / "zheng2019_clik.toml").read_text().replace('reading = "relative"', f'reading = "{reading}"')
     p = load(write(tmp_path, text))
     path = p.path
-    assert p.kind == "track" and path.duration == 20.0 and p.solver["dt"] == 0.001
+    assert p.kind == "track" and path.duration == 6.0 and p.solver["dt"] == 0.001
     T0 = p.robot.fk(path.q0)
     np.testing.assert_allclose(path.q0, [0, 1.0472, -0.5236, -2.0944, 0, 1.5708, -1.5708])
     gap = np.linalg.norm(path.pose(0.0)[:3, 3] - T0[:3, 3])

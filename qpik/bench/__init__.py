@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-BENCHES = ("kinematics", "analytic")
+BENCHES = ("kinematics", "analytic", "controller")
 
 
 @dataclass

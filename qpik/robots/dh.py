@@ -149,7 +149,8 @@ class DHChain:
 
     @cached_property
     def _compiled(self) -> dict[str, Compiled]:
-        return {k: Compiled(f) for k, f in self.casadi_functions.items()}
+        """The fast single-q evaluators of :attr:`casadi_functions`, each built on first use."""
+        return _LazyCompiled(self.casadi_functions)
 
     # ---- numeric API --------------------------------------------------------
 
@@ -236,6 +237,18 @@ def manipulability_gradient_from(J: np.ndarray, H: np.ndarray, translational: bo
     m = np.sqrt(np.maximum(np.linalg.det(A), 0.0))
     B = np.linalg.pinv(A) @ J  # (..., r, n)
     return m[..., None] * np.einsum("...rj,...krj->...k", B, H)
+
+
+class _LazyCompiled(dict):
+    """``name -> Compiled(functions[name])``, compiled when first asked for."""
+
+    def __init__(self, functions: dict[str, ca.Function]):
+        super().__init__()
+        self.functions = functions
+
+    def __missing__(self, name: str) -> Compiled:
+        self[name] = Compiled(self.functions[name])
+        return self[name]
 
 
 def _frame_to_sx(f: Frame) -> ca.SX:

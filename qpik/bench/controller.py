@@ -1,0 +1,150 @@
+"""Bench: one full control step (kinematics, QP assembly, solve) of qpik beside mink, same arm, same run.
+
+Scene: iiwa14 reaching for a pose 0.25 m away, closed loop (``q ← q + v·dt``, dt = 1 ms,
+so every solver is warm-started the way it runs in a robot), with two spheres placed
+close to links 4–7 so that 8 capsule–sphere pairs are inside the influence distance.
+
+- qpik: :meth:`Controller.for_robot` — FrameTask, PostureTask, ManipulabilityTask
+  (∇m from the kinematic Hessian), DampingTask; ConfigurationLimit, VelocityLimit and
+  ObstacleLimit (every one of the 7 capsules against both spheres: 14 rows, 8 active) —
+  with solver ``osqp`` (persistent), ``daqp``, ``proxqp``, ``quadprog``;
+- mink 1.3 on the MJCF twin (same kinematics): ``configuration.update(q)`` +
+  ``mink.solve_ik`` with FrameTask, PostureTask, DampingTask and a manipulability task
+  (:class:`MinkManipulabilityTask`, the same gradient) and ConfigurationLimit,
+  VelocityLimit, CollisionAvoidanceLimit (the 4 capsules of links 4–7 × 2 spheres),
+  solver ``osqp`` and ``daqp``.
+
+Rows: seconds per step (median, p99, worst); ratios compare qpik with mink on the same
+solver. Targets (issue): qpik+OSQP ≥ 5x faster than mink+OSQP and no slower than
+mink+daqp; qpik+daqp ≥ 2x faster than mink+daqp; worst step < 1 ms.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import mink
+import mujoco
+import numpy as np
+from mink.tasks.task import BaseTask, Objective
+
+from qpik.bench import Row, time_calls
+from qpik.control import Controller
+from qpik.geometry.shapes import Sphere
+from qpik.robots.catalog import load_robot
+from qpik.robots.mjcf import to_mjcf
+
+TITLE = "Controller: one control step (iiwa14, frame + posture + manipulability, 8 obstacle rows)"
+DT = 1e-3
+D_INFLUENCE, D_SAFE, XI = 0.10, 0.02, 0.5
+LINKS = (4, 5, 6, 7)
+
+
+class MinkManipulabilityTask(BaseTask):
+    r"""Manipulability ascent for mink: the linear cost :math:`-w\,\nabla m^T \Delta q` (Δq = v dt).
+
+    ∇m comes from the DH chain's kinematic Hessian (the MJCF twin has the same kinematics),
+    so both libraries get the same term; ``w`` is per Δq, i.e. qpik's weight times dt.
+    """
+
+    def __init__(self, robot, weight: float):
+        self.robot = robot
+        self.weight = weight
+
+    def compute_qp_objective(self, configuration: mink.Configuration) -> Objective:
+        n = self.robot.dof
+        grad = self.robot.manipulability_gradient(configuration.q[:n])
+        return Objective(np.zeros((n, n)), -self.weight * grad)
+
+
+def scene(robot) -> tuple[np.ndarray, np.ndarray, list[Sphere]]:
+    """Start configuration, target pose and two spheres near links 4–7."""
+    q0 = robot.q_home.copy()
+    target = robot.fk(q0)
+    target[:3, 3] += (0.15, 0.1, -0.15)
+    seg = robot.capsule_segments(q0)
+    caps = robot.capsule_radii
+    spheres = []
+    for k, side in ((4, 1.0), (6, -1.0)):
+        c = k - 1
+        mid = 0.5 * (seg[c, 0] + seg[c, 1])
+        u = np.array([0.0, side, 0.0])
+        spheres.append(Sphere(mid + u * (caps[c] + 0.05 + 0.05), 0.05, name=f"ball{k}"))
+    return q0, target, spheres
+
+
+def run(args: argparse.Namespace) -> list[Row]:
+    repeat = max(100, int(getattr(args, "repeat", 2000)))
+    robot = load_robot("iiwa14")
+    q0, target, spheres = scene(robot)
+    rows: list[Row] = []
+    for solver in ("osqp", "daqp"):
+        rows.append(_mink_row(robot, q0, target, spheres, solver, repeat))
+    for solver, ref in (
+        ("osqp", "mink + osqp"),
+        ("daqp", "mink + daqp"),
+        ("proxqp", "mink + daqp"),
+        ("quadprog", "mink + daqp"),
+    ):
+        rows.append(_qpik_row(robot, q0, target, spheres, solver, ref, repeat))
+    return rows
+
+
+def _closed_loop(step, q0: np.ndarray):
+    """A no-argument callable: one control step at the current q, then ``q ← q + v dt``."""
+    q = q0.copy()
+
+    def call():
+        q[:] += step(q) * DT
+
+    return call
+
+
+def _qpik_row(robot, q0, target, spheres, solver, ref, repeat) -> Row:
+    ctrl = Controller.for_robot(
+        robot, target=target, obstacles=spheres, dt=DT, solver=solver, d_influence=D_INFLUENCE, d_safe=D_SAFE, xi=XI
+    )
+    t = time_calls(_closed_loop(ctrl.step, q0), repeat, warmup=50)
+    active = sum(name.startswith("obstacle") for name in ctrl.last.active)
+    note = f"(last step: {active} obstacle rows active)" if active else ""
+    return Row(f"qpik + {solver}", float(np.median(t)), ref, float(np.percentile(t, 99)), float(t.max()), note)
+
+
+def _mink_row(robot, q0, target, spheres, solver, repeat) -> Row:
+    model = mujoco.MjModel.from_xml_string(to_mjcf(robot, [s.to_mjcf_geom() for s in spheres]))
+    conf = mink.Configuration(model)
+    ctrl = Controller.for_robot(robot)  # only to read the same default weights
+    frame_task, posture, manip, damping = ctrl.tasks
+    # qpik's cost w‖·‖² over v ⇔ mink's ½‖c(·)‖² over Δq = v dt with c = sqrt(2 w)·…, gains·dt
+    frame = mink.FrameTask(
+        "ee",
+        "site",
+        position_cost=np.sqrt(frame_task.weight[0]),
+        orientation_cost=np.sqrt(frame_task.weight[3]),
+        gain=min(1.0, frame_task.gain[0] * DT),
+    )
+    frame.set_target(mink.SE3.from_matrix(target))
+    post = mink.PostureTask(model, cost=np.sqrt(posture.weight), gain=posture.gain * DT)
+    post.set_target(posture.q_ref)
+    tasks = [
+        frame,
+        post,
+        mink.DampingTask(model, cost=np.sqrt(damping.weight)),
+        MinkManipulabilityTask(robot, manip.weight * DT),
+    ]
+    vel = {f"joint{j + 1}": robot.v_max[j] for j in range(robot.dof)}
+    pairs = [([f"link{k}_capsule" for k in LINKS], [s.name for s in spheres])]
+    limits = [
+        mink.ConfigurationLimit(model),
+        mink.VelocityLimit(model, vel),
+        mink.CollisionAvoidanceLimit(
+            model, pairs, minimum_distance_from_collisions=D_SAFE, collision_detection_distance=D_INFLUENCE
+        ),
+    ]
+
+    def step(q):
+        conf.update(q)
+        return mink.solve_ik(conf, tasks, DT, solver=solver, limits=limits)
+
+    t = time_calls(_closed_loop(step, q0), repeat, warmup=50)
+    return Row(f"mink + {solver}", float(np.median(t)), None, float(np.percentile(t, 99)), float(t.max()))

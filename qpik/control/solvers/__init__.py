@@ -1,0 +1,74 @@
+"""QP solvers behind one registry: :func:`get_solver` by name.
+
+- ``"osqp"``: a persistent OSQP object (:mod:`.osqp`), set up once with the fixed
+  sparsity pattern of the controller's QP, then updated and warm-started every step;
+- ``"daqp"``: DAQP called directly on the QP arrays (:mod:`.daqp`, a measured fast path);
+- any other name that :mod:`qpsolvers` offers (``"daqp"``, ``"quadprog"``,
+  ``"proxqp"``, ``"clarabel"``, ``"piqp"``, ...) through ``qpsolvers.solve_problem``
+  (:mod:`.qpsolvers`).
+
+Every solver returns a :class:`Solution` and never raises on a failed solve
+(``found=False`` with a status); a solver that is not installed raises
+:class:`~qpik.errors.SolverError` from :func:`get_solver`.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from qpik.control.qp import QP
+from qpik.errors import SolverError
+
+
+@dataclass
+class Solution:
+    """Result of one QP solve: ``x`` (N,) if ``found``, a solver ``status`` string, iterations."""
+
+    x: np.ndarray | None
+    found: bool
+    status: str
+    iterations: int = 0
+
+
+class Solver(ABC):
+    """A QP solver; one instance per controller (it may keep state between steps)."""
+
+    name: str = ""
+
+    @abstractmethod
+    def solve(self, qp: QP) -> Solution:
+        """Solve ``qp``; never raises on numerical failure (``found=False``)."""
+
+
+def available() -> tuple[str, ...]:
+    """Names accepted by :func:`get_solver` on this machine."""
+    import qpsolvers
+
+    return tuple(dict.fromkeys(("osqp", "daqp", *qpsolvers.available_solvers)))
+
+
+def get_solver(name: str, **options: object) -> Solver:
+    """A new solver by name; ``options`` go to the backend (e.g. ``eps_abs`` for OSQP).
+
+    Raises:
+        SolverError: the name is unknown or its package is not installed.
+    """
+    if name == "osqp":
+        from qpik.control.solvers.osqp import OSQPSolver
+
+        return OSQPSolver(**options)
+    if name == "daqp":
+        from qpik.control.solvers.daqp import DaqpSolver
+
+        return DaqpSolver(**options)
+    if name not in available():
+        raise SolverError(f"unknown or uninstalled QP solver {name!r}; available: {', '.join(available())}")
+    from qpik.control.solvers.qpsolvers import QpsolversSolver
+
+    return QpsolversSolver(name, **options)
+
+
+__all__ = ["Solution", "Solver", "available", "get_solver"]

@@ -1,0 +1,328 @@
+r"""Closed-loop runs of a joint-velocity policy on a MuJoCo model of the arm.
+
+The model is the robot's MJCF twin (:meth:`qpik.Robot.to_mjcf`) or any MJCF
+arm (joint names and end-effector site given), with the obstacles added to its
+``<worldbody>`` as geoms, so MuJoCo draws them and measures distances on its
+own. Each step *k* (:math:`t_k = k\,\Delta t`):
+
+1. the policy maps :math:`(t_k, q_k)` to a joint velocity :math:`v_k` (rad/s);
+2. kinematic integration :math:`q_{k+1} = q_k \oplus v_k \Delta t`
+   (``mj_integratePos``, which is :math:`q_k + v_k \Delta t` for hinges), then
+   ``mj_kinematics``;
+3. on recorded steps: end-effector pose, target pose, the signed distance of
+   every link geom to every obstacle geom (``mj_geomDistance``, independent of
+   the controller's own distance code) and the manipulability
+   :math:`\sqrt{\det J J^\top}` from MuJoCo's site Jacobian.
+
+A *policy* is a callable ``policy(t, q) -> v`` or a controller: any object with
+``step(q, target=None, twist=None) -> v``. A controller is given the target before each step by
+:func:`follow` (pose and feed-forward twist of a path), and its ``last`` step
+information (status, solve time), when it has one, goes into the log.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from typing import Protocol
+
+import mujoco
+import numpy as np
+
+from qpik.errors import InputError
+from qpik.geometry.shapes import Shape
+from qpik.robots.mujoco_backend import MjKinematics
+from qpik.robots.robot import Robot
+from qpik.sim.log import SimLog
+from qpik.validate import finite_array, joint_vector
+from qpik.validate import pose as check_pose
+
+DISTMAX = 10.0
+"""Distances (m) beyond this are reported as this value by ``mj_geomDistance``."""
+OBSTACLE_PREFIX = "obstacles/"
+
+
+class TimedPath(Protocol):
+    """A timed end-effector path: pose (4, 4) and twist ``[v; ω]`` (6,) in the world frame at t (s)."""
+
+    duration: float
+
+    def pose(self, t: float) -> np.ndarray: ...
+
+    def twist(self, t: float) -> np.ndarray: ...
+
+
+Target = np.ndarray | TimedPath | None
+PolicyFn = Callable[[float, np.ndarray], np.ndarray]
+
+
+@dataclass
+class Scene:
+    """An arm model with obstacle geoms, and the geom pairs whose distance is logged.
+
+    Attributes:
+        kin: the arm's kinematics on the model with obstacles.
+        link_geoms, link_names: ids and names of the arm's collision geoms (L,).
+        obstacle_geoms, obstacle_names: ids of the obstacle geoms and the obstacles' names (O,).
+        obstacles: the obstacle shapes (world frame).
+        robot: the :class:`Robot` when the model is its twin, else ``None``.
+    """
+
+    kin: MjKinematics
+    link_geoms: np.ndarray
+    link_names: tuple[str, ...]
+    obstacle_geoms: np.ndarray
+    obstacle_names: tuple[str, ...]
+    obstacles: tuple[Shape, ...]
+    robot: Robot | None = None
+
+    def clearances(self, out: np.ndarray) -> np.ndarray:
+        """Signed distances (m) (L, O) of link to obstacle geoms at the current ``kin.data`` state."""
+        m, d = self.kin.model, self.kin.data
+        for i, gl in enumerate(self.link_geoms):
+            for j, go in enumerate(self.obstacle_geoms):
+                out[i, j] = mujoco.mj_geomDistance(m, d, int(gl), int(go), DISTMAX, None)
+        return out
+
+
+def build_scene(
+    arm: Robot | str | os.PathLike,
+    obstacles: Sequence[Shape] = (),
+    *,
+    joint_names: Sequence[str] | None = None,
+    site: str = "ee",
+    link_geoms: Sequence[str] | None = None,
+) -> Scene:
+    """The model of ``arm`` with ``obstacles`` as world geoms.
+
+    Args:
+        arm: a :class:`Robot` (its MJCF twin), an MJCF string or an MJCF file path.
+        obstacles: shapes in the world frame; each becomes geom ``obstacles/<i>``.
+        joint_names, site: the arm's joints and end-effector site (an MJCF arm;
+            the twin uses ``joint1..7`` and ``ee``).
+        link_geoms: the arm geoms whose clearance is logged; default: every geom
+            that can collide (``contype`` or ``conaffinity`` non-zero) on a
+            moving body — the capsules ``link<k>_capsule`` of the twin.
+    """
+    robot = arm if isinstance(arm, Robot) else None
+    if robot is not None:
+        spec = mujoco.MjSpec.from_string(robot.to_mjcf())
+        joint_names = [f"joint{k}" for k in range(1, robot.dof + 1)]
+        site = "ee"
+    elif str(arm).lstrip().startswith("<"):
+        spec = mujoco.MjSpec.from_string(str(arm))
+    else:
+        spec = mujoco.MjSpec.from_file(os.fspath(arm))
+    obstacles = tuple(obstacles)
+    if obstacles:
+        geoms = "".join(replace(o, name=str(i)).to_mjcf_geom() for i, o in enumerate(obstacles))
+        child = mujoco.MjSpec.from_string(f'<mujoco><worldbody><body name="all">{geoms}</body></worldbody></mujoco>')
+        spec.worldbody.add_frame().attach_body(child.body("all"), OBSTACLE_PREFIX, "")
+    model = spec.compile()
+    kin = MjKinematics(model, site, joint_names)
+    if link_geoms is None:
+        moving = model.body_weldid[model.geom_bodyid] != 0
+        collides = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
+        link_ids = np.flatnonzero(moving & collides)
+    else:
+        link_ids = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, g) for g in link_geoms], dtype=int)
+        if np.any(link_ids < 0):
+            missing = [g for g, i in zip(link_geoms, link_ids) if i < 0]
+            raise InputError(f"link_geoms: {missing} are not geoms of the model")
+    obstacle_ids = np.array(
+        [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"{OBSTACLE_PREFIX}{i}") for i in range(len(obstacles))],
+        dtype=int,
+    )
+    return Scene(
+        kin=kin,
+        link_geoms=link_ids,
+        link_names=tuple(model.geom(int(g)).name or f"geom{g}" for g in link_ids),
+        obstacle_geoms=obstacle_ids,
+        obstacle_names=tuple(o.name or f"obstacle{i}" for i, o in enumerate(obstacles)),
+        obstacles=obstacles,
+        robot=robot,
+    )
+
+
+def follow(controller: object, target: Target) -> PolicyFn:
+    """A policy ``(t, q) -> v`` from a controller's ``step(q, target=None, twist=None)``.
+
+    A path's pose and feed-forward twist at t are handed to every step; a constant
+    pose to the first step only (the controller keeps it); ``None`` keeps the
+    controller's own target.
+    """
+    if target is None:
+        return lambda t, q: controller.step(q)
+    if hasattr(target, "pose"):
+        return lambda t, q: controller.step(q, target.pose(t), target.twist(t))
+    pending = [target]
+
+    def constant(t: float, q: np.ndarray) -> np.ndarray:
+        return controller.step(q, pending.pop()) if pending else controller.step(q)
+
+    return constant
+
+
+def target_pose(target: Target, t: float) -> np.ndarray | None:
+    """The target pose (4, 4) at t: a constant pose, a path's pose, or ``None``."""
+    if target is None:
+        return None
+    if hasattr(target, "pose"):
+        return np.asarray(target.pose(t), dtype=float)
+    return target
+
+
+def simulate(
+    arm: Robot | str | os.PathLike | Scene,
+    policy: PolicyFn | object,
+    q0: np.ndarray,
+    duration: float,
+    dt: float = 0.001,
+    obstacles: Sequence[Shape] = (),
+    target: Target = None,
+    record_every: int = 1,
+    *,
+    joint_names: Sequence[str] | None = None,
+    site: str = "ee",
+    v_max: np.ndarray | None = None,
+    d_safe: float | None = None,
+    label: str = "run",
+    progress: bool | None = None,
+) -> SimLog:
+    """Run ``policy`` in closed loop for ``duration`` seconds and log it.
+
+    Args:
+        arm: a :class:`Robot` (MJCF twin), an MJCF string or path (with
+            ``joint_names`` and ``site``), or a ready :class:`Scene`.
+        policy: ``policy(t, q) -> v`` (rad/s, (n,)), or an object with
+            ``step(q) -> v`` — a controller, given ``target`` through :func:`follow`.
+        q0: initial configuration (n,) (rad).
+        duration: simulated time (s); ``round(duration / dt)`` steps are taken.
+        dt: integration step (s).
+        obstacles: shapes (world frame) added to the model (ignored for a Scene).
+        target: a pose (4, 4), a :class:`TimedPath` (``pose(t)``, ``twist(t)``) or
+            ``None``; logged, and handed to a controller.
+        record_every: log every this many steps (and always the last state).
+        v_max: velocity limits (rad/s) (n,) for the summary; default the robot's.
+        d_safe: safety distance (m) to mark on plots.
+        label: a name for plots and summaries.
+        progress: show a tqdm bar; default: when stderr is a terminal.
+
+    Returns:
+        A :class:`SimLog` with ``1 + ceil(N / record_every)`` records, N the number of steps.
+    """
+    scene = arm if isinstance(arm, Scene) else build_scene(arm, obstacles, joint_names=joint_names, site=site)
+    kin, model, data = scene.kin, scene.kin.model, scene.kin.data
+    n = kin.dof
+    q0, batched = joint_vector(q0, n, "q0")
+    if batched:
+        raise InputError(f"q0: expected shape ({n},), got {q0.shape}")
+    dt = float(finite_array(dt, "dt", ()))
+    duration = float(finite_array(duration, "duration", ()))
+    if dt <= 0 or duration < 0:
+        raise InputError(f"dt must be > 0 and duration >= 0, got dt={dt}, duration={duration}")
+    if int(record_every) < 1:
+        raise InputError(f"record_every: must be >= 1, got {record_every}")
+    if target is not None and not hasattr(target, "pose"):
+        target = check_pose(target, "target")[0]
+    every = int(record_every)
+    steps = round(duration / dt)
+    records = sorted(set(range(0, steps + 1, every)) | {steps})
+    fn, reporter = _policy(policy, target)
+    if v_max is None and scene.robot is not None:
+        v_max = scene.robot.v_max
+
+    K, L, O = len(records), len(scene.link_geoms), len(scene.obstacle_geoms)
+    log_t = np.array(records, dtype=float) * dt
+    log_q, log_v = np.zeros((K, n)), np.zeros((K, n))
+    log_ee = np.zeros((K, 4, 4))
+    log_target = np.zeros((K, 4, 4)) if target is not None else None
+    log_clear = np.zeros((K, L, O))
+    log_m = np.zeros(K)
+    log_time = np.full(K, np.nan)
+    log_status = np.full(K, "", dtype=object)
+    jacp, jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+    qpos, qvel = model.qpos0.copy(), np.zeros(model.nv)
+    qpos[kin.qpos_adr] = q0
+    q = q0.copy()
+    kin.update(q)
+
+    bar = _progress_bar(steps + 1, progress, label)
+    r = 0
+    for k in range(steps + 1):
+        t = k * dt
+        v = np.asarray(fn(t, q.copy()), dtype=float)
+        if v.shape != (n,) or not np.all(np.isfinite(v)):
+            raise InputError(f"policy: returned {v!r} at t={t:g} s; expected a finite ({n},) vector")
+        if r < K and records[r] == k:
+            log_q[r], log_v[r] = q, v
+            log_ee[r, :3, :3] = data.site_xmat[kin.site_id].reshape(3, 3)
+            log_ee[r, :3, 3] = data.site_xpos[kin.site_id]
+            log_ee[r, 3, 3] = 1.0
+            if log_target is not None:
+                log_target[r] = target_pose(target, t)
+            scene.clearances(log_clear[r])
+            mujoco.mj_jacSite(model, data, jacp, jacr, kin.site_id)
+            J = np.vstack((jacp[:, kin.dof_adr], jacr[:, kin.dof_adr]))
+            log_m[r] = np.sqrt(max(np.linalg.det(J @ J.T), 0.0))
+            if reporter is not None:
+                log_status[r], log_time[r] = reporter()
+            r += 1
+        if k < steps:
+            qvel[kin.dof_adr] = v
+            mujoco.mj_integratePos(model, qpos, qvel, dt)
+            q = qpos[kin.qpos_adr].copy()
+            kin.update(q)
+        if bar is not None and (k % 200 == 0 or k == steps):
+            bar.update(k + 1 - bar.n)
+    if bar is not None:
+        bar.close()
+    return SimLog(
+        t=log_t,
+        q=log_q,
+        v=log_v,
+        ee=log_ee,
+        target=log_target,
+        clearance=log_clear,
+        manipulability=log_m,
+        solve_time=log_time,
+        status=log_status,
+        q_min=kin.q_min.copy(),
+        q_max=kin.q_max.copy(),
+        v_max=None if v_max is None else np.asarray(v_max, dtype=float),
+        link_names=scene.link_names,
+        obstacle_names=scene.obstacle_names,
+        dt=dt,
+        d_safe=d_safe,
+        label=label,
+        robot=scene.robot if scene.robot is not None else kin,
+        obstacles=scene.obstacles,
+    )
+
+
+def _policy(policy: PolicyFn | object, target: Target) -> tuple[PolicyFn, Callable[[], tuple[str, float]] | None]:
+    """The policy as ``(t, q) -> v`` and, for a controller, a reader of its last (status, solve time)."""
+    if hasattr(policy, "step"):
+        return follow(policy, target), lambda: _last_info(policy)
+    if callable(policy):
+        return policy, None
+    raise InputError("policy: expected a callable (t, q) -> v or an object with step(q)")
+
+
+def _last_info(controller: object) -> tuple[str, float]:
+    last = getattr(controller, "last", None)
+    if last is None:
+        return "", float("nan")
+    return str(getattr(last, "status", "")), float(getattr(last, "solve_time", float("nan")))
+
+
+def _progress_bar(total: int, progress: bool | None, label: str):
+    if progress is None:
+        progress = sys.stderr.isatty()
+    if not progress:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=label, unit="step", leave=False)

@@ -1,0 +1,161 @@
+"""Controller: the same QP as mink on the MJCF twin, solve_ik against FK and the closed form, bad input."""
+
+from __future__ import annotations
+
+import mink
+import numpy as np
+import pytest
+from conftest import SEEDS, random_q
+from hypothesis import given, settings
+
+import qpik
+from qpik.control import (
+    ConfigurationLimit,
+    Controller,
+    DampingTask,
+    FrameTask,
+    PostureTask,
+    VelocityLimit,
+    pose_error,
+)
+from qpik.geometry.distance import distances
+from qpik.geometry.shapes import Sphere
+
+
+def _mink_v(robot, q, target, dt, cost_p, cost_o, gain, posture, limits):
+    """mink.solve_ik on the MJCF twin: FrameTask on site "ee" (+ posture, damping), its v = Δq/dt."""
+    model = robot.mj_model()
+    conf = mink.Configuration(model)
+    conf.update(q)
+    frame = mink.FrameTask("ee", "site", position_cost=cost_p, orientation_cost=cost_o, gain=gain)
+    frame.set_target(mink.SE3.from_matrix(target))
+    tasks = [frame]
+    if posture is not None:
+        q_ref, cost_q, gain_q, cost_d = posture
+        post = mink.PostureTask(model, cost=cost_q, gain=gain_q)
+        post.set_target(q_ref)
+        tasks += [post, mink.DampingTask(model, cost=cost_d)]
+    lims = []
+    if limits:
+        vel = {f"joint{j + 1}": robot.v_max[j] for j in range(robot.dof)}
+        lims = [mink.ConfigurationLimit(model, gain=1.0, min_distance_from_limits=0.0), mink.VelocityLimit(model, vel)]
+    return mink.solve_ik(conf, tasks, dt, solver="daqp", limits=lims)
+
+
+def _qpik_v(robot, q, target, dt, cost_p, cost_o, gain, posture, limits, solver):
+    r"""The same problem in qpik's terms.
+
+    mink minimises ½ Σ ‖c_i (J_i Δq + g e_i)‖² (+ ½ 1e-12 ‖Δq‖²) over Δq = v dt. With no
+    rotation error its frame error is the body-frame [Rᵀ(p* − p); 0] and its Jacobian the
+    body Jacobian (jlog = I), so with isotropic costs the frame term is
+    ½ dt² (c_p² ‖J_v v − (g/dt)(p* − p)‖² + c_o² ‖J_ω v‖²). Dividing every term by dt²/2:
+    weights c², gains g/dt; posture c² ‖v − (g/dt)(q* − q)‖²; damping c² ‖v‖² (mink's 1e-12
+    matches our regularisation up to a factor 2, far below 1e-6). Limits: mink's
+    ConfigurationLimit(gain=1) and VelocityLimit are our boxes
+    (q_min − q)/dt ≤ v ≤ (q_max − q)/dt and |v| ≤ v_max.
+    """
+    tasks = [FrameTask(target, gain / dt, gain / dt, cost_p**2, cost_o**2)]
+    if posture is not None:
+        q_ref, cost_q, gain_q, cost_d = posture
+        tasks += [PostureTask(q_ref, gain_q / dt, cost_q**2), DampingTask(cost_d**2)]
+    lims = [ConfigurationLimit(), VelocityLimit()] if limits else []
+    return Controller(robot, tasks, lims, solver=solver, dt=dt).step(q)
+
+
+@settings(max_examples=15, deadline=None)
+@given(seed=SEEDS)
+def test_same_velocity_as_mink(seed):
+    rng = np.random.default_rng(seed)
+    robot = qpik.load_robot(("iiwa14", "panda", "zheng7")[seed % 3])
+    q = random_q(robot, 1, seed, margin=0.05)[0]
+    dt = float(rng.choice([0.002, 0.01, 0.05]))
+    target = robot.fk(q)
+    target[:3, 3] += rng.normal(size=3) * rng.uniform(0.01, 0.2)  # translation error, no rotation error
+    cost_p, cost_o, gain = rng.uniform(0.5, 2.0), rng.uniform(0.05, 1.0), rng.uniform(0.1, 1.0)
+    posture = (random_q(robot, 1, seed + 1)[0], rng.uniform(0.01, 0.3), rng.uniform(0.1, 1.0), rng.uniform(1e-3, 0.05))
+    limits = bool(rng.integers(2))
+    want = _mink_v(robot, q, target, dt, cost_p, cost_o, gain, posture, limits)
+    for solver in ("osqp", "daqp"):
+        got = _qpik_v(robot, q, target, dt, cost_p, cost_o, gain, posture, limits, solver)
+        # 1e-6 rad/s, or 1e-9 relative near a singularity without limits (|v| up to ~1e3 rad/s)
+        np.testing.assert_allclose(got, want, atol=1e-6, rtol=1e-9)
+
+
+def test_same_velocity_as_mink_at_zero_error():
+    """Target = current pose: the frame task acts as a null-space filter of the posture pull."""
+    robot = qpik.load_robot("iiwa14")
+    q = robot.q_home + 0.2
+    posture = (robot.q_home - 0.3, 0.2, 0.5, 0.01)
+    want = _mink_v(robot, q, robot.fk(q), 0.01, 1.0, 1.0, 1.0, posture, True)
+    got = _qpik_v(robot, q, robot.fk(q), 0.01, 1.0, 1.0, 1.0, posture, True, "osqp")
+    assert np.abs(want).max() > 1e-2  # the posture task moves the arm
+    np.testing.assert_allclose(got, want, atol=1e-6, rtol=0)
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=SEEDS)
+def test_solve_ik_reaches_random_pose(seed):
+    """solve_ik from a random start reaches a random iiwa14 pose to 1e-9 (checked by FK)."""
+    robot = qpik.load_robot("iiwa14")
+    q_goal, q0 = random_q(robot, 2, seed, margin=0.1)
+    q0 = q_goal + 0.8 * (q0 - q_goal) / max(1.0, np.abs(q0 - q_goal).max())  # a random start up to 0.8 rad away
+    pose = robot.fk(q_goal)
+    ctrl = Controller.for_robot(robot)
+    q = ctrl.solve_ik(q0, pose, tol=1e-10)
+    assert np.linalg.norm(pose_error(pose, robot.fk(q))) < 1e-9
+    assert robot.within_limits(q, tol=1e-12)
+    # the closed form sees the same configuration: ik(pose, ψ(q)).q[branch(q)] == q
+    psi, branch = qpik.redundancy_parameter(robot, q)
+    sols = qpik.ik(robot, pose, psi)
+    row = int(np.flatnonzero(np.asarray(sols.branch) == branch)[0])
+    np.testing.assert_allclose(sols.q[row], q, atol=1e-8)
+
+
+def test_solve_ik_unreachable_raises_with_residual():
+    robot = qpik.load_robot("iiwa14")
+    far = robot.fk(robot.q_home)
+    far[:3, 3] = [3.0, 0.0, 0.5]  # beyond the 1.3 m reach
+    ctrl = Controller.for_robot(robot)
+    with pytest.raises(qpik.UnreachableError, match="pose error"):
+        ctrl.solve_ik(robot.q_home, far, max_iters=50)
+    # the control step still gives a bounded velocity toward it
+    v = ctrl.step(robot.q_home, target=far)
+    assert np.all(np.abs(v) <= robot.v_max + 1e-12)
+    assert ctrl.last.status == "ok" and ctrl.last.task_error > 1.0
+
+
+def test_step_reports_active_constraints_and_clearance():
+    robot = qpik.load_robot("iiwa14")
+    q = robot.q_home.copy()
+    T = robot.fk(q)
+    sphere = Sphere(T[:3, 3] + [0.0, 0.0, -0.2], 0.05, name="ball")
+    target = T.copy()
+    target[2, 3] -= 0.3  # through the ball
+    ctrl = Controller.for_robot(robot, target=target, obstacles=[sphere], dt=0.01)
+    for _ in range(300):
+        q = q + ctrl.step(q) * ctrl.dt
+    d = distances(robot.capsule_segments(q), robot.capsule_radii, [sphere]).d.min()
+    assert ctrl.last.min_clearance == pytest.approx(d, abs=0.02)  # one step older
+    assert any(name.startswith("obstacle ball") for name in ctrl.last.active)
+    assert ctrl.last.total_time >= ctrl.last.solve_time > 0
+
+
+def test_bad_input():
+    robot = qpik.load_robot("iiwa14")
+    ctrl = Controller.for_robot(robot, target=robot.fk(robot.q_home))
+    q = robot.q_home.copy()
+    q[2] = np.nan
+    with pytest.raises(qpik.InputError, match="q"):
+        ctrl.step(q)
+    with pytest.raises(qpik.InputError):
+        ctrl.step(np.zeros(6))
+    with pytest.raises(qpik.InputError):
+        ctrl.step(np.zeros((2, 7)))
+    with pytest.raises(qpik.InputError):
+        ctrl.solve_ik(q, robot.fk(robot.q_home))
+    with pytest.raises(qpik.InputError):
+        Controller(robot, [DampingTask()], dt=0.0)
+    with pytest.raises(qpik.InputError):
+        Controller(robot, [PostureTask(np.zeros(6))])
+    with pytest.raises(qpik.InputError):
+        Controller(robot, [DampingTask()]).step(robot.q_home, target=robot.fk(robot.q_home))

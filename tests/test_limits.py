@@ -1,0 +1,182 @@
+"""Limits of the QP: damper rows vs finite differences of the geometry, and limits holding on
+integrated trajectories (q_{k+1} = q_k + v dt) over many random episodes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import SEEDS, random_q
+from hypothesis import given, settings
+
+import qpik
+from qpik.control import ConfigurationLimit, Controller, ObstacleLimit, State, VelocityLimit
+from qpik.geometry.distance import distances
+from qpik.geometry.shapes import HalfSpace, Sphere
+
+D_SAFE = 0.02
+D_INFL = 0.10
+
+
+def clearance(robot: qpik.Robot, Q: np.ndarray, obstacles) -> np.ndarray:
+    """(N, C, O) signed distances along a trajectory Q (N, 7), by the geometry module on FK segments."""
+    seg = robot.capsule_segments(Q)  # (N, C, 2, 3)
+    N, C = seg.shape[:2]
+    d = distances(seg.reshape(N * C, 2, 3), np.tile(robot.capsule_radii, N), obstacles).d
+    return d.reshape(N, C, -1)
+
+
+def scene(robot: qpik.Robot, q0: np.ndarray, rng: np.random.Generator) -> list:
+    """Two spheres close to the arm at q0 and a table below it, all at least D_SAFE + 5 mm away."""
+    seg = robot.capsule_segments(q0)
+    caps = robot.capsule_radii
+    obstacles = []
+    for _ in range(2):
+        c = rng.integers(2, len(seg))  # not the base link
+        p = seg[c, 0] + rng.uniform() * (seg[c, 1] - seg[c, 0])
+        u = rng.normal(size=3)
+        r = rng.uniform(0.03, 0.1)
+        center = p + u / np.linalg.norm(u) * (caps[c] + r + D_SAFE + rng.uniform(0.01, 0.06))
+        obstacles.append(Sphere(center, r))
+    low = (np.minimum(seg[..., 0, 2], seg[..., 1, 2]) - caps).min()
+    obstacles.append(HalfSpace([0.0, 0.0, 1.0], low - D_SAFE - rng.uniform(0.005, 0.05)))
+    d = clearance(robot, q0[None], obstacles)[0]
+    return obstacles if d.min() > D_SAFE + 0.005 else scene(robot, q0, rng)
+
+
+def episode(robot: qpik.Robot, rng: np.random.Generator, steps: int) -> tuple:
+    """One reach or track episode from a random start; returns (Q, V, obstacles, ctrl)."""
+    q0 = rng.uniform(robot.q_min + 0.02, robot.q_max - 0.02)
+    obstacles = scene(robot, q0, rng)
+    dt = float(rng.choice([0.001, 0.002, 0.005]))  # 200 Hz – 1 kHz control
+    ctrl = Controller.for_robot(robot, obstacles=obstacles, dt=dt, d_safe=D_SAFE, d_influence=D_INFL)
+    T0 = robot.fk(q0)
+    # reach: a pose of a configuration up to 30 % past the limits (so limits get pushed); track: a moving pose
+    track = rng.uniform() < 0.5
+    if not track:
+        mid, half = (robot.q_max + robot.q_min) / 2, (robot.q_max - robot.q_min) / 2
+        ctrl.frame_task.set_target(robot.fk(rng.uniform(mid - 1.3 * half, mid + 1.3 * half)))
+    amp, w = rng.uniform(0.05, 0.4, 3) * rng.choice([-1, 1], 3), rng.uniform(1.0, 6.0)
+    Q = np.empty((steps + 1, robot.dof))
+    V = np.empty((steps, robot.dof))
+    Q[0] = q0
+    for k in range(steps):
+        if track:
+            t = k * dt
+            T = T0.copy()
+            T[:3, 3] += amp * np.sin(w * t)
+            ctrl.frame_task.set_target(T, np.r_[amp * w * np.cos(w * t), 0, 0, 0])
+        V[k] = ctrl.step(Q[k])
+        Q[k + 1] = Q[k] + V[k] * dt
+    return Q, V, obstacles, ctrl
+
+
+@pytest.mark.parametrize("name", ["iiwa14", "panda"])
+def test_limits_hold_over_random_episodes(name):
+    """≥ 500 episodes per arm (1,000 in all): position, velocity and clearance limits on the integrated path."""
+    robot = qpik.load_robot(name)
+    rng = np.random.default_rng(2024)
+    worst = {"position": 0.0, "velocity": 0.0, "clearance": np.inf}
+    statuses = set()
+    active_obstacle = 0
+    for _ in range(500):
+        Q, V, obstacles, ctrl = episode(robot, rng, steps=100)
+        worst["position"] = max(worst["position"], np.max(Q - robot.q_max), np.max(robot.q_min - Q))
+        worst["velocity"] = max(worst["velocity"], np.max(np.abs(V) - robot.v_max))
+        d = clearance(robot, Q, obstacles)
+        worst["clearance"] = min(worst["clearance"], d.min())
+        active_obstacle += bool((d < D_INFL).any())
+        statuses.add(ctrl.last.status)
+    assert worst["position"] <= 1e-6, worst
+    assert worst["velocity"] <= 1e-6, worst
+    assert worst["clearance"] >= D_SAFE - 1e-4, worst
+    assert active_obstacle > 100  # the obstacles were close enough to matter
+    assert "failed" not in statuses
+
+
+def test_damper_row_is_the_distance_rate():
+    """nᵀ J_p(p_link) v equals the finite-difference rate of the geometry distance along v."""
+    rng = np.random.default_rng(5)
+    checked = 0
+    for name in ("iiwa14", "panda", "nammoto7", "zheng7"):
+        robot = qpik.load_robot(name)
+        for q in random_q(robot, 20, 8, margin=0.1):
+            obstacles = scene(robot, q, rng)
+            lim = ObstacleLimit(obstacles, d_influence=10.0, d_safe=D_SAFE)  # every pair active
+            state = State(robot, q, 0.001)
+            A, lo, _ = lim.rows(state, -np.ones(7), np.ones(7))
+            v = rng.normal(size=7)
+            eps = 1e-6
+            rate = clearance(robot, (q + eps * v)[None], obstacles) - clearance(robot, (q - eps * v)[None], obstacles)
+            rate = rate.reshape(-1) / (2 * eps)
+            rows = np.isfinite(lo)
+            np.testing.assert_allclose(A[rows] @ v, rate[rows], atol=2e-6)
+            checked += rows.sum()
+    assert checked > 500
+
+
+def test_state_segments_match_robot():
+    robot = qpik.load_robot("panda")
+    for q in random_q(robot, 10, 1):
+        np.testing.assert_allclose(State(robot, q, 0.001).segments, robot.capsule_segments(q), atol=1e-14)
+        np.testing.assert_allclose(State(robot, q, 0.001).J, robot.jacobian(q), atol=1e-14)
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=SEEDS)
+def test_recovers_from_past_position_limit(seed):
+    """Starting past a limit the box still admits a solution, which moves back at most at v_max."""
+    rng = np.random.default_rng(seed)
+    robot = qpik.load_robot("iiwa14")
+    q = robot.q_home.copy()
+    j = rng.integers(7)
+    q[j] = robot.q_max[j] + rng.uniform(0.001, 0.3) if rng.uniform() < 0.5 else robot.q_min[j] - rng.uniform(0.001, 0.3)
+    ctrl = Controller.for_robot(robot, target=robot.fk(robot.q_home), dt=0.01)
+    for _ in range(300):
+        v = ctrl.step(q)
+        assert ctrl.last.status in ("recovering", "ok")
+        assert np.all(np.abs(v) <= robot.v_max + 1e-9)
+        q_next = q + v * ctrl.dt
+        dist_before = np.maximum(q - robot.q_max, robot.q_min - q).clip(0)
+        dist_after = np.maximum(q_next - robot.q_max, robot.q_min - q_next).clip(0)
+        assert np.all(dist_after <= dist_before + 1e-12)  # never further out
+        q = q_next
+    assert robot.within_limits(q, tol=1e-9)
+
+
+@pytest.mark.parametrize("penetration", [0.01, -0.03])  # inside d_s, and overlapping (d < 0)
+def test_recovers_from_inside_safety_distance(penetration):
+    robot = qpik.load_robot("iiwa14")
+    q = robot.q_home.copy()
+    seg = robot.capsule_segments(q)
+    c = int(np.argmax(np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1)))  # the longest link
+    p = 0.5 * (seg[c, 0] + seg[c, 1])
+    u = np.cross(seg[c, 1] - seg[c, 0], [0.3, 0.5, 0.8])
+    u /= np.linalg.norm(u)
+    r = 0.05
+    obstacles = [Sphere(p + u * (robot.capsule_radii[c] + r + penetration), r)]
+    ctrl = Controller.for_robot(robot, target=robot.fk(q), obstacles=obstacles, dt=0.002, d_safe=D_SAFE)
+    d0 = clearance(robot, q[None], obstacles).min()
+    for _ in range(400):
+        q = q + ctrl.step(q) * ctrl.dt
+        if _ == 0:
+            assert ctrl.last.status == ("penetrating" if penetration < 0 else "recovering")
+        assert ctrl.last.status != "failed"
+    d1 = clearance(robot, q[None], obstacles).min()
+    assert d1 > d0 and d1 >= D_SAFE - 1e-4
+
+
+def test_conflicting_limits_raise():
+    robot = qpik.load_robot("iiwa14")
+    tasks = Controller.for_robot(robot).tasks
+    bad = robot.q_max.copy()
+    bad[2] = robot.q_min[2] - 0.1
+    with pytest.raises(qpik.InfeasibleError, match="joint"):
+        Controller(robot, tasks, [ConfigurationLimit(q_max=bad)])
+    with pytest.raises(qpik.InfeasibleError):
+        Controller(robot, tasks, [ConfigurationLimit(margin=3.0)])
+    with pytest.raises(qpik.InfeasibleError):
+        Controller(robot, tasks, [VelocityLimit(-np.ones(7))])
+    with pytest.raises(qpik.InfeasibleError):
+        ObstacleLimit([Sphere([1, 0, 0], 0.1)], d_influence=0.02, d_safe=0.05)
+    with pytest.raises(qpik.InfeasibleError):  # ξ dt larger than the damper band
+        Controller(robot, tasks, [ObstacleLimit([Sphere([1, 0, 0], 0.1)], xi=100.0)], dt=0.01)
