@@ -105,7 +105,7 @@ def test_run_calls_the_runner_of_the_kind_and_writes_the_report(tmp_path, monkey
     assert calls == [("zheng2019_clik", out)]
     printed = capsys.readouterr().out
     assert "# zheng2019_clik" in printed and "duration 6.0 s" in printed
-    assert (out / "report.md").read_text() == "# zheng2019_clik\nduration 20.0 s\n"
+    assert (out / "report.md").read_text() == "# zheng2019_clik\nduration 6.0 s\n"
     # by path too
     assert main(["run", str(problems_folder() / "zheng2019_clik.toml"), "-o", str(out)]) == 0
 
