@@ -16,7 +16,11 @@ from qpik.errors import QpikError
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="qpik", description=__doc__.splitlines()[0] if __doc__ else None)
+    parser = argparse.ArgumentParser(
+        prog="qpik",
+        description="Closed-form IK branches, QP whole-arm control and self-motion for redundant 7-DOF arms.",
+        epilog="Start with `qpik demo`; `qpik COMMAND -h` tells more.",
+    )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
         module = importlib.import_module(f"{__name__}.{info.name}")
