@@ -1,0 +1,30 @@
+"""The README's promises: its first two commands, .ci/run, and its Python examples run."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+README = (ROOT / "README.md").read_text()
+
+
+def test_readme_opens_with_the_two_setup_commands_and_ci_runs_the_test_one() -> None:
+    first_block = re.search(r"```bash\n(.*?)```", README, re.S).group(1).strip().splitlines()
+    assert first_block == ['pip install -e . && qpik demo', 'pip install -e ".[test]" && pytest']
+    ci = (ROOT / ".ci" / "run").read_text()
+    assert 'pip install -e ".[test]" && pytest' in ci
+
+
+def test_python_examples_run_and_mean_what_they_say() -> None:
+    ns: dict = {}
+    for block in re.findall(r"```python\n(.*?)```", README, re.S):
+        exec(compile(block, "README.md", "exec"), ns)
+    robot, sols = ns["robot"], ns["sols"]  # the last robot is the controller example's iiwa14
+    assert sols.q.shape == (16, 7) and sols.valid.all()
+    # the controller example's solve_ik reached its target (FK, independent of the controller)
+    T = robot.fk(ns["q_star"])
+    assert np.abs(T - ns["target"]).max() < 1e-9
+    assert ns["v"].shape == (7,) and np.all(np.abs(ns["v"]) <= robot.v_max + 1e-9)
