@@ -30,7 +30,6 @@ from qpik.control.controller import StepInfo
 from qpik.control.state import State
 from qpik.control.tasks import pose_error
 from qpik.errors import InputError
-from qpik.robots.dh import manipulability_gradient_from
 from qpik.validate import finite_array, joint_vector
 from qpik.validate import pose as check_pose
 
@@ -160,5 +159,5 @@ class GradientProjection(CLIK):
     def _velocity(self, state: State, b: np.ndarray) -> np.ndarray:
         J = state.J
         Jp = np.linalg.pinv(J)
-        grad = manipulability_gradient_from(J, state.hessian)
+        grad = state.manipulability_gradient()
         return Jp @ b + self.null_gain * (grad - Jp @ (J @ grad))

@@ -73,7 +73,11 @@ class StepInfo:
         """Names of the constraints at their bound, built on first access."""
         if self._activity is None:
             return ()
-        v, lb, ub, gap_lo, gap_hi, row_names, caps = self._activity
+        v, bounds, row_names, caps = self._activity  # bounds: [lb, ub, l, u, A v] stacked
+        n, m = len(v), len(row_names)
+        lb, ub, l, u = bounds[:n], bounds[n : 2 * n], bounds[2 * n : 2 * n + m], bounds[2 * n + m : 2 * n + 2 * m]
+        Av = bounds[2 * n + 2 * m :]
+        gap_lo, gap_hi = Av - l, u - Av
         cap = [lim._bounds for lim in caps if lim._bounds is not None]
 
         def kind(j: int, bound: float, side: int) -> str:
@@ -129,6 +133,8 @@ class Controller:
         self.assembler = Assembler(robot, self.tasks, self.limits)
         self.frame_task = next((t for t in self.tasks if isinstance(t, FrameTask)), None)
         self.obstacle_limits = tuple(lim for lim in self.limits if isinstance(lim, ObstacleLimit))
+        # evaluated with the kinematics in one compiled call each step
+        self._obstacles = self.obstacle_limits[0].obstacles if self.obstacle_limits else None
         self.config_limits = tuple(lim for lim in self.limits if isinstance(lim, ConfigurationLimit))
         self.caps = tuple(lim for lim in self.limits if isinstance(lim, VelocityLimit))
         self.last = StepInfo()
@@ -186,7 +192,7 @@ class Controller:
             if self.frame_task is None:
                 raise InputError("target: this controller has no FrameTask")
             self.frame_task.set_target(target, twist)
-        state = State(self.robot, q, self.dt)
+        state = State(self.robot, q, self.dt, self._obstacles)
         qp = self.assembler.build(state)
         t1 = time.perf_counter()
         sol = self.solver.solve(qp)
@@ -202,15 +208,14 @@ class Controller:
         info = StepInfo(solver_status=sol.status, solve_time=t2 - t1, relaxation=relaxation)
         if sol.found:
             v = np.minimum(np.maximum(sol.x, lb), ub)  # remove the solver's tolerance-level box violations
-            Av = qp.A @ v
-            info._activity = (v, lb.copy(), ub.copy(), Av - qp.l, qp.u - Av, qp.row_names, self.caps)
+            info._activity = (v, np.concatenate((lb, ub, qp.l, qp.u, qp.A @ v)), qp.row_names, self.caps)
         else:
             if self.raise_on_failure:
                 raise SolverError(f"{self.solver.name}: no solution ({sol.status})")
             v = np.clip(0.0, lb, ub)
             info.status = "failed"
-        if self.obstacle_limits:
-            info.min_clearance = min(float(state.distances(lim.obstacles).d.min()) for lim in self.obstacle_limits)
+        for lim in self.obstacle_limits:
+            info.min_clearance = min(info.min_clearance, float(state.distances(lim.obstacles).d.min()))
         if self.frame_task is not None and self.frame_task.last_error is not None:
             e = self.frame_task.last_error
             info.task_error = math.sqrt(e @ e)

@@ -199,7 +199,7 @@ class ObstacleLimit(RowLimit):
             raise InfeasibleError("ObstacleLimit: need d_safe + buffer < d_influence")
         if self.xi <= 0 or self.buffer < 0:
             raise InputError("ObstacleLimit: need xi > 0 and buffer >= 0")
-        self._mask: np.ndarray | None = None
+        self._upper: np.ndarray | None = None
 
     def check(self, robot: Robot, dt: float) -> None:
         if self.xi * dt > self.d_influence - self.d_safe - self.buffer:
@@ -216,14 +216,11 @@ class ObstacleLimit(RowLimit):
         return [f"obstacle {nm} / link{c.link}" for c in robot.capsules for nm in names]
 
     def rows(self, state: State, lb: np.ndarray, ub: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        dist = state.distances(self.obstacles)
-        C, O = dist.d.shape
-        if self._mask is None or len(self._mask) != C * O:
-            self._mask = state.kin.cap_mask[np.repeat(np.arange(C), O)]  # (C·O, n): joints moving each pair
-            self._upper = np.full(C * O, np.inf)
-        # every pair's row (cheap, fixed shape); the rows of pairs beyond d_i get l = -inf
-        A = state.normal_rows(dist.p_link.reshape(-1, 3), dist.normal.reshape(-1, 3), self._mask)
-        d = dist.d.reshape(-1)
+        # every pair's row (fixed shape, from the step's compiled kinematics); pairs beyond d_i get l = -inf
+        A = state.damper_rows(self.obstacles)
+        d = state.distances(self.obstacles).d.reshape(-1)
+        if self._upper is None or len(self._upper) != len(d):
+            self._upper = np.full(len(d), np.inf)
         ds = self.d_safe + self.buffer
         lower = (-self.xi / (self.d_influence - ds)) * (d - ds)
         lower[d >= self.d_influence] = -np.inf

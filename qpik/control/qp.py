@@ -113,19 +113,18 @@ class Assembler:
             n=n,
             row_names=names,
         )
-        self._diag = np.arange(n)
+        self._reg = REGULARIZATION * np.eye(n)  # P starts from εI
 
     def build(self, state: State) -> QP:
         """Fill the QP for ``state`` and return it (the same object every call)."""
         qp = self.qp
         P, c = qp.P, qp.c
-        P.fill(0.0)
+        np.copyto(P, self._reg)
         c.fill(0.0)
         for task in self.tasks:
             Pi, ci = task.compute(state)
             P += Pi
             c += ci
-        P[self._diag, self._diag] += REGULARIZATION
         lb, ub = qp.lb, qp.ub
         lb.fill(-np.inf)
         ub.fill(np.inf)
@@ -135,7 +134,7 @@ class Assembler:
             np.minimum(ub, hi, out=ub)
         for lim in self.caps:
             lo, hi = lim.bounds(state)
-            np.minimum(np.maximum(lb, lo, out=lb), hi, out=lb)  # clip into the cap
+            np.minimum(np.maximum(lb, lo, out=lb), hi, out=lb)  # clip into the cap (np.clip is slower)
             np.minimum(np.maximum(ub, lo, out=ub), hi, out=ub)
         for lim, sl in zip(self.row_limits, self.slices):
             A, lo, hi = lim.rows(state, lb, ub)

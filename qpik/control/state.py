@@ -1,25 +1,35 @@
 r"""The kinematic state of one control step, computed once and shared by every task and limit.
 
-:class:`State` runs the kinematics of ``q`` once (the compiled CasADi ``frames``
-function of the DH chain, a few µs) and derives from the frames, on demand:
+:class:`State` evaluates, for a configuration ``q`` and the obstacles of the controller,
+ONE natively compiled CasADi function (:class:`Kinematics`, :mod:`qpik.compiled`) traced
+from the expression builders of the other layers — nothing here re-derives them:
 
-- the end-effector pose and geometric Jacobian ``J = [J_v; J_ω]`` (6, n), world frame;
-- the kinematic Hessian ``H[k] = ∂J/∂q_k`` (n, 6, n), only if a task asks for it;
-- the world end points of the link capsules (C, 2, 3);
-- capsule–obstacle distances (:mod:`qpik.geometry`), per obstacle set;
-- point Jacobians of witness points.
+- the frames (:meth:`~qpik.robots.dh.DHChain.frames_expr`), the end-effector pose and the
+  geometric Jacobian ``J = [J_v; J_ω]`` (6, n), world frame;
+- the manipulability gradient ∇m (n,), full and translational, from the kinematic
+  Hessian (:func:`~qpik.robots.dh.manipulability_gradient_expr`);
+- the world end points of the link capsules (C, 2, 3)
+  (:meth:`~qpik.robots.robot.Robot.capsule_segments_expr`);
+- for a packed obstacle set (:class:`~qpik.geometry.distance.ObstacleSet`), every
+  capsule–obstacle distance and witness point (:func:`~qpik.geometry.distance.set_expr`)
+  and the velocity-damper coefficients :math:`n^T J_p(p_{link})` (C·O, n), with the point
+  Jacobian of :meth:`~qpik.robots.dh.DHChain.point_jacobian_expr`: joint ``j`` turns about
+  :math:`z_j` through :math:`o_j`, and a point :math:`p` of link ``k`` moves with
+  :math:`\dot p = \sum_{j \le k} z_j \times (p - o_j)\,\dot q_j`.
 
-Joint ``j`` turns about the unit axis :math:`z_j` through the point :math:`o_j`
-(world frame); a point :math:`p` rigidly attached to link ``k`` (the body moved by
-joint ``k``, 1-based) moves with :math:`\dot p = \sum_{j \le k} z_j \times (p - o_j)\,\dot q_j`.
+The tasks and limits then do only small numpy work on these arrays.
 """
 
 from __future__ import annotations
 
-from functools import cached_property
 from typing import TYPE_CHECKING
 
+import casadi as ca
 import numpy as np
+
+from qpik import symbolic as sy
+from qpik.compiled import Compiled
+from qpik.robots.dh import _hessian_rows, _jacobian_rows, manipulability_gradient_expr
 
 if TYPE_CHECKING:
     from qpik.geometry.distance import Distances, ObstacleSet
@@ -27,26 +37,55 @@ if TYPE_CHECKING:
 
 
 class Kinematics:
-    """Per-robot constants of :class:`State`: compiled frames, axis indices, capsule geometry.
+    """Per-robot compiled step functions, one per tuple of obstacle kernel families.
 
-    Built once per robot by :func:`kinematics_of`; a :class:`State` only reads it.
+    ``function(kinds)`` maps ``q`` (n,) [and the obstacle parameters] to one flat vector:
+    pose (16, row-major), J (6n, row-major), ∇m (n), translational ∇m (n), capsule end
+    points (6C), then for C capsules × O obstacles: ``[d, p_link, p_obs, n, s]`` (11 per
+    pair) and the damper rows (C·O × n, row-major). Built once per robot by :func:`kinematics_of`.
     """
 
     def __init__(self, robot: Robot):
-        chain = robot.chain
         self.robot = robot
-        self.n = chain.dof
-        self.frames_fn = chain._compiled["frames"]
-        self.jacobian_fn = chain._compiled["jacobian"]
-        self.hessian_fn = chain._compiled["hessian"]
-        # frame index of joint j's axis: standard DH turns about z of frame j-1, modified about z of frame j
-        self.axis_frames = np.arange(self.n) if chain.convention == "standard" else np.arange(1, self.n + 1)
-        caps = robot.capsules
-        self.cap_link = np.array([c.link for c in caps], dtype=int)  # (C,) 1-based link of each capsule
-        self.cap_pts = np.array([[c.p0, c.p1] for c in caps]).reshape(-1, 2, 3)  # (C, 2, 3) in link frames
-        self.radii = np.array([c.radius for c in caps])
-        # mask[c, j] = joint j moves capsule c's link
-        self.cap_mask = (np.arange(self.n)[None, :] < self.cap_link[:, None]).astype(float)
+        self.n = robot.dof
+        self.n_capsules = len(robot.capsules)
+        self.base_size = 16 + 8 * self.n + 6 * self.n_capsules
+        self._functions: dict[tuple[str, ...], Compiled] = {}
+
+    def function(self, kinds: tuple[str, ...]) -> Compiled:
+        """The compiled step function for obstacles of families ``kinds`` (``()``: no obstacles)."""
+        fn = self._functions.get(kinds)
+        if fn is None:
+            fn = self._functions[kinds] = Compiled(self._build(kinds))
+        return fn
+
+    def _build(self, kinds: tuple[str, ...]) -> ca.Function:
+        from qpik.geometry.distance import PARAMS, set_expr
+
+        robot, chain, n = self.robot, self.robot.chain, self.n
+        q = ca.SX.sym("q", n)
+        frames = chain.frames_expr([q[i] for i in range(n)], sy.CASADI)
+        jv, jw = chain.jacobian_expr(frames)
+        Jr, Hr = _jacobian_rows(jv, jw), _hessian_rows(chain.hessian_expr(frames, (jv, jw)))
+        R, p = frames[-1]
+        out = [*R[0], p[0], *R[1], p[1], *R[2], p[2], 0.0, 0.0, 0.0, 1.0]
+        out += [x for row in Jr for x in row]
+        for rows in (6, 3):
+            out += manipulability_gradient_expr(Jr[:rows], [Hk[:rows] for Hk in Hr])[0]
+        segments = robot.capsule_segments_expr(frames)
+        out += [x for ab in segments for end in ab for x in end]
+        inputs = [q]
+        if kinds:
+            prm = ca.SX.sym("params", sum(PARAMS[k] for k in kinds))
+            inputs.append(prm)
+            pairs = set_expr(segments, robot.capsule_radii, kinds, [prm[i] for i in range(prm.numel())], sy.CASADI)
+            out += [x for row in pairs for d, p_link, p_obs, nrm, s in row for x in (d, *p_link, *p_obs, *nrm, s)]
+            for cap, row in zip(robot.capsules, pairs):
+                for _, p_link, _, nrm, _ in row:
+                    cols = chain.point_jacobian_expr(frames, p_link, cap.link)
+                    out += [sy.dot(nrm, col) for col in cols] + [0.0] * (n - cap.link)
+        name = f"step_{robot.name or 'robot'}_{'_'.join(kinds) or 'free'}"
+        return ca.Function(name, inputs, [ca.vertcat(*out)])
 
 
 _KIN: dict[int, Kinematics] = {}
@@ -67,82 +106,73 @@ class State:
         robot: the arm.
         q: joint positions (n,), rad (already validated).
         dt: control period, s.
+        obstacles: the obstacle set evaluated with the kinematics in the same compiled
+            call (others are evaluated on demand by :meth:`distances`).
 
     Attributes:
         q, dt: as given.
-        frames: (n+2, 4, 4) world poses ``[base, frame_1..frame_n, ee]``.
-        pose: (4, 4) end-effector pose (a view of ``frames[-1]``).
-        J: (6, n) geometric Jacobian ``[v; ω]`` of the end-effector origin, world frame
-            (compiled CasADi, from the same expressions as the frames).
+        pose: (4, 4) end-effector pose, world frame.
+        J: (6, n) geometric Jacobian ``[v; ω]`` of the end-effector origin, world frame.
+        segments: (C, 2, 3) world end points of every link capsule, m (order of ``robot.capsules``).
+
+    The arrays are read-only views of one buffer owned by this state.
     """
 
-    def __init__(self, robot: Robot, q: np.ndarray, dt: float):
+    def __init__(self, robot: Robot, q: np.ndarray, dt: float, obstacles: ObstacleSet | None = None):
         kin = kinematics_of(robot)
         self.kin = kin
         self.robot = robot
         self.q = q
         self.dt = dt
-        n = kin.n
-        F = kin.frames_fn(q)[0]  # (4, 4(n+2)), blocks side by side
-        self.frames = F.reshape(4, n + 2, 4).transpose(1, 0, 2).copy()
-        self.pose = self.frames[-1]
-        self.J = kin.jacobian_fn(q)[0].copy()
-        self._distances: dict[int, Distances] = {}
+        n, C = kin.n, kin.n_capsules
+        out = self._evaluate(obstacles)
+        self.pose = out[:16].reshape(4, 4)
+        self.J = out[16 : 16 + 6 * n].reshape(6, n)
+        self._grad = out[16 + 6 * n : 16 + 8 * n].reshape(2, n)
+        self.segments = out[16 + 8 * n : kin.base_size].reshape(C, 2, 3)
+        self._pairs: dict[int, tuple[ObstacleSet, Distances, np.ndarray]] = {}
+        if obstacles is not None and len(obstacles):
+            self._unpack(obstacles, out)
 
-    @cached_property
-    def axes(self) -> np.ndarray:
-        """(n, 3) unit joint axes z_j, world frame."""
-        return self.frames[self.kin.axis_frames, :3, 2]
+    def _evaluate(self, obstacles: ObstacleSet | None) -> np.ndarray:
+        """A read-only copy of the step function's output for ``obstacles`` (None or empty: kinematics only)."""
+        if obstacles is None or not len(obstacles):
+            out = self.kin.function(())(self.q)[0].copy()
+        else:
+            out = self.kin.function(obstacles.kinds)(self.q, obstacles.params)[0].copy()
+        out.flags.writeable = False
+        return out
 
-    @cached_property
-    def origins(self) -> np.ndarray:
-        """(n, 3) a point o_j on each joint axis, world frame, m."""
-        return self.frames[self.kin.axis_frames, :3, 3]
+    def _unpack(self, obstacles: ObstacleSet, out: np.ndarray) -> tuple[ObstacleSet, Distances, np.ndarray]:
+        from qpik.geometry.distance import Distances
 
-    @cached_property
-    def hessian(self) -> np.ndarray:
-        """Kinematic Hessian ``H[k, :, j] = ∂J[:, j]/∂q_k``: (n, 6, n)."""
-        n = self.kin.n
-        return self.kin.hessian_fn(self.q)[0].reshape(n, 6, n).copy()
+        C, O, base = self.kin.n_capsules, len(obstacles), self.kin.base_size
+        pairs = out[base : base + 11 * C * O].reshape(C, O, 11)
+        dist = Distances(
+            d=pairs[..., 0], p_link=pairs[..., 1:4], p_obs=pairs[..., 4:7], normal=pairs[..., 7:10], s=pairs[..., 10]
+        )
+        entry = self._pairs[id(obstacles)] = (obstacles, dist, out[base + 11 * C * O :].reshape(C * O, self.kin.n))
+        return entry
 
-    @cached_property
-    def segments(self) -> np.ndarray:
-        """World end points of every link capsule: (C, 2, 3), m (order of ``robot.capsules``)."""
-        Fk = self.frames[self.kin.cap_link]  # (C, 4, 4)
-        return np.einsum("cij,cpj->cpi", Fk[:, :3, :3], self.kin.cap_pts) + Fk[:, None, :3, 3]
+    def _entry(self, obstacles: ObstacleSet) -> tuple[ObstacleSet, Distances, np.ndarray]:
+        entry = self._pairs.get(id(obstacles))
+        if entry is None or entry[0] is not obstacles:
+            entry = self._unpack(obstacles, self._evaluate(obstacles))
+        return entry
+
+    def manipulability_gradient(self, translational: bool = False) -> np.ndarray:
+        """∇m (n,), per rad, of Yoshikawa's index (``translational``: of J_v only)."""
+        return self._grad[int(translational)]
 
     def distances(self, obstacles: ObstacleSet) -> Distances:
-        """Capsule–obstacle distances (C, O) for a packed obstacle set, computed once per step."""
-        d = self._distances.get(id(obstacles))
-        if d is None:
-            from qpik.geometry.distance import distances
+        """Capsule–obstacle distances and witness points (C, O) of a packed obstacle set, world frame."""
+        return self._entry(obstacles)[1]
 
-            d = self._distances[id(obstacles)] = distances(self.segments, self.kin.radii, obstacles)
-        return d
+    def damper_rows(self, obstacles: ObstacleSet) -> np.ndarray:
+        r"""Rows :math:`n^T J_p(p_{link})` (C·O, n), pair ``(c, o)`` at row ``c·O + o``.
 
-    def normal_rows(self, points: np.ndarray, normals: np.ndarray, mask: np.ndarray) -> np.ndarray:
-        r"""Rows :math:`n^T J_p(p)` (M, n) for world points ``points`` (M, 3) and unit normals (M, 3).
-
-        ``mask`` (M, n) is 1 where joint j moves the link that carries point m
-        (``kin.cap_mask[capsule]``), else 0.
-
-        :math:`n^T (z_j \times (p - o_j)) = n^T [z_j]_\times p - n^T (z_j \times o_j)` for the
-        joints that move the capsule's link, 0 for the others; the first term is
-        :math:`\mathrm{vec}(n p^T) \cdot \mathrm{vec}([z_j]_\times)`, so all rows are two
-        small matrix products.
+        ``n`` and ``p_link`` are the pair's unit normal and witness point on the capsule
+        (:meth:`distances`); ``J_p`` is the point Jacobian of capsule c's link (zero
+        columns for the joints beyond it), so the row is :math:`\dot d` per unit ``v``.
         """
-        z, o = self.axes, self.origins
-        zero = np.zeros(len(z))
-        skew = np.stack(  # (n, 9): rows of [z_j]_× flattened
-            (zero, -z[:, 2], z[:, 1], z[:, 2], zero, -z[:, 0], -z[:, 1], z[:, 0], zero), axis=1
-        )
-        outer = (normals[:, :, None] * points[:, None, :]).reshape(-1, 9)  # (M, 9): n pᵀ flattened
-        rows = outer @ skew.T - normals @ _cross(z, o).T
-        return rows * mask
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a × b over the last axis (3), (k, 3) each; a few µs faster than ``np.cross`` on small arrays."""
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0), axis=-1)
+        return self._entry(obstacles)[2]

@@ -21,16 +21,26 @@ from qpik.control.state import State
 from qpik.validate import finite_array, pose
 
 _EYE3 = np.eye(3)
-_EYES: dict[int, np.ndarray] = {}
+_EYES: dict[tuple[int, float], np.ndarray] = {}
+_ZEROS: dict[int, np.ndarray] = {}
 
 
-def _eye(n: int) -> np.ndarray:
-    """A cached read-only identity (n, n)."""
-    eye = _EYES.get(n)
+def _eye(n: int, scale: float = 1.0) -> np.ndarray:
+    """A cached read-only ``scale·I`` (n, n) (tasks with a constant P return it without a new array)."""
+    eye = _EYES.get((n, scale))
     if eye is None:
-        eye = _EYES[n] = np.eye(n)
+        eye = _EYES[n, scale] = scale * np.eye(n)
         eye.flags.writeable = False
     return eye
+
+
+def _zeros(n: int) -> np.ndarray:
+    """A cached read-only zero vector (n,)."""
+    z = _ZEROS.get(n)
+    if z is None:
+        z = _ZEROS[n] = np.zeros(n)
+        z.flags.writeable = False
+    return z
 
 
 def so3_log(R: np.ndarray) -> np.ndarray:
@@ -42,14 +52,20 @@ def so3_log(R: np.ndarray) -> np.ndarray:
     near π, where vee loses its digits, the axis comes from the symmetric part
     :math:`(R + R^T)/2 - \cos\theta\,I = (1 - \cos\theta)\,u u^T` with the sign of vee.
     """
-    w = 0.5 * np.array((R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]))
-    s = math.sqrt(w @ w)
-    c = 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)
+    return _log(np.asarray(R, dtype=float).tolist())
+
+
+def _log(R: list[list[float]]) -> np.ndarray:
+    """:func:`so3_log` of a rotation given as nested lists (Python floats: a few µs, no numpy temporaries)."""
+    w = (0.5 * (R[2][1] - R[1][2]), 0.5 * (R[0][2] - R[2][0]), 0.5 * (R[1][0] - R[0][1]))
+    s = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    c = 0.5 * (R[0][0] + R[1][1] + R[2][2] - 1.0)
     theta = math.atan2(s, c)
     if c > -0.9:  # θ < ~2.69 rad: sin θ is not small unless θ is, and then the series is exact
         scale = 1.0 + theta * theta / 6.0 + 7.0 * theta**4 / 360.0 if theta < 1e-4 else theta / s
-        return w * scale
-    B = 0.5 * (R + R.T) - c * _EYE3
+        return np.array((w[0] * scale, w[1] * scale, w[2] * scale))
+    Rm = np.array(R)
+    B = 0.5 * (Rm + Rm.T) - c * _EYE3
     k = int(np.argmax(np.diag(B)))
     u = B[:, k] / math.sqrt(B[k, k] * (1.0 - c))
     if u @ w < 0.0:
@@ -59,9 +75,12 @@ def so3_log(R: np.ndarray) -> np.ndarray:
 
 def pose_error(target: np.ndarray, current: np.ndarray) -> np.ndarray:
     r"""World-frame pose error :math:`[p^* - p;\ \log(R^* R^T)]` (6,) of ``current`` toward ``target`` (4, 4)."""
+    T, C = target.tolist(), current.tolist()
+    # R* Rᵀ: entry (i, j) is row i of R* dotted with row j of R
+    R = [[T[i][0] * C[j][0] + T[i][1] * C[j][1] + T[i][2] * C[j][2] for j in range(3)] for i in range(3)]
     e = np.empty(6)
-    e[:3] = target[:3, 3] - current[:3, 3]
-    e[3:] = so3_log(target[:3, :3] @ current[:3, :3].T)
+    e[:3] = (T[0][3] - C[0][3], T[1][3] - C[1][3], T[2][3] - C[2][3])
+    e[3:] = _log(R)
     return e
 
 
@@ -147,7 +166,7 @@ class PostureTask(Task):
         self.weight = float(weight)
 
     def compute(self, state: State) -> tuple[np.ndarray, np.ndarray]:
-        return 2.0 * self.weight * _eye(len(state.q)), -2.0 * self.weight * self.gain * (self.q_ref - state.q)
+        return _eye(len(state.q), 2.0 * self.weight), (-2.0 * self.weight * self.gain) * (self.q_ref - state.q)
 
 
 class DampingTask(Task):
@@ -160,7 +179,7 @@ class DampingTask(Task):
 
     def compute(self, state: State) -> tuple[np.ndarray, np.ndarray]:
         n = len(state.q)
-        return 2.0 * self.weight * _eye(n), np.zeros(n)
+        return _eye(n, 2.0 * self.weight), _zeros(n)
 
 
 class ManipulabilityTask(Task):
@@ -184,28 +203,9 @@ class ManipulabilityTask(Task):
         self.translational = bool(translational)
 
     def gradient(self, state: State) -> np.ndarray:
-        r"""∇m(q) (n,), per rad.
-
-        Fast path (measured ~8x faster than the SVD-based
-        :func:`qpik.robots.dh.manipulability_gradient_from`): with the Cholesky factor
-        :math:`A = J J^T = L L^T`, :math:`m = \prod_i L_{ii}` and :math:`B = A^{-1} J`,
-        :math:`\partial m/\partial q_k = m \sum_{rj} B_{rj} (H_k)_{rj}`. At a singular
-        configuration (A not positive definite) it falls back to the pseudo-inverse version.
-        """
-        from qpik.robots.dh import manipulability_gradient_from
-
-        J, H = state.J, state.hessian
-        if self.translational:
-            J, H = J[:3], H[:, :3]
-        A = J @ J.T
-        try:
-            L = np.linalg.cholesky(A)
-        except np.linalg.LinAlgError:
-            return manipulability_gradient_from(state.J, state.hessian, self.translational)
-        m = float(np.prod(np.diag(L)))
-        B = np.linalg.solve(A, J)
-        return m * (H.reshape(len(H), -1) @ B.ravel())
+        """∇m(q) (n,), per rad (:func:`qpik.robots.dh.manipulability_gradient_expr`, compiled into the state)."""
+        return state.manipulability_gradient(self.translational)
 
     def compute(self, state: State) -> tuple[np.ndarray, np.ndarray]:
         n = len(state.q)
-        return np.zeros((n, n)), -self.weight * self.gradient(state)
+        return _eye(n, 0.0), -self.weight * self.gradient(state)

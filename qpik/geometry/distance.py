@@ -74,6 +74,10 @@ def _params(shape: Shape) -> tuple[str, np.ndarray]:
     raise InputError(f"obstacle: expected a Sphere, Capsule, Box or HalfSpace, got {type(shape).__name__}")
 
 
+PARAMS = {"capsule": 7, "box": 15, "halfspace": 4}
+"""Length of the parameter vector of each kernel family (see :func:`_params`)."""
+
+
 def _pair(kind: str, a: Vec, u: Vec, prm: Sequence[Scalar], ops: Ops) -> Kernel:
     """``(s, sd, p, n)`` of the segment ``a + s u`` to one obstacle given by its parameters (world frame)."""
     if kind == "capsule":
@@ -85,6 +89,40 @@ def _pair(kind: str, a: Vec, u: Vec, prm: Sequence[Scalar], ops: Ops) -> Kernel:
     Rt = transpose(R)
     s, sd, p, n = segment_box(matvec(Rt, vsub(a, c)), matvec(Rt, u), tuple(prm[12:15]), ops)  # type: ignore[arg-type]
     return s, sd, vadd(c, matvec(R, p)), matvec(R, n)
+
+
+def pair_expr(
+    a: Vec, b: Vec, radius: Scalar, kind: str, params: Sequence[Scalar], ops: Ops
+) -> tuple[Scalar, Vec, Vec, Vec, Scalar]:
+    """``(d, p_link, p_obs, normal, s)`` (fields of :class:`Distances`) of the capsule ``a``–``b``, ``radius``
+    to one obstacle of family ``kind`` with parameters ``params`` (:data:`PARAMS`), in :mod:`qpik.symbolic`.
+
+    Scalars broadcast (the numpy path evaluates all capsules × obstacles of a family at once).
+    """
+    u = vsub(b, a)
+    s, sd, p, n = _pair(kind, a, u, params, ops)
+    return sd - radius, vsub(vadd(a, vscale(s, u)), vscale(radius, n)), p, n, s
+
+
+def set_expr(
+    segments: Sequence[tuple[Vec, Vec]],
+    radii: Sequence[Scalar],
+    kinds: Sequence[str],
+    params: Sequence[Scalar],
+    ops: Ops,
+) -> list[list[tuple[Scalar, Vec, Vec, Vec, Scalar]]]:
+    """:func:`pair_expr` of every capsule (rows) against every obstacle (columns) of a packed set.
+
+    ``params``: the concatenated parameters of the obstacles (:attr:`ObstacleSet.params`), families ``kinds``.
+    """
+    out = []
+    for (a, b), r in zip(segments, radii):
+        row, start = [], 0
+        for kind in kinds:
+            row.append(pair_expr(a, b, r, kind, params[start : start + PARAMS[kind]], ops))
+            start += PARAMS[kind]
+        out.append(row)
+    return out
 
 
 class ObstacleSet:
@@ -195,15 +233,13 @@ def _numpy(seg: np.ndarray, r: np.ndarray, obs: ObstacleSet) -> Distances:
     d, s = np.empty(shape), np.empty(shape)
     p_link, p_obs, normal = np.empty((*shape, 3)), np.empty((*shape, 3)), np.empty((*shape, 3))
     a = tuple(seg[..., None, 0, i] for i in range(3))  # each (..., C, 1)
-    u = tuple(seg[..., None, 1, i] - a[i] for i in range(3))
+    b = tuple(seg[..., None, 1, i] for i in range(3))
     rr = r[:, None]
     for kind, (cols, prm) in obs.groups.items():
-        sk, sdk, pk, nk = _pair(kind, a, u, tuple(prm.T), NUMPY)
-        x = np.stack(np.broadcast_arrays(*vadd(a, vscale(sk, u))), -1)
-        s[..., cols], d[..., cols] = sk, sdk - rr
-        p_obs[..., cols, :] = np.stack(np.broadcast_arrays(*pk), -1)
-        normal[..., cols, :] = np.stack(np.broadcast_arrays(*nk), -1)
-        p_link[..., cols, :] = x - rr[..., None] * normal[..., cols, :]
+        dk, lk, pk, nk, sk = pair_expr(a, b, rr, kind, tuple(prm.T), NUMPY)
+        d[..., cols], s[..., cols] = dk, sk
+        for out, vec in ((p_link, lk), (p_obs, pk), (normal, nk)):
+            out[..., cols, :] = np.stack(np.broadcast_arrays(*vec), -1)
     return Distances(d=d, p_link=p_link, p_obs=p_obs, normal=normal, s=s)
 
 
@@ -213,18 +249,13 @@ def _compiled(n_capsules: int, kinds: tuple[str, ...]) -> Compiled:
 
     Output per pair, row-major over (capsule, obstacle): ``[d, p_link (3), p_obs (3), n (3), s]``.
     """
-    sizes = {"capsule": 7, "box": 15, "halfspace": 4}
     seg = ca.SX.sym("segments", 6 * n_capsules)
     rad = ca.SX.sym("radii", n_capsules)
-    prm = ca.SX.sym("params", sum(sizes[k] for k in kinds))
-    out = []
-    for c in range(n_capsules):
-        a = tuple(seg[6 * c + i] for i in range(3))
-        u = tuple(seg[6 * c + 3 + i] - a[i] for i in range(3))
-        start = 0
-        for kind in kinds:
-            sk, sdk, pk, nk = _pair(kind, a, u, [prm[start + j] for j in range(sizes[kind])], CASADI)
-            start += sizes[kind]
-            p_link = vsub(vadd(a, vscale(sk, u)), vscale(rad[c], nk))
-            out += [sdk - rad[c], *p_link, *pk, *nk, sk]
+    prm = ca.SX.sym("params", sum(PARAMS[k] for k in kinds))
+    ends = [
+        (tuple(seg[6 * c + i] for i in range(3)), tuple(seg[6 * c + 3 + i] for i in range(3)))
+        for c in range(n_capsules)
+    ]
+    pairs = set_expr(ends, [rad[c] for c in range(n_capsules)], kinds, [prm[i] for i in range(prm.numel())], CASADI)
+    out = [x for row in pairs for d, p_link, p_obs, n, s in row for x in (d, *p_link, *p_obs, *n, s)]
     return Compiled(ca.Function("capsule_distances", [seg, rad, prm], [ca.vertcat(*out)]))

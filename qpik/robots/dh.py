@@ -96,22 +96,32 @@ class DHChain:
         idx = range(self.dof) if self.convention == "standard" else range(1, self.dof + 1)
         return [(sy.col(frames[k][0], 2), frames[k][1]) for k in idx]
 
+    def point_jacobian_expr(self, frames: list[Frame], point: sy.Vec, link: int) -> list[sy.Vec]:
+        r"""Columns of the translational Jacobian of a world point rigidly attached to link ``link`` (1..n).
+
+        Joint ``j`` turns about the unit axis :math:`z_j` through :math:`o_j` (world frame),
+        so :math:`\dot p = \sum_{j \le link} z_j \times (p - o_j)\,\dot q_j`; returns the
+        ``link`` columns :math:`z_j \times (p - o_j)` (the joints beyond ``link`` do not move it).
+        """
+        return [sy.cross(z, sy.vsub(point, o)) for z, o in self.axes_expr(frames)[:link]]
+
     def jacobian_expr(self, frames: list[Frame]) -> tuple[list[sy.Vec], list[sy.Vec]]:
         """Columns of the geometric Jacobian: (linear parts, angular parts)."""
-        pe = frames[-1][1]
-        axes = self.axes_expr(frames)
-        jv = [sy.cross(z, sy.vsub(pe, p)) for z, p in axes]
-        jw = [z for z, _ in axes]
+        jv = self.point_jacobian_expr(frames, frames[-1][1], self.dof)
+        jw = [z for z, _ in self.axes_expr(frames)]
         return jv, jw
 
-    def hessian_expr(self, frames: list[Frame]) -> list[list[tuple[sy.Vec, sy.Vec]]]:
+    def hessian_expr(
+        self, frames: list[Frame], jacobian: tuple[list[sy.Vec], list[sy.Vec]] | None = None
+    ) -> list[list[tuple[sy.Vec, sy.Vec]]]:
         r"""Kinematic Hessian: ``H[k][j] = ∂J[:, j]/∂q_k`` as (linear, angular) parts.
 
         For revolute joints with axes :math:`z_i` and linear columns :math:`J_{v,i}`:
         :math:`∂J_{v,j}/∂q_k = z_{\min(j,k)} \times J_{v,\max(j,k)}`, and
-        :math:`∂z_j/∂q_k = z_k \times z_j` for :math:`k < j`, else 0.
+        :math:`∂z_j/∂q_k = z_k \times z_j` for :math:`k < j`, else 0. ``jacobian``: the
+        columns of :meth:`jacobian_expr` if the caller has them already.
         """
-        jv, jw = self.jacobian_expr(frames)
+        jv, jw = self.jacobian_expr(frames) if jacobian is None else jacobian
         zero = (0.0, 0.0, 0.0)
         H = []
         for k in range(self.dof):
@@ -130,21 +140,27 @@ class DHChain:
     def casadi_functions(self) -> dict[str, ca.Function]:
         """CasADi functions of ``q`` (n,): ``fk`` -> (4,4), ``jacobian`` -> (6,n),
         ``fk_jacobian`` -> both, ``frames`` -> (4, 4*(n+2)) side by side,
-        ``hessian`` -> (6*n, n) with rows ``[k*6:(k+1)*6]`` = ∂J/∂q_k."""
+        ``hessian`` -> (6*n, n) with rows ``[k*6:(k+1)*6]`` = ∂J/∂q_k,
+        ``manipulability_gradient`` -> ∇m (n,) and the translational ∇m (n,)."""
         q = ca.SX.sym("q", self.dof)
         frames = self.frames_expr([q[i] for i in range(self.dof)], sy.CASADI)
         T = _frame_to_sx(frames[-1])
         jv, jw = self.jacobian_expr(frames)
         J = ca.horzcat(*[ca.vertcat(*v, *w) for v, w in zip(jv, jw)])
-        H = self.hessian_expr(frames)
+        H = self.hessian_expr(frames, (jv, jw))
         Hs = ca.vertcat(*[ca.horzcat(*[ca.vertcat(*hv, *hw) for hv, hw in row]) for row in H])
         F = ca.horzcat(*[_frame_to_sx(f) for f in frames])
+        Jr, Hr = _jacobian_rows(jv, jw), _hessian_rows(H)
+        grad = [manipulability_gradient_expr(Jr[:rows], [Hk[:rows] for Hk in Hr])[0] for rows in (6, 3)]
         return {
             "fk": ca.Function("fk", [q], [T]),
             "jacobian": ca.Function("jacobian", [q], [J]),
             "fk_jacobian": ca.Function("fk_jacobian", [q], [T, J]),
             "frames": ca.Function("frames", [q], [F]),
             "hessian": ca.Function("hessian", [q], [Hs]),
+            "manipulability_gradient": ca.Function(
+                "manipulability_gradient", [q], [ca.vertcat(*grad[0]), ca.vertcat(*grad[1])]
+            ),
         }
 
     @cached_property
@@ -214,29 +230,94 @@ class DHChain:
         J = self.jacobian(q)
         if translational:
             J = J[..., :3, :]
-        m = np.sqrt(np.maximum(np.linalg.det(J @ np.swapaxes(J, -1, -2)), 0.0))
+        # Jᵀ = QR gives det(J Jᵀ) = det(RᵀR) = Π R_ii²; unlike det(J Jᵀ), which squares the
+        # condition number, this keeps m accurate to ~ε·σ_max near singular configurations
+        R = np.linalg.qr(np.swapaxes(J, -1, -2), mode="r")
+        m = np.abs(np.prod(np.diagonal(R, axis1=-2, axis2=-1), axis=-1))
         return float(m) if m.ndim == 0 else m
 
     def manipulability_gradient(self, q: np.ndarray, translational: bool = False) -> np.ndarray:
-        r"""∂m/∂q from the kinematic Hessian: (n,) or (N, n).
+        r"""∂m/∂q (per rad) from the kinematic Hessian: (n,) or (N, n); see :func:`manipulability_gradient_expr`.
 
-        With :math:`A = J J^T`, :math:`∂m/∂q_k = m\,\mathrm{tr}(A^{-1} J H_k^T)`
-        where :math:`H_k = ∂J/∂q_k`. At a singular configuration (m = 0) the
-        pseudo-inverse is used, which gives 0 for the rank-deficient part.
+        One configuration goes through the compiled function, a batch through numpy.
         """
-        J = self.jacobian(q)
-        H = self.hessian(q)
-        return manipulability_gradient_from(J, H, translational)
+        q, batched = joint_vector(q, self.dof)
+        if not batched:
+            return self._compiled["manipulability_gradient"](q)[int(translational)].copy()
+        return manipulability_gradient_from(self.jacobian(q), self.hessian(q), translational)
+
+
+DEGENERATE = 1e-16
+r"""A Cholesky pivot of :math:`J J^T` below this times :math:`\mathrm{tr}(J J^T)` counts as singular."""
+
+
+def manipulability_gradient_expr(J: list[list[Scalar]], H: list[list[list[Scalar]]]) -> tuple[list[Scalar], Scalar]:
+    r"""∇m of :math:`m = \sqrt{\det(J J^T)}`, in the scalar algebra: ``(grad (n scalars), m)``.
+
+    ``J[r][j]`` (r × n scalars: rows of the Jacobian, r = 6, or 3 for the translational
+    index) and ``H[k][r][j]`` = :math:`\partial J_{rj}/\partial q_k` (n × r × n).
+    By Jacobi's formula, with :math:`A = J J^T` and
+    :math:`\partial A/\partial q_k = H_k J^T + J H_k^T`,
+
+    .. math:: \partial m/\partial q_k = m\,\mathrm{tr}(A^{-1} J H_k^T) = m \sum_{rj} B_{rj} (H_k)_{rj},
+              \quad B = A^{-1} J,
+
+    with the Cholesky factor :math:`A = L L^T`: :math:`m = \prod_i L_{ii}`, and B from two
+    triangular solves. Where a pivot is at most :data:`DEGENERATE` · tr A (the smallest
+    singular value of J below ~1e-8 √tr A: m is not differentiable at m = 0) the result is
+    0, the limit of the formula with m = 0.
+    """
+    ops = sy.ops_of(J, H)
+    rows, n = len(J), len(J[0])
+    A = [[sy.lin(*zip(J[r], J[s])) for s in range(r + 1)] for r in range(rows)]
+    tiny = DEGENERATE * sum(A[r][r] for r in range(rows))
+    L: list[list[Scalar]] = [[0.0] * rows for _ in range(rows)]
+    inv: list[Scalar] = [1.0] * rows  # 1 / L_ii
+    ok: Scalar = 1.0
+    m: Scalar = 1.0
+    for i in range(rows):
+        for k in range(i):
+            L[i][k] = sy.mul(sy.sub(A[i][k], sy.lin(*zip(L[i][:k], L[k][:k]))), inv[k])
+        pivot = sy.sub(A[i][i], sy.lin(*zip(L[i][:i], L[i][:i])))
+        good = pivot > tiny
+        L[i][i] = ops.sqrt(ops.where(good, pivot, 1.0))
+        inv[i] = 1.0 / L[i][i]
+        ok = ops.where(good, ok, 0.0)
+        m = m * L[i][i]
+    # B = L^-T L^-1 J, column by column
+    Y = [[0.0] * n for _ in range(rows)]
+    B = [[0.0] * n for _ in range(rows)]
+    for j in range(n):
+        for i in range(rows):
+            Y[i][j] = sy.mul(sy.sub(J[i][j], sy.lin(*((L[i][t], Y[t][j]) for t in range(i)))), inv[i])
+        for i in reversed(range(rows)):
+            B[i][j] = sy.mul(sy.sub(Y[i][j], sy.lin(*((L[t][i], B[t][j]) for t in range(i + 1, rows)))), inv[i])
+    scale = ops.where(ok > 0.5, m, 0.0)
+    grad = [scale * sy.lin(*((B[r][j], H[k][r][j]) for r in range(rows) for j in range(n))) for k in range(n)]
+    return grad, ops.where(ok > 0.5, m, 0.0)
 
 
 def manipulability_gradient_from(J: np.ndarray, H: np.ndarray, translational: bool = False) -> np.ndarray:
-    """∇m from a Jacobian (..., 6, n) and Hessian (..., n, 6, n); see :meth:`DHChain.manipulability_gradient`."""
-    if translational:
-        J, H = J[..., :3, :], H[..., :3, :]
-    A = J @ np.swapaxes(J, -1, -2)
-    m = np.sqrt(np.maximum(np.linalg.det(A), 0.0))
-    B = np.linalg.pinv(A) @ J  # (..., r, n)
-    return m[..., None] * np.einsum("...rj,...krj->...k", B, H)
+    """∇m (..., n) from a Jacobian (..., 6, n) and Hessian (..., n, 6, n) (numpy).
+
+    See :func:`manipulability_gradient_expr`.
+    """
+    J, H = np.asarray(J, dtype=float), np.asarray(H, dtype=float)
+    rows, n = (3 if translational else 6), J.shape[-1]
+    Js = [[J[..., r, j] for j in range(n)] for r in range(rows)]
+    Hs = [[[H[..., k, r, j] for j in range(n)] for r in range(rows)] for k in range(n)]
+    grad, _ = manipulability_gradient_expr(Js, Hs)
+    return np.stack(np.broadcast_arrays(*grad), axis=-1)
+
+
+def _jacobian_rows(jv: list[sy.Vec], jw: list[sy.Vec]) -> list[list[Scalar]]:
+    """The geometric Jacobian's columns as rows ``J[r][j]`` (6 × n scalars)."""
+    return [[(jv[j] if r < 3 else jw[j])[r % 3] for j in range(len(jv))] for r in range(6)]
+
+
+def _hessian_rows(H: list[list[tuple[sy.Vec, sy.Vec]]]) -> list[list[list[Scalar]]]:
+    """:meth:`DHChain.hessian_expr` as ``H[k][r][j]`` (n × 6 × n scalars)."""
+    return [[[(row[j][0] if r < 3 else row[j][1])[r % 3] for j in range(len(row))] for r in range(6)] for row in H]
 
 
 class _LazyCompiled(dict):

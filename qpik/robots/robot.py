@@ -8,7 +8,9 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
+from qpik import symbolic as sy
 from qpik.robots.dh import DHChain
+from qpik.symbolic import Frame, Vec
 from qpik.validate import joint_vector
 
 if TYPE_CHECKING:
@@ -97,15 +99,26 @@ class Robot:
         ok = np.all((q >= self.q_min - tol) & (q <= self.q_max + tol), axis=-1)
         return bool(ok) if ok.ndim == 0 else ok
 
-    def capsule_segments(self, q: np.ndarray) -> np.ndarray:
-        """World end points of every capsule: (C, 2, 3); batched (N, C, 2, 3)."""
-        F = self.frames(q)
+    def capsule_segments_expr(self, frames: list[Frame]) -> list[tuple[Vec, Vec]]:
+        """World end points ``(a, b)`` of every capsule from the frames of :meth:`DHChain.frames_expr`.
+
+        Capsule ``c`` is ``self.capsules[c]``: ``a = R_k p0 + t_k``, ``b = R_k p1 + t_k`` with
+        ``(R_k, t_k)`` the world pose of its link ``k``. Written in :mod:`qpik.symbolic`
+        (numpy batches or CasADi symbols).
+        """
         out = []
         for c in self.capsules:
-            Fk = F[..., c.link, :, :]
-            pts = np.stack([c.p0, c.p1])  # (2, 3)
-            out.append(np.einsum("...ij,pj->...pi", Fk[..., :3, :3], pts) + Fk[..., None, :3, 3])
-        return np.stack(out, axis=-3)
+            R, t = frames[c.link]
+            out.append(tuple(sy.vadd(sy.matvec(R, tuple(map(sy.snap, p))), t) for p in (c.p0, c.p1)))
+        return out  # type: ignore[return-value]
+
+    def capsule_segments(self, q: np.ndarray) -> np.ndarray:
+        """World end points of every capsule: (C, 2, 3); batched (N, C, 2, 3)."""
+        q, batched = joint_vector(q, self.dof)
+        Q = q if batched else q[None]
+        segs = self.capsule_segments_expr(self.chain.frames_expr([Q[:, i] for i in range(self.dof)], sy.NUMPY))
+        out = np.stack([np.stack([sy.stack(list(p), sy.NUMPY, (len(Q),)) for p in ab], axis=-2) for ab in segs], -3)
+        return out if batched else out[0]
 
     @cached_property
     def capsule_radii(self) -> np.ndarray:
