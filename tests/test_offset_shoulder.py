@@ -163,17 +163,19 @@ def test_batch_single_and_casadi_agree():
     q = random_q(ROBOT, 20, 11)
     T = ROBOT.fk(q)
     delta = np.random.default_rng(11).uniform(-np.pi, np.pi, len(q))
-    Qb, vb, sb = SOLVER.solve_batch(T, delta)
+    Qb, vb, sb, wb = SOLVER.solve_batch(T, delta)
+    assert np.array_equal(wb, vb & ROBOT.within_limits(Qb.reshape(-1, 7)).reshape(vb.shape))
     for i in range(len(q)):
-        Q1, v1, s1 = SOLVER.solve_one(T[i], delta[i])
+        Q1, v1, s1, w1 = SOLVER.solve_one(T[i], delta[i])
         Qc, vc, _ = SOLVER.casadi_function(ca.DM(T[i]), ca.DM(delta[i]))
         assert np.abs(wrap(Q1 - Qb[i])).max() < 1e-12
         assert np.abs(wrap(np.array(Qc) - Qb[i])).max() < 1e-12
         assert np.array_equal(v1, vb[i]) and np.array_equal(np.array(vc).ravel() > 0.5, vb[i])
-        assert np.array_equal(s1, sb[i])
-    Qm, vm, sm = SOLVER.solve_many(T[0], delta)
-    Qr, vr, sr = SOLVER.solve_batch(np.broadcast_to(T[0], T.shape), delta)
+        assert np.array_equal(s1, sb[i]) and np.array_equal(w1, wb[i])
+    Qm, vm, sm, wm = SOLVER.solve_many(T[0], delta)
+    Qr, vr, sr, wr = SOLVER.solve_batch(np.broadcast_to(T[0], T.shape), delta)
     assert np.abs(wrap(Qm - Qr)).max() < 1e-12 and np.array_equal(vm, vr) and np.array_equal(sm, sr)
+    assert np.array_equal(wm, wr)
 
 
 def test_casadi_jacobian_wrt_delta_matches_finite_differences():
@@ -185,7 +187,7 @@ def test_casadi_jacobian_wrt_delta_matches_finite_differences():
     q = q[well_conditioned(q, 0.1)]
     checked = 0
     for Ti, di in zip(ROBOT.fk(q), qpik.redundancy_parameter(ROBOT, q)[0]):
-        _, valid, sing = SOLVER.solve_one(Ti, di)
+        _, valid, sing, _ = SOLVER.solve_one(Ti, di)
         J = np.array(dQ(Ti, di)).reshape(7, 16).T  # column-major vec of (16, 7)
         h = 1e-6
         fd = wrap(SOLVER.solve_one(Ti, di + h)[0] - SOLVER.solve_one(Ti, di - h)[0]) / (2 * h)
@@ -201,7 +203,7 @@ def test_casadi_jacobian_wrt_delta_matches_finite_differences():
 def _sweep_check(T: np.ndarray, n_delta: int) -> None:
     fi = qpik.feasible_intervals(ROBOT, T)
     d = np.linspace(-np.pi, np.pi, n_delta)
-    q, valid, _ = SOLVER.solve_batch(np.broadcast_to(T, (n_delta, 4, 4)), d)
+    q, valid, _, _ = SOLVER.solve_batch(np.broadcast_to(T, (n_delta, 4, 4)), d)
     ok = valid & np.all((q >= ROBOT.q_min) & (q <= ROBOT.q_max), axis=-1)
     for k in range(16):
         ivs = fi.intervals[k]
@@ -215,7 +217,7 @@ def _sweep_check(T: np.ndarray, n_delta: int) -> None:
             i = np.searchsorted(all_ends, ends)
             h = np.minimum(1e-6, 0.4 * np.minimum(gap[i - 1], gap[np.minimum(i, gap.size - 1)]))
             e = np.concatenate([ends - h, ends + h])
-            qe, ve, _ = SOLVER.solve_many(T, e)
+            qe, ve, _, _ = SOLVER.solve_many(T, e)
             oke = ve & np.all((qe >= ROBOT.q_min) & (qe <= ROBOT.q_max), axis=-1)
             m = ends.size
             assert np.all(oke[:m, k] != oke[m:, k]), f"branch {k + 1}: a boundary is not a feasibility change"
@@ -245,7 +247,7 @@ def test_feasible_intervals_table4_and_singular_points():
     assert fi.contains(1, -0.80)  # Table 4's rows are within the catalog limits
     for k in range(16):
         if fi.singular[k]:
-            _, v, s = SOLVER.solve_many(T, np.array(fi.singular[k]))
+            _, v, s, _ = SOLVER.solve_many(T, np.array(fi.singular[k]))
             assert np.all(v[:, k] & s[:, k])
 
 

@@ -24,7 +24,7 @@ EDGE = 1e-6  # samples this close to a boundary may go either way
 
 def sampled_feasibility(T: np.ndarray, psi: np.ndarray) -> np.ndarray:
     """(branch, M): every branch valid and within limits at each ψ, by the closed form (batched path)."""
-    Q, valid, _ = SOLVER.solve_batch(np.broadcast_to(T, (len(psi), 4, 4)), psi)
+    Q, valid, _, _ = SOLVER.solve_batch(np.broadcast_to(T, (len(psi), 4, 4)), psi)
     return (valid & ROBOT.within_limits(Q.reshape(-1, 7)).reshape(valid.shape)).T
 
 

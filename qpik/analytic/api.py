@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -18,7 +19,7 @@ _SOLVERS = {
     "offset_shoulder": ("qpik.analytic.offset_shoulder", "OffsetShoulderSolver"),
     "srs": ("qpik.analytic.srs", "SRSSolver"),
 }
-_instances: dict[int, AnalyticSolver] = {}
+_instances: dict[int, AnalyticSolver] = {}  # id(robot) -> solver; the solver holds the robot, so the id stays its own
 
 
 def solver_for(robot: Robot) -> AnalyticSolver:
@@ -28,11 +29,11 @@ def solver_for(robot: Robot) -> AnalyticSolver:
             f"{robot.name} has no closed-form IK (only offset-shoulder and S-R-S arms do); "
             "use qpik.Controller.solve_ik instead"
         )
-    key = id(robot)
-    if key not in _instances:
+    solver = _instances.get(id(robot))
+    if solver is None or solver.robot is not robot:
         module, cls = _SOLVERS[robot.closed_form]
-        _instances[key] = getattr(importlib.import_module(module), cls)(robot)
-    return _instances[key]
+        solver = _instances[id(robot)] = getattr(importlib.import_module(module), cls)(robot)
+    return solver
 
 
 @dataclass
@@ -90,24 +91,26 @@ def ik(robot: Robot, pose: np.ndarray, param: float | np.ndarray, project: bool 
     solver = solver_for(robot)
     T, batched = check_pose(pose, "pose", project)
     if not batched:
-        p = finite_array(param, "param")
-        if p.ndim != 0:
-            raise InputError(f"param: expected a float for a single pose, got shape {p.shape}")
-        q, valid, singular = solver.solve_one(T, float(p))
-        par: float | np.ndarray = float(p)
+        if type(param) is float and math.isfinite(param):
+            par: float | np.ndarray = param  # the common case, without conversions
+        else:
+            p = finite_array(param, "param")
+            if p.ndim != 0:
+                raise InputError(f"param: expected a float for a single pose, got shape {p.shape}")
+            par = float(p)
+        sol = solver.solve_one(T, par)
     else:
-        p = np.broadcast_to(finite_array(param, "param"), (T.shape[0],)) if np.ndim(param) == 0 else None
-        if p is None:
-            p = finite_array(param, "param", (T.shape[0],))
-        q, valid, singular = solver.solve_batch(T, np.asarray(p, dtype=float))
-        par = np.asarray(p, dtype=float)
-    inside = np.all((q >= robot.q_min) & (q <= robot.q_max), axis=-1)
+        if np.ndim(param) == 0:
+            par = np.full(T.shape[0], float(finite_array(param, "param")))
+        else:
+            par = finite_array(param, "param", (T.shape[0],))
+        sol = solver.solve_batch(T, par)
     return IKSolutions(
-        q=q,
-        valid=valid,
-        within_limits=valid & inside,
-        singular=singular,
-        branch=np.array(solver.branch_ids),
+        q=sol.q,
+        valid=sol.valid,
+        within_limits=sol.within_limits,
+        singular=sol.singular,
+        branch=solver.branch_array.copy(),
         param=par,
         param_name=solver.param_name,
     )

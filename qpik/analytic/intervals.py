@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from qpik import symbolic as sy
+
 TWO_PI = 2.0 * np.pi
 
 Interval = tuple[float, float]
@@ -61,29 +63,21 @@ class FeasibleIntervals:
 
 
 def wrap(x: np.ndarray | float) -> np.ndarray:
-    """Wrap angles to (-pi, pi]."""
-    return np.pi - np.mod(np.pi - np.asarray(x, dtype=float), TWO_PI)
-
-
-def assemble(breaks: np.ndarray, feasible_at: Callable[[np.ndarray], np.ndarray]) -> list[Interval]:
-    """Feasible intervals on the circle from breakpoints and a midpoint test.
-
-    Args:
-        breaks: parameter values (rad, any order, any branch of 2π) where the
-            feasibility may change.
-        feasible_at: maps parameter values (M,) to booleans (M,).
-
-    Returns:
-        Sorted disjoint closed intervals in [-pi, pi].
-    """
-    return assemble_many(breaks, lambda m: np.asarray(feasible_at(m), dtype=bool)[:, None])[0]
+    """Wrap angles (rad, any shape) to (-pi, pi]: :meth:`qpik.symbolic.Ops.wrap` on a float array."""
+    return sy.NUMPY.wrap(np.asarray(x, dtype=float))
 
 
 def assemble_many(breaks: np.ndarray, feasible_at: Callable[[np.ndarray], np.ndarray]) -> list[list[Interval]]:
-    """:func:`assemble` for B branches that share breakpoints: ``feasible_at`` maps (M,) to (M, B) booleans.
+    """Feasible intervals on the circle of B branches from shared breakpoints and a midpoint test.
 
-    One call of ``feasible_at`` classifies every gap of every branch (one
-    batched IK evaluation). Returns one interval list per branch.
+    Args:
+        breaks: parameter values (rad, any order, any branch of 2π) where the
+            feasibility of some branch may change.
+        feasible_at: maps parameter values (M,) to booleans (M, B); one call
+            classifies every gap of every branch (one batched IK evaluation).
+
+    Returns:
+        Per branch, sorted disjoint closed intervals in [-pi, pi].
     """
     b = np.unique(np.round(wrap(np.asarray(breaks, dtype=float).ravel()), 15))
     if b.size == 0:
@@ -93,30 +87,39 @@ def assemble_many(breaks: np.ndarray, feasible_at: Callable[[np.ndarray], np.nda
     lo = b
     hi = np.append(b[1:], b[0] + TWO_PI)
     ok = np.asarray(feasible_at(wrap(0.5 * (lo + hi))), dtype=bool)
-    return [_merge(lo, hi, ok[:, j]) for j in range(ok.shape[1])]
+    return _merge(lo, hi, ok)
 
 
-def _merge(lo: np.ndarray, hi: np.ndarray, ok: np.ndarray) -> list[Interval]:
-    """Join the feasible gaps (lo[i], hi[i]) into sorted disjoint intervals of [-pi, pi]."""
-    out: list[Interval] = []
-    for i in np.flatnonzero(ok):
-        a, c = float(lo[i]), float(hi[i])
-        if out and abs(out[-1][1] - a) < 1e-15:
-            out[-1] = (out[-1][0], c)
-        else:
-            out.append((a, c))
-    # merge the last interval into the first across the seam, then split at ±pi
-    if len(out) > 1 and abs(out[-1][1] - TWO_PI - out[0][0]) < 1e-15:
-        out[0] = (out[-1][0] - TWO_PI, out[0][1])
-        out.pop()
-    split: list[Interval] = []
-    for a, c in out:
-        if c - a >= TWO_PI - 1e-15:
-            return [(-np.pi, np.pi)]
-        if c > np.pi:
-            split += [(a, np.pi), (-np.pi, c - TWO_PI)]
-        elif a < -np.pi:
-            split += [(a + TWO_PI, np.pi), (-np.pi, c)]
-        else:
-            split.append((a, c))
-    return sorted(split)
+def _merge(lo: np.ndarray, hi: np.ndarray, ok: np.ndarray) -> list[list[Interval]]:
+    """Join the feasible gaps (lo[i], hi[i]) (ok (G, B)) into sorted disjoint intervals of [-pi, pi] per branch.
+
+    The gaps tile the circle, so each branch's set is its runs of feasible gaps
+    (a run may continue from the last gap into the first); a run that ends past
+    π is split at ±π.
+    """
+    B = ok.shape[1]
+    start = ok & ~np.roll(ok, 1, axis=0)  # first gap of a run
+    end = ok & ~np.roll(ok, -1, axis=0)  # last gap of a run
+    s_branch, s_gap = np.nonzero(start.T)
+    e_gap = np.nonzero(end.T)[1]
+    counts = np.bincount(s_branch, minlength=B).tolist()
+    seam = (ok[0] & ok[-1]).tolist()  # a run crosses from gap G-1 into gap 0
+    full = ok.all(axis=0).tolist()
+    lo_l, hi_l, s_l, e_l = lo.tolist(), hi.tolist(), s_gap.tolist(), e_gap.tolist()
+    out: list[list[Interval]] = []
+    k = 0
+    for j in range(B):
+        m = counts[j]
+        starts, ends = s_l[k : k + m], e_l[k : k + m]
+        k += m
+        if full[j]:
+            out.append([(-np.pi, np.pi)])
+            continue
+        if seam[j]:
+            ends = ends[1:] + ends[:1]  # the run starting last ends in the first gaps
+        ivs = [(lo_l[s], hi_l[e]) for s, e in zip(starts, ends)]
+        if ivs and (ends[-1] < starts[-1] or ivs[-1][1] > np.pi):  # only the last run can pass π
+            a, c = ivs.pop()
+            ivs = [(-np.pi, c if ends[-1] < starts[-1] else c - TWO_PI), *ivs, (a, np.pi)]
+        out.append(ivs)
+    return out

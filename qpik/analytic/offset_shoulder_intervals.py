@@ -17,7 +17,10 @@ All those δ are found analytically for the branches with θ1[1] (rows 1–8); r
 :math:`\sin\theta_4 = k_1 + k_2 c` and :math:`D = E - Z^2`:
 
 - θ1 = L: :math:`\delta = L - \mathrm{atan2}(w_y, w_x)`;
-- θ4 = L: :math:`k_1 + k_2 c = \sin L`; validity: :math:`k_1 + k_2 c = \pm 1`, :math:`D(c) = 0`;
+- θ4 = L: :math:`k_1 + k_2 c = \sin L`; validity: :math:`k_1 + k_2 c = \pm 1`, :math:`D(c) = 0` (and
+  where the solver's tolerant validity tests switch, :math:`k_1 + k_2 c = \pm(1 + \epsilon)`,
+  :math:`D = -\epsilon` and :math:`D = -\epsilon E`, ε = :data:`qpik.analytic.trig.EPS`: near a
+  tangency they are up to ~1e-9 rad from the exact roots);
 - θ2 = L: :math:`-\sin L\,(rc - a_1) + \cos L\, h = Z(c)` (linear in c);
 - θ3 = L: :math:`\sin L\, w''_x = \cos L\, w''_y` with :math:`w''_x = \pm\sqrt D`,
   :math:`w''_y = -rs`; squared: :math:`\sin^2 L\, D(c) = \cos^2 L\, r^2 (1 - c^2)` (quadratic in c);
@@ -31,8 +34,9 @@ All those δ are found analytically for the branches with θ1[1] (rows 1–8); r
   Multiplied by :math:`d_5 E` each is :math:`P(\delta) + \sigma\sqrt{D}\,Q(\delta)` with
   trigonometric polynomials P, Q; :math:`P^2 - D Q^2 = 0` is a trigonometric polynomial
   of degree 8 (θ5) or 6 (θ6, θ7), i.e. a polynomial of degree 16 or 12 in
-  :math:`z = e^{i\delta}` whose unit-modulus roots are the candidates. They are
-  polished by Newton steps on that polynomial.
+  :math:`z = e^{i\delta}` whose unit-modulus roots are the candidates: the
+  eigenvalues of the companion matrices of all of them (one batched ``eigvals``
+  per pose), polished by Newton steps on the trigonometric polynomials.
 
 Squaring and the ±acos of c add spurious candidates; they only split a gap in
 two, which :func:`qpik.analytic.intervals.assemble_many` merges back. Each gap is
@@ -46,6 +50,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from qpik.analytic.intervals import FeasibleIntervals, assemble_many, wrap
+from qpik.analytic.trig import EPS
 
 if TYPE_CHECKING:
     from qpik.analytic.offset_shoulder import OffsetShoulderSolver
@@ -71,8 +76,7 @@ def feasible_delta(solver: OffsetShoulderSolver, T: np.ndarray) -> FeasibleInter
 
     def feasible_at(mid: np.ndarray) -> np.ndarray:
         pts = np.concatenate([mid, sing])
-        q, valid, singular = solver.solve_many(T, pts)
-        inside = valid & np.all((q >= robot.q_min) & (q <= robot.q_max), axis=-1)
+        _, valid, singular, inside = solver.solve_many(T, pts)
         found.append(valid[mid.size :] & singular[mid.size :])
         return inside[: mid.size]
 
@@ -101,6 +105,10 @@ def breakpoints(
     # ---- equations quadratic in c = cos δ: rows (A, B, C) of A c² + B c + C = 0
     dA, dB, dC = r * r - z1 * z1, -2 * g.a1 * r - 2 * z0 * z1, g.a1**2 + h * h - z0 * z0  # D(c)
     rows = [(0.0, k2, k1 - 1.0), (0.0, k2, k1 + 1.0), (dA, dB, dC)]  # validity: sin θ4 = ±1, D = 0
+    # where the solver's tolerant tests switch (|sin θ4| <= 1 + EPS, D >= -EPS max(E, 1); trig.EPS):
+    # near a tangency these lie up to ~1e-9 rad from the exact roots above
+    rows += [(0.0, k2, k1 - 1.0 - EPS), (0.0, k2, k1 + 1.0 + EPS), (dA, dB, dC + EPS)]
+    rows.append((dA + EPS * r * r, dB - 2 * EPS * g.a1 * r, dC + EPS * (g.a1**2 + h * h)))
     for L in levels[1]:  # θ2
         sL, cL = np.sin(L), np.cos(L)
         rows.append((0.0, r * (g.a1 / g.d3 - sL), sL * g.a1 + cL * h - z0))
@@ -154,13 +162,13 @@ def breakpoints(
     for L in _mod_pi(levels[4]):  # θ5
         sL, cL = np.sin(L), np.cos(L)
         polys.append(_clear(_add(sL * XP, -cL * YP), _add(sL * XQ, -cL * YQ), D))
-    roots = [_unit_roots(P) for P in polys]
+    roots, owner = _unit_roots(polys)
     n6 = len(polys) - n7 - len(_mod_pi(levels[4]))
-    r7, r5 = np.concatenate(roots[n6 : n6 + n7]), np.concatenate(roots[n6 + n7 :])
+    r7, r5 = roots[(owner >= n6) & (owner < n6 + n7)], roots[owner >= n6 + n7]
     # sin θ6 = 0 zeroes every θ5 and θ7 equation: their common roots
     common = r5[np.abs(wrap(r5[:, None] - r7[None, :])).min(axis=1, initial=np.inf) < 1e-6]
     sing = np.concatenate([np.arccos(c_sing), -np.arccos(c_sing), common])
-    return np.concatenate([np.atleast_1d(d) for d in delta + roots]), sing
+    return np.concatenate([np.atleast_1d(d) for d in [*delta, roots]]), sing
 
 
 def _levels(lo: float, hi: float) -> list[float]:
@@ -224,24 +232,49 @@ def _clear(P: np.ndarray, Q: np.ndarray, D: np.ndarray) -> np.ndarray:
     return _add(_mul(P, P), -_mul(D, _mul(Q, Q)))
 
 
-def _unit_roots(F: np.ndarray) -> np.ndarray:
-    """Real δ with F(δ) = 0 for a real trigonometric polynomial F (coefficients k = -n..n), Newton-polished."""
-    scale = np.abs(F).max()
-    if scale == 0:
-        return np.zeros(0)
-    n = (F.size - 1) // 2
-    # trim negligible outer pairs (roots near 0 and ∞, never on the circle)
-    while n > 0 and abs(F[0]) <= 1e-13 * scale and abs(F[-1]) <= 1e-13 * scale:
-        F, n = F[1:-1], n - 1
-    if n == 0:
-        return np.zeros(0)
-    z = np.roots(F[::-1])  # z^n F(z) with F_k the coefficient of z^k
-    z = z[np.abs(np.abs(z) - 1.0) < UNIT_TOL]
-    d = np.angle(z)
-    k = np.arange(-n, n + 1)
+def _unit_roots(polys: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Real δ with F(δ) = 0 for real trigonometric polynomials F (coefficients k = -n..n), Newton-polished.
+
+    Returns the roots and, for each, the index of its polynomial. The roots of
+    :math:`z^n F(z)` are the eigenvalues of its companion matrix; all
+    polynomials go through one batched ``eigvals``, each padded to the common
+    degree with zero low-order coefficients (roots at z = 0, off the circle).
+    """
+    trimmed = []
+    for F in polys:
+        scale = np.abs(F).max()
+        n = (F.size - 1) // 2
+        # trim negligible outer pairs (roots near 0 and ∞, never on the circle)
+        while n > 0 and abs(F[0]) <= 1e-13 * scale and abs(F[-1]) <= 1e-13 * scale:
+            F, n = F[1:-1], n - 1
+        trimmed.append(F if n > 0 and scale > 0 else None)
+    keep = [i for i, F in enumerate(trimmed) if F is not None]
+    if not keep:
+        return np.zeros(0), np.zeros(0, int)
+    d = max(trimmed[i].size for i in keep) - 1  # common degree in z
+    K = len(keep)
+    C = np.zeros((K, d + 1), complex)  # C[:, m]: coefficient of z^(d-m), highest first
+    for row, i in enumerate(keep):
+        F = trimmed[i]
+        C[row, : F.size] = F[::-1]
+    comp = np.zeros((K, d, d), complex)
+    comp[:, 0, :] = -C[:, 1:] / C[:, :1]
+    comp[:, np.arange(1, d), np.arange(d - 1)] = 1.0
+    z = np.linalg.eigvals(comp)  # (K, d)
+    on = np.abs(np.abs(z) - 1.0) < UNIT_TOL
+    owner_row = np.nonzero(on)[0]
+    delta = np.angle(z[on])
+    # Newton on F(δ) = Σ F_k e^{ikδ}, all roots at once (coefficients of the padded, centred form)
+    k = np.arange(-(d // 2), d // 2 + 1)  # d = 2n is even
+    Fc = np.zeros((K, d + 1), complex)
+    for row, i in enumerate(keep):
+        F = trimmed[i]
+        pad = (d + 1 - F.size) // 2
+        Fc[row, pad : pad + F.size] = F
+    Fr, dFr = Fc[owner_row], Fc[owner_row] * (1j * k)
     for _ in range(3):
-        e = np.exp(1j * np.outer(d, k))
-        f, df = (e @ F).real, (e @ (1j * k * F)).real
+        e = np.exp(1j * np.outer(delta, k))
+        f, df = np.einsum("ij,ij->i", e, Fr).real, np.einsum("ij,ij->i", e, dFr).real
         step = np.where(np.abs(df) > 1e-300, f / np.where(df == 0, 1.0, df), 0.0)
-        d = d - np.clip(step, -1e-3, 1e-3)
-    return d
+        delta = delta - np.clip(step, -1e-3, 1e-3)
+    return delta, np.asarray(keep)[owner_row]

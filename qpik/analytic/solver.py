@@ -4,9 +4,18 @@ A solver (:class:`AnalyticSolver` subclass) writes its algorithm once, in
 :meth:`AnalyticSolver.branches`, against :mod:`qpik.symbolic`. This base class
 turns that one source into
 
-- a compiled CasADi function for one pose (the fast path),
-- a numpy evaluation over a batch of poses and parameters,
-- a CasADi function ``q(T, param)`` per branch, for exact derivatives (NLP).
+- a CasADi function ``q(T, param)`` of all branches, for exact derivatives (NLP);
+- that function plus the joint-limit test, compiled to machine code
+  (:func:`qpik.compiled.native`), for one pose (:meth:`AnalyticSolver.solve_one`)
+  and mapped over chunks of parameters for a sweep of one pose
+  (:meth:`AnalyticSolver.solve_many`, the feasible intervals);
+- a numpy evaluation over a batch of poses and parameters
+  (:meth:`AnalyticSolver.solve_batch`).
+
+Each evaluation is the fastest one measured for its use: per call, compiled
+code costs ~3 µs of overhead and numpy ~1 ms; per pose, numpy (vectorised
+across poses) beats the compiled code mapped over poses. The tests check that
+all of them agree.
 """
 
 from __future__ import annotations
@@ -14,7 +23,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -23,10 +32,11 @@ from qpik import symbolic as sy
 from qpik.compiled import Compiled
 from qpik.symbolic import Mat, Ops, Scalar, Vec
 
-MANY_CHUNK = 32
+SWEEP_CHUNK = 32
 """Parameters per call of the compiled sweep :meth:`AnalyticSolver.solve_many`."""
 
 if TYPE_CHECKING:
+    from qpik.analytic.intervals import FeasibleIntervals
     from qpik.robots.robot import Robot
 
 
@@ -44,6 +54,17 @@ class Branches:
     q: list[list[Scalar]]
     valid: list[Scalar]
     singular: list[Scalar]
+
+
+class Solved(NamedTuple):
+    """Numeric IK of B branches: q (..., B, n) rad, and (..., B) bools: the branch reaches the
+    pose (``valid``), is at a singular case (``singular``), is valid with every joint in
+    ``[q_min, q_max]`` (``within_limits``)."""
+
+    q: np.ndarray
+    valid: np.ndarray
+    singular: np.ndarray
+    within_limits: np.ndarray
 
 
 class AnalyticSolver(ABC):
@@ -66,6 +87,13 @@ class AnalyticSolver(ABC):
     def n_branches(self) -> int:
         return len(self.branch_ids)
 
+    @cached_property
+    def branch_array(self) -> np.ndarray:
+        """``branch_ids`` as an int array (B,); read-only, copy before handing it out."""
+        out = np.array(self.branch_ids)
+        out.flags.writeable = False
+        return out
+
     # ---- the one source -----------------------------------------------------
 
     @abstractmethod
@@ -77,10 +105,10 @@ class AnalyticSolver(ABC):
         """Redundancy parameter and branch id of configurations q (N, n): ((N,), (N,))."""
 
     @abstractmethod
-    def feasible_intervals(self, T: np.ndarray) -> list:
+    def feasible_intervals(self, T: np.ndarray) -> FeasibleIntervals:
         """Per branch, the exact parameter set where every joint is within limits."""
 
-    # ---- three evaluations --------------------------------------------------
+    # ---- evaluations -----------------------------------------------------------
 
     @cached_property
     def casadi_function(self) -> ca.Function:
@@ -99,54 +127,84 @@ class AnalyticSolver(ABC):
         )
 
     @cached_property
-    def _compiled(self) -> Compiled:
-        return Compiled(self.casadi_function)
+    def _checked_function(self) -> ca.Function:
+        """``(T, param, q_min (n,), q_max (n,)) -> (Qᵀ (n x B), flags (3B,))``.
 
-    def solve_one(self, T: np.ndarray, param: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One pose (4, 4), one parameter: q (B, n), valid (B,) bool, singular (B,) bool."""
-        Q, valid, singular = self._compiled(T, np.array([param]))
-        return Q.copy(), valid > 0.5, singular > 0.5
+        :attr:`casadi_function` plus the limit test: ``flags`` stacks ``valid``,
+        ``singular`` and ``within_limits = valid ∧ ∀j q_min_j <= q_j <= q_max_j``
+        (1.0 or 0.0), so that no numpy pass over the joints is needed. Q is
+        transposed so that a mapped evaluation writes (pose, branch, joint) in C order.
+        """
+        n = self.robot.dof
+        T, param = ca.SX.sym("T", 4, 4), ca.SX.sym(self.param_name)
+        lo, hi = ca.SX.sym("q_min", 1, n), ca.SX.sym("q_max", 1, n)
+        Q, valid, singular = self.casadi_function(T, param)
+        within = valid
+        for j in range(n):
+            within = within * (Q[:, j] >= lo[j]) * (Q[:, j] <= hi[j])
+        return ca.Function(f"ik_{self.kind}_checked", [T, param, lo, hi], [Q.T, ca.vertcat(valid, singular, within)])
 
     @cached_property
-    def _compiled_many(self) -> Compiled:
-        T = ca.SX.sym("T", 4, 4)
-        params = ca.SX.sym(self.param_name, MANY_CHUNK)
-        out = self.casadi_function.map(MANY_CHUNK)(ca.repmat(T, 1, MANY_CHUNK), params.T)
-        return Compiled(ca.Function(f"ik_{self.kind}_many", [T, params], list(out)))
+    def _one(self) -> Compiled:
+        return Compiled(self._checked_function)
 
-    def solve_many(self, T: np.ndarray, params: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One pose (4, 4), parameters (M,): q (M, B, n), valid (M, B), singular (M, B).
+    @cached_property
+    def _sweep(self) -> Compiled:
+        # one pose, SWEEP_CHUNK parameters: a mapped call, whose C holds the body once and loops
+        f = self._checked_function.map(f"ik_{self.kind}_sweep", "serial", SWEEP_CHUNK, [0, 2, 3], [])
+        return Compiled(f)
 
-        The compiled path in chunks of ``MANY_CHUNK`` parameters: for a sweep of
-        one pose (feasible intervals) it is much faster than :meth:`solve_batch`,
-        whose cost for small M is Python overhead.
+    def solve_one(self, T: np.ndarray, param: float) -> Solved:
+        """One pose (4, 4), one parameter (rad): q (B, n), valid, singular, within_limits (B,) bool."""
+        Qt, flags = self._one(T, np.array([param]), self.robot.q_min, self.robot.q_max)
+        valid, singular, within = flags.reshape(3, -1) > 0.5
+        return Solved(Qt.T.copy(), valid, singular, within)
+
+    def solve_many(self, T: np.ndarray, params: np.ndarray) -> Solved:
+        """One pose (4, 4), parameters (M,): q (M, B, n), valid, singular, within_limits (M, B) bool.
+
+        The compiled path, ``SWEEP_CHUNK`` parameters per call (the last chunk
+        padded): for a sweep of one pose (feasible intervals, M of order 100) it
+        is several times faster than :meth:`solve_batch`, whose cost at small M
+        is Python overhead.
         """
         params = np.asarray(params, dtype=float).ravel()
         M, B, n = params.size, self.n_branches, self.robot.dof
-        Q, valid, singular = np.empty((M, B, n)), np.empty((M, B), bool), np.empty((M, B), bool)
-        f = self._compiled_many
-        chunk = np.empty(MANY_CHUNK)
-        for i in range(0, M, MANY_CHUNK):
-            m = min(MANY_CHUNK, M - i)
+        Q, flags = np.empty((M, B, n)), np.empty((M, 3 * B))
+        f, lo, hi = self._sweep, self.robot.q_min, self.robot.q_max
+        chunk = np.empty(SWEEP_CHUNK)
+        for i in range(0, M, SWEEP_CHUNK):
+            m = min(SWEEP_CHUNK, M - i)
             chunk[:m] = params[i : i + m]
             chunk[m:] = params[i]
-            q, v, s = f(T, chunk)
-            Q[i : i + m] = q.reshape(B, MANY_CHUNK, n).transpose(1, 0, 2)[:m]
-            valid[i : i + m] = v.T[:m] > 0.5  # (B, chunk) outputs
-            singular[i : i + m] = s.T[:m] > 0.5
-        return Q, valid, singular
+            q, fl = f(T, chunk, lo, hi)
+            Q[i : i + m] = q.T.reshape(SWEEP_CHUNK, B, n)[:m]  # (n, chunk·B) output, (chunk, B, n) in C order
+            flags[i : i + m] = fl.T[:m]
+        valid, singular, within = (flags > 0.5).reshape(M, 3, B).transpose(1, 0, 2)
+        return Solved(Q, valid, singular, within)
 
-    def solve_batch(self, T: np.ndarray, param: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Poses (N, 4, 4), parameters (N,): q (N, B, n), valid (N, B), singular (N, B)."""
+    def solve_batch(self, T: np.ndarray, param: np.ndarray) -> Solved:
+        """Poses (N, 4, 4), parameters (N,): q (N, B, n), valid, singular, within_limits (N, B) bool.
+
+        :meth:`branches` on numpy arrays of N poses: for large N this beats the
+        compiled code mapped over poses (about 1.0 against 2.1 µs per pose for
+        nammoto7's 16 branches, 0.6 against 0.9 for iiwa14), since numpy's
+        loops are vectorised across poses.
+        """
         N = T.shape[0]
         R, p = sy.frame_of_batch(T)
         br = self.branches(R, p, param, sy.NUMPY)
         # fill (B, n, N) contiguously (fast), return the (N, B, n) view
-        Q = np.empty((len(br.q), len(br.q[0]), N))
+        B, n = len(br.q), len(br.q[0])
+        Q = np.empty((B, n, N))
         for b, row in enumerate(br.q):
             for j, x in enumerate(row):
                 Q[b, j] = x
-        Q = Q.transpose(2, 0, 1)
         valid = sy.stack(br.valid, sy.NUMPY, (N,)) > 0.5
         singular = sy.stack(br.singular, sy.NUMPY, (N,)) > 0.5
-        return Q, valid, singular
+        within = valid.T.copy()  # (B, N), then every joint inside its limits
+        test = np.empty((B, N), bool)
+        for j, (lo, hi) in enumerate(zip(self.robot.q_min, self.robot.q_max)):
+            within &= np.greater_equal(Q[:, j], lo, out=test)
+            within &= np.less_equal(Q[:, j], hi, out=test)
+        return Solved(Q.transpose(2, 0, 1), valid, singular, within.T)
