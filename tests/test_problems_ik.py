@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import qpik
-from qpik.analytic.report import branch_table, fk_residual, run_ik
 from qpik.problems import load
+from qpik.problems.ik import branch_table, fk_residual, run_ik
 
 PROBLEMS = Path(__file__).resolve().parents[1] / "problems"
 
