@@ -6,6 +6,7 @@ every pose's samples in one batched ``ik`` call.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -100,7 +101,7 @@ def test_joint_limits_shape_the_set():
     q[3] = 0.8
     q_min = ROBOT.q_min.copy()
     q_min[3] = 0.0
-    robot = qpik.Robot(**{**ROBOT.__dict__, "q_min": q_min})
+    robot = dataclasses.replace(ROBOT, q_min=q_min)
     fi = qpik.feasible_intervals(robot, robot.fk(q))
     assert all(fi[k] == [] for k in range(8) if k & 2)
     assert any(fi.measure(k) > 0 for k in range(8) if not k & 2)
