@@ -20,9 +20,9 @@ For one pose every joint of a branch is a function of ψ built from
 
 θ is continuous in ψ between consecutive roots and crosses no limit there, so
 the roots are all the breakpoints: :func:`qpik.analytic.intervals.assemble_many`
-classifies each gap by one evaluation of the branch (:func:`qpik.analytic.srs.zyz`
-on the coefficient form) at its midpoint, all branches and all gaps in one
-vectorised call; the breakpoints of all branches are pooled, since a breakpoint
+classifies each gap by one evaluation of every branch at its midpoint, all
+gaps in one compiled sweep (:meth:`qpik.analytic.solver.AnalyticSolver.solve_many`,
+the IK itself with its in-limits test); the breakpoints of all branches are pooled, since a breakpoint
 that changes nothing only splits a gap.
 
 The singular values listed per branch are the ψ where :math:`|M_{22}| = 1` for
@@ -43,7 +43,7 @@ import numpy as np
 from qpik import symbolic as sy
 from qpik.analytic import trig
 from qpik.analytic.intervals import FeasibleIntervals, assemble_many, wrap
-from qpik.analytic.srs import arm_setup, branch_signs, flip, zyz
+from qpik.analytic.srs import arm_setup, branch_signs
 from qpik.compiled import Compiled
 
 if TYPE_CHECKING:
@@ -52,13 +52,14 @@ if TYPE_CHECKING:
 TOUCH_TOL = 1e-12
 """|1 − |M22|| at the extremum below which a shoulder/wrist singular ψ is reported."""
 
-_ANGLE_JOINTS = np.array([[0, 1, 2], [4, 5, 6]])  # joints of the (shoulder, wrist) ZYZ triples (a, b, c)
+_ANGLE_JOINTS = ((0, 1, 2), (4, 5, 6))  # joints of the (shoulder, wrist) ZYZ triples (a, b, c)
 
 
 class PsiIntervals:
     """Feasible ψ intervals of every branch of one S-R-S solver; call with a (4, 4) pose."""
 
     def __init__(self, solver: SRSSolver):
+        self._solver = solver
         self.branch = np.array(solver.branch_ids)
         robot = solver.robot
         self.q_min, self.q_max = np.asarray(robot.q_min, float), np.asarray(robot.q_max, float)
@@ -73,10 +74,7 @@ class PsiIntervals:
             for i in range(3)
             for j in range(3)
         ]
-        theta4 = [elbow[0] for elbow in setup.elbows]
-        self._coefficients = Compiled(
-            ca.Function("srs_coefficients", [T], [ca.vertcat(*entries), ca.vertcat(*theta4), setup.valid])
-        )
+        self._coefficients = Compiled(ca.Function("srs_coefficients", [T], [ca.vertcat(*entries), setup.valid]))
         # Every breakpoint equation is  w1 m1(ψ) + w2 m2(ψ) = w3  with m1, m2 entries of M_s or M_w
         # (each A sin ψ + B cos ψ + C): tan-type n cos L − d sin L = 0 for L = q_min, q_max (and π
         # where a limit reaches it), cos-type M22 = cos L.
@@ -98,17 +96,16 @@ class PsiIntervals:
         self._eq_rhs = np.array([r[5] for r in rows])
         self._m22 = np.ravel_multi_index((e, np.arange(2)[:, None], X, 2, 2), shape)  # (elbow, group, ABC)
         signs = np.array([branch_signs(k) for k in solver.branch_ids])
-        self._i_shoulder, self._i_elbow, self._i_wrist = signs.T
+        self._i_elbow = signs[:, 1]
 
     def __call__(self, T: np.ndarray) -> FeasibleIntervals:
-        coef, theta4, valid = self._coefficients(T)
+        coef, valid = self._coefficients(T)
         n = len(self.branch)
         if valid[0] < 0.5:
             return FeasibleIntervals("psi", self.branch.copy(), [[] for _ in range(n)], [[] for _ in range(n)])
-        P = coef.reshape(2, 2, 3, 3, 3)  # elbow, group (shoulder, wrist), (A, B, C), row, column
-        in4 = (theta4 >= self.q_min[3]) & (theta4 <= self.q_max[3])
         breaks, singular = self._breakpoints(coef)
-        intervals = assemble_many(np.concatenate([breaks, *singular]), lambda psi: self._feasible(P, in4, psi))
+        within = self._solver.solve_many  # the branches at the gap midpoints
+        intervals = assemble_many(np.concatenate([breaks, *singular]), lambda psi: within(T, psi).within_limits)
         return FeasibleIntervals("psi", self.branch.copy(), intervals, [singular[e].tolist() for e in self._i_elbow])
 
     def _breakpoints(self, coef: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -129,16 +126,3 @@ class PsiIntervals:
             singular[e] = np.unique(wrap(psi))
         return breaks, singular
 
-    def _feasible(self, P: np.ndarray, in4: np.ndarray, psi: np.ndarray) -> np.ndarray:
-        """(M, branch) booleans: every joint of the branch within limits at ψ (M,), via :func:`zyz`."""
-        s, c = np.sin(psi), np.cos(psi)
-        M = P[:, :, 0, :, :, None] * s + P[:, :, 1, :, :, None] * c + P[:, :, 2, :, :, None]
-        dcol = P[:, :, 0, :2, 2, None] * c - P[:, :, 1, :2, 2, None] * s
-        Mt = tuple(tuple(M[:, :, i, j] for j in range(3)) for i in range(3))
-        a, b, cc, _ = zyz(Mt, (dcol[:, :, 0], dcol[:, :, 1]), sy.NUMPY)  # (elbow, group, M)
-        angles = np.stack([np.stack([a, b, cc], axis=2), np.stack(flip(a, b, cc, sy.NUMPY), axis=2)])
-        lo = self.q_min[_ANGLE_JOINTS][:, :, None]
-        hi = self.q_max[_ANGLE_JOINTS][:, :, None]
-        inside = np.all((angles >= lo) & (angles <= hi), axis=3)  # (sign, elbow, group, M)
-        e = self._i_elbow
-        return (inside[self._i_shoulder, e, 0] & inside[self._i_wrist, e, 1] & in4[e][:, None]).T
