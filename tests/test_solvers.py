@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import casadi as ca
 import numpy as np
 import pytest
 from test_limits import D_SAFE, scene
@@ -105,12 +106,12 @@ class _Impossible(RowLimit):
     def row_names(self, robot):
         return ["impossible"]
 
-    def rows(self, state, lb, ub):
-        A = np.zeros((1, len(state.q)))
+    def expr(self, s, p, lb, ub):
+        A = ca.SX.zeros(1, s.n)
         A[0, 0] = 1.0
         if self.upper:
-            return A, np.array([-np.inf]), np.array([-10.0])
-        return A, np.array([10.0]), np.array([np.inf])
+            return A, ca.SX(-np.inf), ca.SX(-10.0)
+        return A, ca.SX(10.0), ca.SX(np.inf)
 
 
 @pytest.mark.parametrize("name", ("osqp", "daqp", "quadprog"))

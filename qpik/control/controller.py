@@ -1,7 +1,8 @@
 r"""The QP controller: tasks and limits -> one QP per control step -> a joint velocity.
 
-Each :meth:`Controller.step` runs the kinematics once (:class:`~qpik.control.state.State`),
-assembles :math:`\min \tfrac12 x^T P x + c^T x` s.t. :math:`l \le Ax \le u`,
+Each :meth:`Controller.step` makes ONE natively compiled call, composed at construction
+from the kinematics and every task's and limit's expression (:class:`~qpik.control.qp.Assembler`),
+that gives :math:`\min \tfrac12 x^T P x + c^T x` s.t. :math:`l \le Ax \le u`,
 :math:`lb \le x \le ub` (:mod:`qpik.control.qp`), solves it with a persistent solver
 (:mod:`qpik.control.solvers`) and returns ``v`` (n,), rad/s, to integrate as
 ``q ← q + v·dt``.
@@ -31,7 +32,7 @@ import numpy as np
 from qpik.control.limits import ConfigurationLimit, Limit, ObstacleLimit, VelocityLimit
 from qpik.control.qp import Assembler
 from qpik.control.solvers import Solver, get_solver
-from qpik.control.state import State
+from qpik.control.state import SymState
 from qpik.control.tasks import DampingTask, FrameTask, ManipulabilityTask, PostureTask, Task, pose_error
 from qpik.errors import InputError, SolverError, UnreachableError
 from qpik.validate import joint_vector
@@ -130,11 +131,10 @@ class Controller:
         self.solver = get_solver(solver) if isinstance(solver, str) else solver
         self.fallback = get_solver(FALLBACK) if self.solver.name != FALLBACK else None
         self.raise_on_failure = raise_on_failure
-        self.assembler = Assembler(robot, self.tasks, self.limits)
         self.frame_task = next((t for t in self.tasks if isinstance(t, FrameTask)), None)
         self.obstacle_limits = tuple(lim for lim in self.limits if isinstance(lim, ObstacleLimit))
-        # evaluated with the kinematics in one compiled call each step
-        self._obstacles = self.obstacle_limits[0].obstacles if self.obstacle_limits else None
+        # one compiled call per step: the QP, the first FrameTask's pose error, every obstacle limit's distances
+        self.assembler = Assembler(robot, self.tasks, self.limits, self.dt, self._extra)
         self.config_limits = tuple(lim for lim in self.limits if isinstance(lim, ConfigurationLimit))
         self.caps = tuple(lim for lim in self.limits if isinstance(lim, VelocityLimit))
         self.last = StepInfo()
@@ -178,6 +178,12 @@ class Controller:
             limits.append(ObstacleLimit(obstacles, d_influence, d_safe, xi))
         return cls(robot, tasks, limits, solver=solver, dt=dt)
 
+    def _extra(self, s: SymState) -> list:
+        out = [lim.distances_expr(s) for lim in self.obstacle_limits]
+        if self.frame_task is not None:
+            out.append(self.frame_task.error_expr(s, s.params_of(self.frame_task)))
+        return out
+
     def step(self, q: np.ndarray, target: np.ndarray | None = None, twist: np.ndarray | None = None) -> np.ndarray:
         """One control step: the joint velocity v (n,), rad/s, for configuration ``q`` (n,), rad.
 
@@ -192,8 +198,8 @@ class Controller:
             if self.frame_task is None:
                 raise InputError("target: this controller has no FrameTask")
             self.frame_task.set_target(target, twist)
-        state = State(self.robot, q, self.dt, self._obstacles)
-        qp = self.assembler.build(state)
+        qp = self.assembler.build(q)
+        extra = self.assembler.extra
         t1 = time.perf_counter()
         sol = self.solver.solve(qp)
         relaxation = 0
@@ -214,10 +220,10 @@ class Controller:
                 raise SolverError(f"{self.solver.name}: no solution ({sol.status})")
             v = np.clip(0.0, lb, ub)
             info.status = "failed"
-        for lim in self.obstacle_limits:
-            info.min_clearance = min(info.min_clearance, float(state.distances(lim.obstacles).d.min()))
-        if self.frame_task is not None and self.frame_task.last_error is not None:
-            e = self.frame_task.last_error
+        for d in extra[: len(self.obstacle_limits)]:
+            info.min_clearance = min(info.min_clearance, float(d.min()))
+        if self.frame_task is not None:
+            e = self.frame_task.last_error = extra[-1].copy()
             info.task_error = math.sqrt(e @ e)
         if info.status == "ok":
             if info.min_clearance < 0.0:

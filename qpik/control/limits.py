@@ -11,6 +11,11 @@ Two kinds:
 - :class:`RowLimit` gives a fixed number of rows ``l ≤ A v ≤ u`` (m, n); a row that
   does not apply this step has ``l = −∞, u = +∞``, so the sparsity pattern never changes.
   It sees the final box, so it can keep each row reachable inside it.
+
+Like the tasks, a limit holds its math once, as a CasADi expression (``expr``) of the
+symbolic state and of its own parameters (inputs of the controller's compiled function);
+:meth:`BoxLimit.bounds` and :meth:`RowLimit.rows` evaluate the same expression on a
+numeric :class:`~qpik.control.state.State`.
 """
 
 from __future__ import annotations
@@ -19,9 +24,10 @@ from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
+import casadi as ca
 import numpy as np
 
-from qpik.control.state import State
+from qpik.control.state import State, SymState, _unique, evaluate
 from qpik.errors import InfeasibleError, InputError
 from qpik.validate import finite_array
 
@@ -42,6 +48,26 @@ class Limit:
         """
         return None
 
+    def param_size(self, n: int) -> int:
+        """Number of parameters for an arm with n joints (default 0)."""
+        return 0
+
+    def params(self) -> np.ndarray:
+        """The current parameters, a flat (param_size,) vector (after :meth:`check`)."""
+        return np.zeros(0)
+
+    def structure(self) -> tuple:
+        """What fixes the expression's form beyond the parameters (part of the compiled function's key).
+
+        The default is unique to this object (its compiled function is never shared);
+        subclasses whose form depends only on their parameters return ``()``.
+        """
+        return (_unique(self),)
+
+    def parameters(self, s: SymState) -> ca.SX:
+        """This limit's parameters declared as inputs of ``s``."""
+        return s.params_of(self)
+
 
 class BoxLimit(Limit, ABC):
     """Bounds ``lb ≤ v ≤ ub`` (n,) on the joint velocity (rad/s)."""
@@ -49,8 +75,14 @@ class BoxLimit(Limit, ABC):
     cap: bool = False  # cap boxes (velocity limits) clip every other box
 
     @abstractmethod
+    def expr(self, s: SymState, p: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """``(lb, ub)``, each (n,) SX, rad/s; ``±inf`` for no bound."""
+
     def bounds(self, state: State) -> tuple[np.ndarray, np.ndarray]:
-        """``(lb, ub)``, each (n,), rad/s; ``±inf`` for no bound."""
+        """``(lb, ub)``, each (n,), rad/s, for the configuration in ``state`` (:meth:`expr` on numbers)."""
+        self.check(state.robot, state.dt)
+        lb, ub = evaluate(self, state, lambda s: list(self.expr(s, self.parameters(s))))
+        return lb.reshape(-1), ub.reshape(-1)
 
 
 class RowLimit(Limit, ABC):
@@ -65,8 +97,15 @@ class RowLimit(Limit, ABC):
         """One name per row (for :attr:`StepInfo.active`)."""
 
     @abstractmethod
+    def expr(self, s: SymState, p: ca.SX, lb: ca.SX, ub: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+        """``(A, l, u)``: (m, n), (m,), (m,) SX, given the step's final box ``lb ≤ v ≤ ub`` (n,)."""
+
     def rows(self, state: State, lb: np.ndarray, ub: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(A, l, u)``: (m, n), (m,), (m,), given the step's final box ``lb ≤ v ≤ ub`` (n,)."""
+        """``(A, l, u)``: (m, n), (m,), (m,) for ``state`` and the final box (:meth:`expr` on numbers)."""
+        self.check(state.robot, state.dt)
+        lb, ub = (np.asarray(x, dtype=float).reshape(-1) for x in (lb, ub))
+        A, lo, hi = evaluate(self, state, lambda s, a, b: list(self.expr(s, self.parameters(s), a, b)), lb, ub)
+        return A, lo.reshape(-1), hi.reshape(-1)
 
 
 class ConfigurationLimit(BoxLimit):
@@ -104,11 +143,18 @@ class ConfigurationLimit(BoxLimit):
             )
         self._lo, self._hi = lo, hi
 
-    def bounds(self, state: State) -> tuple[np.ndarray, np.ndarray]:
-        if self._lo is None:
-            self.check(state.robot, state.dt)
-        inv = 1.0 / state.dt
-        return (self._lo - state.q) * inv, (self._hi - state.q) * inv
+    def structure(self) -> tuple:
+        return ()
+
+    def param_size(self, n: int) -> int:
+        return 2 * n
+
+    def params(self) -> np.ndarray:
+        return np.concatenate((self._lo, self._hi))
+
+    def expr(self, s: SymState, p: ca.SX) -> tuple[ca.SX, ca.SX]:
+        n = s.n
+        return (p[:n] - s.q) / s.dt, (p[n:] - s.q) / s.dt
 
 
 class VelocityLimit(BoxLimit):
@@ -134,10 +180,17 @@ class VelocityLimit(BoxLimit):
             raise InfeasibleError("VelocityLimit: negative v_max for joint(s) " + ", ".join(str(j + 1) for j in bad))
         self._bounds = (-vmax.copy(), vmax.copy())
 
-    def bounds(self, state: State) -> tuple[np.ndarray, np.ndarray]:
-        if self._bounds is None:
-            self.check(state.robot, state.dt)
-        return self._bounds
+    def structure(self) -> tuple:
+        return ()
+
+    def param_size(self, n: int) -> int:
+        return n
+
+    def params(self) -> np.ndarray:
+        return self._bounds[1]
+
+    def expr(self, s: SymState, p: ca.SX) -> tuple[ca.SX, ca.SX]:
+        return -p, p
 
 
 class ObstacleLimit(RowLimit):
@@ -199,7 +252,6 @@ class ObstacleLimit(RowLimit):
             raise InfeasibleError("ObstacleLimit: need d_safe + buffer < d_influence")
         if self.xi <= 0 or self.buffer < 0:
             raise InputError("ObstacleLimit: need xi > 0 and buffer >= 0")
-        self._upper: np.ndarray | None = None
 
     def check(self, robot: Robot, dt: float) -> None:
         if self.xi * dt > self.d_influence - self.d_safe - self.buffer:
@@ -215,18 +267,28 @@ class ObstacleLimit(RowLimit):
         names = [sh.name or f"{type(sh).__name__.lower()}{o}" for o, sh in enumerate(self.obstacles.shapes)]
         return [f"obstacle {nm} / link{c.link}" for c in robot.capsules for nm in names]
 
-    def rows(self, state: State, lb: np.ndarray, ub: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def param_size(self, n: int) -> int:
+        return 3
+
+    def params(self) -> np.ndarray:
+        return np.array((self.d_influence, self.d_safe + self.buffer, self.xi))
+
+    def structure(self) -> tuple:
+        return (self.obstacles.kinds,)
+
+    def distances_expr(self, s: SymState) -> ca.SX:
+        """Signed distances (C·O,) of every capsule–obstacle pair, m (SX)."""
+        return s.distances(self.obstacles)
+
+    def expr(self, s: SymState, p: ca.SX, lb: ca.SX, ub: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
         # every pair's row (fixed shape, from the step's compiled kinematics); pairs beyond d_i get l = -inf
-        A = state.damper_rows(self.obstacles)
-        d = state.distances(self.obstacles).d.reshape(-1)
-        if self._upper is None or len(self._upper) != len(d):
-            self._upper = np.full(len(d), np.inf)
-        ds = self.d_safe + self.buffer
-        lower = (-self.xi / (self.d_influence - ds)) * (d - ds)
-        lower[d >= self.d_influence] = -np.inf
-        sep = np.flatnonzero(lower > 0.0)
-        if len(sep):  # inside d_s + δ: ask for at most half of what the box can give
-            reach = np.maximum(A[sep] * lb, A[sep] * ub).sum(axis=1)
-            lower[sep] = np.minimum(lower[sep], 0.5 * reach)
-            lower[sep[reach < 1e-12]] = -np.inf  # a pair no joint moves apart gets no row
-        return A, lower, self._upper
+        A = s.damper_rows(self.obstacles)
+        d = s.distances(self.obstacles)
+        d_i, ds, xi = p[0], p[1], p[2]
+        m = A.shape[0]
+        lower = (-xi / (d_i - ds)) * (d - ds)
+        # inside d_s + δ (lower > 0): ask for at most half of what the box can give
+        reach = ca.sum2(ca.fmax(A * ca.repmat(lb.T, m, 1), A * ca.repmat(ub.T, m, 1)))
+        capped = ca.if_else(reach < 1e-12, -ca.inf, ca.fmin(lower, 0.5 * reach))  # no joint moves it: no row
+        lower = ca.if_else(d >= d_i, -ca.inf, ca.if_else(lower > 0.0, capped, lower))
+        return A, lower, ca.SX(m, 1) + ca.inf

@@ -22,13 +22,17 @@ are ``−∞ ≤ · ≤ +∞``), so a persistent solver keeps its sparsity patte
 
 from __future__ import annotations
 
+import hashlib
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import casadi as ca
 import numpy as np
 
+from qpik.compiled import Compiled, native
 from qpik.control.limits import BoxLimit, Limit, RowLimit
-from qpik.control.state import State
+from qpik.control.state import SymState, kinematics_of
 from qpik.control.tasks import Task
 
 REGULARIZATION = 1e-12
@@ -81,64 +85,91 @@ class QP:
 
 
 class Assembler:
-    """Builds the QP of each step into preallocated buffers.
+    """Composes the tasks' and limits' expressions into one compiled function of the step.
+
+    At construction the kinematics (:meth:`SymState.of`), every task's ``(P_i, c_i)``,
+    every box (intersected, then clipped into the caps) and every row limit's
+    ``(A, l, u)`` (given the final box) are traced into ONE CasADi function
+    ``q, p -> [P, c, lb, ub, A, l, u, extra]`` (flat, row-major), compiled to machine code
+    (:mod:`qpik.compiled`); ``p`` stacks dt and the parameters of the tasks, limits and
+    obstacles (read from the objects every step, so changing a target never recompiles).
+    The compiled function is shared by controllers of the same structure.
 
     Args:
         robot: the arm (fixes n and the number of rows).
         tasks, limits: the controller's tasks and limits.
+        dt: control period, s.
+        extra: ``f(s) -> list of SX`` outputs appended after the QP (e.g. a pose error).
     """
 
-    def __init__(self, robot, tasks: Sequence[Task], limits: Sequence[Limit]):
+    def __init__(self, robot, tasks: Sequence[Task], limits: Sequence[Limit], dt: float, extra=None):
         n = robot.dof
+        self.n = n
+        self.dt = float(dt)
         self.tasks = tuple(tasks)
         self.boxes = tuple(lim for lim in limits if isinstance(lim, BoxLimit) and not lim.cap)
         self.caps = tuple(lim for lim in limits if isinstance(lim, BoxLimit) and lim.cap)
         self.row_limits = tuple(lim for lim in limits if isinstance(lim, RowLimit))
-        sizes = [lim.size(robot) for lim in self.row_limits]
-        self.slices = []
-        start = 0
-        for m in sizes:
-            self.slices.append(slice(start, start + m))
-            start += m
-        m = start
+        m = sum(lim.size(robot) for lim in self.row_limits)
+        self.m = m
         names = tuple(nm for lim in self.row_limits for nm in lim.row_names(robot))
-        self.qp = QP(
-            P=np.zeros((n, n)),
-            c=np.zeros(n),
-            A=np.zeros((m, n)),
-            l=np.full(m, -np.inf),
-            u=np.full(m, np.inf),
-            lb=np.full(n, -np.inf),
-            ub=np.full(n, np.inf),
-            n=n,
-            row_names=names,
-        )
-        self._reg = REGULARIZATION * np.eye(n)  # P starts from εI
+        kin = kinematics_of(robot)
+        values, sizes, key = self._compose(kin, extra, trace=False)
+        fn = kin.composed.get(key)
+        if fn is None:
+            fn = kin.composed[key] = native(self._compose(kin, extra, trace=True))
+        self._values = values
+        self._fn = Compiled(fn, compile=False)
+        out = self._fn._views[0]
+        offsets = np.cumsum([0, n * n, n, n, n, m * n, m, m])
+        P, c, lb, ub, A, lo, hi = (out[a:b] for a, b in itertools.pairwise(offsets))
+        self.qp = QP(P=P.reshape(n, n), c=c, A=A.reshape(m, n), l=lo, u=hi, lb=lb, ub=ub, n=n, row_names=names)
+        self.extra = []
+        start = offsets[-1]
+        for size in sizes:
+            self.extra.append(out[start : start + size])
+            start += size
 
-    def build(self, state: State) -> QP:
-        """Fill the QP for ``state`` and return it (the same object every call)."""
-        qp = self.qp
-        P, c = qp.P, qp.c
-        np.copyto(P, self._reg)
-        c.fill(0.0)
+    def _compose(self, kin, extra, trace: bool):
+        """The step function (``trace``), else ``(values, extra sizes, key)`` from free symbols."""
+        n = self.n
+        q = ca.SX.sym("q", n)
+        dt = ca.SX.sym("dt")
+        s = SymState.of(kin, q, dt, trace)
+        dt_value = np.array((self.dt,))
+        s.inputs.append((dt, lambda state: dt_value))
+        P = REGULARIZATION * ca.SX.eye(n)
+        c = ca.SX.zeros(n)
         for task in self.tasks:
-            Pi, ci = task.compute(state)
-            P += Pi
-            c += ci
-        lb, ub = qp.lb, qp.ub
-        lb.fill(-np.inf)
-        ub.fill(np.inf)
+            Pi, ci = task.bind(s)
+            P, c = P + Pi, c + ci
+        lb, ub = ca.SX.zeros(n) - ca.inf, ca.SX.zeros(n) + ca.inf
         for lim in self.boxes:
-            lo, hi = lim.bounds(state)
-            np.maximum(lb, lo, out=lb)
-            np.minimum(ub, hi, out=ub)
+            lo, hi = lim.expr(s, lim.parameters(s))
+            lb, ub = ca.fmax(lb, lo), ca.fmin(ub, hi)
         for lim in self.caps:
-            lo, hi = lim.bounds(state)
-            np.minimum(np.maximum(lb, lo, out=lb), hi, out=lb)  # clip into the cap (np.clip is slower)
-            np.minimum(np.maximum(ub, lo, out=ub), hi, out=ub)
-        for lim, sl in zip(self.row_limits, self.slices):
-            A, lo, hi = lim.rows(state, lb, ub)
-            qp.A[sl] = A
-            qp.l[sl] = lo
-            qp.u[sl] = hi
-        return qp
+            lo, hi = lim.expr(s, lim.parameters(s))
+            lb, ub = ca.fmin(ca.fmax(lb, lo), hi), ca.fmin(ca.fmax(ub, lo), hi)
+        A, lo, hi = [ca.SX(0, n)], [ca.SX(0, 1)], [ca.SX(0, 1)]
+        for lim in self.row_limits:
+            Ai, li, ui = lim.expr(s, lim.parameters(s), lb, ub)
+            A.append(Ai)
+            lo.append(li)
+            hi.append(ui)
+        A, lo, hi = ca.vertcat(*A), ca.vertcat(*lo), ca.vertcat(*hi)
+        more = [ca.vec(x) for x in (extra(s) if extra else [])]
+        if not trace:
+            objects = (*self.tasks, *self.boxes, *self.caps, *self.row_limits)
+            sizes = [x.numel() for x in more]
+            structure = tuple((type(o).__module__, type(o).__qualname__, o.structure()) for o in objects)
+            key = (structure, tuple(sym.numel() for sym, _ in s.inputs), tuple(sizes), A.shape)
+            return [value for _, value in s.inputs], sizes, key
+        out = ca.densify(ca.vertcat(ca.vec(P.T), c, lb, ub, ca.vec(A.T), lo, hi, *more))
+        prm = ca.vertcat(*[sym for sym, _ in s.inputs])
+        tag = hashlib.sha256(repr(self._compose(kin, extra, trace=False)[2]).encode()).hexdigest()[:12]
+        return ca.Function(f"qp_{kin.robot.name or 'robot'}_{tag}", [q, prm], [out])
+
+    def build(self, q: np.ndarray) -> QP:
+        """Fill the QP for configuration ``q`` (n,), rad, and return it (the same object every call)."""
+        self._fn(q, np.concatenate([value(None) for value in self._values]))
+        return self.qp

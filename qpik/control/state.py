@@ -17,11 +17,15 @@ from the expression builders of the other layers — nothing here re-derives the
   :math:`z_j` through :math:`o_j`, and a point :math:`p` of link ``k`` moves with
   :math:`\dot p = \sum_{j \le k} z_j \times (p - o_j)\,\dot q_j`.
 
-The tasks and limits then do only small numpy work on these arrays.
+:class:`SymState` holds the same quantities as CasADi symbols: the tasks and limits write
+their math once against it (``expr``); the controller traces it from the kinematics
+(:meth:`SymState.of`) into one compiled function, and :func:`evaluate` runs one task's or
+limit's expression on a numeric :class:`State` (:meth:`SymState.free`).
 """
 
 from __future__ import annotations
 
+import itertools
 from typing import TYPE_CHECKING
 
 import casadi as ca
@@ -51,6 +55,7 @@ class Kinematics:
         self.n_capsules = len(robot.capsules)
         self.base_size = 16 + 8 * self.n + 6 * self.n_capsules
         self._functions: dict[tuple[str, ...], Compiled] = {}
+        self.composed: dict[tuple, ca.Function] = {}  # the controllers' compiled QP functions, by structure
 
     def function(self, kinds: tuple[str, ...]) -> Compiled:
         """The compiled step function for obstacles of families ``kinds`` (``()``: no obstacles)."""
@@ -59,11 +64,9 @@ class Kinematics:
             fn = self._functions[kinds] = Compiled(self._build(kinds))
         return fn
 
-    def _build(self, kinds: tuple[str, ...]) -> ca.Function:
-        from qpik.geometry.distance import PARAMS, set_expr
-
+    def base_expr(self, q: ca.SX) -> tuple[list, ca.SX]:
+        """``(frames, base)``: the chain's frames at ``q`` (n,) and the flat base part of the output (SX column)."""
         robot, chain, n = self.robot, self.robot.chain, self.n
-        q = ca.SX.sym("q", n)
         frames = chain.frames_expr([q[i] for i in range(n)], sy.CASADI)
         jv, jw = chain.jacobian_expr(frames)
         Jr, Hr = _jacobian_rows(jv, jw), _hessian_rows(chain.hessian_expr(frames, (jv, jw)))
@@ -74,18 +77,34 @@ class Kinematics:
             out += manipulability_gradient_expr(Jr[:rows], [Hk[:rows] for Hk in Hr])[0]
         segments = robot.capsule_segments_expr(frames)
         out += [x for ab in segments for end in ab for x in end]
+        return frames, ca.vertcat(*out)
+
+    def pairs_expr(self, frames: list, kinds: tuple[str, ...], prm: ca.SX) -> ca.SX:
+        """The flat pair part of the output (SX column) for obstacles ``kinds`` with parameters ``prm``."""
+        from qpik.geometry.distance import set_expr
+
+        robot, chain, n = self.robot, self.robot.chain, self.n
+        segments = robot.capsule_segments_expr(frames)
+        pairs = set_expr(segments, robot.capsule_radii, kinds, [prm[i] for i in range(prm.numel())], sy.CASADI)
+        out = [x for row in pairs for d, p_link, p_obs, nrm, s in row for x in (d, *p_link, *p_obs, *nrm, s)]
+        for cap, row in zip(robot.capsules, pairs):
+            for _, p_link, _, nrm, _ in row:
+                cols = chain.point_jacobian_expr(frames, p_link, cap.link)
+                out += [sy.dot(nrm, col) for col in cols] + [0.0] * (n - cap.link)
+        return ca.vertcat(*out)
+
+    def _build(self, kinds: tuple[str, ...]) -> ca.Function:
+        from qpik.geometry.distance import PARAMS
+
+        q = ca.SX.sym("q", self.n)
+        frames, out = self.base_expr(q)
         inputs = [q]
         if kinds:
             prm = ca.SX.sym("params", sum(PARAMS[k] for k in kinds))
             inputs.append(prm)
-            pairs = set_expr(segments, robot.capsule_radii, kinds, [prm[i] for i in range(prm.numel())], sy.CASADI)
-            out += [x for row in pairs for d, p_link, p_obs, nrm, s in row for x in (d, *p_link, *p_obs, *nrm, s)]
-            for cap, row in zip(robot.capsules, pairs):
-                for _, p_link, _, nrm, _ in row:
-                    cols = chain.point_jacobian_expr(frames, p_link, cap.link)
-                    out += [sy.dot(nrm, col) for col in cols] + [0.0] * (n - cap.link)
-        name = f"step_{robot.name or 'robot'}_{'_'.join(kinds) or 'free'}"
-        return ca.Function(name, inputs, [ca.vertcat(*out)])
+            out = ca.vertcat(out, self.pairs_expr(frames, kinds, prm))
+        name = f"step_{self.robot.name or 'robot'}_{'_'.join(kinds) or 'free'}"
+        return ca.Function(name, inputs, [out])
 
 
 _KIN: dict[int, Kinematics] = {}
@@ -130,7 +149,8 @@ class State:
         self.J = out[16 : 16 + 6 * n].reshape(6, n)
         self._grad = out[16 + 6 * n : 16 + 8 * n].reshape(2, n)
         self.segments = out[16 + 8 * n : kin.base_size].reshape(C, 2, 3)
-        self._pairs: dict[int, tuple[ObstacleSet, Distances, np.ndarray]] = {}
+        self.base = out[: kin.base_size]  # the flat base part (the input of :class:`SymState` ``.free``)
+        self._pairs: dict[int, tuple[ObstacleSet, Distances, np.ndarray, np.ndarray]] = {}
         if obstacles is not None and len(obstacles):
             self._unpack(obstacles, out)
 
@@ -143,7 +163,7 @@ class State:
         out.flags.writeable = False
         return out
 
-    def _unpack(self, obstacles: ObstacleSet, out: np.ndarray) -> tuple[ObstacleSet, Distances, np.ndarray]:
+    def _unpack(self, obstacles: ObstacleSet, out: np.ndarray) -> tuple[ObstacleSet, Distances, np.ndarray, np.ndarray]:
         from qpik.geometry.distance import Distances
 
         C, O, base = self.kin.n_capsules, len(obstacles), self.kin.base_size
@@ -151,10 +171,11 @@ class State:
         dist = Distances(
             d=pairs[..., 0], p_link=pairs[..., 1:4], p_obs=pairs[..., 4:7], normal=pairs[..., 7:10], s=pairs[..., 10]
         )
-        entry = self._pairs[id(obstacles)] = (obstacles, dist, out[base + 11 * C * O :].reshape(C * O, self.kin.n))
+        rows = out[base + 11 * C * O :].reshape(C * O, self.kin.n)
+        entry = self._pairs[id(obstacles)] = (obstacles, dist, rows, out[base:])
         return entry
 
-    def _entry(self, obstacles: ObstacleSet) -> tuple[ObstacleSet, Distances, np.ndarray]:
+    def _entry(self, obstacles: ObstacleSet) -> tuple[ObstacleSet, Distances, np.ndarray, np.ndarray]:
         entry = self._pairs.get(id(obstacles))
         if entry is None or entry[0] is not obstacles:
             entry = self._unpack(obstacles, self._evaluate(obstacles))
@@ -176,3 +197,136 @@ class State:
         columns for the joints beyond it), so the row is :math:`\dot d` per unit ``v``.
         """
         return self._entry(obstacles)[2]
+
+    def pairs(self, obstacles: ObstacleSet) -> np.ndarray:
+        """The flat pair part of the step output for ``obstacles`` (the input of :class:`SymState` ``.free``)."""
+        return self._entry(obstacles)[3]
+
+
+_TOKENS = itertools.count()
+
+
+def _unique(owner) -> int:
+    """A number unique to ``owner`` for the life of the process (unlike ``id``, never reused)."""
+    token = owner.__dict__.get("_token")
+    if token is None:
+        token = owner.__dict__["_token"] = next(_TOKENS)
+    return token
+
+
+def _rows(v: ca.SX, r: int, c: int) -> ca.SX:
+    """The (r, c) matrix stored row-major in the SX column ``v``."""
+    return ca.reshape(v, c, r).T
+
+
+class SymState:
+    """The quantities of :class:`State` as CasADi SX, for the tasks' and limits' ``expr``.
+
+    Either traced from the kinematics (:meth:`of`, what the controller compiles) or free
+    symbols standing for a numeric :class:`State` (:meth:`free`, to evaluate one task or
+    limit: :func:`evaluate`). Tasks and limits declare their own parameters with
+    :meth:`parameter`; they become inputs of the function, so changing them never recompiles.
+
+    Attributes:
+        q: (n,) joint positions, rad; dt: control period, s (both SX).
+        pose: (4, 4) end-effector pose; J: (6, n) geometric Jacobian ``[v; ω]`` (SX, world frame).
+        inputs: ``[(symbol, value)]`` of every input beyond ``q``: ``value(state)`` gives its
+            numbers (state: a numeric :class:`State` or None in the controller).
+    """
+
+    def __init__(self, kin: Kinematics, q: ca.SX, dt: ca.SX, base: ca.SX, pairs_of):
+        n = kin.n
+        self.kin, self.q, self.dt, self.n = kin, q, dt, n
+        self.pose = _rows(base[:16], 4, 4)
+        self.J = _rows(base[16 : 16 + 6 * n], 6, n)
+        self._grad = (base[16 + 6 * n : 16 + 7 * n], base[16 + 7 * n : 16 + 8 * n])
+        self._pairs_of = pairs_of
+        self._pairs: dict[int, tuple[ObstacleSet, ca.SX]] = {}
+        self.inputs: list = []
+        self._owned: dict[int, ca.SX] = {}
+
+    @classmethod
+    def of(cls, kin: Kinematics, q: ca.SX, dt: ca.SX, trace: bool = True) -> SymState:
+        """Traced from the kinematics at ``q`` (obstacle parameters become inputs).
+
+        ``trace=False`` stands free symbols in for the kinematics: the same inputs are
+        declared in the same order, at a fraction of the cost (to bind a cached function).
+        """
+        if trace:
+            frames, base = kin.base_expr(q)
+        else:
+            base = ca.SX.sym("base", kin.base_size)
+
+        def pairs_of(s: SymState, obstacles: ObstacleSet) -> ca.SX:
+            prm = s.parameter(len(obstacles.params), lambda state: obstacles.params)
+            if trace:
+                return kin.pairs_expr(frames, obstacles.kinds, prm)
+            return ca.SX.sym("pairs", (11 + kin.n) * kin.n_capsules * len(obstacles))
+
+        return cls(kin, q, dt, base, pairs_of)
+
+    @classmethod
+    def free(cls, kin: Kinematics) -> SymState:
+        """Free symbols for a numeric :class:`State` (inputs ``q``, dt, base and pairs)."""
+        base = ca.SX.sym("base", kin.base_size)
+
+        def pairs_of(s: SymState, obstacles: ObstacleSet) -> ca.SX:
+            size = (11 + kin.n) * kin.n_capsules * len(obstacles)
+            return s.parameter(size, lambda state: state.pairs(obstacles))
+
+        s = cls(kin, ca.SX.sym("q", kin.n), ca.SX.sym("dt"), base, pairs_of)
+        s.inputs += [(s.q, lambda state: state.q), (s.dt, lambda state: state.dt), (base, lambda state: state.base)]
+        return s
+
+    def parameter(self, size: int, value) -> ca.SX:
+        """A new input of ``size`` numbers, ``value(state)`` giving them (state: numeric State or None)."""
+        sym = ca.SX.sym(f"p{len(self.inputs)}", size)
+        self.inputs.append((sym, value))
+        return sym
+
+    def params_of(self, owner) -> ca.SX:
+        """The parameters of a task or limit (``param_size``, ``params()``) as an input, declared once per owner."""
+        sym = self._owned.get(id(owner))
+        if sym is None:
+            sym = self._owned[id(owner)] = self.parameter(owner.param_size(self.n), lambda state: owner.params())
+        return sym
+
+    def manipulability_gradient(self, translational: bool = False) -> ca.SX:
+        """∇m (n,) as in :meth:`State.manipulability_gradient`."""
+        return self._grad[int(translational)]
+
+    def _entry(self, obstacles: ObstacleSet) -> ca.SX:
+        entry = self._pairs.get(id(obstacles))
+        if entry is None or entry[0] is not obstacles:
+            entry = self._pairs[id(obstacles)] = (obstacles, self._pairs_of(self, obstacles))
+        return entry[1]
+
+    def distances(self, obstacles: ObstacleSet) -> ca.SX:
+        """Signed distances d (C·O,), pair ``(c, o)`` at ``c·O + o``, m."""
+        C, O = self.kin.n_capsules, len(obstacles)
+        return self._entry(obstacles)[0 : 11 * C * O : 11]
+
+    def damper_rows(self, obstacles: ObstacleSet) -> ca.SX:
+        """Rows (C·O, n) as in :meth:`State.damper_rows`."""
+        C, O = self.kin.n_capsules, len(obstacles)
+        return _rows(self._entry(obstacles)[11 * C * O :], C * O, self.n)
+
+
+def evaluate(owner, state: State, build, *extra: np.ndarray) -> list[np.ndarray]:
+    """Evaluate ``build(s, *x)`` (a list of SX outputs) at a numeric ``state`` and ``extra`` vectors.
+
+    ``s`` is a :meth:`SymState.free` state and ``x`` symbols for the ``extra`` arrays. The
+    CasADi function is cached on ``owner`` per robot and builder (``owner._numeric``): the one
+    implementation of a task or limit's math is its ``expr``, evaluated here on numbers.
+    """
+    cache = owner.__dict__.setdefault("_numeric", {})
+    key = (id(state.kin), build.__code__, tuple(len(x) for x in extra))
+    entry = cache.get(key)
+    if entry is None or entry[0] is not state.kin:
+        s = SymState.free(state.kin)
+        syms = [ca.SX.sym(f"x{i}", len(x)) for i, x in enumerate(extra)]
+        outs = build(s, *syms)
+        fn = ca.Function("evaluate", [sym for sym, _ in s.inputs] + syms, outs)
+        entry = cache[key] = (state.kin, fn, [value for _, value in s.inputs])
+    _, fn, values = entry
+    return [np.asarray(x) for x in fn.call([value(state) for value in values] + list(extra))]
