@@ -7,6 +7,7 @@ reference row of the same bench.
 
 from __future__ import annotations
 
+import gc
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -30,14 +31,34 @@ class Row:
 
 def time_calls(fn: Callable[[], object], repeat: int, warmup: int = 20) -> np.ndarray:
     """Wall-clock seconds of ``repeat`` calls of ``fn`` (after ``warmup`` calls)."""
+    return time_interleaved({"": fn}, repeat, warmup)[""]
+
+
+def time_interleaved(fns: dict[str, Callable[[], object]], repeat: int, warmup: int = 20) -> dict[str, np.ndarray]:
+    """Seconds of ``repeat`` calls of each peer, interleaved: one call of every peer per round.
+
+    A busy spell of the machine then falls on every peer alike, so the ratios
+    between rows stay meaningful on a shared machine. Python's garbage
+    collector is paused while timing (for every peer alike), as a 1 kHz control
+    loop in Python would run it: what is timed is the call, not the collector.
+    """
     for _ in range(warmup):
-        fn()
-    out = np.empty(repeat)
+        for fn in fns.values():
+            fn()
+    out = {label: np.empty(repeat) for label in fns}
     clock = time.perf_counter
-    for i in range(repeat):
-        t0 = clock()
-        fn()
-        out[i] = clock() - t0
+    items = [(fn, out[label]) for label, fn in fns.items()]
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        for i in range(repeat):
+            for fn, t in items:
+                t0 = clock()
+                fn()
+                t[i] = clock() - t0
+    finally:
+        if enabled:
+            gc.enable()
     return out
 
 
