@@ -92,13 +92,12 @@ def test_same_velocity_as_mink_at_zero_error():
     np.testing.assert_allclose(got, want, atol=1e-6, rtol=0)
 
 
-@settings(max_examples=10, deadline=None)
+@settings(max_examples=25, deadline=None)
 @given(seed=SEEDS)
 def test_solve_ik_reaches_random_pose(seed):
-    """solve_ik from a random start reaches a random iiwa14 pose to 1e-9 (checked by FK)."""
+    """solve_ik from a random start (uniform within the limits) reaches a random iiwa14 pose to 1e-9 (FK)."""
     robot = qpik.load_robot("iiwa14")
     q_goal, q0 = random_q(robot, 2, seed, margin=0.1)
-    q0 = q_goal + 0.8 * (q0 - q_goal) / max(1.0, np.abs(q0 - q_goal).max())  # a random start up to 0.8 rad away
     pose = robot.fk(q_goal)
     ctrl = Controller.for_robot(robot)
     q = ctrl.solve_ik(q0, pose, tol=1e-10)

@@ -237,7 +237,15 @@ class Controller:
     def _past_limit(self, q: np.ndarray) -> bool:
         return any((q < lim._lo).any() or (q > lim._hi).any() for lim in self.config_limits)
 
-    def solve_ik(self, q0: np.ndarray, pose: np.ndarray, tol: float = 1e-10, max_iters: int = 200) -> np.ndarray:
+    def solve_ik(
+        self,
+        q0: np.ndarray,
+        pose: np.ndarray,
+        tol: float = 1e-10,
+        max_iters: int = 200,
+        restarts: int = 10,
+        seed: int = 0,
+    ) -> np.ndarray:
         r"""Iterate ``q ← q + v`` until the pose error of the end-effector is below ``tol``.
 
         The iteration is a damped Gauss–Newton step through a QP of its own: a
@@ -248,17 +256,24 @@ class Controller:
         Obstacles, posture and manipulability are left out: their terms would move the
         fixed point off the target. Converges quadratically near a regular solution.
 
+        A local method can stall (at a joint limit, or in a local minimum of the error
+        far from the target). Then it starts again from a configuration drawn uniformly
+        within the position limits, up to ``restarts`` times, from a generator seeded
+        with ``seed`` (so the answer is reproducible). The first attempt is always ``q0``.
+
         Args:
             q0: (n,) start configuration, rad.
             pose: (4, 4) target pose of the end-effector (base frame).
             tol: stop when ``‖[p* − p; log(R* Rᵀ)]‖ < tol`` (m and rad together).
-            max_iters: iteration budget.
+            max_iters: iteration budget of each attempt.
+            restarts: attempts from random configurations after the one from ``q0``.
+            seed: seed of the random restarts.
 
         Returns:
             q (n,), rad, within the position limits.
 
         Raises:
-            UnreachableError: not converged after ``max_iters`` (the message gives the residual).
+            UnreachableError: no attempt converged (the message gives the smallest residual).
             InputError: NaN or wrong shapes.
         """
         q, batched = joint_vector(q0, self.robot.dof, "q0")
@@ -273,14 +288,20 @@ class Controller:
             self._ik = Controller(self.robot, tasks, limits, solver=self.solver.name, dt=1.0)
         ik = self._ik
         ik.frame_task.set_target(target)
-        q = q.copy()
-        err = np.inf
-        for _ in range(max_iters):
+        rng = np.random.default_rng(seed)
+        best = np.inf
+        for attempt in range(restarts + 1):
+            q = q.copy() if attempt == 0 else rng.uniform(self.robot.q_min, self.robot.q_max)
+            for _ in range(max_iters):
+                err = float(np.linalg.norm(pose_error(target, self.robot.fk(q))))
+                if err < tol:
+                    return q
+                q += ik.step(q)
             err = float(np.linalg.norm(pose_error(target, self.robot.fk(q))))
             if err < tol:
                 return q
-            q += ik.step(q)
-        err = float(np.linalg.norm(pose_error(target, self.robot.fk(q))))
-        if err < tol:
-            return q
-        raise UnreachableError(f"solve_ik: pose error {err:.3g} (m, rad) after {max_iters} iterations (tol {tol:g})")
+            best = min(best, err)
+        raise UnreachableError(
+            f"solve_ik: smallest pose error {best:.3g} (m, rad) after {restarts + 1} attempts "
+            f"of {max_iters} iterations (tol {tol:g})"
+        )
