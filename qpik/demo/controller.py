@@ -12,8 +12,8 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from qpik.control.report import run_reach, run_track
 from qpik.problems import find_problem, load
+from qpik.problems.control import run_reach, run_track
 
 TITLE = "QP controller"
 

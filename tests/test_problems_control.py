@@ -1,4 +1,4 @@
-"""qpik.control.report: the ``reach`` and ``track`` runners, judged on MuJoCo's measurements.
+"""qpik.problems.control: the ``reach`` and ``track`` runners, judged on MuJoCo's measurements.
 
 The reach run is checked on its log (MuJoCo clearances, DH forward kinematics of
 the final q); the closed-form reference by forward kinematics and against an
@@ -15,7 +15,7 @@ import pytest
 from PIL import Image
 
 import qpik
-import qpik.control.report as report  # registers the runners (until RUNNER_MODULES lists it)
+import qpik.problems.control as report
 from qpik.cli import main
 from qpik.geometry import distances, obstacles_from_specs
 from qpik.problems import find_problem, load
