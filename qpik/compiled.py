@@ -112,6 +112,11 @@ class Compiled:
             # CasADi stores column-major: reshape (cols, rows) then transpose.
             self._views.append(r if cols == 1 else r.reshape(cols, rows).T)
 
+    @property
+    def outputs(self) -> Sequence[np.ndarray]:
+        """The output buffers (views, shaped like the CasADi outputs) that every call overwrites."""
+        return self._views
+
     def __call__(self, *args: np.ndarray) -> Sequence[np.ndarray]:
         for dst, src in zip(self._args, args):
             if type(src) is np.ndarray and src.ndim == 1:

@@ -46,3 +46,31 @@ def test_accepts_lists_and_integers():
     c = Compiled(matrix_function())
     out = c([[1, 2, 3], [4, 5, 6]], [1, 0, 0])[0]
     np.testing.assert_array_equal(out, [1.0, 4.0])
+
+
+def test_native_code_equals_the_virtual_machine_and_can_be_turned_off(monkeypatch, tmp_path):
+    """The machine-code path computes what CasADi's own evaluation computes; QPIK_NATIVE=0 keeps the VM."""
+    import shutil
+
+    import pytest
+
+    import qpik
+    from qpik import compiled
+    from qpik.analytic import solver_for
+
+    if shutil.which("cc") is None:
+        pytest.skip("no C compiler: native() falls back to the virtual machine by design")
+    monkeypatch.setenv("QPIK_CACHE", str(tmp_path))
+    robot = qpik.load_robot("nammoto7")
+    f = solver_for(robot).casadi_function  # the largest single-pose function: 16 IK branches
+    fast = Compiled(f)
+    assert fast.fn is not f and fast.fn.name() == f.name()  # an external (compiled) function
+    assert list(tmp_path.glob(f"{f.name()}_*.so"))  # cached on disk
+    T = robot.fk(robot.q_home)
+    for delta in np.linspace(-3.0, 3.0, 13):
+        got = [g.copy() for g in fast(T, np.array([delta]))]
+        want = f(T, delta)
+        for g, w in zip(got, want):
+            np.testing.assert_allclose(g, np.array(w).reshape(g.shape, order="F"), atol=1e-13, rtol=0)
+    monkeypatch.setenv("QPIK_NATIVE", "0")
+    assert compiled.native(f) is f

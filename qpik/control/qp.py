@@ -120,7 +120,7 @@ class Assembler:
             fn = kin.composed[key] = native(self._compose(kin, extra, trace=True))
         self._values = values
         self._fn = Compiled(fn, compile=False)
-        out = self._fn._views[0]
+        out = self._fn.outputs[0]
         offsets = np.cumsum([0, n * n, n, n, n, m * n, m, m])
         P, c, lb, ub, A, lo, hi = (out[a:b] for a, b in itertools.pairwise(offsets))
         self.qp = QP(P=P.reshape(n, n), c=c, A=A.reshape(m, n), l=lo, u=hi, lb=lb, ub=ub, n=n, row_names=names)
