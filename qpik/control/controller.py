@@ -223,7 +223,7 @@ class Controller:
         for d in extra[: len(self.obstacle_limits)]:
             info.min_clearance = min(info.min_clearance, float(d.min()))
         if self.frame_task is not None:
-            e = self.frame_task.last_error = extra[-1].copy()
+            e = extra[-1]
             info.task_error = math.sqrt(e @ e)
         if info.status == "ok":
             if info.min_clearance < 0.0:

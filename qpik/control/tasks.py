@@ -155,7 +155,6 @@ class FrameTask(Task):
     ):
         self.target: np.ndarray | None = None
         self.twist = np.zeros(6)
-        self.last_error: np.ndarray | None = None  # e of the last compute or control step, [m; rad]
         self.gain = np.repeat([float(position_gain), float(orientation_gain)], 3)
         self.weight = np.repeat([float(position_weight), float(orientation_weight)], 3)
         if np.any(self.weight < 0) or np.any(self.gain < 0):
@@ -193,10 +192,6 @@ class FrameTask(Task):
         """Pose error e (6,) ``[m; rad]`` of the current end-effector toward the target."""
         (e,) = evaluate(self, state, lambda s: [self.error_expr(s, s.params_of(self))])
         return e.reshape(-1)
-
-    def compute(self, state: State) -> tuple[np.ndarray, np.ndarray]:
-        self.last_error = self.error(state)
-        return super().compute(state)
 
 
 class PostureTask(Task):

@@ -292,9 +292,9 @@ def manipulability_gradient_expr(J: list[list[Scalar]], H: list[list[list[Scalar
             Y[i][j] = sy.mul(sy.sub(J[i][j], sy.lin(*((L[i][t], Y[t][j]) for t in range(i)))), inv[i])
         for i in reversed(range(rows)):
             B[i][j] = sy.mul(sy.sub(Y[i][j], sy.lin(*((L[t][i], B[t][j]) for t in range(i + 1, rows)))), inv[i])
-    scale = ops.where(ok > 0.5, m, 0.0)
-    grad = [scale * sy.lin(*((B[r][j], H[k][r][j]) for r in range(rows) for j in range(n))) for k in range(n)]
-    return grad, ops.where(ok > 0.5, m, 0.0)
+    m = ops.where(ok > 0.5, m, 0.0)
+    grad = [m * sy.lin(*((B[r][j], H[k][r][j]) for r in range(rows) for j in range(n))) for k in range(n)]
+    return grad, m
 
 
 def manipulability_gradient_from(J: np.ndarray, H: np.ndarray, translational: bool = False) -> np.ndarray:
