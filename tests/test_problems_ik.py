@@ -60,14 +60,19 @@ def test_table4_report_passes_and_max_difference_is_recomputed(table4) -> None:
     assert (out / "nammoto2012_table4_selfmotion.png").is_file()
 
 
+def _run_branch1(file: Path, out: Path, figure: str) -> tuple[str, list[str], np.ndarray]:
+    """Run the ik runner on ``file``; check PASS and the figure; return (report, CSV header, branch-1 rows)."""
+    report = run_ik(load(file), out)
+    assert "**PASS**" in report
+    assert (out / f"{file.stem}_{figure}.png").is_file()
+    head, rows = _read_csv(out / f"{file.stem}_solutions.csv")
+    return report, head, rows[rows[:, head.index("branch")] == 1]
+
+
 def test_joint_limit_sweep_reproduces_the_papers_observation(tmp_path) -> None:
     """Seed 000 Figs. 15/16: θ6 grows as p_z falls at δ = 0, stays bounded at δ = 0.70."""
     file = PROBLEMS / "nammoto2012_joint_limits.toml"
-    report = run_ik(load(file), tmp_path)
-    assert "**PASS**" in report
-    assert (tmp_path / "nammoto2012_joint_limits_sweep.png").is_file()
-    head, rows = _read_csv(tmp_path / "nammoto2012_joint_limits_solutions.csv")
-    b1 = rows[rows[:, head.index("branch")] == 1]
+    _, head, b1 = _run_branch1(file, tmp_path, "sweep")
     assert np.all(b1[:, head.index("valid")] == 1)
     robot = qpik.load_robot("nammoto7")
     R = np.array(tomllib.loads(file.read_text())["target"]["rotation"], float)
@@ -91,11 +96,7 @@ def test_joint_limit_sweep_reproduces_the_papers_observation(tmp_path) -> None:
 
 def test_obstacle_sweep_keeps_the_hand_and_moves_the_elbow(tmp_path) -> None:
     file = PROBLEMS / "nammoto2012_obstacle.toml"
-    report = run_ik(load(file), tmp_path)
-    assert "**PASS**" in report
-    assert (tmp_path / "nammoto2012_obstacle_overlay.png").is_file()
-    head, rows = _read_csv(tmp_path / "nammoto2012_obstacle_solutions.csv")
-    b1 = rows[rows[:, head.index("branch")] == 1]
+    report, head, b1 = _run_branch1(file, tmp_path, "overlay")
     assert len(b1) == 7
     valid = b1[:, head.index("valid")] == 1
     assert valid[1:-1].all()  # |δ| <= 0.55: branch 1 reaches the pose
