@@ -34,31 +34,42 @@ def time_calls(fn: Callable[[], object], repeat: int, warmup: int = 20) -> np.nd
     return time_interleaved({"": fn}, repeat, warmup)[""]
 
 
-def time_interleaved(fns: dict[str, Callable[[], object]], repeat: int, warmup: int = 20) -> dict[str, np.ndarray]:
+def time_interleaved(
+    fns: dict[str, Callable[[], object]],
+    repeat: int,
+    warmup: int = 20,
+    cpu: dict[str, np.ndarray] | None = None,
+) -> dict[str, np.ndarray]:
     """Seconds of ``repeat`` calls of each peer, interleaved: one call of every peer per round.
 
     A busy spell of the machine then falls on every peer alike, so the ratios
     between rows stay meaningful on a shared machine. Python's garbage
     collector is paused while timing (for every peer alike), as a 1 kHz control
     loop in Python would run it: what is timed is the call, not the collector.
+    Returns wall-clock seconds; if ``cpu`` is a dict, it is filled with the same
+    calls' thread CPU seconds, which leave out the time the host took the CPU away.
     """
     for _ in range(warmup):
         for fn in fns.values():
             fn()
     out = {label: np.empty(repeat) for label in fns}
-    clock = time.perf_counter
-    items = [(fn, out[label]) for label, fn in fns.items()]
+    used = {label: np.empty(repeat) for label in fns}
+    clock, thread = time.perf_counter, time.thread_time
+    items = [(fn, out[label], used[label]) for label, fn in fns.items()]
     enabled = gc.isenabled()
     gc.disable()
     try:
         for i in range(repeat):
-            for fn, t in items:
-                t0 = clock()
+            for fn, t, u in items:
+                t0, u0 = clock(), thread()
                 fn()
+                u[i] = thread() - u0
                 t[i] = clock() - t0
     finally:
         if enabled:
             gc.enable()
+    if cpu is not None:
+        cpu.update(used)
     return out
 
 
