@@ -42,6 +42,50 @@ def cache_dir() -> Path:
     return Path(base) / "qpik"
 
 
+def compiler() -> str | None:
+    """The C compiler that :func:`shared_library` uses (``$CC``, else ``cc``), or None when off or missing.
+
+    Off with ``QPIK_NATIVE=0``, or after a compilation failed in this process (warned once).
+    """
+    global _native_failed
+    if os.environ.get("QPIK_NATIVE", "1") == "0" or _native_failed:
+        return None
+    found = shutil.which(os.environ.get("CC", "cc"))
+    if found is None:
+        _native_failed = "no C compiler (cc) on PATH"
+    return found
+
+
+def shared_library(name: str, source: bytes) -> Path | None:
+    """C ``source`` compiled once into a shared library cached in :func:`cache_dir`, or None.
+
+    The library is keyed by a hash of the source, the flags and CasADi's version.
+    None when :func:`compiler` is None or compilation fails (then a warning says
+    why, once, and native code stays off in this process).
+    """
+    global _native_failed
+    cc = compiler()
+    if cc is None:
+        return None
+    key = hashlib.sha256(source + " ".join(CFLAGS).encode() + ca.__version__.encode()).hexdigest()[:20]
+    try:
+        folder = cache_dir()
+        folder.mkdir(parents=True, exist_ok=True)
+        lib = folder / f"{name}_{key}.so"
+        if not lib.exists():
+            with tempfile.TemporaryDirectory() as tmp:
+                src = Path(tmp, f"{name}.c")
+                src.write_bytes(source)
+                partial = folder / f"{lib.name}.{os.getpid()}.tmp"
+                subprocess.run([cc, *CFLAGS, str(src), "-o", str(partial), "-lm"], check=True, capture_output=True)
+                os.replace(partial, lib)  # atomic: concurrent processes never see a partial library
+        return lib
+    except (OSError, subprocess.CalledProcessError) as exc:
+        _native_failed = f"{type(exc).__name__}: {exc}"
+        warnings.warn(f"qpik: native compilation off ({_native_failed})", stacklevel=2)
+        return None
+
+
 def native(fn: ca.Function) -> ca.Function:
     """``fn`` as machine code (cached shared library), or ``fn`` itself when that is not possible.
 
@@ -49,37 +93,15 @@ def native(fn: ca.Function) -> ca.Function:
     has the same inputs and outputs, so callers cannot tell the difference
     except by speed.
     """
-    global _native_failed
-    if os.environ.get("QPIK_NATIVE", "1") == "0" or _native_failed:
-        return fn
-    compiler = shutil.which(os.environ.get("CC", "cc"))
-    if compiler is None:
-        _native_failed = "no C compiler (cc) on PATH"
+    if compiler() is None:
         return fn
     name = fn.name()
-    try:
-        with tempfile.TemporaryDirectory() as tmp:
-            gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
-            gen.add(fn)
-            gen.generate(tmp + os.sep)
-            source = Path(tmp, f"{name}.c").read_bytes()
-            key = hashlib.sha256(source + " ".join(CFLAGS).encode() + ca.__version__.encode()).hexdigest()[:20]
-            folder = cache_dir()
-            folder.mkdir(parents=True, exist_ok=True)
-            lib = folder / f"{name}_{key}.so"
-            if not lib.exists():
-                partial = folder / f"{lib.name}.{os.getpid()}.tmp"
-                subprocess.run(
-                    [compiler, *CFLAGS, str(Path(tmp, f"{name}.c")), "-o", str(partial), "-lm"],
-                    check=True,
-                    capture_output=True,
-                )
-                os.replace(partial, lib)  # atomic: concurrent processes never see a partial library
-        return ca.external(name, str(lib))
-    except (OSError, subprocess.CalledProcessError, RuntimeError) as exc:
-        _native_failed = f"{type(exc).__name__}: {exc}"
-        warnings.warn(f"qpik: native compilation off, using CasADi's virtual machine ({_native_failed})", stacklevel=2)
-        return fn
+    with tempfile.TemporaryDirectory() as tmp:
+        gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+        gen.add(fn)
+        gen.generate(tmp + os.sep)
+        lib = shared_library(name, Path(tmp, f"{name}.c").read_bytes())
+    return fn if lib is None else ca.external(name, str(lib))
 
 
 class Compiled:

@@ -239,6 +239,15 @@ def test_feasible_intervals_exact_dense(seed):
         _sweep_check(T, 10000)
 
 
+def test_feasible_intervals_exact_without_a_c_compiler(monkeypatch):
+    """With no compiled root finder (no cc, or QPIK_NATIVE=0) the wrist roots come from eigenvalues: same sets."""
+    from qpik.analytic import polyroots
+
+    monkeypatch.setattr(polyroots, "_library", lambda: None)
+    for T in ROBOT.fk(random_q(ROBOT, 20, 7)):
+        _sweep_check(T, 2000)
+
+
 def test_feasible_intervals_table4_and_singular_points():
     problem = load_problem(ROOT / "problems" / "nammoto2012_table4.toml")
     T = problem.poses[0]

@@ -61,6 +61,8 @@ the branch does not reach the pose; its row is then the clamped, finite solution
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -70,6 +72,9 @@ from qpik.analytic.solver import AnalyticSolver, Branches
 from qpik.analytic.trig import EPS, angle, flip, solve_cos_sin_cs
 from qpik.errors import InputError
 from qpik.symbolic import Mat, Ops, Scalar, Vec
+
+if TYPE_CHECKING:
+    from qpik.analytic.offset_shoulder_intervals import DeltaIntervals
 
 PI = np.pi
 SINGULAR_TOL = 1e-7
@@ -249,11 +254,15 @@ class OffsetShoulderSolver(AnalyticSolver):
 
     # ---- feasible δ ---------------------------------------------------------
 
+    @cached_property
+    def _intervals(self) -> DeltaIntervals:
+        from qpik.analytic.offset_shoulder_intervals import DeltaIntervals  # builds on this module
+
+        return DeltaIntervals(self)
+
     def feasible_intervals(self, T: np.ndarray) -> FeasibleIntervals:
         """Per branch, the exact δ set (rad) where the branch is valid and within limits.
 
-        See :mod:`qpik.analytic.offset_shoulder_intervals` for the breakpoint equations.
+        See :mod:`qpik.analytic.offset_shoulder_intervals` for the breakpoint equations. ``T``: (4, 4), world frame.
         """
-        from qpik.analytic.offset_shoulder_intervals import feasible_delta
-
-        return feasible_delta(self, T)
+        return self._intervals(T)

@@ -31,144 +31,185 @@ All those δ are found analytically for the branches with θ1[1] (rows 1–8); r
   :math:`z_4\cdot(\sin L\, n + \cos L\, t) = 0`; θ5 = L (mod π) ⇔
   :math:`\sin L\,(u + s_4 z_4)\cdot b - \cos L\,(z_4\times u)\cdot b = 0` (the frame-4
   axes times cos θ4: :math:`c_4 x_4 = u + s_4 z_4`, :math:`c_4 y_4 = z_4 \times u`).
-  Multiplied by :math:`d_5 E` each is :math:`P(\delta) + \sigma\sqrt{D}\,Q(\delta)` with
-  trigonometric polynomials P, Q; :math:`P^2 - D Q^2 = 0` is a trigonometric polynomial
-  of degree 8 (θ5) or 6 (θ6, θ7), i.e. a polynomial of degree 16 or 12 in
-  :math:`z = e^{i\delta}` whose unit-modulus roots are the candidates: the
-  eigenvalues of the companion matrices of all of them (one batched ``eigvals``
-  per pose), polished by Newton steps on the trigonometric polynomials.
+  Multiplied by :math:`d_5 E` each is :math:`P + \sigma\sqrt{D}\,Q` with P, Q polynomials
+  in (c, s); :math:`F = P^2 - D Q^2 = 0` wherever either σ solves it. Reduced with
+  :math:`s^2 = 1 - c^2`, :math:`F = A(c) + s\,B(c)` (A of degree 8 for θ5, 6 for θ6 and θ7):
+  its real roots come from :func:`qpik.analytic.polyroots.trig_roots` (a polynomial in
+  :math:`\tan(\delta/2)`, compiled derivative-recursion root finder).
 
-Squaring and the ±acos of c add spurious candidates; they only split a gap in
-two, which :func:`qpik.analytic.intervals.assemble_many` merges back. Each gap is
-classified by one batched evaluation of all 16 branches at the gap midpoints.
+All the coefficients (the quadratics, A and B) and the candidates of the quadratics
+come from one compiled CasADi function of the pose, traced from the CasADi
+expressions in :meth:`DeltaIntervals.expressions`.
+
+Squaring (θ3 and the σ product) and the ±acos of c add spurious candidates; they
+only split a gap in two, and merging the gaps joins it again. Rows 9–16 are rows 1–8
+shifted by π, so only rows 1–8 are classified: one compiled sweep of those 8 branches
+at every gap midpoint (:meth:`~qpik.analytic.solver.AnalyticSolver.solve_many`), and
+rows 9–16's sets are rows 1–8's moved by π (:func:`qpik.analytic.intervals.shift`).
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import casadi as ca
 import numpy as np
 
-from qpik.analytic.intervals import FeasibleIntervals, assemble_many, wrap
-from qpik.analytic.trig import EPS
+from qpik import symbolic as sy
+from qpik.analytic.intervals import FeasibleIntervals, gaps, merge, shift, wrap
+from qpik.analytic.polyroots import trig_roots
+from qpik.analytic.trig import EPS, acos2
+from qpik.compiled import Compiled
+from qpik.symbolic import Ops, Scalar
 
 if TYPE_CHECKING:
     from qpik.analytic.offset_shoulder import OffsetShoulderSolver
 
 PI = np.pi
-UNIT_TOL = 1e-3
-"""Roots of the z-polynomials with ||z| − 1| below this are kept as candidates (spurious ones are harmless)."""
+ZERO = 1e-13
+"""Wrist-centre distance (m) from the base axis below which its azimuth is taken as 0 (as the solver does)."""
+COMMON_TOL = 1e-6
+"""θ5 and θ7 roots closer than this (rad) are a common root: a wrist singularity (sin θ6 = 0)."""
+
+Poly = list  # coefficients of a polynomial in c = cos δ, lowest first (scalars: floats or CasADi SX)
+CSPoly = tuple[Poly, Poly]  # A(c) + sin δ · B(c)
 
 
-def feasible_delta(solver: OffsetShoulderSolver, T: np.ndarray) -> FeasibleIntervals:
-    """Per branch (Table 2 order), the δ intervals (rad) where the branch is valid and within limits.
+class DeltaIntervals:
+    """Feasible δ intervals of every branch of one offset-shoulder solver; call with a (4, 4) pose."""
 
-    ``singular`` lists, per branch, the candidate δ (validity boundaries: elbow and
-    shoulder singularities; common roots of the θ5 and θ7 equations: wrist) at
-    which the branch is valid and flagged singular.
-    """
-    robot = solver.robot
-    Tc = solver._base_inv_np @ T @ np.linalg.inv(robot.chain.tool)
-    brk, sing = breakpoints(solver, Tc[:3, :3], Tc[:3, 3], robot.q_min, robot.q_max)
-    brk = np.concatenate([brk, brk + PI])  # rows 9-16: the same functions shifted by π
-    sing = wrap(np.concatenate([sing, sing + PI]))
-    found: list[np.ndarray] = []
+    def __init__(self, solver: OffsetShoulderSolver):
+        self._solver = solver
+        robot = solver.robot
+        self.branch = np.array(solver.branch_ids)
+        self.levels = [_levels(lo, hi) for lo, hi in zip(robot.q_min, robot.q_max)]
+        T = ca.SX.sym("T", 4, 4)
+        cand, sing, polys, kinds = self.expressions(T, sy.CASADI)
+        self._kinds = np.array(kinds)
+        out = [ca.vertcat(*[x for pair in cand for x in pair]), ca.vertcat(*[x for pair in sing for x in pair])]
+        FA, FB = (ca.vertcat(*[ca.horzcat(*_pad(x, 9)) for x in xs]) for xs in zip(*polys))
+        self._fn = Compiled(ca.Function("os_breakpoints", [T], [*out, FA, FB]))
 
-    def feasible_at(mid: np.ndarray) -> np.ndarray:
-        pts = np.concatenate([mid, sing])
-        _, valid, singular, inside = solver.solve_many(T, pts)
-        found.append(valid[mid.size :] & singular[mid.size :])
-        return inside[: mid.size]
+    def expressions(self, T, ops: Ops) -> tuple[list, list, list[Poly], list[int]]:
+        """The breakpoint equations of rows 1–8 for the world pose T (4, 4).
 
-    intervals = assemble_many(brk, feasible_at)
-    hits = found[0]
-    singular = [sorted(set(sing[hits[:, j]].tolist())) for j in range(solver.n_branches)]
-    return FeasibleIntervals(solver.param_name, np.array(solver.branch_ids), intervals, singular)
+        Returns ``(candidates, singular, polys, kinds)``: (δ, ok) pairs found in closed form
+        (limit crossings of θ1–θ4 and the validity boundaries), the (δ, ok) pairs where a
+        branch turns singular (elbow, shoulder), the wrist equations F = A + sin δ · B as (A, B)
+        (polynomials in c = cos δ) and the joint of each (5, 6 or 7, 1-based).
+        """
+        g = self._solver.geometry
+        R, p = sy.frame_of_batch(T)
+        R, p = sy.compose(sy.compose(self._solver._base_inv, (R, p)), self._solver._tool_inv)
+        n, t, b = sy.col(R, 0), sy.col(R, 1), sy.col(R, 2)
+        w = sy.vadd(p, sy.vscale(g.d7, b))
+        r = ops.sqrt(w[0] * w[0] + w[1] * w[1])
+        far = r > ZERO
+        rs = ops.fmax(r, ZERO)
+        cphi, sphi = ops.where(far, w[0] / rs, 1.0), ops.where(far, w[1] / rs, 0.0)
+        phi = ops.where(far, ops.atan2(w[1], w[0]), 0.0)
+        h = w[2] - g.d1
+        k1 = (r * r + g.a1**2 + h * h - g.d3**2 - g.d5**2) / (2 * g.d3 * g.d5)
+        k2 = -g.a1 * r / (g.d3 * g.d5)
+        z0, z1 = g.d3 + g.d5 * k1, g.d5 * k2
 
+        # ---- equations quadratic in c: rows (A, B, C) of A c² + B c + C = 0
+        dA, dB, dC = r * r - z1 * z1, -2 * g.a1 * r - 2 * z0 * z1, g.a1**2 + h * h - z0 * z0  # D(c)
+        rows = [(0.0, k2, k1 - 1.0), (0.0, k2, k1 + 1.0), (dA, dB, dC)]  # validity: sin θ4 = ±1, D = 0
+        # where the solver's tolerant tests switch (|sin θ4| <= 1 + EPS, D >= -EPS max(E, 1); trig.EPS):
+        # near a tangency these lie up to ~1e-9 rad from the exact roots above
+        rows += [(0.0, k2, k1 - 1.0 - EPS), (0.0, k2, k1 + 1.0 + EPS), (dA, dB, dC + EPS)]
+        rows.append((dA + EPS * r * r, dB - 2 * EPS * g.a1 * r, dC + EPS * (g.a1**2 + h * h)))
+        for L in self.levels[1]:  # θ2
+            sL, cL = np.sin(L), np.cos(L)
+            rows.append((0.0, r * (g.a1 / g.d3 - sL), sL * g.a1 + cL * h - z0))
+        for L in self.levels[2]:  # θ3 (squared)
+            s2, c2 = np.sin(L) ** 2, np.cos(L) ** 2
+            rows.append((s2 * dA + c2 * r * r, s2 * dB, s2 * dC - c2 * r * r))
+        for L in self.levels[3]:  # θ4
+            rows.append((0.0, k2, k1 - np.sin(L)))
+        roots = [_quadratic_roots(*row, ops) for row in rows]
+        cand = [pair for rr in roots for pair in _acos_pairs(rr, ops)]
+        cand += [(L - phi, 1.0) for L in self.levels[0]]
+        sing = [pair for rr in roots[:3] for pair in _acos_pairs(rr, ops)]
 
-def breakpoints(
-    solver: OffsetShoulderSolver, R: np.ndarray, p: np.ndarray, lo: np.ndarray, hi: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """For the chain-frame pose (R, p) and limits (7,): every δ (rad) where a branch with θ1[1]
-    can change feasibility, and the subset where it can be singular."""
-    g = solver.geometry
-    n, t, b = R[:, 0], R[:, 1], R[:, 2]
-    w = p + g.d7 * b
-    r = float(np.hypot(w[0], w[1]))
-    phi = float(np.arctan2(w[1], w[0])) if r > 1e-13 else 0.0
-    h = float(w[2] - g.d1)
-    k1 = (r * r + g.a1**2 + h * h - g.d3**2 - g.d5**2) / (2 * g.d3 * g.d5)
-    k2 = -g.a1 * r / (g.d3 * g.d5)
-    z0, z1 = g.d3 + g.d5 * k1, g.d5 * k2
-    levels = [_levels(lo[j], hi[j]) for j in range(7)]
+        # ---- θ5, θ6, θ7: F = P² − D Q² = A(c) + s B(c)
+        def wrist(C: CSPoly, S: CSPoly) -> tuple[list[CSPoly], list[int]]:
+            """The θ5, θ6, θ7 equations with cos δ = C and sin δ = S (CS-polynomials of the variable)."""
+            c1, s1 = _cs_lin((cphi, C), (-sphi, S)), _cs_lin((sphi, C), (cphi, S))
+            wx = _cs_lin((r, C), (-g.a1, _one()))
+            wz = _cs_lin((r, S))
+            E = _cs_lin((1.0, _cs_mul(wx, wx)), (h * h, _one()))
+            s4 = _cs_lin((k1, _one()), (k2, C))
+            Z = _cs_lin((z0, _one()), (z1, C))
+            D = _cs_lin((1.0, E), (-1.0, _cs_mul(Z, Z)))
 
-    # ---- equations quadratic in c = cos δ: rows (A, B, C) of A c² + B c + C = 0
-    dA, dB, dC = r * r - z1 * z1, -2 * g.a1 * r - 2 * z0 * z1, g.a1**2 + h * h - z0 * z0  # D(c)
-    rows = [(0.0, k2, k1 - 1.0), (0.0, k2, k1 + 1.0), (dA, dB, dC)]  # validity: sin θ4 = ±1, D = 0
-    # where the solver's tolerant tests switch (|sin θ4| <= 1 + EPS, D >= -EPS max(E, 1); trig.EPS):
-    # near a tangency these lie up to ~1e-9 rad from the exact roots above
-    rows += [(0.0, k2, k1 - 1.0 - EPS), (0.0, k2, k1 + 1.0 + EPS), (dA, dB, dC + EPS)]
-    rows.append((dA + EPS * r * r, dB - 2 * EPS * g.a1 * r, dC + EPS * (g.a1**2 + h * h)))
-    for L in levels[1]:  # θ2
-        sL, cL = np.sin(L), np.cos(L)
-        rows.append((0.0, r * (g.a1 / g.d3 - sL), sL * g.a1 + cL * h - z0))
-    for L in levels[2]:  # θ3 (squared)
-        s2, c2 = np.sin(L) ** 2, np.cos(L) ** 2
-        rows.append((s2 * dA + c2 * r * r, s2 * dB, s2 * dC - c2 * r * r))
-    for L in levels[3]:  # θ4
-        rows.append((0.0, k2, k1 - np.sin(L)))
-    c = _quadratic_roots(np.array(rows))
-    c_sing = _quadratic_roots(np.array(rows[:3]))
-    delta = [np.arccos(c), -np.arccos(c), np.asarray(levels[0]) - phi]
+            def frame1(v) -> tuple[CSPoly, ...]:
+                """(v'x, v'z, ŵ·v', ŵ⊥·v', (w − o1)·v) of a world vector v seen in frame 1."""
+                vx = _cs_lin((v[0], c1), (v[1], s1))
+                vz = _cs_lin((v[0], s1), (-v[1], c1))
+                gv = _cs_lin((sy.dot(w, v) - g.d1 * v[2], _one()), (-g.a1, vx))
+                return vx, vz, _cs_lin((1.0, _cs_mul(wx, vx)), (h * v[2], _one())), _cs_lin((-h, vx), (v[2], wx)), gv
 
-    # ---- θ5, θ6, θ7: trigonometric polynomials in δ (coefficients of e^{ikδ}, k = -n..n)
-    C, S = np.array([0.5, 0, 0.5], complex), np.array([0.5j, 0, -0.5j])
-    cphi, sphi = np.cos(phi), np.sin(phi)
-    c1, s1 = cphi * C - sphi * S, sphi * C + cphi * S
-    wx = r * C - _const(g.a1, 1)
-    wz = r * S
-    E = _add(_mul(wx, wx), _const(h * h, 1))
-    s4 = _const(k1, 1) + k2 * C
-    Z = _const(z0, 1) + z1 * C
-    D = _add(E, -_mul(Z, Z))
+            def z4_dot(v) -> tuple[CSPoly, CSPoly]:
+                """d5 E z4·v = P + σ√D Q."""
+                _, _, wv, wpv, gv = frame1(v)
+                return _cs_lin((g.d3, _cs_mul(Z, wv)), (-1.0, _cs_mul(E, gv))), _cs_lin((g.d3, wpv))
 
-    def frame1(v: np.ndarray) -> tuple[np.ndarray, ...]:
-        """(v'x, v'z, ŵ·v', ŵ⊥·v', (w − o1)·v) of a world vector v seen in frame 1."""
-        vx, vz = c1 * v[0] + s1 * v[1], s1 * v[0] - c1 * v[1]
-        gv = _const(float(w @ v - g.d1 * v[2]), 1) - g.a1 * vx
-        return vx, vz, _add(_mul(wx, vx), _const(h * v[2], 2)), _add(-h * vx, wx * v[2]), gv
+            polys, kinds = [], []
+            Pb, Qb = z4_dot(b)
+            for cL in sorted({round(float(np.cos(L)), 15) for L in self.levels[5]}):  # θ6
+                polys.append(_clear(_cs_lin((1.0, Pb), (-g.d5 * cL, E)), Qb, D))
+                kinds.append(6)
+            Pn, Qn = z4_dot(n)
+            Pt, Qt = z4_dot(t)
+            for L in _mod_pi(self.levels[6]):  # θ7
+                sL, cL = np.sin(L), np.cos(L)
+                polys.append(_clear(_cs_lin((sL, Pn), (cL, Pt)), _cs_lin((sL, Qn), (cL, Qt)), D))
+                kinds.append(7)
+            _, bz, wb, wpb, gb = frame1(b)
+            f = _cs_lin((g.d5, _one()), (g.d3, s4))  # d5 + d3 s4
+            XP = _cs_lin((1.0, _cs_mul(_cs_mul(f, Z), wb)), (-1.0, _cs_mul(_cs_mul(s4, E), gb)))
+            XQ = _cs_mul(f, wpb)
+            YP = _cs_lin((-1.0, _cs_mul(_cs_mul(Z, wz), wpb)))
+            YQ = _cs_lin((1.0, _cs_mul(wz, wb)), (-1.0, _cs_mul(E, bz)))
+            for L in _mod_pi(self.levels[4]):  # θ5
+                sL, cL = np.sin(L), np.cos(L)
+                polys.append(_clear(_cs_lin((sL, XP), (-cL, YP)), _cs_lin((sL, XQ), (-cL, YQ)), D))
+                kinds.append(5)
+            return polys, kinds
 
-    def z4_dot(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """d5 E z4·v = P + σ√D Q."""
-        _, _, wv, wpv, gv = frame1(v)
-        return _add(g.d3 * _mul(Z, wv), -_mul(E, gv)), g.d3 * wpv
+        polys, kinds = wrist(([0.0, 1.0], []), ([], [1.0]))
+        return cand, sing, polys, kinds
 
-    polys, n7 = [], 0
-    Pb, Qb = z4_dot(b)
-    for cL in sorted({round(float(np.cos(L)), 15) for L in levels[5]}):  # θ6
-        polys.append(_clear(_add(Pb, -g.d5 * cL * E), Qb, D))
-    Pn, Qn = z4_dot(n)
-    Pt, Qt = z4_dot(t)
-    for L in _mod_pi(levels[6]):  # θ7
-        sL, cL = np.sin(L), np.cos(L)
-        polys.append(_clear(_add(sL * Pn, cL * Pt), _add(sL * Qn, cL * Qt), D))
-        n7 += 1
-    _, bz, wb, wpb, gb = frame1(b)
-    f = _const(g.d5, 1) + g.d3 * s4  # d5 + d3 s4
-    XP = _add(_mul(_mul(f, Z), wb), -_mul(_mul(s4, E), gb))
-    XQ = _mul(f, wpb)
-    YP = -_mul(_mul(Z, wz), wpb)
-    YQ = _add(_mul(wz, wb), -_mul(E, bz))
-    for L in _mod_pi(levels[4]):  # θ5
-        sL, cL = np.sin(L), np.cos(L)
-        polys.append(_clear(_add(sL * XP, -cL * YP), _add(sL * XQ, -cL * YQ), D))
-    roots, owner = _unit_roots(polys)
-    n6 = len(polys) - n7 - len(_mod_pi(levels[4]))
-    r7, r5 = roots[(owner >= n6) & (owner < n6 + n7)], roots[owner >= n6 + n7]
-    # sin θ6 = 0 zeroes every θ5 and θ7 equation: their common roots
-    common = r5[np.abs(wrap(r5[:, None] - r7[None, :])).min(axis=1, initial=np.inf) < 1e-6]
-    sing = np.concatenate([np.arccos(c_sing), -np.arccos(c_sing), common])
-    return np.concatenate([np.atleast_1d(d) for d in [*delta, roots]]), sing
+    def breakpoints(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every δ (rad) where a row 1–8 can change feasibility, and those where one can turn singular."""
+        cand, sing, FA, FB = self._fn(T)
+        cand, sing = cand.reshape(-1, 2), sing.reshape(-1, 2)
+        wrist, owner = trig_roots(FA, FB)
+        kind = self._kinds[owner]
+        # sin θ6 = 0 zeroes every θ5 and θ7 equation: their common roots
+        r5, r7 = wrist[kind == 5], wrist[kind == 7]
+        common = r5[np.abs(wrap(r5[:, None] - r7[None, :])).min(axis=1, initial=np.inf) < COMMON_TOL]
+        brk = np.concatenate([cand[cand[:, 1] > 0.5, 0], wrist, [0.0]])  # 0: at least one (harmless) breakpoint
+        return brk, np.concatenate([sing[sing[:, 1] > 0.5, 0], common])
+
+    def __call__(self, T: np.ndarray) -> FeasibleIntervals:
+        brk, sing = self.breakpoints(T)
+        lo, hi = gaps(brk)
+        sing = np.unique(wrap(sing)) if sing.size else sing
+        solved = self._solver.solve_many(T, np.concatenate([0.5 * (lo + hi), sing]), rows=8)  # rows 1–8 only
+        ok, hit = solved.within_limits[: lo.size], (solved.valid & solved.singular)[lo.size :]
+        intervals = merge(lo, hi, ok)
+        intervals += [shift(ivs, PI) for ivs in intervals]  # row 8 + k at δ is row k at δ + π
+        singular: list[list[float]] = [[] for _ in range(16)]
+        if hit.any():
+            moved = wrap(sing + PI).tolist()
+            for j, i in zip(*np.nonzero(hit.T)):
+                singular[j].append(float(sing[i]))
+                singular[j + 8].append(moved[i])
+            singular[8:] = [sorted(x) for x in singular[8:]]
+        return FeasibleIntervals(self._solver.param_name, self.branch.copy(), intervals, singular)
 
 
 def _levels(lo: float, hi: float) -> list[float]:
@@ -184,97 +225,91 @@ def _mod_pi(levels: list[float]) -> list[float]:
     return sorted({round(float(np.mod(L, PI)), 15) for L in levels})
 
 
-def _quadratic_roots(rows: np.ndarray) -> np.ndarray:
-    """Real roots c ∈ [−1, 1] of A c² + B c + C = 0, rows (K, 3); degenerate rows give none."""
-    A, B, C = rows.T
-    scale = np.abs(rows).max(axis=1) + 1e-300
-    lin = np.abs(A) <= 1e-14 * scale
-    out = [-C[lin & (np.abs(B) > 1e-14 * scale)] / B[lin & (np.abs(B) > 1e-14 * scale)]]
-    q = ~lin
-    A, B, C, sc = A[q], B[q], C[q], scale[q]
-    disc = B * B - 4 * A * C
-    keep = disc >= -1e-12 * sc * sc  # tangency within round-off: the double root
-    sq = np.sqrt(np.maximum(disc[keep], 0.0))
-    Bk = B[keep]
-    m = -0.5 * (Bk + np.where(Bk >= 0, sq, -sq))
-    out.append(m / A[keep])
-    nz = np.abs(m) > 0
-    out.append(C[keep][nz] / m[nz])
-    c = np.concatenate(out)
-    c = c[np.abs(c) <= 1.0 + 1e-9]
-    return np.clip(c, -1.0, 1.0)
+def _quadratic_roots(A: Scalar, B: Scalar, C: Scalar, ops: Ops) -> list[tuple[Scalar, Scalar]]:
+    """(c, ok) for the real roots c ∈ [−1, 1] of A c² + B c + C = 0 (``A == 0.0``: linear); c clipped to [−1, 1].
 
-
-# ---- trigonometric polynomials: complex coefficient arrays of e^{ikδ}, k = -n..n
-
-
-def _const(x: float, n: int) -> np.ndarray:
-    out = np.zeros(2 * n + 1, complex)
-    out[n] = x
-    return out
-
-
-def _mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.convolve(a, b)
-
-
-def _add(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    if a.size < b.size:
-        a, b = b, a
-    pad = (a.size - b.size) // 2
-    out = a.copy()
-    out[pad : pad + b.size] += b
-    return out
-
-
-def _clear(P: np.ndarray, Q: np.ndarray, D: np.ndarray) -> np.ndarray:
-    """P² − D Q²: zero wherever P + σ√D Q = 0 for σ = +1 or −1."""
-    return _add(_mul(P, P), -_mul(D, _mul(Q, Q)))
-
-
-def _unit_roots(polys: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Real δ with F(δ) = 0 for real trigonometric polynomials F (coefficients k = -n..n), Newton-polished.
-
-    Returns the roots and, for each, the index of its polynomial. The roots of
-    :math:`z^n F(z)` are the eigenvalues of its companion matrix; all
-    polynomials go through one batched ``eigvals``, each padded to the common
-    degree with zero low-order coefficients (roots at z = 0, off the circle).
+    Numerically stable form :math:`m = -(B + \\mathrm{sign}(B)\\sqrt{B^2 - 4AC})/2`, roots m/A and C/m;
+    a discriminant above −1e-12 scale² counts as a tangency (the double root).
     """
-    trimmed = []
-    for F in polys:
-        scale = np.abs(F).max()
-        n = (F.size - 1) // 2
-        # trim negligible outer pairs (roots near 0 and ∞, never on the circle)
-        while n > 0 and abs(F[0]) <= 1e-13 * scale and abs(F[-1]) <= 1e-13 * scale:
-            F, n = F[1:-1], n - 1
-        trimmed.append(F if n > 0 and scale > 0 else None)
-    keep = [i for i, F in enumerate(trimmed) if F is not None]
-    if not keep:
-        return np.zeros(0), np.zeros(0, int)
-    d = max(trimmed[i].size for i in keep) - 1  # common degree in z
-    K = len(keep)
-    C = np.zeros((K, d + 1), complex)  # C[:, m]: coefficient of z^(d-m), highest first
-    for row, i in enumerate(keep):
-        F = trimmed[i]
-        C[row, : F.size] = F[::-1]
-    comp = np.zeros((K, d, d), complex)
-    comp[:, 0, :] = -C[:, 1:] / C[:, :1]
-    comp[:, np.arange(1, d), np.arange(d - 1)] = 1.0
-    z = np.linalg.eigvals(comp)  # (K, d)
-    on = np.abs(np.abs(z) - 1.0) < UNIT_TOL
-    owner_row = np.nonzero(on)[0]
-    delta = np.angle(z[on])
-    # Newton on F(δ) = Σ F_k e^{ikδ}, all roots at once (coefficients of the padded, centred form)
-    k = np.arange(-(d // 2), d // 2 + 1)  # d = 2n is even
-    Fc = np.zeros((K, d + 1), complex)
-    for row, i in enumerate(keep):
-        F = trimmed[i]
-        pad = (d + 1 - F.size) // 2
-        Fc[row, pad : pad + F.size] = F
-    Fr, dFr = Fc[owner_row], Fc[owner_row] * (1j * k)
-    for _ in range(3):
-        e = np.exp(1j * np.outer(delta, k))
-        f, df = np.einsum("ij,ij->i", e, Fr).real, np.einsum("ij,ij->i", e, dFr).real
-        step = np.where(np.abs(df) > 1e-300, f / np.where(df == 0, 1.0, df), 0.0)
-        delta = delta - np.clip(step, -1e-3, 1e-3)
-    return delta, np.asarray(keep)[owner_row]
+    scale = ops.fmax(ops.fmax(ops.fabs(A), ops.fabs(B)), ops.fabs(C)) + 1e-300
+    lin = ops.fabs(A) <= 1e-14 * scale
+    has_b = ops.fabs(B) > 1e-14 * scale
+    linear = -C / ops.where(has_b, B, 1.0)
+    if isinstance(A, float) and A == 0.0:
+        out = [(linear, has_b)]
+    else:
+        disc = B * B - 4.0 * A * C
+        real = disc >= -1e-12 * scale * scale
+        sq = ops.safe_sqrt(disc)
+        m = -0.5 * (B + ops.where(B >= 0, sq, -sq))
+        big = ops.fabs(m) > 0
+        first = ops.where(lin, linear, m / ops.where(lin, 1.0, A))
+        second = C / ops.where(big, m, 1.0)
+        out = [(first, ops.where(lin, has_b, real)), (second, (1 - lin) * real * big)]
+    return [(ops.fmin(ops.fmax(c, -1.0), 1.0), ok * (ops.fabs(c) <= 1.0 + 1e-9)) for c, ok in out]
+
+
+def _acos_pairs(roots: list[tuple[Scalar, Scalar]], ops: Ops) -> list[tuple[Scalar, Scalar]]:
+    """(±acos c, ok) for every (c, ok)."""
+    out = []
+    for c, ok in roots:
+        plus, minus, _ = acos2(c, ops)
+        out += [(plus, ok), (minus, ok)]
+    return out
+
+
+# ---- polynomials in (c, s) with s² = 1 − c²: (A, B) means A(c) + s B(c), coefficients lowest first
+
+
+def _one() -> CSPoly:
+    return [1.0], []
+
+
+def _padd(a: Poly, b: Poly) -> Poly:
+    out = list(a) + [0.0] * (len(b) - len(a))
+    for i, x in enumerate(b):
+        out[i] = sy.add(out[i], x)
+    return out
+
+
+def _pmul(a: Poly, b: Poly) -> Poly:
+    if not a or not b:
+        return []
+    out: Poly = [0.0] * (len(a) + len(b) - 1)
+    for i, x in enumerate(a):
+        for j, y in enumerate(b):
+            out[i + j] = sy.add(out[i + j], sy.mul(x, y))
+    return out
+
+
+def _pscale(k: Scalar, a: Poly) -> Poly:
+    return [sy.mul(k, x) for x in a]
+
+
+ONE_MINUS_C2 = [1.0, 0.0, -1.0]  # s² = 1 − c²
+
+
+def _cs_mul(f: CSPoly, g: CSPoly) -> CSPoly:
+    """(A1 + s B1)(A2 + s B2) = A1 A2 + (1 − c²) B1 B2 + s (A1 B2 + B1 A2)."""
+    (a1, b1), (a2, b2) = f, g
+    return _padd(_pmul(a1, a2), _pmul(ONE_MINUS_C2, _pmul(b1, b2))), _padd(_pmul(a1, b2), _pmul(b1, a2))
+
+
+def _cs_lin(*terms: tuple[Scalar, CSPoly]) -> CSPoly:
+    """Σ k · f over (k, f)."""
+    A: Poly = []
+    B: Poly = []
+    for k, (a, b) in terms:
+        A, B = _padd(A, _pscale(k, a)), _padd(B, _pscale(k, b))
+    return A, B
+
+
+def _clear(P: CSPoly, Q: CSPoly, D: CSPoly) -> CSPoly:
+    """F = P² − D Q² = A + s B: zero wherever P + σ√D Q = 0 for σ = +1 or −1."""
+    return _cs_lin((1.0, _cs_mul(P, P)), (-1.0, _cs_mul(D, _cs_mul(Q, Q))))
+
+
+def _pad(a: Poly, n: int) -> Poly:
+    if len(a) > n:
+        raise ValueError(f"polynomial of degree {len(a) - 1} > {n - 1}")
+    return list(a) + [0.0] * (n - len(a))

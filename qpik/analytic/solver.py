@@ -126,9 +126,8 @@ class AnalyticSolver(ABC):
             ["q", "valid", "singular"],
         )
 
-    @cached_property
-    def _checked_function(self) -> ca.Function:
-        """``(T, param, q_min (n,), q_max (n,)) -> (Qᵀ (n x B), flags (3B,))``.
+    def _checked_function(self, rows: int) -> ca.Function:
+        """``(T, param, q_min (n,), q_max (n,)) -> (Qᵀ (n x rows), flags (3 rows,))`` of the first ``rows`` branches.
 
         :attr:`casadi_function` plus the limit test: ``flags`` stacks ``valid``,
         ``singular`` and ``within_limits = valid ∧ ∀j q_min_j <= q_j <= q_max_j``
@@ -138,21 +137,27 @@ class AnalyticSolver(ABC):
         n = self.robot.dof
         T, param = ca.SX.sym("T", 4, 4), ca.SX.sym(self.param_name)
         lo, hi = ca.SX.sym("q_min", 1, n), ca.SX.sym("q_max", 1, n)
-        Q, valid, singular = self.casadi_function(T, param)
+        Q, valid, singular = (x[:rows, :] for x in self.casadi_function(T, param))
         within = valid
         for j in range(n):
             within = within * (Q[:, j] >= lo[j]) * (Q[:, j] <= hi[j])
-        return ca.Function(f"ik_{self.kind}_checked", [T, param, lo, hi], [Q.T, ca.vertcat(valid, singular, within)])
+        name = f"ik_{self.kind}_checked" + ("" if rows == self.n_branches else f"_{rows}")
+        return ca.Function(name, [T, param, lo, hi], [Q.T, ca.vertcat(valid, singular, within)])
 
     @cached_property
     def _one(self) -> Compiled:
-        return Compiled(self._checked_function)
+        return Compiled(self._checked_function(self.n_branches))
 
     @cached_property
-    def _sweep(self) -> Compiled:
-        # one pose, SWEEP_CHUNK parameters: a mapped call, whose C holds the body once and loops
-        f = self._checked_function.map(f"ik_{self.kind}_sweep", "serial", SWEEP_CHUNK, [0, 2, 3], [])
-        return Compiled(f)
+    def _sweeps(self) -> dict[int, Compiled]:
+        return {}
+
+    def _sweep(self, rows: int) -> Compiled:
+        """One pose, ``SWEEP_CHUNK`` parameters, the first ``rows`` branches: a mapped call (body once, a C loop)."""
+        if rows not in self._sweeps:
+            f = self._checked_function(rows)
+            self._sweeps[rows] = Compiled(f.map(f"{f.name()}_sweep", "serial", SWEEP_CHUNK, [0, 2, 3], []))
+        return self._sweeps[rows]
 
     def solve_one(self, T: np.ndarray, param: float) -> Solved:
         """One pose (4, 4), one parameter (rad): q (B, n), valid, singular, within_limits (B,) bool."""
@@ -160,18 +165,19 @@ class AnalyticSolver(ABC):
         valid, singular, within = flags.reshape(3, -1) > 0.5
         return Solved(Qt.T.copy(), valid, singular, within)
 
-    def solve_many(self, T: np.ndarray, params: np.ndarray) -> Solved:
+    def solve_many(self, T: np.ndarray, params: np.ndarray, rows: int | None = None) -> Solved:
         """One pose (4, 4), parameters (M,): q (M, B, n), valid, singular, within_limits (M, B) bool.
 
         The compiled path, ``SWEEP_CHUNK`` parameters per call (the last chunk
         padded): for a sweep of one pose (feasible intervals, M of order 100) it
         is several times faster than :meth:`solve_batch`, whose cost at small M
-        is Python overhead.
+        is Python overhead. ``rows``: only the first ``rows`` branches (B = rows).
         """
         params = np.asarray(params, dtype=float).ravel()
-        M, B, n = params.size, self.n_branches, self.robot.dof
+        B = self.n_branches if rows is None else rows
+        M, n = params.size, self.robot.dof
         Q, flags = np.empty((M, B, n)), np.empty((M, 3 * B))
-        f, lo, hi = self._sweep, self.robot.q_min, self.robot.q_max
+        f, lo, hi = self._sweep(B), self.robot.q_min, self.robot.q_max
         chunk = np.empty(SWEEP_CHUNK)
         for i in range(0, M, SWEEP_CHUNK):
             m = min(SWEEP_CHUNK, M - i)

@@ -1,0 +1,121 @@
+r"""Real roots of :math:`F(\delta) = A(\cos\delta) + \sin\delta\, B(\cos\delta)`: the wrist breakpoint equations.
+
+The offset-shoulder arm's wrist equations (:mod:`qpik.analytic.offset_shoulder_intervals`)
+have this form, A and B polynomials of degree ≤ n = 8 in :math:`c = \cos\delta`. With
+:math:`t = \tan(\delta/2)` (:math:`\cos\delta = (1-t^2)/(1+t^2)`, :math:`\sin\delta = 2t/(1+t^2)`) and :math:`n = \max(\deg A, \deg B + 1)`,
+
+.. math:: H(t) = (1+t^2)^n F = \sum_i a_i (1-t^2)^i (1+t^2)^{n-i}
+          + 2t \sum_i b_i (1-t^2)^i (1+t^2)^{n-1-i}
+
+is a polynomial of degree 2n whose real roots are exactly :math:`\tan(\delta/2)` of the
+roots of F (no squaring, so no spurious roots). Its roots with :math:`|t| \le 1`
+(:math:`|\delta| \le \pi/2`) and those of the reversed polynomial :math:`t^{2n} H(1/t)` in
+:math:`|1/t| \le 1` (:math:`|\delta| \ge \pi/2`) cover the circle, each where
+:math:`d\delta/dt \in [1, 2]`: well conditioned everywhere (a first version went through
+:math:`c = \cos\delta`, where :math:`d\delta = -dc/\sin\delta` lost the roots near 0 and π).
+
+``polyroots.c`` finds the real roots in [−1, 1] by derivative recursion: the roots of
+:math:`H^{(j+1)}` split [−1, 1] into pieces where :math:`H^{(j)}` is monotone, and each
+sign change there is one root (Newton's method safeguarded by bisection), from
+:math:`H^{(d-1)}` down to H. It also reports the critical points where
+:math:`|H| \le` ``TOL`` :math:`\sum|h_i|` (double roots, or two roots closer than rounding
+separates). It replaced ``numpy.linalg.eigvals`` of companion matrices, the cost that
+dominated ``qpik.feasible_intervals`` (see ``qpik bench analytic``). The C source is
+compiled once by the system compiler (:func:`qpik.compiled.shared_library`); without
+one (or with ``QPIK_NATIVE=0``) the roots of H come from ``numpy``'s companion
+eigenvalues instead, every eigenvalue within ``EIG_IMAG`` of the real axis counting
+as real.
+
+The roots are *candidates* for the feasible-interval breakpoints: an extra one
+only splits a gap, so both paths err on the side of reporting.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+
+from qpik.compiled import shared_library
+
+TOL = 1e-12
+"""Relative |G| at a critical point below which it is reported as a (double) root."""
+EIG_IMAG = 1e-7
+"""Eigenvalue path: |Im t| below which an eigenvalue counts as real."""
+MAX_DEGREE = 16
+"""Largest n = max(deg A, deg B + 1) (H has degree 2n ≤ 32)."""
+
+
+@cache
+def _library() -> ctypes.CDLL | None:
+    lib = shared_library("qpik_polyroots", Path(__file__).with_name("polyroots.c").read_bytes())
+    if lib is None:
+        return None
+    dll = ctypes.CDLL(str(lib))
+    dll.qpik_trig_roots.restype = ctypes.c_int
+    dll.qpik_trig_roots.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_double] + [
+        ctypes.c_void_p
+    ] * 2
+    dll.max_roots = 2 * dll.qpik_max_roots()
+    return dll
+
+
+def trig_roots(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    r"""Roots δ ∈ [−π, π] (rad) of :math:`A_k(\cos\delta) + \sin\delta\, B_k(\cos\delta)` for every row k.
+
+    Args:
+        A, B: coefficients (K, d + 1), lowest degree first, max(deg A, deg B + 1) ≤ ``MAX_DEGREE`` per row.
+
+    Returns:
+        ``(delta, owner)``: the roots (M,) and the row (M,) of each.
+    """
+    A = np.ascontiguousarray(A, dtype=float)
+    B = np.ascontiguousarray(B, dtype=float)
+    if A.ndim != 2 or A.shape != B.shape or A.shape[1] < 1:
+        raise ValueError(f"trig_roots: A, B must be (K, d + 1), the same shape; got {A.shape}, {B.shape}")
+    lib = _library()
+    if lib is None:
+        return _eig_roots(A, B)
+    K = A.shape[0]
+    delta = np.empty((K, lib.max_roots))
+    count = np.empty(K, dtype=np.intc)
+    if lib.qpik_trig_roots(K, A.shape[1] - 1, A.ctypes.data, B.ctypes.data, TOL, delta.ctypes.data, count.ctypes.data):
+        raise ValueError(f"trig_roots: degree above {MAX_DEGREE}")
+    keep = np.arange(lib.max_roots) < count[:, None]
+    return delta[keep], np.nonzero(keep)[0]
+
+
+def _eig_roots(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The path without a C compiler: H's real roots from its companion matrix."""
+    P = np.polynomial.polynomial
+    out, owner = [], []
+    for k, (a, b) in enumerate(zip(A, B)):
+        a, b = np.trim_zeros(a, "b"), np.trim_zeros(b, "b")
+        n = max(a.size - 1, b.size)
+        if n <= 0:
+            continue
+        H = np.zeros(2 * n + 1)
+        for i, ai in enumerate(a):
+            H += ai * _basis(i, n - i, H.size)
+        for i, bi in enumerate(b):
+            H[1:] += 2.0 * bi * _basis(i, n - 1 - i, H.size - 1)
+        t = P.polyroots(np.trim_zeros(H, "b"))
+        d = 2.0 * np.arctan(t.real[np.abs(t.imag) <= EIG_IMAG * np.maximum(1.0, np.abs(t))])
+        if abs(H[-1]) <= 1e-12 * np.abs(H).max():  # degree drop: a root at t = ∞, δ = π
+            d = np.append(d, np.pi)
+        out.append(d)
+        owner.append(np.full(d.size, k))
+    if not out:
+        return np.zeros(0), np.zeros(0, int)
+    return np.concatenate(out), np.concatenate(owner)
+
+
+def _basis(i: int, m: int, size: int) -> np.ndarray:
+    """Coefficients of (1 − t²)^i (1 + t²)^m, lowest first, padded to ``size``."""
+    P = np.polynomial.polynomial
+    out = np.zeros(size)
+    c = P.polymul(P.polypow([1.0, 0.0, -1.0], i), P.polypow([1.0, 0.0, 1.0], m))
+    out[: c.size] = c
+    return out
