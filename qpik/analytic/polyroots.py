@@ -1,8 +1,9 @@
 r"""Real roots of :math:`F(\delta) = A(\cos\delta) + \sin\delta\, B(\cos\delta)`: the wrist breakpoint equations.
 
 The offset-shoulder arm's wrist equations (:mod:`qpik.analytic.offset_shoulder_intervals`)
-have this form, A and B polynomials of degree ≤ n = 8 in :math:`c = \cos\delta`. With
-:math:`t = \tan(\delta/2)` (:math:`\cos\delta = (1-t^2)/(1+t^2)`, :math:`\sin\delta = 2t/(1+t^2)`) and :math:`n = \max(\deg A, \deg B + 1)`,
+have this form, A and B polynomials in :math:`c = \cos\delta` with
+:math:`n = \max(\deg A, \deg B + 1) \le 8`. With :math:`t = \tan(\delta/2)`
+(:math:`\cos\delta = (1-t^2)/(1+t^2)`, :math:`\sin\delta = 2t/(1+t^2)`),
 
 .. math:: H(t) = (1+t^2)^n F = \sum_i a_i (1-t^2)^i (1+t^2)^{n-i}
           + 2t \sum_i b_i (1-t^2)^i (1+t^2)^{n-1-i}
