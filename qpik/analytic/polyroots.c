@@ -1,14 +1,9 @@
 /* Real roots of F(delta) = A(cos delta) + sin delta B(cos delta) (qpik.analytic.polyroots).
  *
  * With t = tan(delta / 2) F becomes a polynomial H(t); its real roots in [-1, 1] (and those of
- * the reversed polynomial, for |delta| >= pi/2) are found by derivative recursion:
- * p_j = j-th derivative of p (degree d - j). Between two consecutive real roots of
- * p_{j+1} (and the ends -1, 1) p_j is monotone, so it has a root there iff it changes
- * sign, found by Newton's method safeguarded by bisection (started at the regula falsi
- * point). Going from j = d - 1 down to j = 0 yields every root of p in [-1, 1] where p
- * changes sign. A critical point where |p_j| <= tol * sum|coefficients| is reported too
- * (a double root, or two roots closer than rounding can separate): callers use the roots
- * as candidates, so an extra one is harmless.
+ * the reversed polynomial, for |delta| >= pi/2) are isolated by Descartes' rule of signs in the
+ * Bernstein basis and found by Newton's method safeguarded by bisection (real_roots below).
+ * Callers use the roots as candidates, so an extra one (a double root, reported once) is harmless.
  */
 #include <float.h>
 #include <math.h>
@@ -62,41 +57,87 @@ static int push(double *r, int n, double x) {
     return n + 1;
 }
 
-/* Roots in [-1, 1] of p (degree d) given the sorted roots crit[0..nc) of p'; returns their number. */
-static int level(const double *a, int d, const double *crit, int nc, double tol, double *out) {
-    double scale = 0.0;
-    for (int i = 0; i <= d; ++i) scale += fabs(a[i]);
-    if (scale == 0.0) return 0; /* p == 0: no information, no roots */
-    int n = 0;
-    double lo = -1.0, flo = value(a, d, lo);
-    if (flo == 0.0) n = push(out, n, lo);
-    for (int k = 0; k <= nc; ++k) {
-        double hi = (k < nc) ? crit[k] : 1.0;
-        double fhi = value(a, d, hi);
-        if (flo != 0.0 && fhi != 0.0 && (flo < 0.0) != (fhi < 0.0))
-            n = push(out, n, bracketed(a, d, lo, hi, flo, fhi));
-        if (fhi == 0.0 || (k < nc && fabs(fhi) <= tol * scale)) n = push(out, n, hi);
-        lo = hi;
-        flo = fhi;
+/* Sign changes of b[0..d], zeros skipped. */
+static int variations(const double *b, int d) {
+    int v = 0, last = 0;
+    for (int k = 0; k <= d; ++k) {
+        int sg = (b[k] > 0.0) - (b[k] < 0.0);
+        if (sg && last && sg != last) ++v;
+        if (sg) last = sg;
     }
-    return n;
+    return v;
 }
 
-/* Roots of p (degree d <= QPIK_MAXD, lowest first) in [-1, 1], ascending, into roots; returns their number. */
-static int real_roots(const double *p, int d, double tol, double *roots) {
-    double der[QPIK_MAXD + 1][QPIK_MAXD + 1], buf[2][QPIK_MAXR];
+/* Roots of p (degree d <= QPIK_MAXD, lowest first) in [-1, 1], ascending, into roots; returns their number.
+ *
+ * Isolation by Descartes' rule in the Bernstein basis: on an interval, the number of sign changes V of
+ * p's Bernstein coefficients bounds the number of roots (and has its parity). V = 0: none; V = 1: exactly
+ * one, a sign change, found by safeguarded Newton; V >= 2: the interval is halved (de Casteljau). An
+ * interval narrower than ISOLATE_WIDTH that still has V >= 2 (a double root, or roots closer than that)
+ * is reported by its midpoint. */
+#define ISOLATE_WIDTH 1e-10
+static int real_roots(const double *p, int d, double *roots) {
+    double q[QPIK_MAXD + 1], b[QPIK_MAXD + 1];
     while (d > 0 && p[d] == 0.0) --d;
-    memcpy(der[0], p, (size_t)(d + 1) * sizeof(double));
-    for (int j = 1; j <= d; ++j) { /* der[j] = p^(j), each normalised: roots do not depend on scale */
-        double m = 0.0;
-        for (int i = 0; i <= d - j; ++i) m = fmax(m, fabs(der[j][i] = (i + 1) * der[j - 1][i + 1]));
-        if (m > 0.0)
-            for (int i = 0; i <= d - j; ++i) der[j][i] /= m;
+    if (d == 0) return 0;
+    /* q(y) = p(2y - 1) on y in [0, 1], then its Bernstein coefficients b_k = sum_i C(k,i)/C(d,i) q_i */
+    memset(q, 0, sizeof q);
+    q[0] = p[d];
+    for (int i = d - 1; i >= 0; --i) { /* q <- q (2y - 1) + p_i */
+        for (int k = d - i; k >= 1; --k) q[k] = 2.0 * q[k - 1] - q[k];
+        q[0] = -q[0] + p[i];
     }
-    int nc = 0, cur = 0;
-    for (int j = d; j >= 0; --j, cur = 1 - cur) nc = level(der[j], d - j, buf[cur], nc, tol, buf[1 - cur]);
-    memcpy(roots, buf[cur], (size_t)nc * sizeof(double));
-    return nc;
+    double binom[QPIK_MAXD + 1][QPIK_MAXD + 1];
+    for (int k = 0; k <= d; ++k) {
+        binom[k][0] = binom[k][k] = 1.0;
+        for (int i = 1; i < k; ++i) binom[k][i] = binom[k - 1][i - 1] + binom[k - 1][i];
+    }
+    for (int k = 0; k <= d; ++k) {
+        double acc = 0.0;
+        for (int i = 0; i <= k; ++i) acc += binom[k][i] / binom[d][i] * q[i];
+        b[k] = acc;
+    }
+    /* depth-first over intervals [x0, x1] of x, left half first: roots come out ascending */
+    double stack_b[64][QPIK_MAXD + 1], stack_x[64][2];
+    int top = 0, n = 0;
+    memcpy(stack_b[0], b, (size_t)(d + 1) * sizeof(double));
+    stack_x[0][0] = -1.0;
+    stack_x[0][1] = 1.0;
+    top = 1;
+    while (top > 0) {
+        --top;
+        double *c = stack_b[top], x0 = stack_x[top][0], x1 = stack_x[top][1];
+        if (c[0] == 0.0) n = push(roots, n, x0);
+        int v = variations(c, d);
+        if (v == 0) continue;
+        if (v == 1) { /* one root inside: a sign change of p, unless rounding or a root at an end hides it */
+            double f0 = value(p, d, x0), f1 = value(p, d, x1);
+            if (f0 != 0.0 && f1 != 0.0 && (f0 < 0.0) != (f1 < 0.0)) {
+                n = push(roots, n, bracketed(p, d, x0, x1, f0, f1));
+                continue;
+            }
+        }
+        if (x1 - x0 <= ISOLATE_WIDTH || top >= 62) {
+            n = push(roots, n, 0.5 * (x0 + x1));
+            continue;
+        }
+        /* de Casteljau at the midpoint: left half into slot top + 1, right half into slot top */
+        double *left = stack_b[top + 1], tmp[QPIK_MAXD + 1];
+        memcpy(tmp, c, (size_t)(d + 1) * sizeof(double));
+        left[0] = tmp[0];
+        for (int r = 1; r <= d; ++r) {
+            for (int k = 0; k <= d - r; ++k) tmp[k] = 0.5 * (tmp[k] + tmp[k + 1]);
+            left[r] = tmp[0];
+            c[d - r] = tmp[d - r];
+        }
+        double xm = 0.5 * (x0 + x1);
+        stack_x[top][0] = xm; /* right half stays in slot top, with c overwritten */
+        stack_x[top + 1][0] = x0;
+        stack_x[top + 1][1] = xm;
+        top += 2;
+    }
+    if (b[d] == 0.0) n = push(roots, n, 1.0);
+    return n;
 }
 
 /* (1 - t^2)^i (1 + t^2)^m, lowest first, into out (degree 2 (i + m)). */
@@ -118,17 +159,18 @@ static void cs_basis(int i, int m, double *out) {
  * H(t) = (1 + t^2)^n F = sum_i a_i (1 - t^2)^i (1 + t^2)^(n-i) + 2t sum_i b_i (1 - t^2)^i (1 + t^2)^(n-1-i),
  * a polynomial of degree 2n with the same real roots (delta = 2 atan t). Its roots with |t| <= 1
  * (|delta| <= pi/2) and those of t^(2n) H(1/t) with |1/t| <= 1 (|delta| >= pi/2) cover the circle,
- * each where d delta / dt is between 1 and 2: well conditioned everywhere. Writes row k's roots to
- * delta[k * 2 * QPIK_MAXR ...] and their number to count[k]; returns -1 if a degree is too large. */
-int qpik_trig_roots(int K, int na, const double *A, const double *B, double tol, double *delta, int *count) {
+ * each where d delta / dt is between 1 and 2: well conditioned everywhere. Writes the roots of all rows
+ * to delta and the row of each to owner (room for `room` of them); returns their number, or -1 if a
+ * degree is too large or the room too small. */
+int qpik_trig_roots(int K, int na, const double *A, const double *B, int room, double *delta, int *owner) {
+    int m = 0;
     double H[QPIK_MAXD + 1], rev[QPIK_MAXD + 1], basis[QPIK_MAXD + 3], t[QPIK_MAXR];
     for (int k = 0; k < K; ++k) {
         const double *a = A + (long)k * (na + 1), *b = B + (long)k * (na + 1);
-        int da = na, db = na, m = 0, nr;
+        int da = na, db = na, nr;
         while (da >= 0 && a[da] == 0.0) --da;
         while (db >= 0 && b[db] == 0.0) --db;
         int n = da > db + 1 ? da : db + 1, d = 2 * n;
-        count[k] = 0;
         if (d > QPIK_MAXD) return -1;
         if (n <= 0) continue; /* F constant: no roots (or all of them: no information) */
         memset(H, 0, sizeof H);
@@ -141,15 +183,19 @@ int qpik_trig_roots(int K, int na, const double *A, const double *B, double tol,
             for (int j = 0; j <= d - 2; ++j) H[j + 1] += 2.0 * b[i] * basis[j]; /* basis has degree d - 2 */
         }
         for (int j = 0; j <= d; ++j) rev[j] = H[d - j];
-        double *out = delta + (long)k * 2 * QPIK_MAXR;
-        nr = real_roots(H, d, tol, t);
-        for (m = 0; m < nr; ++m) out[m] = 2.0 * atan(t[m]);
-        nr = real_roots(rev, d, tol, t);
-        for (int i = 0; i < nr; ++i) /* u = 1/t: delta = 2 atan(1/u) = sign(u) pi - 2 atan(u), pi at u = 0 */
-            out[m++] = (t[i] < 0.0 ? -1.0 : 1.0) * 3.14159265358979323846 - 2.0 * atan(t[i]);
-        count[k] = m;
+        nr = real_roots(H, d, t);
+        if (m + nr > room) return -1;
+        for (int i = 0; i < nr; ++i, ++m) {
+            delta[m] = 2.0 * atan(t[i]);
+            owner[m] = k;
+        }
+        nr = real_roots(rev, d, t);
+        if (m + nr > room) return -1;
+        for (int i = 0; i < nr; ++i, ++m) { /* u = 1/t: delta = 2 atan(1/u) = sign(u) pi - 2 atan(u), pi at u = 0 */
+            delta[m] = (t[i] < 0.0 ? -1.0 : 1.0) * 3.14159265358979323846 - 2.0 * atan(t[i]);
+            owner[m] = k;
+        }
     }
-    return 0;
+    return m;
 }
 
-int qpik_max_roots(void) { return QPIK_MAXR; }

@@ -15,12 +15,12 @@ roots of F (no squaring, so no spurious roots). Its roots with :math:`|t| \le 1`
 :math:`d\delta/dt \in [1, 2]`: well conditioned everywhere (a first version went through
 :math:`c = \cos\delta`, where :math:`d\delta = -dc/\sin\delta` lost the roots near 0 and π).
 
-``polyroots.c`` finds the real roots in [−1, 1] by derivative recursion: the roots of
-:math:`H^{(j+1)}` split [−1, 1] into pieces where :math:`H^{(j)}` is monotone, and each
-sign change there is one root (Newton's method safeguarded by bisection), from
-:math:`H^{(d-1)}` down to H. It also reports the critical points where
-:math:`|H| \le` ``TOL`` :math:`\sum|h_i|` (double roots, or two roots closer than rounding
-separates). It replaced ``numpy.linalg.eigvals`` of companion matrices, the cost that
+``polyroots.c`` isolates the real roots in [−1, 1] by Descartes' rule of signs in the
+Bernstein basis: on an interval, the sign changes V of H's Bernstein coefficients bound
+its roots there (with their parity); V = 0 excludes the interval, V = 1 brackets one
+root, found by Newton's method safeguarded by bisection, V ≥ 2 halves the interval
+(de Casteljau). An interval below 1e-10 that still has V ≥ 2 (a double root, or roots
+closer than that) is reported by its midpoint. It replaced ``numpy.linalg.eigvals`` of companion matrices, the cost that
 dominated ``qpik.feasible_intervals`` (see ``qpik bench analytic``). The C source is
 compiled once by the system compiler (:func:`qpik.compiled.shared_library`); without
 one (or with ``QPIK_NATIVE=0``) the roots of H come from ``numpy``'s companion
@@ -41,8 +41,6 @@ import numpy as np
 
 from qpik.compiled import shared_library
 
-TOL = 1e-12
-"""Relative |G| at a critical point below which it is reported as a (double) root."""
 EIG_IMAG = 1e-7
 """Eigenvalue path: |Im t| below which an eigenvalue counts as real."""
 MAX_DEGREE = 16
@@ -56,11 +54,16 @@ def _library() -> ctypes.CDLL | None:
         return None
     dll = ctypes.CDLL(str(lib))
     dll.qpik_trig_roots.restype = ctypes.c_int
-    dll.qpik_trig_roots.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_double] + [
+    dll.qpik_trig_roots.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int] + [
         ctypes.c_void_p
     ] * 2
-    dll.max_roots = 2 * dll.qpik_max_roots()
     return dll
+
+
+ROOM = 2 * (32 + 2)
+"""Room for roots per row: each half of the circle reports at most d + 2 (d = 2n ≤ 32): the sign
+changes V of the Bernstein coefficients bound the roots of every interval, so the intervals reported
+(one root each, or the midpoint of an unresolved cluster with V ≥ 2) are at most d, plus the ends."""
 
 
 def trig_roots(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -79,13 +82,14 @@ def trig_roots(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     lib = _library()
     if lib is None:
         return _eig_roots(A, B)
-    K = A.shape[0]
-    delta = np.empty((K, lib.max_roots))
-    count = np.empty(K, dtype=np.intc)
-    if lib.qpik_trig_roots(K, A.shape[1] - 1, A.ctypes.data, B.ctypes.data, TOL, delta.ctypes.data, count.ctypes.data):
-        raise ValueError(f"trig_roots: degree above {MAX_DEGREE}")
-    keep = np.arange(lib.max_roots) < count[:, None]
-    return delta[keep], np.nonzero(keep)[0]
+    room = ROOM * A.shape[0]
+    delta, owner = np.empty(room), np.empty(room, dtype=np.intc)
+    m = lib.qpik_trig_roots(
+        A.shape[0], A.shape[1] - 1, A.ctypes.data, B.ctypes.data, room, delta.ctypes.data, owner.ctypes.data
+    )
+    if m < 0:
+        raise ValueError(f"trig_roots: max(deg A, deg B + 1) above {MAX_DEGREE}")
+    return delta[:m], owner[:m]
 
 
 def _eig_roots(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
