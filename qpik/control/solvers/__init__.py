@@ -3,9 +3,10 @@
 - ``"osqp"``: a persistent OSQP object (:mod:`.osqp`), set up once with the fixed
   sparsity pattern of the controller's QP, then updated and warm-started every step;
 - ``"daqp"``: DAQP called directly on the QP arrays (:mod:`.daqp`, a measured fast path);
-- any other name that :mod:`qpsolvers` offers (``"daqp"``, ``"quadprog"``,
-  ``"proxqp"``, ``"clarabel"``, ``"piqp"``, ...) through ``qpsolvers.solve_problem``
-  (:mod:`.qpsolvers`).
+- ``"proxqp"``: ProxQP's dense solver called directly (:mod:`.proxqp`, with settings under
+  which it answers the controller's degenerate QPs), if proxsuite is installed;
+- any other name that :mod:`qpsolvers` offers (``"quadprog"``, ``"clarabel"``,
+  ``"piqp"``, ...) through ``qpsolvers.solve_problem`` (:mod:`.qpsolvers`).
 
 Every solver returns a :class:`Solution` and never raises on a failed solve
 (``found=False`` with a status); a solver that is not installed raises
@@ -66,6 +67,10 @@ def get_solver(name: str, **options: object) -> Solver:
         return DaqpSolver(**options)
     if name not in available():
         raise SolverError(f"unknown or uninstalled QP solver {name!r}; available: {', '.join(available())}")
+    if name == "proxqp":
+        from qpik.control.solvers.proxqp import ProxqpSolver
+
+        return ProxqpSolver(**options)
     from qpik.control.solvers.qpsolvers import QpsolversSolver
 
     return QpsolversSolver(name, **options)
