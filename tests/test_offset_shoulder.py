@@ -212,10 +212,11 @@ def _sweep_check(T: np.ndarray, n_delta: int) -> None:
         far = np.abs(d[:, None] - ends[None]).min(axis=1) > 1e-6 if ends.size else np.ones(n_delta, bool)
         assert np.array_equal(inside[far], ok[far, k]), f"branch {k + 1}"
         if ends.size:  # every boundary is a true change of feasibility (at ±1e-6, or closer for a short interval)
-            all_ends = np.unique(np.concatenate([ends, [-np.pi, np.pi]]))
-            gap = np.diff(all_ends)
-            i = np.searchsorted(all_ends, ends)
-            h = np.minimum(1e-6, 0.4 * np.minimum(gap[i - 1], gap[np.minimum(i, gap.size - 1)]))
+            # distances to the neighbouring boundaries on the circle: the split of a set at ±π is not one
+            order = np.argsort(ends)
+            after = np.diff(np.append(ends[order], ends[order][0] + 2 * np.pi))
+            h = np.empty(ends.size)
+            h[order] = np.minimum(1e-6, 0.4 * np.minimum(after, np.roll(after, 1)))
             e = np.concatenate([ends - h, ends + h])
             qe, ve, _, _ = SOLVER.solve_many(T, e)
             oke = ve & np.all((qe >= ROBOT.q_min) & (qe <= ROBOT.q_max), axis=-1)

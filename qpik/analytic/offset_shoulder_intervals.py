@@ -68,6 +68,8 @@ if TYPE_CHECKING:
 PI = np.pi
 ZERO = 1e-13
 """Wrist-centre distance (m) from the base axis below which its azimuth is taken as 0 (as the solver does)."""
+NONE = 10.0
+"""Stands for a singular δ that does not exist in the compiled function's output (any value outside [−π, π])."""
 COMMON_TOL = 1e-6
 """θ5 and θ7 roots closer than this (rad) are a common root: a wrist singularity (sin θ6 = 0)."""
 
@@ -86,14 +88,19 @@ class DeltaIntervals:
         T = ca.SX.sym("T", 4, 4)
         cand, sing, polys, kinds = self.expressions(T, sy.CASADI)
         self._kinds = np.array(kinds)
-        out = [ca.vertcat(*[x for pair in cand for x in pair]), ca.vertcat(*[x for pair in sing for x in pair])]
+        # a breakpoint that does not exist is reported as 0, one that is always there (harmless); a singular
+        # value that does not exist as NONE
+        out = [
+            ca.vertcat(*[ca.if_else(ok, sy.CASADI.wrap(x), none) for x, ok in pairs])
+            for pairs, none in ((cand, 0.0), (sing, NONE))
+        ]
         FA, FB = (ca.vertcat(*[ca.horzcat(*_pad(x, 9)) for x in xs]) for xs in zip(*polys))
         self._fn = Compiled(ca.Function("os_breakpoints", [T], [*out, FA, FB]))
 
     def expressions(self, T, ops: Ops) -> tuple[list, list, list[Poly], list[int]]:
         """The breakpoint equations of rows 1–8 for the world pose T (4, 4).
 
-        Returns ``(candidates, singular, polys, kinds)``: (δ, ok) pairs found in closed form
+        Returns ``(candidates, singular, polys, kinds)``: (δ, exists) pairs found in closed form
         (limit crossings of θ1–θ4 and the validity boundaries), the (δ, ok) pairs where a
         branch turns singular (elbow, shoulder), the wrist equations F = A + sin δ · B as (A, B)
         (polynomials in c = cos δ) and the joint of each (5, 6 or 7, 1-based).
@@ -184,20 +191,20 @@ class DeltaIntervals:
 
     def breakpoints(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every δ (rad) where a row 1–8 can change feasibility, and those where one can turn singular."""
-        cand, sing, FA, FB = self._fn(T)
-        cand, sing = cand.reshape(-1, 2), sing.reshape(-1, 2)
+        cand, sing, FA, FB = self._fn(T)  # candidates that do not exist are 0 (always a breakpoint) or NONE
+        sing = sing[sing != NONE]
         wrist, owner = trig_roots(FA, FB)
         kind = self._kinds[owner]
         # sin θ6 = 0 zeroes every θ5 and θ7 equation: their common roots
         r5, r7 = wrist[kind == 5], wrist[kind == 7]
-        common = r5[np.abs(wrap(r5[:, None] - r7[None, :])).min(axis=1, initial=np.inf) < COMMON_TOL]
-        brk = np.concatenate([cand[cand[:, 1] > 0.5, 0], wrist, [0.0]])  # 0: at least one (harmless) breakpoint
-        return brk, np.concatenate([sing[sing[:, 1] > 0.5, 0], common])
+        if r5.size and r7.size:
+            sing = np.concatenate([sing, r5[np.abs(wrap(r5[:, None] - r7[None, :])).min(axis=1) < COMMON_TOL]])
+        return np.concatenate([cand, wrist, [0.0]]), sing
 
     def __call__(self, T: np.ndarray) -> FeasibleIntervals:
         brk, sing = self.breakpoints(T)
         lo, hi = gaps(brk)
-        sing = np.unique(wrap(sing)) if sing.size else sing
+        sing = np.unique(wrap(sing)) if sing.size else sing  # usually empty
         solved = self._solver.solve_many(T, np.concatenate([0.5 * (lo + hi), sing]), rows=8)  # rows 1–8 only
         ok, hit = solved.within_limits[: lo.size], (solved.valid & solved.singular)[lo.size :]
         intervals = merge(lo, hi, ok)

@@ -12,9 +12,10 @@
 #define QPIK_MAXD 32
 #define QPIK_MAXR (4 * QPIK_MAXD)
 
-/* A Newton step shorter than this ends the iteration: it converges quadratically from a bracket on
- * which p is monotone, so the returned point is then within ~1e-14 of the root (x in [-1, 1]). */
-#define NEWTON_DONE 1e-8
+/* A Newton step shorter than this ends the iteration (x in [-1, 1]): the root to rounding, also where
+ * the quadratic convergence constant is large (near an elbow singularity a wrist angle turns through pi
+ * within 1e-7 rad of delta). */
+#define NEWTON_DONE (4.0 * DBL_EPSILON)
 
 static double horner(const double *a, int d, double x, double *deriv) {
     double f = a[d], df = 0.0;

@@ -32,8 +32,9 @@ from qpik import symbolic as sy
 from qpik.compiled import Compiled
 from qpik.symbolic import Mat, Ops, Scalar, Vec
 
-SWEEP_CHUNK = 32
-"""Parameters per call of the compiled sweep :meth:`AnalyticSolver.solve_many`."""
+SWEEP_CHUNKS = (32, 8)
+"""Parameters per call of the compiled sweeps of :meth:`AnalyticSolver.solve_many`: the large one while
+more than 3/4 of it would be used, then the small one (so that 38 parameters cost 40 evaluations, not 64)."""
 
 if TYPE_CHECKING:
     from qpik.analytic.intervals import FeasibleIntervals
@@ -149,15 +150,16 @@ class AnalyticSolver(ABC):
         return Compiled(self._checked_function(self.n_branches))
 
     @cached_property
-    def _sweeps(self) -> dict[int, Compiled]:
+    def _sweeps(self) -> dict[tuple[int, int], Compiled]:
         return {}
 
-    def _sweep(self, rows: int) -> Compiled:
-        """One pose, ``SWEEP_CHUNK`` parameters, the first ``rows`` branches: a mapped call (body once, a C loop)."""
-        if rows not in self._sweeps:
+    def _sweep(self, rows: int, chunk: int) -> Compiled:
+        """One pose, ``chunk`` parameters, the first ``rows`` branches: a mapped call (body once, a C loop)."""
+        if (rows, chunk) not in self._sweeps:
             f = self._checked_function(rows)
-            self._sweeps[rows] = Compiled(f.map(f"{f.name()}_sweep", "serial", SWEEP_CHUNK, [0, 2, 3], []))
-        return self._sweeps[rows]
+            name = f"{f.name()}_sweep" + ("" if chunk == SWEEP_CHUNKS[0] else f"_{chunk}")
+            self._sweeps[rows, chunk] = Compiled(f.map(name, "serial", chunk, [0, 2, 3], []))
+        return self._sweeps[rows, chunk]
 
     def solve_one(self, T: np.ndarray, param: float) -> Solved:
         """One pose (4, 4), one parameter (rad): q (B, n), valid, singular, within_limits (B,) bool."""
@@ -168,7 +170,7 @@ class AnalyticSolver(ABC):
     def solve_many(self, T: np.ndarray, params: np.ndarray, rows: int | None = None) -> Solved:
         """One pose (4, 4), parameters (M,): q (M, B, n), valid, singular, within_limits (M, B) bool.
 
-        The compiled path, ``SWEEP_CHUNK`` parameters per call (the last chunk
+        The compiled path, :data:`SWEEP_CHUNKS` parameters per call (the last chunk
         padded): for a sweep of one pose (feasible intervals, M of order 100) it
         is several times faster than :meth:`solve_batch`, whose cost at small M
         is Python overhead. ``rows``: only the first ``rows`` branches (B = rows).
@@ -177,15 +179,18 @@ class AnalyticSolver(ABC):
         B = self.n_branches if rows is None else rows
         M, n = params.size, self.robot.dof
         Q, flags = np.empty((M, B, n)), np.empty((M, 3 * B))
-        f, lo, hi = self._sweep(B), self.robot.q_min, self.robot.q_max
-        chunk = np.empty(SWEEP_CHUNK)
-        for i in range(0, M, SWEEP_CHUNK):
-            m = min(SWEEP_CHUNK, M - i)
+        lo, hi = self.robot.q_min, self.robot.q_max
+        big, small = SWEEP_CHUNKS
+        i = 0
+        while i < M:
+            size = big if M - i > 3 * big // 4 else small
+            m = min(size, M - i)
+            chunk = np.full(size, params[i])
             chunk[:m] = params[i : i + m]
-            chunk[m:] = params[i]
-            q, fl = f(T, chunk, lo, hi)
-            Q[i : i + m] = q.T.reshape(SWEEP_CHUNK, B, n)[:m]  # (n, chunk·B) output, (chunk, B, n) in C order
+            q, fl = self._sweep(B, size)(T, chunk, lo, hi)
+            Q[i : i + m] = q.T.reshape(size, B, n)[:m]  # (n, chunk·B) output, (chunk, B, n) in C order
             flags[i : i + m] = fl.T[:m]
+            i += m
         valid, singular, within = (flags > 0.5).reshape(M, 3, B).transpose(1, 0, 2)
         return Solved(Q, valid, singular, within)
 
