@@ -42,7 +42,7 @@ import numpy as np
 
 from qpik import symbolic as sy
 from qpik.analytic import trig
-from qpik.analytic.intervals import FeasibleIntervals, assemble_many, wrap
+from qpik.analytic.intervals import FeasibleIntervals, assemble_many
 from qpik.analytic.srs import arm_setup, branch_signs
 from qpik.compiled import Compiled
 
@@ -51,7 +51,10 @@ if TYPE_CHECKING:
 
 TOUCH_TOL = 1e-12
 """|1 − |M22|| at the extremum below which a shoulder/wrist singular ψ is reported."""
+NONE = 10.0
+"""Stands for a singular ψ that does not exist in the compiled function's output (outside [−π, π])."""
 
+_NO = (np.zeros(0), np.zeros(0))  # no singular ψ for either elbow sign
 _ANGLE_JOINTS = ((0, 1, 2), (4, 5, 6))  # joints of the (shoulder, wrist) ZYZ triples (a, b, c)
 
 
@@ -64,65 +67,53 @@ class PsiIntervals:
         robot = solver.robot
         self.q_min, self.q_max = np.asarray(robot.q_min, float), np.asarray(robot.q_max, float)
         T = ca.SX.sym("T", 4, 4)
-        R, p = sy.frame_of_batch(T)
-        setup = arm_setup(R, p, solver.geometry, sy.CASADI)
-        entries = [
-            X[i][j]
-            for e in range(2)
-            for group in setup.coefficients(e)
-            for X in group
-            for i in range(3)
-            for j in range(3)
-        ]
-        self._coefficients = Compiled(ca.Function("srs_coefficients", [T], [ca.vertcat(*entries), setup.valid]))
-        # Every breakpoint equation is  w1 m1(ψ) + w2 m2(ψ) = w3  with m1, m2 entries of M_s or M_w
-        # (each A sin ψ + B cos ψ + C): tan-type n cos L − d sin L = 0 for L = q_min, q_max (and π
-        # where a limit reaches it), cos-type M22 = cos L.
-        rows = []  # (group, entry 1, w1, entry 2, w2, w3)
-        for g, (ja, jb, jc) in enumerate(_ANGLE_JOINTS):
-            for j, n, d, sign in ((ja, (1, 2), (0, 2), 1.0), (jc, (2, 1), (2, 0), -1.0)):
-                wraps = self.q_max[j] >= np.pi or self.q_min[j] <= -np.pi
-                for L in (self.q_min[j], self.q_max[j], *((np.pi,) if wraps else ())):
-                    rows.append((g, n, np.cos(L), d, -sign * np.sin(L), 0.0))
-            for cos_l in np.unique(np.cos([self.q_min[jb], self.q_max[jb]])):
-                rows.append((g, (2, 2), 1.0, (2, 2), 0.0, cos_l))
-        shape = (2, 2, 3, 3, 3)  # elbow, group (shoulder, wrist), (A, B, C), row, column
-        e, X = np.arange(2)[:, None, None], np.arange(3)
-        g = np.array([r[0] for r in rows])[:, None]
-        self._eq_index = [
-            np.ravel_multi_index((e, g, X, *np.array([r[k] for r in rows]).T[:, :, None]), shape) for k in (1, 3)
-        ]
-        self._eq_weight = [np.array([r[k] for r in rows])[:, None] for k in (2, 4)]
-        self._eq_rhs = np.array([r[5] for r in rows])
-        self._m22 = np.ravel_multi_index((e, np.arange(2)[:, None], X, 2, 2), shape)  # (elbow, group, ABC)
+        breaks, singular, valid = self.expressions(T)
+        out = [ca.vertcat(*breaks), ca.vertcat(*singular), valid]
+        self._fn = Compiled(ca.Function("srs_breakpoints", [T], out))
         signs = np.array([branch_signs(k) for k in solver.branch_ids])
         self._i_elbow = signs[:, 1]
 
+    def expressions(self, T: ca.SX) -> tuple[list, list, ca.SX]:
+        """For the pose T (4, 4): the breakpoints (two per equation and elbow sign, 0 where there is
+        none: a breakpoint that is always there, harmless), the singular ψ (per elbow sign, two per joint
+        group, ``NONE`` where there is none) and ``valid`` (the pose is reachable), as CasADi SX."""
+        ops = sy.CASADI
+        R, p = sy.frame_of_batch(T)
+        setup = arm_setup(R, p, self._solver.geometry, ops)
+        breaks, singular = [], []
+        for e in range(2):
+            groups = setup.coefficients(e)  # (shoulder, wrist), each (A, B, C): M = A sin ψ + B cos ψ + C
+            for g, (ja, jb, jc) in enumerate(_ANGLE_JOINTS):
+                A, B, C = groups[g]
+                # tan-type: n cos L − d sin L = 0 for L = q_min, q_max (and π where a limit reaches it)
+                eqs = []
+                for j, (ni, nj), (di, dj), sign in ((ja, (1, 2), (0, 2), 1.0), (jc, (2, 1), (2, 0), -1.0)):
+                    wraps = self.q_max[j] >= np.pi or self.q_min[j] <= -np.pi
+                    for L in (self.q_min[j], self.q_max[j], *((np.pi,) if wraps else ())):
+                        cl, sl = float(np.cos(L)), float(-sign * np.sin(L))
+                        a, b, c = (sy.lin((cl, X[ni][nj]), (sl, X[di][dj])) for X in (A, B, C))
+                        eqs.append((a, b, c, 0.0))
+                # cos-type: M22 = cos L
+                for cos_l in np.unique(np.cos([self.q_min[jb], self.q_max[jb]])):
+                    eqs.append((A[2][2], B[2][2], C[2][2], float(cos_l)))
+                for a, b, c, rhs in eqs:  # a sin ψ + b cos ψ = rhs − c
+                    plus, minus, ok = trig.solve_cos_sin(b, a, rhs - c, ops)
+                    breaks += [ops.where(ok, ops.wrap(plus), 0.0), ops.where(ok, ops.wrap(minus), 0.0)]
+                # M22 = a sin ψ + b cos ψ + c reaches ±1 at its extrema
+                a, b, c = A[2][2], B[2][2], C[2][2]
+                r = ops.sqrt(a * a + b * b)
+                top = (ops.fabs(c + r - 1.0) < TOUCH_TOL) * (r > TOUCH_TOL)
+                bottom = (ops.fabs(c - r + 1.0) < TOUCH_TOL) * (r > TOUCH_TOL)
+                singular += [ops.where(top, ops.atan2(a, b), NONE), ops.where(bottom, ops.atan2(-a, -b), NONE)]
+        return breaks, singular, setup.valid
+
     def __call__(self, T: np.ndarray) -> FeasibleIntervals:
-        coef, valid = self._coefficients(T)
+        breaks, singular, valid = self._fn(T)
         n = len(self.branch)
         if valid[0] < 0.5:
             return FeasibleIntervals("psi", self.branch.copy(), [[] for _ in range(n)], [[] for _ in range(n)])
-        breaks, singular = self._breakpoints(coef)
+        found = singular != NONE  # rare: only at singular poses
+        sing = [np.unique(x[f]) for x, f in zip(singular.reshape(2, -1), found.reshape(2, -1))] if found.any() else _NO
         within = self._solver.solve_many  # the branches at the gap midpoints
-        intervals = assemble_many(np.concatenate([breaks, *singular]), lambda psi: within(T, psi).within_limits)
-        return FeasibleIntervals("psi", self.branch.copy(), intervals, [singular[e].tolist() for e in self._i_elbow])
-
-    def _breakpoints(self, coef: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
-        """The roots of every limit (and wrap) equation, and the singular ψ per elbow sign (coefficients (108,))."""
-        (i1, i2), (w1, w2) = self._eq_index, self._eq_weight
-        eq = coef[i1] * w1 + coef[i2] * w2  # (elbow, equation, ABC)
-        plus, minus, ok = trig.solve_cos_sin(eq[..., 1], eq[..., 0], self._eq_rhs - eq[..., 2], sy.NUMPY)
-        ok = ok.astype(bool)
-        breaks = np.concatenate([plus[ok], minus[ok]])
-        # M22 = a sin ψ + b cos ψ + c reaches ±1 at its extrema
-        a, b, c = np.moveaxis(coef[self._m22], -1, 0)  # (elbow, group) each
-        r = np.hypot(a, b)
-        top = (np.abs(c + r - 1.0) < TOUCH_TOL) & (r > TOUCH_TOL)
-        bottom = (np.abs(c - r + 1.0) < TOUCH_TOL) & (r > TOUCH_TOL)
-        singular = [np.empty(0), np.empty(0)]
-        for e in np.flatnonzero(np.any(top | bottom, axis=1)):
-            psi = np.concatenate([np.arctan2(a[e], b[e])[top[e]], np.arctan2(-a[e], -b[e])[bottom[e]]])
-            singular[e] = np.unique(wrap(psi))
-        return breaks, singular
-
+        intervals = assemble_many(np.concatenate([breaks, *sing]), lambda psi: within(T, psi).within_limits)
+        return FeasibleIntervals("psi", self.branch.copy(), intervals, [sing[e].tolist() for e in self._i_elbow])
