@@ -23,7 +23,8 @@ the roots are all the breakpoints: :func:`qpik.analytic.intervals.assemble_many`
 classifies each gap by one evaluation of every branch at its midpoint, all
 gaps in one compiled sweep (:meth:`qpik.analytic.solver.AnalyticSolver.solve_many`,
 the IK itself with its in-limits test); the breakpoints of all branches are pooled, since a breakpoint
-that changes nothing only splits a gap.
+that changes nothing only splits a gap. The equations are formed and solved, and the singular values
+below found, in one compiled CasADi function of the pose (:meth:`PsiIntervals.expressions`).
 
 The singular values listed per branch are the ψ where :math:`|M_{22}| = 1` for
 the shoulder or the wrist (θ2 or θ6 = 0 or π): the maximum :math:`c + \sqrt{a^2+b^2}`
