@@ -5,14 +5,17 @@ Every task adds :math:`\tfrac12 v^T P_i v + c_i^T v` to the cost
 :math:`\|A v - b\|^2_W = v^T A^T W A v - 2 b^T W A v + b^T W b`, so
 :math:`P_i = 2 A^T W A`, :math:`c_i = -2 A^T W b` (the constant is dropped).
 
-Pose errors are world-frame: :func:`pose_error` gives
+Pose errors are world-frame by default: :func:`pose_error` gives
 :math:`e = [p^* - p;\ \log(R^* R^T)]` (m; rad), the quantity that the geometric
 Jacobian's rows ``[v; ω]`` change at first order: :math:`\dot e = \dot x^*_d - J \dot q`.
+``FrameTask(error="se3")`` uses the body-frame SE(3) error of mink/pink instead,
+:math:`e = \log(T^{-1} T^*)` (:func:`se3_log_expr`, :func:`se3_ljacinv_expr`).
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from typing import Literal
 
 import casadi as ca
 import numpy as np
@@ -48,6 +51,81 @@ def log_expr(R: ca.SX) -> ca.SX:
     u = ca.if_else(ca.dot(u, w) < 0.0, -u, u)
     return ca.if_else(c > -0.9, w * scale, theta * u)
 
+
+_SERIES_BELOW = 0.2  # rad: below it the coefficients of the SO(3)/SE(3) Jacobians are Taylor series in θ²
+
+
+def _coefficient(theta: ca.SX, series: tuple[float, ...], exact: ca.SX) -> ca.SX:
+    r"""``exact`` (a function of θ with a removable singularity at 0), or below :data:`_SERIES_BELOW`
+    its series :math:`\sum_k a_k \theta^{2k}` (``series`` = a_0..a_4: the θ¹⁰ term is < 1e-16 there)."""
+    t2 = theta * theta
+    poly = series[-1]
+    for a in reversed(series[:-1]):
+        poly = a + t2 * poly
+    return ca.if_else(theta < _SERIES_BELOW, poly, exact)
+
+
+def so3_ljacinv_expr(w: ca.SX) -> ca.SX:
+    r"""Inverse left Jacobian of SO(3) (3, 3) at the rotation vector ``w`` (3,), rad, |w| = θ ≤ π.
+
+    :math:`J_l^{-1}(\omega) = I - \tfrac12 [\omega]_\times + \beta [\omega]_\times^2`,
+    :math:`\beta = (1 - \tfrac{\theta}{2}\cot\tfrac{\theta}{2}) / \theta^2` (smooth up to θ = π, where
+    cot = 0). It is :math:`\partial \log(\exp(\delta) R) / \partial \delta` at :math:`\log R = \omega`, and
+    the inverse of the SE(3) log's :math:`V` (:func:`se3_log_expr`).
+    """
+    theta = ca.sqrt(ca.dot(w, w))
+    half = 0.5 * theta
+    beta = _coefficient(
+        theta,
+        (1 / 12, 1 / 720, 1 / 30240, 1 / 1209600, 1 / 47900160),
+        (1.0 - half * ca.cos(half) / ca.sin(half)) / (theta * theta),
+    )
+    W = ca.skew(w)
+    return ca.SX.eye(3) - 0.5 * W + beta * ca.mtimes(W, W)
+
+
+def se3_log_expr(T: ca.SX) -> ca.SX:
+    r"""Twist :math:`\xi = [\rho; \omega]` (6,) (m; rad) with :math:`\exp(\hat\xi) = T`, of an SX pose ``T`` (≥3, 4).
+
+    :math:`\omega = \log R` (:func:`log_expr`, θ ∈ [0, π]) and :math:`\rho = J_l^{-1}(\omega)\, t`
+    (:func:`so3_ljacinv_expr`; ``t`` the translation). Tangent order [translation; rotation], as mink's SE3.
+    """
+    w = log_expr(T[:3, :3])
+    return ca.vertcat(ca.mtimes(so3_ljacinv_expr(w), T[:3, 3]), w)
+
+
+def se3_ljacinv_expr(xi: ca.SX) -> ca.SX:
+    r"""Inverse left Jacobian of SE(3) (6, 6) at the twist ``xi`` = [ρ; ω] (6,), |ω| ≤ π.
+
+    :math:`J_l^{-1}(\xi) = \partial \log(\exp(\delta) \exp(\xi)) / \partial\delta` at δ = 0, and
+    the inverse right Jacobian :math:`J_r^{-1}(\xi) = J_l^{-1}(-\xi) = \partial \log(\exp(\xi)\exp(\delta))
+    / \partial\delta` (mink's ``jlog`` of the pose exp(ξ)). With :math:`J_l^{-1}(\omega)` of SO(3),
+    :math:`J_l^{-1}(\xi) = \begin{bmatrix} J_l^{-1} & -J_l^{-1} Q J_l^{-1} \\ 0 & J_l^{-1} \end{bmatrix}`,
+    with Barfoot's (State Estimation for Robotics, eq. 7.86), :math:`V = [\rho]_\times`,
+    :math:`W = [\omega]_\times`:
+    :math:`Q = \tfrac12 V + B (WV + VW + WVW) + C (WWV + VWW - 3 WVW) + D (WVWW + WWVW)`,
+    :math:`B = (\theta - \sin\theta)/\theta^3`, :math:`C = (\theta^2 + 2\cos\theta - 2)/(2\theta^4)`,
+    :math:`D = (2\theta - 3\sin\theta + \theta\cos\theta)/(2\theta^5)` (series near 0).
+    """
+    rho, w = xi[:3], xi[3:]
+    theta = ca.sqrt(ca.dot(w, w))
+    s, c, t2 = ca.sin(theta), ca.cos(theta), theta * theta
+    B = _coefficient(theta, (1 / 6, -1 / 120, 1 / 5040, -1 / 362880, 1 / 39916800), (theta - s) / (t2 * theta))
+    C = _coefficient(
+        theta, (1 / 24, -1 / 720, 1 / 40320, -1 / 3628800, 1 / 479001600), (t2 + 2.0 * c - 2.0) / (2.0 * t2 * t2)
+    )
+    D = _coefficient(
+        theta,
+        (1 / 120, -1 / 2520, 1 / 120960, -1 / 9979200, 1 / 1245404160),
+        (2.0 * theta - 3.0 * s + theta * c) / (2.0 * t2 * t2 * theta),
+    )
+    V, W = ca.skew(rho), ca.skew(w)
+    WV, VW = ca.mtimes(W, V), ca.mtimes(V, W)
+    WVW = ca.mtimes(WV, W)
+    Q = 0.5 * V + B * (WV + VW + WVW) + C * (ca.mtimes(W, WV) + ca.mtimes(VW, W) - 3.0 * WVW)
+    Q = Q + D * (ca.mtimes(WVW, W) + ca.mtimes(W, WVW))
+    Ji = so3_ljacinv_expr(w)
+    return ca.vertcat(ca.horzcat(Ji, -ca.mtimes([Ji, Q, Ji])), ca.horzcat(ca.SX.zeros(3, 3), Ji))
 
 
 def pose_error_expr(T: ca.SX, pose_: ca.SX) -> ca.SX:
@@ -127,11 +205,23 @@ class Task(ABC):
 class FrameTask(Task):
     r"""Track an end-effector pose and twist.
 
-    Cost :math:`\|J v - (v_{ff} + K e)\|^2_W` with the geometric Jacobian ``J`` (6, n),
-    the pose error :math:`e = [p^* - p;\ \log(R^* R^T)]` (world frame, :func:`pose_error`),
-    :math:`K = \mathrm{diag}(k_p I_3, k_o I_3)` (1/s) and
-    :math:`W = \mathrm{diag}(w_p I_3, w_o I_3)`. With ``v = J⁺(v_ff + K e)`` the error
-    obeys :math:`\dot e = -K e` (closed-loop IK, seed 002 eq. 18 with K_d = 1).
+    Cost :math:`\|A v - (f + K e)\|^2_W` with :math:`K = \mathrm{diag}(k_p I_3, k_o I_3)` (1/s),
+    :math:`W = \mathrm{diag}(w_p I_3, w_o I_3)`, the pose error ``e`` (m; rad) and its Jacobian ``A``
+    (6, n) of the chosen convention (``error``): :math:`\dot e = f - A \dot q` with the feed-forward ``f``:
+
+    - ``"world"``: :math:`e = [p^* - p;\ \log(R^* R^T)]` (base frame, :func:`pose_error`), ``A = J`` the
+      geometric Jacobian, the feed-forward :math:`f = \dot x^*` the target's twist. Exact for the
+      translation, first order in e for the rotation (the rate of log brings SO(3) Jacobians of e).
+    - ``"se3"``: the body-frame SE(3) error of mink/pink, :math:`e = \log(T^{-1} T^*)`
+      (:func:`se3_log_expr`, ee frame, [translation; rotation]),
+      :math:`A = J_l^{-1}(e)\, J_b` with the ee-frame Jacobian :math:`J_b = [R^T J_v;\ R^T J_\omega]`
+      (:func:`se3_ljacinv_expr`; mink's ``jlog(T^{*-1} T) J_b``), and the feed-forward
+      :math:`f = J_r^{-1}(e)\, [R^{*T} v^*;\ R^{*T} \omega^*]`, the target's base-frame twist as its body
+      twist, mapped through the error: exact, :math:`\dot e = f - A \dot q`.
+
+    With ``A v = f + K e`` the error obeys :math:`\dot e = -K e` (closed-loop IK, seed 002 eq. 18 with
+    K_d = 1; exactly for ``"se3"``). mink's ``FrameTask`` with costs :math:`c_p, c_o`, gain g and step dt
+    is ``error="se3"`` with :math:`w = c^2`, :math:`k = g/dt`.
 
     Parameters (30): the target's first three rows (12, row-major), twist, gain and weight (6 each).
 
@@ -139,7 +229,11 @@ class FrameTask(Task):
         target: (4, 4) target pose in the base frame (may be set later by :meth:`set_target`).
         position_gain, orientation_gain: :math:`k_p, k_o`, 1/s.
         position_weight, orientation_weight: :math:`w_p` (per m²/s²), :math:`w_o` (per rad²/s²).
-        twist: (6,) feedforward twist ``[v; ω]`` of the target, base frame (m/s; rad/s).
+        twist: (6,) feedforward twist ``[v; ω]`` of the target, base frame (m/s; rad/s), in both conventions.
+        error: the error convention, ``"world"`` or ``"se3"`` (fixed: it sets the compiled expression's form).
+
+    Attributes:
+        convention: ``error`` as given.
     """
 
     name = "frame"
@@ -152,7 +246,11 @@ class FrameTask(Task):
         position_weight: float = 1.0,
         orientation_weight: float = 0.1,
         twist: np.ndarray | None = None,
+        error: Literal["world", "se3"] = "world",
     ):
+        if error not in ("world", "se3"):
+            raise ValueError(f"FrameTask: error must be 'world' or 'se3', got {error!r}")
+        self.convention = error
         self.target: np.ndarray | None = None
         self.twist = np.zeros(6)
         self.gain = np.repeat([float(position_gain), float(orientation_gain)], 3)
@@ -163,12 +261,13 @@ class FrameTask(Task):
             self.set_target(target, twist)
 
     def set_target(self, target: np.ndarray, twist: np.ndarray | None = None) -> None:
-        """Set the target pose (4, 4) and feedforward twist (6,) ``[v; ω]`` (zero if omitted)."""
+        """Set the target pose (4, 4) and feedforward twist (6,) ``[v; ω]``, base frame (zero if omitted)."""
         self.target = pose(target, "target")[0]
         self.twist = np.zeros(6) if twist is None else finite_array(twist, "twist", (6,)).copy()
 
     def structure(self) -> tuple:
-        return ()
+        """The convention; ``()`` for ``"world"`` (the key it had before the option existed)."""
+        return () if self.convention == "world" else (self.convention,)
 
     def param_size(self, n: int) -> int:
         return 30
@@ -178,18 +277,35 @@ class FrameTask(Task):
             raise ValueError("FrameTask: no target set (call set_target)")
         return np.concatenate((self.target[:3].ravel(), self.twist, self.gain, self.weight))
 
+    @staticmethod
+    def _target_expr(p: ca.SX) -> ca.SX:
+        """The target's first three rows (3, 4) from the parameters."""
+        return ca.reshape(p[:12], 4, 3).T
+
     def error_expr(self, s: SymState, p: ca.SX) -> ca.SX:
-        """Pose error e (6,) ``[m; rad]`` of the end-effector toward the target (SX)."""
-        return pose_error_expr(ca.reshape(p[:12], 4, 3).T, s.pose)
+        """Pose error e (6,) ``[m; rad]`` of the end-effector toward the target (SX), in the task's convention."""
+        target = self._target_expr(p)
+        if self.convention == "world":
+            return pose_error_expr(target, s.pose)
+        R = s.pose[:3, :3]
+        # T⁻¹ T* = [Rᵀ R*, Rᵀ (p* − p)]
+        return se3_log_expr(ca.horzcat(ca.mtimes(R.T, target[:, :3]), ca.mtimes(R.T, target[:, 3] - s.pose[:3, 3])))
 
     def expr(self, s: SymState, p: ca.SX) -> tuple[ca.SX, ca.SX]:
         twist, gain, weight = p[12:18], p[18:24], p[24:30]
-        b = twist + gain * self.error_expr(s, p)
-        WJ = ca.mtimes(ca.diag(weight), s.J)
-        return 2.0 * ca.mtimes(s.J.T, WJ), -2.0 * ca.mtimes(WJ.T, b)
+        e = self.error_expr(s, p)
+        if self.convention == "world":
+            A, b = s.J, twist + gain * e
+        else:
+            R, R_t = s.pose[:3, :3], self._target_expr(p)[:, :3]
+            J_b = ca.vertcat(ca.mtimes(R.T, s.J[:3, :]), ca.mtimes(R.T, s.J[3:, :]))
+            twist_b = ca.vertcat(ca.mtimes(R_t.T, twist[:3]), ca.mtimes(R_t.T, twist[3:]))
+            A, b = ca.mtimes(se3_ljacinv_expr(e), J_b), ca.mtimes(se3_ljacinv_expr(-e), twist_b) + gain * e
+        WA = ca.mtimes(ca.diag(weight), A)
+        return 2.0 * ca.mtimes(A.T, WA), -2.0 * ca.mtimes(WA.T, b)
 
     def error(self, state: State) -> np.ndarray:
-        """Pose error e (6,) ``[m; rad]`` of the current end-effector toward the target."""
+        """Pose error e (6,) ``[m; rad]`` of the current end-effector toward the target, in the task's convention."""
         (e,) = evaluate(self, state, lambda s: [self.error_expr(s, s.params_of(self))])
         return e.reshape(-1)
 
