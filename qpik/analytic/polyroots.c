@@ -81,23 +81,21 @@ static int real_roots(const double *p, int d, double *roots) {
     double q[QPIK_MAXD + 1], b[QPIK_MAXD + 1];
     while (d > 0 && p[d] == 0.0) --d;
     if (d == 0) return 0;
-    /* q(y) = p(2y - 1) on y in [0, 1], then its Bernstein coefficients b_k = sum_i C(k,i)/C(d,i) q_i */
+    /* q(y) = p(2y - 1) on y in [0, 1] */
     memset(q, 0, sizeof q);
     q[0] = p[d];
     for (int i = d - 1; i >= 0; --i) { /* q <- q (2y - 1) + p_i */
         for (int k = d - i; k >= 1; --k) q[k] = 2.0 * q[k - 1] - q[k];
         q[0] = -q[0] + p[i];
     }
-    double binom[QPIK_MAXD + 1][QPIK_MAXD + 1];
-    for (int k = 0; k <= d; ++k) {
-        binom[k][0] = binom[k][k] = 1.0;
-        for (int i = 1; i < k; ++i) binom[k][i] = binom[k - 1][i - 1] + binom[k - 1][i];
+    /* b_k = sum_i C(k,i) q_i / C(d,i): scale by 1/C(d,i), then the binomial transform by Pascal sums */
+    double cdi = 1.0;
+    for (int i = 0; i <= d; ++i) {
+        b[i] = q[i] / cdi;
+        cdi = cdi * (d - i) / (i + 1);
     }
-    for (int k = 0; k <= d; ++k) {
-        double acc = 0.0;
-        for (int i = 0; i <= k; ++i) acc += binom[k][i] / binom[d][i] * q[i];
-        b[k] = acc;
-    }
+    for (int j = 1; j <= d; ++j)
+        for (int k = d; k >= j; --k) b[k] += b[k - 1];
     /* depth-first over intervals [x0, x1] of x, left half first: roots come out ascending */
     double stack_b[64][QPIK_MAXD + 1], stack_x[64][2];
     int top = 0, n = 0;
@@ -141,15 +139,20 @@ static int real_roots(const double *p, int d, double *roots) {
     return n;
 }
 
-/* (1 - t^2)^i (1 + t^2)^m, lowest first, into out (degree 2 (i + m)). */
-static void cs_basis(int i, int m, double *out) {
-    int d = 0;
-    out[0] = 1.0;
-    for (int k = 0; k < i + m; ++k, d += 2) { /* multiply by 1 - t^2 (first i times), then by 1 + t^2 */
-        double sgn = (k < i) ? -1.0 : 1.0;
-        out[d + 2] = 0.0;
-        out[d + 1] = 0.0;
-        for (int j = d + 2; j >= 2; --j) out[j] += sgn * out[j - 2];
+/* sum_{i=0..m} c_i (1 - t^2)^i (1 + t^2)^(m-i) into out (degree 2m, lowest first), by Horner in
+ * u = 1 - t^2: P <- P u + c_i w^(m-i), with the powers of w = 1 + t^2 built along. */
+static void cs_poly(const double *c, int m, double *out) {
+    double w[QPIK_MAXD + 1];
+    int dw = 0; /* w holds (1 + t^2)^(m - i), degree dw */
+    memset(out, 0, (size_t)(2 * m + 1) * sizeof(double));
+    memset(w, 0, sizeof w);
+    w[0] = 1.0;
+    out[0] = c[m];
+    for (int i = m - 1, dp = 0; i >= 0; --i, dp += 2) {
+        for (int j = dp + 2; j >= 2; --j) out[j] = out[j] - out[j - 2]; /* P (1 - t^2) */
+        for (int j = dw + 2; j >= 2; --j) w[j] += w[j - 2]; /* w (1 + t^2) */
+        dw += 2;
+        for (int j = 0; j <= dw; ++j) out[j] += c[i] * w[j];
     }
 }
 
@@ -165,7 +168,7 @@ static void cs_basis(int i, int m, double *out) {
  * degree is too large or the room too small. */
 int qpik_trig_roots(int K, int na, const double *A, const double *B, int room, double *delta, int *owner) {
     int m = 0;
-    double H[QPIK_MAXD + 1], rev[QPIK_MAXD + 1], basis[QPIK_MAXD + 3], t[QPIK_MAXR];
+    double H[QPIK_MAXD + 3], rev[QPIK_MAXD + 1], t[QPIK_MAXR];
     for (int k = 0; k < K; ++k) {
         const double *a = A + (long)k * (na + 1), *b = B + (long)k * (na + 1);
         int da = na, db = na, nr;
@@ -174,15 +177,12 @@ int qpik_trig_roots(int K, int na, const double *A, const double *B, int room, d
         int n = da > db + 1 ? da : db + 1, d = 2 * n;
         if (d > QPIK_MAXD) return -1;
         if (n <= 0) continue; /* F constant: no roots (or all of them: no information) */
-        memset(H, 0, sizeof H);
-        for (int i = 0; i <= da; ++i) {
-            cs_basis(i, n - i, basis);
-            for (int j = 0; j <= d; ++j) H[j] += a[i] * basis[j];
-        }
-        for (int i = 0; i <= db; ++i) {
-            cs_basis(i, n - 1 - i, basis);
-            for (int j = 0; j <= d - 2; ++j) H[j + 1] += 2.0 * b[i] * basis[j]; /* basis has degree d - 2 */
-        }
+        double ca[QPIK_MAXD / 2 + 1], cb[QPIK_MAXD / 2 + 1], hb[QPIK_MAXD + 1];
+        for (int i = 0; i <= n; ++i) ca[i] = (i <= da) ? a[i] : 0.0;
+        for (int i = 0; i < n; ++i) cb[i] = (i <= db) ? b[i] : 0.0;
+        cs_poly(ca, n, H);
+        cs_poly(cb, n - 1, hb);
+        for (int j = 0; j <= d - 2; ++j) H[j + 1] += 2.0 * hb[j];
         for (int j = 0; j <= d; ++j) rev[j] = H[d - j];
         nr = real_roots(H, d, t);
         if (m + nr > room) return -1;
