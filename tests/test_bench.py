@@ -1,0 +1,38 @@
+"""``qpik bench`` runs every bench and prints every row the README quotes (structure only: no timing is asserted)."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import math
+
+import pytest
+
+from qpik.bench import BENCHES, Row, render
+
+EXPECTED = {
+    "kinematics": ["iiwa14: qpik fk_jacobian (1 q)", "iiwa14: mink", "panda: qpik batched N=10000, per q"],
+    "analytic": [
+        "ssik iiwa14_ik.solve (iiwa14)",
+        "qpik.ik, 1 pose (nammoto7)",
+        "qpik.feasible_intervals (nammoto7)",
+        "qpik.feasible_intervals (iiwa14)",
+    ],
+    "controller": ["mink + osqp", "mink + daqp", "qpik + osqp", "qpik + daqp", "qpik + proxqp", "qpik + quadprog"],
+}
+
+
+@pytest.mark.parametrize("name", BENCHES)
+def test_bench_prints_every_row(name):
+    module = importlib.import_module(f"qpik.bench.{name}")
+    rows = module.run(argparse.Namespace(repeat=100))
+    labels = [row.label for row in rows]
+    for want in EXPECTED[name]:
+        assert want in labels, f"{name}: no row {want!r}"
+    for row in rows:
+        assert isinstance(row, Row) and math.isfinite(row.seconds) and row.seconds > 0.0
+        assert row.ref is None or row.ref in labels
+    text = render(module.TITLE, rows)
+    assert all(label in text for label in labels)
+    if name == "controller":  # the worst step, also as the best of the replays, is printed for every row
+        assert all("best of 3 replays" in row.note for row in rows)
