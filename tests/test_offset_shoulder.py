@@ -229,14 +229,7 @@ def _sweep_check(T: np.ndarray, n_delta: int) -> None:
 @settings(max_examples=50, deadline=None)
 @given(SEEDS)
 def test_feasible_intervals_exact_on_random_poses(seed):
-    for T in ROBOT.fk(random_q(ROBOT, 10, seed)):  # 500 poses in all
-        _sweep_check(T, 2000)
-
-
-@settings(max_examples=5, deadline=None)
-@given(SEEDS)
-def test_feasible_intervals_exact_dense(seed):
-    for T in ROBOT.fk(random_q(ROBOT, 2, seed)):
+    for T in ROBOT.fk(random_q(ROBOT, 10, seed)):  # 500 poses in all, 10,000 values of δ each
         _sweep_check(T, 10000)
 
 
