@@ -19,6 +19,10 @@ import numpy as np
 from qpik import symbolic as sy
 
 TWO_PI = 2.0 * np.pi
+SAME = 1e-9
+"""Breakpoints (rad) closer than this are one: a gap narrower than that is not classified, so a
+boundary may be off by as much (the equations of nearly coincident breakpoints, such as a validity
+test and its tolerant twin, are solved to about this accuracy anyway)."""
 
 Interval = tuple[float, float]
 
@@ -92,12 +96,13 @@ def assemble_many(breaks: np.ndarray, feasible_at: Callable[[np.ndarray], np.nda
 def gaps(breaks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The gaps ``(lo[i], hi[i])`` (rad) between breakpoints (any order, any branch of 2π, at least one).
 
-    ``lo`` are the distinct breakpoints wrapped to (−π, π] and sorted; ``hi`` the next one,
-    the last gap ending at ``lo[0] + 2π``: together the gaps tile the circle.
+    ``lo`` are the breakpoints wrapped to (−π, π] and sorted, one per cluster of breakpoints
+    within :data:`SAME` of each other; ``hi`` the next one, the last gap ending at
+    ``lo[0] + 2π``: together the gaps tile the circle.
     """
-    lo = np.round(wrap(np.asarray(breaks, dtype=float).ravel()), 15)
+    lo = wrap(np.asarray(breaks, dtype=float).ravel())
     lo.sort()
-    lo = lo[np.concatenate(([True], lo[1:] != lo[:-1]))]  # np.unique, without its Python overhead
+    lo = lo[np.concatenate(([True], lo[1:] - lo[:-1] > SAME))]  # one breakpoint per cluster within SAME
     hi = np.empty_like(lo)
     hi[:-1], hi[-1] = lo[1:], lo[0] + TWO_PI
     return lo, hi

@@ -1,9 +1,9 @@
 /* Real roots of F(delta) = A(cos delta) + sin delta B(cos delta) (qpik.analytic.polyroots).
  *
  * With t = tan(delta / 2) F becomes a polynomial H(t); its real roots in [-1, 1] (and those of
- * the reversed polynomial, for |delta| >= pi/2) are isolated by Descartes' rule of signs in the
- * Bernstein basis and found by Newton's method safeguarded by bisection (real_roots below).
- * Callers use the roots as candidates, so an extra one (a double root, reported once) is harmless.
+ * the reversed polynomial, for |delta| >= pi/2) are found between its critical points, which are
+ * isolated by Descartes' rule of signs in the Bernstein basis (real_roots below). Callers use the
+ * roots as candidates, so an extra one (a near-double root reported at its critical point) is harmless.
  */
 #include <float.h>
 #include <math.h>
@@ -75,9 +75,10 @@ static int variations(const double *b, int d) {
  * p's Bernstein coefficients bounds the number of roots (and has its parity). V = 0: none; V = 1: exactly
  * one, a sign change, found by safeguarded Newton; V >= 2: the interval is halved (de Casteljau). An
  * interval narrower than ISOLATE_WIDTH that still has V >= 2 (a double root, or roots closer than that)
- * is reported by its midpoint. */
+ * is reported by its midpoint. Rounding can make V = 0 next to a near-double root, so real_roots below
+ * uses this for p' only. */
 #define ISOLATE_WIDTH 1e-10
-static int real_roots(const double *p, int d, double *roots) {
+static int bernstein_roots(const double *p, int d, double *roots) {
     double q[QPIK_MAXD + 1], b[QPIK_MAXD + 1];
     while (d > 0 && p[d] == 0.0) --d;
     if (d == 0) return 0;
@@ -137,6 +138,41 @@ static int real_roots(const double *p, int d, double *roots) {
     }
     if (b[d] == 0.0) n = push(roots, n, 1.0);
     return n;
+}
+
+/* Roots in [-1, 1] of p (degree d) given the sorted roots crit[0..nc) of p' in [-1, 1]; returns their
+ * number. Between consecutive critical points (and the ends) p is monotone: a sign change there is one
+ * root. A critical point where |p| <= TOL sum|p_i| is reported too: a double root, or two roots closer
+ * than rounding separates (an extra candidate is harmless). */
+#define TOL 1e-12
+static int level(const double *a, int d, const double *crit, int nc, double *out) {
+    double scale = 0.0;
+    for (int i = 0; i <= d; ++i) scale += fabs(a[i]);
+    if (scale == 0.0) return 0; /* p == 0: no information, no roots */
+    int n = 0;
+    double lo = -1.0, flo = value(a, d, lo);
+    if (flo == 0.0) n = push(out, n, lo);
+    for (int k = 0; k <= nc; ++k) {
+        double hi = (k < nc) ? crit[k] : 1.0;
+        double fhi = value(a, d, hi);
+        if (flo != 0.0 && fhi != 0.0 && (flo < 0.0) != (fhi < 0.0))
+            n = push(out, n, bracketed(a, d, lo, hi, flo, fhi));
+        if (fhi == 0.0 || (k < nc && fabs(fhi) <= TOL * scale)) n = push(out, n, hi);
+        lo = hi;
+        flo = fhi;
+    }
+    return n;
+}
+
+/* Roots of p (degree d <= QPIK_MAXD, lowest first) in [-1, 1], ascending: the critical points (roots of p')
+ * by Bernstein isolation, then one root per sign change of p between them (level). */
+static int real_roots(const double *p, int d, double *roots) {
+    double dp[QPIK_MAXD + 1], crit[QPIK_MAXR];
+    while (d > 0 && p[d] == 0.0) --d;
+    if (d == 0) return 0;
+    for (int i = 0; i < d; ++i) dp[i] = (i + 1) * p[i + 1];
+    int nc = d >= 2 ? bernstein_roots(dp, d - 1, crit) : 0;
+    return level(p, d, crit, nc, roots);
 }
 
 /* sum_{i=0..m} c_i (1 - t^2)^i (1 + t^2)^(m-i) into out (degree 2m, lowest first), by Horner in

@@ -15,12 +15,15 @@ roots of F (no squaring, so no spurious roots). Its roots with :math:`|t| \le 1`
 :math:`d\delta/dt \in [1, 2]`: well conditioned everywhere (a first version went through
 :math:`c = \cos\delta`, where :math:`d\delta = -dc/\sin\delta` lost the roots near 0 and π).
 
-``polyroots.c`` isolates the real roots in [−1, 1] by Descartes' rule of signs in the
-Bernstein basis: on an interval, the sign changes V of H's Bernstein coefficients bound
-its roots there (with their parity); V = 0 excludes the interval, V = 1 brackets one
-root, found by Newton's method safeguarded by bisection, V ≥ 2 halves the interval
-(de Casteljau). An interval below 1e-10 that still has V ≥ 2 (a double root, or roots
-closer than that) is reported by its midpoint. It replaced ``numpy.linalg.eigvals`` of companion matrices, the cost that
+``polyroots.c`` finds the real roots of H in [−1, 1] between its critical points: the
+roots of H′ are isolated by Descartes' rule of signs in the Bernstein basis (on an
+interval, the sign changes V of the Bernstein coefficients bound the roots there: V = 0
+excludes the interval, V = 1 brackets one root, found by Newton's method safeguarded by
+bisection, V ≥ 2 halves it by de Casteljau); between consecutive critical points H is
+monotone, so each sign change there is one root, and a critical point where
+:math:`|H| \le 10^{-12} \sum |h_i|` is reported as well (a double root, or two roots
+closer than rounding separates: next to those, rounding can hide the sign changes of
+the Bernstein coefficients of H itself). It replaced ``numpy.linalg.eigvals`` of companion matrices, the cost that
 dominated ``qpik.feasible_intervals`` (see ``qpik bench analytic``). The C source is
 compiled once by the system compiler (:func:`qpik.compiled.shared_library`); without
 one (or with ``QPIK_NATIVE=0``) the roots of H come from ``numpy``'s companion
@@ -60,10 +63,8 @@ def _library() -> ctypes.CDLL | None:
     return dll
 
 
-ROOM = 2 * (32 + 2)
-"""Room for roots per row: each half of the circle reports at most d + 2 (d = 2n ≤ 32): the sign
-changes V of the Bernstein coefficients bound the roots of every interval, so the intervals reported
-(one root each, or the midpoint of an unresolved cluster with V ≥ 2) are at most d, plus the ends."""
+ROOM = 2 * 128
+"""Room for roots per row: polyroots.c reports at most 128 candidates in each half of the circle."""
 
 
 def trig_roots(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
