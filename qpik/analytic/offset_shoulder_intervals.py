@@ -94,7 +94,8 @@ class DeltaIntervals:
             ca.vertcat(*[ca.if_else(ok, sy.CASADI.wrap(x), none) for x, ok in pairs])
             for pairs, none in ((cand, 0.0), (sing, NONE))
         ]
-        FA, FB = (ca.vertcat(*[ca.horzcat(*_pad(x, 9)) for x in xs]) for xs in zip(*polys))
+        # (9, K) outputs: their transposes are C-contiguous (K, 9) views of the column-major buffers
+        FA, FB = (ca.horzcat(*[ca.vertcat(*_pad(x, 9)) for x in xs]) for xs in zip(*polys))
         self._fn = Compiled(ca.Function("os_breakpoints", [T], [*out, FA, FB]))
 
     def expressions(self, T, ops: Ops) -> tuple[list, list, list[Poly], list[int]]:
@@ -191,7 +192,8 @@ class DeltaIntervals:
 
     def breakpoints(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every δ (rad) where a row 1–8 can change feasibility, and those where one can turn singular."""
-        cand, sing, FA, FB = self._fn(T)  # candidates that do not exist are 0 (always a breakpoint) or NONE
+        cand, sing, FAt, FBt = self._fn(T)  # candidates that do not exist are 0 (always a breakpoint) or NONE
+        FA, FB = FAt.T, FBt.T
         sing = sing[sing != NONE]
         wrist, owner = trig_roots(FA, FB)
         kind = self._kinds[owner]
