@@ -177,15 +177,19 @@ def polish(
     """
     w = Abar @ x + y  # z + y: below lo ⇔ z - lo < -y, above hi ⇔ hi - z < y
     lower = w < lo
-    guess = np.flatnonzero(lower | (w > hi))
-    bound = max(abs(lo[np.isfinite(lo)]).max(initial=0.0), abs(hi[np.isfinite(hi)]).max(initial=0.0))
-    scale = tol * (1.0 + abs(c).max() + bound)
+    guessed = lower | (w > hi)
     L, info = lapack.dpotrf(P, lower=1)
     if info:
         return None
     x0 = lapack.dpotrs(L, -c, lower=1)[0]
     r0 = Abar @ x0
-    if not len(guess) and np.maximum(lo - r0, r0 - hi).max() <= scale:  # the common step: nothing active
+    viol = np.maximum(lo - r0, r0 - hi).max()
+    if viol <= 0.0 and not guessed.any():  # the common step: nothing active, every bound met strictly
+        return x0
+    bound = max(abs(lo[np.isfinite(lo)]).max(initial=0.0), abs(hi[np.isfinite(hi)]).max(initial=0.0))
+    scale = tol * (1.0 + abs(c).max() + bound)
+    guess = np.flatnonzero(guessed)
+    if not len(guess) and viol <= scale:  # nothing active, a bound met within the tolerance
         return x0
     C = lapack.dpotrs(L, Abar.T, lower=1)[0]  # (n, M): P⁻¹ Āᵀ (not dtrtrs: OpenBLAS threads it even at n = 7)
     H = Abar @ C
