@@ -117,25 +117,30 @@ def merge(lo: np.ndarray, hi: np.ndarray, ok: np.ndarray) -> list[list[Interval]
     flags as bytes (C speed; G is of order 100).
     """
     G, B = ok.shape
+    W = G + 1
     lo_l, hi_l = lo.tolist(), hi.tolist()
-    flags = np.zeros((B, G + 1), np.uint8)  # one row per branch, a 0 after each: runs stay in their row
+    flags = np.zeros((B, W), np.uint8)  # one row per branch, a 0 after each: runs stay in their row
     flags[:, :G] = ok.T
     runs: list[list[tuple[int, int]]] = [[] for _ in range(B)]
     for m in _RUN.finditer(flags.tobytes()):
-        j, s = divmod(m.start(), G + 1)
-        runs[j].append((s, m.end() - 1 - j * (G + 1)))
+        a, b = m.span()
+        j = a // W
+        runs[j].append((a - j * W, b - 1 - j * W))  # first and last gap of the run
     out: list[list[Interval]] = []
     for r in runs:
-        if r and r[0] == (0, G - 1):
-            out.append([(-np.pi, np.pi)])
-            continue
-        if len(r) > 1 and r[0][0] == 0 and r[-1][1] == G - 1:  # a run crosses from gap G-1 into gap 0
-            r = [(r[-1][0], r[0][1]), *r[1:-1]]
-        ivs: list[Interval] = []
-        for s, e in r:
-            end = hi_l[e] + (TWO_PI if e < s else 0.0)
-            ivs += [(lo_l[s], np.pi), (-np.pi, end - TWO_PI)] if end > np.pi else [(lo_l[s], end)]
-        out.append(sorted(ivs))
+        if r and r[0][0] == 0 and r[-1][1] == G - 1:  # feasible in gap 0 and in gap G-1
+            if r[0][1] == G - 1:
+                out.append([(-np.pi, np.pi)])
+                continue
+            if len(r) > 1:  # the last run continues into the first, across ±π: split there
+                ivs = [(lo_l[s], hi_l[e]) for s, e in r[1:-1]]
+                out.append([(-np.pi, hi_l[r[0][1]]), *ivs, (lo_l[r[-1][0]], np.pi)])
+                continue
+        ivs = [(lo_l[s], hi_l[e]) for s, e in r]
+        if ivs and ivs[-1][1] > np.pi:  # only the last run can pass π: split it there
+            a, end = ivs.pop()
+            ivs = [(-np.pi, end - TWO_PI), *ivs, (a, np.pi)]
+        out.append(ivs)
     return out
 
 

@@ -199,16 +199,18 @@ class DeltaIntervals:
         kind = self._kinds[owner]
         # sin θ6 = 0 zeroes every θ5 and θ7 equation: their common roots
         r5, r7 = wrist[kind == 5], wrist[kind == 7]
-        if r5.size and r7.size:
-            sing = np.concatenate([sing, r5[np.abs(wrap(r5[:, None] - r7[None, :])).min(axis=1) < COMMON_TOL]])
+        if r5.size and r7.size:  # cos d > 1 − tol²/2 ⇔ |d| < tol on the circle
+            close = (np.cos(r5[:, None] - r7[None, :]) > 1.0 - 0.5 * COMMON_TOL**2).any(axis=1)
+            sing = np.concatenate([sing, r5[close]])
         return np.concatenate([cand, wrist, [0.0]]), sing
 
     def __call__(self, T: np.ndarray) -> FeasibleIntervals:
         brk, sing = self.breakpoints(T)
         lo, hi = gaps(brk)
         sing = np.unique(wrap(sing)) if sing.size else sing  # usually empty
-        solved = self._solver.solve_many(T, np.concatenate([0.5 * (lo + hi), sing]), rows=8)  # rows 1–8 only
-        ok, hit = solved.within_limits[: lo.size], (solved.valid & solved.singular)[lo.size :]
+        mid = 0.5 * (lo + hi)
+        flags = self._solver.flags_many(T, np.concatenate([mid, sing]) if sing.size else mid, rows=8)  # rows 1–8
+        ok, hit = flags[: lo.size, 2], flags[lo.size :, 0] & flags[lo.size :, 1]
         intervals = merge(lo, hi, ok)
         intervals += [shift(ivs, PI) for ivs in intervals]  # row 8 + k at δ is row k at δ + π
         singular: list[list[float]] = [[] for _ in range(16)]

@@ -179,20 +179,35 @@ class AnalyticSolver(ABC):
         B = self.n_branches if rows is None else rows
         M, n = params.size, self.robot.dof
         Q, flags = np.empty((M, B, n)), np.empty((M, 3 * B))
+        for i, m, q, fl in self._chunks(T, params, B):
+            Q[i : i + m] = q.T.reshape(-1, B, n)[:m]  # (n, chunk·B) output, (chunk, B, n) in C order
+            flags[i : i + m] = fl.T[:m]
+        valid, singular, within = (flags > 0.5).reshape(M, 3, B).transpose(1, 0, 2)
+        return Solved(Q, valid, singular, within)
+
+    def flags_many(self, T: np.ndarray, params: np.ndarray, rows: int) -> np.ndarray:
+        """:meth:`solve_many` without the joint values: flags (M, 3, rows) bool, ``[:, 0]`` valid,
+        ``[:, 1]`` singular, ``[:, 2]`` within limits (the feasible intervals need only these)."""
+        flags = np.empty((params.size, 3 * rows))
+        for i, m, _, fl in self._chunks(T, params, rows):
+            flags[i : i + m] = fl.T[:m]
+        return (flags > 0.5).reshape(-1, 3, rows)
+
+    def _chunks(self, T: np.ndarray, params: np.ndarray, B: int):
+        """The compiled sweep over params (M,) in chunks: yields ``(i, m, q (n, size·B), flags (3B, size))``
+        for params[i : i + m] (views of the output buffers, valid until the next chunk)."""
         lo, hi = self.robot.q_min, self.robot.q_max
+        Tf = np.asarray(T, dtype=float).reshape(-1, order="F")  # 1-D: the compiled call's fast path
         big, small = SWEEP_CHUNKS
-        i = 0
+        M, i = params.size, 0
         while i < M:
             size = big if M - i > 3 * big // 4 else small
             m = min(size, M - i)
             chunk = np.full(size, params[i])
             chunk[:m] = params[i : i + m]
-            q, fl = self._sweep(B, size)(T, chunk, lo, hi)
-            Q[i : i + m] = q.T.reshape(size, B, n)[:m]  # (n, chunk·B) output, (chunk, B, n) in C order
-            flags[i : i + m] = fl.T[:m]
+            q, fl = self._sweep(B, size)(Tf, chunk, lo, hi)
+            yield i, m, q, fl
             i += m
-        valid, singular, within = (flags > 0.5).reshape(M, 3, B).transpose(1, 0, 2)
-        return Solved(Q, valid, singular, within)
 
     def solve_batch(self, T: np.ndarray, param: np.ndarray) -> Solved:
         """Poses (N, 4, 4), parameters (N,): q (N, B, n), valid, singular, within_limits (N, B) bool.

@@ -115,6 +115,6 @@ class PsiIntervals:
             return FeasibleIntervals("psi", self.branch.copy(), [[] for _ in range(n)], [[] for _ in range(n)])
         found = singular != NONE  # rare: only at singular poses
         sing = [np.unique(x[f]) for x, f in zip(singular.reshape(2, -1), found.reshape(2, -1))] if found.any() else _NO
-        within = self._solver.solve_many  # the branches at the gap midpoints
-        intervals = assemble_many(np.concatenate([breaks, *sing]), lambda psi: within(T, psi).within_limits)
+        flags = self._solver.flags_many  # the branches at the gap midpoints
+        intervals = assemble_many(np.concatenate([breaks, *sing]), lambda psi: flags(T, psi, len(self.branch))[:, 2])
         return FeasibleIntervals("psi", self.branch.copy(), intervals, [sing[e].tolist() for e in self._i_elbow])
