@@ -83,14 +83,19 @@ def trig_roots(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     lib = _library()
     if lib is None:
         return _eig_roots(A, B)
-    room = ROOM * A.shape[0]
-    delta, owner = np.empty(room), np.empty(room, dtype=np.intc)
+    delta, owner = _buffers(A.shape[0])
     m = lib.qpik_trig_roots(
-        A.shape[0], A.shape[1] - 1, A.ctypes.data, B.ctypes.data, room, delta.ctypes.data, owner.ctypes.data
+        A.shape[0], A.shape[1] - 1, A.ctypes.data, B.ctypes.data, delta.size, delta.ctypes.data, owner.ctypes.data
     )
     if m < 0:
         raise ValueError(f"trig_roots: max(deg A, deg B + 1) above {MAX_DEGREE}")
-    return delta[:m], owner[:m]
+    return delta[:m].copy(), owner[:m].copy()
+
+
+@cache
+def _buffers(K: int) -> tuple[np.ndarray, np.ndarray]:
+    """Output buffers of the C call for K rows (reused; trig_roots returns copies)."""
+    return np.empty(ROOM * K), np.empty(ROOM * K, dtype=np.intc)
 
 
 def _eig_roots(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -188,10 +188,8 @@ class AnalyticSolver(ABC):
     def flags_many(self, T: np.ndarray, params: np.ndarray, rows: int) -> np.ndarray:
         """:meth:`solve_many` without the joint values: flags (M, 3, rows) bool, ``[:, 0]`` valid,
         ``[:, 1]`` singular, ``[:, 2]`` within limits (the feasible intervals need only these)."""
-        flags = np.empty((params.size, 3 * rows))
-        for i, m, _, fl in self._chunks(T, params, rows):
-            flags[i : i + m] = fl.T[:m]
-        return (flags > 0.5).reshape(-1, 3, rows)
+        parts = [fl.T[:m] > 0.5 for _, m, _, fl in self._chunks(T, params, rows)]
+        return (parts[0] if len(parts) == 1 else np.concatenate(parts)).reshape(-1, 3, rows)
 
     def _chunks(self, T: np.ndarray, params: np.ndarray, B: int):
         """The compiled sweep over params (M,) in chunks: yields ``(i, m, q (n, size·B), flags (3B, size))``
