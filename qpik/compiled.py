@@ -93,15 +93,21 @@ def native(fn: ca.Function) -> ca.Function:
     has the same inputs and outputs, so callers cannot tell the difference
     except by speed.
     """
+    global _native_failed
     if compiler() is None:
         return fn
     name = fn.name()
-    with tempfile.TemporaryDirectory() as tmp:
-        gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
-        gen.add(fn)
-        gen.generate(tmp + os.sep)
-        lib = shared_library(name, Path(tmp, f"{name}.c").read_bytes())
-    return fn if lib is None else ca.external(name, str(lib))
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+            gen.add(fn)
+            gen.generate(tmp + os.sep)
+            lib = shared_library(name, Path(tmp, f"{name}.c").read_bytes())
+        return fn if lib is None else ca.external(name, str(lib))
+    except RuntimeError as exc:  # CasADi's code generation or loading failed
+        _native_failed = f"{type(exc).__name__}: {exc}"
+        warnings.warn(f"qpik: native compilation off, using CasADi's virtual machine ({_native_failed})", stacklevel=2)
+        return fn
 
 
 class Compiled:

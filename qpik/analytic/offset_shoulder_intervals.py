@@ -142,52 +142,48 @@ class DeltaIntervals:
         sing = [pair for rr in roots[:3] for pair in _acos_pairs(rr, ops)]
 
         # ---- θ5, θ6, θ7: F = P² − D Q² = A(c) + s B(c)
-        def wrist(C: CSPoly, S: CSPoly) -> tuple[list[CSPoly], list[int]]:
-            """The θ5, θ6, θ7 equations with cos δ = C and sin δ = S (CS-polynomials of the variable)."""
-            c1, s1 = _cs_lin((cphi, C), (-sphi, S)), _cs_lin((sphi, C), (cphi, S))
-            wx = _cs_lin((r, C), (-g.a1, _one()))
-            wz = _cs_lin((r, S))
-            E = _cs_lin((1.0, _cs_mul(wx, wx)), (h * h, _one()))
-            s4 = _cs_lin((k1, _one()), (k2, C))
-            Z = _cs_lin((z0, _one()), (z1, C))
-            D = _cs_lin((1.0, E), (-1.0, _cs_mul(Z, Z)))
+        C, S = ([0.0, 1.0], []), ([], [1.0])  # cos δ and sin δ as CS-polynomials
+        c1, s1 = _cs_lin((cphi, C), (-sphi, S)), _cs_lin((sphi, C), (cphi, S))
+        wx = _cs_lin((r, C), (-g.a1, _one()))
+        wz = _cs_lin((r, S))
+        E = _cs_lin((1.0, _cs_mul(wx, wx)), (h * h, _one()))
+        s4 = _cs_lin((k1, _one()), (k2, C))
+        Z = _cs_lin((z0, _one()), (z1, C))
+        D = _cs_lin((1.0, E), (-1.0, _cs_mul(Z, Z)))
 
-            def frame1(v) -> tuple[CSPoly, ...]:
-                """(v'x, v'z, ŵ·v', ŵ⊥·v', (w − o1)·v) of a world vector v seen in frame 1."""
-                vx = _cs_lin((v[0], c1), (v[1], s1))
-                vz = _cs_lin((v[0], s1), (-v[1], c1))
-                gv = _cs_lin((sy.dot(w, v) - g.d1 * v[2], _one()), (-g.a1, vx))
-                return vx, vz, _cs_lin((1.0, _cs_mul(wx, vx)), (h * v[2], _one())), _cs_lin((-h, vx), (v[2], wx)), gv
+        def frame1(v) -> tuple[CSPoly, ...]:
+            """(v'x, v'z, ŵ·v', ŵ⊥·v', (w − o1)·v) of a world vector v seen in frame 1."""
+            vx = _cs_lin((v[0], c1), (v[1], s1))
+            vz = _cs_lin((v[0], s1), (-v[1], c1))
+            gv = _cs_lin((sy.dot(w, v) - g.d1 * v[2], _one()), (-g.a1, vx))
+            return vx, vz, _cs_lin((1.0, _cs_mul(wx, vx)), (h * v[2], _one())), _cs_lin((-h, vx), (v[2], wx)), gv
 
-            def z4_dot(v) -> tuple[CSPoly, CSPoly]:
-                """d5 E z4·v = P + σ√D Q."""
-                _, _, wv, wpv, gv = frame1(v)
-                return _cs_lin((g.d3, _cs_mul(Z, wv)), (-1.0, _cs_mul(E, gv))), _cs_lin((g.d3, wpv))
+        def z4_dot(v) -> tuple[CSPoly, CSPoly]:
+            """d5 E z4·v = P + σ√D Q."""
+            _, _, wv, wpv, gv = frame1(v)
+            return _cs_lin((g.d3, _cs_mul(Z, wv)), (-1.0, _cs_mul(E, gv))), _cs_lin((g.d3, wpv))
 
-            polys, kinds = [], []
-            Pb, Qb = z4_dot(b)
-            for cL in sorted({round(float(np.cos(L)), 15) for L in self.levels[5]}):  # θ6
-                polys.append(_clear(_cs_lin((1.0, Pb), (-g.d5 * cL, E)), Qb, D))
-                kinds.append(6)
-            Pn, Qn = z4_dot(n)
-            Pt, Qt = z4_dot(t)
-            for L in _mod_pi(self.levels[6]):  # θ7
-                sL, cL = np.sin(L), np.cos(L)
-                polys.append(_clear(_cs_lin((sL, Pn), (cL, Pt)), _cs_lin((sL, Qn), (cL, Qt)), D))
-                kinds.append(7)
-            _, bz, wb, wpb, gb = frame1(b)
-            f = _cs_lin((g.d5, _one()), (g.d3, s4))  # d5 + d3 s4
-            XP = _cs_lin((1.0, _cs_mul(_cs_mul(f, Z), wb)), (-1.0, _cs_mul(_cs_mul(s4, E), gb)))
-            XQ = _cs_mul(f, wpb)
-            YP = _cs_lin((-1.0, _cs_mul(_cs_mul(Z, wz), wpb)))
-            YQ = _cs_lin((1.0, _cs_mul(wz, wb)), (-1.0, _cs_mul(E, bz)))
-            for L in _mod_pi(self.levels[4]):  # θ5
-                sL, cL = np.sin(L), np.cos(L)
-                polys.append(_clear(_cs_lin((sL, XP), (-cL, YP)), _cs_lin((sL, XQ), (-cL, YQ)), D))
-                kinds.append(5)
-            return polys, kinds
-
-        polys, kinds = wrist(([0.0, 1.0], []), ([], [1.0]))
+        polys, kinds = [], []
+        Pb, Qb = z4_dot(b)
+        for cL in sorted({round(float(np.cos(L)), 15) for L in self.levels[5]}):  # θ6
+            polys.append(_clear(_cs_lin((1.0, Pb), (-g.d5 * cL, E)), Qb, D))
+            kinds.append(6)
+        Pn, Qn = z4_dot(n)
+        Pt, Qt = z4_dot(t)
+        for L in _mod_pi(self.levels[6]):  # θ7
+            sL, cL = np.sin(L), np.cos(L)
+            polys.append(_clear(_cs_lin((sL, Pn), (cL, Pt)), _cs_lin((sL, Qn), (cL, Qt)), D))
+            kinds.append(7)
+        _, bz, wb, wpb, gb = frame1(b)
+        f = _cs_lin((g.d5, _one()), (g.d3, s4))  # d5 + d3 s4
+        XP = _cs_lin((1.0, _cs_mul(_cs_mul(f, Z), wb)), (-1.0, _cs_mul(_cs_mul(s4, E), gb)))
+        XQ = _cs_mul(f, wpb)
+        YP = _cs_lin((-1.0, _cs_mul(_cs_mul(Z, wz), wpb)))
+        YQ = _cs_lin((1.0, _cs_mul(wz, wb)), (-1.0, _cs_mul(E, bz)))
+        for L in _mod_pi(self.levels[4]):  # θ5
+            sL, cL = np.sin(L), np.cos(L)
+            polys.append(_clear(_cs_lin((sL, XP), (-cL, YP)), _cs_lin((sL, XQ), (-cL, YQ)), D))
+            kinds.append(5)
         return cand, sing, polys, kinds
 
     def breakpoints(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
