@@ -86,6 +86,28 @@ def shared_library(name: str, source: bytes) -> Path | None:
         return None
 
 
+def native_library(fn: ca.Function) -> Path | None:
+    """The shared library holding ``fn`` as machine code (exported under ``fn.name()``), or None.
+
+    None when :func:`compiler` is None or code generation, compilation or loading fails
+    (then a warning says why, once, and native code stays off in this process).
+    """
+    global _native_failed
+    if compiler() is None:
+        return None
+    name = fn.name()
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+            gen.add(fn)
+            gen.generate(tmp + os.sep)
+            return shared_library(name, Path(tmp, f"{name}.c").read_bytes())
+    except RuntimeError as exc:  # CasADi's code generation failed
+        _native_failed = f"{type(exc).__name__}: {exc}"
+        warnings.warn(f"qpik: native compilation off, using CasADi's virtual machine ({_native_failed})", stacklevel=2)
+        return None
+
+
 def native(fn: ca.Function) -> ca.Function:
     """``fn`` as machine code (cached shared library), or ``fn`` itself when that is not possible.
 
@@ -93,18 +115,17 @@ def native(fn: ca.Function) -> ca.Function:
     has the same inputs and outputs, so callers cannot tell the difference
     except by speed.
     """
+    return _load(fn, native_library(fn))
+
+
+def _load(fn: ca.Function, lib: Path | None) -> ca.Function:
+    """``fn`` from ``lib`` (CasADi's external), or ``fn`` itself when there is no library or it fails to load."""
     global _native_failed
-    if compiler() is None:
+    if lib is None:
         return fn
-    name = fn.name()
     try:
-        with tempfile.TemporaryDirectory() as tmp:
-            gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
-            gen.add(fn)
-            gen.generate(tmp + os.sep)
-            lib = shared_library(name, Path(tmp, f"{name}.c").read_bytes())
-        return fn if lib is None else ca.external(name, str(lib))
-    except RuntimeError as exc:  # CasADi's code generation or loading failed
+        return ca.external(fn.name(), str(lib))
+    except RuntimeError as exc:
         _native_failed = f"{type(exc).__name__}: {exc}"
         warnings.warn(f"qpik: native compilation off, using CasADi's virtual machine ({_native_failed})", stacklevel=2)
         return fn
@@ -118,6 +139,11 @@ class Compiled:
         compile: evaluate machine code from :func:`native` rather than CasADi's
             virtual machine (same results).
 
+    Attributes:
+        library: the shared library exporting the function as ``fn.name()`` (the C
+            calling convention of CasADi's generated code, for C callers such as
+            :class:`qpik.analytic.intervals.Assembler`), or None on the virtual machine.
+
     Calling it with numpy inputs returns *views* of internal output buffers
     shaped like the CasADi outputs (row-major ``(rows, cols)``, squeezed to 1-D
     for columns). The views are overwritten by the next call: copy them if
@@ -125,7 +151,9 @@ class Compiled:
     """
 
     def __init__(self, fn: ca.Function, compile: bool = True):
-        self.fn = native(fn) if compile else fn
+        lib = native_library(fn) if compile else None
+        self.fn = _load(fn, lib)
+        self.library = lib if self.fn is not fn else None
         fn = self.fn
         self._buf, self._eval = fn.buffer()
         self._args = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]

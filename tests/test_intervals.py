@@ -68,3 +68,58 @@ def test_contains_and_measure():
     fi = FeasibleIntervals("delta", np.array([1, 2]), [[(-1.0, 0.5), (2.0, 3.0)], []])
     assert fi.contains(1, 0.0) and not fi.contains(1, 1.0) and not fi.contains(2, 0.0)
     assert abs(fi.measure(1) - 2.5) < 1e-15
+
+
+# ---- Assembler: both paths (C, numpy) against the IK at each gap's midpoint ----------------------------
+
+
+def _assemblers():
+    """nammoto7's solver and its Assembler of rows 1–8 with the sets moved by π: the C path and the numpy path."""
+    import qpik
+    from qpik.analytic import intervals
+    from qpik.analytic.api import solver_for
+
+    solver = solver_for(qpik.load_robot("nammoto7"))
+    native = intervals.Assembler(solver, rows=8, shift=True)
+    real, intervals._library = intervals._library, lambda: None
+    try:
+        numpy_path = intervals.Assembler(solver, rows=8, shift=True)
+    finally:
+        intervals._library = real
+    assert native._native is not None and numpy_path._native is None
+    return solver, {"C": native, "numpy": numpy_path}
+
+
+SOLVER, ASSEMBLERS = _assemblers()
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 60), st.sampled_from(sorted(ASSEMBLERS)))
+def test_assembler_sets_are_the_runs_of_feasible_gaps(seed, n, path):
+    """Arbitrary breakpoints (any branch of 2π): each row's set holds a probe inside a gap iff the branch is
+    feasible at that gap's midpoint; row 8 + k at δ is row k at δ − π; singular values are kept where the
+    branch is valid and singular."""
+    rng = np.random.default_rng(seed)
+    robot = SOLVER.robot
+    T = robot.fk(rng.uniform(robot.q_min, robot.q_max))
+    breaks = rng.uniform(-3 * np.pi, 3 * np.pi, n)
+    candidates = rng.uniform(-np.pi, np.pi, 3)
+    sets, singular = ASSEMBLERS[path](T, breaks, candidates)
+    assert len(sets) == len(singular) == 16
+    b = np.sort(np.mod(breaks + np.pi, 2 * np.pi) - np.pi) if n else np.zeros(1)
+    ends = np.append(b[1:], b[0] + 2 * np.pi)
+    feasible = SOLVER.solve_many(T, 0.5 * (b + ends), rows=8).within_limits  # (G, 8)
+    u = rng.uniform(1e-6, 1 - 1e-6, (b.size, 4))
+    probes = wrap((b[:, None] + u * (ends - b)[:, None]).ravel())
+    gap = np.repeat(np.arange(b.size), 4)
+    moved = np.searchsorted(b, wrap(probes - np.pi), side="right") - 1  # gap of δ − π (−1: the last one)
+    for k in range(8):
+        _well_formed(sets[k]), _well_formed(sets[k + 8])
+        assert np.array_equal(_members(sets[k], probes), feasible[gap, k]), (path, k)
+        assert np.array_equal(_members(sets[k + 8], probes), feasible[moved, k]), (path, k + 8)
+    _, v, s, _ = SOLVER.solve_many(T, candidates, rows=8)
+    for k in range(8):
+        expect = np.sort(wrap(candidates[v[:, k] & s[:, k]]))
+        assert np.allclose(singular[k], expect, atol=0) and np.allclose(
+            singular[k + 8], np.sort(wrap(expect + np.pi)), atol=1e-15
+        )

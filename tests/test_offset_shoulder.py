@@ -200,8 +200,8 @@ def test_casadi_jacobian_wrt_delta_matches_finite_differences():
 # ---- feasible δ intervals ---------------------------------------------------
 
 
-def _sweep_check(T: np.ndarray, n_delta: int) -> None:
-    fi = qpik.feasible_intervals(ROBOT, T)
+def _sweep_check(T: np.ndarray, n_delta: int, intervals=None) -> None:
+    fi = qpik.feasible_intervals(ROBOT, T) if intervals is None else intervals(T)
     d = np.linspace(-np.pi, np.pi, n_delta)
     q, valid, _, _ = SOLVER.solve_batch(np.broadcast_to(T, (n_delta, 4, 4)), d)
     ok = valid & np.all((q >= ROBOT.q_min) & (q <= ROBOT.q_max), axis=-1)
@@ -234,12 +234,17 @@ def test_feasible_intervals_exact_on_random_poses(seed):
 
 
 def test_feasible_intervals_exact_without_a_c_compiler(monkeypatch):
-    """With no compiled root finder (no cc, or QPIK_NATIVE=0) the wrist roots come from eigenvalues: same sets."""
-    from qpik.analytic import polyroots
+    """With no C compiler (no cc, or QPIK_NATIVE=0) the wrist roots come from eigenvalues and the gaps are
+    classified in numpy (:class:`qpik.analytic.intervals.Assembler`): the same sets."""
+    from qpik.analytic import intervals, polyroots
+    from qpik.analytic.offset_shoulder_intervals import DeltaIntervals
 
     monkeypatch.setattr(polyroots, "_library", lambda: None)
+    monkeypatch.setattr(intervals, "_library", lambda: None)
+    without = DeltaIntervals(SOLVER)
+    assert without._assemble._native is None
     for T in ROBOT.fk(random_q(ROBOT, 20, 7)):
-        _sweep_check(T, 2000)
+        _sweep_check(T, 2000, without)
 
 
 def test_feasible_intervals_table4_and_singular_points():

@@ -37,9 +37,9 @@ def genuine_boundaries(intervals: list[tuple[float, float]]) -> list[float]:
     return ends
 
 
-def check_pose(T: np.ndarray, rng: np.random.Generator) -> int:
+def check_pose(T: np.ndarray, rng: np.random.Generator, intervals=None) -> int:
     """Compare the intervals of pose T with 10,000 sampled ψ; check every boundary; return how many."""
-    fi = qpik.feasible_intervals(ROBOT, T)
+    fi = qpik.feasible_intervals(ROBOT, T) if intervals is None else intervals(T)
     assert fi.param_name == "psi" and np.array_equal(fi.branch, np.arange(8))
     psi = rng.uniform(-np.pi, np.pi, SAMPLES)
     sampled = sampled_feasibility(T, psi)
@@ -73,6 +73,18 @@ def test_intervals_match_dense_sampling(seed):
     poses = ROBOT.fk(random_q(ROBOT, 100, seed))
     checked = sum(check_pose(T, rng) for T in poses)
     assert checked > 0
+
+
+def test_intervals_exact_without_a_c_compiler(monkeypatch):
+    """With no C compiler the gaps are classified in numpy (:class:`qpik.analytic.intervals.Assembler`): same sets."""
+    from qpik.analytic import intervals
+    from qpik.analytic.srs_intervals import PsiIntervals
+
+    monkeypatch.setattr(intervals, "_library", lambda: None)
+    without = PsiIntervals(SOLVER)
+    assert without._assemble._native is None
+    rng = np.random.default_rng(3)
+    assert sum(check_pose(T, rng, without) for T in ROBOT.fk(random_q(ROBOT, 50, 3))) > 0
 
 
 def test_an_interior_configuration_lies_in_its_branch_interval():

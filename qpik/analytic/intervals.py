@@ -1,4 +1,4 @@
-"""Feasible redundancy-parameter sets: types and the shared interval assembly.
+"""Feasible redundancy-parameter sets: types and the shared interval assembly (:class:`Assembler`).
 
 A solver finds, analytically, every parameter value where something can
 change for a branch: a joint reaching a limit, a joint jumping (wrap or a
@@ -10,13 +10,21 @@ sampling: the boundaries are the analytic breakpoints themselves.
 
 from __future__ import annotations
 
+import ctypes
 import re
-from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cache
+from itertools import accumulate, pairwise
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from qpik import symbolic as sy
+from qpik.compiled import Compiled, shared_library
+
+if TYPE_CHECKING:
+    from qpik.analytic.solver import AnalyticSolver
 
 TWO_PI = 2.0 * np.pi
 SAME = 1e-9
@@ -72,25 +80,156 @@ def wrap(x: np.ndarray | float) -> np.ndarray:
     return sy.NUMPY.wrap(np.asarray(x, dtype=float))
 
 
-def assemble_many(breaks: np.ndarray, feasible_at: Callable[[np.ndarray], np.ndarray]) -> list[list[Interval]]:
-    """Feasible intervals on the circle of B branches from shared breakpoints and a midpoint test.
+class Assembler:
+    """Feasible sets and singular values of a solver's first ``rows`` branches, from breakpoints.
+
+    One evaluation of the branches (the compiled IK with its limit test, ``flags``
+    of :meth:`~qpik.analytic.solver.AnalyticSolver.checked`) at each gap's midpoint
+    classifies the gap; each branch's set is its runs of feasible gaps (:func:`gaps`,
+    :func:`merge`). With ``shift``, the sets moved by π follow as rows ``rows..2 rows``
+    (:func:`shift`). With a C compiler this runs in ``intervals.c``, which calls the IK's
+    generated C directly (a gap costs one IK evaluation, no Python); without one,
+    in numpy over :meth:`~qpik.analytic.solver.AnalyticSolver.flags_many`. Both paths
+    are checked against dense sampling in the tests.
 
     Args:
-        breaks: parameter values (rad, any order, any branch of 2π) where the
-            feasibility of some branch may change.
-        feasible_at: maps parameter values (M,) to booleans (M, B); one call
-            classifies every gap of every branch (one batched IK evaluation).
-
-    Returns:
-        Per branch, sorted disjoint closed intervals in [-pi, pi].
+        solver: the closed-form solver.
+        rows: how many of its first branches to classify.
+        shift: also return the sets moved by π.
     """
-    b = np.unique(np.round(wrap(np.asarray(breaks, dtype=float).ravel()), 15))
-    if b.size == 0:
-        ok = np.asarray(feasible_at(np.array([0.0])), dtype=bool)[0]
-        return [[(-np.pi, np.pi)] if o else [] for o in ok]
-    lo, hi = gaps(b)
-    ok = np.asarray(feasible_at(wrap(0.5 * (lo + hi))), dtype=bool)
-    return merge(lo, hi, ok)
+
+    def __init__(self, solver: AnalyticSolver, rows: int, shift: bool = False):
+        self._solver, self.rows, self.shift = solver, rows, shift
+        limits = (np.asarray(solver.robot.q_min, float), np.asarray(solver.robot.q_max, float))
+        self._native = _NativeSets.for_function(solver.checked(rows), limits, rows, shift)
+
+    def __call__(
+        self, T: np.ndarray, breaks: np.ndarray, singular: np.ndarray
+    ) -> tuple[list[list[Interval]], list[list[float]]]:
+        """For the pose T (4, 4): per output row, the feasible set and the values of ``singular`` where the
+        branch is valid and singular (sorted).
+
+        Args:
+            breaks: (M,) parameter values (rad, any branch of 2π) where some branch's feasibility
+                may change.
+            singular: (S,) candidate singular values (rad).
+        """
+        if self._native is not None:
+            return self._native(T, breaks, singular)
+        return self._numpy(T, breaks, singular)
+
+    def _numpy(self, T: np.ndarray, breaks: np.ndarray, singular: np.ndarray):
+        lo, hi = gaps(breaks if breaks.size else np.zeros(1))
+        sing = np.unique(wrap(singular))
+        flags = self._solver.flags_many(T, np.concatenate([wrap(0.5 * (lo + hi)), sing]), rows=self.rows)
+        ok, hit = flags[: lo.size, 2], flags[lo.size :, 0] & flags[lo.size :, 1]
+        sets = merge(lo, hi, ok)
+        found: list[list[float]] = [sing[hit[:, r]].tolist() for r in range(self.rows)]
+        if self.shift:
+            sets += [shift(s, np.pi) for s in sets]
+            found += [np.sort(wrap(np.array(x) + np.pi)).tolist() for x in found]
+        return sets, found
+
+
+class _NativeSets:
+    """:class:`Assembler`'s C path: ``qpik_circle_sets`` (``intervals.c``) calling the IK's generated C."""
+
+    def __init__(
+        self,
+        dll: ctypes.CDLL,
+        entry: int,
+        compiled: Compiled,
+        limits: tuple[np.ndarray, np.ndarray],
+        rows: int,
+        shift: bool,
+    ):
+        fn = compiled.fn
+        self._dll, self.rows, self.shift = dll, rows, shift
+        self.out_rows = (2 if shift else 1) * rows
+        # the IK's inputs (T column-major, param, q_min, q_max) and its flags output; Q is not asked for
+        self._args = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
+        self._args[2][:], self._args[3][:] = limits
+        self._flags = np.zeros(fn.nnz_out(1))
+        argv = (ctypes.c_void_p * max(fn.sz_arg(), fn.n_in()))(*[a.ctypes.data for a in self._args])
+        resv = (ctypes.c_void_p * max(fn.sz_res(), fn.n_out()))(None, self._flags.ctypes.data)
+        self._work = (argv, resv, np.zeros(max(fn.sz_iw(), 1), np.int64), np.zeros(max(fn.sz_w(), 1)))
+        self._head = (
+            entry,
+            ctypes.addressof(argv),
+            ctypes.addressof(resv),
+            self._work[2].ctypes.data,
+            self._work[3].ctypes.data,
+            self._args[1].ctypes.data,
+            rows,
+            int(shift),
+        )
+        self._grow(64, 4)
+
+    @classmethod
+    def for_function(
+        cls, compiled: Compiled, limits: tuple[np.ndarray, np.ndarray], rows: int, shift: bool
+    ) -> _NativeSets | None:
+        """The C path for the checked IK ``compiled``, or None when it or ``intervals.c`` is not native code."""
+        dll = _library()
+        if dll is None or compiled.library is None:
+            return None
+        ik = ctypes.CDLL(str(compiled.library))
+        name = compiled.fn.name()
+        if getattr(ik, f"{name}_casadi_int_size")() != 8:  # qpik_circle_sets takes 64-bit casadi_int
+            return None
+        entry = ctypes.cast(getattr(ik, name), ctypes.c_void_p).value
+        out = cls(dll, entry, compiled, limits, rows, shift)
+        out._ik = ik  # the entry point lives as long as its library
+        return out
+
+    def _grow(self, breaks: int, singular: int) -> None:
+        """Output room for up to ``breaks`` breakpoints and ``singular`` singular candidates."""
+        self._nb, self._ns = breaks, singular
+        self._iv = np.zeros(2 * self.out_rows * (breaks + 2))
+        self._count = np.zeros(self.out_rows, np.intc)
+        self._sv = np.zeros(self.out_rows * max(singular, 1))
+        self._scount = np.zeros(self.out_rows, np.intc)
+        self._tail = (
+            self.out_rows * (breaks + 2),
+            self._iv.ctypes.data,
+            self._count.ctypes.data,
+            self._sv.ctypes.data,
+            self._scount.ctypes.data,
+        )
+
+    def __call__(self, T: np.ndarray, breaks: np.ndarray, singular: np.ndarray):
+        breaks = np.ascontiguousarray(breaks, dtype=float)
+        singular = np.ascontiguousarray(singular, dtype=float)
+        nb, ns = breaks.size, singular.size
+        if nb > self._nb or ns > self._ns:
+            self._grow(max(nb, self._nb), max(ns, self._ns))
+        self._args[0][:] = T.reshape(-1, order="F")
+        m = self._dll.qpik_circle_sets(*self._head, nb, breaks.ctypes.data, ns, singular.ctypes.data, *self._tail)
+        if m < 0:
+            raise RuntimeError(f"qpik_circle_sets failed ({m}: -1 no room, -2 the IK failed, -3 no memory)")
+        ends = iter(self._iv[: 2 * m].tolist())
+        pieces = list(zip(ends, ends))
+        bounds = [0, *accumulate(self._count.tolist())]
+        sets = [pieces[a:b] for a, b in pairwise(bounds)]
+        if not self._scount.any():
+            return sets, [[] for _ in range(self.out_rows)]
+        sv = self._sv[: self.out_rows * ns].reshape(self.out_rows, ns)
+        return sets, [sv[r, :c].tolist() for r, c in enumerate(self._scount.tolist())]
+
+
+@cache
+def _library() -> ctypes.CDLL | None:
+    source = f"#define SAME {SAME!r}\n".encode() + Path(__file__).with_name("intervals.c").read_bytes()
+    lib = shared_library("qpik_intervals", source)
+    if lib is None:
+        return None
+    dll = ctypes.CDLL(str(lib))
+    dll.qpik_circle_sets.restype = ctypes.c_int
+    dll.qpik_circle_sets.argtypes = (
+        [ctypes.c_void_p] * 6 + [ctypes.c_int] * 3 + [ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p, ctypes.c_int]
+    )
+    dll.qpik_circle_sets.argtypes += [ctypes.c_void_p] * 4
+    return dll
 
 
 def gaps(breaks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

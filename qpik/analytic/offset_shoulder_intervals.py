@@ -35,7 +35,7 @@ All those δ are found analytically for the branches with θ1[1] (rows 1–8); r
   in (c, s); :math:`F = P^2 - D Q^2 = 0` wherever either σ solves it. Reduced with
   :math:`s^2 = 1 - c^2`, :math:`F = A(c) + s\,B(c)` (A of degree 8 for θ5, 6 for θ6 and θ7):
   its real roots come from :func:`qpik.analytic.polyroots.trig_roots` (a polynomial in
-  :math:`\tan(\delta/2)`, compiled derivative-recursion root finder).
+  :math:`\tan(\delta/2)`, compiled root finder).
 
 All the coefficients (the quadratics, A and B) and the candidates of the quadratics
 come from one compiled CasADi function of the pose, traced from the CasADi
@@ -43,9 +43,9 @@ expressions in :meth:`DeltaIntervals.expressions`.
 
 Squaring (θ3 and the σ product) and the ±acos of c add spurious candidates; they
 only split a gap in two, and merging the gaps joins it again. Rows 9–16 are rows 1–8
-shifted by π, so only rows 1–8 are classified: one compiled sweep of those 8 branches
-at every gap midpoint (:meth:`~qpik.analytic.solver.AnalyticSolver.solve_many`), and
-rows 9–16's sets are rows 1–8's moved by π (:func:`qpik.analytic.intervals.shift`).
+shifted by π, so only rows 1–8 are classified: one evaluation of those 8 branches
+at every gap midpoint (:class:`qpik.analytic.intervals.Assembler`), and
+rows 9–16's sets are rows 1–8's moved by π.
 """
 
 from __future__ import annotations
@@ -56,7 +56,7 @@ import casadi as ca
 import numpy as np
 
 from qpik import symbolic as sy
-from qpik.analytic.intervals import FeasibleIntervals, gaps, merge, shift, wrap
+from qpik.analytic.intervals import Assembler, FeasibleIntervals
 from qpik.analytic.polyroots import trig_roots
 from qpik.analytic.trig import EPS, acos2
 from qpik.compiled import Compiled
@@ -97,6 +97,7 @@ class DeltaIntervals:
         # (9, K) outputs: their transposes are C-contiguous (K, 9) views of the column-major buffers
         FA, FB = (ca.horzcat(*[ca.vertcat(*_pad(x, 9)) for x in xs]) for xs in zip(*polys))
         self._fn = Compiled(ca.Function("os_breakpoints", [T], [*out, FA, FB]))
+        self._assemble = Assembler(solver, rows=8, shift=True)
 
     def expressions(self, T, ops: Ops) -> tuple[list, list, list[Poly], list[int]]:
         """The breakpoint equations of rows 1–8 for the world pose T (4, 4).
@@ -202,20 +203,7 @@ class DeltaIntervals:
 
     def __call__(self, T: np.ndarray) -> FeasibleIntervals:
         brk, sing = self.breakpoints(T)
-        lo, hi = gaps(brk)
-        sing = np.unique(wrap(sing)) if sing.size else sing  # usually empty
-        mid = 0.5 * (lo + hi)
-        flags = self._solver.flags_many(T, np.concatenate([mid, sing]) if sing.size else mid, rows=8)  # rows 1–8
-        ok, hit = flags[: lo.size, 2], flags[lo.size :, 0] & flags[lo.size :, 1]
-        intervals = merge(lo, hi, ok)
-        intervals += [shift(ivs, PI) for ivs in intervals]  # row 8 + k at δ is row k at δ + π
-        singular: list[list[float]] = [[] for _ in range(16)]
-        if hit.any():
-            moved = wrap(sing + PI).tolist()
-            for j, i in zip(*np.nonzero(hit.T)):
-                singular[j].append(float(sing[i]))
-                singular[j + 8].append(moved[i])
-            singular[8:] = [sorted(x) for x in singular[8:]]
+        intervals, singular = self._assemble(T, brk, sing)  # rows 1–8, then 9–16: row 8 + k at δ is row k at δ + π
         return FeasibleIntervals(self._solver.param_name, self.branch.copy(), intervals, singular)
 
 

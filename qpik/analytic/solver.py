@@ -145,9 +145,19 @@ class AnalyticSolver(ABC):
         name = f"ik_{self.kind}_checked" + ("" if rows == self.n_branches else f"_{rows}")
         return ca.Function(name, [T, param, lo, hi], [Q.T, ca.vertcat(valid, singular, within)])
 
+    def checked(self, rows: int) -> Compiled:
+        """The compiled :meth:`_checked_function` of the first ``rows`` branches at one parameter (cached)."""
+        if rows not in self._checked:
+            self._checked[rows] = Compiled(self._checked_function(rows))
+        return self._checked[rows]
+
     @cached_property
+    def _checked(self) -> dict[int, Compiled]:
+        return {}
+
+    @property
     def _one(self) -> Compiled:
-        return Compiled(self._checked_function(self.n_branches))
+        return self.checked(self.n_branches)
 
     @cached_property
     def _sweeps(self) -> dict[tuple[int, int], Compiled]:

@@ -19,10 +19,9 @@ For one pose every joint of a branch is a function of ψ built from
 - θ4 does not depend on ψ.
 
 θ is continuous in ψ between consecutive roots and crosses no limit there, so
-the roots are all the breakpoints: :func:`qpik.analytic.intervals.assemble_many`
-classifies each gap by one evaluation of every branch at its midpoint, all
-gaps in one compiled sweep (:meth:`qpik.analytic.solver.AnalyticSolver.solve_many`,
-the IK itself with its in-limits test); the breakpoints of all branches are pooled, since a breakpoint
+the roots are all the breakpoints: :class:`qpik.analytic.intervals.Assembler`
+classifies each gap by one evaluation of every branch at its midpoint (the
+compiled IK itself with its in-limits test); the breakpoints of all branches are pooled, since a breakpoint
 that changes nothing only splits a gap. The equations are formed and solved, and the singular values
 below found, in one compiled CasADi function of the pose (:meth:`PsiIntervals.expressions`).
 
@@ -43,7 +42,7 @@ import numpy as np
 
 from qpik import symbolic as sy
 from qpik.analytic import trig
-from qpik.analytic.intervals import FeasibleIntervals, assemble_many
+from qpik.analytic.intervals import Assembler, FeasibleIntervals
 from qpik.analytic.srs import arm_setup, branch_signs
 from qpik.compiled import Compiled
 
@@ -73,6 +72,7 @@ class PsiIntervals:
         self._fn = Compiled(ca.Function("srs_breakpoints", [T], out))
         signs = np.array([branch_signs(k) for k in solver.branch_ids])
         self._i_elbow = signs[:, 1]
+        self._assemble = Assembler(solver, rows=len(self.branch))
 
     def expressions(self, T: ca.SX) -> tuple[list, list, ca.SX]:
         """For the pose T (4, 4): the breakpoints (two per equation and elbow sign, 0 where there is
@@ -115,6 +115,5 @@ class PsiIntervals:
             return FeasibleIntervals("psi", self.branch.copy(), [[] for _ in range(n)], [[] for _ in range(n)])
         found = singular != NONE  # rare: only at singular poses
         sing = [np.unique(x[f]) for x, f in zip(singular.reshape(2, -1), found.reshape(2, -1))] if found.any() else _NO
-        flags = self._solver.flags_many  # the branches at the gap midpoints
-        intervals = assemble_many(np.concatenate([breaks, *sing]), lambda psi: flags(T, psi, len(self.branch))[:, 2])
+        intervals, _ = self._assemble(T, np.concatenate([breaks, *sing]), _NO[0])
         return FeasibleIntervals("psi", self.branch.copy(), intervals, [sing[e].tolist() for e in self._i_elbow])
