@@ -183,38 +183,37 @@ class _NativeSets:
         return out
 
     def _grow(self, breaks: int, singular: int) -> None:
-        """Output room for up to ``breaks`` breakpoints and ``singular`` singular candidates."""
+        """Input and output room for up to ``breaks`` breakpoints and ``singular`` singular candidates."""
         self._nb, self._ns = breaks, singular
+        self._breaks, self._sing = np.zeros(max(breaks, 1)), np.zeros(max(singular, 1))
         self._iv = np.zeros(2 * self.out_rows * (breaks + 2))
         self._count = np.zeros(self.out_rows, np.intc)
         self._sv = np.zeros(self.out_rows * max(singular, 1))
         self._scount = np.zeros(self.out_rows, np.intc)
-        self._tail = (
-            self.out_rows * (breaks + 2),
-            self._iv.ctypes.data,
-            self._count.ctypes.data,
-            self._sv.ctypes.data,
-            self._scount.ctypes.data,
-        )
+        # the call's arguments after the head: nb and ns (set per call) and the buffers' addresses
+        self._tail = [0, self._breaks.ctypes.data, 0, self._sing.ctypes.data, self.out_rows * (breaks + 2)]
+        self._tail += [x.ctypes.data for x in (self._iv, self._count, self._sv, self._scount)]
+        self._pose = self._args[0].reshape(4, 4).T  # T column-major, as the IK reads it
 
     def __call__(self, T: np.ndarray, breaks: np.ndarray, singular: np.ndarray):
-        breaks = np.ascontiguousarray(breaks, dtype=float)
-        singular = np.ascontiguousarray(singular, dtype=float)
         nb, ns = breaks.size, singular.size
         if nb > self._nb or ns > self._ns:
             self._grow(max(nb, self._nb), max(ns, self._ns))
-        self._args[0][:] = T.reshape(-1, order="F")
-        m = self._dll.qpik_circle_sets(*self._head, nb, breaks.ctypes.data, ns, singular.ctypes.data, *self._tail)
+        self._breaks[:nb], self._sing[:ns] = breaks, singular  # copies into fixed buffers: no per-call pointers
+        self._tail[0], self._tail[2] = nb, ns
+        self._pose[...] = T
+        m = self._dll.qpik_circle_sets(*self._head, *self._tail)
         if m < 0:
             raise RuntimeError(f"qpik_circle_sets failed ({m}: -1 no room, -2 the IK failed, -3 no memory)")
         ends = iter(self._iv[: 2 * m].tolist())
         pieces = list(zip(ends, ends))
         bounds = [0, *accumulate(self._count.tolist())]
         sets = [pieces[a:b] for a, b in pairwise(bounds)]
-        if not self._scount.any():
+        found = self._scount.tolist()
+        if not any(found):
             return sets, [[] for _ in range(self.out_rows)]
         sv = self._sv[: self.out_rows * ns].reshape(self.out_rows, ns)
-        return sets, [sv[r, :c].tolist() for r, c in enumerate(self._scount.tolist())]
+        return sets, [sv[r, :c].tolist() for r, c in enumerate(found)]
 
 
 @cache

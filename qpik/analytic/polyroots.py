@@ -76,26 +76,26 @@ def trig_roots(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     Returns:
         ``(delta, owner)``: the roots (M,) and the row (M,) of each.
     """
-    A = np.ascontiguousarray(A, dtype=float)
-    B = np.ascontiguousarray(B, dtype=float)
+    A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
     if A.ndim != 2 or A.shape != B.shape or A.shape[1] < 1:
         raise ValueError(f"trig_roots: A, B must be (K, d + 1), the same shape; got {A.shape}, {B.shape}")
     lib = _library()
     if lib is None:
         return _eig_roots(A, B)
-    delta, owner = _buffers(A.shape[0])
-    m = lib.qpik_trig_roots(
-        A.shape[0], A.shape[1] - 1, A.ctypes.data, B.ctypes.data, delta.size, delta.ctypes.data, owner.ctypes.data
-    )
+    a, b, delta, owner, where = _buffers(*A.shape)
+    a[...], b[...] = A, B  # copies into fixed buffers, whose addresses are known
+    m = lib.qpik_trig_roots(A.shape[0], A.shape[1] - 1, where[0], where[1], delta.size, where[2], where[3])
     if m < 0:
         raise ValueError(f"trig_roots: max(deg A, deg B + 1) above {MAX_DEGREE}")
     return delta[:m].copy(), owner[:m].copy()
 
 
 @cache
-def _buffers(K: int) -> tuple[np.ndarray, np.ndarray]:
-    """Output buffers of the C call for K rows (reused; trig_roots returns copies)."""
-    return np.empty(ROOM * K), np.empty(ROOM * K, dtype=np.intc)
+def _buffers(K: int, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[int, ...]]:
+    """Input (K, size) and output buffers of the C call for K rows, and their addresses (reused; trig_roots
+    returns copies)."""
+    out = np.empty((K, size)), np.empty((K, size)), np.empty(ROOM * K), np.empty(ROOM * K, dtype=np.intc)
+    return (*out, tuple(x.ctypes.data for x in out))
 
 
 def _eig_roots(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
