@@ -89,10 +89,9 @@ def shared_library(name: str, source: bytes) -> Path | None:
 def native_library(fn: ca.Function) -> Path | None:
     """The shared library holding ``fn`` as machine code (exported under ``fn.name()``), or None.
 
-    None when :func:`compiler` is None or code generation, compilation or loading fails
+    None when :func:`compiler` is None or code generation or compilation fails
     (then a warning says why, once, and native code stays off in this process).
     """
-    global _native_failed
     if compiler() is None:
         return None
     name = fn.name()
@@ -103,9 +102,7 @@ def native_library(fn: ca.Function) -> Path | None:
             gen.generate(tmp + os.sep)
             return shared_library(name, Path(tmp, f"{name}.c").read_bytes())
     except RuntimeError as exc:  # CasADi's code generation failed
-        _native_failed = f"{type(exc).__name__}: {exc}"
-        warnings.warn(f"qpik: native compilation off, using CasADi's virtual machine ({_native_failed})", stacklevel=2)
-        return None
+        return _off(exc)
 
 
 def native(fn: ca.Function) -> ca.Function:
@@ -120,15 +117,20 @@ def native(fn: ca.Function) -> ca.Function:
 
 def _load(fn: ca.Function, lib: Path | None) -> ca.Function:
     """``fn`` from ``lib`` (CasADi's external), or ``fn`` itself when there is no library or it fails to load."""
-    global _native_failed
     if lib is None:
         return fn
     try:
         return ca.external(fn.name(), str(lib))
     except RuntimeError as exc:
-        _native_failed = f"{type(exc).__name__}: {exc}"
-        warnings.warn(f"qpik: native compilation off, using CasADi's virtual machine ({_native_failed})", stacklevel=2)
+        _off(exc)
         return fn
+
+
+def _off(exc: Exception) -> None:
+    """Turn native code off in this process because of ``exc``, with a warning (once per failure)."""
+    global _native_failed
+    _native_failed = f"{type(exc).__name__}: {exc}"
+    warnings.warn(f"qpik: native compilation off, using CasADi's virtual machine ({_native_failed})", stacklevel=3)
 
 
 class Compiled:

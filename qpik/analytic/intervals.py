@@ -144,11 +144,12 @@ class _NativeSets:
         shift: bool,
     ):
         fn = compiled.fn
-        self._dll, self.rows, self.shift = dll, rows, shift
+        self._dll = dll
         self.out_rows = (2 if shift else 1) * rows
         # the IK's inputs (T column-major, param, q_min, q_max) and its flags output; Q is not asked for
         self._args = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
         self._args[2][:], self._args[3][:] = limits
+        self._pose = self._args[0].reshape(4, 4).T  # T column-major, as the IK reads it
         self._flags = np.zeros(fn.nnz_out(1))
         argv = (ctypes.c_void_p * max(fn.sz_arg(), fn.n_in()))(*[a.ctypes.data for a in self._args])
         resv = (ctypes.c_void_p * max(fn.sz_res(), fn.n_out()))(None, self._flags.ctypes.data)
@@ -193,7 +194,6 @@ class _NativeSets:
         # the call's arguments after the head: nb and ns (set per call) and the buffers' addresses
         self._tail = [0, self._breaks.ctypes.data, 0, self._sing.ctypes.data, self.out_rows * (breaks + 2)]
         self._tail += [x.ctypes.data for x in (self._iv, self._count, self._sv, self._scount)]
-        self._pose = self._args[0].reshape(4, 4).T  # T column-major, as the IK reads it
 
     def __call__(self, T: np.ndarray, breaks: np.ndarray, singular: np.ndarray):
         nb, ns = breaks.size, singular.size
