@@ -1,18 +1,10 @@
 """qpik: closed-form IK branches, QP whole-arm control and self-motion planning for 7-DOF arms."""
 
-import os as _os
-import sys as _sys
+# ruff: noqa: E402 (the GL backend is chosen before any module imports mujoco)
 
-# MuJoCo picks its GL backend once, when it is first imported: on a Linux machine
-# with no display, default to software rendering (Debian libosmesa6) before any
-# qpik module imports mujoco. An explicit MUJOCO_GL is left alone.
-if (
-    "MUJOCO_GL" not in _os.environ
-    and "mujoco" not in _sys.modules
-    and _sys.platform.startswith("linux")
-    and not (_os.environ.get("DISPLAY") or _os.environ.get("WAYLAND_DISPLAY"))
-):
-    _os.environ["MUJOCO_GL"] = "osmesa"
+from qpik.glbackend import choose_backend as _choose_backend
+
+_choose_backend()  # before any qpik module imports mujoco: see qpik.glbackend
 
 from qpik.analytic import FeasibleIntervals, IKSolutions, feasible_intervals, ik, redundancy_parameter
 from qpik.control import Controller, StepInfo
@@ -20,8 +12,11 @@ from qpik.errors import (
     InfeasibleError,
     InputError,
     NoClosedFormError,
+    ProblemFileError,
     QpikError,
+    RenderUnavailable,
     RotationError,
+    SolverError,
     UnknownRobotError,
     UnreachableError,
 )
@@ -39,9 +34,12 @@ __all__ = [
     "InputError",
     "LinkCapsule",
     "NoClosedFormError",
+    "ProblemFileError",
     "QpikError",
+    "RenderUnavailable",
     "Robot",
     "RotationError",
+    "SolverError",
     "StepInfo",
     "UnknownRobotError",
     "UnreachableError",

@@ -45,3 +45,7 @@ class InfeasibleError(QpikError):
 
 class SolverError(QpikError):
     """A numerical solver failed or is not installed."""
+
+
+class RenderUnavailable(QpikError):  # noqa: N818 (the name says what the caller catches)
+    """No OpenGL context could be made for offscreen rendering (message: one line)."""

@@ -5,16 +5,16 @@
 tiles, or overlaid in one tile, and writes one PNG.
 
 OpenGL: MuJoCo picks its GL backend from ``MUJOCO_GL`` when ``mujoco`` is
-first imported (``mujoco/rendering/classic/gl_context.py``); setting it later
-has no effect, so ``import qpik`` sets ``MUJOCO_GL=osmesa`` (software
-rendering, Debian ``libosmesa6``) on Linux with no display. Where no GL context can be made (for example
-``mujoco`` was imported first and chose glfw on a machine with no display),
-rendering raises :class:`RenderUnavailable` with a one-line reason, before
-MuJoCo gets to abort the process.
+first imported; ``import qpik`` names one only where its library loads
+(:mod:`qpik.glbackend`). Where no GL context can be made (no OSMesa or EGL, or
+glfw on a machine with no display), rendering raises :class:`RenderUnavailable`
+with a one-line reason, before MuJoCo gets to abort the process;
+:func:`unavailable_reason` tells in advance.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 import warnings
@@ -25,17 +25,14 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from qpik.errors import InputError, QpikError
+from qpik.errors import InputError, RenderUnavailable
 from qpik.robots.mujoco_backend import MjKinematics
 from qpik.robots.robot import Robot
 from qpik.validate import finite_array
 
 GHOST_ALPHA = 0.3
 _unavailable: str | None = None  # why GL failed in this process, once it has
-
-
-class RenderUnavailable(QpikError):  # noqa: N818 (the name says what the caller catches)
-    """No OpenGL context could be made for offscreen rendering (message: one line)."""
+_checked = False  # unavailable_reason() has tried a context
 
 
 @dataclass(frozen=True)
@@ -135,6 +132,21 @@ def render_configurations(
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         Image.fromarray(image).save(path)
     return image
+
+
+def unavailable_reason() -> str | None:
+    """Why offscreen rendering cannot work in this process (one line), or None if it can.
+
+    The first call tries to make a GL context for a one-geom model; the answer is
+    kept (a failed GL start is never retried, see :func:`_renderer`).
+    """
+    global _checked
+    if not _checked:
+        model = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom size="0.1"/></worldbody></mujoco>')
+        with contextlib.suppress(RenderUnavailable):
+            _renderer(model, 16, 16).close()
+        _checked = True
+    return _unavailable
 
 
 def _renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Renderer:

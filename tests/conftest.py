@@ -33,19 +33,13 @@ round-off ~1e-16/eps, so agreement to 1e-6 (absolute) is a meaningful test.
 
 from __future__ import annotations
 
-import os
-
-# MuJoCo picks its GL backend at first import; test modules may import mujoco
-# before qpik, so default to software rendering here too (see qpik/__init__.py).
-os.environ.setdefault("MUJOCO_GL", "osmesa")
-
 from collections.abc import Callable
 
 import numpy as np
 import pytest
 from hypothesis import strategies as st
 
-import qpik
+import qpik  # first: it chooses MuJoCo's GL backend before any test module imports mujoco
 
 ARMS = ("nammoto7", "iiwa14", "zheng7", "panda")
 SEEDS = st.integers(min_value=0, max_value=2**32 - 1)

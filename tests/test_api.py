@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import qpik
-from qpik.errors import InputError, NoClosedFormError, RotationError
+from qpik.errors import InputError, NoClosedFormError, QpikError, RotationError
 
 CLOSED_FORM = ("nammoto7", "iiwa14")
 
@@ -65,3 +65,25 @@ def test_batched_param_broadcasts_a_float(robot) -> None:
     np.testing.assert_array_equal(both.param, [0.2, 0.2])
     one = qpik.ik(robot, T[1], 0.2)
     np.testing.assert_allclose(both.q[1], one.q, atol=1e-12)
+
+
+def test_every_error_type_is_exported() -> None:
+    import inspect
+
+    import qpik.errors
+
+    types = {name for name, obj in inspect.getmembers(qpik.errors, inspect.isclass) if issubclass(obj, QpikError)}
+    assert types >= {"SolverError", "ProblemFileError", "RenderUnavailable", "InfeasibleError"}
+    assert types <= set(qpik.__all__)
+    assert all(getattr(qpik, name) is getattr(qpik.errors, name) for name in types)
+
+
+@pytest.mark.parametrize("solver, arm", [("OffsetShoulderSolver", "iiwa14"), ("SRSSolver", "nammoto7")])
+def test_a_chain_of_the_wrong_kind_raises_no_closed_form_error(solver: str, arm: str) -> None:
+    """The same situation (this chain is not this kind of arm) gives the same error type from both solvers."""
+    from qpik.analytic.offset_shoulder import OffsetShoulderSolver
+    from qpik.analytic.srs import SRSSolver
+
+    cls = {"OffsetShoulderSolver": OffsetShoulderSolver, "SRSSolver": SRSSolver}[solver]
+    with pytest.raises(NoClosedFormError):
+        cls(qpik.load_robot(arm))

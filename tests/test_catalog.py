@@ -1,4 +1,4 @@
-"""The built-in arms against sources qpik did not write: ssik's models, datasheets, seed 000's Table 4."""
+"""The built-in arms against sources qpik did not write: ssik's models, datasheets, Table 4 of Nammoto & Kosuge 2012."""
 
 from __future__ import annotations
 

@@ -48,7 +48,7 @@ def test_ik_position_rotation_with_projection(capsys) -> None:
     assert code == 0
     rows = _rows(capsys.readouterr().out)
     assert len(rows) == 16
-    # Table 4 of seed 000, row 1 (2 decimals)
+    # Table 4 of Nammoto & Kosuge 2012, row 1 (2 decimals)
     assert np.abs(_q(rows[0]) - [1.12, -0.77, 1.40, -0.61, -0.28, 0.60, 0.96]).max() < 0.05
 
 

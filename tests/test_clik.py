@@ -1,4 +1,4 @@
-"""CLIK baselines and the QP on seed 002's tracking problem (zheng7, eq. 19), integrated at dt = 1 ms."""
+"""CLIK baselines and the QP on the tracking problem of Zheng et al. 2019 (zheng7, eq. 19), integrated at dt = 1 ms."""
 
 from __future__ import annotations
 

@@ -233,7 +233,7 @@ def test_box_touching_inside_and_through():
 
 
 def test_capsule_below_half_space_is_negative():
-    table = HalfSpace([0, 0, 2.0], 0.5)  # free side z >= 0.5 (normal gets normalised)
+    table = HalfSpace([0, 0, 2.0], 1.0)  # the solid 2z <= 1: free side z >= 0.5
     below = distance([0, 0, 0.2], [0.3, 0, 0.6], 0.05, table)
     assert below.d == pytest.approx(0.2 - 0.5 - 0.05) and below.s == 0.0
     assert np.allclose(below.normal, [0, 0, 1]) and np.allclose(below.p_obs, [0, 0, 0.5])

@@ -28,7 +28,7 @@ def test_specs_build_the_shapes():
     assert isinstance(sphere, Sphere) and sphere.name == "ball" and sphere.radius == 0.1
     assert isinstance(capsule, Capsule) and np.array_equal(capsule.p1, [0, 0.5, 1])
     assert isinstance(box, Box) and np.allclose(box.rotation, _rot_z(0.3))
-    assert isinstance(plane, HalfSpace) and np.array_equal(plane.normal, [0, 0, 1]) and plane.offset == 0.1
+    assert isinstance(plane, HalfSpace) and np.array_equal(plane.normal, [0, 0, 1]) and plane.offset == 0.05
     assert np.array_equal(Box([0, 0, 0], [1, 1, 1]).rotation, np.eye(3))
     with pytest.raises(ValueError):
         sphere.center[0] = 1.0  # stored read-only

@@ -11,7 +11,6 @@ from hypothesis import given, settings
 import qpik
 from qpik.analytic.api import solver_for
 from qpik.analytic.intervals import wrap
-from qpik.errors import InputError
 from qpik.problems import load as load_problem
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,7 +31,7 @@ def well_conditioned(q: np.ndarray, tol: float = 1e-2) -> np.ndarray:
     return (np.abs(c4) > tol) & (np.abs(c3 * c4) > tol) & (np.abs(s6) > tol) & (np.hypot(w[:, 0], w[:, 1]) > tol)
 
 
-# ---- seed 000, Table 4 -----------------------------------------------------
+# ---- Nammoto & Kosuge 2012, Table 4 -----------------------------------------------------
 
 
 def test_table4_reproduced():
@@ -279,5 +278,5 @@ def test_chain_structure_is_checked():
     from qpik.analytic.offset_shoulder import OffsetShoulderSolver
 
     other = dataclasses.replace(ROBOT, chain=qpik.load_robot("iiwa14").chain)
-    with pytest.raises(InputError, match="offset-shoulder"):
+    with pytest.raises(qpik.NoClosedFormError, match="offset-shoulder"):
         OffsetShoulderSolver(other)

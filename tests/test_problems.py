@@ -10,6 +10,7 @@ from conftest import fd
 
 import qpik
 from qpik.errors import ProblemFileError, QpikError
+from qpik.geometry import Capsule, HalfSpace, Sphere, shape_from_spec
 from qpik.problems import (
     KINDS,
     PATHS,
@@ -209,11 +210,28 @@ normal = [0, 0, 2]
 offset = 0.2
 """
     sphere, capsule, box, half = load(write(tmp_path, text)).obstacles
-    assert sphere["name"] == "ball" and sphere["radius"] == 0.1 and sphere["center"].shape == (3,)
-    assert capsule["name"] == "obstacles[1]" and capsule["p1"][2] == 1.0
-    np.testing.assert_array_equal(box["rotation"], np.eye(3))
-    np.testing.assert_array_equal(half["normal"], [0, 0, 1])
-    assert half["offset"] == pytest.approx(0.1)  # rescaled with the normal: z >= 0.1
+    assert isinstance(sphere, Sphere) and sphere.name == "ball" and sphere.radius == 0.1
+    assert isinstance(capsule, Capsule) and capsule.name == "obstacles[1]" and capsule.p1[2] == 1.0
+    np.testing.assert_array_equal(box.rotation, np.eye(3))
+    np.testing.assert_array_equal(half.normal, [0, 0, 1])
+    assert half.offset == pytest.approx(0.1)  # the solid 2z <= 0.2
+
+
+@pytest.mark.parametrize(
+    "normal, offset", [([0, 0, 2], 0.2), ([0, -3, 4], 1.0), ([1e-3, 0, 0], -2e-3), ([0.2, 0.3, -0.1], 0.05)]
+)
+def test_a_halfspace_means_the_same_through_both_entry_points(tmp_path, normal, offset):
+    """The problem file and shape_from_spec / HalfSpace give the set {x : normal·x <= offset} as written."""
+    text = BASE + f'[[obstacles]]\ntype = "halfspace"\nnormal = {normal}\noffset = {offset}\n'
+    from_file = load(write(tmp_path, text)).obstacles[0]
+    from_spec = shape_from_spec({"type": "halfspace", "normal": normal, "offset": offset})
+    direct = HalfSpace(normal, offset)
+    points = np.random.default_rng(0).uniform(-2, 2, (2000, 3))
+    inside = points @ np.asarray(normal, float) <= offset  # the inequality as the user wrote it
+    for shape in (from_file, from_spec, direct):
+        assert isinstance(shape, HalfSpace)
+        np.testing.assert_array_equal(points @ shape.normal <= shape.offset, inside)
+        np.testing.assert_allclose(np.linalg.norm(shape.normal), 1.0)
 
 
 # ---- errors ------------------------------------------------------------------------
@@ -239,18 +257,18 @@ ERRORS = [
     (with_target("random = { seed = 1, count = 0 }"), r"target\.random\.count"),
     (BASE + "[parameter]\nvalue = 1\nvalues = [1]\n", r"parameter: give exactly one of"),
     (BASE + "[parameter]\nsweep = { start = 0, stop = 1 }\n", r"parameter\.sweep: missing num"),
-    (BASE + '[[obstacles]]\ntype = "cone"\n', r"obstacles\[0\]\.type: unknown obstacle type 'cone'"),
-    (BASE + SPHERE + "center = [0, 0, 0]\n", r"obstacles\[0\]: missing radius"),
-    (BASE + SPHERE + "center = [0, 0, 0]\nradius = -1\n", r"obstacles\[0\]\.radius: must be > 0"),
-    (BASE + SPHERE + "center = [0, 0]\nradius = 1\n", r"obstacles\[0\]\.center: expected shape \(3,\)"),
+    (BASE + '[[obstacles]]\ntype = "cone"\n', r"obstacles\[0\]: obstacle type: expected one of .* got 'cone'"),
+    (BASE + SPHERE + "center = [0, 0, 0]\n", r"obstacles\[0\]: sphere obstacle: missing key\(s\) \['radius'\]"),
+    (BASE + SPHERE + "center = [0, 0, 0]\nradius = -1\n", r"obstacles\[0\]: radius: must be finite and > 0"),
+    (BASE + SPHERE + "center = [0, 0]\nradius = 1\n", r"obstacles\[0\]: center: expected shape \(3,\)"),
     (
         BASE + '[[obstacles]]\ntype = "box"\ncenter = [0, 0, 0]\nhalf_extents = [1, 1, 1]\n'
         "rotation = [[2, 0, 0], [0, 1, 0], [0, 0, 1]]\n",
-        r"obstacles\[0\]\.rotation: rotation is not orthonormal",
+        r"obstacles\[0\]: rotation: rotation is not orthonormal",
     ),
     (
         BASE + '[[obstacles]]\ntype = "halfspace"\nnormal = [0, 0, 0]\noffset = 0\n',
-        r"obstacles\[0\]\.normal: must be nonzero",
+        r"obstacles\[0\]: normal: must not be the zero vector",
     ),
     (with_target(Q, kind="track"), r"target: kind 'track' needs a path"),
     (with_target(ZHENG, kind="track") + "[parameter]\nvalue = 0\n", r"parameter: only kinds 'ik' and 'plan'"),

@@ -17,7 +17,7 @@ from PIL import Image
 import qpik
 import qpik.problems.control as report
 from qpik.cli import main
-from qpik.geometry import distances, obstacles_from_specs
+from qpik.geometry import distances
 from qpik.problems import find_problem, load
 
 REACH = find_problem("iiwa_obstacle_reach")
@@ -70,7 +70,7 @@ def test_closed_form_reference(reach):
     robot, ref, pose = problem.robot, runs.reference, problem.poses[0]
     np.testing.assert_allclose(robot.fk(ref.q), pose, atol=1e-9)
     assert robot.within_limits(ref.q)
-    obstacles = obstacles_from_specs(problem.obstacles)
+    obstacles = problem.obstacles
     psi = np.linspace(-np.pi, np.pi, 721)
     sols = qpik.ik(robot, np.broadcast_to(pose, (721, 4, 4)), psi)
     col = int(np.flatnonzero(sols.branch == ref.branch)[0])

@@ -70,7 +70,7 @@ def _run_branch1(file: Path, out: Path, figure: str) -> tuple[str, list[str], np
 
 
 def test_joint_limit_sweep_reproduces_the_papers_observation(tmp_path) -> None:
-    """Seed 000 Figs. 15/16: θ6 grows as p_z falls at δ = 0, stays bounded at δ = 0.70."""
+    """Nammoto & Kosuge 2012 Figs. 15/16: θ6 grows as p_z falls at δ = 0, stays bounded at δ = 0.70."""
     file = PROBLEMS / "nammoto2012_joint_limits.toml"
     _, head, b1 = _run_branch1(file, tmp_path, "sweep")
     assert np.all(b1[:, head.index("valid")] == 1)

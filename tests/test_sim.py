@@ -17,8 +17,8 @@ import qpik
 from qpik.control.tasks import so3_log
 from qpik.errors import InputError
 from qpik.geometry import Box, Capsule, HalfSpace, Sphere, distances
+from qpik.plots.runs import plot_comparison, plot_log
 from qpik.sim import build_scene, simulate
-from qpik.sim.plots import plot_comparison, plot_log
 
 IIWA = qpik.load_robot("iiwa14")
 SCENE = (
@@ -163,7 +163,7 @@ def test_plots_are_written(tmp_path):
 
 def test_render_strip(tmp_path):
     """Snapshots of a run with its obstacles, or a clean skip where no OpenGL context can be made."""
-    from qpik.sim.plots import render_strip
+    from qpik.plots.runs import render_strip
 
     v = np.array([0.3, -0.2, 0.3, 0.4, 0.0, 0.2, -0.1])
     log = simulate(IIWA, constant(v), IIWA.q_home, 1.0, 0.02, obstacles=SCENE[:2], target=IIWA.fk(IIWA.q_home))

@@ -46,7 +46,7 @@ class IKSolutions:
         valid: (B,) or (N, B) bool, the branch reaches the pose.
         within_limits: (B,) or (N, B) bool, valid and inside the joint limits.
         singular: (B,) or (N, B) bool, a singular case (defined, documented result).
-        branch: (B,) public branch ids (seed 000 Table 2 numbers 1-16, or S-R-S 0-7).
+        branch: (B,) public branch ids (Nammoto & Kosuge 2012 Table 2 numbers 1-16, or S-R-S 0-7).
         param: the redundancy parameter (rad): float or (N,).
         param_name: ``"delta"`` or ``"psi"``.
     """

@@ -22,6 +22,7 @@ import numpy as np
 
 from qpik import symbolic as sy
 from qpik.compiled import Compiled, shared_library
+from qpik.errors import InputError, SolverError
 
 if TYPE_CHECKING:
     from qpik.analytic.solver import AnalyticSolver
@@ -59,7 +60,7 @@ class FeasibleIntervals:
     def index(self, b: int) -> int:
         hits = np.flatnonzero(self.branch == b)
         if hits.size == 0:
-            raise KeyError(f"no branch {b}; branches are {self.branch.tolist()}")
+            raise InputError(f"branch: no branch {b}; branches are {self.branch.tolist()}")
         return int(hits[0])
 
     def contains(self, b: int, value: float | np.ndarray, tol: float = 0.0) -> np.ndarray | bool:
@@ -204,7 +205,7 @@ class _NativeSets:
         self._pose[...] = T
         m = self._dll.qpik_circle_sets(*self._head, *self._tail)
         if m < 0:
-            raise RuntimeError(f"qpik_circle_sets failed ({m}: -1 no room, -2 the IK failed, -3 no memory)")
+            raise SolverError(f"qpik_circle_sets failed ({m}: -1 no room, -2 the IK failed, -3 no memory)")
         ends = iter(self._iv[: 2 * m].tolist())
         pieces = list(zip(ends, ends))
         bounds = [0, *accumulate(self._count.tolist())]

@@ -1,6 +1,6 @@
-r"""Closed-form IK of the offset-shoulder arm (seed 000, Nammoto & Kosuge 2012): 16 branches per δ.
+r"""Closed-form IK of the offset-shoulder arm (Nammoto & Kosuge 2012): 16 branches per δ.
 
-The arm (``nammoto7``) has standard DH parameters (seed 000, Table 1)
+The arm (``nammoto7``) has standard DH parameters (Nammoto & Kosuge 2012, Table 1)
 
 =====  ==============  ======  ======  ======
 joint  θ               α       d       a
@@ -27,7 +27,7 @@ With :math:`w' = A_0^1(\theta_1)\,w = (r\cos\delta - a_1,\; w_z - d_1,\; r\sin\d
 - elbow (eq. 9): :math:`\sin\theta_4 = (|w'|^2 - d_3^2 - d_5^2) / (2 d_3 d_5)`; θ4[1] has
   :math:`\cos\theta_4 \ge 0`, θ4[2] = π − θ4[1]; :math:`|\cos\theta_4| = |(w''_x, w''_y)| / d_5`
   (below), which keeps full precision near the stretched elbow;
-- shoulder (eq. 11, atan2 form of seed 004): :math:`-\sin\theta_2\, w'_x + \cos\theta_2\, w'_y
+- shoulder (eq. 11, atan2 form of Sabharwal 2021): :math:`-\sin\theta_2\, w'_x + \cos\theta_2\, w'_y
   = d_3 + d_5 \sin\theta_4`; θ2[1] is the root with :math:`w''_x \ge 0`, θ2[3] the other;
 - θ3 (eq. 13) from :math:`w'' = A_1^2(\theta_2)\,w' = d_5 (\cos\theta_3\cos\theta_4,\;
   \sin\theta_3\cos\theta_4,\; \cdot)`: ``atan2(±w''_y, ±w''_x)`` with the sign of cos θ4;
@@ -37,9 +37,10 @@ With :math:`w' = A_0^1(\theta_1)\,w = (r\cos\delta - a_1,\; w_z - d_1,\; r\sin\d
   θ7 = atan2(N20, N21) (replaces the acos + sign test of eq. 31 by an atan2 of
   rotation entries; same angle).
 
-Branch No. 1–16 follow seed 000, Table 2 (with the DESIGN.md erratum: rows 1–8 use
-θ1[1], rows 9–16 θ1[2]); within each half the (θ2, θ3, θ4) index runs 1, 1, 2, 2, 3, 3,
-4, 4 and the (θ5, θ6, θ7) index 1, 2, 1, 2, ...
+Branch No. 1–16 follow Nammoto & Kosuge 2012, Table 2, with its row 8 read as θ1[1]
+(its Table 4 shows that row with θ1[1] = 1.12): rows 1–8 use θ1[1], rows 9–16 θ1[2];
+within each half the (θ2, θ3, θ4) index runs 1, 1, 2, 2, 3, 3, 4, 4 and the (θ5, θ6, θ7)
+index 1, 2, 1, 2, ...
 
 Singular cases (flag ``singular``, results defined and finite, never NaN):
 
@@ -70,7 +71,7 @@ from qpik import symbolic as sy
 from qpik.analytic.intervals import FeasibleIntervals, wrap
 from qpik.analytic.solver import AnalyticSolver, Branches
 from qpik.analytic.trig import EPS, angle, flip, solve_cos_sin_cs
-from qpik.errors import InputError
+from qpik.errors import NoClosedFormError
 from qpik.symbolic import Mat, Ops, Scalar, Vec
 
 if TYPE_CHECKING:
@@ -88,7 +89,7 @@ OFFSET = (0.0, 0.0, 0.0, PI / 2, 0.0, PI, 0.0)
 
 @dataclass(frozen=True)
 class OffsetShoulderGeometry:
-    """Link lengths (m) of seed 000, Table 3: a1, d1, d3, d5, d7 (DH d5 = −d5, d7 = −d7)."""
+    """Link lengths (m) of Nammoto & Kosuge 2012, Table 3: a1, d1, d3, d5, d7 (DH d5 = −d5, d7 = −d7)."""
 
     a1: float
     d1: float
@@ -98,7 +99,7 @@ class OffsetShoulderGeometry:
 
     @classmethod
     def of(cls, chain) -> OffsetShoulderGeometry:
-        """Read and check the lengths from a :class:`~qpik.robots.dh.DHChain` of seed 000's structure."""
+        """Read and check the lengths of a :class:`~qpik.robots.dh.DHChain` shaped as in Nammoto & Kosuge 2012."""
         a, d = np.asarray(chain.a, float), np.asarray(chain.d, float)
         ok = (
             chain.convention == "standard"
@@ -113,8 +114,8 @@ class OffsetShoulderGeometry:
             and -d[6] >= 0
         )
         if not ok:
-            raise InputError(
-                "OffsetShoulderSolver: the chain is not seed 000's offset-shoulder arm "
+            raise NoClosedFormError(
+                "OffsetShoulderSolver: the chain is not the offset-shoulder arm of Nammoto & Kosuge 2012 "
                 "(standard DH, alpha = (pi/2, -pi/2, pi/2, -pi/2, pi/2, pi/2, 0), offsets (0, 0, 0, pi/2, 0, pi, 0), "
                 "a = (a1, 0, ...), d = (d1, 0, d3, 0, -d5, 0, -d7) with d3, d5 > 0)"
             )
@@ -122,7 +123,7 @@ class OffsetShoulderGeometry:
 
 
 class OffsetShoulderSolver(AnalyticSolver):
-    """All 16 branches of seed 000's offset-shoulder arm at a given δ (rad)."""
+    """All 16 branches of the offset-shoulder arm of Nammoto & Kosuge 2012 at a given δ (rad)."""
 
     kind = "offset_shoulder"
     param_name = "delta"
@@ -139,7 +140,7 @@ class OffsetShoulderSolver(AnalyticSolver):
     # ---- the one source -----------------------------------------------------
 
     def branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
-        """Eqs. (4)–(32) of seed 000 for the world pose (R, p) and δ = ``param`` (rad).
+        """Eqs. (4)–(32) of Nammoto & Kosuge 2012 for the world pose (R, p) and δ = ``param`` (rad).
 
         Rotations are applied from cosines and sines (the only trig calls are
         cos δ, sin δ and one atan2 per output angle): :math:`M = R_4^T R_3^T R_2^T R_1^T R`

@@ -1,4 +1,4 @@
-r"""Exact feasible δ sets of the offset-shoulder arm (seed 000) under joint limits.
+r"""Exact feasible δ sets of the offset-shoulder arm (Nammoto & Kosuge 2012) under joint limits.
 
 For a fixed pose every joint of every branch is a function of δ. A branch's
 feasibility (valid, every joint inside ``[q_min, q_max]``) can only change where
@@ -60,6 +60,7 @@ from qpik.analytic.intervals import Assembler, FeasibleIntervals
 from qpik.analytic.polyroots import trig_roots
 from qpik.analytic.trig import EPS, acos2
 from qpik.compiled import Compiled
+from qpik.errors import QpikError
 from qpik.symbolic import Ops, Scalar
 
 if TYPE_CHECKING:
@@ -306,5 +307,5 @@ def _clear(P: CSPoly, Q: CSPoly, D: CSPoly) -> CSPoly:
 
 def _pad(a: Poly, n: int) -> Poly:
     if len(a) > n:
-        raise ValueError(f"polynomial of degree {len(a) - 1} > {n - 1}")
+        raise QpikError(f"polynomial of degree {len(a) - 1} > {n - 1}")
     return list(a) + [0.0] * (n - len(a))

@@ -23,8 +23,9 @@ bisection, V ≥ 2 halves it by de Casteljau); between consecutive critical poin
 monotone, so each sign change there is one root, and a critical point where
 :math:`|H| \le 10^{-12} \sum |h_i|` is reported as well (a double root, or two roots
 closer than rounding separates: next to those, rounding can hide the sign changes of
-the Bernstein coefficients of H itself). It replaced ``numpy.linalg.eigvals`` of companion matrices, the cost that
-dominated ``qpik.feasible_intervals`` (see ``qpik bench analytic``). The C source is
+the Bernstein coefficients of H itself). Eigenvalues of companion matrices
+(``numpy.linalg.eigvals``) would cost several times more per ``qpik.feasible_intervals``
+call (see ``qpik bench analytic``). The C source is
 compiled once by the system compiler (:func:`qpik.compiled.shared_library`); without
 one (or with ``QPIK_NATIVE=0``) the roots of H come from ``numpy``'s companion
 eigenvalues instead, every eigenvalue within ``EIG_IMAG`` of the real axis counting
@@ -43,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from qpik.compiled import shared_library
+from qpik.errors import InputError
 
 EIG_IMAG = 1e-7
 """Eigenvalue path: |Im t| below which an eigenvalue counts as real."""
@@ -78,7 +80,7 @@ def trig_roots(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
     if A.ndim != 2 or A.shape != B.shape or A.shape[1] < 1:
-        raise ValueError(f"trig_roots: A, B must be (K, d + 1), the same shape; got {A.shape}, {B.shape}")
+        raise InputError(f"trig_roots: A, B must be (K, d + 1), the same shape; got {A.shape}, {B.shape}")
     lib = _library()
     if lib is None:
         return _eig_roots(A, B)
@@ -86,7 +88,7 @@ def trig_roots(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     a[...], b[...] = A, B  # copies into fixed buffers, whose addresses are known
     m = lib.qpik_trig_roots(A.shape[0], A.shape[1] - 1, where[0], where[1], delta.size, where[2], where[3])
     if m < 0:
-        raise ValueError(f"trig_roots: max(deg A, deg B + 1) above {MAX_DEGREE}")
+        raise InputError(f"trig_roots: max(deg A, deg B + 1) above {MAX_DEGREE}")
     return delta[:m].copy(), owner[:m].copy()
 
 

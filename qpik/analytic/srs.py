@@ -1,6 +1,6 @@
 r"""Closed-form IK of an S-R-S arm (KUKA iiwa type) in the arm angle ψ: 8 branches.
 
-Method of Shimizu et al. 2008 (seed 003), written for the DH table of DESIGN.md
+Method of Shimizu et al. 2008, written for the DH table of the catalog arm ``iiwa14``
 (standard DH, a = 0, α = (−π/2, π/2, π/2, −π/2, −π/2, π/2, 0), d = (d_bs, 0,
 d_se, 0, d_ew, 0, d_wt)). For this table the chain factors as
 
@@ -39,7 +39,7 @@ for θ4 > 0. The arm angle ψ rotates the whole arm about
     A_w = R_y(\theta_4) A_s^T R \text{ (same for } B, C).
 
 :meth:`SRSSolver.branches` evaluates :math:`R_\psi` by Rodrigues' formula; the
-coefficient form (seed 003) serves the feasible intervals (:mod:`qpik.analytic.srs_intervals`).
+coefficient form (Shimizu et al. 2008) serves the feasible intervals (:mod:`qpik.analytic.srs_intervals`).
 
 Equivalently, ψ is the signed angle about :math:`u_{sw}` from the horizontal
 normal of the reference plane, :math:`n^0 = M_s^0 e_y = (-\sin\theta_1^0, \cos\theta_1^0, 0)`,

@@ -1,4 +1,4 @@
-r"""Exact feasible arm-angle sets of an S-R-S arm under joint limits (Shimizu 2008, seed 003).
+r"""Exact feasible arm-angle sets of an S-R-S arm under joint limits (Shimizu et al. 2008).
 
 For one pose every joint of a branch is a function of ψ built from
 :math:`M(\psi) = A\sin\psi + B\cos\psi + C` (:mod:`qpik.analytic.srs`):
@@ -13,7 +13,7 @@ For one pose every joint of a branch is a function of ψ built from
   gives every limit crossing; L = π gives the wraps through ±π, needed only for
   a joint whose limits reach ±π (otherwise the joint is outside its limits on
   both sides of a wrap, so a wrap changes nothing). A singular
-  point (n = d = 0, seed 003: :math:`a_t^2 + b_t^2 = c_t^2`), where θ jumps by π,
+  point (n = d = 0, Shimizu et al. 2008: :math:`a_t^2 + b_t^2 = c_t^2`), where θ jumps by π,
   solves this equation for every L, so it is a root too.
 - cos-type (θ2, θ6): :math:`\cos\theta = M_{22}(\psi)`; θ = ±L iff :math:`M_{22}(\psi) = \cos L`.
 - θ4 does not depend on ψ.
@@ -27,7 +27,7 @@ below found, in one compiled CasADi function of the pose (:meth:`PsiIntervals.ex
 
 The singular values listed per branch are the ψ where :math:`|M_{22}| = 1` for
 the shoulder or the wrist (θ2 or θ6 = 0 or π): the maximum :math:`c + \sqrt{a^2+b^2}`
-of :math:`M_{22}` is at ψ = atan2(a, b), the minimum at atan2(−a, −b) (seed 003's
+of :math:`M_{22}` is at ψ = atan2(a, b), the minimum at atan2(−a, −b) (Shimizu et al. 2008,
 :math:`\psi_0 = 2\arctan(a_t/(b_t - c_t))`), listed when within ``TOUCH_TOL``
 of ±1 (|sin θ| ≲ 1.5e-6). A joint that is singular for every ψ (stretched elbow
 with the tool along the forearm) is flagged by ``ik`` and not listed here.

@@ -1,4 +1,4 @@
-r"""Trigonometric kernel (seed 004): atan2 everywhere, no division that can blow up.
+r"""Trigonometric kernel (Sabharwal 2021): atan2 everywhere, no division that can blow up.
 
 Every function works on Python floats, numpy arrays (element-wise) and CasADi
 symbols through an :class:`qpik.symbolic.Ops` backend, and returns both roots
@@ -19,7 +19,7 @@ EPS = 1e-12
 def solve_cos_sin(a: Scalar, b: Scalar, c: Scalar, ops: Ops) -> tuple[Scalar, Scalar, Scalar]:
     r"""Roots of :math:`a\cos\theta + b\sin\theta = c`.
 
-    :math:`\theta = \mathrm{atan2}(b, a) \pm \mathrm{atan2}(\sqrt{a^2+b^2-c^2},\, c)` (seed 004, eq. 20).
+    :math:`\theta = \mathrm{atan2}(b, a) \pm \mathrm{atan2}(\sqrt{a^2+b^2-c^2},\, c)` (Sabharwal 2021, eq. 20).
 
     Returns ``(theta_plus, theta_minus, ok)``; ``ok`` is true where
     :math:`a^2 + b^2 \ge c^2` and :math:`(a, b) \ne 0`. Where the discriminant is

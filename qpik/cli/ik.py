@@ -57,7 +57,7 @@ def pose_from_args(args: argparse.Namespace, robot) -> np.ndarray:
 
 def _run(args: argparse.Namespace) -> int:
     from qpik import feasible_intervals, ik, load_robot, redundancy_parameter
-    from qpik.analytic.plots import symbol
+    from qpik.plots.closed_form import symbol
     from qpik.problems.ik import branch_table
     from qpik.validate import pose as check_pose
 

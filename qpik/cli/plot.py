@@ -32,7 +32,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _run(args: argparse.Namespace) -> int:
     from qpik import ik, load_robot
-    from qpik.analytic.plots import branch_pictures, save, selfmotion_map
+    from qpik.plots import save
+    from qpik.plots.closed_form import branch_pictures, selfmotion_map
     from qpik.validate import pose as check_pose
 
     param = args.param

@@ -1,10 +1,10 @@
-r"""Closed-loop inverse kinematics (CLIK) baselines (seed 002), with the controller's ``step`` interface.
+r"""Closed-loop inverse kinematics (CLIK) baselines (Zheng et al. 2019), with the controller's ``step`` interface.
 
 All of them map a task-space command :math:`b = \dot x_d + K e` to a joint velocity,
 with the world-frame pose error :math:`e = [p^* - p;\ \log(R^* R^T)]` and the desired
 twist :math:`\dot x_d = [v; \omega]` (base frame), :math:`K = \mathrm{diag}(k_p I_3, k_o I_3)`:
 
-- :class:`PseudoInverseCLIK` (seed 002, eq. 18, Fig. 3b):
+- :class:`PseudoInverseCLIK` (Zheng et al. 2019, eq. 18, Fig. 3b):
   :math:`\dot q_k = J^+(\dot x_d + K e + K_d(\dot x_d - J\dot q_{k-1}))` — the pseudo-inverse
   :math:`J^+ = J^T (J J^T)^{-1}` (eq. 11) of proportional feedback on the pose error and a
   derivative (velocity) term on the twist error, :math:`\dot x = J \dot q_{k-1}` being the
@@ -80,7 +80,7 @@ class CLIK:
 
 
 class PseudoInverseCLIK(CLIK):
-    r"""Pseudo-inverse CLIK with PD feedback (seed 002, eq. 18); see the module docstring.
+    r"""Pseudo-inverse CLIK with PD feedback (Zheng et al. 2019, eq. 18); see the module docstring.
 
     Args:
         kd: :math:`K_d` ≥ 0, weight of the twist error of the previous command (0: plain CLIK).
@@ -103,7 +103,7 @@ class PseudoInverseCLIK(CLIK):
 
 
 class VelocityOnly(PseudoInverseCLIK):
-    r"""Velocity-only feedforward :math:`\dot q = J^+ \dot x_d` (seed 002, Fig. 3a): drifts."""
+    r"""Velocity-only feedforward :math:`\dot q = J^+ \dot x_d` (Zheng et al. 2019, Fig. 3a): drifts."""
 
     name = "velocity-only"
 

@@ -22,6 +22,7 @@ import numpy as np
 
 from qpik.compiled import Compiled
 from qpik.control.state import State, SymState, _unique, evaluate
+from qpik.errors import InputError
 from qpik.validate import finite_array, pose
 
 _EMPTY = np.zeros(0)
@@ -219,7 +220,7 @@ class FrameTask(Task):
       :math:`f = J_r^{-1}(e)\, [R^{*T} v^*;\ R^{*T} \omega^*]`, the target's base-frame twist as its body
       twist, mapped through the error: exact, :math:`\dot e = f - A \dot q`.
 
-    With ``A v = f + K e`` the error obeys :math:`\dot e = -K e` (closed-loop IK, seed 002 eq. 18 with
+    With ``A v = f + K e`` the error obeys :math:`\dot e = -K e` (closed-loop IK, Zheng et al. 2019 eq. 18 with
     K_d = 1; exactly for ``"se3"``). mink's ``FrameTask`` with costs :math:`c_p, c_o`, gain g and step dt
     is ``error="se3"`` with :math:`w = c^2`, :math:`k = g/dt`.
 
@@ -249,14 +250,14 @@ class FrameTask(Task):
         error: Literal["world", "se3"] = "world",
     ):
         if error not in ("world", "se3"):
-            raise ValueError(f"FrameTask: error must be 'world' or 'se3', got {error!r}")
+            raise InputError(f"error: FrameTask error must be 'world' or 'se3', got {error!r}")
         self.convention = error
         self.target: np.ndarray | None = None
         self.twist = np.zeros(6)
         self.gain = np.repeat([float(position_gain), float(orientation_gain)], 3)
         self.weight = np.repeat([float(position_weight), float(orientation_weight)], 3)
         if np.any(self.weight < 0) or np.any(self.gain < 0):
-            raise ValueError("FrameTask: gains and weights must be >= 0")
+            raise InputError("FrameTask: gains and weights must be >= 0")
         if target is not None:
             self.set_target(target, twist)
 
@@ -266,7 +267,7 @@ class FrameTask(Task):
         self.twist = np.zeros(6) if twist is None else finite_array(twist, "twist", (6,)).copy()
 
     def structure(self) -> tuple:
-        """The convention; ``()`` for ``"world"`` (the key it had before the option existed)."""
+        """The convention: ``()`` for ``"world"``, ``("se3",)`` for the body-frame error."""
         return () if self.convention == "world" else (self.convention,)
 
     def param_size(self, n: int) -> int:
@@ -274,7 +275,7 @@ class FrameTask(Task):
 
     def params(self) -> np.ndarray:
         if self.target is None:
-            raise ValueError("FrameTask: no target set (call set_target)")
+            raise InputError("target: FrameTask has no target (call set_target)")
         return np.concatenate((self.target[:3].ravel(), self.twist, self.gain, self.weight))
 
     @staticmethod
@@ -367,7 +368,7 @@ class DampingTask(Task):
 class ManipulabilityTask(Task):
     r"""Manipulability ascent: the linear cost :math:`-w\,\nabla m(q)^T v`.
 
-    :math:`m = \sqrt{\det(J J^T)}` (seed 002 eq. 6; ``translational`` uses :math:`J_v`),
+    :math:`m = \sqrt{\det(J J^T)}` (Zheng et al. 2019 eq. 6; ``translational`` uses :math:`J_v`),
     :math:`\partial m/\partial q_k = m\,\mathrm{tr}((JJ^T)^{-1} J H_k^T)` from the
     kinematic Hessian :math:`H_k = \partial J/\partial q_k`. Minimising
     :math:`-w \nabla m^T v` moves v along the gradient wherever the other terms leave

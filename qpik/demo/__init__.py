@@ -14,7 +14,17 @@ ORDER = ("catalog", "closed_form", "controller")
 
 
 def run_all(out: Path, only: list[str] | None = None) -> None:
+    """Run the sections of ``ORDER`` (or ``only`` those), writing pictures under ``out``.
+
+    Without OpenGL one line says that the pictures of the arms are skipped; the
+    tables and the matplotlib plots are made all the same.
+    """
+    from qpik.render import unavailable_reason
+
     out.mkdir(parents=True, exist_ok=True)
+    reason = unavailable_reason()
+    if reason:
+        print(f"pictures of the arms skipped: {reason} (tables and plots still follow)")
     for name in ORDER:
         if only and name not in only:
             continue

@@ -28,7 +28,7 @@ def limits_text(robot: Robot) -> str:
 
 
 def run(out: Path) -> None:
-    from qpik.render import RenderUnavailable, render_configurations
+    from qpik.render import render_configurations, unavailable_reason
 
     robots = [load_robot(name) for name in CATALOG]
     header = f"{'arm':9} {'closed form':18} {'DH':9} {'reach':>7}  joint limits (deg)"
@@ -40,12 +40,10 @@ def run(out: Path) -> None:
     print("\nsources:")
     for r in robots:
         print(f"  {r.name:9} {r.source}" + (f" ({r.notes})" if r.notes else ""))
+    if unavailable_reason():
+        return
     print()
     for r in robots:
         path = out / f"catalog_{r.name}.png"
-        try:
-            render_configurations(r, r.q_home, path)
-        except RenderUnavailable as exc:
-            print(f"no pictures: {exc}")
-            return
+        render_configurations(r, r.q_home, path)
         print(f"wrote {path} ({r.name} at home)")

@@ -1,4 +1,4 @@
-"""Demo section: the closed form — Table 4 of seed 000, self-motion maps, branch poses, the p_z sweep."""
+"""Demo section: the closed form — Table 4 of Nammoto & Kosuge 2012, self-motion maps, branch poses, the p_z sweep."""
 
 from __future__ import annotations
 
@@ -8,7 +8,8 @@ import numpy as np
 
 from qpik.analytic.api import ik, redundancy_parameter
 from qpik.analytic.intervals import wrap
-from qpik.analytic.plots import branch_pictures, save, selfmotion_map, sweep_figure, symbol
+from qpik.plots import save
+from qpik.plots.closed_form import branch_pictures, selfmotion_map, sweep_figure, symbol
 from qpik.problems import find_problem, load
 
 TITLE = "Closed-form IK"
@@ -21,7 +22,7 @@ def run(out: Path) -> None:
 
 
 def _table4(out: Path) -> None:
-    """Seed 000 Table 4: the 16 branches at δ = -0.80, against the paper's rounded rows."""
+    """Nammoto & Kosuge 2012 Table 4: the 16 branches at δ = -0.80, against the paper's rounded rows."""
     problem = load(find_problem("nammoto2012_table4"))
     robot, T, delta = problem.robot, problem.poses[0], float(problem.params[0])
     sols = ik(robot, T, delta)
@@ -41,7 +42,9 @@ def _table4(out: Path) -> None:
         ),
     ]
     how = branch_pictures(robot, sols, out / "closed_form_branches_nammoto7.png")
-    files.append((out / "closed_form_branches_nammoto7.png", f"the 16 poses of Table 4 (seed 000 Fig. 10; {how})"))
+    files.append(
+        (out / "closed_form_branches_nammoto7.png", f"the 16 poses of Table 4 (Nammoto & Kosuge 2012, Fig. 10; {how})")
+    )
     _print_files(files)
 
 
@@ -68,7 +71,7 @@ def _iiwa(out: Path) -> None:
 
 
 def _pz_sweep(out: Path) -> None:
-    """Seed 000 Figs. 15/16: branch 1 as p_z goes 0.3 -> 0.9 m, at δ = 0 and δ = 0.70."""
+    """Nammoto & Kosuge 2012 Figs. 15/16: branch 1 as p_z goes 0.3 -> 0.9 m, at δ = 0 and δ = 0.70."""
     problem = load(find_problem("nammoto2012_joint_limits"))
     robot, poses = problem.robot, problem.poses
     pz = poses[:, 2, 3]
@@ -86,7 +89,7 @@ def _pz_sweep(out: Path) -> None:
     print("  paper: θ6 grows as p_z falls at δ = 0 and saturates at δ = 0.70 (choosing δ avoids its limit)")
     path = out / "closed_form_pz_sweep.png"
     save(sweep_figure(robot, pz, curves, "p_z [m]", "nammoto7, branch 1: joint angles against p_z"), path)
-    _print_files([(path, "joint angles of branch 1 against p_z at δ = 0 and 0.70 (seed 000 Figs. 15/16)")])
+    _print_files([(path, "joint angles of branch 1 against p_z at δ = 0 and 0.70 (Nammoto & Kosuge 2012 Figs. 15/16)")])
 
 
 def _print_files(files: list[tuple[Path, str]]) -> None:

@@ -3,7 +3,7 @@
 1. ``problems/iiwa_obstacle_reach.toml``: the iiwa reaches over a table past a
    ball, its posture reference chosen by the closed form; the same controller
    without the obstacle limit runs into the ball (3 s instead of the file's 5 s).
-2. ``problems/zheng2019_clik.toml`` (seed 002): QP vs PD CLIK vs velocity-only
+2. ``problems/zheng2019_clik.toml`` (Zheng et al. 2019): QP vs PD CLIK vs velocity-only
    feedback on the first 5 s of the path (the file runs 20 s).
 """
 

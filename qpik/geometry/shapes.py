@@ -144,8 +144,11 @@ class Box(Shape):
 class HalfSpace(Shape):
     """The solid ``{x : normal · x <= offset}``; the free side is ``normal · x >= offset``.
 
-    ``normal`` (3,) is normalised on construction (it must not be zero); ``offset``
-    in metres. A table top at height h is ``HalfSpace((0, 0, 1), h)``.
+    The set is the one this inequality describes with ``normal`` as given (it must
+    not be zero). It is stored with a unit normal ``n = normal / |normal|`` and
+    ``offset / |normal|``, the plane's signed distance from the origin along ``n``
+    (metres): ``normal = (0, 0, 2), offset = 0.2`` is the solid ``z <= 0.1``.
+    A table top at height h is ``HalfSpace((0, 0, 1), h)``.
     """
 
     normal: np.ndarray
@@ -156,11 +159,11 @@ class HalfSpace(Shape):
     def __post_init__(self) -> None:
         n = validate.finite_array(self.normal, "normal", (3,))
         norm = float(np.linalg.norm(n))
-        if norm < 1e-12:
+        if not norm > 1e-12:
             raise InputError("normal: must not be the zero vector")
         object.__setattr__(self, "normal", _vec3(n / norm, "normal"))
         offset = validate.finite_array(self.offset, "offset", ())
-        object.__setattr__(self, "offset", float(offset))
+        object.__setattr__(self, "offset", float(offset) / norm)
 
     def _geom_attrs(self) -> str:
         # MuJoCo collides a plane as the half-space below it; size only sets how it is drawn.
@@ -186,9 +189,10 @@ def shape_from_spec(spec: Mapping[str, object]) -> Shape:
         {"type": "capsule", "p0": [...], "p1": [...], "radius": r}
         {"type": "box", "center": [...], "half_extents": [...], "rotation": [[row], [row], [row]],
          "project": false}                       # rotation and project optional
-        {"type": "halfspace", "normal": [...], "offset": h}
+        {"type": "halfspace", "normal": [...], "offset": h}   # the solid normal·x <= offset
 
-    Unknown types, missing keys and unknown keys raise :class:`InputError`.
+    Unknown types, missing keys and unknown keys raise :class:`InputError`. This is the
+    one parser of obstacle descriptions: problem files (:func:`qpik.problems.load`) use it too.
     """
     if not isinstance(spec, Mapping):
         raise InputError(f"obstacle: expected a table/dict, got {type(spec).__name__}")

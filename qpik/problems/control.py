@@ -4,7 +4,7 @@ Both run closed loops in MuJoCo (:func:`qpik.sim.simulate`) and judge them on th
 simulator's own measurements (tracking error from the MuJoCo site pose, clearance
 from ``mj_geomDistance``), not on what the controller believes.
 
-``track`` (seed 002): the QP controller, the PD CLIK of eq. (18)
+``track`` (Zheng et al. 2019): the QP controller, the PD CLIK of eq. (18)
 (:class:`~qpik.control.clik.PseudoInverseCLIK`) and the velocity-only scheme of
 Fig. 3a (:class:`~qpik.control.clik.VelocityOnly`) follow the same path from the
 same configuration. Reported: each one's largest position error after the
@@ -36,12 +36,12 @@ from qpik.analytic.intervals import wrap
 from qpik.control.clik import PseudoInverseCLIK, VelocityOnly
 from qpik.control.controller import Controller
 from qpik.errors import ProblemFileError, UnreachableError
-from qpik.geometry import Shape, distances, obstacles_from_specs
+from qpik.geometry import Shape, distances
+from qpik.plots.runs import plot_comparison, plot_log, render_strip
 from qpik.problems.runners import runner
 from qpik.problems.schema import Problem
 from qpik.robots.robot import Robot
 from qpik.sim import SimLog, Summary, simulate
-from qpik.sim.plots import plot_comparison, plot_log, render_strip
 
 PSI_STEP = np.radians(1.0)
 """Spacing (rad) of the arm-angle samples inside each feasible interval."""
@@ -242,7 +242,7 @@ def reach_runs(problem: Problem) -> ReachRuns:
     if len(problem.poses) != 1:
         raise ProblemFileError(f"{problem.file}: target: kind 'reach' takes one pose, got {len(problem.poses)}")
     pose = problem.poses[0]
-    obstacles = obstacles_from_specs(problem.obstacles)
+    obstacles = problem.obstacles
     s = problem.solver
     dt, duration = float(s.get("dt", 0.002)), float(s.get("duration", 5.0))
     d_safe, d_influence, xi = float(s.get("d_safe", 0.02)), float(s.get("d_influence", 0.10)), float(s.get("xi", 0.5))
@@ -336,6 +336,6 @@ def run_reach(problem: Problem, out: Path) -> str:
         f"Overall: {_verdict(all(ok for _, ok in checks))}",
         "",
         f"Plots: {problem.name}_log.png, {problem.name}_free_log.png"
-        + (f", {strip.name}" if strip is not None else " (no snapshots: rendering unavailable)"),
+        + (f", {strip.name}" if strip is not None else " (no snapshot strip: it needs OpenGL)"),
     ]
     return "\n".join(lines)

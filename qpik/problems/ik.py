@@ -31,15 +31,15 @@ import numpy as np
 
 from qpik.analytic.api import IKSolutions, ik, redundancy_parameter
 from qpik.analytic.intervals import wrap
-from qpik.analytic.plots import (
+from qpik.errors import ProblemFileError
+from qpik.plots import save
+from qpik.plots.closed_form import (
     branch_pictures,
-    save,
     selfmotion_map,
     stick_overlay,
     sweep_figure,
     symbol,
 )
-from qpik.errors import ProblemFileError
 from qpik.problems.runners import runner
 from qpik.robots.robot import Robot
 

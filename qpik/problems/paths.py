@@ -12,7 +12,7 @@ receives the robot and the ``[target.path_params]`` table and returns a
 
 Registered formulas:
 
-- ``zheng2019`` — seed 002, eq. (19), from the initial configuration ``q0``
+- ``zheng2019`` — Zheng et al. 2019, eq. (19), from the initial configuration ``q0``
   (default the paper's ``(0, 1.0472, -0.5236, -2.0944, 0, 1.5708, -1.5708)``)
   with initial pose :math:`(R_0, p_0) = \mathrm{fk}(q_0)` and constant
   orientation :math:`R_0`. Read literally, eq. (19) is
@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from qpik.errors import InputError
 from qpik.robots.robot import Robot
 from qpik.validate import finite_array
 
@@ -94,16 +95,16 @@ ZHENG2019_Q0 = (0.0, 1.0472, -0.5236, -2.0944, 0.0, 1.5708, -1.5708)
 
 @path_formula("zheng2019")
 def zheng2019(robot: Robot, params: dict[str, Any]) -> TargetPath:
-    """Seed 002, eq. (19); see the module docstring for the two readings."""
+    """Zheng et al. 2019, eq. (19); see the module docstring for the two readings."""
     unknown = set(params) - {"reading", "duration", "q0"}
     if unknown:
-        raise ValueError(f"unknown parameter(s) {', '.join(sorted(unknown))}; known: reading, duration, q0")
+        raise InputError(f"unknown parameter(s) {', '.join(sorted(unknown))}; known: reading, duration, q0")
     reading = params.get("reading")
     if reading not in ("relative", "literal"):
-        raise ValueError(f"reading must be 'relative' or 'literal', got {reading!r}")
+        raise InputError(f"reading must be 'relative' or 'literal', got {reading!r}")
     duration = float(params.get("duration", 20.0))
     if not duration > 0:
-        raise ValueError(f"duration must be > 0 s, got {duration}")
+        raise InputError(f"duration must be > 0 s, got {duration}")
     q0 = finite_array(params.get("q0", ZHENG2019_Q0), "q0", (robot.dof,))
     T0 = robot.fk(q0)
 

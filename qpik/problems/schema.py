@@ -44,8 +44,10 @@ Format (TOML; every key below is the whole vocabulary: an unknown key is an erro
     [[obstacles]]             # optional, any number; `name` is optional on each
     type = "sphere"           # center (3,), radius > 0
     # type = "capsule"        # p0 (3,), p1 (3,), radius > 0
-    # type = "box"            # center (3,), half_extents (3,) > 0, rotation (3x3 rows, optional)
-    # type = "halfspace"      # normal (3,) != 0, offset: the free side is normal·x >= offset
+    # type = "box"            # center (3,), half_extents (3,) > 0, rotation (3x3 rows, optional),
+    #                         # project (optional, default false)
+    # type = "halfspace"      # normal (3,) != 0, offset: the solid normal·x <= offset
+    # (read by qpik.geometry.shape_from_spec, the one obstacle parser)
 
     [solver]                  # optional, free-form: passed to the runner (dt, gains, ...)
     [expected]                # optional, free-form: figures from the paper; lists of
@@ -69,6 +71,7 @@ from typing import Any, Literal
 import numpy as np
 
 from qpik.errors import InputError, ProblemFileError, UnknownRobotError
+from qpik.geometry.shapes import Shape, shape_from_spec
 from qpik.problems.paths import PATHS, TargetPath
 from qpik.robots.catalog import load_robot
 from qpik.robots.robot import Robot
@@ -77,15 +80,6 @@ from qpik.validate import pose as check_pose
 
 Kind = Literal["ik", "track", "reach", "plan"]
 KINDS: tuple[str, ...] = ("ik", "track", "reach", "plan")
-
-# obstacle type -> (required fields with shapes, optional fields with shapes)
-OBSTACLES: dict[str, tuple[dict[str, tuple[int, ...]], dict[str, tuple[int, ...]]]] = {
-    "sphere": ({"center": (3,), "radius": ()}, {}),
-    "capsule": ({"p0": (3,), "p1": (3,), "radius": ()}, {}),
-    "box": ({"center": (3,), "half_extents": (3,)}, {"rotation": (3, 3)}),
-    "halfspace": ({"normal": (3,), "offset": ()}, {}),
-}
-
 
 @dataclass(frozen=True, eq=False)
 class Problem:
@@ -99,10 +93,9 @@ class Problem:
             ``q`` and ``random``), else ``None``.
         path: the :class:`~qpik.problems.paths.TargetPath` of form ``path``, else ``None``.
         params: redundancy parameter values (M,) in rad, or ``None``.
-        obstacles: one dict per obstacle: ``type``, ``name`` and its fields as
-            float arrays (3,) / (3, 3) or floats; a box always has a ``rotation``
-            (identity by default), a half-space a unit ``normal`` (the offset is
-            rescaled with it).
+        obstacles: the obstacle shapes (:mod:`qpik.geometry`, world frame), built by
+            :func:`qpik.geometry.shape_from_spec`; an obstacle without a ``name`` is
+            named by its place in the file, ``"obstacles[i]"``.
         solver: the ``[solver]`` table.
         expected: the ``[expected]`` table, numeric lists as arrays (int if all are integers, else float).
         file: the path it was read from.
@@ -117,7 +110,7 @@ class Problem:
     q_targets: np.ndarray | None
     path: TargetPath | None
     params: np.ndarray | None
-    obstacles: list[dict[str, Any]]
+    obstacles: tuple[Shape, ...]
     solver: dict[str, Any]
     expected: dict[str, Any]
     file: Path
@@ -260,7 +253,7 @@ class _Reader:
             q_targets=q_targets,
             path=path,
             params=params,
-            obstacles=[self.obstacle(o, f"obstacles[{i}]") for i, o in enumerate(obstacles)],
+            obstacles=tuple(self.obstacle(o, f"obstacles[{i}]") for i, o in enumerate(obstacles)),
             solver=self.free(data.get("solver", {}), "solver"),
             expected={k: _numeric(v) for k, v in self.free(data.get("expected", {}), "expected").items()},
             file=self.file,
@@ -364,34 +357,13 @@ class _Reader:
             self.count(sw["num"], "parameter.sweep.num"),
         )
 
-    def obstacle(self, value: Any, field: str) -> dict[str, Any]:
-        if not isinstance(value, dict) or "type" not in value:
+    def obstacle(self, value: Any, field: str) -> Shape:
+        if not isinstance(value, dict):
             raise self.fail(field, "expected a table with a 'type'")
-        kind = value["type"]
-        if kind not in OBSTACLES:
-            raise self.fail(f"{field}.type", f"unknown obstacle type {kind!r}; known: {', '.join(OBSTACLES)}")
-        required, optional = OBSTACLES[kind]
-        tbl = self.table(value, field, {"type", *required}, {"name", *optional})
-        out: dict[str, Any] = {"type": kind, "name": self.text(tbl.get("name", field), f"{field}.name")}
-        for key, shape in {**required, **optional}.items():
-            if key in tbl:
-                x = self.array(tbl[key], f"{field}.{key}", shape)
-                out[key] = float(x) if shape == () else x
-        if "radius" in out and not out["radius"] > 0:
-            raise self.fail(f"{field}.radius", f"must be > 0, got {out['radius']}")
-        if kind == "box":
-            if not np.all(out["half_extents"] > 0):
-                raise self.fail(f"{field}.half_extents", "must be > 0 on every axis")
-            T = np.eye(4)
-            T[:3, :3] = out.get("rotation", np.eye(3))
-            out["rotation"] = self.poses(T, f"{field}.rotation", project=False)[0, :3, :3]
-        if kind == "halfspace":
-            norm = float(np.linalg.norm(out["normal"]))
-            if norm < 1e-12:
-                raise self.fail(f"{field}.normal", "must be nonzero")
-            out["normal"] = out["normal"] / norm
-            out["offset"] = out["offset"] / norm
-        return out
+        try:
+            return shape_from_spec({"name": field, **value})
+        except InputError as exc:
+            raise self.fail(field, str(exc)) from None
 
 
 def _numeric(value: Any) -> Any:

@@ -1,4 +1,4 @@
-"""The built-in arms. DH tables are those checked in DESIGN.md.
+"""The built-in arms, with the sources of their DH tables.
 
 Limits for ``nammoto7`` and ``zheng7`` are not given by their papers; the
 values here are plausible iiwa-like choices (reasons beside each) and every
@@ -23,7 +23,7 @@ IIWA_V_MAX = np.array([85, 85, 100, 75, 130, 135, 135]) * DEG
 
 
 def nammoto7() -> Robot:
-    """Offset-shoulder arm of seed 000 (Table 1 with Table 3 lengths); closed form in δ."""
+    """Offset-shoulder arm of Nammoto & Kosuge 2012 (Table 1 with Table 3 lengths); closed form in δ."""
     a1, d1, d3, d5, d7 = 0.100, 0.320, 0.400, 0.350, 0.065
     chain = DHChain(
         a=(a1, 0, 0, 0, 0, 0, 0),
@@ -31,7 +31,7 @@ def nammoto7() -> Robot:
         alpha=(PI / 2, -PI / 2, PI / 2, -PI / 2, PI / 2, PI / 2, 0),
         offset=(0, 0, 0, PI / 2, 0, PI, 0),
     )
-    # Seed 000 gives no limits. Table 4 needs |θ4| up to 2.96 rad and |θ3| up to
+    # Nammoto & Kosuge 2012 gives no limits. Table 4 needs |θ4| up to 2.96 rad and |θ3| up to
     # 2.18 rad, so iiwa's ±120° on the even joints would forbid most of its
     # branches: take ±170° on joints 1-5, iiwa's ±120° on the wrist-pitch θ6 and
     # ±175° on θ7.
@@ -45,7 +45,7 @@ def nammoto7() -> Robot:
         q_home=np.array([0.0, -0.5, 0.0, -0.6, 0.0, 0.8, 0.0]),
         capsules=default_capsules(chain, (0.06, 0.06, 0.055, 0.05, 0.05, 0.045, 0.04)),
         closed_form="offset_shoulder",
-        source="Nammoto & Kosuge 2012 (seed 000), Tables 1 and 3",
+        source="Nammoto & Kosuge 2012, Tables 1 and 3",
         notes="limits chosen (not in the paper): ±170° on joints 1-5, ±120° on joint 6, ±175° on joint 7",
     )
 
@@ -71,13 +71,13 @@ def iiwa14() -> Robot:
 
 
 def zheng7() -> Robot:
-    """Offset-wrist arm of seed 002 (Table I); no closed form."""
+    """Offset-wrist arm of Zheng et al. 2019 (Table I); no closed form."""
     chain = DHChain(
         a=(0, 0.518, 0.428, 0, 0, 0, 0),
         d=(0.149, 0.204, -0.204, 0.140, 0.140, 0.140, 0.082),
         alpha=(PI / 2, 0, 0, -PI / 2, PI / 2, -PI / 2, 0),
     )
-    # Seed 002 gives no limits. Its initial configuration has θ4 = -120° and
+    # Zheng et al. 2019 gives no limits. Its initial configuration has θ4 = -120° and
     # θ6 = 90°, so iiwa's ±120° would start it on a limit: take ±170° on
     # joints 1-6 and ±175° on joint 7, with iiwa's velocity limits.
     q_max = np.array([170, 170, 170, 170, 170, 170, 175]) * DEG
@@ -90,7 +90,7 @@ def zheng7() -> Robot:
         q_home=np.array([0.0, 1.0472, -0.5236, -2.0944, 0.0, 1.5708, -1.5708]),
         capsules=default_capsules(chain, (0.07, 0.06, 0.055, 0.05, 0.05, 0.045, 0.04)),
         closed_form=None,
-        source="Zheng et al. 2019 (seed 002), Table I",
+        source="Zheng et al. 2019, Table I",
         notes="limits chosen (not in the paper): ±170° on joints 1-6, ±175° on joint 7",
     )
 

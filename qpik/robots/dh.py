@@ -3,7 +3,7 @@ r"""Denavit–Hartenberg chains: FK, geometric Jacobian, kinematic Hessian, mani
 One :class:`DHChain` holds a DH table in either convention:
 
 - ``standard``: :math:`A_i = R_z(\theta_i + o_i)\,T_z(d_i)\,T_x(a_i)\,R_x(\alpha_i)`
-  (seed 000, eq. 1); joint *i* turns about the z axis of frame *i-1*.
+  (Nammoto & Kosuge 2012, eq. 1); joint *i* turns about the z axis of frame *i-1*.
 - ``modified`` (Craig): :math:`A_i = R_x(\alpha_{i-1})\,T_x(a_{i-1})\,R_z(\theta_i + o_i)\,T_z(d_i)`;
   joint *i* turns about the z axis of frame *i*.
 
@@ -27,6 +27,7 @@ import numpy as np
 
 from qpik import symbolic as sy
 from qpik.compiled import Compiled
+from qpik.errors import InputError
 from qpik.symbolic import Frame, Ops, Scalar
 from qpik.validate import finite_array, joint_vector
 
@@ -57,9 +58,9 @@ class DHChain:
     def __post_init__(self) -> None:
         n = len(self.a)
         if not (len(self.d) == len(self.alpha) == n) or (self.offset and len(self.offset) != n):
-            raise ValueError("DHChain: a, d, alpha (and offset) must have the same length")
+            raise InputError("DHChain: a, d, alpha (and offset) must have the same length")
         if self.convention not in ("standard", "modified"):
-            raise ValueError(f"DHChain: unknown convention {self.convention!r}")
+            raise InputError(f"DHChain.convention: unknown convention {self.convention!r}")
         object.__setattr__(self, "offset", tuple(self.offset) or (0.0,) * n)
         for name in ("base", "tool"):
             finite_array(getattr(self, name), f"DHChain.{name}", (4, 4))
@@ -223,7 +224,7 @@ class DHChain:
         )
 
     def manipulability(self, q: np.ndarray, translational: bool = False) -> np.ndarray | float:
-        """Yoshikawa's index sqrt(det(J Jᵀ)) (seed 002, eq. 6); ``translational`` uses J[:3].
+        """Yoshikawa's index sqrt(det(J Jᵀ)) (Zheng et al. 2019, eq. 6); ``translational`` uses J[:3].
 
         Returns a float for q (n,) and an array (N,) for q (N, n).
         """

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 import numpy as np
 import pytest
+from matplotlib.axes import Axes
 from matplotlib.patches import Rectangle
+from PIL import Image
 
 import qpik
-from qpik.analytic import plots
+from qpik.plots import closed_form as plots
 
 CLOSED_FORM = ("nammoto7", "iiwa14")
 
@@ -18,7 +19,7 @@ def _pose(robot: qpik.Robot, seed: int) -> np.ndarray:
     return robot.fk(q)
 
 
-def _spans(ax: plt.Axes) -> list[tuple[float, float]]:
+def _spans(ax: Axes) -> list[tuple[float, float]]:
     """x extents (data coordinates) of the shaded infeasible spans of one axes."""
     out = []
     for patch in ax.patches:
@@ -35,25 +36,22 @@ def test_selfmotion_shading_is_complement_of_feasible_intervals(name: str, seed:
     fi = qpik.feasible_intervals(robot, T)
     for b in (int(fi.branch[0]), int(fi.branch[-1])):
         fig = plots.selfmotion_map(robot, T, shade_branch=b, num=181)
-        try:
-            joint_axes = fig.axes[: robot.dof]
-            spans = _spans(joint_axes[0])
-            for ax in joint_axes[1:]:
-                assert _spans(ax) == spans  # the same shading on every joint panel
-            # complement: shaded length + feasible length = 2π, and no overlap
-            shaded = sum(hi - lo for lo, hi in spans)
-            assert shaded + fi.measure(b) == pytest.approx(2 * np.pi, abs=1e-9)
-            x = np.linspace(-np.pi, np.pi, 4001)
-            in_span = np.zeros_like(x, dtype=bool)
-            for lo, hi in spans:
-                in_span |= (x > lo) & (x < hi)
-            feasible = np.asarray(fi.contains(b, x))
-            assert not np.any(in_span & feasible)
-            edges = np.array([e for iv in fi[b] for e in iv] + [e for s in spans for e in s])
-            away = np.min(np.abs(x[:, None] - edges[None]), axis=1) > 1e-9 if edges.size else np.ones_like(in_span)
-            assert np.all(in_span[away] | feasible[away])
-        finally:
-            plt.close(fig)
+        joint_axes = fig.axes[: robot.dof]
+        spans = _spans(joint_axes[0])
+        for ax in joint_axes[1:]:
+            assert _spans(ax) == spans  # the same shading on every joint panel
+        # complement: shaded length + feasible length = 2π, and no overlap
+        shaded = sum(hi - lo for lo, hi in spans)
+        assert shaded + fi.measure(b) == pytest.approx(2 * np.pi, abs=1e-9)
+        x = np.linspace(-np.pi, np.pi, 4001)
+        in_span = np.zeros_like(x, dtype=bool)
+        for lo, hi in spans:
+            in_span |= (x > lo) & (x < hi)
+        feasible = np.asarray(fi.contains(b, x))
+        assert not np.any(in_span & feasible)
+        edges = np.array([e for iv in fi[b] for e in iv] + [e for s in spans for e in s])
+        away = np.min(np.abs(x[:, None] - edges[None]), axis=1) > 1e-9 if edges.size else np.ones_like(in_span)
+        assert np.all(in_span[away] | feasible[away])
 
 
 @pytest.mark.parametrize("name, seed", [("nammoto7", 11), ("iiwa14", 12)])
@@ -62,27 +60,24 @@ def test_selfmotion_curves_reach_the_pose(name: str, seed: int) -> None:
     robot = qpik.load_robot(name)
     T = _pose(robot, seed)
     fig = plots.selfmotion_map(robot, T, num=181)
-    try:
-        joint_axes = fig.axes[: robot.dof]
-        rng = np.random.default_rng(seed)
-        checked = 0
-        for line in joint_axes[0].get_lines():
-            label = line.get_label()
-            if not label.startswith("branch "):
-                continue
-            xs = np.asarray(line.get_xdata(), float)
-            for x in rng.choice(xs[np.isfinite(np.asarray(line.get_ydata(), float))], 3, replace=False):
-                q = []
-                for ax in joint_axes:
-                    (same,) = [ln for ln in ax.get_lines() if ln.get_label() == label]
-                    xd, yd = np.asarray(same.get_xdata(), float), np.asarray(same.get_ydata(), float)
-                    q.append(yd[np.flatnonzero(xd == x)[0]])
-                F = robot.fk(np.array(q))
-                np.testing.assert_allclose(F, T, atol=1e-9)
-                checked += 1
-        assert checked >= 3
-    finally:
-        plt.close(fig)
+    joint_axes = fig.axes[: robot.dof]
+    rng = np.random.default_rng(seed)
+    checked = 0
+    for line in joint_axes[0].get_lines():
+        label = line.get_label()
+        if not label.startswith("branch "):
+            continue
+        xs = np.asarray(line.get_xdata(), float)
+        for x in rng.choice(xs[np.isfinite(np.asarray(line.get_ydata(), float))], 3, replace=False):
+            q = []
+            for ax in joint_axes:
+                (same,) = [ln for ln in ax.get_lines() if ln.get_label() == label]
+                xd, yd = np.asarray(same.get_xdata(), float), np.asarray(same.get_ydata(), float)
+                q.append(yd[np.flatnonzero(xd == x)[0]])
+            F = robot.fk(np.array(q))
+            np.testing.assert_allclose(F, T, atol=1e-9)
+            checked += 1
+    assert checked >= 3
 
 
 def test_selfmotion_rejects_arm_without_closed_form() -> None:
@@ -92,7 +87,7 @@ def test_selfmotion_rejects_arm_without_closed_form() -> None:
 
 
 def _nonblank(path) -> bool:
-    img = plt.imread(path)[..., :3]
+    img = np.asarray(Image.open(path).convert("RGB"), dtype=float) / 255.0
     return img.ndim == 3 and float(img.std()) > 0.02
 
 
@@ -125,12 +120,9 @@ def test_stick_figures_end_at_the_hand() -> None:
     sols = qpik.ik(robot, np.repeat(T[None], 3, axis=0), deltas)
     qs = sols.q[:, 0][sols.valid[:, 0]]
     fig = plots.stick_overlay(robot, qs, [f"{d}" for d in deltas[sols.valid[:, 0]]])
-    try:
-        xy = fig.axes[1]
-        ends = [(ln.get_xdata()[-1], ln.get_ydata()[-1]) for ln in xy.get_lines() if not ln.get_label().startswith("_")]
-        np.testing.assert_allclose(np.array(ends), np.tile(T[:2, 3], (len(qs), 1)), atol=1e-12)
-    finally:
-        plt.close(fig)
+    xy = fig.axes[1]
+    ends = [(ln.get_xdata()[-1], ln.get_ydata()[-1]) for ln in xy.get_lines() if not ln.get_label().startswith("_")]
+    np.testing.assert_allclose(np.array(ends), np.tile(T[:2, 3], (len(qs), 1)), atol=1e-12)
 
 
 def test_sweep_figure_marks_points_outside_limits() -> None:
@@ -139,11 +131,8 @@ def test_sweep_figure_marks_points_outside_limits() -> None:
     q = np.zeros((5, 7))
     q[2, 3] = robot.q_max[3] + 0.1  # one point outside the limits
     fig = plots.sweep_figure(robot, x, [("a", q, np.ones(5, bool))], "x", "t")
-    try:
-        crosses = [ln for ln in fig.axes[0].get_lines() if ln.get_marker() == "x" and len(ln.get_xdata())]
-        assert len(crosses) == 1 and crosses[0].get_xdata()[0] == x[2]
-    finally:
-        plt.close(fig)
+    crosses = [ln for ln in fig.axes[0].get_lines() if ln.get_marker() == "x" and len(ln.get_xdata())]
+    assert len(crosses) == 1 and crosses[0].get_xdata()[0] == x[2]
 
 
 def test_infeasible_spans_of_empty_and_full_sets() -> None:

@@ -1,4 +1,4 @@
-r"""Pictures of the closed form (matplotlib, Agg; every function returns a ``Figure``).
+r"""Pictures of the closed form: every function returns a matplotlib ``Figure`` (no pyplot state).
 
 - :func:`selfmotion_map` — the self-motion of one pose: each joint against the
   redundancy parameter (δ or ψ) over (-π, π], one curve per branch, the joint
@@ -6,10 +6,10 @@ r"""Pictures of the closed form (matplotlib, Agg; every function returns a ``Fig
   complement of :func:`qpik.feasible_intervals`) shaded, singular values marked,
   and a panel with every branch's feasible set.
 - :func:`sweep_figure` — joint angles of one branch along a sweep (a position
-  coordinate or the parameter), one panel per curve set (seed 000 Figs. 15/16).
-- :func:`stick_grid` — one 3-D stick figure per configuration (seed 000 Fig. 10).
+  coordinate or the parameter), one panel per curve set (Nammoto & Kosuge 2012, Figs. 15/16).
+- :func:`stick_grid` — one 3-D stick figure per configuration (Nammoto & Kosuge 2012, Fig. 10).
 - :func:`stick_overlay` — configurations overlaid in 3-D and projected on the
-  x-y plane (seed 000 Figs. 12/13).
+  x-y plane (Nammoto & Kosuge 2012, Figs. 12/13).
 - :func:`branch_pictures` — the branch poses as a PNG, rendered by
   :mod:`qpik.render` when OpenGL is available, else by :func:`stick_grid`.
 
@@ -23,15 +23,13 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import matplotlib
-
-matplotlib.use("Agg")
-
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from qpik.analytic.api import IKSolutions, feasible_intervals, ik
 from qpik.analytic.intervals import FeasibleIntervals, Interval
+from qpik.plots.files import save
 from qpik.robots.robot import Robot
 
 PI = np.pi
@@ -47,7 +45,7 @@ def symbol(param_name: str) -> str:
 
 def branch_colors(branches: Sequence[int]) -> dict[int, tuple]:
     """One distinct colour per branch id (tab20 for up to 20 branches)."""
-    cmap = plt.get_cmap("tab20" if len(branches) > 10 else "tab10")
+    cmap = matplotlib.colormaps["tab20" if len(branches) > 10 else "tab10"]
     return {int(b): cmap(i % cmap.N) for i, b in enumerate(branches)}
 
 
@@ -118,7 +116,8 @@ def selfmotion_map(
     spans = infeasible_spans(fi[shade])
     singular = sorted({float(s) for b in draw for s in fi.singular[fi.index(b)]}) if fi.singular else []
 
-    fig, axes = plt.subplots(4, 2, figsize=(12, 13), sharex=True, constrained_layout=True)
+    fig = Figure(figsize=(12, 13), layout="constrained")
+    axes = fig.subplots(4, 2, sharex=True)
     for j, ax in enumerate(axes.flat[: robot.dof]):
         for lo, hi in spans:
             ax.axvspan(lo, hi, color="0.85", zorder=0, gid=INFEASIBLE_GID)
@@ -154,7 +153,7 @@ def selfmotion_map(
     return fig
 
 
-def _feasible_panel(ax: plt.Axes, fi: FeasibleIntervals, draw: list[int], shade: int, colors: dict) -> None:
+def _feasible_panel(ax: Axes, fi: FeasibleIntervals, draw: list[int], shade: int, colors: dict) -> None:
     """Bars of the feasible parameter set of each drawn branch (exact intervals)."""
     for k, b in enumerate(draw):
         segs = [(lo, hi - lo) for lo, hi in fi[b]]
@@ -175,7 +174,7 @@ def sweep_figure(
     xlabel: str,
     title: str,
 ) -> Figure:
-    """Joint angles along a sweep, one panel per curve set (seed 000 Figs. 15 and 16).
+    """Joint angles along a sweep, one panel per curve set (Nammoto & Kosuge 2012, Figs. 15 and 16).
 
     Args:
         x: sweep coordinate (S,), e.g. p_z in metres.
@@ -184,10 +183,9 @@ def sweep_figure(
             joint limits are marked with a cross.
         xlabel, title: axis label and figure title.
     """
-    fig, axes = plt.subplots(
-        1, len(curves), figsize=(6 * len(curves) + 1, 4.8), sharey=True, squeeze=False, layout="constrained"
-    )
-    cmap = plt.get_cmap("tab10")
+    fig = Figure(figsize=(6 * len(curves) + 1, 4.8), layout="constrained")
+    axes = fig.subplots(1, len(curves), sharey=True, squeeze=False)
+    cmap = matplotlib.colormaps["tab10"]
     for ax, (label, q, ok) in zip(axes[0], curves):
         for j in range(q.shape[1]):
             xs, ys = _broken(x, q[:, j], ok)
@@ -208,7 +206,7 @@ def stick_points(robot: Robot, q: np.ndarray) -> np.ndarray:
     return robot.frames(q)[..., :3, 3]
 
 
-def _draw_stick(ax: plt.Axes, pts: np.ndarray, color, label: str | None = None, dims: tuple[int, ...] = (0, 1, 2)):
+def _draw_stick(ax: Axes, pts: np.ndarray, color, label: str | None = None, dims: tuple[int, ...] = (0, 1, 2)):
     ax.plot(*(pts[:, d] for d in dims), "-o", color=color, lw=2, ms=3, label=label)
     ax.plot(*(pts[-1:, d] for d in dims), "s", color=color, ms=6)
 
@@ -224,11 +222,11 @@ def _equal_3d(ax, pts: np.ndarray) -> None:
 
 
 def stick_grid(robot: Robot, qs: np.ndarray, labels: Sequence[str], cols: int = 4, title: str = "") -> Figure:
-    """One 3-D stick figure per configuration ``qs`` (K, n), same axes limits (seed 000 Fig. 10)."""
+    """One 3-D stick figure per configuration ``qs`` (K, n), same axes limits (Nammoto & Kosuge 2012, Fig. 10)."""
     pts = stick_points(robot, np.atleast_2d(qs))
     K = pts.shape[0]
     rows = -(-K // cols)
-    fig = plt.figure(figsize=(3.2 * cols, 3.2 * rows + 0.6), layout="constrained")
+    fig = Figure(figsize=(3.2 * cols, 3.2 * rows + 0.6), layout="constrained")
     for k in range(K):
         ax = fig.add_subplot(rows, cols, k + 1, projection="3d")
         ax.plot([0.0], [0.0], [0.0], "k^", ms=6)
@@ -244,13 +242,13 @@ def stick_grid(robot: Robot, qs: np.ndarray, labels: Sequence[str], cols: int = 
 def stick_overlay(robot: Robot, qs: np.ndarray, labels: Sequence[str], title: str = "") -> Figure:
     """Configurations ``qs`` (K, n) overlaid: 3-D (left) and projected on the x-y plane (right).
 
-    Seed 000 Figs. 12/13: the same end-effector pose at several δ; the elbow
+    Nammoto & Kosuge 2012, Figs. 12/13: the same end-effector pose at several δ; the elbow
     sweeps while the hand stays put.
     """
     pts = stick_points(robot, np.atleast_2d(qs))
-    cmap = plt.get_cmap("viridis")
+    cmap = matplotlib.colormaps["viridis"]
     colors = [cmap(k / max(1, len(pts) - 1)) for k in range(len(pts))]
-    fig = plt.figure(figsize=(13, 6.2), layout="constrained")
+    fig = Figure(figsize=(13, 6.2), layout="constrained")
     ax3 = fig.add_subplot(1, 2, 1, projection="3d")
     ax2 = fig.add_subplot(1, 2, 2)
     for k, p in enumerate(pts):
@@ -295,7 +293,7 @@ def branch_pictures(
     cols = cols or min(4, max(1, len(qs)))
     path = Path(path)
     if not len(qs):
-        fig = plt.figure(figsize=(6, 2))
+        fig = Figure(figsize=(6, 2))
         fig.text(0.5, 0.5, f"{robot.name}: no branch reaches this pose at {sym} = {par:.2f}", ha="center")
         save(fig, path)
         return "none"
@@ -310,12 +308,3 @@ def branch_pictures(
     fig = stick_grid(robot, qs, labels, cols=cols, title=title)
     save(fig, path)
     return "sticks"
-
-
-def save(fig: Figure, path: Path, dpi: int = 110) -> Path:
-    """Write ``fig`` as PNG (creating the folder) and close it."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
-    return path

@@ -1,7 +1,7 @@
 """Pictures of closed-loop runs: multi-panel PNGs of a :class:`SimLog`, overlays of several, snapshot strips.
 
-Figures are drawn on :class:`matplotlib.figure.Figure` objects (Agg canvas, no
-pyplot state, no display needed). Snapshots go through :mod:`qpik.render`.
+Figures are drawn on :class:`matplotlib.figure.Figure` objects (no pyplot state,
+no display needed). Snapshots go through :mod:`qpik.render`.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from qpik.plots.files import save
 from qpik.render import Camera, RenderUnavailable, render_configurations
 from qpik.robots.robot import Robot
 from qpik.sim.log import SimLog
@@ -44,7 +45,7 @@ def plot_log(log: SimLog, path: str | os.PathLike, title: str | None = None) -> 
     ax.set(xlabel="t (s)", ylabel="manipulability", title="sqrt(det(J Jᵀ))")
     ax.grid(alpha=0.3)
     fig.suptitle(title or log.label)
-    return _save(fig, path)
+    return save(fig, path, dpi=100)
 
 
 def plot_comparison(logs: Sequence[SimLog], path: str | os.PathLike, title: str = "") -> Path:
@@ -55,7 +56,7 @@ def plot_comparison(logs: Sequence[SimLog], path: str | os.PathLike, title: str 
     _errors(ax_o, logs, which=1)
     if title:
         fig.suptitle(title)
-    return _save(fig, path)
+    return save(fig, path, dpi=100)
 
 
 def render_strip(
@@ -70,8 +71,8 @@ def render_strip(
     The snapshots are evenly spaced along the joint-space path (arc length
     :math:`\sum \lVert q_{k+1} - q_k \rVert`), so a motion that settles early is
     not drawn as a row of identical pictures; in up to 3 columns.
-    Returns the path, or ``None`` (after printing one line) when no OpenGL
-    context can be made (:class:`qpik.render.RenderUnavailable`).
+    Returns the path, or ``None`` when no OpenGL context can be made
+    (:func:`qpik.render.unavailable_reason` says why).
     """
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(log.q, axis=0), axis=1))])
     if arc[-1] > 0:
@@ -89,8 +90,7 @@ def render_strip(
                                   labels=labels, extra_worldbody=extra)  # fmt: skip
         else:  # an MJCF arm: its model already holds the obstacles
             render_configurations(log.robot, log.q[idx], path, cols=cols, size=size, camera=camera, labels=labels)
-    except RenderUnavailable as exc:
-        print(f"snapshots skipped: {exc}")
+    except RenderUnavailable:
         return None
     return Path(path)
 
@@ -150,13 +150,6 @@ def _joint(ax, log: SimLog, j: int) -> None:
     ax.set_ylim(bottom, top)
     ax.set(title=f"joint {j + 1}", xlabel="t (s)", ylabel="rad")
     ax.grid(alpha=0.3)
-
-
-def _save(fig: Figure, path: str | os.PathLike) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    return path
 
 
 def _fmt(values: np.ndarray) -> str:
