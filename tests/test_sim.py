@@ -14,9 +14,9 @@ from hypothesis import given, settings
 from PIL import Image
 
 import qpik
-from qpik.control.tasks import so3_log
 from qpik.errors import InputError
 from qpik.geometry import Box, Capsule, HalfSpace, Sphere, distances
+from qpik.lie import so3_log
 from qpik.plots.runs import plot_comparison, plot_log
 from qpik.sim import build_scene, simulate
 

@@ -23,9 +23,8 @@ from qpik.control.tasks import (
     ManipulabilityTask,
     PostureTask,
     Task,
-    pose_error,
-    so3_log,
 )
+from qpik.lie import pose_error, so3_log
 
 __all__ = [
     "CLIK",

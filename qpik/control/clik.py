@@ -28,8 +28,8 @@ import numpy as np
 
 from qpik.control.controller import StepInfo
 from qpik.control.state import State
-from qpik.control.tasks import pose_error
 from qpik.errors import InputError
+from qpik.lie import pose_error
 from qpik.validate import finite_array, joint_vector
 from qpik.validate import pose as check_pose
 

@@ -33,8 +33,9 @@ from qpik.control.limits import ConfigurationLimit, Limit, ObstacleLimit, Veloci
 from qpik.control.qp import Assembler
 from qpik.control.solvers import Solver, get_solver
 from qpik.control.state import SymState
-from qpik.control.tasks import DampingTask, FrameTask, ManipulabilityTask, PostureTask, Task, pose_error
+from qpik.control.tasks import DampingTask, FrameTask, ManipulabilityTask, PostureTask, Task
 from qpik.errors import InputError, SolverError, UnreachableError
+from qpik.lie import pose_error
 from qpik.validate import joint_vector
 from qpik.validate import pose as check_pose
 
