@@ -54,7 +54,7 @@ def test_non_orthonormal_rotation_needs_project(robot) -> None:
 @pytest.mark.parametrize("name", ["zheng7", "panda"])
 def test_arms_without_closed_form_say_so(name: str) -> None:
     robot = qpik.load_robot(name)
-    with pytest.raises(NoClosedFormError, match=r"Controller\.solve_ik"):
+    with pytest.raises(NoClosedFormError, match=r"qpik\.solve_ik"):
         qpik.ik(robot, robot.fk(robot.q_home), 0.0)
 
 

@@ -241,7 +241,9 @@ class OffsetShoulderSolver(AnalyticSolver):
         is ≥ 0 for indices 1, 2); the (θ5, θ6, θ7) index is 1 where θ6 ≥ 0.
         """
         q = np.asarray(q, dtype=float)
-        W = self.robot.frames(q)[:, 5, :, 3]  # wrist centre = origin of DH frame 5 (world)
+        # wrist centre = origin of DH frame 5 (world); one configuration through the compiled frames
+        F = self.robot.frames(q[0])[None] if len(q) == 1 else self.robot.frames(q)
+        W = F[:, 5, :, 3]
         w = W @ self._base_inv_np.T
         r = np.hypot(w[:, 0], w[:, 1])
         phi_w = np.where(r > ZERO, np.arctan2(w[:, 1], w[:, 0]), 0.0)

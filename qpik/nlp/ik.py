@@ -1,0 +1,396 @@
+r"""Numerical inverse kinematics of every arm: :func:`solve_ik`.
+
+For a target pose :math:`T^*` (4, 4, base frame) and a start :math:`q_0` (n,), find q inside
+the joint limits with :math:`\|e(q)\| \le` ``tol``, where
+
+.. math:: e(q) = [p^* - p(q);\ \log(R^* R(q)^T)] \quad (6,),\ \text{m; rad, base frame}
+
+(:func:`qpik.lie.pose_error`). Two ways, chosen by the arm:
+
+- **Closed form** (``robot.closed_form`` set: ``nammoto7`` in δ, ``iiwa14`` in ψ). The branch
+  b₀ and parameter π₀ of q₀ (:func:`qpik.redundancy_parameter`), the exact feasible set of
+  every branch for the pose (:func:`qpik.feasible_intervals`), and the point of b₀'s set
+  nearest to π₀ (on the circle) give the answer directly: ``qpik.ik`` at that parameter. It
+  is exact to ~1e-12 and, where b₀ reaches the pose, continuous in the pose with q₀'s own
+  branch and parameter. When b₀ has an empty set, the branch whose nearest feasible point
+  gives the q closest to q₀ is taken. An empty set on every branch means no configuration
+  inside the limits reaches the pose.
+- **Levenberg–Marquardt** (every arm; the only way for ``zheng7`` and ``panda``).
+  With :math:`G = -\partial e/\partial q = [J_v;\ J_r^{-1}(\omega) J_\omega]` (6, n) (geometric
+  Jacobian J, :math:`\omega = \log(R^* R^T)`, :func:`qpik.lie.so3_ljacinv_expr` at −ω), each
+  iteration takes the damped Gauss–Newton step
+
+  .. math:: \Delta q = G^T (G G^T + \lambda I_6)^{-1} e, \qquad \lambda = c\,\|e\|^2 + \bar\lambda,
+
+  damping proportional to the squared error as in Sugihara 2011 (large far from the target,
+  vanishing near it: quadratic convergence at a regular solution), with ``c`` =
+  :data:`DAMPING`, :math:`\bar\lambda` = :data:`DAMPING_FLOOR`. Joint limits: a joint whose
+  step would cross its limit is fixed at the limit and the step is solved again for the
+  others with the fixed joints' motion moved into the right-hand side (:data:`PASSES`
+  solves per iteration, the first of an active-set method on the box), then q is clipped
+  into the limits, so every iterate is inside them.
+  :data:`CHUNK` iterations are one compiled call (CasADi generates C; a few µs per
+  iteration). An attempt that reduces the error by less than a factor 1/:data:`STALL`
+  over a chunk, or runs :data:`ATTEMPT_ITERS` iterations, has stalled: the next attempt
+  starts from a configuration drawn uniformly within the limits, every third one from the
+  best configuration so far perturbed by :data:`PERTURB` rad per joint (a seeded generator:
+  the answer is reproducible).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from functools import cached_property
+from typing import TYPE_CHECKING, Literal
+
+import casadi as ca
+import numpy as np
+
+from qpik.analytic.api import feasible_intervals, ik, redundancy_parameter
+from qpik.compiled import Compiled
+from qpik.errors import InputError, NoClosedFormError, UnreachableError
+from qpik.lie import pose_error_expr, so3_ljacinv_expr
+from qpik.validate import joint_vector
+from qpik.validate import pose as check_pose
+
+if TYPE_CHECKING:
+    from qpik.robots.robot import Robot
+
+TOL = 1e-10
+"""Default tolerance on ‖e‖ (m and rad together)."""
+CHUNK = 8
+"""Levenberg–Marquardt iterations per compiled call (the stall test runs between calls)."""
+ATTEMPT_ITERS = 96
+"""Iterations after which an attempt that has not converged counts as stalled."""
+STALL = 0.5
+"""An attempt whose error after a chunk exceeds STALL times its error after the previous chunk has stalled."""
+DAMPING = 0.2
+"""c of the damping λ = c‖e‖² + λ̄ (per m² or rad²)."""
+DAMPING_FLOOR = 1e-9
+"""λ̄: the damping left at the solution (keeps G Gᵀ + λI invertible at a singular configuration)."""
+PASSES = 2
+"""Linear solves per iteration: the free step, then the step with the joints that crossed a limit held there."""
+PERTURB = 0.3
+"""Standard deviation (rad) of the perturbation of the best configuration, every third restart."""
+MAX_ITERS = 3000
+"""Default budget of Levenberg–Marquardt iterations (a few ms)."""
+EDGE = 1e-7
+"""How far (rad of δ/ψ) inside a feasible interval the closed-form answer is taken when the nearest point is an end."""
+
+Method = Literal["closed form", "levenberg-marquardt"]
+
+
+@dataclass
+class IKResult:
+    """What :meth:`IKSolver.solve` found.
+
+    Attributes:
+        q: (n,) configuration, rad, inside the joint limits: the answer if ``status == "ok"``,
+            else the configuration with the smallest pose error found.
+        status: ``"ok"`` (‖e‖ ≤ tol); ``"unreachable"`` (the closed form proves that no configuration
+            inside the limits reaches the pose: every branch's feasible set is empty); ``"not found"``
+            (Levenberg–Marquardt spent its budget, ``max_iters`` or ``max_time``, without reaching tol).
+        residual: ‖e(q)‖ (m and rad together), ``e = [p* − p; log(R* Rᵀ)]``.
+        method: ``"closed form"`` or ``"levenberg-marquardt"``.
+        iterations: Levenberg–Marquardt iterations over all attempts (0 for the closed form alone).
+        attempts: Levenberg–Marquardt attempts (start points) tried.
+        branch, param: the closed-form branch and δ/ψ (rad) of the answer, or None.
+    """
+
+    q: np.ndarray
+    status: str
+    residual: float
+    method: Method
+    iterations: int = 0
+    attempts: int = 0
+    branch: int | None = None
+    param: float | None = None
+
+
+def residual_expr(robot: Robot, q: ca.SX, target: ca.SX) -> tuple[ca.SX, ca.SX]:
+    r"""The pose error and its negated Jacobian as SX: ``(e (6,), G (6, n))``, :math:`G = -\partial e/\partial q`.
+
+    :math:`e = [p^* - p;\ \omega]`, :math:`\omega = \log(R^* R^T)`. With the world-frame angular
+    velocity :math:`w = J_\omega \dot q`, :math:`\dot R = [w]_\times R` and
+    :math:`\tfrac{d}{dt}(R^* R^T) = -(R^* R^T)[w]_\times`, so
+    :math:`\dot\omega = -J_r^{-1}(\omega)\, w` with :math:`J_r^{-1}(\omega) = J_l^{-1}(-\omega)`;
+    hence :math:`G = [J_v;\ J_l^{-1}(-\omega) J_\omega]`.
+    """
+    T, J = robot.chain.casadi_functions["fk_jacobian"](q)
+    e = pose_error_expr(target, T)
+    G = ca.vertcat(J[:3, :], ca.mtimes(so3_ljacinv_expr(-e[3:]), J[3:, :]))
+    return e, G
+
+
+def _cholesky_solve(A: ca.SX, b: ca.SX) -> ca.SX:
+    """x with ``A x = b`` for a symmetric positive definite SX ``A`` (m, m), by Cholesky ``A = L Lᵀ``."""
+    m = A.shape[0]
+    L = [[None] * m for _ in range(m)]
+    for i in range(m):
+        for j in range(i + 1):
+            s = A[i, j] - sum((L[i][k] * L[j][k] for k in range(j)), ca.SX(0))
+            L[i][j] = ca.sqrt(s) if i == j else s / L[j][j]
+    y = []
+    for i in range(m):
+        y.append((b[i] - sum((L[i][k] * y[k] for k in range(i)), ca.SX(0))) / L[i][i])
+    x: list = [None] * m
+    for i in reversed(range(m)):
+        x[i] = (y[i] - sum((L[k][i] * x[k] for k in range(i + 1, m)), ca.SX(0))) / L[i][i]
+    return ca.vertcat(*x)
+
+
+def step_expr(robot: Robot, q: ca.SX, target: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """One Levenberg–Marquardt iteration (module docstring) as SX: ``(q_next (n,) inside the limits, ‖e(q)‖)``."""
+    lo, hi = ca.DM(robot.q_min), ca.DM(robot.q_max)
+    e, G = residual_expr(robot, q, target)
+    err2 = ca.dot(e, e)
+    damping = DAMPING * err2 + DAMPING_FLOOR
+    free = ca.SX.ones(robot.dof)
+    held = ca.SX.zeros(robot.dof)  # motion of the joints held at a limit
+    dq = held
+    for _ in range(PASSES):
+        Gf = G * ca.repmat(free.T, 6, 1)
+        y = _cholesky_solve(ca.mtimes(Gf, Gf.T) + damping * ca.SX.eye(6), e - ca.mtimes(G, held))
+        dq = held + free * ca.mtimes(Gf.T, y)
+        nxt = q + dq
+        cross = free * ca.logic_or(nxt < lo, nxt > hi)
+        held = held + cross * (ca.fmin(ca.fmax(nxt, lo), hi) - q)
+        free = free * (1 - cross)
+    return ca.fmin(ca.fmax(q + dq, lo), hi), ca.sqrt(err2)
+
+
+class IKSolver:
+    """Numerical IK of one arm (:func:`solve_ik`): its compiled Levenberg–Marquardt chunk, built on first use.
+
+    Args:
+        robot: the arm.
+    """
+
+    def __init__(self, robot: Robot):
+        self.robot = robot
+
+    @cached_property
+    def _chunk(self) -> Compiled:
+        """``(q (n,), T (4, 4)) -> (q after CHUNK iterations, ‖e‖ there)``, compiled.
+
+        One iteration is an SX function; CasADi's ``mapaccum`` loops it CHUNK times in the
+        generated C (compiled once, quickly, and as fast as the iterations written out).
+        """
+        n = self.robot.dof
+        q, t = ca.SX.sym("q", n), ca.SX.sym("T", 16)
+        step = ca.Function("step", [q, t], [step_expr(self.robot, q, ca.reshape(t, 4, 4))[0]])
+        qm, Tm = ca.MX.sym("q", n), ca.MX.sym("T", 4, 4)
+        x = step.mapaccum("steps", CHUNK)(qm, ca.repmat(ca.vec(Tm), 1, CHUNK))[:, -1]
+        return Compiled(ca.Function(f"ik_lm_{self.robot.name}", [qm, Tm], [x, self._error_function(x, Tm)]))
+
+    @cached_property
+    def _error_function(self) -> ca.Function:
+        """``(q (n,), T (4, 4)) -> ‖e(q)‖`` as an SX function."""
+        q, T = ca.SX.sym("q", self.robot.dof), ca.SX.sym("T", 4, 4)
+        e = pose_error_expr(T, self.robot.chain.casadi_functions["fk"](q))
+        return ca.Function(f"ik_error_{self.robot.name}", [q, T], [ca.norm_2(e)])
+
+    @cached_property
+    def _error(self) -> Compiled:
+        """:attr:`_error_function`, compiled."""
+        return Compiled(self._error_function)
+
+    def residual(self, q: np.ndarray, pose: np.ndarray) -> float:
+        """‖e(q)‖ of ``q`` (n,) toward ``pose`` (4, 4) (m and rad together)."""
+        return float(self._error(q, pose)[0][0])
+
+    def solve(
+        self,
+        pose: np.ndarray,
+        q0: np.ndarray,
+        *,
+        tol: float = TOL,
+        max_iters: int = MAX_ITERS,
+        max_time: float | None = None,
+        seed: int = 0,
+        project: bool = False,
+        method: Method | None = None,
+    ) -> IKResult:
+        """:func:`solve_ik` with its status: never raises for a pose it does not reach (see :attr:`IKResult.status`)."""
+        robot = self.robot
+        T = check_pose(pose, "pose", project)[0]
+        if T.ndim != 2:
+            raise InputError(f"pose: expected shape (4, 4), got {T.shape}")
+        q, batched = joint_vector(q0, robot.dof, "q0")
+        if batched:
+            raise InputError(f"q0: expected shape ({robot.dof},), got {q.shape}")
+        if not (math.isfinite(tol) and tol > 0):
+            raise InputError(f"tol: must be finite and > 0, got {tol}")
+        if int(max_iters) < 1:
+            raise InputError(f"max_iters: must be >= 1, got {max_iters}")
+        if max_time is not None and not (math.isfinite(max_time) and max_time > 0):
+            raise InputError(f"max_time: must be finite and > 0 or None, got {max_time}")
+        if method is None:
+            method = "closed form" if robot.closed_form else "levenberg-marquardt"
+        if method not in ("closed form", "levenberg-marquardt"):
+            raise InputError(f"method: 'closed form', 'levenberg-marquardt' or None, got {method!r}")
+        if method == "closed form" and not robot.closed_form:
+            raise NoClosedFormError(f"method: {robot.name} has no closed form; use 'levenberg-marquardt'")
+        deadline = math.inf if max_time is None else time.perf_counter() + max_time
+        start = np.clip(q, robot.q_min, robot.q_max)
+        if method == "levenberg-marquardt":
+            return self._levenberg_marquardt(T, start, tol, int(max_iters), deadline, seed)
+        found = self._closed_form(T, q)
+        if found is not None and found.residual <= tol:
+            return found
+        if found is not None:  # a singular case of the closed form, or tol below its accuracy: polish
+            return self._levenberg_marquardt(T, found.q, tol, int(max_iters), deadline, seed)
+        # no branch is feasible: nothing inside the limits reaches the pose (up to the intervals' resolution,
+        # which one attempt from q0 covers); that attempt also gives the smallest error to report
+        res = self._levenberg_marquardt(T, start, tol, min(int(max_iters), ATTEMPT_ITERS), deadline, seed)
+        if res.status != "ok":
+            res.status = "unreachable"
+        return res
+
+    # ---- closed form ------------------------------------------------------------
+
+    def _closed_form(self, T: np.ndarray, q0: np.ndarray) -> IKResult | None:
+        """The closed-form answer nearest q0's branch and parameter, or None if no branch is feasible."""
+        robot = self.robot
+        sets = feasible_intervals(robot, T)
+        param0, branch0 = redundancy_parameter(robot, q0)
+        k0 = sets.index(branch0)
+        order = [k0] if sets.intervals[k0] else [k for k in range(len(sets.branch)) if sets.intervals[k]]
+        best: tuple[float, int, float, np.ndarray] | None = None
+        for k in order:
+            param = _nearest(sets.intervals[k], param0)
+            sol = ik(robot, T, param)
+            if not sol.within_limits[k]:
+                param = _middle(sets.intervals[k], param0)
+                sol = ik(robot, T, param)
+                if not sol.within_limits[k]:
+                    continue
+            dist = float(np.linalg.norm(sol.q[k] - q0))
+            if best is None or dist < best[0]:
+                best = (dist, k, param, sol.q[k].copy())
+        if best is None:
+            return None
+        _, k, param, q = best
+        return IKResult(q, "ok", self.residual(q, T), "closed form", branch=int(sets.branch[k]), param=param)
+
+    # ---- Levenberg–Marquardt ----------------------------------------------------
+
+    def _levenberg_marquardt(
+        self, T: np.ndarray, q: np.ndarray, tol: float, max_iters: int, deadline: float, seed: int
+    ) -> IKResult:
+        robot = self.robot
+        chunk = self._chunk
+        Tf = np.asarray(T, dtype=float).reshape(-1, order="F")
+        best_q, best = q.copy(), self.residual(q, T)
+        iterations = attempts = 0
+        rng: np.random.Generator | None = None
+        while best > tol and iterations < max_iters and time.perf_counter() < deadline:
+            if attempts:
+                if rng is None:
+                    rng = np.random.default_rng(seed)
+                if attempts % 3 == 0:
+                    q = np.clip(best_q + rng.normal(0.0, PERTURB, robot.dof), robot.q_min, robot.q_max)
+                else:
+                    q = rng.uniform(robot.q_min, robot.q_max)
+            attempts += 1
+            previous = math.inf
+            for _ in range(ATTEMPT_ITERS // CHUNK):
+                x, err = chunk(q, Tf)
+                iterations += CHUNK
+                q, err = x.copy(), float(err[0])
+                if err < best:
+                    best, best_q = err, q
+                if err <= tol or err > STALL * previous or iterations >= max_iters:
+                    break
+                previous = err
+        status = "ok" if best <= tol else "not found"
+        return IKResult(best_q, status, best, "levenberg-marquardt", iterations, attempts)
+
+
+_solvers: dict[int, IKSolver] = {}  # id(robot) -> solver; the solver holds the robot, so the id stays its own
+
+
+def solver_for(robot: Robot) -> IKSolver:
+    """The :class:`IKSolver` of ``robot`` (cached per robot object)."""
+    solver = _solvers.get(id(robot))
+    if solver is None or solver.robot is not robot:
+        solver = _solvers[id(robot)] = IKSolver(robot)
+    return solver
+
+
+def solve_ik(
+    robot: Robot,
+    pose: np.ndarray,
+    q0: np.ndarray,
+    *,
+    tol: float = TOL,
+    max_iters: int = MAX_ITERS,
+    max_time: float | None = None,
+    seed: int = 0,
+    project: bool = False,
+    method: Method | None = None,
+) -> np.ndarray:
+    """A configuration q (n,), rad, inside the joint limits, with the end-effector at ``pose``.
+
+    The closed form for arms that have one, else Levenberg–Marquardt with restarts (module docstring);
+    :meth:`IKSolver.solve` returns the same answer with its status and counts instead of raising.
+
+    Args:
+        robot: any arm.
+        pose: (4, 4) target pose of the end-effector, base frame.
+        q0: (n,) start configuration, rad (clipped into the limits where the iteration starts from it).
+        tol: the answer has ‖[p* − p; log(R* Rᵀ)]‖ ≤ tol (m and rad together).
+        max_iters: budget of Levenberg–Marquardt iterations over all attempts.
+        max_time: budget in seconds (wall clock), or None; with it the answer may depend on the machine's speed.
+        seed: seed of the restarts (the answer is reproducible for a given seed and iteration budget).
+        project: project a non-orthonormal rotation onto SO(3) instead of raising :class:`qpik.RotationError`.
+        method: ``"closed form"`` (the default where ``robot.closed_form`` is set) or
+            ``"levenberg-marquardt"`` (the default elsewhere, and possible on every arm).
+
+    Returns:
+        q (n,), rad, with every joint in ``[q_min, q_max]``.
+
+    Raises:
+        UnreachableError: the closed form proves that no configuration inside the limits reaches the pose,
+            or the iteration spent its budget; the message gives the smallest pose error found.
+        InputError: NaN/inf, wrong shapes, a bad tol, budget or method.
+        NoClosedFormError: ``method="closed form"`` for an arm without one.
+    """
+    res = solver_for(robot).solve(
+        pose, q0, tol=tol, max_iters=max_iters, max_time=max_time, seed=seed, project=project, method=method
+    )
+    if res.status == "unreachable":
+        raise UnreachableError(
+            "solve_ik: no configuration inside the joint limits reaches the pose (the feasible set of every "
+            f"closed-form branch is empty); smallest pose error found {res.residual:.3g} (m, rad)"
+        )
+    if res.status != "ok":
+        raise UnreachableError(
+            f"solve_ik: smallest pose error {res.residual:.3g} (m, rad) after {res.attempts} attempts and "
+            f"{res.iterations} iterations (tol {tol:g})"
+        )
+    return res.q
+
+
+def _nearest(intervals: list[tuple[float, float]], x: float) -> float:
+    """The point of the union of ``intervals`` (rad, in (-π, π]) nearest to ``x`` on the circle, at least
+    :data:`EDGE` inside its interval (or its middle, when shorter)."""
+    best, best_d = x, math.inf
+    for lo, hi in intervals:
+        inset = min(EDGE, 0.5 * (hi - lo))
+        a, b = lo + inset, hi - inset
+        if a <= x <= b:
+            return x
+        for end in (a, b):
+            d = abs(math.remainder(end - x, 2 * math.pi))
+            if d < best_d:
+                best, best_d = end, d
+    return best
+
+
+def _middle(intervals: list[tuple[float, float]], x: float) -> float:
+    """The middle of the interval nearest ``x``."""
+    lo, hi = min(intervals, key=lambda iv: abs(math.remainder(_nearest([iv], x) - x, 2 * math.pi)))
+    return 0.5 * (lo + hi)
