@@ -5,36 +5,38 @@ the joint limits with :math:`\|e(q)\| \le` ``tol``, where
 
 .. math:: e(q) = [p^* - p(q);\ \log(R^* R(q)^T)] \quad (6,),\ \text{m; rad, base frame}
 
-(:func:`qpik.lie.pose_error`). Two ways, chosen by the arm:
+(:func:`qpik.lie.pose_error`). A start inside the limits that already meets ``tol`` is the
+answer. Otherwise, one of two ways:
 
-- **Closed form** (``robot.closed_form`` set: ``nammoto7`` in δ, ``iiwa14`` in ψ). The branch
-  b₀ and parameter π₀ of q₀ (:func:`qpik.redundancy_parameter`), the exact feasible set of
-  every branch for the pose (:func:`qpik.feasible_intervals`), and the point of b₀'s set
-  nearest to π₀ (on the circle) give the answer directly: ``qpik.ik`` at that parameter. It
-  is exact to ~1e-12 and, where b₀ reaches the pose, continuous in the pose with q₀'s own
-  branch and parameter. When b₀ has an empty set, the branch whose nearest feasible point
-  gives the q closest to q₀ is taken. An empty set on every branch means no configuration
-  inside the limits reaches the pose.
-- **Levenberg–Marquardt** (every arm; the only way for ``zheng7`` and ``panda``).
-  With :math:`G = -\partial e/\partial q = [J_v;\ J_r^{-1}(\omega) J_\omega]` (6, n) (geometric
-  Jacobian J, :math:`\omega = \log(R^* R^T)`, :func:`qpik.lie.so3_ljacinv_expr` at −ω), each
-  iteration takes the damped Gauss–Newton step
+- **Closed form** (the default where ``robot.closed_form`` is set: ``nammoto7`` in δ,
+  ``iiwa14`` in ψ). q₀'s branch b₀ and parameter s₀ (δ or ψ, :func:`qpik.redundancy_parameter`),
+  the exact feasible set of every branch for the pose (:func:`qpik.feasible_intervals`), and the
+  point of b₀'s set nearest to s₀ on the circle (:data:`EDGE` inside it) give the answer:
+  ``qpik.ik`` at that parameter, exact to ~1e-12 and, while b₀ stays feasible, continuous in
+  the pose and equal to q₀ at q₀'s own pose. If b₀'s set is empty, the branch whose nearest
+  feasible point gives the q closest to q₀ is taken. If every set is empty, no configuration
+  inside the limits reaches the pose (up to the sets' 1e-9 rad resolution); one
+  Levenberg–Marquardt attempt from q₀ then gives the smallest error to report (or the
+  answer, should it find one).
+- **Levenberg–Marquardt** (the default for ``zheng7`` and ``panda``; possible on every arm).
+  With :math:`G = -\partial e/\partial q = [J_v;\ J_l^{-1}(-\omega) J_\omega]` (6, n) (geometric
+  Jacobian J, :math:`\omega = \log(R^* R^T)`, :func:`residual_expr`), each iteration takes the
+  damped Gauss–Newton step
 
   .. math:: \Delta q = G^T (G G^T + \lambda I_6)^{-1} e, \qquad \lambda = c\,\|e\|^2 + \bar\lambda,
 
-  damping proportional to the squared error as in Sugihara 2011 (large far from the target,
-  vanishing near it: quadratic convergence at a regular solution), with ``c`` =
-  :data:`DAMPING`, :math:`\bar\lambda` = :data:`DAMPING_FLOOR`. Joint limits: a joint whose
-  step would cross its limit is fixed at the limit and the step is solved again for the
-  others with the fixed joints' motion moved into the right-hand side (:data:`PASSES`
-  solves per iteration, the first of an active-set method on the box), then q is clipped
-  into the limits, so every iterate is inside them.
-  :data:`CHUNK` iterations are one compiled call (CasADi generates C; a few µs per
-  iteration). An attempt that reduces the error by less than a factor 1/:data:`STALL`
-  over a chunk, or runs :data:`ATTEMPT_ITERS` iterations, has stalled: the next attempt
+  the damping proportional to the squared error as in Sugihara 2011 (large far from the
+  target, vanishing near it: quadratic convergence at a regular solution), c = :data:`DAMPING`,
+  :math:`\bar\lambda` = :data:`DAMPING_FLOOR`. Joint limits: a joint whose step would cross its
+  limit is held at the limit and the step is solved again for the others, the held joints'
+  motion moved into the right-hand side (:data:`PASSES` solves per iteration, the first steps
+  of an active-set method on the box); q is then clipped into the limits, so every iterate is
+  inside them. :data:`CHUNK` iterations are one compiled call (CasADi generates C; about 1 µs
+  per iteration). An attempt that reduces the error by less than a factor 1/:data:`STALL`
+  over a chunk, or runs :data:`ATTEMPT_ITERS` iterations, has stalled and stops: the next
   starts from a configuration drawn uniformly within the limits, every third one from the
-  best configuration so far perturbed by :data:`PERTURB` rad per joint (a seeded generator:
-  the answer is reproducible).
+  best configuration so far perturbed by :data:`PERTURB` rad per joint. The generator is
+  seeded: for a given seed and ``max_iters`` the answer is reproducible.
 """
 
 from __future__ import annotations
@@ -49,10 +51,11 @@ import casadi as ca
 import numpy as np
 
 from qpik.analytic.api import feasible_intervals, ik, redundancy_parameter
+from qpik.analytic.api import solver_for as closed_form_solver
 from qpik.compiled import Compiled
 from qpik.errors import InputError, NoClosedFormError, UnreachableError
 from qpik.lie import pose_error_expr, so3_ljacinv_expr
-from qpik.validate import joint_vector
+from qpik.validate import finite_array, joint_vector
 from qpik.validate import pose as check_pose
 
 if TYPE_CHECKING:
@@ -75,11 +78,12 @@ PASSES = 2
 PERTURB = 0.3
 """Standard deviation (rad) of the perturbation of the best configuration, every third restart."""
 MAX_ITERS = 3000
-"""Default budget of Levenberg–Marquardt iterations (a few ms)."""
+"""Default budget of Levenberg–Marquardt iterations over all attempts (a few ms; spent in whole chunks)."""
 EDGE = 1e-7
 """How far (rad of δ/ψ) inside a feasible interval the closed-form answer is taken when the nearest point is an end."""
 
 Method = Literal["closed form", "levenberg-marquardt"]
+Status = Literal["ok", "unreachable", "not found"]
 
 
 @dataclass
@@ -96,11 +100,12 @@ class IKResult:
         method: ``"closed form"`` or ``"levenberg-marquardt"``.
         iterations: Levenberg–Marquardt iterations over all attempts (0 for the closed form alone).
         attempts: Levenberg–Marquardt attempts (start points) tried.
-        branch, param: the closed-form branch and δ/ψ (rad) of the answer, or None.
+        branch, param: the closed-form branch and δ/ψ (rad) of the answer, or None when the closed form
+            did not give it (another method, or q0 returned as it is because it reaches the pose).
     """
 
     q: np.ndarray
-    status: str
+    status: Status
     residual: float
     method: Method
     iterations: int = 0
@@ -141,8 +146,9 @@ def _cholesky_solve(A: ca.SX, b: ca.SX) -> ca.SX:
     return ca.vertcat(*x)
 
 
-def step_expr(robot: Robot, q: ca.SX, target: ca.SX) -> tuple[ca.SX, ca.SX]:
-    """One Levenberg–Marquardt iteration (module docstring) as SX: ``(q_next (n,) inside the limits, ‖e(q)‖)``."""
+def step_expr(robot: Robot, q: ca.SX, target: ca.SX) -> ca.SX:
+    """One Levenberg–Marquardt iteration (module docstring) as SX: the next q (n,), inside the limits, from q (n,)
+    toward the pose ``target`` (4, 4)."""
     lo, hi = ca.DM(robot.q_min), ca.DM(robot.q_max)
     e, G = residual_expr(robot, q, target)
     err2 = ca.dot(e, e)
@@ -158,11 +164,14 @@ def step_expr(robot: Robot, q: ca.SX, target: ca.SX) -> tuple[ca.SX, ca.SX]:
         cross = free * ca.logic_or(nxt < lo, nxt > hi)
         held = held + cross * (ca.fmin(ca.fmax(nxt, lo), hi) - q)
         free = free * (1 - cross)
-    return ca.fmin(ca.fmax(q + dq, lo), hi), ca.sqrt(err2)
+    return ca.fmin(ca.fmax(q + dq, lo), hi)
 
 
 class IKSolver:
-    """Numerical IK of one arm (:func:`solve_ik`): its compiled Levenberg–Marquardt chunk, built on first use.
+    """Inverse kinematics of one arm (module docstring); :func:`solve_ik` uses one per robot (:func:`solver_for`).
+
+    Holds the compiled Levenberg–Marquardt chunk and pose error of the arm, built on first use
+    (C generated by CasADi, compiled once and cached on disk: :mod:`qpik.compiled`).
 
     Args:
         robot: the arm.
@@ -180,7 +189,7 @@ class IKSolver:
         """
         n = self.robot.dof
         q, t = ca.SX.sym("q", n), ca.SX.sym("T", 16)
-        step = ca.Function("step", [q, t], [step_expr(self.robot, q, ca.reshape(t, 4, 4))[0]])
+        step = ca.Function("step", [q, t], [step_expr(self.robot, q, ca.reshape(t, 4, 4))])
         qm, Tm = ca.MX.sym("q", n), ca.MX.sym("T", 4, 4)
         x = step.mapaccum("steps", CHUNK)(qm, ca.repmat(ca.vec(Tm), 1, CHUNK))[:, -1]
         return Compiled(ca.Function(f"ik_lm_{self.robot.name}", [qm, Tm], [x, self._error_function(x, Tm)]))
@@ -221,12 +230,13 @@ class IKSolver:
         q, batched = joint_vector(q0, robot.dof, "q0")
         if batched:
             raise InputError(f"q0: expected shape ({robot.dof},), got {q.shape}")
-        if not (math.isfinite(tol) and tol > 0):
-            raise InputError(f"tol: must be finite and > 0, got {tol}")
-        if int(max_iters) < 1:
-            raise InputError(f"max_iters: must be >= 1, got {max_iters}")
-        if max_time is not None and not (math.isfinite(max_time) and max_time > 0):
-            raise InputError(f"max_time: must be finite and > 0 or None, got {max_time}")
+        tol = float(finite_array(tol, "tol", ()))
+        if tol <= 0:
+            raise InputError(f"tol: must be > 0, got {tol}")
+        if not isinstance(max_iters, int | np.integer) or max_iters < 1:
+            raise InputError(f"max_iters: must be an integer >= 1, got {max_iters!r}")
+        if max_time is not None and float(finite_array(max_time, "max_time", ())) <= 0:
+            raise InputError(f"max_time: must be > 0 or None, got {max_time}")
         if method is None:
             method = "closed form" if robot.closed_form else "levenberg-marquardt"
         if method not in ("closed form", "levenberg-marquardt"):
@@ -235,6 +245,10 @@ class IKSolver:
             raise NoClosedFormError(f"method: {robot.name} has no closed form; use 'levenberg-marquardt'")
         deadline = math.inf if max_time is None else time.perf_counter() + max_time
         start = np.clip(q, robot.q_min, robot.q_max)
+        if (start == q).all():  # q0 inside the limits already at the pose: it is the answer
+            residual = self.residual(q, T)
+            if residual <= tol:
+                return IKResult(q.copy(), "ok", residual, method)
         if method == "levenberg-marquardt":
             return self._levenberg_marquardt(T, start, tol, int(max_iters), deadline, seed)
         found = self._closed_form(T, q)
@@ -242,8 +256,8 @@ class IKSolver:
             return found
         if found is not None:  # a singular case of the closed form, or tol below its accuracy: polish
             return self._levenberg_marquardt(T, found.q, tol, int(max_iters), deadline, seed)
-        # no branch is feasible: nothing inside the limits reaches the pose (up to the intervals' resolution,
-        # which one attempt from q0 covers); that attempt also gives the smallest error to report
+        # no branch is feasible: nothing inside the limits reaches the pose (up to the sets' resolution);
+        # one attempt from q0 gives the smallest error to report
         res = self._levenberg_marquardt(T, start, tol, min(int(max_iters), ATTEMPT_ITERS), deadline, seed)
         if res.status != "ok":
             res.status = "unreachable"
@@ -257,19 +271,23 @@ class IKSolver:
         sets = feasible_intervals(robot, T)
         param0, branch0 = redundancy_parameter(robot, q0)
         k0 = sets.index(branch0)
-        order = [k0] if sets.intervals[k0] else [k for k in range(len(sets.branch)) if sets.intervals[k]]
+        rows = [k0] if sets.intervals[k0] else [k for k, iv in enumerate(sets.intervals) if iv]
+        if not rows:
+            return None
+        params = np.array([_nearest(sets.intervals[k], param0) for k in rows])
+        sol = closed_form_solver(robot).solve_many(T, params)  # every branch at each candidate parameter, one call
         best: tuple[float, int, float, np.ndarray] | None = None
-        for k in order:
-            param = _nearest(sets.intervals[k], param0)
-            sol = ik(robot, T, param)
-            if not sol.within_limits[k]:
+        for i, k in enumerate(rows):
+            q = sol.q[i, k]
+            if not sol.within_limits[i, k]:  # the nearest point sits on a limit to round-off: take the middle
                 param = _middle(sets.intervals[k], param0)
-                sol = ik(robot, T, param)
-                if not sol.within_limits[k]:
+                again = ik(robot, T, param)
+                if not again.within_limits[k]:
                     continue
-            dist = float(np.linalg.norm(sol.q[k] - q0))
+                params[i], q = param, again.q[k]
+            dist = float(np.linalg.norm(q - q0))
             if best is None or dist < best[0]:
-                best = (dist, k, param, sol.q[k].copy())
+                best = (dist, k, float(params[i]), q.copy())
         if best is None:
             return None
         _, k, param, q = best
@@ -342,8 +360,10 @@ def solve_ik(
         pose: (4, 4) target pose of the end-effector, base frame.
         q0: (n,) start configuration, rad (clipped into the limits where the iteration starts from it).
         tol: the answer has ‖[p* − p; log(R* Rᵀ)]‖ ≤ tol (m and rad together).
-        max_iters: budget of Levenberg–Marquardt iterations over all attempts.
-        max_time: budget in seconds (wall clock), or None; with it the answer may depend on the machine's speed.
+        max_iters: budget of Levenberg–Marquardt iterations over all attempts (spent in whole chunks of
+            :data:`CHUNK`, so up to CHUNK − 1 more).
+        max_time: budget in seconds (wall clock, checked between attempts), or None; with it the answer
+            may depend on the machine's speed.
         seed: seed of the restarts (the answer is reproducible for a given seed and iteration budget).
         project: project a non-orthonormal rotation onto SO(3) instead of raising :class:`qpik.RotationError`.
         method: ``"closed form"`` (the default where ``robot.closed_form`` is set) or

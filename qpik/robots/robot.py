@@ -131,7 +131,7 @@ class Robot:
         return to_mjcf(self)
 
     def to_urdf(self) -> str:
-        """A URDF of the arm from its joint axes at q = 0 (root ``base``, tip ``ee``): :func:`qpik.robots.urdf.to_urdf`."""
+        """The URDF of the arm from its joint axes at q = 0, root ``base``, tip ``ee`` (:mod:`qpik.robots.urdf`)."""
         from qpik.robots.urdf import to_urdf
 
         return to_urdf(self)

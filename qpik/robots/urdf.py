@@ -8,7 +8,7 @@ since :math:`v_k = \omega_k \times (p_{ee} - o)` for every point o of the axis, 
 
 Link frames (base frame, at q = 0): link k's origin :math:`o_k` is the point of axis k nearest
 :math:`o_{k-1}` (:math:`o_0` the base origin), its z axis is :math:`\omega_k`, and its rotation is
-link k-1's turned by the smallest rotation taking :math:`z_{k-1}` to :math:`\omega_k` (the base's
+link k-1's turned by a rotation taking :math:`z_{k-1}` to :math:`\omega_k` (:func:`_align`; the base's
 z for k = 1). Joint k (``revolute``, ``axis 0 0 1``) places link k in link k-1; a fixed joint
 ``ee_joint`` places the end-effector link ``ee``. Turning each link about its own z by
 :math:`q_k` then gives the product of exponentials :math:`\prod_k e^{[\xi_k] q_k}\, T_{ee}(0)`:
@@ -32,7 +32,7 @@ BASE, TIP = "base", "ee"
 def to_urdf(robot: Robot) -> str:
     """The URDF of ``robot`` as an XML string: links ``base``, ``link1..linkn``, ``ee``; joints ``joint1..jointn``."""
     n = robot.dof
-    T_ee, J = robot.fk_jacobian(np.zeros(n))
+    T_ee, J = (x[0] for x in robot.fk_jacobian(np.zeros((1, n))))  # the batched path: nothing to compile
     frames = [np.eye(4)]
     for k in range(n):
         w = J[3:, k] / np.linalg.norm(J[3:, k])
@@ -78,16 +78,17 @@ def to_urdf(robot: Robot) -> str:
 
 
 def _align(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The smallest rotation (3, 3) taking the unit vector ``a`` to the unit vector ``b``.
+    """A rotation (3, 3) taking the unit vector ``a`` to the unit vector ``b``: the smallest one when a·b ≥ 0.
 
-    Rodrigues with :math:`v = a \\times b`, :math:`c = a \\cdot b`: :math:`R = I + [v]_\\times + [v]_\\times^2/(1 + c)`;
-    for opposite vectors (c ≈ −1) the half turn about an axis perpendicular to ``a``.
+    Rodrigues with :math:`v = a \\times b`, :math:`c = a \\cdot b`: :math:`R = I + [v]_\\times + [v]_\\times^2/(1 + c)`,
+    accurate for c ≥ 0. For c < 0 (where 1/(1 + c) would magnify round-off) a half turn
+    :math:`2uu^T - I` about a unit u ⟂ a first takes a to −a, then Rodrigues from −a to b.
     """
     c = float(a @ b)
-    if c < -1.0 + 1e-12:
+    if c < 0.0:
         u = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
         u /= np.linalg.norm(u)
-        return 2.0 * np.outer(u, u) - np.eye(3)
+        return _align(-a, b) @ (2.0 * np.outer(u, u) - np.eye(3))
     v = np.cross(a, b)
     V = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
     return np.eye(3) + V + V @ V / (1.0 + c)
