@@ -50,7 +50,7 @@ from typing import TYPE_CHECKING, Literal
 import casadi as ca
 import numpy as np
 
-from qpik.analytic.api import feasible_intervals, ik, redundancy_parameter
+from qpik.analytic.api import ik
 from qpik.analytic.api import solver_for as closed_form_solver
 from qpik.compiled import Compiled
 from qpik.errors import InputError, NoClosedFormError, UnreachableError
@@ -266,16 +266,20 @@ class IKSolver:
     # ---- closed form ------------------------------------------------------------
 
     def _closed_form(self, T: np.ndarray, q0: np.ndarray) -> IKResult | None:
-        """The closed-form answer nearest q0's branch and parameter, or None if no branch is feasible."""
+        """The closed-form answer nearest q0's branch and parameter, or None if no branch is feasible.
+
+        ``T`` (4, 4) is a checked pose (the closed-form solver is called directly, without checking it again).
+        """
         robot = self.robot
-        sets = feasible_intervals(robot, T)
-        param0, branch0 = redundancy_parameter(robot, q0)
+        solver = closed_form_solver(robot)
+        sets = solver.feasible_intervals(T)
+        param0, branch0 = (x[0] for x in solver.parameter(q0[None]))
         k0 = sets.index(branch0)
         rows = [k0] if sets.intervals[k0] else [k for k, iv in enumerate(sets.intervals) if iv]
         if not rows:
             return None
         params = np.array([_nearest(sets.intervals[k], param0) for k in rows])
-        sol = closed_form_solver(robot).solve_many(T, params)  # every branch at each candidate parameter, one call
+        sol = solver.solve_many(T, params)  # every branch at each candidate parameter, one call
         best: tuple[float, int, float, np.ndarray] | None = None
         for i, k in enumerate(rows):
             q = sol.q[i, k]
@@ -285,7 +289,7 @@ class IKSolver:
                 if not again.within_limits[k]:
                     continue
                 params[i], q = param, again.q[k]
-            dist = float(np.linalg.norm(q - q0))
+            dist = float(np.linalg.norm(q - q0)) if len(rows) > 1 else 0.0
             if best is None or dist < best[0]:
                 best = (dist, k, float(params[i]), q.copy())
         if best is None:
