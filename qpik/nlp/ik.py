@@ -10,12 +10,13 @@ answer. Otherwise, one of two ways:
 
 - **Closed form** (the default where ``robot.closed_form`` is set: ``nammoto7`` in δ,
   ``iiwa14`` in ψ). q₀'s branch b₀ and parameter s₀ (δ or ψ, :func:`qpik.redundancy_parameter`),
-  the exact feasible set of every branch for the pose (:func:`qpik.feasible_intervals`), and the
-  point of b₀'s set nearest to s₀ on the circle (:data:`EDGE` inside it) give the answer:
-  ``qpik.ik`` at that parameter, exact to ~1e-12 and, while b₀ stays feasible, continuous in
-  the pose and equal to q₀ at q₀'s own pose. If b₀'s set is empty, the branch whose nearest
-  feasible point gives the q closest to q₀ is taken. If every set is empty, no configuration
-  inside the limits reaches the pose (up to the sets' 1e-9 rad resolution); one
+  and the exact feasible set of every branch for the pose (:func:`qpik.feasible_intervals`) give
+  the answer: ``qpik.ik`` on b₀ at s₀ itself if s₀ lies in b₀'s set, else at whichever of the
+  two ends of the gap around s₀ (:data:`EDGE` inside) gives the q nearer q₀. It is exact to
+  ~1e-12 and, while s₀ stays in b₀'s set, continuous in the pose (away from singular
+  configurations, near which q moves fast with the pose at fixed δ/ψ) and equal to q₀ at
+  q₀'s own pose. If b₀'s set is empty, the same two ends on every branch compete. If every
+  set is empty, no configuration inside the limits reaches the pose (up to the sets' 1e-9 rad resolution); one
   Levenberg–Marquardt attempt from q₀ then gives the smallest error to report (or the
   answer, should it find one).
 - **Levenberg–Marquardt** (the default for ``zheng7`` and ``panda``; possible on every arm).
@@ -59,6 +60,7 @@ from qpik.validate import finite_array, joint_vector
 from qpik.validate import pose as check_pose
 
 if TYPE_CHECKING:
+    from qpik.analytic.intervals import Interval
     from qpik.robots.robot import Robot
 
 TOL = 1e-10
@@ -276,22 +278,23 @@ class IKSolver:
         param0, branch0 = (x[0] for x in solver.parameter(q0[None]))
         k0 = sets.index(branch0)
         rows = [k0] if sets.intervals[k0] else [k for k, iv in enumerate(sets.intervals) if iv]
-        if not rows:
+        cands = [(k, param, iv) for k in rows for param, iv in _candidates(sets.intervals[k], param0)]
+        if not cands:
             return None
-        params = np.array([_nearest(sets.intervals[k], param0) for k in rows])
+        params = np.array([param for _, param, _ in cands])
         sol = solver.solve_many(T, params)  # every branch at each candidate parameter, one call
         best: tuple[float, int, float, np.ndarray] | None = None
-        for i, k in enumerate(rows):
+        for i, (k, param, (lo, hi)) in enumerate(cands):
             q = sol.q[i, k]
-            if not sol.within_limits[i, k]:  # the nearest point sits on a limit to round-off: take the middle
-                param = _middle(sets.intervals[k], param0)
+            if not sol.within_limits[i, k]:  # an end sits on a limit to round-off: take its interval's middle
+                param = 0.5 * (lo + hi)
                 again = ik(robot, T, param)
                 if not again.within_limits[k]:
                     continue
-                params[i], q = param, again.q[k]
-            dist = float(np.linalg.norm(q - q0)) if len(rows) > 1 else 0.0
+                q = again.q[k]
+            dist = float(np.linalg.norm(q - q0)) if len(cands) > 1 else 0.0
             if best is None or dist < best[0]:
-                best = (dist, k, float(params[i]), q.copy())
+                best = (dist, k, param, q.copy())
         if best is None:
             return None
         _, k, param, q = best
@@ -398,23 +401,21 @@ def solve_ik(
     return res.q
 
 
-def _nearest(intervals: list[tuple[float, float]], x: float) -> float:
-    """The point of the union of ``intervals`` (rad, in (-π, π]) nearest to ``x`` on the circle, at least
-    :data:`EDGE` inside its interval (or its middle, when shorter)."""
-    best, best_d = x, math.inf
+def _candidates(intervals: list[Interval], x: float) -> list[tuple[float, Interval]]:
+    """Where to evaluate the closed form on a branch with these feasible ``intervals`` (rad, in (-π, π]), each with
+    its interval: ``x`` itself if it lies in one of them (:data:`EDGE` inside), else the two ends, EDGE inside,
+    of the gap around ``x`` on the circle (the first feasible value above x and the last one below it)."""
+    up = down = None
     for lo, hi in intervals:
         inset = min(EDGE, 0.5 * (hi - lo))
         a, b = lo + inset, hi - inset
         if a <= x <= b:
-            return x
-        for end in (a, b):
-            d = abs(math.remainder(end - x, 2 * math.pi))
-            if d < best_d:
-                best, best_d = end, d
-    return best
-
-
-def _middle(intervals: list[tuple[float, float]], x: float) -> float:
-    """The middle of the interval nearest ``x``."""
-    lo, hi = min(intervals, key=lambda iv: abs(math.remainder(_nearest([iv], x) - x, 2 * math.pi)))
-    return 0.5 * (lo + hi)
+            return [(x, (lo, hi))]
+        rise, fall = (a - x) % (2 * math.pi), (x - b) % (2 * math.pi)
+        if up is None or rise < up[0]:
+            up = (rise, a, (lo, hi))
+        if down is None or fall < down[0]:
+            down = (fall, b, (lo, hi))
+    if up is None or down is None:
+        return []
+    return [(up[1], up[2])] if up[1] == down[1] else [(up[1], up[2]), (down[1], down[2])]
