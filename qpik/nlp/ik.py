@@ -253,11 +253,13 @@ class IKSolver:
                 return IKResult(q.copy(), "ok", residual, method)
         if method == "levenberg-marquardt":
             return self._levenberg_marquardt(T, start, tol, int(max_iters), deadline, seed)
-        found = self._closed_form(T, q)
+        found, feasible = self._closed_form(T, q)
         if found is not None and found.residual <= tol:
             return found
         if found is not None:  # a singular case of the closed form, or tol below its accuracy: polish
             return self._levenberg_marquardt(T, found.q, tol, int(max_iters), deadline, seed)
+        if feasible:  # a feasible set whose candidates all failed the limit test: iterate instead
+            return self._levenberg_marquardt(T, start, tol, int(max_iters), deadline, seed)
         # no branch is feasible: nothing inside the limits reaches the pose (up to the sets' resolution);
         # one attempt from q0 gives the smallest error to report
         res = self._levenberg_marquardt(T, start, tol, min(int(max_iters), ATTEMPT_ITERS), deadline, seed)
@@ -267,11 +269,9 @@ class IKSolver:
 
     # ---- closed form ------------------------------------------------------------
 
-    def _closed_form(self, T: np.ndarray, q0: np.ndarray) -> IKResult | None:
-        """The closed-form answer nearest q0's branch and parameter, or None if no branch is feasible.
-
-        ``T`` (4, 4) is a checked pose (the closed-form solver is called directly, without checking it again).
-        """
+    def _closed_form(self, T: np.ndarray, q0: np.ndarray) -> tuple[IKResult | None, bool]:
+        """The closed-form answer chosen from q0's branch and parameter (module docstring), or None; and whether
+        any branch has a feasible set. ``T`` (4, 4) is a checked pose (not checked again here)."""
         robot = self.robot
         solver = closed_form_solver(robot)
         sets = solver.feasible_intervals(T)
@@ -280,7 +280,7 @@ class IKSolver:
         rows = [k0] if sets.intervals[k0] else [k for k, iv in enumerate(sets.intervals) if iv]
         cands = [(k, param, iv) for k in rows for param, iv in _candidates(sets.intervals[k], param0)]
         if not cands:
-            return None
+            return None, False
         params = np.array([param for _, param, _ in cands])
         sol = solver.solve_many(T, params)  # every branch at each candidate parameter, one call
         best: tuple[float, int, float, np.ndarray] | None = None
@@ -296,9 +296,10 @@ class IKSolver:
             if best is None or dist < best[0]:
                 best = (dist, k, param, q.copy())
         if best is None:
-            return None
+            return None, True
         _, k, param, q = best
-        return IKResult(q, "ok", self.residual(q, T), "closed form", branch=int(sets.branch[k]), param=param)
+        res = IKResult(q, "ok", self.residual(q, T), "closed form", branch=int(sets.branch[k]), param=param)
+        return res, True
 
     # ---- Levenberg–Marquardt ----------------------------------------------------
 
