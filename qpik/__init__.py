@@ -20,6 +20,7 @@ from qpik.errors import (
     UnknownRobotError,
     UnreachableError,
 )
+from qpik.nlp import solve_ik
 from qpik.robots import CATALOG, DHChain, LinkCapsule, Robot, load_robot
 
 __version__ = "0.1.0"
@@ -47,4 +48,5 @@ __all__ = [
     "ik",
     "load_robot",
     "redundancy_parameter",
+    "solve_ik",
 ]

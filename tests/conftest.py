@@ -15,6 +15,8 @@ the helpers with ``from conftest import ...``):
       def test_something(robot, seed):
           q = random_q(robot, 2000, seed)
 
+- ``random_robot(seed, convention)``: a 7-joint DH arm (``"standard"`` or ``"modified"``)
+  with random lengths, twists, offsets, limits, base and tool transforms.
 - ``q_within_limits(robot)``: a hypothesis strategy of one ``(7,)``
   configuration inside the limits (shrinks joint by joint), for tests that
   need single draws.
@@ -40,6 +42,9 @@ import pytest
 from hypothesis import strategies as st
 
 import qpik  # first: it chooses MuJoCo's GL backend before any test module imports mujoco
+from qpik.robots.dh import DHChain
+from qpik.robots.robot import Robot, default_capsules
+from qpik.validate import project_to_so3
 
 ARMS = ("nammoto7", "iiwa14", "zheng7", "panda")
 SEEDS = st.integers(min_value=0, max_value=2**32 - 1)
@@ -55,6 +60,38 @@ def random_q(robot: qpik.Robot, n: int, seed: int, margin: float = 0.0) -> np.nd
     """``(n, dof)`` configurations uniform in ``[q_min + margin, q_max - margin]`` (rad)."""
     rng = np.random.default_rng(seed)
     return rng.uniform(robot.q_min + margin, robot.q_max - margin, size=(n, robot.dof))
+
+
+def random_robot(seed: int, convention: str) -> Robot:
+    """A DH arm with random lengths, twists, offsets, base and tool transforms."""
+    rng = np.random.default_rng(seed)
+    n = 7
+
+    def transform() -> np.ndarray:
+        T = np.eye(4)
+        T[:3, :3] = project_to_so3(rng.normal(size=(3, 3)))
+        T[:3, 3] = rng.uniform(-0.3, 0.3, 3)
+        return T
+
+    chain = DHChain(
+        a=tuple(rng.uniform(-0.3, 0.3, n)),
+        d=tuple(rng.uniform(-0.4, 0.4, n)),
+        alpha=tuple(rng.uniform(-np.pi, np.pi, n)),
+        offset=tuple(rng.uniform(-np.pi, np.pi, n)),
+        convention=convention,
+        base=transform(),
+        tool=transform(),
+    )
+    lim = rng.uniform(1.0, 3.0, n)
+    return Robot(
+        name=f"random_{convention}",
+        chain=chain,
+        q_min=-lim,
+        q_max=lim,
+        v_max=np.ones(n),
+        q_home=np.zeros(n),
+        capsules=default_capsules(chain, tuple(rng.uniform(0.02, 0.08, n))),
+    )
 
 
 def q_within_limits(robot: qpik.Robot) -> st.SearchStrategy[np.ndarray]:

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import SEEDS, random_q
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import qpik
 from qpik.errors import InputError, NoClosedFormError, QpikError, RotationError
@@ -54,7 +57,7 @@ def test_non_orthonormal_rotation_needs_project(robot) -> None:
 @pytest.mark.parametrize("name", ["zheng7", "panda"])
 def test_arms_without_closed_form_say_so(name: str) -> None:
     robot = qpik.load_robot(name)
-    with pytest.raises(NoClosedFormError, match=r"Controller\.solve_ik"):
+    with pytest.raises(NoClosedFormError, match=r"qpik\.solve_ik"):
         qpik.ik(robot, robot.fk(robot.q_home), 0.0)
 
 
@@ -65,6 +68,24 @@ def test_batched_param_broadcasts_a_float(robot) -> None:
     np.testing.assert_array_equal(both.param, [0.2, 0.2])
     one = qpik.ik(robot, T[1], 0.2)
     np.testing.assert_allclose(both.q[1], one.q, atol=1e-12)
+
+
+@settings(max_examples=5, deadline=None)
+@given(seed=SEEDS, name=st.sampled_from(CLOSED_FORM))
+def test_redundancy_parameter_of_one_configuration_inverts_ik(seed: int, name: str) -> None:
+    """One configuration goes through the compiled parameter: ik(fk(q), param(q)) holds q in branch(q), and it
+    agrees with the numpy path of a batch."""
+    robot = qpik.load_robot(name)
+    Q = random_q(robot, 50, seed)
+    batch = qpik.redundancy_parameter(robot, Q)
+    for i, q in enumerate(Q):
+        param, branch = qpik.redundancy_parameter(robot, q)
+        assert isinstance(param, float) and isinstance(branch, int)
+        assert branch == batch[1][i] and param == pytest.approx(batch[0][i], abs=1e-12)
+        sols = qpik.ik(robot, robot.fk(q), param)
+        k = list(sols.branch).index(branch)
+        assert np.abs(robot.fk(sols.q[k]) - robot.fk(q)).max() < 1e-9
+        assert np.abs(np.remainder(sols.q[k] - q + np.pi, 2 * np.pi) - np.pi).max() < 1e-8  # the same joints
 
 
 def test_every_error_type_is_exported() -> None:

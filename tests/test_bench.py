@@ -19,6 +19,15 @@ EXPECTED = {
         "qpik.feasible_intervals (iiwa14)",
     ],
     "controller": ["mink + osqp", "mink + daqp", "qpik + osqp", "qpik + daqp", "qpik + proxqp", "qpik + quadprog"],
+    "ik": [
+        "iiwa14: qpik.solve_ik (closed form)",
+        "iiwa14: TRAC-IK Speed",
+        "iiwa14: mink.solve_ik iterated (daqp)",
+        "panda: qpik.solve_ik (Levenberg–Marquardt)",
+        "panda: TRAC-IK Speed",
+        "zheng7: qpik.solve_ik (Levenberg–Marquardt)",
+        "nammoto7: qpik.solve_ik (closed form)",
+    ],
 }
 
 
@@ -34,5 +43,7 @@ def test_bench_prints_every_row(name):
         assert row.ref is None or row.ref in labels
     text = render(module.TITLE, rows)
     assert all(label in text for label in labels)
+    if name == "ik":  # every row gives p95 and the success rate, checked by FK
+        assert all("p95" in row.note and "success" in row.note for row in rows)
     if name == "controller":  # the worst step, also as the best of the replays, is printed for every row
         assert all("best of 3 replays" in row.note for row in rows)

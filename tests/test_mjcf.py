@@ -5,48 +5,14 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
-from conftest import SEEDS
+from conftest import SEEDS, random_robot
 from hypothesis import given, settings
 
 from qpik.robots.catalog import CATALOG, load_robot
-from qpik.robots.dh import DHChain
-from qpik.robots.robot import Robot, default_capsules
-from qpik.validate import project_to_so3
+from qpik.robots.robot import Robot
 
 ARMS = sorted(CATALOG)
 BATCH = 300
-
-
-def _random_robot(seed: int, convention: str) -> Robot:
-    """A DH arm with random lengths, twists, offsets, base and tool transforms."""
-    rng = np.random.default_rng(seed)
-    n = 7
-
-    def transform() -> np.ndarray:
-        T = np.eye(4)
-        T[:3, :3] = project_to_so3(rng.normal(size=(3, 3)))
-        T[:3, 3] = rng.uniform(-0.3, 0.3, 3)
-        return T
-
-    chain = DHChain(
-        a=tuple(rng.uniform(-0.3, 0.3, n)),
-        d=tuple(rng.uniform(-0.4, 0.4, n)),
-        alpha=tuple(rng.uniform(-np.pi, np.pi, n)),
-        offset=tuple(rng.uniform(-np.pi, np.pi, n)),
-        convention=convention,
-        base=transform(),
-        tool=transform(),
-    )
-    lim = rng.uniform(1.0, 3.0, n)
-    return Robot(
-        name=f"random_{convention}",
-        chain=chain,
-        q_min=-lim,
-        q_max=lim,
-        v_max=np.ones(n),
-        q_home=np.zeros(n),
-        capsules=default_capsules(chain, tuple(rng.uniform(0.02, 0.08, n))),
-    )
 
 
 def _site_poses(model: mujoco.MjModel, qs: np.ndarray) -> np.ndarray:
@@ -63,7 +29,7 @@ def _site_poses(model: mujoco.MjModel, qs: np.ndarray) -> np.ndarray:
 
 
 def _robots(seed: int) -> list[Robot]:
-    return [load_robot(name) for name in ARMS] + [_random_robot(seed, c) for c in ("standard", "modified")]
+    return [load_robot(name) for name in ARMS] + [random_robot(seed, c) for c in ("standard", "modified")]
 
 
 @settings(max_examples=4, deadline=None)

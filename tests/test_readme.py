@@ -28,3 +28,7 @@ def test_python_examples_run_and_mean_what_they_say() -> None:
     T = robot.fk(ns["q_star"])
     assert np.abs(T - ns["target"]).max() < 1e-9
     assert ns["v"].shape == (7,) and np.all(np.abs(ns["v"]) <= robot.v_max + 1e-9)
+    # the numerical IK example reached its goal inside the limits
+    panda, q_ik = ns["panda"], ns["q_ik"]
+    assert np.abs(panda.fk(q_ik) - ns["goal"]).max() < 1e-9 and panda.within_limits(q_ik)
+    assert ns["res"].status == "ok" and np.array_equal(ns["res"].q, q_ik)

@@ -26,8 +26,7 @@ def solver_for(robot: Robot) -> AnalyticSolver:
     """The closed-form solver of ``robot`` (cached per robot object)."""
     if robot.closed_form not in _SOLVERS:
         raise NoClosedFormError(
-            f"{robot.name} has no closed-form IK (only offset-shoulder and S-R-S arms do); "
-            "use qpik.Controller.solve_ik instead"
+            f"{robot.name} has no closed-form IK (only offset-shoulder and S-R-S arms do); use qpik.solve_ik instead"
         )
     solver = _instances.get(id(robot))
     if solver is None or solver.robot is not robot:

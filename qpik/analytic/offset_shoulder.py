@@ -68,7 +68,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from qpik import symbolic as sy
-from qpik.analytic.intervals import FeasibleIntervals, wrap
+from qpik.analytic.intervals import FeasibleIntervals
 from qpik.analytic.solver import AnalyticSolver, Branches
 from qpik.analytic.trig import EPS, angle, flip, solve_cos_sin_cs
 from qpik.errors import NoClosedFormError
@@ -135,7 +135,6 @@ class OffsetShoulderSolver(AnalyticSolver):
         base, tool = np.asarray(robot.chain.base, float), np.asarray(robot.chain.tool, float)
         self._base_inv = sy.frame_of(np.linalg.inv(base))  # identity folds away
         self._tool_inv = sy.frame_of(np.linalg.inv(tool))
-        self._base_inv_np = np.linalg.inv(base)
 
     # ---- the one source -----------------------------------------------------
 
@@ -229,8 +228,8 @@ class OffsetShoulderSolver(AnalyticSolver):
 
     # ---- inverse map --------------------------------------------------------
 
-    def parameter(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        r"""δ (rad) and branch No. (1–16) of configurations q (N, 7).
+    def parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
+        r"""δ (rad) and branch No. (1–16) of the configuration ``q`` (7 scalars).
 
         Every configuration has two descriptions, (δ, k) and (δ + π, k ± 8), because
         θ1[2](δ) = θ1[1](δ + π). This returns the one with δ in (−π/2, π/2]: rows 1–8
@@ -240,18 +239,17 @@ class OffsetShoulderSolver(AnalyticSolver):
         (+, +) → 1, (−, −) → 2, (+, −) → 3, (−, +) → 4 (``w''_x = d5 cos θ3 cos θ4``
         is ≥ 0 for indices 1, 2); the (θ5, θ6, θ7) index is 1 where θ6 ≥ 0.
         """
-        q = np.asarray(q, dtype=float)
-        W = self.robot.frames(q)[:, 5, :, 3]  # wrist centre = origin of DH frame 5 (world)
-        w = W @ self._base_inv_np.T
-        r = np.hypot(w[:, 0], w[:, 1])
-        phi_w = np.where(r > ZERO, np.arctan2(w[:, 1], w[:, 0]), 0.0)
-        d0 = wrap(q[:, 0] - phi_w)
-        second = (d0 <= -PI / 2) | (d0 > PI / 2)
-        delta = np.where(second, wrap(d0 - PI), d0)
-        c3, c4 = np.cos(q[:, 2]) >= 0, np.cos(q[:, 3]) >= 0
-        arm = np.select([c3 & c4, ~c3 & ~c4, c3 & ~c4], [0, 1, 2], 3)
-        branch = 8 * second + 2 * arm + (q[:, 5] < 0) + 1
-        return delta, branch.astype(int)
+        Rb, tb = self._base_inv
+        t = sy.vadd(sy.matvec(Rb, self.robot.chain.frames_expr(q, ops)[5][1]), tb)  # wrist centre (frame 0)
+        r = ops.sqrt(t[0] * t[0] + t[1] * t[1])
+        phi_w = ops.where(r > ZERO, ops.atan2(t[1], t[0]), 0.0)
+        d0 = ops.wrap(q[0] - phi_w)
+        second = ops.where(d0 <= -PI / 2, 1.0, ops.where(d0 > PI / 2, 1.0, 0.0))
+        delta = ops.where(second > 0.5, ops.wrap(d0 - PI), d0)
+        c3, c4 = ops.cos(q[2]) >= 0, ops.cos(q[3]) >= 0
+        arm = ops.where(c3, ops.where(c4, 0.0, 2.0), ops.where(c4, 3.0, 1.0))
+        branch = 8.0 * second + 2.0 * arm + ops.where(q[5] < 0, 1.0, 0.0) + 1.0
+        return delta, branch
 
     # ---- feasible δ ---------------------------------------------------------
 

@@ -12,6 +12,10 @@ turns that one source into
 - a numpy evaluation over a batch of poses and parameters
   (:meth:`AnalyticSolver.solve_batch`).
 
+Its inverse, the parameter and branch of a configuration, is written once too
+(:meth:`AnalyticSolver.parameter_expr`): numpy over a batch, compiled for one
+configuration (:meth:`AnalyticSolver.parameter`).
+
 Each evaluation is the fastest one measured for its use: per call, compiled
 code costs ~3 µs of overhead and numpy ~1 ms; per pose, numpy (vectorised
 across poses) beats the compiled code mapped over poses. The tests check that
@@ -74,7 +78,7 @@ class AnalyticSolver(ABC):
     Subclasses set ``kind`` (the ``Robot.closed_form`` value), ``param_name``
     (``"delta"`` or ``"psi"``), ``branch_ids`` (the public number of each
     branch, in output order) and implement :meth:`branches`,
-    :meth:`parameter` and :meth:`feasible_intervals`.
+    :meth:`parameter_expr` and :meth:`feasible_intervals`.
     """
 
     kind: str
@@ -102,8 +106,9 @@ class AnalyticSolver(ABC):
         """All branches for end-effector rotation ``R`` and position ``p`` (world frame)."""
 
     @abstractmethod
-    def parameter(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Redundancy parameter and branch id of configurations q (N, n): ((N,), (N,))."""
+    def parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
+        """Redundancy parameter (rad) and branch id (a scalar holding an integer) of the configuration ``q``
+        (n scalars): the inverse of :meth:`branches`."""
 
     @abstractmethod
     def feasible_intervals(self, T: np.ndarray) -> FeasibleIntervals:
@@ -216,6 +221,27 @@ class AnalyticSolver(ABC):
             q, fl = self._sweep(B, size)(Tf, chunk, lo, hi)
             yield i, m, q, fl
             i += m
+
+    def parameter(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Redundancy parameter (rad) and branch id of configurations q (N, n): ((N,), (N,) int).
+
+        :meth:`parameter_expr` over numpy columns; one configuration (N = 1) through its
+        compiled form (numpy's per-call overhead would cost ~50 µs there).
+        """
+        q = np.asarray(q, dtype=float)
+        if len(q) == 1:
+            param, branch = self._parameter_one(q[0])
+            return param.copy(), np.rint(branch).astype(int)
+        param, branch = self.parameter_expr([q[:, j] for j in range(q.shape[1])], sy.NUMPY)
+        N = (len(q),)
+        return np.broadcast_to(param, N).astype(float), np.broadcast_to(branch, N).astype(int)
+
+    @cached_property
+    def _parameter_one(self) -> Compiled:
+        """:meth:`parameter_expr` of one configuration (n,), compiled: ``q -> (param, branch)``."""
+        q = ca.SX.sym("q", self.robot.dof)
+        param, branch = self.parameter_expr([q[i] for i in range(self.robot.dof)], sy.CASADI)
+        return Compiled(ca.Function(f"parameter_{self.kind}", [q], [param, branch]))
 
     def solve_batch(self, T: np.ndarray, param: np.ndarray) -> Solved:
         """Poses (N, 4, 4), parameters (N,): q (N, B, n), valid, singular, within_limits (N, B) bool.

@@ -94,7 +94,7 @@ import numpy as np
 
 from qpik import symbolic as sy
 from qpik.analytic import trig
-from qpik.analytic.intervals import FeasibleIntervals, wrap
+from qpik.analytic.intervals import FeasibleIntervals
 from qpik.analytic.solver import AnalyticSolver, Branches
 from qpik.errors import NoClosedFormError
 from qpik.symbolic import Mat, Ops, Scalar, Vec
@@ -352,25 +352,24 @@ class SRSSolver(AnalyticSolver):
             singular.append(either(sing, setup.singular, ops))
         return Branches(q, valid, singular)
 
-    def parameter(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        r"""Arm angle ψ (rad) and branch id of configurations ``q`` (N, 7): ((N,), (N,) int).
+    def parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
+        r"""Arm angle ψ (rad) and branch id of the configuration ``q`` (7 scalars).
 
         ψ = signed angle about :math:`u_{sw}` from :math:`n^0` to the joint-4 axis
         :math:`n = M_s e_y` (module docstring), so that ``ik(fk(q), ψ)`` holds q in
         branch ``4·[θ2<0] + 2·[θ4<0] + [θ6<0]``.
         """
-        q = np.asarray(q, dtype=float)
         g = self.geometry
-        C, S = np.cos(q[:, :4]), np.sin(q[:, :4])
-        Ms = sy.matmul(sy.matmul(sy.rot_z(C[:, 0], S[:, 0]), rot_y(C[:, 1], S[:, 1])), sy.rot_z(C[:, 2], S[:, 2]))
-        x_sw = sy.matvec(Ms, (-g.d_ew * S[:, 3], 0.0, g.d_se + g.d_ew * C[:, 3]))
-        c1, s1, _ = reference_azimuth(x_sw, sy.NUMPY)
+        C, S = [ops.cos(x) for x in q[:4]], [ops.sin(x) for x in q[:4]]
+        Ms = sy.matmul(sy.matmul(sy.rot_z(C[0], S[0]), rot_y(C[1], S[1])), sy.rot_z(C[2], S[2]))
+        x_sw = sy.matvec(Ms, (-g.d_ew * S[3], 0.0, g.d_se + g.d_ew * C[3]))
+        c1, s1, _ = reference_azimuth(x_sw, ops)
         n0 = (-s1, c1, 0.0)
         n = sy.col(Ms, 1)
-        sin_psi = sy.dot(x_sw, sy.cross(n0, n)) / np.sqrt(sy.dot(x_sw, x_sw))
-        psi = wrap(np.arctan2(sin_psi, sy.dot(n0, n)))
-        branch = 4 * (q[:, 1] < 0) + 2 * (q[:, 3] < 0) + (q[:, 5] < 0)
-        return psi, branch.astype(int)
+        sin_psi = sy.dot(x_sw, sy.cross(n0, n)) / ops.sqrt(sy.dot(x_sw, x_sw))
+        psi = ops.wrap(ops.atan2(sin_psi, sy.dot(n0, n)))
+        branch = sum(ops.where(q[j] < 0, float(w), 0.0) for j, w in ((1, 4), (3, 2), (5, 1)))
+        return psi, branch
 
     @cached_property
     def _intervals(self) -> PsiIntervals:

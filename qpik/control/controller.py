@@ -34,10 +34,8 @@ from qpik.control.qp import Assembler
 from qpik.control.solvers import Solver, get_solver
 from qpik.control.state import SymState
 from qpik.control.tasks import DampingTask, FrameTask, ManipulabilityTask, PostureTask, Task
-from qpik.errors import InputError, SolverError, UnreachableError
-from qpik.lie import pose_error
+from qpik.errors import InputError, SolverError
 from qpik.validate import joint_vector
-from qpik.validate import pose as check_pose
 
 FALLBACK = "daqp"  # exact active-set solver tried when the main solver reports no solution
 ACTIVE_TOL = 1e-7  # rad/s (box) and row units: a constraint within this of its bound is reported active
@@ -139,7 +137,6 @@ class Controller:
         self.config_limits = tuple(lim for lim in self.limits if isinstance(lim, ConfigurationLimit))
         self.caps = tuple(lim for lim in self.limits if isinstance(lim, VelocityLimit))
         self.last = StepInfo()
-        self._ik: Controller | None = None
 
     @classmethod
     def for_robot(
@@ -243,66 +240,29 @@ class Controller:
         q0: np.ndarray,
         pose: np.ndarray,
         tol: float = 1e-10,
-        max_iters: int = 200,
-        restarts: int = 10,
+        max_iters: int = 3000,
+        max_time: float | None = None,
         seed: int = 0,
     ) -> np.ndarray:
-        r"""Iterate ``q ← q + v`` until the pose error of the end-effector is below ``tol``.
+        """A configuration q (n,), rad, inside the robot's joint limits, with the end-effector at ``pose``.
 
-        The iteration is a damped Gauss–Newton step through a QP of its own: a
-        :class:`FrameTask` with unit gains (``K·dt = 1``: each step aims at the whole
-        error, with this controller's frame weights), a small :class:`DampingTask`
-        (1e-9, Levenberg–Marquardt), this controller's :class:`ConfigurationLimit` s and a
-        trust region ``|Δq_j| ≤ 0.5 rad`` per iteration (the velocity cap at dt = 1 s).
-        Obstacles, posture and manipulability are left out: their terms would move the
-        fixed point off the target. Converges quadratically near a regular solution.
-
-        A local method can stall (at a joint limit, or in a local minimum of the error
-        far from the target). Then it starts again from a configuration drawn uniformly
-        within the position limits, up to ``restarts`` times, from a generator seeded
-        with ``seed`` (so the answer is reproducible). The first attempt is always ``q0``.
+        Delegates to :func:`qpik.nlp.ik.solve_ik` for this controller's robot (closed form where the arm
+        has one, else Levenberg–Marquardt with restarts); this controller's tasks, limits and solver
+        do not enter. ``qpik.nlp`` sits beside ``qpik.control`` in the layering, so it is imported
+        here, at call time, and ``import qpik.control`` does not load it.
 
         Args:
             q0: (n,) start configuration, rad.
             pose: (4, 4) target pose of the end-effector (base frame).
-            tol: stop when ``‖[p* − p; log(R* Rᵀ)]‖ < tol`` (m and rad together).
-            max_iters: iteration budget of each attempt.
-            restarts: attempts from random configurations after the one from ``q0``.
-            seed: seed of the random restarts.
-
-        Returns:
-            q (n,), rad, within the position limits.
+            tol: the answer has ``‖[p* − p; log(R* Rᵀ)]‖ ≤ tol`` (m and rad together).
+            max_iters: budget of iterations over all attempts.
+            max_time: budget in seconds, or None.
+            seed: seed of the restarts (the answer is reproducible).
 
         Raises:
-            UnreachableError: no attempt converged (the message gives the smallest residual).
+            UnreachableError: no configuration found (the message gives the smallest pose error).
             InputError: NaN or wrong shapes.
         """
-        q, batched = joint_vector(q0, self.robot.dof, "q0")
-        if batched:
-            raise InputError(f"q0: expected shape ({self.robot.dof},), got {q.shape}")
-        target = check_pose(pose, "pose")[0]
-        if self._ik is None:
-            ft = self.frame_task
-            w = (1.0, 1.0) if ft is None else (ft.weight[0], ft.weight[3])
-            limits = [*self.config_limits, VelocityLimit(np.full(self.robot.dof, 0.5))]
-            tasks = [FrameTask(None, 1.0, 1.0, *w), DampingTask(1e-9)]
-            self._ik = Controller(self.robot, tasks, limits, solver=self.solver.name, dt=1.0)
-        ik = self._ik
-        ik.frame_task.set_target(target)
-        rng = np.random.default_rng(seed)
-        best = np.inf
-        for attempt in range(restarts + 1):
-            q = q.copy() if attempt == 0 else rng.uniform(self.robot.q_min, self.robot.q_max)
-            for _ in range(max_iters):
-                err = float(np.linalg.norm(pose_error(target, self.robot.fk(q))))
-                if err < tol:
-                    return q
-                q += ik.step(q)
-            err = float(np.linalg.norm(pose_error(target, self.robot.fk(q))))
-            if err < tol:
-                return q
-            best = min(best, err)
-        raise UnreachableError(
-            f"solve_ik: smallest pose error {best:.3g} (m, rad) after {restarts + 1} attempts "
-            f"of {max_iters} iterations (tol {tol:g})"
-        )
+        from qpik.nlp.ik import solve_ik
+
+        return solve_ik(self.robot, pose, q0, tol=tol, max_iters=max_iters, max_time=max_time, seed=seed)

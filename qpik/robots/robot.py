@@ -130,6 +130,12 @@ class Robot:
 
         return to_mjcf(self)
 
+    def to_urdf(self) -> str:
+        """The URDF of the arm from its joint axes at q = 0, root ``base``, tip ``ee`` (:mod:`qpik.robots.urdf`)."""
+        from qpik.robots.urdf import to_urdf
+
+        return to_urdf(self)
+
     def mj_model(self) -> mujoco.MjModel:
         """The MJCF twin compiled by MuJoCo."""
         import mujoco
