@@ -1,15 +1,15 @@
-"""Your own arm from a DH table: forward kinematics, the closed form when the table fits, the QP otherwise.
+"""Your own arm from a DH table: forward kinematics, the closed form when the table fits, numerical IK otherwise.
 
 1. An S-R-S arm (spherical shoulder and wrist, one elbow joint: the joint axes of the KUKA iiwa)
    with other link lengths. Its table has the form the closed form of Shimizu et al. 2008 is
    written for, so ``Robot(closed_form="srs")`` gives all 8 branches at any arm angle ψ.
 2. An offset-wrist arm (the table of Zheng et al. 2019, Table I, with other lengths). No closed
-   form applies; ``Controller.solve_ik`` iterates the QP (Gauss-Newton steps inside the joint
-   limits) to one configuration reaching the pose.
+   form applies; ``qpik.solve_ik`` iterates compiled Levenberg–Marquardt steps inside the joint
+   limits to one configuration reaching the pose.
 
     python examples/custom_dh_arm.py [OUT]    # OUT: qpik-out/examples/custom_dh_arm/
 
-Prints the FK of both arms, the 8 branches of the S-R-S arm with their FK residuals, and the QP
+Prints the FK of both arms, the 8 branches of the S-R-S arm with their FK residuals, and the numerical
 answer of the offset-wrist arm. Writes ``arms.json``: both DH tables, limits, target poses and answers.
 The arms' compiled functions are built on the first run (cached in ~/.cache/qpik).
 """
@@ -122,10 +122,9 @@ def main(out: Path) -> None:
     except qpik.NoClosedFormError as exc:
         print(f"   qpik.ik: {exc}")
     q_start = np.array([0.0, 0.8, -0.5, -1.2, 0.0, 1.0, 0.0])  # rad, where the iteration starts
-    ctrl = qpik.Controller.for_robot(wrist)
-    q = ctrl.solve_ik(q_start, pose2)  # raises qpik.UnreachableError if no attempt converges
+    q = qpik.solve_ik(wrist, pose2, q_start)  # raises qpik.UnreachableError if no attempt converges
     pos, rot = residual(wrist, q, pose2)
-    print(f"   Controller.solve_ik from {q_start}: q = {q} rad")
+    print(f"   qpik.solve_ik from {q_start}: q = {q} rad")
     print(
         f"   fk residual {pos:.1e} m, {rot:.1e} rad; within the limits: {wrist.within_limits(q)}; "
         f"max |q - q_goal| = {np.abs(q - q_goal2).max():.3f} rad (the arm is redundant: any point "
