@@ -1,4 +1,4 @@
-"""A robot: a DH chain plus limits, home configuration and link capsules."""
+"""A robot: a serial chain plus limits, home configuration and link capsules."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from qpik import symbolic as sy
-from qpik.robots.dh import DHChain
+from qpik.robots.chain import SerialChain
 from qpik.symbolic import Frame, Vec
 from qpik.validate import joint_vector
 
@@ -23,8 +23,9 @@ ClosedForm = Literal["offset_shoulder", "srs"] | None
 class LinkCapsule:
     """A capsule rigidly attached to link ``link`` (1..n, the body moved by joint ``link``).
 
-    ``p0``, ``p1`` (3,) are the segment end points in DH frame ``link``
-    coordinates (metres); ``radius`` in metres. A zero-length segment is a sphere.
+    ``p0``, ``p1`` (3,) are the segment end points in link frame ``link`` of the chain
+    (:meth:`SerialChain.frames`; the DH frame for a DH table), metres; ``radius`` in metres.
+    A zero-length segment is a sphere.
     """
 
     link: int
@@ -39,7 +40,7 @@ class Robot:
 
     Attributes:
         name: catalog name.
-        chain: the kinematic model (:class:`DHChain`).
+        chain: the kinematic model (:class:`~qpik.robots.chain.SerialChain`, e.g. a DH table).
         q_min, q_max: joint position limits (rad), shape (n,).
         v_max: joint velocity limits (rad/s), shape (n,).
         q_home: a home configuration (rad), shape (n,).
@@ -50,7 +51,7 @@ class Robot:
     """
 
     name: str
-    chain: DHChain
+    chain: SerialChain
     q_min: np.ndarray
     q_max: np.ndarray
     v_max: np.ndarray
@@ -64,7 +65,7 @@ class Robot:
     def dof(self) -> int:
         return self.chain.dof
 
-    # kinematics (see DHChain for shapes and frames)
+    # kinematics (see SerialChain for shapes and frames)
     def fk(self, q: np.ndarray) -> np.ndarray:
         """End-effector pose (4, 4) in the base/world frame; batched (N, 4, 4)."""
         return self.chain.fk(q)
@@ -100,7 +101,7 @@ class Robot:
         return bool(ok) if ok.ndim == 0 else ok
 
     def capsule_segments_expr(self, frames: list[Frame]) -> list[tuple[Vec, Vec]]:
-        """World end points ``(a, b)`` of every capsule from the frames of :meth:`DHChain.frames_expr`.
+        """World end points ``(a, b)`` of every capsule from the frames of :meth:`SerialChain.frames_expr`.
 
         Capsule ``c`` is ``self.capsules[c]``: ``a = R_k p0 + t_k``, ``b = R_k p1 + t_k`` with
         ``(R_k, t_k)`` the world pose of its link ``k``. Written in :mod:`qpik.symbolic`
@@ -137,16 +138,16 @@ class Robot:
         return mujoco.MjModel.from_xml_string(self.to_mjcf())
 
 
-def default_capsules(chain: DHChain, radii: tuple[float, ...]) -> tuple[LinkCapsule, ...]:
+def default_capsules(chain: SerialChain, radii: tuple[float, ...]) -> tuple[LinkCapsule, ...]:
     """One capsule per link, from its joint's axis point to the next joint's (or the ee).
 
-    The points are taken at q = 0 and expressed in the link's DH frame, where
-    they are constant for any q.
+    The points are taken at q = 0 (from :meth:`SerialChain.axes`) and expressed in the
+    link's frame, where they are constant for any q.
     """
-    F = chain.frames(np.zeros(chain.dof))
+    q0 = np.zeros(chain.dof)
+    F = chain.frames(q0)
     n = chain.dof
-    axis_frames = range(0, n) if chain.convention == "standard" else range(1, n + 1)
-    pts = [F[k, :3, 3] for k in axis_frames] + [F[n + 1, :3, 3]]
+    pts = [*chain.axes(q0)[1], F[n + 1, :3, 3]]
     caps = []
     for k in range(1, n + 1):
         inv = np.linalg.inv(F[k])
