@@ -5,6 +5,9 @@ the helpers with ``from conftest import ...``):
 
 - ``ARMS``: the names of the built-in arms; the ``robot`` fixture is
   parametrised over them (``def test_x(robot): ...`` runs once per arm).
+- ``MODELS``: arms from model files written by others (URDFs of the ``pybullet`` and
+  ``example-robot-data`` packages of the test extra, MJCF copied into ``tests/models``);
+  ``model_robot(key)`` loads one (cached), the ``loaded`` fixture is parametrised over them.
 - ``random_q(robot, n, seed, margin=0.0)``: ``(n, 7)`` configurations drawn
   uniformly inside ``[q_min + margin, q_max - margin]`` (a numpy generator
   seeded with ``seed``). Draw many at once so that 10,000 configurations cost
@@ -33,7 +36,9 @@ round-off ~1e-16/eps, so agreement to 1e-6 (absolute) is a meaningful test.
 
 from __future__ import annotations
 
+import sysconfig
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -43,6 +48,44 @@ import qpik  # first: it chooses MuJoCo's GL backend before any test module impo
 
 ARMS = ("nammoto7", "iiwa14", "zheng7", "panda")
 SEEDS = st.integers(min_value=0, max_value=2**32 - 1)
+MODEL_DIR = Path(__file__).parent / "models"
+
+
+def pybullet_data_dir() -> Path:
+    return Path(pytest.importorskip("pybullet_data").getDataPath())
+
+
+def example_robot_data_dir() -> Path:
+    """``share/example-robot-data/robots`` of the example-robot-data wheel (no Python module)."""
+    folder = Path(sysconfig.get_paths()["purelib"]) / "cmeel.prefix/share/example-robot-data/robots"
+    if not folder.is_dir():
+        pytest.skip("example-robot-data is not installed (pip install -e '.[test]')")
+    return folder
+
+
+MODELS: dict[str, Callable[[], tuple[Path, dict]]] = {
+    "pybullet_iiwa": lambda: (pybullet_data_dir() / "kuka_iiwa/model.urdf", {}),
+    "pybullet_panda": lambda: (pybullet_data_dir() / "franka_panda/panda.urdf", {}),
+    "erd_panda": lambda: (example_robot_data_dir() / "panda_description/urdf/panda.urdf", {}),
+    "erd_xarm7": lambda: (example_robot_data_dir() / "xarm_description/urdf/xarm7.urdf", {}),
+    "robosuite_iiwa": lambda: (MODEL_DIR / "robosuite_iiwa/robot.xml", {"collision_only": True}),
+    "pusher": lambda: (MODEL_DIR / "gymnasium_pusher/pusher_v5.xml", {"tip": "tips_arm"}),
+}
+_loaded: dict[str, qpik.Robot] = {}
+
+
+def model_robot(key: str) -> qpik.Robot:
+    """The arm of ``MODELS[key]`` (loaded once per session)."""
+    if key not in _loaded:
+        path, options = MODELS[key]()
+        _loaded[key] = qpik.load_robot(path, **options)
+    return _loaded[key]
+
+
+@pytest.fixture(params=list(MODELS), scope="session")
+def loaded(request: pytest.FixtureRequest) -> qpik.Robot:
+    """Each arm of ``MODELS`` in turn."""
+    return model_robot(request.param)
 
 
 @pytest.fixture(params=ARMS, scope="session")

@@ -300,11 +300,13 @@ class SerialChain:
     def manipulability(self, q: np.ndarray, translational: bool = False) -> np.ndarray | float:
         """Yoshikawa's index sqrt(det(J Jᵀ)) (Zheng et al. 2019, eq. 6); ``translational`` uses J[:3].
 
-        Returns a float for q (n,) and an array (N,) for q (N, n).
+        Returns a float for q (n,) and an array (N,) for q (N, n); 0 for a chain of fewer joints than rows.
         """
         J = self.jacobian(q)
         if translational:
             J = J[..., :3, :]
+        if J.shape[-2] > self.dof:  # fewer joints than rows: det(J Jᵀ) = 0
+            return 0.0 if J.ndim == 2 else np.zeros(len(J))
         # Jᵀ = QR gives det(J Jᵀ) = det(RᵀR) = Π R_ii²; unlike det(J Jᵀ), which squares the
         # condition number, this keeps m accurate to ~ε·σ_max near singular configurations
         R = np.linalg.qr(np.swapaxes(J, -1, -2), mode="r")

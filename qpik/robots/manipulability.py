@@ -35,10 +35,12 @@ def manipulability_gradient_expr(J: list[list[Scalar]], H: list[list[list[Scalar
     numpy and compiled code disagreed by ~1e-9 at m ~ 1e-5); the QR keeps the error
     proportional to it. Where a pivot has :math:`R_{ii}^2` at most :data:`DEGENERATE` ·
     tr A (m is not differentiable at m = 0) the result is 0, the limit of the formula
-    with m = 0.
+    with m = 0. With fewer joints than rows (n < r), m = 0 everywhere and so is ∇m.
     """
     ops = sy.ops_of(J, H)
     rows, n = len(J), len(J[0])
+    if rows > n:  # fewer joints than task rows: det(J Jᵀ) = 0 for every q
+        return [0.0] * n, 0.0
     X = [list(J[c]) for c in range(rows)]  # the columns of Jᵀ, n scalars each
     tiny = DEGENERATE * sum(sy.lin(*zip(J[r], J[r])) for r in range(rows))
     reflections = []
@@ -98,7 +100,7 @@ def manipulability_gradient_from(J: np.ndarray, H: np.ndarray, translational: bo
     Js = [[J[..., r, j] for j in range(n)] for r in range(rows)]
     Hs = [[[H[..., k, r, j] for j in range(n)] for r in range(rows)] for k in range(n)]
     grad, _ = manipulability_gradient_expr(Js, Hs)
-    return np.stack(np.broadcast_arrays(*grad), axis=-1)
+    return np.stack([np.broadcast_to(g, J.shape[:-2]) for g in grad], axis=-1)
 
 
 def jacobian_rows(jv: list[sy.Vec], jw: list[sy.Vec]) -> list[list[Scalar]]:

@@ -16,6 +16,8 @@ from qpik.validate import joint_vector
 if TYPE_CHECKING:
     import mujoco
 
+    from qpik.robots.loader import ModelSource
+
 ClosedForm = Literal["offset_shoulder", "srs"] | None
 
 
@@ -48,6 +50,8 @@ class Robot:
         closed_form: which analytic IK applies: ``"offset_shoulder"`` (δ),
             ``"srs"`` (ψ) or ``None``.
         source: where the numbers come from.
+        model: the MJCF/URDF model of a loaded robot (:func:`qpik.robots.loader.load_robot`),
+            or None for a catalog arm (whose MuJoCo model is the twin).
     """
 
     name: str
@@ -60,6 +64,7 @@ class Robot:
     closed_form: ClosedForm = None
     source: str = ""
     notes: str = field(default="", compare=False)
+    model: ModelSource | None = field(default=None, compare=False)
 
     @property
     def dof(self) -> int:
@@ -125,17 +130,37 @@ class Robot:
     def capsule_radii(self) -> np.ndarray:
         return np.array([c.radius for c in self.capsules])
 
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """The arm's joints in :meth:`mj_model`, in chain order."""
+        return self.model.joint_names if self.model else tuple(f"joint{k}" for k in range(1, self.dof + 1))
+
+    @property
+    def site(self) -> str:
+        """The end-effector site of :meth:`mj_model` (it equals :meth:`fk`)."""
+        return self.model.site if self.model else "ee"
+
     def to_mjcf(self) -> str:
-        """The MJCF twin: one body per link, capsules as geoms, end-effector site ``ee``."""
+        """The MuJoCo model as MJCF text: for a catalog arm the twin (one body per link, capsules as
+        geoms, site ``ee``); for a loaded arm its own model with the capsules drawn (visual only)
+        and the site :attr:`site` (:meth:`~qpik.robots.loader.ModelSource.spec_with`)."""
+        if self.model is not None:
+            return self.model.spec_with(self).to_xml()
         from qpik.robots.mjcf import to_mjcf
 
         return to_mjcf(self)
 
-    def mj_model(self) -> mujoco.MjModel:
-        """The MJCF twin compiled by MuJoCo."""
+    def mj_spec(self) -> mujoco.MjSpec:
+        """The MuJoCo model as a spec (what :meth:`to_mjcf` writes, at full precision)."""
+        if self.model is not None:
+            return self.model.spec_with(self)
         import mujoco
 
-        return mujoco.MjModel.from_xml_string(self.to_mjcf())
+        return mujoco.MjSpec.from_string(self.to_mjcf())
+
+    def mj_model(self) -> mujoco.MjModel:
+        """:meth:`mj_spec` compiled by MuJoCo."""
+        return self.mj_spec().compile()
 
 
 def default_capsules(chain: SerialChain, radii: tuple[float, ...]) -> tuple[LinkCapsule, ...]:
