@@ -36,7 +36,6 @@ round-off ~1e-16/eps, so agreement to 1e-6 (absolute) is a meaningful test.
 
 from __future__ import annotations
 
-import sysconfig
 from collections.abc import Callable
 from pathlib import Path
 
@@ -51,23 +50,24 @@ SEEDS = st.integers(min_value=0, max_value=2**32 - 1)
 MODEL_DIR = Path(__file__).parent / "models"
 
 
-def pybullet_data_dir() -> Path:
-    return Path(pytest.importorskip("pybullet_data").getDataPath())
 
 
-def example_robot_data_dir() -> Path:
-    """``share/example-robot-data/robots`` of the example-robot-data wheel (no Python module)."""
-    folder = Path(sysconfig.get_paths()["purelib"]) / "cmeel.prefix/share/example-robot-data/robots"
-    if not folder.is_dir():
-        pytest.skip("example-robot-data is not installed (pip install -e '.[test]')")
-    return folder
+def packaged(key: str) -> Path:
+    """A model file of another package (qpik.robots.packaged); skips when the test extra is missing."""
+    from qpik.errors import InputError
+    from qpik.robots.packaged import packaged_model
+
+    try:
+        return packaged_model(key)
+    except InputError as exc:
+        pytest.skip(str(exc))
 
 
 MODELS: dict[str, Callable[[], tuple[Path, dict]]] = {
-    "pybullet_iiwa": lambda: (pybullet_data_dir() / "kuka_iiwa/model.urdf", {}),
-    "pybullet_panda": lambda: (pybullet_data_dir() / "franka_panda/panda.urdf", {}),
-    "erd_panda": lambda: (example_robot_data_dir() / "panda_description/urdf/panda.urdf", {}),
-    "erd_xarm7": lambda: (example_robot_data_dir() / "xarm_description/urdf/xarm7.urdf", {}),
+    "pybullet_iiwa": lambda: (packaged("pybullet/iiwa"), {}),
+    "pybullet_panda": lambda: (packaged("pybullet/panda"), {}),
+    "erd_panda": lambda: (packaged("erd/panda"), {}),
+    "erd_xarm7": lambda: (packaged("erd/xarm7"), {}),
     "robosuite_iiwa": lambda: (MODEL_DIR / "robosuite_iiwa/robot.xml", {"collision_only": True}),
     "pusher": lambda: (MODEL_DIR / "gymnasium_pusher/pusher_v5.xml", {"tip": "tips_arm"}),
 }
