@@ -72,6 +72,7 @@ from qpik.analytic.intervals import FeasibleIntervals, wrap
 from qpik.analytic.solver import AnalyticSolver, Branches
 from qpik.analytic.trig import EPS, angle, flip, solve_cos_sin_cs
 from qpik.errors import NoClosedFormError
+from qpik.robots.recognize import PATTERNS
 from qpik.symbolic import Mat, Ops, Scalar, Vec
 
 if TYPE_CHECKING:
@@ -83,8 +84,8 @@ SINGULAR_TOL = 1e-7
 ZERO = 1e-13
 """Below this an atan2 argument pair is treated as (0, 0) and the documented default is used."""
 
-ALPHA = (PI / 2, -PI / 2, PI / 2, -PI / 2, PI / 2, PI / 2, 0.0)
-OFFSET = (0.0, 0.0, 0.0, PI / 2, 0.0, PI, 0.0)
+ALPHA = PATTERNS["offset_shoulder"].alpha
+OFFSET = PATTERNS["offset_shoulder"].offset
 
 
 @dataclass(frozen=True)
@@ -131,15 +132,15 @@ class OffsetShoulderSolver(AnalyticSolver):
 
     def __init__(self, robot):
         super().__init__(robot)
-        self.geometry = OffsetShoulderGeometry.of(robot.chain)
-        base, tool = np.asarray(robot.chain.base, float), np.asarray(robot.chain.tool, float)
+        self.geometry = OffsetShoulderGeometry.of(self.table)
+        base, tool = np.asarray(self.table.base, float), np.asarray(self.table.tool, float)
         self._base_inv = sy.frame_of(np.linalg.inv(base))  # identity folds away
         self._tool_inv = sy.frame_of(np.linalg.inv(tool))
         self._base_inv_np = np.linalg.inv(base)
 
     # ---- the one source -----------------------------------------------------
 
-    def branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
+    def table_branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
         """Eqs. (4)–(32) of Nammoto & Kosuge 2012 for the world pose (R, p) and δ = ``param`` (rad).
 
         Rotations are applied from cosines and sines (the only trig calls are
@@ -229,8 +230,8 @@ class OffsetShoulderSolver(AnalyticSolver):
 
     # ---- inverse map --------------------------------------------------------
 
-    def parameter(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        r"""δ (rad) and branch No. (1–16) of configurations q (N, 7).
+    def table_parameter(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r"""δ (rad) and branch No. (1–16) of configurations q (N, 7) of the table.
 
         Every configuration has two descriptions, (δ, k) and (δ + π, k ± 8), because
         θ1[2](δ) = θ1[1](δ + π). This returns the one with δ in (−π/2, π/2]: rows 1–8
@@ -241,7 +242,7 @@ class OffsetShoulderSolver(AnalyticSolver):
         is ≥ 0 for indices 1, 2); the (θ5, θ6, θ7) index is 1 where θ6 ≥ 0.
         """
         q = np.asarray(q, dtype=float)
-        W = self.robot.frames(q)[:, 5, :, 3]  # wrist centre = origin of DH frame 5 (world)
+        W = self.table.frames(q)[:, 5, :, 3]  # wrist centre = origin of DH frame 5 (world)
         w = W @ self._base_inv_np.T
         r = np.hypot(w[:, 0], w[:, 1])
         phi_w = np.where(r > ZERO, np.arctan2(w[:, 1], w[:, 0]), 0.0)

@@ -29,6 +29,10 @@ From the model:
   spheres, capsules and boxes exactly, a cylinder by a polygon around it, an ellipsoid by
   its box). Geoms on side branches (fingers) count at their reference position.
 
+The chain is matched against the closed-form patterns (:mod:`qpik.robots.recognize`): an
+S-R-S or offset-shoulder arm gets ``closed_form`` and its ``canonical`` table, any other
+the reason in ``notes``.
+
 A loaded robot keeps its model (:class:`ModelSource`): :meth:`qpik.Robot.to_mjcf` gives
 the model itself with the capsules drawn (translucent, visual only) and a site at the
 end effector, so that the simulation and the pictures run on the real arm.
@@ -50,6 +54,7 @@ from qpik.robots.catalog import CATALOG
 from qpik.robots.catalog import load_robot as catalog_robot
 from qpik.robots.chain import Joint, SerialChain
 from qpik.robots.model_files import is_urdf, read_spec, urdf_velocity_limits
+from qpik.robots.recognize import recognize
 from qpik.robots.robot import LinkCapsule, Robot
 from qpik.validate import finite_array
 
@@ -194,7 +199,8 @@ def load_robot(
     v_max = _velocity_limits(model, arm, urdf_velocity_limits(path) if urdf else {})
     home = _home(model, arm, q_min, q_max) if q_home is None else finite_array(q_home, "q_home", (len(arm),)).copy()
     source = ModelSource(path.resolve(), pmap, collision_only, names, model.body(tip_id).name)
-    robot = Robot(
+    canonical, why = recognize(chain)
+    return Robot(
         name=name or model.names[: model.names.index(b"\0")].decode() or path.stem,
         chain=chain,
         q_min=q_min,
@@ -202,10 +208,12 @@ def load_robot(
         v_max=v_max,
         q_home=home,
         capsules=_capsules(model, tree, arm, chain),
+        closed_form=None if canonical is None else canonical.kind,  # type: ignore[arg-type]
         source=str(path.resolve()),
+        notes=f"no closed form: {why}" if canonical is None else "",
         model=source,
+        canonical=canonical,
     )
-    return robot
 
 
 class _Tree:

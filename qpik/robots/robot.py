@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     import mujoco
 
     from qpik.robots.loader import ModelSource
+    from qpik.robots.recognize import Canonical
 
 ClosedForm = Literal["offset_shoulder", "srs"] | None
 
@@ -52,6 +53,8 @@ class Robot:
         source: where the numbers come from.
         model: the MJCF/URDF model of a loaded robot (:func:`qpik.robots.loader.load_robot`),
             or None for a catalog arm (whose MuJoCo model is the twin).
+        canonical: for a closed form found in a loaded chain (:func:`qpik.robots.recognize.recognize`),
+            the catalog-form DH table and the joint map to it; None when ``chain`` is that table itself.
     """
 
     name: str
@@ -65,6 +68,7 @@ class Robot:
     source: str = ""
     notes: str = field(default="", compare=False)
     model: ModelSource | None = field(default=None, compare=False)
+    canonical: Canonical | None = field(default=None, compare=False)
 
     @property
     def dof(self) -> int:
