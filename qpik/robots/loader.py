@@ -143,7 +143,8 @@ def _stage(spec: mujoco.MjSpec) -> None:
     spec.visual.headlight.ambient = [0.35, 0.35, 0.35]
     spec.visual.headlight.diffuse = [0.5, 0.5, 0.5]
     sky = spec.add_texture()
-    sky.name, sky.type, sky.builtin = "qpik_sky", mujoco.mjtTexture.mjTEXTURE_SKYBOX, mujoco.mjtBuiltin.mjBUILTIN_GRADIENT
+    sky.name, sky.type = "qpik_sky", mujoco.mjtTexture.mjTEXTURE_SKYBOX
+    sky.builtin = mujoco.mjtBuiltin.mjBUILTIN_GRADIENT
     sky.rgb1, sky.rgb2, sky.width, sky.height = [0.95, 0.96, 0.98], [0.75, 0.8, 0.88], 256, 256
     light = spec.worldbody.add_light()
     light.name, light.pos, light.dir, light.diffuse = "qpik_key", [1.0, -1.0, 2.5], [-1.0, 1.0, -2.5], [0.6, 0.6, 0.6]

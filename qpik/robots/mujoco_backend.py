@@ -20,7 +20,6 @@ Not thread-safe: every call overwrites the configuration's ``MjData``.
 from __future__ import annotations
 
 import os
-import warnings
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
@@ -102,18 +101,19 @@ class MjKinematics:
     def from_robot(cls, robot: Robot, extra_worldbody: Sequence[str] = ()) -> MjKinematics:
         """From a robot's MuJoCo model (:meth:`qpik.Robot.mj_spec`: the MJCF twin of a catalog arm,
         a loaded arm's own model), optionally with extra ``<worldbody>`` elements (obstacle geoms,
-        sites) in a body ``extra`` of the world, under their own names."""
+        sites): in the twin's ``<worldbody>`` under their own names, in a loaded model in a body
+        ``extra`` of the world with their names prefixed ``extra/``."""
+        if robot.model is None:
+            from qpik.robots.mjcf import to_mjcf
+
+            return cls(mujoco.MjModel.from_xml_string(to_mjcf(robot, extra_worldbody)), robot.site, robot.joint_names)
         spec = robot.mj_spec()
-        if not extra_worldbody:
-            return cls(spec.compile(), robot.site, robot.joint_names)
-        child = mujoco.MjSpec.from_string(
-            f'<mujoco><worldbody><body name="extra">{"".join(extra_worldbody)}</body></worldbody></mujoco>'
-        )
-        with warnings.catch_warnings():  # MuJoCo warns that an empty prefix may clash with names when saved
-            warnings.simplefilter("ignore", UserWarning)
-            spec.worldbody.add_frame().attach_body(child.body("extra"), "", "")
-            model = spec.compile()
-        return cls(model, robot.site, robot.joint_names)
+        if extra_worldbody:
+            child = mujoco.MjSpec.from_string(
+                f'<mujoco><worldbody><body name="extra">{"".join(extra_worldbody)}</body></worldbody></mujoco>'
+            )
+            spec.worldbody.add_frame().attach_body(child.body("extra"), "extra/", "")
+        return cls(spec.compile(), robot.site, robot.joint_names)
 
     @property
     def dof(self) -> int:

@@ -65,7 +65,8 @@ class Scene:
 
     Attributes:
         kin: the arm's kinematics on the model with obstacles.
-        link_geoms, link_names: ids and names of the arm's collision geoms (L,).
+        link_geoms, link_names: ids and names of the arm's collision geoms (L,); an unnamed geom is
+            ``<body>/geom<id>``.
         obstacle_geoms, obstacle_names: ids of the obstacle geoms and the obstacles' names (O,).
         obstacles: the obstacle shapes (world frame).
         robot: the :class:`Robot` when the model is its own (twin or loaded model), else ``None``.
@@ -140,7 +141,9 @@ def build_scene(
     return Scene(
         kin=kin,
         link_geoms=link_ids,
-        link_names=tuple(model.geom(int(g)).name or f"geom{g}" for g in link_ids),
+        link_names=tuple(
+            model.geom(int(g)).name or f"{model.body(int(model.geom_bodyid[g])).name}/geom{g}" for g in link_ids
+        ),
         obstacle_geoms=obstacle_ids,
         obstacle_names=tuple(o.name or f"obstacle{i}" for i, o in enumerate(obstacles)),
         obstacles=obstacles,
