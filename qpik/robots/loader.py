@@ -193,7 +193,8 @@ def load_robot(
         return catalog_robot(text)
     path = Path(text)
     if not path.is_file():
-        raise UnknownRobotError(f"unknown robot {text!r}: not a catalog arm ({', '.join(CATALOG)}) and no such file")
+        known = ", ".join(CATALOG)
+        raise UnknownRobotError(f"unknown robot {text!r}; known: {known}, or an MJCF/URDF file (none there)")
     pmap = {k: os.fspath(v) for k, v in (package_map or {}).items()}
     spec = read_spec(path, pmap, collision_only)
     try:
