@@ -1,0 +1,430 @@
+"""examples/: every script runs, and what it prints or writes is checked by code of its own.
+
+Each script runs once in a subprocess (``python examples/<name>.py <tmp folder>`` from the
+repository root). Every script found by the glob must exit with 0; the scripts below also have
+their output checked against independent computations: forward kinematics from a DH product
+written here (or MuJoCo's kinematics of the twin), distances from closest points computed here,
+the path formula of Zheng et al. 2019 written here, a KKT certificate for the QP, and the paper's
+numbers read from the problem files as raw TOML.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import re
+import subprocess
+import sys
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+from PIL import Image
+from scipy.optimize import nnls
+
+import qpik
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "examples"
+SCRIPTS = sorted(EXAMPLES.glob("*.py"))
+HANG_GUARD = 900  # s: only stops a script that never ends; the scripts take seconds
+
+DEG = np.pi / 180
+# KUKA LBR iiwa 14 R820 datasheet: position (deg) and velocity (deg/s) limits
+IIWA_Q_MAX = np.array([170, 120, 170, 120, 170, 120, 175]) * DEG
+IIWA_V_MAX = np.array([85, 85, 100, 75, 130, 135, 135]) * DEG
+FLOAT = r"-?\d+(?:\.\d+)?(?:e[+-]?\d+)?"
+
+
+@dataclass
+class Run:
+    returncode: int
+    stdout: str
+    stderr: str
+    out: Path
+
+
+_runs: dict[str, Run] = {}
+
+
+@pytest.fixture(scope="session")
+def run_example(tmp_path_factory: pytest.TempPathFactory):
+    """``run_example(stem)``: the script's :class:`Run` (each script runs once per session)."""
+
+    def run(stem: str) -> Run:
+        if stem not in _runs:
+            out = tmp_path_factory.mktemp(stem)
+            proc = subprocess.run(
+                [sys.executable, str(EXAMPLES / f"{stem}.py"), str(out)],
+                cwd=ROOT,
+                capture_output=True,
+                text=True,
+                timeout=HANG_GUARD,
+            )
+            _runs[stem] = Run(proc.returncode, proc.stdout, proc.stderr, out)
+        result = _runs[stem]
+        assert result.returncode == 0, f"{stem} failed:\n{result.stdout}\n{result.stderr}"
+        return result
+
+    return run
+
+
+@pytest.mark.parametrize("script", SCRIPTS, ids=[s.stem for s in SCRIPTS])
+def test_example_runs(run_example, script: Path) -> None:
+    result = run_example(script.stem)
+    assert result.stdout.strip(), "an example prints what it shows"
+
+
+# ---- independent helpers ------------------------------------------------------------------
+
+
+def dh_fk(chain, q: np.ndarray) -> np.ndarray:
+    """End-effector pose of a standard-DH chain: the product of Rz(θ+o) Tz(d) Tx(a) Rx(α), then the tool."""
+    assert chain.convention == "standard"
+    T = np.array(chain.base, dtype=float)
+    for th, o, d, a, al in zip(q, chain.offset, chain.d, chain.a, chain.alpha):
+        c, s, ca, sa = np.cos(th + o), np.sin(th + o), np.cos(al), np.sin(al)
+        T = T @ np.array([[c, -s * ca, s * sa, a * c], [s, c * ca, -c * sa, a * s], [0, sa, ca, d], [0, 0, 0, 1]])
+    return T @ chain.tool
+
+
+def rotation_angle(R: np.ndarray) -> float:
+    """Angle (rad) of a rotation matrix, accurate near 0."""
+    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    return float(np.arctan2(np.linalg.norm(w), np.trace(R) - 1.0))
+
+
+def pose_gap(A: np.ndarray, B: np.ndarray) -> tuple[float, float]:
+    """Position (m) and rotation (rad) distance between two poses."""
+    return float(np.linalg.norm(A[:3, 3] - B[:3, 3])), rotation_angle(A[:3, :3].T @ B[:3, :3])
+
+
+def wrap(x: np.ndarray) -> np.ndarray:
+    return (np.asarray(x) + np.pi) % (2 * np.pi) - np.pi
+
+
+def srs_branch(q: np.ndarray) -> int:
+    """The README's S-R-S branch number: 4·[θ2 < 0] + 2·[θ4 < 0] + [θ6 < 0]."""
+    return 4 * int(q[1] < 0) + 2 * int(q[3] < 0) + int(q[5] < 0)
+
+
+def assert_picture(path: Path) -> None:
+    """A PNG that shows something: not tiny, not one flat colour."""
+    assert path.is_file(), path
+    img = np.asarray(Image.open(path).convert("RGB"))
+    assert img.shape[0] >= 100 and img.shape[1] >= 100
+    assert img.std() > 10.0
+    assert len(np.unique(img.reshape(-1, 3), axis=0)) > 50
+
+
+def project_rotation(R: np.ndarray) -> np.ndarray:
+    """The nearest rotation (Frobenius norm): U Vᵀ of the SVD."""
+    U, _, Vt = np.linalg.svd(R)
+    return U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+
+
+def toml_problem(name: str) -> dict:
+    with open(ROOT / "problems" / f"{name}.toml", "rb") as fh:
+        return tomllib.load(fh)
+
+
+def mj_site_pose(model: mujoco.MjModel, data: mujoco.MjData, q: np.ndarray) -> np.ndarray:
+    data.qpos[:] = q
+    mujoco.mj_kinematics(model, data)
+    T = np.eye(4)
+    T[:3, :3] = data.site("ee").xmat.reshape(3, 3)
+    T[:3, 3] = data.site("ee").xpos
+    return T
+
+
+def capsule_segments(model: mujoco.MjModel, data: mujoco.MjData, q: np.ndarray, names: list[str]):
+    """World end points (C, 2, 3) and radii (C,) of the named capsule/sphere geoms at q (MuJoCo kinematics)."""
+    data.qpos[:] = q
+    mujoco.mj_kinematics(model, data)
+    segs, radii = [], []
+    for name in names:
+        g = data.geom(name)
+        size = model.geom(name).size
+        half = size[1] if model.geom(name).type[0] == mujoco.mjtGeom.mjGEOM_CAPSULE else 0.0
+        z = g.xmat.reshape(3, 3)[:, 2]
+        segs.append([g.xpos - half * z, g.xpos + half * z])
+        radii.append(size[0])
+    return np.array(segs), np.array(radii)
+
+
+def point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    ab = b - a
+    s = 0.0 if ab @ ab == 0 else float(np.clip((p - a) @ ab / (ab @ ab), 0.0, 1.0))
+    return float(np.linalg.norm(p - (a + s * ab)))
+
+
+# ---- examples/table4_branches.py ------------------------------------------------------------
+
+
+def test_table4_branches(run_example) -> None:
+    result = run_example("table4_branches")
+    raw = toml_problem("nammoto2012_table4")
+    T = np.eye(4)
+    T[:3, :3] = project_rotation(np.array(raw["target"]["rotation"]))
+    T[:3, 3] = raw["target"]["position"]
+    paper = np.array(raw["expected"]["q"])  # Table 4, rad, 2 decimals
+    chain = qpik.load_robot("nammoto7").chain
+
+    with open(result.out / "branches.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [int(r["branch"]) for r in rows] == list(range(1, 17))
+    q = np.array([[float(r[f"q{j}"]) for j in range(1, 8)] for r in rows])
+    assert all(r["valid"] == "1" for r in rows)
+    for i in range(16):
+        pos, rot = pose_gap(dh_fk(chain, q[i]), T)
+        assert pos < 1e-9 and rot < 1e-9, (i + 1, pos, rot)
+    diff = np.abs(wrap(q - paper)).max(axis=1)
+    assert diff.max() < 0.05  # the paper's rounding, as its problem file allows
+    gaps = np.abs(wrap(q[:, None] - q[None])).max(axis=2) + np.eye(16)
+    assert gaps.min() > 1e-3  # 16 different configurations
+
+    # the printed branch table (3 decimals) is the CSV's q
+    table = re.findall(rf"^\s*(\d+)((?:\s+{FLOAT}){{7}})\s+yes\s+in\b", result.stdout, re.M)
+    assert [int(b) for b, _ in table] == list(range(1, 17))
+    printed_q = np.array([[float(v) for v in cols.split()] for _, cols in table])
+    np.testing.assert_allclose(printed_q, q, atol=6e-4)
+    # the printed residuals are tiny and the printed differences to Table 4 are the recomputed ones
+    res = re.findall(rf"^\s*(\d+)\s+({FLOAT})\s+({FLOAT})\s+(\d+\.\d{{3}})$", result.stdout, re.M)
+    assert [int(r[0]) for r in res] == list(range(1, 17))
+    for (_, pos, rot, d), want in zip(res, diff):
+        assert float(pos) < 1e-9 and float(rot) < 1e-9
+        assert abs(float(d) - want) < 6e-4
+    assert_picture(result.out / "branches.png")
+
+
+# ---- examples/iiwa_feasible_intervals.py ----------------------------------------------------
+
+
+def test_iiwa_feasible_intervals(run_example) -> None:
+    result = run_example("iiwa_feasible_intervals")
+    text = result.stdout
+    q0 = np.array([float(v) for v in re.search(r"q0 = \[([^\]]*)\] rad", text).group(1).split()])
+    psi0, branch0 = re.search(rf"q0 has ψ = ({FLOAT}) rad on branch (\d)", text).groups()
+    psi0, branch0 = float(psi0), int(branch0)
+    intervals = {}
+    for b, spans, measure in re.findall(r"branch (\d): (.*?)  \(([\d.]+)° in all\)", text):
+        found = re.findall(rf"\[({FLOAT}), ({FLOAT})\]", spans)
+        intervals[int(b)] = [(float(lo), float(hi)) for lo, hi in found]
+        total = sum(hi - lo for lo, hi in intervals[int(b)])
+        assert abs(np.degrees(total) - float(measure)) < 0.06
+    assert sorted(intervals) == list(range(8))
+
+    robot = qpik.load_robot("iiwa14")
+    pose = dh_fk(robot.chain, q0)
+    assert srs_branch(q0) == branch0
+    assert np.all(np.abs(q0) <= IIWA_Q_MAX)  # q0 is inside the limits, so its ψ is feasible on its branch
+    assert any(lo <= psi0 <= hi for lo, hi in intervals[branch0])
+
+    # Dense sampling: every branch's q at 1441 values of ψ, checked by FK and against the datasheet limits.
+    psi = np.linspace(-np.pi, np.pi, 1441)
+    sols = qpik.ik(robot, np.broadcast_to(pose, (len(psi), 4, 4)), psi)
+    for col, b in enumerate(sols.branch):
+        qs = sols.q[:, col]
+        reaches = np.array([max(pose_gap(dh_fk(robot.chain, q), pose)) < 1e-8 for q in qs])
+        assert reaches.all()
+        signs = np.array([srs_branch(q) for q in qs])
+        clear = np.min(np.abs(qs[:, [1, 3, 5]]), axis=1) > 1e-9
+        assert np.all(signs[clear] == b)
+        inside = np.all(np.abs(qs) <= IIWA_Q_MAX, axis=1)
+        listed = np.zeros(len(psi), bool)
+        edges = []
+        for lo, hi in intervals[int(b)]:
+            listed |= (psi >= lo) & (psi <= hi)
+            edges += [lo, hi]
+        away = np.min(np.abs(psi[:, None] - np.array([*edges, np.inf])[None]), axis=1) > 1e-4
+        assert np.array_equal(listed[away], inside[away]), f"branch {b}"
+
+    q_mid = np.array([float(v) for v in re.search(r"  q = \[([^\]]*)\] rad", text).group(1).split()])
+    assert max(pose_gap(dh_fk(robot.chain, q_mid), pose)) < 1e-5  # printed to 6 decimals
+    assert srs_branch(q_mid) == branch0 and np.all(np.abs(q_mid) <= IIWA_Q_MAX)
+    assert_picture(result.out / "selfmotion.png")
+
+
+# ---- examples/controller_obstacles.py -------------------------------------------------------
+
+
+def clearances(model, data, qs, ball_c, ball_r, normal, offset):
+    """Per record, the smallest distance (m) of links 2-7 to the ball and to the table (closest points here)."""
+    names = [f"link{k}_capsule" for k in range(2, 8)]
+    out = []
+    for q in qs:
+        segs, radii = capsule_segments(model, data, q, names)
+        ball = min(point_segment_distance(ball_c, a, b) - r for (a, b), r in zip(segs, radii)) - ball_r
+        table = min(min(normal @ a, normal @ b) - offset - r for (a, b), r in zip(segs, radii))
+        out.append((ball, table))
+    return np.array(out)
+
+
+def test_controller_obstacles(run_example) -> None:
+    result = run_example("controller_obstacles")
+    text = result.stdout
+    run = np.load(result.out / "run.npz")
+    model = qpik.load_robot("iiwa14").mj_model()  # the twin, with every link capsule
+    data = mujoco.MjData(model)
+    obstacle = (run["ball_center"], float(run["ball_radius"]), run["table_normal"], float(run["table_offset"]))
+
+    d = clearances(model, data, run["q"], *obstacle)
+    printed = dict(re.findall(rf"^  (ball|table): ({FLOAT}) mm", text, re.M))
+    assert abs(float(printed["ball"]) - d[:, 0].min() * 1e3) < 1e-3
+    assert abs(float(printed["table"]) - d[:, 1].min() * 1e3) < 1e-3
+    d_safe = float(re.search(rf"d_s = ({FLOAT}) mm", text).group(1)) * 1e-3
+    assert d.min() >= d_safe - 1e-4  # the velocity damper's promise
+    free = clearances(model, data, run["q_free"], *obstacle)
+    assert free[:, 0].min() < 0  # without the obstacle limit the same motion hits the ball
+    without = float(re.search(rf"min clearance ({FLOAT}) mm", text).group(1))
+    assert abs(without - free[:, 0].min() * 1e3) < 1e-3
+
+    pos, rot = pose_gap(mj_site_pose(model, data, run["q"][-1]), run["target"])
+    err = re.search(rf"position ({FLOAT}) m, orientation ({FLOAT}) rad", text)
+    assert pos == pytest.approx(float(err.group(1)), rel=1e-3, abs=1e-9)
+    assert rot == pytest.approx(float(err.group(2)), rel=1e-3, abs=1e-9)
+    assert pos < 1e-3 and rot < 1e-2  # reached
+
+    margin = np.minimum(run["q"] + IIWA_Q_MAX, IIWA_Q_MAX - run["q"]).min()
+    assert margin > 0
+    assert "max violation 0 rad" in text
+    assert float(re.search(rf"min margin ({FLOAT}) rad", text).group(1)) == pytest.approx(margin, abs=1e-4)
+    ratio = np.abs(run["v"] / IIWA_V_MAX).max()
+    assert ratio <= 1 + 1e-9
+    assert float(re.search(rf"max \|v\|/v_max = ({FLOAT})", text).group(1)) == pytest.approx(ratio, abs=1e-4)
+
+    assert_picture(result.out / "run.png")
+    strip = result.out / "strip.png"
+    if "snapshot strip skipped" in text:
+        assert not strip.exists()
+    else:
+        assert_picture(strip)
+
+
+# ---- examples/clik_comparison.py ------------------------------------------------------------
+
+
+def test_clik_comparison(run_example) -> None:
+    result = run_example("clik_comparison")
+    runs = np.load(result.out / "runs.npz")
+    chain = qpik.load_robot("zheng7").chain
+    # Zheng et al. 2019: the initial configuration, and eq. (19) moved to start at fk(q0)
+    np.testing.assert_allclose(runs["q0"], [0.0, 1.0472, -0.5236, -2.0944, 0.0, 1.5708, -1.5708])
+    T0 = dh_fk(chain, runs["q0"])
+    t = runs["t"]
+    path = T0[:3, 3] + np.stack([0.4 * (np.cos(0.5 * t) - 1), 0.4 * np.sin(t), 0.2 * (np.exp(-0.2 * t) - 1)], -1)
+    after = t >= float(runs["transient"])
+
+    rows = {}
+    for label in runs["labels"]:
+        m = re.search(rf"^{re.escape(str(label))}\s+({FLOAT})\s+({FLOAT})\s+({FLOAT})", result.stdout, re.M)
+        rows[str(label)] = [float(v) for v in m.groups()]
+    worst = {}
+    for label, qs in zip(runs["labels"], runs["q"]):
+        poses = np.array([dh_fk(chain, q) for q in qs])
+        e_pos = np.linalg.norm(poses[:, :3, 3] - path, axis=1)
+        e_rot = np.array([rotation_angle(T0[:3, :3].T @ P[:3, :3]) for P in poses])
+        max_pos, max_rot, final_pos = rows[str(label)]
+        assert max_pos == pytest.approx(e_pos[after].max() * 1e3, rel=1e-4, abs=2e-6)
+        assert max_rot == pytest.approx(e_rot[after].max(), rel=1e-2, abs=1e-12)
+        assert final_pos == pytest.approx(e_pos[-1] * 1e3, rel=1e-4, abs=2e-6)
+        worst[str(label)] = e_pos[after].max()
+    qp, pd, vel = (worst[str(label)] for label in runs["labels"])
+    assert pd <= 1e-5 and qp <= 1e-5  # Zheng et al. 2019: 0.01 mm with eq. (18)
+    assert vel > 10 * pd  # velocity-only feed-forward drifts
+    drift = float(re.search(rf"drift: ({FLOAT})x", result.stdout).group(1))
+    assert drift == pytest.approx(vel / pd, rel=2e-2)
+    assert_picture(result.out / "tracking_errors.png")
+
+
+# ---- examples/solver_comparison.py ----------------------------------------------------------
+
+
+def kkt_residual(qp, x: np.ndarray, tol: float = 1e-9) -> tuple[float, float]:
+    """(largest constraint violation, stationarity residual with multipliers ≥ 0 on the active bounds)."""
+    n = len(x)
+    G = np.vstack([np.eye(n), qp["A"]])
+    lo, hi = np.concatenate([qp["lb"], qp["l"]]), np.concatenate([qp["ub"], qp["u"]])
+    g = G @ x
+    violation = float(max(0.0, np.max(lo - g), np.max(g - hi)))
+    at_lo, at_hi = np.isfinite(lo) & (g - lo < tol), np.isfinite(hi) & (hi - g < tol)
+    # P x + c = Gᵀ_lo λ_lo − Gᵀ_hi λ_hi with λ ≥ 0 (the gradient points into the feasible set)
+    M = np.hstack([G[at_lo].T, -G[at_hi].T])
+    grad = qp["P"] @ x + qp["c"]
+    if M.shape[1] == 0:
+        return violation, float(np.linalg.norm(grad))
+    _, residual = nnls(M, grad)
+    return violation, float(residual)
+
+
+def test_solver_comparison(run_example) -> None:
+    result = run_example("solver_comparison")
+    qp = dict(np.load(result.out / "qp.npz"))
+    assert np.linalg.eigvalsh(qp["P"]).min() > 0  # strictly convex: one minimiser
+    ref = qp["x_daqp"]
+    violation, stationarity = kkt_residual(qp, ref)
+    assert violation < 1e-9 and stationarity < 1e-8  # DAQP's answer is the optimum
+    rows_active = np.isfinite(qp["l"]) & (np.abs(qp["A"] @ ref - qp["l"]) < 1e-9)
+    assert rows_active.any()  # the obstacle row the script reports active is active
+
+    answers = {k[2:]: v for k, v in qp.items() if k.startswith("x_")}
+    assert {"osqp", "daqp", "mink"} <= set(answers)
+    # rows "<solver> [notes]   <max |v - v_daqp|, .2e>   <time, µs>  <what is timed>"
+    rows = re.findall(r"^(\S+)[^\n]*?\s(\d\.\d\de[+-]\d\d)\s+\d+\.\d  ", result.stdout, re.M)
+    printed = {name: float(dist) for name, dist in rows}
+    for name, x in answers.items():
+        key = "mink.solve_ik" if name == "mink" else name
+        assert np.abs(x - ref).max() < 1e-6, name  # every backend and mink: the same velocity
+        assert printed[key] == pytest.approx(np.abs(x - ref).max(), rel=1e-2, abs=1e-15), name
+    assert printed["qpik"] < 1e-6  # Controller.step on the same QP
+    from qpik.control.solvers import available
+
+    for name in re.findall(r"^(\S+)\s+not installed: skipped", result.stdout, re.M):
+        assert name not in available()
+    for name in available():
+        if name in re.findall(r"^(\S+)", result.stdout, re.M):
+            assert name in answers
+
+
+# ---- examples/custom_dh_arm.py --------------------------------------------------------------
+
+
+@dataclass
+class Chain:
+    a: tuple
+    d: tuple
+    alpha: tuple
+    offset: tuple
+    base: np.ndarray
+    tool: np.ndarray
+    convention: str = "standard"
+
+
+def test_custom_dh_arm(run_example) -> None:
+    result = run_example("custom_dh_arm")
+    arms = json.loads((result.out / "arms.json").read_text())
+
+    srs = arms["srs"]
+    chain = Chain(**srs["dh"], base=np.eye(4), tool=np.eye(4))
+    pose = np.array(srs["pose"])
+    assert max(pose_gap(dh_fk(chain, srs["q_goal"]), pose)) < 1e-12  # qpik's FK of the user's table
+    qs = np.array(srs["q"])
+    assert len(qs) == 8 and all(srs["valid"])
+    for b, q in zip(srs["branch"], qs):
+        assert max(pose_gap(dh_fk(chain, q), pose)) < 1e-9, b
+        assert srs_branch(q) == b
+    assert np.abs(qs - srs["q_goal"]).max(axis=1).min() < 1e-9  # one branch is q_goal itself
+    residuals = re.findall(rf"^\s+(\d)\s+({FLOAT})\s+({FLOAT})$", result.stdout, re.M)
+    assert len(residuals) == 8 and all(float(p) < 1e-9 and float(r) < 1e-9 for _, p, r in residuals)
+
+    wrist = arms["offset_wrist"]
+    chain = Chain(**wrist["dh"], base=np.eye(4), tool=np.eye(4))
+    pose = np.array(wrist["pose"])
+    assert max(pose_gap(dh_fk(chain, wrist["q_goal"]), pose)) < 1e-12
+    q = np.array(wrist["q"])
+    assert max(pose_gap(dh_fk(chain, q), pose)) < 1e-9
+    assert np.all((q >= wrist["q_min"]) & (q <= wrist["q_max"]))
+    assert "no closed-form IK" in result.stdout
