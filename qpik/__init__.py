@@ -20,7 +20,7 @@ from qpik.errors import (
     UnknownRobotError,
     UnreachableError,
 )
-from qpik.robots import CATALOG, DHChain, LinkCapsule, Robot, load_robot
+from qpik.robots import CATALOG, DHChain, Joint, LinkCapsule, Robot, SerialChain, load_robot
 
 __version__ = "0.1.0"
 
@@ -32,6 +32,7 @@ __all__ = [
     "IKSolutions",
     "InfeasibleError",
     "InputError",
+    "Joint",
     "LinkCapsule",
     "NoClosedFormError",
     "ProblemFileError",
@@ -39,6 +40,7 @@ __all__ = [
     "RenderUnavailable",
     "Robot",
     "RotationError",
+    "SerialChain",
     "SolverError",
     "StepInfo",
     "UnknownRobotError",

@@ -39,10 +39,10 @@ class LinkCapsule:
 
 @dataclass(frozen=True)
 class Robot:
-    """A 7-DOF arm of the catalog (or a user's own DH arm).
+    """An arm: of the catalog, a user's own chain (a DH table, say), or loaded from an MJCF/URDF file.
 
     Attributes:
-        name: catalog name.
+        name: catalog or model name.
         chain: the kinematic model (:class:`~qpik.robots.chain.SerialChain`, e.g. a DH table).
         q_min, q_max: joint position limits (rad), shape (n,).
         v_max: joint velocity limits (rad/s), shape (n,).
