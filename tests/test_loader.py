@@ -11,7 +11,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
-from conftest import MODEL_DIR, fd_geometric_jacobian, model_robot, random_q
+from conftest import MODEL_DIR, fd, fd_geometric_jacobian, model_robot, random_q
 
 import qpik
 from qpik.errors import InputError, UnknownRobotError
@@ -33,12 +33,14 @@ def mujoco_tip_poses(robot: qpik.Robot, Q: np.ndarray) -> np.ndarray:
     return out
 
 
-def test_fk_equals_mujoco_and_jacobian_is_fd(loaded):
+def test_fk_equals_mujoco_and_derivatives_are_fd(loaded):
     Q = random_q(loaded, 300, 0)
     T = loaded.fk(Q)
     np.testing.assert_allclose(T, mujoco_tip_poses(loaded, Q), atol=1e-10, rtol=0)
     J = loaded.jacobian(Q)
     np.testing.assert_allclose(J, fd_geometric_jacobian(loaded.fk, Q), atol=1e-6, rtol=0)
+    H_fd = np.moveaxis(fd(loaded.jacobian, Q[:50]), -1, 1)  # (N, 6, j, k) -> (N, k, 6, j)
+    np.testing.assert_allclose(loaded.hessian(Q[:50]), H_fd, atol=1e-6, rtol=0)
     for q, Tq, Jq in zip(Q[:20], T, J):  # the compiled single-q path
         T1, J1 = loaded.fk_jacobian(q)
         np.testing.assert_allclose(T1, Tq, atol=1e-12, rtol=0)
