@@ -21,7 +21,7 @@ from qpik.errors import (
     UnreachableError,
 )
 from qpik.nlp import solve_ik
-from qpik.robots import CATALOG, DHChain, LinkCapsule, Robot, load_robot
+from qpik.robots import CATALOG, DHChain, Joint, LinkCapsule, Robot, SerialChain, load_robot
 
 __version__ = "0.1.0"
 
@@ -33,6 +33,7 @@ __all__ = [
     "IKSolutions",
     "InfeasibleError",
     "InputError",
+    "Joint",
     "LinkCapsule",
     "NoClosedFormError",
     "ProblemFileError",
@@ -40,6 +41,7 @@ __all__ = [
     "RenderUnavailable",
     "Robot",
     "RotationError",
+    "SerialChain",
     "SolverError",
     "StepInfo",
     "UnknownRobotError",

@@ -5,6 +5,9 @@ the helpers with ``from conftest import ...``):
 
 - ``ARMS``: the names of the built-in arms; the ``robot`` fixture is
   parametrised over them (``def test_x(robot): ...`` runs once per arm).
+- ``MODELS``: arms from model files written by others (URDFs of the ``pybullet`` and
+  ``example-robot-data`` packages of the test extra, MJCF copied into ``tests/models``);
+  ``model_robot(key)`` loads one (cached), the ``loaded`` fixture is parametrised over them.
 - ``random_q(robot, n, seed, margin=0.0)``: ``(n, 7)`` configurations drawn
   uniformly inside ``[q_min + margin, q_max - margin]`` (a numpy generator
   seeded with ``seed``). Draw many at once so that 10,000 configurations cost
@@ -36,6 +39,7 @@ round-off ~1e-16/eps, so agreement to 1e-6 (absolute) is a meaningful test.
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -48,6 +52,45 @@ from qpik.validate import project_to_so3
 
 ARMS = ("nammoto7", "iiwa14", "zheng7", "panda")
 SEEDS = st.integers(min_value=0, max_value=2**32 - 1)
+MODEL_DIR = Path(__file__).parent / "models"
+
+
+
+
+def packaged(key: str) -> Path:
+    """A model file of another package (qpik.robots.packaged); skips when the test extra is missing."""
+    from qpik.errors import InputError
+    from qpik.robots.packaged import packaged_model
+
+    try:
+        return packaged_model(key)
+    except InputError as exc:
+        pytest.skip(str(exc))
+
+
+MODELS: dict[str, Callable[[], tuple[Path, dict]]] = {
+    "pybullet_iiwa": lambda: (packaged("pybullet/iiwa"), {}),
+    "pybullet_panda": lambda: (packaged("pybullet/panda"), {}),
+    "erd_panda": lambda: (packaged("erd/panda"), {}),
+    "erd_xarm7": lambda: (packaged("erd/xarm7"), {}),
+    "robosuite_iiwa": lambda: (MODEL_DIR / "robosuite_iiwa/robot.xml", {"collision_only": True}),
+    "pusher": lambda: (MODEL_DIR / "gymnasium_pusher/pusher_v5.xml", {"tip": "tips_arm"}),
+}
+_loaded: dict[str, qpik.Robot] = {}
+
+
+def model_robot(key: str) -> qpik.Robot:
+    """The arm of ``MODELS[key]`` (loaded once per session)."""
+    if key not in _loaded:
+        path, options = MODELS[key]()
+        _loaded[key] = qpik.load_robot(path, **options)
+    return _loaded[key]
+
+
+@pytest.fixture(params=list(MODELS), scope="session")
+def loaded(request: pytest.FixtureRequest) -> qpik.Robot:
+    """Each arm of ``MODELS`` in turn."""
+    return model_robot(request.param)
 
 
 @pytest.fixture(params=ARMS, scope="session")

@@ -25,9 +25,8 @@ _instances: dict[int, AnalyticSolver] = {}  # id(robot) -> solver; the solver ho
 def solver_for(robot: Robot) -> AnalyticSolver:
     """The closed-form solver of ``robot`` (cached per robot object)."""
     if robot.closed_form not in _SOLVERS:
-        raise NoClosedFormError(
-            f"{robot.name} has no closed-form IK (only offset-shoulder and S-R-S arms do); use qpik.solve_ik instead"
-        )
+        why = robot.notes if robot.notes.startswith("no closed form") else "only offset-shoulder and S-R-S arms do"
+        raise NoClosedFormError(f"{robot.name} has no closed-form IK ({why}); use qpik.solve_ik instead")
     solver = _instances.get(id(robot))
     if solver is None or solver.robot is not robot:
         module, cls = _SOLVERS[robot.closed_form]

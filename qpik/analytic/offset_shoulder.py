@@ -72,6 +72,7 @@ from qpik.analytic.intervals import FeasibleIntervals
 from qpik.analytic.solver import AnalyticSolver, Branches
 from qpik.analytic.trig import EPS, angle, flip, solve_cos_sin_cs
 from qpik.errors import NoClosedFormError
+from qpik.robots.recognize import PATTERNS
 from qpik.symbolic import Mat, Ops, Scalar, Vec
 
 if TYPE_CHECKING:
@@ -83,8 +84,8 @@ SINGULAR_TOL = 1e-7
 ZERO = 1e-13
 """Below this an atan2 argument pair is treated as (0, 0) and the documented default is used."""
 
-ALPHA = (PI / 2, -PI / 2, PI / 2, -PI / 2, PI / 2, PI / 2, 0.0)
-OFFSET = (0.0, 0.0, 0.0, PI / 2, 0.0, PI, 0.0)
+ALPHA = PATTERNS["offset_shoulder"].alpha
+OFFSET = PATTERNS["offset_shoulder"].offset
 
 
 @dataclass(frozen=True)
@@ -131,14 +132,14 @@ class OffsetShoulderSolver(AnalyticSolver):
 
     def __init__(self, robot):
         super().__init__(robot)
-        self.geometry = OffsetShoulderGeometry.of(robot.chain)
-        base, tool = np.asarray(robot.chain.base, float), np.asarray(robot.chain.tool, float)
+        self.geometry = OffsetShoulderGeometry.of(self.table)
+        base, tool = np.asarray(self.table.base, float), np.asarray(self.table.tool, float)
         self._base_inv = sy.frame_of(np.linalg.inv(base))  # identity folds away
         self._tool_inv = sy.frame_of(np.linalg.inv(tool))
 
     # ---- the one source -----------------------------------------------------
 
-    def branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
+    def table_branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
         """Eqs. (4)–(32) of Nammoto & Kosuge 2012 for the world pose (R, p) and δ = ``param`` (rad).
 
         Rotations are applied from cosines and sines (the only trig calls are
@@ -228,8 +229,9 @@ class OffsetShoulderSolver(AnalyticSolver):
 
     # ---- inverse map --------------------------------------------------------
 
-    def parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
-        r"""δ (rad) and branch No. (1–16) of the configuration ``q`` (7 scalars).
+    def table_parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
+        r"""δ (rad) and branch No. (1–16) of the configuration ``q`` (7 scalars) of the table.
+
 
         Every configuration has two descriptions, (δ, k) and (δ + π, k ± 8), because
         θ1[2](δ) = θ1[1](δ + π). This returns the one with δ in (−π/2, π/2]: rows 1–8
@@ -240,7 +242,7 @@ class OffsetShoulderSolver(AnalyticSolver):
         is ≥ 0 for indices 1, 2); the (θ5, θ6, θ7) index is 1 where θ6 ≥ 0.
         """
         Rb, tb = self._base_inv
-        t = sy.vadd(sy.matvec(Rb, self.robot.chain.frames_expr(q, ops)[5][1]), tb)  # wrist centre (frame 0)
+        t = sy.vadd(sy.matvec(Rb, self.table.frames_expr(q, ops)[5][1]), tb)  # wrist centre (frame 0)
         r = ops.sqrt(t[0] * t[0] + t[1] * t[1])
         phi_w = ops.where(r > ZERO, ops.atan2(t[1], t[0]), 0.0)
         d0 = ops.wrap(q[0] - phi_w)

@@ -83,9 +83,8 @@ class DeltaIntervals:
 
     def __init__(self, solver: OffsetShoulderSolver):
         self._solver = solver
-        robot = solver.robot
         self.branch = np.array(solver.branch_ids)
-        self.levels = [_levels(lo, hi) for lo, hi in zip(robot.q_min, robot.q_max)]
+        self.levels = [solver.levels(j) for j in range(solver.robot.dof)]  # in the table's angles
         T = ca.SX.sym("T", 4, 4)
         cand, sing, polys, kinds = self.expressions(T, sy.CASADI)
         self._kinds = np.array(kinds)
@@ -206,14 +205,6 @@ class DeltaIntervals:
         brk, sing = self.breakpoints(T)
         intervals, singular = self._assemble(T, brk, sing)  # rows 1–8, then 9–16: row 8 + k at δ is row k at δ + π
         return FeasibleIntervals(self._solver.param_name, self.branch.copy(), intervals, singular)
-
-
-def _levels(lo: float, hi: float) -> list[float]:
-    """The joint values where feasibility can change: the limits inside (−π, π), and π if a limit reaches ±π."""
-    out = [float(x) for x in (lo, hi) if -PI < x < PI]
-    if lo <= -PI or hi >= PI:
-        out.append(PI)
-    return out
 
 
 def _mod_pi(levels: list[float]) -> list[float]:

@@ -73,12 +73,21 @@ class Solved(NamedTuple):
 
 
 class AnalyticSolver(ABC):
-    """Closed-form IK of one arm family for a given redundancy parameter.
+    r"""Closed-form IK of one arm family for a given redundancy parameter.
 
     Subclasses set ``kind`` (the ``Robot.closed_form`` value), ``param_name``
     (``"delta"`` or ``"psi"``), ``branch_ids`` (the public number of each
-    branch, in output order) and implement :meth:`branches`,
-    :meth:`parameter_expr` and :meth:`feasible_intervals`.
+    branch, in output order) and implement :meth:`table_branches`,
+    :meth:`table_parameter_expr` and :meth:`feasible_intervals`.
+
+    They are written for the catalog's DH table of their family (:attr:`table`: the
+    robot's chain, or for a loaded arm the table found in it, ``robot.canonical``).
+    :meth:`branches` turns the table's joint angles into the robot's, once, for every
+    evaluation: :math:`q = s \odot (q^{DH} - c)` (:class:`~qpik.robots.recognize.JointMap`)
+    wrapped to (−π, π]; a joint whose limits reach past ±π gets the representative
+    :math:`q + 2\pi k` inside its limits when the wrapped angle is outside them (the nearest
+    one), so that ``within_limits`` holds when any representative is inside (the others,
+    q ± 2π inside the limits, are the same pose).
     """
 
     kind: str
@@ -87,6 +96,11 @@ class AnalyticSolver(ABC):
 
     def __init__(self, robot: Robot):
         self.robot = robot
+        canonical = robot.canonical
+        self.table = robot.chain if canonical is None else canonical.table
+        self.joint_map = None if canonical is None or canonical.joints.identity else canonical.joints
+        lo, hi = np.asarray(robot.q_min, float), np.asarray(robot.q_max, float)
+        self._wide = (lo < -np.pi) | (hi > np.pi)  # joints whose representatives are chosen
 
     @property
     def n_branches(self) -> int:
@@ -102,13 +116,58 @@ class AnalyticSolver(ABC):
     # ---- the one source -----------------------------------------------------
 
     @abstractmethod
-    def branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
-        """All branches for end-effector rotation ``R`` and position ``p`` (world frame)."""
+    def table_branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
+        """All branches for end-effector rotation ``R`` and position ``p`` (world frame), in :attr:`table`'s angles."""
 
     @abstractmethod
-    def parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
+    def table_parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
         """Redundancy parameter (rad) and branch id (a scalar holding an integer) of the configuration ``q``
-        (n scalars): the inverse of :meth:`branches`."""
+        (n scalars) of :attr:`table`: the inverse of :meth:`table_branches`."""
+
+    def branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
+        """All branches for end-effector rotation ``R`` and position ``p`` (world frame), in the robot's angles."""
+        br = self.table_branches(R, p, param, ops)
+        if self.joint_map is None and not self._wide.any():
+            return br
+        return Branches([[self._joint(j, x, ops) for j, x in enumerate(row)] for row in br.q], br.valid, br.singular)
+
+    def _joint(self, j: int, x: Scalar, ops: Ops) -> Scalar:
+        """The robot's joint j from the table's angle x (see the class docstring)."""
+        if self.joint_map is not None:
+            s, c = float(self.joint_map.sign[j]), float(self.joint_map.shift[j])
+            x = ops.wrap(sy.mul(s, sy.sub(x, c)))
+        if not self._wide[j]:
+            return x
+        lo, hi, turn = float(self.robot.q_min[j]), float(self.robot.q_max[j]), 2.0 * np.pi
+        x = ops.where(x > hi, x + turn * ops.floor((hi - x) / turn), x)  # the largest x - 2πk <= hi
+        return ops.where(x < lo, x - turn * ops.floor((x - lo) / turn), x)  # the smallest x + 2πk >= lo
+
+    def parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
+        r"""Redundancy parameter (rad) and branch id of the robot's configuration ``q`` (n scalars): the
+        inverse of :meth:`branches`, through the table's angles :math:`s \odot q + c` (wrapped)."""
+        if self.joint_map is not None:
+            sign, shift = self.joint_map.sign, self.joint_map.shift
+            q = [ops.wrap(sy.add(sy.mul(float(s), x), float(c))) for x, s, c in zip(q, sign, shift)]
+        return self.table_parameter_expr(q, ops)
+
+    def levels(self, j: int) -> list[float]:
+        """The angles of :attr:`table`'s joint j (rad) where the robot's joint j can change feasibility.
+
+        Its limits and, where a limit reaches ±π, the wrap at π, mapped to the table's angles; none
+        for a joint whose range spans a whole turn (some representative is always inside).
+        """
+        lo, hi = float(self.robot.q_min[j]), float(self.robot.q_max[j])
+        if hi - lo >= 2.0 * np.pi:
+            return []
+        out = [x for x in (lo, hi) if -np.pi < x < np.pi or self._wide[j]]
+        if lo <= -np.pi or hi >= np.pi:
+            out.append(np.pi)
+        if self.joint_map is not None:
+            s, c = float(self.joint_map.sign[j]), float(self.joint_map.shift[j])
+            out = [float(sy.NUMPY.wrap(np.array(s * x + c))) for x in out]
+        elif self._wide[j]:
+            out = [float(sy.NUMPY.wrap(np.array(x))) for x in out]
+        return out
 
     @abstractmethod
     def feasible_intervals(self, T: np.ndarray) -> FeasibleIntervals:

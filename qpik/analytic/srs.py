@@ -97,6 +97,7 @@ from qpik.analytic import trig
 from qpik.analytic.intervals import FeasibleIntervals
 from qpik.analytic.solver import AnalyticSolver, Branches
 from qpik.errors import NoClosedFormError
+from qpik.robots.recognize import PATTERNS
 from qpik.symbolic import Mat, Ops, Scalar, Vec
 
 if TYPE_CHECKING:
@@ -107,7 +108,7 @@ if TYPE_CHECKING:
 SINGULAR_TOL = 1e-10
 """A sine below this (|sin θ2|, |sin θ4|, |sin θ6|, horizontal/total length of x_sw) marks a singular case."""
 
-ALPHA = (-np.pi / 2, np.pi / 2, np.pi / 2, -np.pi / 2, -np.pi / 2, np.pi / 2, 0.0)
+ALPHA = PATTERNS["srs"].alpha
 """The DH twist pattern the closed form is written for."""
 
 _TINY = 1e-300  # guards exact zeros only (atan2(0, 0) and its derivative)
@@ -320,9 +321,9 @@ class SRSSolver(AnalyticSolver):
 
     def __init__(self, robot: Robot):
         super().__init__(robot)
-        self.geometry = SRSGeometry.from_chain(robot.chain)
+        self.geometry = SRSGeometry.from_chain(self.table)
 
-    def branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
+    def table_branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
         r"""All 8 branches at arm angle ``param`` (rad) for the pose ``(R, p)`` (world frame).
 
         :math:`M_s = R_\psi M_s^0`, :math:`M_w = R_y(\theta_4) M_s^T R`; the ψ-derivatives
@@ -352,8 +353,9 @@ class SRSSolver(AnalyticSolver):
             singular.append(either(sing, setup.singular, ops))
         return Branches(q, valid, singular)
 
-    def parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
-        r"""Arm angle ψ (rad) and branch id of the configuration ``q`` (7 scalars).
+    def table_parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
+        r"""Arm angle ψ (rad) and branch id of the configuration ``q`` (7 scalars) of the table.
+
 
         ψ = signed angle about :math:`u_{sw}` from :math:`n^0` to the joint-4 axis
         :math:`n = M_s e_y` (module docstring), so that ``ik(fk(q), ψ)`` holds q in

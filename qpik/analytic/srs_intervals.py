@@ -12,7 +12,8 @@ For one pose every joint of a branch is a function of ψ built from
   solved by :func:`qpik.analytic.trig.solve_cos_sin`. Taking L = q_min, q_max
   gives every limit crossing; L = π gives the wraps through ±π, needed only for
   a joint whose limits reach ±π (otherwise the joint is outside its limits on
-  both sides of a wrap, so a wrap changes nothing). A singular
+  both sides of a wrap, so a wrap changes nothing). For a loaded arm these levels
+  are mapped to the table's angles (:meth:`~qpik.analytic.solver.AnalyticSolver.levels`). A singular
   point (n = d = 0, Shimizu et al. 2008: :math:`a_t^2 + b_t^2 = c_t^2`), where θ jumps by π,
   solves this equation for every L, so it is a root too.
 - cos-type (θ2, θ6): :math:`\cos\theta = M_{22}(\psi)`; θ = ±L iff :math:`M_{22}(\psi) = \cos L`.
@@ -64,8 +65,7 @@ class PsiIntervals:
     def __init__(self, solver: SRSSolver):
         self._solver = solver
         self.branch = np.array(solver.branch_ids)
-        robot = solver.robot
-        self.q_min, self.q_max = np.asarray(robot.q_min, float), np.asarray(robot.q_max, float)
+        self.levels = [solver.levels(j) for j in range(solver.robot.dof)]  # in the table's angles
         T = ca.SX.sym("T", 4, 4)
         breaks, singular, valid = self.expressions(T)
         out = [ca.vertcat(*breaks), ca.vertcat(*singular), valid]
@@ -86,16 +86,15 @@ class PsiIntervals:
             groups = setup.coefficients(e)  # (shoulder, wrist), each (A, B, C): M = A sin ψ + B cos ψ + C
             for g, (ja, jb, jc) in enumerate(_ANGLE_JOINTS):
                 A, B, C = groups[g]
-                # tan-type: n cos L − d sin L = 0 for L = q_min, q_max (and π where a limit reaches it)
+                # tan-type: n cos L − d sin L = 0 for the levels L (limits, and π where a limit reaches it)
                 eqs = []
                 for j, (ni, nj), (di, dj), sign in ((ja, (1, 2), (0, 2), 1.0), (jc, (2, 1), (2, 0), -1.0)):
-                    wraps = self.q_max[j] >= np.pi or self.q_min[j] <= -np.pi
-                    for L in (self.q_min[j], self.q_max[j], *((np.pi,) if wraps else ())):
+                    for L in self.levels[j]:
                         cl, sl = float(np.cos(L)), float(-sign * np.sin(L))
                         a, b, c = (sy.lin((cl, X[ni][nj]), (sl, X[di][dj])) for X in (A, B, C))
                         eqs.append((a, b, c, 0.0))
                 # cos-type: M22 = cos L
-                for cos_l in np.unique(np.cos([self.q_min[jb], self.q_max[jb]])):
+                for cos_l in np.unique(np.cos(self.levels[jb])):
                     eqs.append((A[2][2], B[2][2], C[2][2], float(cos_l)))
                 for a, b, c, rhs in eqs:  # a sin ψ + b cos ψ = rhs − c
                     plus, minus, ok = trig.solve_cos_sin(b, a, rhs - c, ops)

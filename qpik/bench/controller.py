@@ -14,6 +14,12 @@ close to links 4–7 so that 8 capsule–sphere pairs are inside the influence d
   VelocityLimit, CollisionAvoidanceLimit (the 4 capsules of links 4–7 × 2 spheres),
   solver ``osqp`` and ``daqp``.
 
+Then the same rows (labels ``URDF iiwa: ...``) for the iiwa loaded from pybullet's URDF
+(:data:`LOADED`, when pybullet is installed), mink running on that model itself: its
+CollisionAvoidanceLimit gets the model's own collision meshes of links 4–7 (``mj_geomDistance``
+on meshes), qpik its capsules fitted to those meshes: the same scene, each library with
+the geometry it would use.
+
 Rows: seconds per step over all replays (median, p99, worst, wall clock; and the worst in
 thread CPU time, and the worst step as the best of :data:`REPLAYS` replays of the same closed
 loop: on a virtual machine thread CPU time still counts the time the host takes the virtual
@@ -30,18 +36,21 @@ import argparse
 import warnings
 
 import mink
-import mujoco
 import numpy as np
 from mink.tasks.task import BaseTask, Objective
 
 from qpik.bench import Row, fmt_time, time_interleaved
 from qpik.control import Controller
 from qpik.control.solvers import available
+from qpik.errors import InputError
 from qpik.geometry.shapes import Sphere
-from qpik.robots.catalog import load_robot
-from qpik.robots.mjcf import to_mjcf
+from qpik.robots.loader import load_robot
+from qpik.robots.packaged import packaged_model
+from qpik.sim.run import build_scene
 
-TITLE = "Controller: one control step (iiwa14, frame + posture + manipulability, 8 obstacle rows)"
+TITLE = "Controller: one control step (iiwa14 twin, then the pybullet iiwa URDF; frame + posture + manipulability)"
+LOADED = "pybullet/iiwa"
+"""The arm loaded from another package's URDF (:mod:`qpik.robots.packaged`) whose rows follow iiwa14's."""
 DT = 1e-3
 REPLAYS = 3
 """The closed loops are run this many times from the same start; the "best of replays" worst step takes,
@@ -54,18 +63,21 @@ LINKS = (4, 5, 6, 7)
 class MinkManipulabilityTask(BaseTask):
     r"""Manipulability ascent for mink: the linear cost :math:`-w\,\nabla m^T \Delta q` (Δq = v dt).
 
-    ∇m comes from the DH chain's kinematic Hessian (the MJCF twin has the same kinematics),
-    so both libraries get the same term; ``w`` is per Δq, i.e. qpik's weight times dt.
+    ∇m comes from the chain's kinematic Hessian (the MuJoCo model has the same kinematics),
+    so both libraries get the same term; ``w`` is per Δq, i.e. qpik's weight times dt. The arm's
+    joints are at ``qpos_adr`` of the model (hinges: the same addresses in qpos and in v).
     """
 
-    def __init__(self, robot, weight: float):
+    def __init__(self, robot, weight: float, qpos_adr: np.ndarray):
         self.robot = robot
         self.weight = weight
+        self.qpos_adr = qpos_adr
 
     def compute_qp_objective(self, configuration: mink.Configuration) -> Objective:
-        n = self.robot.dof
-        grad = self.robot.manipulability_gradient(configuration.q[:n])
-        return Objective(np.zeros((n, n)), -self.weight * grad)
+        nv = configuration.model.nv
+        grad = np.zeros(nv)
+        grad[self.qpos_adr] = self.robot.manipulability_gradient(configuration.q[self.qpos_adr])  # hinges: qpos = dof
+        return Objective(np.zeros((nv, nv)), -self.weight * grad)
 
 
 def scene(robot) -> tuple[np.ndarray, np.ndarray, list[Sphere]]:
@@ -86,7 +98,17 @@ def scene(robot) -> tuple[np.ndarray, np.ndarray, list[Sphere]]:
 
 def run(args: argparse.Namespace) -> list[Row]:
     repeat = max(100, int(getattr(args, "repeat", 2000)))
-    robot = load_robot("iiwa14")
+    rows = _arm_rows(load_robot("iiwa14"), "", repeat)
+    try:
+        loaded = load_robot(packaged_model(LOADED))
+    except InputError as exc:
+        print(f"qpik bench controller: {exc}; rows left out")
+        return rows
+    return rows + _arm_rows(loaded, "URDF iiwa: ", repeat)
+
+
+def _arm_rows(robot, prefix: str, repeat: int) -> list[Row]:
+    """The rows of one arm, labelled ``prefix + "qpik + osqp"`` etc."""
     q0, target, spheres = scene(robot)
     backends = available()  # proxqp and quadprog come with the test extra
     peers = [("osqp", "mink + osqp"), ("daqp", "mink + daqp"), ("proxqp", "mink + daqp"), ("quadprog", "mink + daqp")]
@@ -98,9 +120,9 @@ def run(args: argparse.Namespace) -> list[Row]:
     for _ in range(REPLAYS):  # the same closed loops from the same start, each time with fresh solvers
         steps, refs, ctrls = {}, {}, {}
         for solver in ("osqp", "daqp"):
-            steps[f"mink + {solver}"] = _closed_loop(_mink_step(robot, target, spheres, solver), q0)
+            steps[f"{prefix}mink + {solver}"] = _closed_loop(_mink_step(robot, target, spheres, solver), q0)
         for solver, ref in peers:
-            label = f"qpik + {solver}"
+            label = f"{prefix}qpik + {solver}"
             ctrls[label] = Controller.for_robot(
                 robot,
                 target=target,
@@ -111,7 +133,7 @@ def run(args: argparse.Namespace) -> list[Row]:
                 d_safe=D_SAFE,
                 xi=XI,
             )
-            steps[label], refs[label] = _closed_loop(ctrls[label].step, q0), ref
+            steps[label], refs[label] = _closed_loop(ctrls[label].step, q0), prefix + ref
         with warnings.catch_warnings():  # qpsolvers warns on every dense matrix mink hands to OSQP
             warnings.simplefilter("ignore")
             cpu: dict[str, np.ndarray] = {}
@@ -143,14 +165,21 @@ def _closed_loop(step, q0: np.ndarray):
 
 
 def _mink_step(robot, target, spheres, solver):
-    """mink's control step on the MJCF twin with the same tasks, weights and limits as qpik's defaults."""
-    model = mujoco.MjModel.from_xml_string(to_mjcf(robot, [s.to_mjcf_geom() for s in spheres]))
+    """mink's control step on the robot's MuJoCo model with the same tasks, weights and limits as qpik's defaults.
+
+    Its collision rows are the model's collision geoms on links 4–7 (the twin's capsules; a loaded arm's
+    meshes) against the spheres.
+    """
+    scene_ = build_scene(robot, spheres)
+    model = scene_.kin.model
+    adr = scene_.kin.qpos_adr
     conf = mink.Configuration(model)
+    qpos = model.qpos0.copy()  # joints that are not the arm's (fingers) stay at their reference
     ctrl = Controller.for_robot(robot)  # only to read the same default weights
     frame_task, posture, manip, damping = ctrl.tasks
     # qpik's cost w‖·‖² over v ⇔ mink's ½‖c(·)‖² over Δq = v dt with c = sqrt(2 w)·…, gains·dt
     frame = mink.FrameTask(
-        "ee",
+        robot.site,
         "site",
         position_cost=np.sqrt(frame_task.weight[0]),
         orientation_cost=np.sqrt(frame_task.weight[3]),
@@ -158,15 +187,19 @@ def _mink_step(robot, target, spheres, solver):
     )
     frame.set_target(mink.SE3.from_matrix(target))
     post = mink.PostureTask(model, cost=np.sqrt(posture.weight), gain=posture.gain * DT)
-    post.set_target(posture.q_ref)
+    reference = qpos.copy()
+    reference[adr] = posture.q_ref
+    post.set_target(reference)
     tasks = [
         frame,
         post,
         mink.DampingTask(model, cost=np.sqrt(damping.weight)),
-        MinkManipulabilityTask(robot, manip.weight * DT),
+        MinkManipulabilityTask(robot, manip.weight * DT, adr),
     ]
-    vel = {f"joint{j + 1}": robot.v_max[j] for j in range(robot.dof)}
-    pairs = [([f"link{k}_capsule" for k in LINKS], [s.name for s in spheres])]
+    vel = {name: robot.v_max[j] for j, name in enumerate(robot.joint_names)}
+    links = _links(model, robot)
+    arm_geoms = [int(g) for g in scene_.link_geoms if links[int(model.geom_bodyid[g])] in LINKS]
+    pairs = [(arm_geoms, [int(g) for g in scene_.obstacle_geoms])]
     limits = [
         mink.ConfigurationLimit(model),
         mink.VelocityLimit(model, vel),
@@ -176,7 +209,17 @@ def _mink_step(robot, target, spheres, solver):
     ]
 
     def step(q):
-        conf.update(q)
-        return mink.solve_ik(conf, tasks, DT, solver=solver, limits=limits)
+        qpos[adr] = q
+        conf.update(qpos)
+        return mink.solve_ik(conf, tasks, DT, solver=solver, limits=limits)[scene_.kin.dof_adr]
 
     return step
+
+
+def _links(model, robot) -> dict[int, int]:
+    """body id -> the link k (1..n) of the last arm joint above it, 0 above joint 1."""
+    joint_body = {int(model.joint(name).bodyid[0]): k for k, name in enumerate(robot.joint_names, start=1)}
+    out = {0: 0}
+    for b in range(1, model.nbody):  # parents come first in MuJoCo's body order
+        out[b] = joint_body.get(b, out[int(model.body_parentid[b])])
+    return out

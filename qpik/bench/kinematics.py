@@ -1,7 +1,9 @@
 """Pose + Jacobian of the end effector: qpik beside mink and raw MuJoCo on the same arm.
 
-For each arm, mink runs on qpik's MJCF twin (:meth:`Robot.mj_model`, site
-``ee``); the twin's pose and Jacobian are first checked against qpik's (mink
+For each arm, mink runs on the robot's MuJoCo model (:meth:`Robot.mj_model`, site
+:attr:`Robot.site`): the MJCF twin of a catalog arm, and for the arms loaded from the
+URDFs of other packages (:data:`LOADED`, when installed) their own model, meshes and
+all; its pose and Jacobian are first checked against qpik's (mink
 returns the Jacobian in the site frame, so it is rotated to the base frame).
 Rows per arm:
 
@@ -27,44 +29,58 @@ import mujoco
 import numpy as np
 
 from qpik.bench import Row, time_calls
-from qpik.robots.catalog import load_robot
+from qpik.errors import InputError
+from qpik.robots.loader import load_robot
+from qpik.robots.packaged import packaged_model
 from qpik.robots.robot import Robot
 
 TITLE = "kinematics: end-effector pose + geometric Jacobian (qpik vs mink vs raw MuJoCo)"
 ARMS = ("iiwa14", "panda", "nammoto7", "zheng7")
+LOADED = {"pybullet iiwa URDF": "pybullet/iiwa", "erd panda URDF": "erd/panda"}
+"""Arms loaded from other packages' model files (:mod:`qpik.robots.packaged`; erd: example-robot-data): label -> key."""
 BATCH = 10_000
 
 
 def run(args: argparse.Namespace) -> list[Row]:
     rows: list[Row] = []
     for name in ARMS:
-        rows += _arm_rows(name, args.repeat)
+        rows += _arm_rows(name, load_robot(name), args.repeat)
+    for label, key in LOADED.items():
+        try:
+            robot = load_robot(packaged_model(key))
+        except InputError as exc:
+            print(f"qpik bench kinematics: {exc}; row left out")
+            continue
+        rows += _arm_rows(label, robot, args.repeat)
     return rows
 
 
-def _arm_rows(name: str, repeat: int) -> list[Row]:
-    robot = load_robot(name)
+def _arm_rows(name: str, robot: Robot, repeat: int) -> list[Row]:
     Q = np.random.default_rng(0).uniform(robot.q_min, robot.q_max, size=(BATCH, robot.dof))
     model = robot.mj_model()
     cfg = mink.Configuration(model)
     data = mujoco.MjData(model)
-    site = model.site("ee").id
+    site = model.site(robot.site).id
     jp, jr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
+    adr = np.array([model.jnt_qposadr[model.joint(j).id] for j in robot.joint_names])
+    qpos = model.qpos0.copy()  # the joints that are not the arm's (fingers) stay at their reference
 
     def qpik_single(q: np.ndarray) -> object:
         return robot.fk_jacobian(q)
 
     def mink_single(q: np.ndarray) -> tuple[np.ndarray, mink.SE3]:
-        cfg.update(q)
-        return cfg.get_frame_jacobian("ee", "site"), cfg.get_transform_frame_to_world("ee", "site")
+        qpos[adr] = q
+        cfg.update(qpos)
+        return cfg.get_frame_jacobian(robot.site, "site"), cfg.get_transform_frame_to_world(robot.site, "site")
 
     def raw_single(q: np.ndarray) -> None:
-        data.qpos[:] = q
+        data.qpos[adr] = q
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
         mujoco.mj_jacSite(model, data, jp, jr, site)
 
-    agree = _twin_error(robot, Q[:100], mink_single)
+    dof = np.array([model.jnt_dofadr[model.joint(j).id] for j in robot.joint_names])
+    agree = _twin_error(robot, Q[:100], mink_single, dof)
 
     def cycled(fn: Callable[[np.ndarray], object]) -> Callable[[], object]:
         it = itertools.cycle(Q[:1000])
@@ -74,7 +90,7 @@ def _arm_rows(name: str, repeat: int) -> list[Row]:
     rows = []
     for label, fn, ref, note in [
         (f"{name}: qpik fk_jacobian (1 q)", qpik_single, mink_label, ""),
-        (mink_label, mink_single, None, f"(twin agrees with qpik to {agree:.0e})"),
+        (mink_label, mink_single, None, f"(model agrees with qpik to {agree:.0e})"),
         (f"{name}: raw mujoco (floor)", raw_single, mink_label, ""),
     ]:
         t = time_calls(cycled(fn), repeat)
@@ -85,12 +101,13 @@ def _arm_rows(name: str, repeat: int) -> list[Row]:
     return rows
 
 
-def _twin_error(robot: Robot, Q: np.ndarray, mink_single: Callable[[np.ndarray], tuple]) -> float:
-    """Largest difference of pose and base-frame Jacobian between qpik and mink on the twin."""
+def _twin_error(robot: Robot, Q: np.ndarray, mink_single: Callable[[np.ndarray], tuple], dof: np.ndarray) -> float:
+    """Largest difference of pose and base-frame Jacobian between qpik and mink on the robot's model."""
     err = 0.0
     for q in Q:
         T, J = robot.fk_jacobian(q)
         J_site, pose = mink_single(q)
+        J_site = J_site[:, dof]  # the arm's columns (a model may have more joints: fingers)
         Tm = pose.as_matrix()
         R = Tm[:3, :3]
         J_base = np.vstack([R @ J_site[:3], R @ J_site[3:]])

@@ -16,6 +16,40 @@ def floats(text: str) -> np.ndarray:
 
 
 def add_robot(parser: argparse.ArgumentParser, required: bool = True) -> None:
+    """``--robot`` (a catalog name or an MJCF/URDF file) and the options of :func:`qpik.load_robot` for a file."""
     from qpik.robots.catalog import CATALOG
 
-    parser.add_argument("--robot", "-r", required=required, choices=sorted(CATALOG), help="arm of the catalog")
+    parser.add_argument(
+        "--robot",
+        "-r",
+        required=required,
+        metavar="NAME|FILE",
+        help=f"arm of the catalog ({', '.join(sorted(CATALOG))}) or an MJCF (.xml) or URDF (.urdf) file",
+    )
+    g = parser.add_argument_group("model file options (with --robot FILE)")
+    g.add_argument("--base", help="body or site the arm starts from (default: the world)")
+    g.add_argument("--tip", help="body or site at the end effector (default: the end of the chain)")
+    g.add_argument("--joints", type=lambda t: t.replace(",", " ").split(), help='the arm\'s joints, "j1,j2,..."')
+    g.add_argument(
+        "--package",
+        action="append",
+        default=[],
+        metavar="NAME=DIR",
+        help="folder of a ROS package for package:// mesh paths (repeatable)",
+    )
+    g.add_argument("--collision-only", action="store_true", help="leave out visual geoms and their meshes")
+
+
+def robot_from_args(args: argparse.Namespace):
+    """The :class:`qpik.Robot` named by the :func:`add_robot` options."""
+    from qpik import load_robot
+
+    options = {k: getattr(args, k) for k in ("base", "tip", "joints") if getattr(args, k) is not None}
+    if args.package:
+        bad = [p for p in args.package if "=" not in p]
+        if bad:
+            raise SystemExit(f"qpik {args.command}: --package expects NAME=DIR, got {bad[0]!r}")
+        options["package_map"] = dict(p.split("=", 1) for p in args.package)
+    if args.collision_only:
+        options["collision_only"] = True
+    return load_robot(args.robot, **options)

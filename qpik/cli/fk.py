@@ -10,14 +10,14 @@ import argparse
 
 import numpy as np
 
-from qpik.cli.args import add_robot, floats
+from qpik.cli.args import add_robot, floats, robot_from_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("fk", help="forward kinematics: pose, position, roll-pitch-yaw of a configuration")
     add_robot(p)
     p.add_argument(
-        "--q", type=floats, required=True, help='7 joint angles, e.g. "0 0.5 0 -1.2 0 0.9 0" or --q=-0.5,0,...'
+        "--q", type=floats, required=True, help='joint angles, e.g. "0 0.5 0 -1.2 0 0.9 0" or --q=-0.5,0,...'
     )
     p.add_argument("--deg", action="store_true", help="--q is in degrees")
     p.set_defaults(func=_run)
@@ -31,9 +31,7 @@ def roll_pitch_yaw(R: np.ndarray) -> np.ndarray:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from qpik import load_robot
-
-    robot = load_robot(args.robot)
+    robot = robot_from_args(args)
     q = np.deg2rad(args.q) if args.deg else args.q
     T = robot.fk(q)  # validates q (shape, finite)
     rpy = roll_pitch_yaw(T[:3, :3])

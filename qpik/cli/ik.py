@@ -12,14 +12,14 @@ import argparse
 
 import numpy as np
 
-from qpik.cli.args import add_robot, floats
+from qpik.cli.args import add_robot, floats, robot_from_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("ik", help="closed-form IK: all branches at one δ/ψ, checked by forward kinematics")
     add_robot(p)
     add_pose(p)
-    p.add_argument("--param", "-p", type=float, help="redundancy parameter δ (nammoto7) or ψ (iiwa14), rad")
+    p.add_argument("--param", "-p", type=float, help="redundancy parameter δ (offset shoulder) or ψ (S-R-S), rad")
     p.set_defaults(func=_run)
 
 
@@ -28,7 +28,7 @@ def add_pose(p: argparse.ArgumentParser) -> argparse._MutuallyExclusiveGroup:
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--pose", type=floats, help="16 numbers, the 4x4 pose row by row (m)")
     g.add_argument("--position", type=floats, help="x,y,z of the end effector (m); with --rotation")
-    g.add_argument("--q", type=floats, help="7 joint angles (rad); the pose is fk(q)")
+    g.add_argument("--q", type=floats, help="joint angles (rad); the pose is fk(q)")
     p.add_argument("--rotation", type=floats, help="9 numbers, the rotation row by row (default: identity)")
     p.add_argument("--project", action="store_true", help="project a non-orthonormal rotation onto SO(3)")
     return g
@@ -56,12 +56,12 @@ def pose_from_args(args: argparse.Namespace, robot) -> np.ndarray:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from qpik import feasible_intervals, ik, load_robot, redundancy_parameter
+    from qpik import feasible_intervals, ik, redundancy_parameter
     from qpik.plots.closed_form import symbol
     from qpik.problems.ik import branch_table
     from qpik.validate import pose as check_pose
 
-    robot = load_robot(args.robot)
+    robot = robot_from_args(args)
     T, _ = check_pose(pose_from_args(args, robot), "pose", args.project)
     param = args.param
     if param is None:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from qpik.cli.args import add_robot, floats
+from qpik.cli.args import add_robot, floats, robot_from_args
 from qpik.cli.ik import add_pose, pose_from_args
 
 
@@ -31,7 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from qpik import ik, load_robot
+    from qpik import ik
     from qpik.plots import save
     from qpik.plots.closed_form import branch_pictures, selfmotion_map
     from qpik.validate import pose as check_pose
@@ -47,7 +47,7 @@ def _run(args: argparse.Namespace) -> int:
     else:
         if args.robot is None:
             raise SystemExit("qpik plot: --robot is required unless --problem is given")
-        robot = load_robot(args.robot)
+        robot = robot_from_args(args)
         T, _ = check_pose(pose_from_args(args, robot), "pose", args.project)
     if args.what == "selfmotion":
         branches = None if args.branches is None else [int(b) for b in args.branches]

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from qpik.cli.args import add_robot, floats
+from qpik.cli.args import add_robot, floats, robot_from_args
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -31,9 +31,7 @@ def _run(args: argparse.Namespace) -> int:
 
     from qpik.errors import InputError
     from qpik.render import RenderUnavailable, render_configurations
-    from qpik.robots.catalog import load_robot
-
-    robot = load_robot(args.robot)
+    robot = robot_from_args(args)
     bad = [q.shape[0] for q in args.q or () if q.shape != (robot.dof,)]
     if bad:
         raise InputError(f"--q: expected {robot.dof} angles, got {bad[0]}")

@@ -4,16 +4,16 @@ r"""The kinematic state of one control step, computed once and shared by every t
 ONE natively compiled CasADi function (:class:`Kinematics`, :mod:`qpik.compiled`) traced
 from the expression builders of the other layers — nothing here re-derives them:
 
-- the frames (:meth:`~qpik.robots.dh.DHChain.frames_expr`), the end-effector pose and the
+- the frames (:meth:`~qpik.robots.chain.SerialChain.frames_expr`), the end-effector pose and the
   geometric Jacobian ``J = [J_v; J_ω]`` (6, n), world frame;
 - the manipulability gradient ∇m (n,), full and translational, from the kinematic
-  Hessian (:func:`~qpik.robots.dh.manipulability_gradient_expr`);
+  Hessian (:func:`~qpik.robots.manipulability.manipulability_gradient_expr`);
 - the world end points of the link capsules (C, 2, 3)
   (:meth:`~qpik.robots.robot.Robot.capsule_segments_expr`);
 - for a packed obstacle set (:class:`~qpik.geometry.distance.ObstacleSet`), every
   capsule–obstacle distance and witness point (:func:`~qpik.geometry.distance.set_expr`)
   and the velocity-damper coefficients :math:`n^T J_p(p_{link})` (C·O, n), with the point
-  Jacobian of :meth:`~qpik.robots.dh.DHChain.point_jacobian_expr`: joint ``j`` turns about
+  Jacobian of :meth:`~qpik.robots.chain.SerialChain.point_jacobian_expr`: joint ``j`` turns about
   :math:`z_j` through :math:`o_j`, and a point :math:`p` of link ``k`` moves with
   :math:`\dot p = \sum_{j \le k} z_j \times (p - o_j)\,\dot q_j`.
 
@@ -33,7 +33,7 @@ import numpy as np
 
 from qpik import symbolic as sy
 from qpik.compiled import Compiled
-from qpik.robots.dh import _hessian_rows, _jacobian_rows, manipulability_gradient_expr
+from qpik.robots.manipulability import hessian_rows, jacobian_rows, manipulability_gradient_expr
 
 if TYPE_CHECKING:
     from qpik.geometry.distance import Distances, ObstacleSet
@@ -69,7 +69,7 @@ class Kinematics:
         robot, chain, n = self.robot, self.robot.chain, self.n
         frames = chain.frames_expr([q[i] for i in range(n)], sy.CASADI)
         jv, jw = chain.jacobian_expr(frames)
-        Jr, Hr = _jacobian_rows(jv, jw), _hessian_rows(chain.hessian_expr(frames, (jv, jw)))
+        Jr, Hr = jacobian_rows(jv, jw), hessian_rows(chain.hessian_expr(frames, (jv, jw)))
         R, p = frames[-1]
         out = [*R[0], p[0], *R[1], p[1], *R[2], p[2], 0.0, 0.0, 0.0, 1.0]
         out += [x for row in Jr for x in row]

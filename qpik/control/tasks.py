@@ -262,5 +262,5 @@ class ManipulabilityTask(Task):
         return (self.translational,)
 
     def expr(self, s: SymState, p: ca.SX) -> tuple[ca.SX, ca.SX]:
-        """∇m(q) from :func:`qpik.robots.dh.manipulability_gradient_expr`, traced into the state."""
+        """∇m(q) from :func:`qpik.robots.manipulability.manipulability_gradient_expr`, traced into the state."""
         return ca.SX.zeros(s.n, s.n), -p[0] * s.manipulability_gradient(self.translational)

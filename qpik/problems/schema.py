@@ -8,7 +8,10 @@ Format (TOML; every key below is the whole vocabulary: an unknown key is an erro
     source = "..."            # optional: paper, equations, tables
 
     [robot]
-    name = "nammoto7"         # required: a catalog name (qpik.CATALOG)
+    name = "nammoto7"         # a catalog name (qpik.CATALOG), or
+    # model = "arm.urdf"      # an MJCF/URDF file (relative to this file's folder), loaded by
+    #                         # qpik.load_robot with the optional base, tip (strings), joints
+    #                         # (list of strings), collision_only (bool) and package_map (table)
     q_min = [7 floats]        # optional overrides (rad), each shape (7,)
     q_max = [7 floats]        #   (rad)
     v_max = [7 floats]        #   (rad/s, > 0)
@@ -73,13 +76,14 @@ import numpy as np
 from qpik.errors import InputError, ProblemFileError, UnknownRobotError
 from qpik.geometry.shapes import Shape, shape_from_spec
 from qpik.problems.paths import PATHS, TargetPath
-from qpik.robots.catalog import load_robot
+from qpik.robots.loader import load_robot
 from qpik.robots.robot import Robot
 from qpik.validate import finite_array
 from qpik.validate import pose as check_pose
 
 Kind = Literal["ik", "track", "reach", "plan"]
 KINDS: tuple[str, ...] = ("ik", "track", "reach", "plan")
+
 
 @dataclass(frozen=True, eq=False)
 class Problem:
@@ -261,11 +265,35 @@ class _Reader:
 
     def robot(self, value: Any) -> Robot:
         overrides = ("q_min", "q_max", "v_max", "q_home")
-        tbl = self.table(value, "robot", {"name"}, set(overrides))
+        options = {"base", "tip", "joints", "collision_only", "package_map"}
+        tbl = self.table(value, "robot", set(), {"name", "model", *options, *overrides})
+        if ("name" in tbl) == ("model" in tbl):
+            raise self.fail("robot", "give exactly one of name (a catalog arm) and model (an MJCF/URDF file)")
+        if "name" in tbl:
+            if options & set(tbl):
+                raise self.fail("robot", f"{', '.join(sorted(options & set(tbl)))}: only with model")
+            target, kwargs, field = self.text(tbl["name"], "robot.name"), {}, "robot.name"
+        else:
+            target, field = str(self.file.parent / self.text(tbl["model"], "robot.model")), "robot.model"
+            kwargs = {k: self.text(tbl[k], f"robot.{k}") for k in ("base", "tip") if k in tbl}
+            if "joints" in tbl:
+                joints = tbl["joints"]
+                if not isinstance(joints, list):
+                    raise self.fail("robot.joints", f"expected a list of joint names, got {type(joints).__name__}")
+                kwargs["joints"] = [self.text(j, "robot.joints") for j in joints]
+            if "collision_only" in tbl:
+                if not isinstance(tbl["collision_only"], bool):
+                    raise self.fail("robot.collision_only", "expected true or false")
+                kwargs["collision_only"] = tbl["collision_only"]
+            if "package_map" in tbl:
+                pmap = self.free(tbl["package_map"], "robot.package_map")
+                kwargs["package_map"] = {
+                    k: str(self.file.parent / self.text(v, "robot.package_map")) for k, v in pmap.items()
+                }
         try:
-            robot = load_robot(self.text(tbl["name"], "robot.name"))
-        except UnknownRobotError as exc:
-            raise self.fail("robot.name", str(exc)) from None
+            robot = load_robot(target, **kwargs)
+        except (UnknownRobotError, InputError) as exc:
+            raise self.fail(field, str(exc)) from None
         changes = {k: self.array(tbl[k], f"robot.{k}", (robot.dof,)) for k in overrides if k in tbl}
         if not changes:
             return robot

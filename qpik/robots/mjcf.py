@@ -1,15 +1,11 @@
-r"""The MJCF twin of a DH robot: the same kinematics as a MuJoCo model.
+r"""The MJCF twin of a chain robot: the same kinematics as a MuJoCo model.
 
-Body ``link{k}`` turns with joint ``joint{k}`` (a hinge about its local z axis).
-At ``q = 0`` the body frames are taken from :meth:`DHChain.frames`, so the DH
-algebra lives in one place:
-
-- ``standard``: body *k* is :math:`F_{k-1} R_z(\theta_k + o_k)` — DH frame
-  *k-1* turned by the joint — and DH frame *k* sits at the constant
-  :math:`T_z(d_k) T_x(a_k) R_x(\alpha_k)` in it;
-- ``modified``: body *k* is DH frame *k* itself,
-  :math:`F_{k-1} R_x(\alpha_k) T_x(a_k) R_z(\theta_k + o_k) T_z(d_k)`
-  (the joint rotation commutes with :math:`T_z(d_k)`).
+Body ``link{k}`` turns with joint ``joint{k}`` (a hinge about its local z axis, or a
+slide along it for a prismatic joint). At ``q = 0`` the body frames are taken from
+:meth:`SerialChain.frames`, so the chain algebra lives in one place: body *k* is the
+joint frame :math:`F_{k-1} P_k M_k(o_k)` (:class:`~qpik.robots.chain.Joint`), and link
+frame *k* sits at the constant :math:`S_k` in it. For a standard DH table that is
+:math:`F_{k-1} R_z(\theta_k + o_k)` with DH frame *k* at :math:`T_z(d_k) T_x(a_k) R_x(\alpha_k)`.
 
 Every constant transform is written as ``pos``/``quat`` with full float
 precision, so the site ``ee`` equals :meth:`Robot.fk` to ~1e-15 m.
@@ -33,6 +29,7 @@ import mujoco
 import numpy as np
 
 if TYPE_CHECKING:
+    from qpik.robots.chain import Joint
     from qpik.robots.robot import Robot
 
 # one colour per link (RGB), cycled
@@ -52,7 +49,7 @@ def to_mjcf(robot: Robot, extra_worldbody: Sequence[str] = ()) -> str:
     """The MJCF twin of ``robot`` as an XML string.
 
     Args:
-        robot: a DH robot.
+        robot: a robot (its chain and capsules).
         extra_worldbody: MJCF elements (strings) inserted into ``<worldbody>``,
             for example obstacle geoms.
 
@@ -64,10 +61,7 @@ def to_mjcf(robot: Robot, extra_worldbody: Sequence[str] = ()) -> str:
     chain = robot.chain
     n = chain.dof
     F = chain.frames(np.zeros(n))  # [base, frame_1..frame_n, ee] at q = 0
-    if chain.convention == "standard":
-        body = [F[k - 1] @ _rot_z(chain.offset[k - 1]) for k in range(1, n + 1)]
-    else:
-        body = [F[k] for k in range(1, n + 1)]
+    body = [F[k - 1] @ j.pre @ _motion(j) for k, j in enumerate(chain.joints, start=1)]
     reach = sum(np.linalg.norm(F[k + 1, :3, 3] - F[k, :3, 3]) for k in range(n + 1))
     radii = {c.link: c.radius for c in robot.capsules}
     r_base = 1.2 * radii.get(1, 0.05)
@@ -95,8 +89,8 @@ def to_mjcf(robot: Robot, extra_worldbody: Sequence[str] = ()) -> str:
         f'    <geom name="base" type="cylinder" {_pose(chain.base @ _trans_z(0.015))}'
         f' size="{_fmt((r_base, 0.015))}" rgba="0.25 0.25 0.28 1" {VISUAL}/>',
     ]
-    # the static part between the base and the first joint's axis (modified DH: frame 1's origin)
-    column = F[0 if chain.convention == "standard" else 1, :3, 3]
+    # the static part between the base and the first joint's axis
+    column = body[0][:3, 3]
     if np.linalg.norm(column - F[0, :3, 3]) > 1e-9:
         lines.append(
             f'    <geom name="base_column" type="cylinder" fromto="{_fmt((*F[0, :3, 3], *column))}"'
@@ -109,8 +103,9 @@ def to_mjcf(robot: Robot, extra_worldbody: Sequence[str] = ()) -> str:
         rgba = _fmt((*rgb, 1.0))
         lines.append(f'{ind}<body name="link{k}" {_pose(np.linalg.inv(parent) @ body[k - 1])}>')
         lines.append(f'{ind}  <inertial pos="0 0 0" mass="1" diaginertia="0.01 0.01 0.01"/>')
+        kind = "slide" if chain.joints[k - 1].kind == "prismatic" else "hinge"
         lines.append(
-            f'{ind}  <joint name="joint{k}" type="hinge" axis="0 0 1" limited="true"'
+            f'{ind}  <joint name="joint{k}" type="{kind}" axis="0 0 1" limited="true"'
             f' range="{_fmt((robot.q_min[k - 1], robot.q_max[k - 1]))}"/>'
         )
         r = radii.get(k, 0.04)
@@ -119,7 +114,7 @@ def to_mjcf(robot: Robot, extra_worldbody: Sequence[str] = ()) -> str:
             f'{ind}  <geom name="link{k}_housing" type="cylinder" size="{_fmt((1.1 * r, 0.9 * r))}"'
             f' rgba="{dark}" {VISUAL}/>'
         )
-        to_frame = np.linalg.inv(body[k - 1]) @ F[k]  # DH frame k in body k
+        to_frame = chain.joints[k - 1].post  # link frame k in body k
         caps = [c for c in robot.capsules if c.link == k]
         for j, c in enumerate(caps):
             name = f"link{k}_capsule" + (str(j) if len(caps) > 1 else "")
@@ -140,10 +135,14 @@ def to_mjcf(robot: Robot, extra_worldbody: Sequence[str] = ()) -> str:
     return "\n".join(lines)
 
 
-def _rot_z(t: float) -> np.ndarray:
+def _motion(joint: Joint) -> np.ndarray:
+    """The joint's motion at q = 0 (its offset): R_z(o) or T_z(o), (4, 4)."""
     T = np.eye(4)
-    c, s = np.cos(t), np.sin(t)
-    T[:2, :2] = ((c, -s), (s, c))
+    if joint.kind == "prismatic":
+        T[2, 3] = joint.offset
+    else:
+        c, s = np.cos(joint.offset), np.sin(joint.offset)
+        T[:2, :2] = ((c, -s), (s, c))
     return T
 
 

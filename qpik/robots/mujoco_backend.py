@@ -99,12 +99,21 @@ class MjKinematics:
 
     @classmethod
     def from_robot(cls, robot: Robot, extra_worldbody: Sequence[str] = ()) -> MjKinematics:
-        """From the MJCF twin of a DH robot (:func:`qpik.robots.mjcf.to_mjcf`), optionally
-        with extra ``<worldbody>`` elements (obstacle geoms)."""
-        from qpik.robots.mjcf import to_mjcf
+        """From a robot's MuJoCo model (:meth:`qpik.Robot.mj_spec`: the MJCF twin of a catalog arm,
+        a loaded arm's own model), optionally with extra ``<worldbody>`` elements (obstacle geoms,
+        sites): in the twin's ``<worldbody>`` under their own names, in a loaded model in a body
+        ``extra`` of the world with their names prefixed ``extra/``."""
+        if robot.model is None:
+            from qpik.robots.mjcf import to_mjcf
 
-        names = [f"joint{k}" for k in range(1, robot.dof + 1)]
-        return cls(mujoco.MjModel.from_xml_string(to_mjcf(robot, extra_worldbody)), "ee", names)
+            return cls(mujoco.MjModel.from_xml_string(to_mjcf(robot, extra_worldbody)), robot.site, robot.joint_names)
+        spec = robot.mj_spec()
+        if extra_worldbody:
+            child = mujoco.MjSpec.from_string(
+                f'<mujoco><worldbody><body name="extra">{"".join(extra_worldbody)}</body></worldbody></mujoco>'
+            )
+            spec.worldbody.add_frame().attach_body(child.body("extra"), "extra/", "")
+        return cls(spec.compile(), robot.site, robot.joint_names)
 
     @property
     def dof(self) -> int:

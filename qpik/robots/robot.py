@@ -1,4 +1,4 @@
-"""A robot: a DH chain plus limits, home configuration and link capsules."""
+"""A robot: a serial chain plus limits, home configuration and link capsules."""
 
 from __future__ import annotations
 
@@ -9,12 +9,15 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from qpik import symbolic as sy
-from qpik.robots.dh import DHChain
+from qpik.robots.chain import SerialChain
 from qpik.symbolic import Frame, Vec
 from qpik.validate import joint_vector
 
 if TYPE_CHECKING:
     import mujoco
+
+    from qpik.robots.loader import ModelSource
+    from qpik.robots.recognize import Canonical
 
 ClosedForm = Literal["offset_shoulder", "srs"] | None
 
@@ -23,8 +26,9 @@ ClosedForm = Literal["offset_shoulder", "srs"] | None
 class LinkCapsule:
     """A capsule rigidly attached to link ``link`` (1..n, the body moved by joint ``link``).
 
-    ``p0``, ``p1`` (3,) are the segment end points in DH frame ``link``
-    coordinates (metres); ``radius`` in metres. A zero-length segment is a sphere.
+    ``p0``, ``p1`` (3,) are the segment end points in link frame ``link`` of the chain
+    (:meth:`SerialChain.frames`; the DH frame for a DH table), metres; ``radius`` in metres.
+    A zero-length segment is a sphere.
     """
 
     link: int
@@ -35,11 +39,11 @@ class LinkCapsule:
 
 @dataclass(frozen=True)
 class Robot:
-    """A 7-DOF arm of the catalog (or a user's own DH arm).
+    """An arm: of the catalog, a user's own chain (a DH table, say), or loaded from an MJCF/URDF file.
 
     Attributes:
-        name: catalog name.
-        chain: the kinematic model (:class:`DHChain`).
+        name: catalog or model name.
+        chain: the kinematic model (:class:`~qpik.robots.chain.SerialChain`, e.g. a DH table).
         q_min, q_max: joint position limits (rad), shape (n,).
         v_max: joint velocity limits (rad/s), shape (n,).
         q_home: a home configuration (rad), shape (n,).
@@ -47,10 +51,14 @@ class Robot:
         closed_form: which analytic IK applies: ``"offset_shoulder"`` (δ),
             ``"srs"`` (ψ) or ``None``.
         source: where the numbers come from.
+        model: the MJCF/URDF model of a loaded robot (:func:`qpik.robots.loader.load_robot`),
+            or None for a catalog arm (whose MuJoCo model is the twin).
+        canonical: for a closed form found in a loaded chain (:func:`qpik.robots.recognize.recognize`),
+            the catalog-form DH table and the joint map to it; None when ``chain`` is that table itself.
     """
 
     name: str
-    chain: DHChain
+    chain: SerialChain
     q_min: np.ndarray
     q_max: np.ndarray
     v_max: np.ndarray
@@ -59,12 +67,14 @@ class Robot:
     closed_form: ClosedForm = None
     source: str = ""
     notes: str = field(default="", compare=False)
+    model: ModelSource | None = field(default=None, compare=False)
+    canonical: Canonical | None = field(default=None, compare=False)
 
     @property
     def dof(self) -> int:
         return self.chain.dof
 
-    # kinematics (see DHChain for shapes and frames)
+    # kinematics (see SerialChain for shapes and frames)
     def fk(self, q: np.ndarray) -> np.ndarray:
         """End-effector pose (4, 4) in the base/world frame; batched (N, 4, 4)."""
         return self.chain.fk(q)
@@ -100,7 +110,7 @@ class Robot:
         return bool(ok) if ok.ndim == 0 else ok
 
     def capsule_segments_expr(self, frames: list[Frame]) -> list[tuple[Vec, Vec]]:
-        """World end points ``(a, b)`` of every capsule from the frames of :meth:`DHChain.frames_expr`.
+        """World end points ``(a, b)`` of every capsule from the frames of :meth:`SerialChain.frames_expr`.
 
         Capsule ``c`` is ``self.capsules[c]``: ``a = R_k p0 + t_k``, ``b = R_k p1 + t_k`` with
         ``(R_k, t_k)`` the world pose of its link ``k``. Written in :mod:`qpik.symbolic`
@@ -124,8 +134,22 @@ class Robot:
     def capsule_radii(self) -> np.ndarray:
         return np.array([c.radius for c in self.capsules])
 
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """The arm's joints in :meth:`mj_model`, in chain order."""
+        return self.model.joint_names if self.model else tuple(f"joint{k}" for k in range(1, self.dof + 1))
+
+    @property
+    def site(self) -> str:
+        """The end-effector site of :meth:`mj_model` (it equals :meth:`fk`)."""
+        return self.model.site if self.model else "ee"
+
     def to_mjcf(self) -> str:
-        """The MJCF twin: one body per link, capsules as geoms, end-effector site ``ee``."""
+        """The MuJoCo model as MJCF text: for a catalog arm the twin (one body per link, capsules as
+        geoms, site ``ee``); for a loaded arm its own model with the capsules drawn (visual only)
+        and the site :attr:`site` (:meth:`~qpik.robots.loader.ModelSource.spec_with`)."""
+        if self.model is not None:
+            return self.model.spec_with(self).to_xml()
         from qpik.robots.mjcf import to_mjcf
 
         return to_mjcf(self)
@@ -136,23 +160,29 @@ class Robot:
 
         return to_urdf(self)
 
-    def mj_model(self) -> mujoco.MjModel:
-        """The MJCF twin compiled by MuJoCo."""
+    def mj_spec(self) -> mujoco.MjSpec:
+        """The MuJoCo model as a spec (what :meth:`to_mjcf` writes, at full precision)."""
+        if self.model is not None:
+            return self.model.spec_with(self)
         import mujoco
 
-        return mujoco.MjModel.from_xml_string(self.to_mjcf())
+        return mujoco.MjSpec.from_string(self.to_mjcf())
+
+    def mj_model(self) -> mujoco.MjModel:
+        """:meth:`mj_spec` compiled by MuJoCo."""
+        return self.mj_spec().compile()
 
 
-def default_capsules(chain: DHChain, radii: tuple[float, ...]) -> tuple[LinkCapsule, ...]:
+def default_capsules(chain: SerialChain, radii: tuple[float, ...]) -> tuple[LinkCapsule, ...]:
     """One capsule per link, from its joint's axis point to the next joint's (or the ee).
 
-    The points are taken at q = 0 and expressed in the link's DH frame, where
-    they are constant for any q.
+    The points are taken at q = 0 (from :meth:`SerialChain.axes`) and expressed in the
+    link's frame, where they are constant for any q.
     """
-    F = chain.frames(np.zeros(chain.dof))
+    q0 = np.zeros(chain.dof)
+    F = chain.frames(q0)
     n = chain.dof
-    axis_frames = range(0, n) if chain.convention == "standard" else range(1, n + 1)
-    pts = [F[k, :3, 3] for k in axis_frames] + [F[n + 1, :3, 3]]
+    pts = [*chain.axes(q0)[1], F[n + 1, :3, 3]]
     caps = []
     for k in range(1, n + 1):
         inv = np.linalg.inv(F[k])

@@ -1,7 +1,8 @@
 r"""Closed-loop runs of a joint-velocity policy on a MuJoCo model of the arm.
 
-The model is the robot's MJCF twin (:meth:`qpik.Robot.to_mjcf`) or any MJCF
-arm (joint names and end-effector site given), with the obstacles added to its
+The model is the robot's own (:meth:`qpik.Robot.mj_spec`: the MJCF twin of a catalog
+arm, the MJCF/URDF model of a loaded one) or any MJCF arm (joint names and
+end-effector site given), with the obstacles added to its
 ``<worldbody>`` as geoms, so MuJoCo draws them and measures distances on its
 own. Each step *k* (:math:`t_k = k\,\Delta t`):
 
@@ -64,10 +65,11 @@ class Scene:
 
     Attributes:
         kin: the arm's kinematics on the model with obstacles.
-        link_geoms, link_names: ids and names of the arm's collision geoms (L,).
+        link_geoms, link_names: ids and names of the arm's collision geoms (L,); an unnamed geom is
+            ``<body>/geom<id>``.
         obstacle_geoms, obstacle_names: ids of the obstacle geoms and the obstacles' names (O,).
         obstacles: the obstacle shapes (world frame).
-        robot: the :class:`Robot` when the model is its twin, else ``None``.
+        robot: the :class:`Robot` when the model is its own (twin or loaded model), else ``None``.
     """
 
     kin: MjKinematics
@@ -98,19 +100,20 @@ def build_scene(
     """The model of ``arm`` with ``obstacles`` as world geoms.
 
     Args:
-        arm: a :class:`Robot` (its MJCF twin), an MJCF string or an MJCF file path.
+        arm: a :class:`Robot` (its MuJoCo model: the MJCF twin of a catalog arm, the model of a
+            loaded one), an MJCF string or an MJCF file path.
         obstacles: shapes in the world frame; each becomes geom ``obstacles/<i>``.
         joint_names, site: the arm's joints and end-effector site (an MJCF arm;
             the twin uses ``joint1..7`` and ``ee``).
         link_geoms: the arm geoms whose clearance is logged; default: every geom
             that can collide (``contype`` or ``conaffinity`` non-zero) on a
-            moving body — the capsules ``link<k>_capsule`` of the twin.
+            moving body — the capsules ``link<k>_capsule`` of the twin, a loaded arm's own
+            collision geoms (its capsules are drawn but do not collide).
     """
     robot = arm if isinstance(arm, Robot) else None
     if robot is not None:
-        spec = mujoco.MjSpec.from_string(robot.to_mjcf())
-        joint_names = [f"joint{k}" for k in range(1, robot.dof + 1)]
-        site = "ee"
+        spec = robot.mj_spec()
+        joint_names, site = robot.joint_names, robot.site
     elif str(arm).lstrip().startswith("<"):
         spec = mujoco.MjSpec.from_string(str(arm))
     else:
@@ -138,7 +141,9 @@ def build_scene(
     return Scene(
         kin=kin,
         link_geoms=link_ids,
-        link_names=tuple(model.geom(int(g)).name or f"geom{g}" for g in link_ids),
+        link_names=tuple(
+            model.geom(int(g)).name or f"{model.body(int(model.geom_bodyid[g])).name}/geom{g}" for g in link_ids
+        ),
         obstacle_geoms=obstacle_ids,
         obstacle_names=tuple(o.name or f"obstacle{i}" for i, o in enumerate(obstacles)),
         obstacles=obstacles,

@@ -1,0 +1,354 @@
+r"""Serial chains: FK, geometric Jacobian, kinematic Hessian, manipulability of any revolute/prismatic chain.
+
+A :class:`SerialChain` is a list of :class:`Joint` s. Joint *k* moves link *k* relative to link *k-1*:
+
+.. math:: F_k = F_{k-1}\,P_k\,M_k(q_k + o_k)\,S_k,\qquad F_0 = \mathrm{base},\quad F_{ee} = F_n\,\mathrm{tool},
+
+with constant transforms :math:`P_k` (``pre``: link *k-1* to the joint frame, whose z axis is
+the joint axis) and :math:`S_k` (``post``: the moved joint frame to link frame *k*), and the
+motion :math:`M_k = R_z` (revolute, rad) or :math:`T_z` (prismatic, m). A DH table is one way
+to fill these in (:class:`qpik.robots.dh.DHChain`); a MuJoCo model is another
+(:mod:`qpik.robots.loader`, where :math:`S_k = I` and link frame *k* is the joint frame).
+
+The expressions are written once in :mod:`qpik.symbolic` and evaluated three ways: numpy
+over a batch, CasADi symbols, and a compiled CasADi function for one configuration (the
+fast path, :mod:`qpik.compiled`). Constant 0 and ±1 entries fold away while tracing, so
+an identity ``pre`` or ``post`` costs nothing.
+
+Conventions: metres and radians; the geometric Jacobian rows are ``[v; ω]`` of the
+end-effector origin, both in the base (world) frame.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Literal
+
+import casadi as ca
+import numpy as np
+
+from qpik import symbolic as sy
+from qpik.compiled import Compiled
+from qpik.errors import InputError
+from qpik.robots.manipulability import (
+    hessian_rows,
+    jacobian_rows,
+    manipulability_gradient_expr,
+    manipulability_gradient_from,
+)
+from qpik.symbolic import Frame, Ops, Scalar
+from qpik.validate import finite_array, joint_vector
+
+JointKind = Literal["revolute", "prismatic"]
+ZERO_VEC = (0.0, 0.0, 0.0)
+
+
+def _eye() -> np.ndarray:
+    return np.eye(4)
+
+
+@dataclass(frozen=True)
+class Joint:
+    r"""One joint: :math:`P\,M(q + o)\,S` from link *k-1* to link *k* (see the module docstring).
+
+    Attributes:
+        pre: (4, 4) constant transform from link *k-1* to the joint frame (z = joint axis).
+        post: (4, 4) constant transform from the moved joint frame to link frame *k*.
+        kind: ``"revolute"`` (q in rad, about z) or ``"prismatic"`` (q in m, along z).
+        offset: o, added to q before the motion (rad or m).
+        name: the joint's name in its model (``""`` for a DH table).
+    """
+
+    pre: np.ndarray = field(default_factory=_eye)
+    post: np.ndarray = field(default_factory=_eye)
+    kind: JointKind = "revolute"
+    offset: float = 0.0
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("revolute", "prismatic"):
+            raise InputError(f"Joint.kind: unknown kind {self.kind!r} (revolute or prismatic)")
+        for name in ("pre", "post"):
+            finite_array(getattr(self, name), f"Joint.{name}", (4, 4))
+        object.__setattr__(self, "offset", float(self.offset))
+
+    def motion(self, q: Scalar, ops: Ops) -> Frame:
+        """:math:`M(q + o)` as a :mod:`qpik.symbolic` frame."""
+        x = sy.add(q, self.offset)
+        if self.kind == "prismatic":
+            return sy.frame_of(np.eye(4))[0], (0.0, 0.0, x)
+        return sy.rot_z(ops.cos(x), ops.sin(x)), ZERO_VEC
+
+    def local_expr(self, q: Scalar, ops: Ops) -> Frame:
+        """:math:`P\\,M(q + o)\\,S`, link *k-1* to link *k* (constants folded)."""
+        return sy.compose(sy.compose(sy.frame_of(self.pre), self.motion(q, ops)), sy.frame_of(self.post))
+
+    @cached_property
+    def axis_source(self) -> str:
+        """Where the world axis is read most cheaply: ``"before"`` (P = I: frame *k-1*), ``"after"``
+        (S a translation along z: frame *k*) or ``"joint"`` (frame *k-1* times P)."""
+        if np.array_equal(self.pre, np.eye(4)):
+            return "before"
+        post = self.post
+        if np.array_equal(post[:3, :3], np.eye(3)) and post[0, 3] == 0.0 and post[1, 3] == 0.0:
+            return "after"
+        return "joint"
+
+
+class SerialChain:
+    """A serial chain of revolute and prismatic joints (immutable once built).
+
+    Args:
+        joints: the joints from the base outward.
+        base: (4, 4) world-from-frame-0 transform.
+        tool: (4, 4) frame-n-from-end-effector transform.
+    """
+
+    joints: tuple[Joint, ...]
+    base: np.ndarray
+    tool: np.ndarray
+
+    def __init__(self, joints: Sequence[Joint], base: np.ndarray | None = None, tool: np.ndarray | None = None):
+        self._set(joints, base, tool)
+
+    def _set(self, joints: Sequence[Joint], base: np.ndarray | None, tool: np.ndarray | None) -> None:
+        """Check and store the joints, base and tool (also for frozen dataclass subclasses)."""
+        joints = tuple(joints)
+        if not joints:
+            raise InputError(f"{type(self).__name__}.joints: a chain needs at least one joint")
+        for name, T in (("joints", joints), ("base", base), ("tool", tool)):
+            if name != "joints":
+                T = np.eye(4) if T is None else finite_array(T, f"{type(self).__name__}.{name}", (4, 4)).copy()
+            object.__setattr__(self, name, T)
+
+    @property
+    def dof(self) -> int:
+        return len(self.joints)
+
+    @cached_property
+    def prismatic(self) -> np.ndarray:
+        """(n,) bool, True for the prismatic joints."""
+        return np.array([j.kind == "prismatic" for j in self.joints])
+
+    # ---- the one definition -------------------------------------------------
+
+    def frames_expr(self, q: list[Scalar], ops: Ops) -> list[Frame]:
+        """Frames 0..n and the end-effector, as :mod:`qpik.symbolic` frames.
+
+        Returns ``n + 2`` frames: ``[base, frame_1, ..., frame_n, ee]``.
+        """
+        frames = [sy.frame_of(self.base)]
+        for joint, qi in zip(self.joints, q):
+            frames.append(sy.compose(frames[-1], joint.local_expr(qi, ops)))
+        frames.append(sy.compose(frames[-1], sy.frame_of(self.tool)))
+        return frames
+
+    def axes_expr(self, frames: list[Frame]) -> list[tuple[sy.Vec, sy.Vec]]:
+        """Joint axes as (unit axis z_i, point o_i on the axis), world frame, from :meth:`frames_expr`'s frames."""
+        out = []
+        for k, joint in enumerate(self.joints, start=1):
+            if joint.axis_source == "before":
+                R, p = frames[k - 1]
+            elif joint.axis_source == "after":
+                R, p = frames[k]  # a revolute motion keeps the axis; S moves only along it
+            else:
+                R, p = sy.compose(frames[k - 1], sy.frame_of(joint.pre))
+            out.append((sy.col(R, 2), p))
+        return out
+
+    def point_jacobian_expr(self, frames: list[Frame], point: sy.Vec, link: int) -> list[sy.Vec]:
+        r"""Columns of the translational Jacobian of a world point rigidly attached to link ``link`` (1..n).
+
+        A revolute joint ``j`` turns about the unit axis :math:`z_j` through :math:`o_j` (world
+        frame), a prismatic one slides along :math:`z_j`, so
+        :math:`\dot p = \sum_{j \le link} c_j\,\dot q_j` with :math:`c_j = z_j \times (p - o_j)`
+        or :math:`z_j`; returns those ``link`` columns (the joints beyond ``link`` do not move it).
+        """
+        cols = []
+        for joint, (z, o) in zip(self.joints[:link], self.axes_expr(frames)[:link]):
+            cols.append(z if joint.kind == "prismatic" else sy.cross(z, sy.vsub(point, o)))
+        return cols
+
+    def jacobian_expr(self, frames: list[Frame]) -> tuple[list[sy.Vec], list[sy.Vec]]:
+        """Columns of the geometric Jacobian: (linear parts, angular parts); a prismatic joint's angular part is 0."""
+        jv = self.point_jacobian_expr(frames, frames[-1][1], self.dof)
+        jw = [ZERO_VEC if j.kind == "prismatic" else z for j, (z, _) in zip(self.joints, self.axes_expr(frames))]
+        return jv, jw
+
+    def hessian_expr(
+        self, frames: list[Frame], jacobian: tuple[list[sy.Vec], list[sy.Vec]] | None = None
+    ) -> list[list[tuple[sy.Vec, sy.Vec]]]:
+        r"""Kinematic Hessian: ``H[k][j] = ∂J[:, j]/∂q_k`` as (linear, angular) parts.
+
+        With the Jacobian columns :math:`J_{v,i}`, :math:`J_{\omega,i}` (:math:`J_{\omega,i} = z_i`
+        for a revolute joint, 0 for a prismatic one):
+        :math:`∂J_{v,j}/∂q_k = J_{\omega,\min(j,k)} \times J_{v,\max(j,k)}`, and
+        :math:`∂J_{\omega,j}/∂q_k = J_{\omega,k} \times J_{\omega,j}` for :math:`k < j`, else 0.
+        ``jacobian``: the columns of :meth:`jacobian_expr` if the caller has them already.
+        """
+        jv, jw = self.jacobian_expr(frames) if jacobian is None else jacobian
+        H = []
+        for k in range(self.dof):
+            row = []
+            for j in range(self.dof):
+                lo, hi = min(j, k), max(j, k)
+                hv = sy.cross(jw[lo], jv[hi])
+                hw = sy.cross(jw[k], jw[j]) if k < j else ZERO_VEC
+                row.append((hv, hw))
+            H.append(row)
+        return H
+
+    # ---- CasADi -------------------------------------------------------------
+
+    @cached_property
+    def casadi_functions(self) -> dict[str, ca.Function]:
+        """CasADi functions of ``q`` (n,): ``fk`` -> (4,4), ``jacobian`` -> (6,n),
+        ``fk_jacobian`` -> both, ``frames`` -> (4, 4*(n+2)) side by side,
+        ``hessian`` -> (6*n, n) with rows ``[k*6:(k+1)*6]`` = ∂J/∂q_k,
+        ``manipulability_gradient`` -> ∇m (n,) and the translational ∇m (n,)."""
+        q = ca.SX.sym("q", self.dof)
+        frames = self.frames_expr([q[i] for i in range(self.dof)], sy.CASADI)
+        T = _frame_to_sx(frames[-1])
+        jv, jw = self.jacobian_expr(frames)
+        J = ca.horzcat(*[ca.vertcat(*v, *w) for v, w in zip(jv, jw)])
+        H = self.hessian_expr(frames, (jv, jw))
+        Hs = ca.vertcat(*[ca.horzcat(*[ca.vertcat(*hv, *hw) for hv, hw in row]) for row in H])
+        F = ca.horzcat(*[_frame_to_sx(f) for f in frames])
+        Jr, Hr = jacobian_rows(jv, jw), hessian_rows(H)
+        grad = [manipulability_gradient_expr(Jr[:rows], [Hk[:rows] for Hk in Hr])[0] for rows in (6, 3)]
+        return {
+            "fk": ca.Function("fk", [q], [T]),
+            "jacobian": ca.Function("jacobian", [q], [J]),
+            "fk_jacobian": ca.Function("fk_jacobian", [q], [T, J]),
+            "frames": ca.Function("frames", [q], [F]),
+            "hessian": ca.Function("hessian", [q], [Hs]),
+            "manipulability_gradient": ca.Function(
+                "manipulability_gradient", [q], [ca.vertcat(*grad[0]), ca.vertcat(*grad[1])]
+            ),
+        }
+
+    @cached_property
+    def _compiled(self) -> dict[str, Compiled]:
+        """The fast single-q evaluators of :attr:`casadi_functions`, each built on first use."""
+        return _LazyCompiled(self.casadi_functions)
+
+    # ---- numeric API --------------------------------------------------------
+
+    def _batch(self, q: np.ndarray) -> list[Frame]:
+        return self.frames_expr([q[:, i] for i in range(self.dof)], sy.NUMPY)
+
+    def fk(self, q: np.ndarray) -> np.ndarray:
+        """End-effector pose in the world frame: q (n,) -> (4, 4); q (N, n) -> (N, 4, 4)."""
+        q, batched = joint_vector(q, self.dof)
+        if not batched:
+            return self._compiled["fk"](q)[0].copy()
+        return _frame_to_np(self._batch(q)[-1], len(q))
+
+    def frames(self, q: np.ndarray) -> np.ndarray:
+        """World poses of ``[base, frame_1..frame_n, ee]``: (n+2, 4, 4) or (N, n+2, 4, 4)."""
+        q, batched = joint_vector(q, self.dof)
+        if not batched:
+            F = self._compiled["frames"](q)[0]
+            return F.reshape(4, self.dof + 2, 4).transpose(1, 0, 2).copy()
+        fr = self._batch(q)
+        return np.stack([_frame_to_np(f, len(q)) for f in fr], axis=1)
+
+    def axes(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World joint axes at q (n,): unit directions (n, 3) and a point on each axis (n, 3), m."""
+        q, batched = joint_vector(q, self.dof)
+        if batched:
+            raise InputError(f"q: expected shape ({self.dof},), got {q.shape}")
+        axes = self.axes_expr(self._batch(q[None]))
+        z, o = ([sy.stack(list(v[i]), sy.NUMPY, (1,))[0] for v in axes] for i in (0, 1))
+        return np.array(z), np.array(o)
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """Geometric Jacobian ``[v; ω]`` (world frame): (6, n) or (N, 6, n)."""
+        q, batched = joint_vector(q, self.dof)
+        if not batched:
+            return self._compiled["jacobian"](q)[0].copy()
+        return self._jac_np(self._batch(q), len(q))
+
+    def fk_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pose and Jacobian together (one kinematics pass)."""
+        q, batched = joint_vector(q, self.dof)
+        if not batched:
+            T, J = self._compiled["fk_jacobian"](q)
+            return T.copy(), J.copy()
+        fr = self._batch(q)
+        return _frame_to_np(fr[-1], len(q)), self._jac_np(fr, len(q))
+
+    def _jac_np(self, fr: list[Frame], n: int) -> np.ndarray:
+        jv, jw = self.jacobian_expr(fr)
+        cols = [sy.stack([*v, *w], sy.NUMPY, (n,)) for v, w in zip(jv, jw)]
+        return np.stack(cols, axis=-1)
+
+    def hessian(self, q: np.ndarray) -> np.ndarray:
+        """Kinematic Hessian ``H[..., k, :, j] = ∂J[:, j]/∂q_k``: (n, 6, n) or (N, n, 6, n)."""
+        q, batched = joint_vector(q, self.dof)
+        n = self.dof
+        if not batched:
+            return self._compiled["hessian"](q)[0].reshape(n, 6, n).copy()
+        H = self.hessian_expr(self._batch(q))
+        return np.stack(
+            [np.stack([sy.stack([*hv, *hw], sy.NUMPY, (len(q),)) for hv, hw in row], axis=-1) for row in H],
+            axis=1,
+        )
+
+    def manipulability(self, q: np.ndarray, translational: bool = False) -> np.ndarray | float:
+        """Yoshikawa's index sqrt(det(J Jᵀ)) (Zheng et al. 2019, eq. 6); ``translational`` uses J[:3].
+
+        Returns a float for q (n,) and an array (N,) for q (N, n); 0 for a chain of fewer joints than rows.
+        """
+        J = self.jacobian(q)
+        if translational:
+            J = J[..., :3, :]
+        if J.shape[-2] > self.dof:  # fewer joints than rows: det(J Jᵀ) = 0
+            return 0.0 if J.ndim == 2 else np.zeros(len(J))
+        # Jᵀ = QR gives det(J Jᵀ) = det(RᵀR) = Π R_ii²; unlike det(J Jᵀ), which squares the
+        # condition number, this keeps m accurate to ~ε·σ_max near singular configurations
+        R = np.linalg.qr(np.swapaxes(J, -1, -2), mode="r")
+        m = np.abs(np.prod(np.diagonal(R, axis1=-2, axis2=-1), axis=-1))
+        return float(m) if m.ndim == 0 else m
+
+    def manipulability_gradient(self, q: np.ndarray, translational: bool = False) -> np.ndarray:
+        r"""∂m/∂q (per rad) from the kinematic Hessian: (n,) or (N, n); see
+        :func:`~qpik.robots.manipulability.manipulability_gradient_expr`.
+
+        One configuration goes through the compiled function, a batch through numpy.
+        """
+        q, batched = joint_vector(q, self.dof)
+        if not batched:
+            return self._compiled["manipulability_gradient"](q)[int(translational)].copy()
+        return manipulability_gradient_from(self.jacobian(q), self.hessian(q), translational)
+
+
+class _LazyCompiled(dict):
+    """``name -> Compiled(functions[name])``, compiled when first asked for."""
+
+    def __init__(self, functions: dict[str, ca.Function]):
+        super().__init__()
+        self.functions = functions
+
+    def __missing__(self, name: str) -> Compiled:
+        self[name] = Compiled(self.functions[name])
+        return self[name]
+
+
+def _frame_to_sx(f: Frame) -> ca.SX:
+    R, p = f
+    rows = [ca.horzcat(*R[i], p[i]) for i in range(3)]
+    return ca.vertcat(*rows, ca.DM([[0, 0, 0, 1]]))
+
+
+def _frame_to_np(f: Frame, n: int) -> np.ndarray:
+    R, p = f
+    T = np.zeros((n, 4, 4))
+    for i in range(3):
+        for j in range(3):
+            T[:, i, j] = R[i][j]
+        T[:, i, 3] = p[i]
+    T[:, 3, 3] = 1.0
+    return T

@@ -1,0 +1,506 @@
+r"""Robots from MJCF and URDF files: ``qpik.load_robot(path_or_name, ...)``.
+
+MuJoCo parses and compiles the file (it reads URDF too; mesh paths and visual geoms
+are handled by :mod:`qpik.robots.model_files`). The arm is the chain of bodies from
+``base`` to ``tip``; its joints are the hinge and slide joints on that path (or those
+named in ``joints``: the others on the path are then locked at their reference
+position). Joint *k* becomes a :class:`~qpik.robots.chain.Joint` with
+
+- ``pre``: from link frame *k-1* through the bodies' ``pos``/``quat`` to the joint's
+  anchor, turned so that z is the joint axis; ``post = I``: link frame *k* is the
+  joint frame (anchor on the axis, z along it);
+- ``offset`` :math:`= -q_{ref}`: MuJoCo moves a hinge by :math:`q - q_{ref}` (``qpos0``).
+
+so that the chain's FK equals MuJoCo's ``mj_kinematics`` of the same model. The tool
+is the tip body's (or site's) frame in link *n*, times ``ee``.
+
+From the model:
+
+- position limits: the joint ``range``; a joint without one (URDF ``continuous``)
+  gets :data:`CONTINUOUS_LIMIT` (two turns each way, so that a path through ±π stays
+  inside and the closed form offers each angle's representatives q + 2πk);
+- velocity limits: URDF ``<limit velocity>``; in MJCF, the ``ctrlrange`` of a velocity
+  actuator on the joint; otherwise :data:`DEFAULT_VELOCITY`;
+- home: the keyframe ``home`` if the model has one, else the reference configuration
+  moved at least :data:`HOME_MARGIN` of each joint's range inside its limits;
+- link capsules: the smallest capsule containing the collision geoms (those with a
+  non-zero ``contype`` or ``conaffinity``) rigidly attached to each link, or all its geoms
+  when none of them collides (:mod:`qpik.robots.capsule_fit`; meshes by their vertices,
+  spheres, capsules and boxes exactly, a cylinder by a polygon around it, an ellipsoid by
+  its box). Geoms on side branches (fingers) count at their reference position.
+
+The chain is matched against the closed-form patterns (:mod:`qpik.robots.recognize`): an
+S-R-S or offset-shoulder arm gets ``closed_form`` and its ``canonical`` table, any other
+the reason in ``notes``.
+
+A loaded robot keeps its model (:class:`ModelSource`): :meth:`qpik.Robot.to_mjcf` gives
+the model itself with the capsules drawn (translucent, visual only) and a site at the
+end effector, so that the simulation and the pictures run on the real arm.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from qpik.errors import InputError, UnknownRobotError
+from qpik.robots.capsule_fit import fit_capsule
+from qpik.robots.catalog import CATALOG
+from qpik.robots.catalog import load_robot as catalog_robot
+from qpik.robots.chain import Joint, SerialChain
+from qpik.robots.model_files import is_urdf, read_spec, urdf_velocity_limits
+from qpik.robots.recognize import recognize
+from qpik.robots.robot import LinkCapsule, Robot
+from qpik.validate import finite_array
+
+if TYPE_CHECKING:
+    import mujoco
+
+CONTINUOUS_LIMIT = 2.0 * np.pi
+"""Limits ±this (rad) of a joint that has none in the model (URDF ``continuous``)."""
+DEFAULT_VELOCITY = 1.5
+"""Velocity limit (rad/s, or m/s for a slide joint) of a joint whose model gives none."""
+HOME_MARGIN = 0.1
+"""Without a ``home`` keyframe, the home configuration keeps this fraction of each joint's range from its limits."""
+SITE = "qpik_ee"
+"""Name of the end-effector site that :meth:`ModelSource.spec_with` adds to the model."""
+CAPSULE_RGBA = (0.2, 0.6, 1.0, 0.3)
+_CIRCLE = 32  # points per rim of a cylinder (its capsule is widened by the chord error)
+
+
+@dataclass(frozen=True)
+class ModelSource:
+    """Where a loaded robot comes from, to rebuild its MuJoCo model.
+
+    Attributes:
+        path: the MJCF or URDF file.
+        package_map: ``{package: folder}`` for ``package://`` mesh paths.
+        collision_only: visual geoms (and meshes only they use) are left out.
+        joint_names: the arm's joints in the model, in chain order.
+        tip_body: the body the end effector is attached to.
+        site: the name of the end-effector site added by :meth:`spec_with`.
+    """
+
+    path: Path
+    package_map: Mapping[str, str] = field(default_factory=dict)
+    collision_only: bool = False
+    joint_names: tuple[str, ...] = ()
+    tip_body: str = ""
+    site: str = SITE
+
+    def spec(self) -> mujoco.MjSpec:
+        """A fresh spec of the file (meshes resolved, static bodies kept)."""
+        return read_spec(self.path, self.package_map, self.collision_only)
+
+    def spec_with(self, robot: Robot) -> mujoco.MjSpec:
+        """The spec with the robot's capsules (visual: translucent, group 2, no contacts) and the end-effector site.
+
+        Capsule ``c`` of link ``k`` is geom ``qpik_capsule{c}`` on the body of joint ``k``, placed by
+        link frame ``k`` (the joint frame) in that body.
+        """
+        import mujoco
+
+        spec = self.spec()
+        model = spec.compile()
+        for c, cap in enumerate(robot.capsules):
+            joint = model.joint(self.joint_names[cap.link - 1])
+            body = spec.body(model.body(int(joint.bodyid[0])).name)
+            to_link = _anchor(model, joint.id)  # link frame k in the joint's body (at any q: it moves with it)
+            p0, p1 = (to_link[:3, :3] @ p + to_link[:3, 3] for p in (cap.p0, cap.p1))
+            g = body.add_geom()
+            g.name = f"qpik_capsule{c}"
+            g.contype, g.conaffinity, g.group = 0, 0, 2
+            g.rgba = CAPSULE_RGBA
+            if np.linalg.norm(p1 - p0) < 1e-12:
+                g.type, g.size, g.pos = mujoco.mjtGeom.mjGEOM_SPHERE, [cap.radius, 0, 0], p0
+            else:
+                g.type, g.size, g.fromto = mujoco.mjtGeom.mjGEOM_CAPSULE, [cap.radius, 0, 0], np.concatenate([p0, p1])
+        q_ref = -np.array([j.offset for j in robot.chain.joints])  # MuJoCo's reference configuration
+        ee = np.linalg.inv(_Tree(model).pose(model.body(self.tip_body).id)) @ robot.fk(q_ref)
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, np.ascontiguousarray(ee[:3, :3]).ravel())
+        site = spec.body(self.tip_body).add_site()
+        site.name, site.pos, site.quat, site.size, site.rgba = (
+            self.site,
+            ee[:3, 3],
+            quat,
+            [0.01, 0, 0],
+            [0.9, 0.1, 0.1, 1],
+        )
+        _stage(spec)
+        return spec
+
+
+def _stage(spec: mujoco.MjSpec) -> None:
+    """Lights and a sky for pictures, as the twin has (nothing that collides or moves)."""
+    import mujoco
+
+    spec.visual.headlight.ambient = [0.35, 0.35, 0.35]
+    spec.visual.headlight.diffuse = [0.5, 0.5, 0.5]
+    sky = spec.add_texture()
+    sky.name, sky.type = "qpik_sky", mujoco.mjtTexture.mjTEXTURE_SKYBOX
+    sky.builtin = mujoco.mjtBuiltin.mjBUILTIN_GRADIENT
+    sky.rgb1, sky.rgb2, sky.width, sky.height = [0.95, 0.96, 0.98], [0.75, 0.8, 0.88], 256, 256
+    light = spec.worldbody.add_light()
+    light.name, light.pos, light.dir, light.diffuse = "qpik_key", [1.0, -1.0, 2.5], [-1.0, 1.0, -2.5], [0.6, 0.6, 0.6]
+    light.type = mujoco.mjtLightType.mjLIGHT_DIRECTIONAL
+
+
+def load_robot(
+    path_or_name: str | os.PathLike,
+    *,
+    base: str | None = None,
+    tip: str | None = None,
+    joints: Sequence[str] | None = None,
+    ee: np.ndarray | None = None,
+    package_map: Mapping[str, str | os.PathLike] | None = None,
+    collision_only: bool = False,
+    q_home: np.ndarray | None = None,
+    name: str | None = None,
+) -> Robot:
+    """A catalog arm by name, or the arm of an MJCF or URDF file.
+
+    Args:
+        path_or_name: ``"nammoto7"``, ``"iiwa14"``, ``"zheng7"``, ``"panda"`` (the catalog,
+            no options), or the path of an MJCF (``.xml``) or URDF (``.urdf``) file.
+        base: body (or site's body) the chain starts from; default the world.
+        tip: body or site at the end effector; default the end of the chain: from the base down
+            to the first body with two moving branches (a gripper's fingers) or none.
+        joints: names of the arm's joints in chain order; default every hinge and slide joint on
+            the path from base to tip. Other joints on the path are locked at their reference.
+        ee: (4, 4) end-effector frame in the tip's frame (default identity), m.
+        package_map: ``{package: folder}`` for ``package://`` mesh paths (default: found
+            from the file's own folders).
+        collision_only: leave out visual geoms and their meshes (for models shipped without them).
+        q_home: (n,) home configuration, rad (default from the model, see the module docstring).
+        name: the robot's name (default the model's name).
+
+    Raises:
+        UnknownRobotError: neither a catalog name nor an existing file.
+        InputError: a bad model: MuJoCo cannot read it, a mesh is missing, the chain from base
+            to tip branches or has no joint, a joint on it is a ball or free joint, unknown names.
+    """
+    text = os.fspath(path_or_name)
+    options = (base, tip, joints, ee, package_map, q_home, name)
+    if text in CATALOG:
+        if any(o is not None for o in options) or collision_only:
+            raise InputError(f"load_robot: {text!r} is a catalog arm; the options are for model files")
+        return catalog_robot(text)
+    path = Path(text)
+    if not path.is_file():
+        known = ", ".join(CATALOG)
+        raise UnknownRobotError(f"unknown robot {text!r}; known: {known}, or an MJCF/URDF file (none there)")
+    pmap = {k: os.fspath(v) for k, v in (package_map or {}).items()}
+    spec = read_spec(path, pmap, collision_only)
+    try:
+        model = spec.compile()
+    except ValueError as exc:
+        raise InputError(f"{path.name}: MuJoCo cannot compile it ({' '.join(str(exc).split())})") from None
+    tree = _Tree(model)
+    base_id, _ = tree.frame(base, "base") if base is not None else (0, np.eye(4))
+    tip_id, tip_offset = tree.frame(tip, "tip") if tip is not None else (tree.default_tip(base_id), np.eye(4))
+    path_bodies = tree.path(base_id, tip_id)
+    arm = tree.arm_joints(path_bodies, joints)
+    chain = _chain(model, tree, base_id, path_bodies, arm, tip_offset, ee)
+    limited = model.jnt_limited[arm].astype(bool)
+    rng = model.jnt_range[arm]
+    q_min = np.where(limited, rng[:, 0], -CONTINUOUS_LIMIT)
+    q_max = np.where(limited, rng[:, 1], CONTINUOUS_LIMIT)
+    names = tuple(model.joint(j).name for j in arm)
+    urdf = is_urdf(path)
+    v_max = _velocity_limits(model, arm, urdf_velocity_limits(path) if urdf else {})
+    home = _home(model, arm, q_min, q_max) if q_home is None else finite_array(q_home, "q_home", (len(arm),)).copy()
+    source = ModelSource(path.resolve(), pmap, collision_only, names, model.body(tip_id).name)
+    canonical, why = recognize(chain)
+    return Robot(
+        name=name or model.names[: model.names.index(b"\0")].decode() or path.stem,
+        chain=chain,
+        q_min=q_min,
+        q_max=q_max,
+        v_max=v_max,
+        q_home=home,
+        capsules=_capsules(model, tree, arm, chain),
+        closed_form=None if canonical is None else canonical.kind,  # type: ignore[arg-type]
+        source=str(path.resolve()),
+        notes=f"no closed form: {why}" if canonical is None else "",
+        model=source,
+        canonical=canonical,
+    )
+
+
+class _Tree:
+    """The body tree of a compiled model: parents, joints per body, poses at the reference configuration."""
+
+    def __init__(self, model: mujoco.MjModel):
+        import mujoco
+
+        self.model = model
+        self.data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, self.data)
+        self.children: dict[int, list[int]] = {b: [] for b in range(model.nbody)}
+        for b in range(1, model.nbody):
+            self.children[int(model.body_parentid[b])].append(b)
+
+    def pose(self, body: int) -> np.ndarray:
+        """World pose (4, 4) of a body at the reference configuration."""
+        T = np.eye(4)
+        T[:3, :3] = self.data.xmat[body].reshape(3, 3)
+        T[:3, 3] = self.data.xpos[body]
+        return T
+
+    def frame(self, name: str, what: str) -> tuple[int, np.ndarray]:
+        """A body's id and identity, or a site's body id and the site's pose in that body."""
+        import mujoco
+
+        b = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name)
+        if b >= 0:
+            return b, np.eye(4)
+        s = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, name)
+        if s >= 0:
+            return int(self.model.site_bodyid[s]), _transform(self.model.site_pos[s], self.model.site_quat[s])
+        raise InputError(f"{what}: no body or site {name!r} in the model")
+
+    def moves(self, body: int) -> bool:
+        """Whether a body or one below it has a joint."""
+        return bool(self.model.body_jntnum[body]) or any(self.moves(c) for c in self.children[body])
+
+    def default_tip(self, base: int) -> int:
+        """Down from ``base`` while exactly one child moves (then to its end through static bodies)."""
+        body = base
+        while True:
+            moving = [c for c in self.children[body] if self.moves(c)]
+            if len(moving) > 1:
+                if body == base:
+                    names = ", ".join(repr(self.model.body(c).name) for c in moving)
+                    raise InputError(
+                        f"branched chain: {self.model.body(body).name or 'world'!r} carries {len(moving)} moving "
+                        f"branches ({names}); name the arm's end with tip=... (or joints=...)"
+                    )
+                return body
+            if not moving:
+                static = self.children[body]
+                if len(static) == 1 and not self.children[static[0]]:
+                    return static[0]  # a single static end link (a URDF flange or tool frame)
+                return body
+            body = moving[0]
+
+    def path(self, base: int, tip: int) -> list[int]:
+        """Bodies from base (excluded) down to tip (included)."""
+        out, b = [], tip
+        while b != base:
+            if b == 0:
+                raise InputError(
+                    f"branched chain: tip {self.model.body(tip).name!r} is not below base "
+                    f"{self.model.body(base).name or 'world'!r}"
+                )
+            out.append(b)
+            b = int(self.model.body_parentid[b])
+        return out[::-1]
+
+    def arm_joints(self, bodies: list[int], names: Sequence[str] | None) -> list[int]:
+        """Ids of the arm's joints: hinge/slide joints on the path, or the named ones (all on the path)."""
+        import mujoco
+
+        m = self.model
+        on_path = [j for b in bodies for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])]
+        kinds = {int(mujoco.mjtJoint.mjJNT_HINGE): "hinge", int(mujoco.mjtJoint.mjJNT_SLIDE): "slide"}
+        if names is None:
+            bad = [j for j in on_path if int(m.jnt_type[j]) not in kinds]
+            if bad:
+                kind = mujoco.mjtJoint(int(m.jnt_type[bad[0]])).name[6:].lower()
+                raise InputError(
+                    f"unsupported joint: {m.joint(bad[0]).name or 'unnamed'!r} is a {kind} joint "
+                    "(only hinge and slide joints can be arm joints; choose base= below it)"
+                )
+            arm = on_path
+        else:
+            arm = []
+            for nm in names:
+                j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, nm)
+                if j < 0:
+                    raise InputError(f"joints: no joint {nm!r} in the model")
+                if j not in on_path:
+                    raise InputError(f"joints: {nm!r} is not on the chain from base to tip (a branched chain?)")
+                if int(m.jnt_type[j]) not in kinds:
+                    raise InputError(f"unsupported joint: {nm!r} is not a hinge or slide joint")
+                arm.append(j)
+            if arm != sorted(arm, key=on_path.index):
+                raise InputError("joints: not in chain order from base to tip")
+        if not arm:
+            raise InputError("no joints: the chain from base to tip has no hinge or slide joint")
+        return arm
+
+
+def _transform(pos: np.ndarray, quat: np.ndarray) -> np.ndarray:
+    import mujoco
+
+    T = np.eye(4)
+    R = np.zeros(9)
+    mujoco.mju_quat2Mat(R, np.asarray(quat, float))
+    T[:3, :3], T[:3, 3] = R.reshape(3, 3), pos
+    return T
+
+
+def _align(axis: np.ndarray) -> np.ndarray:
+    """A rotation (4, 4) taking z to the unit vector ``axis`` (exact for ±z)."""
+    T = np.eye(4)
+    z = axis / np.linalg.norm(axis)
+    if abs(z[2]) == 1.0 and z[0] == 0.0 and z[1] == 0.0:
+        T[:3, :3] = np.diag([1.0, z[2], z[2]])
+        return T
+    x = np.cross((0.0, 0.0, 1.0) if abs(z[2]) < 0.9 else (1.0, 0.0, 0.0), z)
+    x /= np.linalg.norm(x)
+    T[:3, 0], T[:3, 1], T[:3, 2] = x, np.cross(z, x), z
+    return T
+
+
+def _anchor(model: mujoco.MjModel, j: int) -> np.ndarray:
+    """The joint frame (anchor, z along the axis) in its body's frame, (4, 4)."""
+    T = _align(model.jnt_axis[j])
+    T[:3, 3] = model.jnt_pos[j]
+    return T
+
+
+def _chain(
+    model: mujoco.MjModel,
+    tree: _Tree,
+    base: int,
+    bodies: list[int],
+    arm: list[int],
+    tip_offset: np.ndarray,
+    ee: np.ndarray | None,
+) -> SerialChain:
+    """The serial chain of ``arm`` along ``bodies`` (see the module docstring)."""
+    import mujoco
+
+    joints = []
+    acc = np.eye(4)  # the current body frame in the last link frame (the base body's frame at first)
+    for b in bodies:
+        acc = acc @ _transform(model.body_pos[b], model.body_quat[b])
+        for j in range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b]):
+            if j not in arm:
+                continue  # locked at its reference: no motion
+            anchor = _anchor(model, j)
+            slide = int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_SLIDE)
+            q_ref = float(model.qpos0[model.jnt_qposadr[j]])
+            joints.append(
+                Joint(
+                    pre=acc @ anchor,
+                    kind="prismatic" if slide else "revolute",
+                    offset=-q_ref,
+                    name=model.joint(j).name,
+                )
+            )
+            acc = np.linalg.inv(anchor)
+    tool = acc @ tip_offset @ (np.eye(4) if ee is None else finite_array(ee, "ee", (4, 4)))
+    return SerialChain(joints, base=tree.pose(base), tool=tool)
+
+
+def _velocity_limits(model: mujoco.MjModel, arm: list[int], urdf: dict[str, float]) -> np.ndarray:
+    """Per arm joint: the URDF velocity, a velocity actuator's ctrlrange, or :data:`DEFAULT_VELOCITY`."""
+    import mujoco
+
+    out = np.full(len(arm), DEFAULT_VELOCITY)
+    for i, j in enumerate(arm):
+        name = model.joint(j).name
+        if name in urdf and urdf[name] > 0:
+            out[i] = urdf[name]
+            continue
+        for a in range(model.nu):
+            velocity = (
+                model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
+                and model.actuator_trnid[a, 0] == j
+                and model.actuator_biasprm[a, 1] == 0.0
+                and model.actuator_biasprm[a, 2] < 0.0
+                and model.actuator_ctrllimited[a]
+            )
+            if velocity:
+                out[i] = float(np.abs(model.actuator_ctrlrange[a]).max())
+    return out
+
+
+def _home(model: mujoco.MjModel, arm: list[int], q_min: np.ndarray, q_max: np.ndarray) -> np.ndarray:
+    """The ``home`` keyframe's arm joints, else the reference moved inside the limits by :data:`HOME_MARGIN`."""
+    import mujoco
+
+    adr = model.jnt_qposadr[arm]
+    k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, "home")
+    if k >= 0:
+        return model.key_qpos[k][adr].copy()
+    margin = HOME_MARGIN * (q_max - q_min)
+    return np.clip(model.qpos0[adr], q_min + margin, q_max - margin)
+
+
+def _capsules(model: mujoco.MjModel, tree: _Tree, arm: list[int], chain: SerialChain) -> tuple[LinkCapsule, ...]:
+    """One capsule per link with geoms: the smallest containing its collision geoms (else all), in link frame k."""
+    owner = {}  # body -> link index (1..n) of the arm joint that moves it last
+    joint_body = [int(model.jnt_bodyid[j]) for j in arm]
+
+    def assign(body: int, link: int) -> None:
+        if body in joint_body:
+            link = max(k + 1 for k, b in enumerate(joint_body) if b == body)
+        owner[body] = link
+        for c in tree.children[body]:
+            assign(c, link)
+
+    assign(0, 0)
+    q_ref = -np.array([j.offset for j in chain.joints])
+    frames = chain.frames(q_ref)  # link frames at the reference configuration (world)
+    geoms: dict[int, list[int]] = {}
+    for g in range(model.ngeom):
+        link = owner[int(model.geom_bodyid[g])]
+        if link:
+            geoms.setdefault(link, []).append(g)
+    balls: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
+    for link, gs in geoms.items():
+        colliding = [g for g in gs if model.geom_contype[g] or model.geom_conaffinity[g]]
+        for g in colliding or gs:  # a link whose geoms all skip contacts (visual only): all of them
+            balls.setdefault(link, []).append(_geom_balls(model, tree, g))
+    caps = []
+    for link in sorted(balls):
+        to_link = np.linalg.inv(frames[link])
+        centres = np.concatenate([c for c, _ in balls[link]]) @ to_link[:3, :3].T + to_link[:3, 3]
+        radii = np.concatenate([r for _, r in balls[link]])
+        a, b, R = fit_capsule(centres, radii)
+        caps.append(LinkCapsule(link, a, b, R))
+    return tuple(caps)
+
+
+def _geom_balls(model: mujoco.MjModel, tree: _Tree, g: int) -> tuple[np.ndarray, np.ndarray]:
+    """Balls (world centres (N, 3), radii (N,)) whose convex hull contains geom g at the reference configuration."""
+    import mujoco
+
+    T = np.eye(4)
+    T[:3, :3] = tree.data.geom_xmat[g].reshape(3, 3)
+    T[:3, 3] = tree.data.geom_xpos[g]
+    size = model.geom_size[g]
+    kind = int(model.geom_type[g])
+    G = mujoco.mjtGeom
+    if kind == G.mjGEOM_MESH:
+        m = int(model.geom_dataid[g])
+        a, n = model.mesh_vertadr[m], model.mesh_vertnum[m]
+        local, radius = model.mesh_vert[a : a + n].astype(float), 0.0
+    elif kind == G.mjGEOM_SPHERE:
+        local, radius = np.zeros((1, 3)), size[0]
+    elif kind == G.mjGEOM_CAPSULE:
+        local, radius = np.array([[0, 0, -size[1]], [0, 0, size[1]]]), size[0]
+    elif kind == G.mjGEOM_BOX:
+        local, radius = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * size, 0.0
+    elif kind == G.mjGEOM_CYLINDER:
+        t = np.linspace(0, 2 * np.pi, _CIRCLE, endpoint=False)
+        rim = np.stack([np.cos(t), np.sin(t)], axis=1) * size[0] / np.cos(np.pi / _CIRCLE)  # polygon around the rim
+        local = np.concatenate([np.c_[rim, np.full(_CIRCLE, z)] for z in (-size[1], size[1])])
+        radius = 0.0
+    elif kind == G.mjGEOM_ELLIPSOID:  # by its bounding box (contains it; not the smallest)
+        local, radius = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * size, 0.0
+    else:
+        raise InputError(
+            f"geom {model.geom(g).name or g!r}: type {G(kind).name[7:].lower()} cannot be fitted by a capsule"
+        )
+    centres = local @ T[:3, :3].T + T[:3, 3]
+    return centres, np.full(len(centres), float(radius))

@@ -1,0 +1,275 @@
+r"""Recognising an S-R-S or offset-shoulder arm in any serial chain, and its map to the catalog's DH table.
+
+The closed-form solvers (:mod:`qpik.analytic.srs`, :mod:`qpik.analytic.offset_shoulder`) are
+written for one DH table each (standard DH), a :data:`PATTERNS` entry: the twists α, the
+joint offsets, which a and d are zero and the signs some d must have. A 7-joint revolute
+chain fits a pattern when a DH table of that form, with some base and tool transforms,
+has the same FK under a joint map
+
+.. math:: q^{DH}_i = s_i\,q_i + c_i,\qquad s_i = \pm 1,
+
+(the sign of each joint axis, and the zero offsets that real models carry).
+
+:func:`recognize` derives the table from the joint axis lines at q = 0 (the DH parameters of
+consecutive axes do not depend on q): with the axis directions :math:`u_i = s_i z_i`, x_i is
+the common normal of axes i and i+1 (for intersecting axes :math:`\pm u_i \times u_{i+1}`,
+the sign that gives the pattern's α_i), :math:`a_i` its length, :math:`d_i` the distance
+along axis i between the normals i-1 and i, :math:`\theta_i` the angle between them (so
+:math:`c_i = \theta_i - o_i` at q = 0). Frame 0 sits on axis 1 at the foot of the chain's
+base origin with x along the base's x (projected), frame 7 on axis 7 at the foot of the
+end effector's origin (or at the wrist centre where the pattern needs d_7 ≤ 0 and the
+foot is beyond), and the tool takes the rest. The sign choices are tried in the order of
+fewest flips; the first that fits the pattern is verified by FK at random q (to
+:data:`VERIFY_TOL`) before it is accepted. Otherwise the reason is said in one line
+("axes 5-6-7 do not intersect (offsets 0.088 m)").
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from qpik.robots.chain import SerialChain
+from qpik.robots.dh import DHChain
+
+TOL = 1e-9
+"""m and rad: an a or d below this is zero, an α within this of ±π/2 is ±π/2."""
+VERIFY_TOL = 1e-10
+"""Largest difference (m, and rotation-matrix entries) of the FK of the chain and of the mapped DH table."""
+PI = np.pi
+HALF = np.pi / 2
+
+
+@dataclass(frozen=True)
+class Pattern:
+    """A DH table form (standard DH, 7 joints).
+
+    Attributes:
+        alpha: the twists α_i (rad).
+        offset: the joint offsets o_i (rad): the table turns joint i by q_i + o_i.
+        a_free: the a_i that may be non-zero (0-based), all others must be 0.
+        d_zero: the d_i that must be 0 (0-based).
+        d_sign: ``{i: +1 or -1}``: d_i must be > 0 (< 0).
+        d7_nonpositive: d_7 must be ≤ 0.
+    """
+
+    alpha: tuple[float, ...]
+    offset: tuple[float, ...]
+    a_free: frozenset[int]
+    d_zero: frozenset[int]
+    d_sign: dict[int, int]
+    d7_nonpositive: bool = False
+
+
+PATTERNS: dict[str, Pattern] = {
+    # Shimizu et al. 2008 as written for iiwa14 (qpik.analytic.srs): a = 0, d = (d_bs, 0, d_se, 0, d_ew, 0, d_wt)
+    "srs": Pattern(
+        alpha=(-HALF, HALF, HALF, -HALF, -HALF, HALF, 0.0),
+        offset=(0.0,) * 7,
+        a_free=frozenset(),
+        d_zero=frozenset({1, 3, 5}),
+        d_sign={2: 1, 4: 1},
+    ),
+    # Nammoto & Kosuge 2012, Table 1: a = (a1, 0, ...), d = (d1, 0, d3, 0, -d5, 0, -d7)
+    "offset_shoulder": Pattern(
+        alpha=(HALF, -HALF, HALF, -HALF, HALF, HALF, 0.0),
+        offset=(0.0, 0.0, 0.0, HALF, 0.0, PI, 0.0),
+        a_free=frozenset({0}),
+        d_zero=frozenset({1, 3, 5}),
+        d_sign={2: 1, 4: -1},
+        d7_nonpositive=True,
+    ),
+}
+
+
+@dataclass(frozen=True)
+class JointMap:
+    r"""The canonical table's joint angles from the robot's: :math:`q^{DH} = s \odot q + c` (rad).
+
+    Attributes:
+        sign: (n,) ±1.
+        shift: (n,) c, rad, in (−π, π].
+    """
+
+    sign: np.ndarray
+    shift: np.ndarray
+
+    @property
+    def identity(self) -> bool:
+        return bool(np.all(self.sign == 1.0) and np.all(self.shift == 0.0))
+
+    def to_table(self, q: np.ndarray) -> np.ndarray:
+        """q (..., n) of the robot -> the table's angles (not wrapped)."""
+        return self.sign * q + self.shift
+
+    def from_table(self, q_table: np.ndarray) -> np.ndarray:
+        """The table's angles (..., n) -> the robot's (not wrapped)."""
+        return self.sign * (q_table - self.shift)
+
+
+@dataclass(frozen=True)
+class Canonical:
+    """A closed-form pattern found in a chain: the catalog-form DH table with its base/tool, and the joint map."""
+
+    kind: str
+    table: DHChain
+    joints: JointMap
+
+
+def recognize(chain: SerialChain) -> tuple[Canonical | None, str]:
+    """The first pattern of :data:`PATTERNS` that ``chain`` fits, or None and the reason (one line)."""
+    if chain.dof != 7 or chain.prismatic.any():
+        return None, f"the closed forms need 7 revolute joints, the chain has {chain.dof} joints" + (
+            f", {int(chain.prismatic.sum())} prismatic" if chain.prismatic.any() else ""
+        )
+    reasons = []
+    for kind, pattern in PATTERNS.items():
+        found, why = _fit(chain, kind, pattern)
+        if found is not None:
+            return found, ""
+        reasons.append(f"not {kind.replace('_', '-')}: {why}")
+    return None, "; ".join(reasons)
+
+
+def _fit(chain: SerialChain, kind: str, pattern: Pattern) -> tuple[Canonical | None, str]:
+    z, o = chain.axes(np.zeros(7))
+    why = _structure(z, o, pattern)
+    if why:
+        return None, why
+    why = "no choice of axis signs gives the table's twists and signs of d"
+    for flips in sorted(itertools.product((1.0, -1.0), repeat=7), key=lambda s: (s.count(-1.0), [-x for x in s])):
+        sign = np.array(flips)
+        table = _table(chain, sign[:, None] * z, o, pattern)
+        if table is None:
+            continue
+        canonical = Canonical(kind, table[0], JointMap(sign, table[1]))
+        err = _verify(chain, canonical)
+        if err <= VERIFY_TOL:
+            return canonical, ""
+        why = f"FK of the fitted table differs by {err:.1e}"
+    return None, why
+
+
+def _normal(u: np.ndarray, p: np.ndarray, v: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Feet (on line 1, on line 2) of the common normal of the lines p + t u and q + t v (not parallel)."""
+    w = p - q
+    a, b, c, d, e = u @ u, u @ v, v @ v, u @ w, v @ w
+    den = a * c - b * b
+    t, s = (b * e - c * d) / den, (a * e - b * d) / den
+    return p + t * u, q + s * v
+
+
+def _structure(z: np.ndarray, o: np.ndarray, pattern: Pattern) -> str:
+    """The sign-free conditions: perpendicular consecutive axes, the zero a's and d's; '' when they hold."""
+    for i in range(6):
+        angle = np.arccos(np.clip(abs(z[i] @ z[i + 1]), 0.0, 1.0))
+        if abs(angle - HALF) > TOL:
+            off = abs(angle - HALF)
+            return f"axes {i + 1}-{i + 2} are not perpendicular ({np.degrees(angle):.6g}°, {off:.1e} rad off)"
+    feet = [_normal(z[i], o[i], z[i + 1], o[i + 1]) for i in range(6)]
+    offsets = {i: float(np.linalg.norm(b - a)) for i, (a, b) in enumerate(feet)}
+    gaps = {i: float(abs((feet[i][0] - feet[i - 1][1]) @ z[i])) for i in range(1, 6)}
+    groups = ((0, 1, 2), (2, 3, 4), (4, 5, 6))  # shoulder, elbow, wrist: axes that should meet in one point
+    for g in groups:
+        bad = [offsets[i] for i in g[:2] if i not in pattern.a_free and offsets[i] > TOL]
+        bad += [gaps[g[1]]] if g[1] in pattern.d_zero and gaps[g[1]] > TOL else []
+        if bad:
+            names = "-".join(str(i + 1) for i in g)
+            return f"axes {names} do not intersect (offsets {', '.join(f'{x:.3g}' for x in bad)} m)"
+    return ""
+
+
+def _table(chain: SerialChain, u: np.ndarray, o: np.ndarray, pattern: Pattern) -> tuple[DHChain, np.ndarray] | None:
+    """The pattern's DH table on the signed axes u (7, 3) through o (7, 3), and the shifts; None if it does not fit."""
+    x = []
+    origins = []  # frame i's origin (on axis i+1), i = 1..6
+    feet = []  # the foot of normal i on axis i
+    a = np.zeros(7)
+    for i in range(6):
+        foot_i, foot_next = _normal(u[i], o[i], u[i + 1], o[i + 1])
+        a[i] = np.linalg.norm(foot_next - foot_i)
+        if a[i] > TOL:
+            xi = (foot_next - foot_i) / a[i]
+            alpha = np.arctan2(np.cross(u[i], u[i + 1]) @ xi, u[i] @ u[i + 1])
+            if abs(alpha - pattern.alpha[i]) > TOL:
+                return None
+        else:
+            a[i] = 0.0
+            xi = np.cross(u[i], u[i + 1]) * np.sign(np.sin(pattern.alpha[i]))  # gives α_i = pattern
+            xi /= np.linalg.norm(xi)
+        x.append(xi)
+        origins.append(foot_next)
+        feet.append(foot_i)
+    base = chain.base
+    o0 = o[0] + ((base[:3, 3] - o[0]) @ u[0]) * u[0]  # frame 0: on axis 1 at the foot of the base origin
+    x0 = base[:3, 0] - (base[:3, 0] @ u[0]) * u[0]
+    if np.linalg.norm(x0) < 1e-6:
+        x0 = base[:3, 1] - (base[:3, 1] @ u[0]) * u[0]
+    x0 /= np.linalg.norm(x0)
+    ee = chain.fk(np.zeros(7))
+    p7 = o[6] + ((ee[:3, 3] - o[6]) @ u[6]) * u[6]  # frame 7: on axis 7 at the foot of the ee origin
+    d = np.zeros(7)
+    d[0] = (feet[0] - o0) @ u[0]
+    for i in range(1, 6):
+        d[i] = (feet[i] - origins[i - 1]) @ u[i]
+    d[6] = (p7 - origins[5]) @ u[6]
+    if pattern.d7_nonpositive and d[6] > 0:
+        p7, d[6] = origins[5], 0.0  # frame 7 at the wrist centre
+    for i in pattern.d_zero:
+        d[i] = 0.0  # below TOL: checked by _structure
+    if any(np.sign(d[i]) != s for i, s in pattern.d_sign.items()):
+        return None
+    theta = np.array([_angle(xa, xb, ui) for xa, xb, ui in zip([x0, *x[:5]], x, u)])
+    shift = np.zeros(7)
+    shift[:6] = _wrap(theta - np.array(pattern.offset[:6]))
+    F7 = np.eye(4)  # frame 7 at q = 0 with q7^DH = 0: x_7 = R(u_7, o_7) x_6
+    x7 = _rotate(x[5], u[6], pattern.offset[6])
+    F7[:3, 0], F7[:3, 1], F7[:3, 2], F7[:3, 3] = x7, np.cross(u[6], x7), u[6], p7
+    B = np.eye(4)
+    B[:3, 0], B[:3, 1], B[:3, 2], B[:3, 3] = x0, np.cross(u[0], x0), u[0], o0
+    table = DHChain(
+        a=tuple(a),
+        d=tuple(d),
+        alpha=pattern.alpha,
+        offset=pattern.offset,
+        base=_clean(B),
+        tool=_clean(np.linalg.inv(F7) @ ee),
+    )
+    return table, _snap_angles(shift)
+
+
+def _verify(chain: SerialChain, canonical: Canonical) -> float:
+    """Largest FK difference between the chain and the mapped table over 64 random configurations."""
+    q = np.random.default_rng(0).uniform(-PI, PI, (64, 7))
+    return float(np.abs(chain.fk(q) - canonical.table.fk(canonical.joints.to_table(q))).max())
+
+
+def _angle(xa: np.ndarray, xb: np.ndarray, u: np.ndarray) -> float:
+    """Signed angle (rad) from xa to xb about the unit vector u."""
+    return float(np.arctan2(np.cross(xa, xb) @ u, xa @ xb))
+
+
+def _rotate(v: np.ndarray, u: np.ndarray, angle: float) -> np.ndarray:
+    """v turned by ``angle`` about the unit vector u (Rodrigues)."""
+    c, s = np.cos(angle), np.sin(angle)
+    return v * c + np.cross(u, v) * s + u * (u @ v) * (1 - c)
+
+
+def _wrap(x: np.ndarray) -> np.ndarray:
+    return x + 2 * PI * np.floor((PI - x) / (2 * PI))
+
+
+def _snap_angles(x: np.ndarray) -> np.ndarray:
+    """Angles within TOL of a multiple of π/2 set to it (models write their quarter turns to ~1e-12)."""
+    k = np.round(x / HALF)
+    return _wrap(np.where(np.abs(x - k * HALF) < TOL, k * HALF, x))
+
+
+def _clean(T: np.ndarray) -> np.ndarray:
+    """Entries within 1e-15 of 0 or ±1 set to it (so that they fold away in the compiled expressions)."""
+    out = T.copy()
+    for v in (0.0, 1.0, -1.0):
+        out[np.abs(out - v) < 1e-15] = v
+    return out
