@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 import pytest
 from conftest import model_robot
@@ -104,11 +105,32 @@ def test_track_a_circle_beside_an_obstacle(key):
 
 @pytest.mark.parametrize("key", ("pybullet_iiwa", "robosuite_iiwa", "erd_panda", "pybullet_panda"))
 def test_solve_ik_reaches_random_poses(key):
-    """Numerical IK from the home configuration to poses of random configurations inside the limits."""
+    """qpik.solve_ik from random starts to 1,000 poses of random configurations inside the limits: ≥ 99.9 %
+    reach the pose to 1e-9 inside the limits, checked by MuJoCo's FK of the model itself."""
     robot = model_robot(key)
-    ctrl = qpik.Controller.for_robot(robot)
-    Q = np.random.default_rng(3).uniform(robot.q_min, robot.q_max, (20, robot.dof))
-    for pose in robot.fk(Q):
-        q = ctrl.solve_ik(robot.q_home, pose)
+    rng = np.random.default_rng(3)
+    Q, starts = (rng.uniform(robot.q_min, robot.q_max, (1000, robot.dof)) for _ in range(2))
+    model = robot.mj_model()
+    data = mujoco.MjData(model)
+    site = model.site(robot.site).id
+    reached = 0
+    for q_goal, q0 in zip(Q, starts):
+        try:
+            q = qpik.solve_ik(robot, robot.fk(q_goal), q0)
+        except qpik.UnreachableError:
+            continue
         assert robot.within_limits(q)
-        assert np.linalg.norm(pose_error(pose, robot.fk(q))) < 1e-9
+        T_goal, T = (_mujoco_fk(model, data, robot, site, x) for x in (q_goal, q))
+        reached += np.linalg.norm(pose_error(T_goal, T)) < 1e-9
+    assert reached >= 999
+
+
+def _mujoco_fk(model, data, robot, site: int, q: np.ndarray) -> np.ndarray:
+    """Pose (4, 4) of the end-effector site by MuJoCo's own kinematics of the model."""
+    data.qpos[:] = model.qpos0
+    data.qpos[model.jnt_qposadr[[model.joint(n).id for n in robot.joint_names]]] = q
+    mujoco.mj_kinematics(model, data)
+    T = np.eye(4)
+    T[:3, :3] = data.site_xmat[site].reshape(3, 3)
+    T[:3, 3] = data.site_xpos[site]
+    return T
