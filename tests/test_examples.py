@@ -428,3 +428,57 @@ def test_custom_dh_arm(run_example) -> None:
     assert max(pose_gap(dh_fk(chain, q), pose)) < 1e-9
     assert np.all((q >= wrist["q_min"]) & (q <= wrist["q_max"]))
     assert "no closed-form IK" in result.stdout
+
+
+# ---- examples/package_arm.py ----------------------------------------------------------------
+
+
+def _urdf_with_ball(urdf: Path, centre: np.ndarray, radius: float) -> mujoco.MjModel:
+    """The URDF compiled by MuJoCo with a ball geom ``ball`` in the world, its ``package://NAME/...`` mesh
+    paths resolved against the folder holding NAME/ (written here, without qpik's loader)."""
+    spec = mujoco.MjSpec.from_file(str(urdf))
+    root = next(p for p in urdf.parents if (p / "example-robot-data").is_dir())
+    for mesh in spec.meshes:
+        mesh.file = str(root / re.sub(r"^package:/+", "", mesh.file))
+    spec.worldbody.add_geom(name="ball", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[radius, 0, 0], pos=centre)
+    return spec.compile()
+
+
+def test_package_arm(run_example) -> None:
+    """Limits as the URDF's XML says; the printed clearances recomputed by MuJoCo on the URDF's own meshes."""
+    import xml.etree.ElementTree as ET
+
+    result = run_example("package_arm")
+    run = np.load(result.out / "run.npz")
+    urdf = Path(str(run["model"]))
+    limits = {j.get("name"): j.find("limit") for j in ET.parse(urdf).getroot().iter("joint")}
+    row = rf"^\s+(\w+)\s+\[\s*({FLOAT}),\s*({FLOAT})\] rad, \|v\| <= ({FLOAT}) rad/s$"
+    printed = re.findall(row, result.stdout, re.M)
+    assert [name for name, *_ in printed] == [str(n) for n in run["joint_names"]]
+    for name, lo, hi, v in printed:
+        lim = limits[name]
+        want = [float(lim.get("lower")), float(lim.get("upper")), float(lim.get("velocity"))]
+        np.testing.assert_allclose([float(lo), float(hi), float(v)], want, atol=5e-5)
+    assert "no closed form" in result.stdout and "do not intersect" in result.stdout
+
+    model = _urdf_with_ball(urdf, run["ball_center"], float(run["ball_radius"]))
+    data = mujoco.MjData(model)
+    arm = [model.joint(str(n)).qposadr[0] for n in run["joint_names"]]
+    ball = model.geom("ball").id
+    meshes = [g for g in range(model.ngeom) if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH]
+
+    def clearance(qs: np.ndarray) -> float:
+        """Smallest distance (m) from the arm's collision meshes to the ball over the configurations ``qs``."""
+        best = np.inf
+        for q in qs:
+            data.qpos[:] = model.qpos0
+            data.qpos[arm] = q
+            mujoco.mj_kinematics(model, data)
+            best = min(best, *(mujoco.mj_geomDistance(model, data, g, ball, 10.0, None) for g in meshes))
+        return best
+
+    found = re.findall(rf"min clearance of the meshes to the ball: ({FLOAT}) mm", result.stdout)
+    with_limit, without = (float(x) for x in found)
+    assert clearance(run["q"]) * 1e3 == pytest.approx(with_limit, abs=1e-3)
+    assert clearance(run["q_free"]) * 1e3 == pytest.approx(without, abs=1e-3)
+    assert with_limit > 0 > without
