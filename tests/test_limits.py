@@ -10,8 +10,9 @@ from hypothesis import given, settings
 
 import qpik
 from qpik.control import ConfigurationLimit, Controller, ObstacleLimit, State, VelocityLimit
+from qpik.control.state import kinematics_of
 from qpik.geometry.distance import distances
-from qpik.geometry.shapes import HalfSpace, Sphere
+from qpik.geometry.shapes import Box, Capsule, HalfSpace, Sphere
 
 D_SAFE = 0.02
 D_INFL = 0.10
@@ -93,25 +94,65 @@ def test_limits_hold_over_random_episodes(name):
     assert "failed" not in statuses
 
 
-def test_damper_row_is_the_distance_rate():
-    """nᵀ J_p(p_link) v equals the finite-difference rate of the geometry distance along v."""
+def scene_with_planes(robot: qpik.Robot, q0: np.ndarray, rng: np.random.Generator) -> list:
+    """:func:`scene` plus a box and a capsule obstacle near the arm (the kinds with two rows per pair)."""
+    seg = robot.capsule_segments(q0)
+    extra = []
+    for _ in range(2):
+        c = rng.integers(2, len(seg))
+        p = seg[c, 0] + rng.uniform() * (seg[c, 1] - seg[c, 0])
+        u = rng.normal(size=3)
+        u /= np.linalg.norm(u)
+        gap = robot.capsule_radii[c] + D_SAFE + rng.uniform(0.01, 0.05)
+        extra.append(Box(p + u * (gap + 0.05), (0.05, 0.08, 0.05), rotation=_rotation(rng)))
+        extra.append(Capsule(p - u * (gap + 0.03), p - u * (gap + 0.03) + 0.2 * rng.normal(size=3), 0.03))
+    return scene(robot, q0, rng) + extra
+
+
+def _rotation(rng: np.random.Generator) -> np.ndarray:
+    Q, R = np.linalg.qr(rng.normal(size=(3, 3)))
+    Q *= np.sign(np.diag(R))
+    return Q * np.sign(np.linalg.det(Q))
+
+
+def test_damper_rows_are_height_rates():
+    """Each damper row is the rate of its height: the distance for a sphere's witness row, the height of an
+    axis end above the step's separating plane (frozen) for the two rows of a box, capsule or half-space;
+    the lower of the two heights is the distance itself (finite differences and the geometry module)."""
     rng = np.random.default_rng(5)
-    checked = 0
+    checked = {-1: 0, 0: 0, 1: 0}
     for name in ("iiwa14", "panda", "nammoto7", "zheng7"):
         robot = qpik.load_robot(name)
-        for q in random_q(robot, 20, 8, margin=0.1):
-            obstacles = scene(robot, q, rng)
+        layout = kinematics_of(robot)
+        for q in random_q(robot, 12, 8, margin=0.1):
+            obstacles = scene_with_planes(robot, q, rng)
             lim = ObstacleLimit(obstacles, d_influence=10.0, d_safe=D_SAFE)  # every pair active
             state = State(robot, q, 0.001)
             A, lo, _ = lim.rows(state, -np.ones(7), np.ones(7))
+            h = state.damper_heights(lim.obstacles)
+            dist = distances(robot.capsule_segments(q), robot.capsule_radii, obstacles)
             v = rng.normal(size=7)
             eps = 1e-6
-            rate = clearance(robot, (q + eps * v)[None], obstacles) - clearance(robot, (q - eps * v)[None], obstacles)
-            rate = rate.reshape(-1) / (2 * eps)
-            rows = np.isfinite(lo)
-            np.testing.assert_allclose(A[rows] @ v, rate[rows], atol=2e-6)
-            checked += rows.sum()
-    assert checked > 500
+            seg_p, seg_m = robot.capsule_segments(q + eps * v), robot.capsule_segments(q - eps * v)
+            d_p, d_m = (distances(sg, robot.capsule_radii, obstacles).d for sg in (seg_p, seg_m))
+            rows = layout.damper_layout(lim.obstacles.kinds)
+            assert len(rows) == len(A) == len(h) == lim.size(robot)
+            for r, (c, o, end) in enumerate(rows):
+                if not np.isfinite(lo[r]) or dist.d[c, o] <= 0.0:  # overlapping: the witness may be any deepest point
+                    continue
+                if end < 0:
+                    rate = (d_p[c, o] - d_m[c, o]) / (2 * eps)
+                    assert h[r] == pytest.approx(dist.d[c, o], abs=1e-12)
+                else:
+                    n, p_obs, r_c = dist.normal[c, o], dist.p_obs[c, o], robot.capsule_radii[c]
+                    rate = (n @ (seg_p[c, end] - p_obs) - n @ (seg_m[c, end] - p_obs)) / (2 * eps)
+                    assert h[r] == pytest.approx(n @ (robot.capsule_segments(q)[c, end] - p_obs) - r_c, abs=1e-12)
+                    assert h[r] >= dist.d[c, o] - 1e-12  # the plane separates: the lower end is at the distance
+                    other = r + 1 if end == 0 else r - 1
+                    assert min(h[r], h[other]) == pytest.approx(dist.d[c, o], abs=1e-9)
+                assert A[r] @ v == pytest.approx(rate, abs=2e-6)
+                checked[end] += 1
+    assert min(checked.values()) > 300, checked
 
 
 def test_state_segments_match_robot():

@@ -11,12 +11,20 @@ Failure policy (never raises in the loop unless ``raise_on_failure=True``):
 
 1. the main solver; if it reports no solution (e.g. OSQP stopping on a degenerate QP),
 2. DAQP, an exact active-set solver (:data:`FALLBACK`), on the same QP;
-3. if the QP is truly infeasible and obstacle rows demand separation (several of them
-   conflict), those rows are relaxed to only forbid approach (``l ← min(l, 0)``, which
-   ``v = 0`` meets) and it is solved again (``last.relaxation == 1``);
-4. otherwise the step returns the point of the box ``[lb, ub]`` nearest to zero velocity
-   (it meets the position and velocity limits and never moves toward an obstacle by
-   itself) with ``last.status == "failed"`` — or raises
+3. if the QP is truly infeasible while the box makes a joint move back from past a position
+   limit (``lb_j > 0`` or ``ub_j < 0``), the return conflicts with the obstacle rows and
+   safety wins: the *yielding* QP keeps every row and the velocity caps, lets the joints
+   past a limit stop (the box widened to contain ``v = 0``: never further out) and asks for
+   the return in the cost, :math:`w \sum_{j\ \rm forced} (v_j - r_j)^2` with the box's
+   return velocity :math:`r_j` and ``w`` = :data:`YIELD_WEIGHT` × (1 + max diag P), above the
+   tasks: the limit is recovered as fast as the obstacle rows allow (``last.status ==
+   "yielding"``). The obstacle rows are bounded inside that widened box
+   (:class:`~qpik.control.limits.ObstacleLimit`), so only rows among themselves can still conflict;
+4. if obstacle rows demand separation and conflict, they are relaxed to only forbid
+   approach (``l ← min(l, 0)``, which ``v = 0`` meets) and it is solved again
+   (``last.relaxation == 1``);
+5. otherwise the step returns ``v = 0`` (the arm holds still: never further past a limit,
+   never toward an obstacle) with ``last.status == "failed"`` — or raises
    :class:`~qpik.errors.SolverError` with ``raise_on_failure=True``.
 """
 
@@ -30,7 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from qpik.control.limits import ConfigurationLimit, Limit, ObstacleLimit, VelocityLimit
-from qpik.control.qp import Assembler
+from qpik.control.qp import QP, Assembler
 from qpik.control.solvers import Solver, get_solver
 from qpik.control.state import SymState
 from qpik.control.tasks import DampingTask, FrameTask, ManipulabilityTask, PostureTask, Task
@@ -41,6 +49,8 @@ from qpik.validate import pose as check_pose
 
 FALLBACK = "daqp"  # exact active-set solver tried when the main solver reports no solution
 ACTIVE_TOL = 1e-7  # rad/s (box) and row units: a constraint within this of its bound is reported active
+YIELD_WEIGHT = 1e3
+"""Weight of the return from past a limit in the yielding QP, relative to 1 + the largest diagonal entry of P."""
 
 
 @dataclass
@@ -50,7 +60,10 @@ class StepInfo:
     Attributes:
         status: ``"ok"``; ``"recovering"`` (started past a position limit or inside the
             safety distance, moving back); ``"penetrating"`` (a capsule overlaps an obstacle,
-            d < 0; moving away); ``"failed"`` (no QP solution: the safe velocity was returned).
+            d < 0; moving away); ``"yielding"`` (past a position limit, the return conflicts
+            with the obstacle rows: it goes only as fast as they allow, see the failure
+            policy); ``"failed"`` (no QP solution: ``v = 0`` was returned). When several
+            hold, the first of failed, yielding, penetrating, recovering is reported.
         active: names of the constraints at their bound (``"joint3 position upper"``,
             ``"obstacle sphere0 / link4"``, ...).
         min_clearance: smallest capsule–obstacle signed distance, m (inf without obstacles).
@@ -203,13 +216,19 @@ class Controller:
         extra = self.assembler.extra
         t1 = time.perf_counter()
         sol = self.solver.solve(qp)
-        relaxation = 0
+        exact = self.fallback or self.solver
+        relaxation, yielding = 0, False
         if not sol.found and self.fallback is not None:
             sol = self.fallback.solve(qp)
+        if not sol.found:
+            forced = (qp.lb > 0.0) | (qp.ub < 0.0)
+            if forced.any():  # the return from past a limit conflicts with the rows: safety wins
+                qp, yielding = yielding_qp(qp, forced), True
+                sol = exact.solve(qp)
         if not sol.found and (qp.l > 0).any():  # separating rows may conflict: only forbid approach
             relaxation = 1
             np.minimum(qp.l, 0.0, out=qp.l)
-            sol = (self.fallback or self.solver).solve(qp)
+            sol = exact.solve(qp)
         t2 = time.perf_counter()
         lb, ub = qp.lb, qp.ub
         info = StepInfo(solver_status=sol.status, solve_time=t2 - t1, relaxation=relaxation)
@@ -219,7 +238,7 @@ class Controller:
         else:
             if self.raise_on_failure:
                 raise SolverError(f"{self.solver.name}: no solution ({sol.status})")
-            v = np.clip(0.0, lb, ub)
+            v = np.zeros(self.robot.dof)
             info.status = "failed"
         for d in extra[: len(self.obstacle_limits)]:
             info.min_clearance = min(info.min_clearance, float(d.min()))
@@ -227,7 +246,9 @@ class Controller:
             e = extra[-1]
             info.task_error = math.sqrt(e @ e)
         if info.status == "ok":
-            if info.min_clearance < 0.0:
+            if yielding:
+                info.status = "yielding"
+            elif info.min_clearance < 0.0:
                 info.status = "penetrating"
             elif any(info.min_clearance < lim.d_safe for lim in self.obstacle_limits) or self._past_limit(q):
                 info.status = "recovering"
@@ -306,3 +327,24 @@ class Controller:
             f"solve_ik: smallest pose error {best:.3g} (m, rad) after {restarts + 1} attempts "
             f"of {max_iters} iterations (tol {tol:g})"
         )
+
+
+def yielding_qp(qp: QP, forced: np.ndarray) -> QP:
+    r"""The QP of step 3 of the failure policy (module docstring), as a new QP.
+
+    ``forced`` (n,) bool marks the joints whose box excludes ``v = 0`` (past a position
+    limit). Their bounds are widened to contain 0 (``lb ← min(lb, 0)``, ``ub ← max(ub, 0)``:
+    they may stop but not move further out), and the cost gains
+    :math:`w (v_j - r_j)^2` toward the velocity :math:`r_j` the box demanded (its bound
+    nearer to 0), ``w`` = :data:`YIELD_WEIGHT` × (1 + max diag P): the return comes first,
+    the tasks after it; every row is kept.
+    """
+    out = qp.copy()
+    r = np.where(qp.lb > 0.0, qp.lb, qp.ub)
+    np.minimum(out.lb, 0.0, out=out.lb)
+    np.maximum(out.ub, 0.0, out=out.ub)
+    w = YIELD_WEIGHT * (1.0 + float(np.abs(np.diagonal(qp.P)).max()))
+    idx = np.flatnonzero(forced)
+    out.P[idx, idx] += 2.0 * w
+    out.c[idx] -= 2.0 * w * r[idx]
+    return out
