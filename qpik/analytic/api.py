@@ -8,10 +8,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from qpik.analytic.intervals import FeasibleIntervals
+from qpik.analytic.intervals import FeasibleIntervals, wrap
 from qpik.analytic.solver import AnalyticSolver
 from qpik.errors import InputError, NoClosedFormError
-from qpik.robots.robot import Robot
+from qpik.robots.robot import Robot, as_robot
 from qpik.validate import finite_array, joint_vector
 from qpik.validate import pose as check_pose
 
@@ -23,7 +23,13 @@ _instances: dict[int, AnalyticSolver] = {}  # id(robot) -> solver; the solver ho
 
 
 def solver_for(robot: Robot) -> AnalyticSolver:
-    """The closed-form solver of ``robot`` (cached per robot object)."""
+    """The closed-form solver of ``robot`` (cached per robot object).
+
+    Raises:
+        InputError: ``robot`` is not a :class:`~qpik.robots.robot.Robot` (e.g. its name).
+        NoClosedFormError: the arm has no closed form.
+    """
+    robot = as_robot(robot)
     if robot.closed_form not in _SOLVERS:
         raise NoClosedFormError(
             f"{robot.name} has no closed-form IK (only offset-shoulder and S-R-S arms do); "
@@ -117,10 +123,13 @@ def ik(robot: Robot, pose: np.ndarray, param: float | np.ndarray, project: bool 
 
 
 def redundancy_parameter(robot: Robot, q: np.ndarray) -> tuple[float | np.ndarray, int | np.ndarray]:
-    """The redundancy parameter (rad) and branch id of a configuration (n,) or batch (N, n)."""
+    """The redundancy parameter (rad) and branch id of a configuration (n,) or batch (N, n).
+
+    ``q`` may be given unwrapped (any ``q + 2πk``): it is wrapped to (−π, π] first, as ``ik`` returns it.
+    """
     solver = solver_for(robot)
     qa, batched = joint_vector(q, robot.dof)
-    param, branch = solver.parameter(np.atleast_2d(qa))
+    param, branch = solver.parameter(wrap(np.atleast_2d(qa)))
     if batched:
         return param, branch
     return float(param[0]), int(branch[0])

@@ -20,9 +20,12 @@ Failure policy (never raises in the loop unless ``raise_on_failure=True``):
    tasks: the limit is recovered as fast as the obstacle rows allow (``last.status ==
    "yielding"``). The obstacle rows are bounded inside that widened box
    (:class:`~qpik.control.limits.ObstacleLimit`), so only rows among themselves can still conflict;
-4. if obstacle rows demand separation and conflict, they are relaxed to only forbid
-   approach (``l ← min(l, 0)``, which ``v = 0`` meets) and it is solved again
-   (``last.relaxation == 1``);
+4. if obstacle rows demand separation and conflict (an arm inside the safety distance of two
+   obstacles on opposite sides), their demands are scaled by 1/4, then 1/16, then 0 (only
+   forbid approach, which ``v = 0`` meets) until it is solved (``last.relaxation`` = 3/4,
+   15/16 or 1, the part of the demand dropped): a part of the separating speed is kept
+   where it can be, since rows held at exactly zero approach let the second-order terms of
+   the motion (see :class:`~qpik.control.limits.ObstacleLimit`) creep closer;
 5. otherwise the step returns ``v = 0`` (the arm holds still: never further past a limit,
    never toward an obstacle) with ``last.status == "failed"`` — or raises
    :class:`~qpik.errors.SolverError` with ``raise_on_failure=True``.
@@ -42,13 +45,16 @@ from qpik.control.qp import QP, Assembler
 from qpik.control.solvers import Solver, get_solver
 from qpik.control.state import SymState
 from qpik.control.tasks import DampingTask, FrameTask, ManipulabilityTask, PostureTask, Task
-from qpik.errors import InputError, SolverError, UnreachableError
+from qpik.errors import InfeasibleError, InputError, SolverError, UnreachableError
 from qpik.lie import pose_error
-from qpik.validate import joint_vector
+from qpik.robots.robot import as_robot
+from qpik.validate import joint_vector, number
 from qpik.validate import pose as check_pose
 
 FALLBACK = "daqp"  # exact active-set solver tried when the main solver reports no solution
 ACTIVE_TOL = 1e-7  # rad/s (box) and row units: a constraint within this of its bound is reported active
+RELAXED = (0.25, 0.0625, 0.0)
+"""Fractions of their demand that separating obstacle rows keep when they conflict, tried in turn (failure policy)."""
 YIELD_WEIGHT = 1e3
 """Weight of the return from past a limit in the yielding QP, relative to 1 + the largest diagonal entry of P."""
 
@@ -67,8 +73,9 @@ class StepInfo:
         active: names of the constraints at their bound (``"joint3 position upper"``,
             ``"obstacle sphere0 / link4"``, ...).
         min_clearance: smallest capsule–obstacle signed distance, m (inf without obstacles).
-        relaxation: 1 if the QP had no solution and the rows that demanded separation were
-            relaxed to only forbid approach (``l ← min(l, 0)``, which ``v = 0`` meets), else 0.
+        relaxation: 0 if the QP was solved as built; else the part of the separating rows'
+            demand that was dropped (3/4, 15/16, or 1: only approach is forbidden, which
+            ``v = 0`` meets) when they conflicted (failure policy, step 4).
         task_error: norm of the first FrameTask's pose error ``[m; rad]`` (nan without one).
         solver_status: the solver's own status string.
         solve_time, total_time: seconds in the solver, and in the whole step.
@@ -76,7 +83,7 @@ class StepInfo:
 
     status: str = "ok"
     min_clearance: float = np.inf
-    relaxation: int = 0
+    relaxation: float = 0.0
     task_error: float = np.nan
     solver_status: str = ""
     solve_time: float = 0.0
@@ -118,8 +125,10 @@ class Controller:
             returning the safe velocity.
 
     Raises:
-        InfeasibleError: the limits can never be met (e.g. ``q_min > q_max`` overrides).
-        InputError: bad dt or task/limit shapes.
+        InfeasibleError: the limits can never be met (e.g. ``q_min > q_max`` overrides, or two
+            :class:`ConfigurationLimit` s whose ranges of a joint do not meet).
+        InputError: bad dt, robot, solver, tasks, limits or task/limit shapes.
+        SolverError: an unknown or uninstalled solver name.
     """
 
     def __init__(
@@ -131,18 +140,24 @@ class Controller:
         dt: float = 0.001,
         raise_on_failure: bool = False,
     ):
-        self.dt = float(dt)
-        if not np.isfinite(self.dt) or self.dt <= 0:
-            raise InputError(f"dt: must be finite and > 0, got {dt}")
-        self.robot = robot
-        self.tasks = tuple(tasks)
-        self.limits = tuple(limits)
+        self.dt = number(dt, "dt", minimum=None)
+        if self.dt <= 0:
+            raise InputError(f"dt: must be > 0, got {dt}")
+        self.robot = robot = as_robot(robot)
+        self.tasks = _items(tasks, Task, "tasks")
+        self.limits = _items(limits, Limit, "limits")
         for task in self.tasks:
             if isinstance(task, PostureTask) and task.q_ref.shape != (robot.dof,):
                 raise InputError(f"PostureTask.q_ref: expected shape ({robot.dof},), got {task.q_ref.shape}")
         for lim in self.limits:
             lim.check(robot, self.dt)
-        self.solver = get_solver(solver) if isinstance(solver, str) else solver
+        _check_ranges([lim for lim in self.limits if isinstance(lim, ConfigurationLimit)])
+        if isinstance(solver, str):
+            self.solver = get_solver(solver)
+        elif isinstance(solver, Solver):
+            self.solver = solver
+        else:
+            raise InputError(f"solver: expected a solver name or a qpik.control.solvers.Solver, got {solver!r}")
         self.fallback = get_solver(FALLBACK) if self.solver.name != FALLBACK else None
         self.raise_on_failure = raise_on_failure
         self.frame_task = next((t for t in self.tasks if isinstance(t, FrameTask)), None)
@@ -181,11 +196,12 @@ class Controller:
         :class:`ConfigurationLimit` (``margin``), :class:`VelocityLimit` (the robot's) and,
         with ``obstacles``, :class:`ObstacleLimit` (``d_influence``, ``d_safe`` in m, ``xi`` in m/s).
         """
+        robot = as_robot(robot)
         tasks: list[Task] = [
             FrameTask(target, position_gain, orientation_gain),
-            PostureTask(robot.q_home if q_ref is None else q_ref, 1.0, posture_weight),
-            ManipulabilityTask(manipulability_weight),
-            DampingTask(damping),
+            PostureTask(robot.q_home if q_ref is None else q_ref, 1.0, number(posture_weight, "posture_weight")),
+            ManipulabilityTask(number(manipulability_weight, "manipulability_weight")),
+            DampingTask(number(damping, "damping")),
         ]
         limits: list[Limit] = [ConfigurationLimit(margin), VelocityLimit()]
         if len(obstacles):
@@ -217,7 +233,7 @@ class Controller:
         t1 = time.perf_counter()
         sol = self.solver.solve(qp)
         exact = self.fallback or self.solver
-        relaxation, yielding = 0, False
+        relaxation, yielding = 0.0, False
         if not sol.found and self.fallback is not None:
             sol = self.fallback.solve(qp)
         if not sol.found:
@@ -225,10 +241,15 @@ class Controller:
             if forced.any():  # the return from past a limit conflicts with the rows: safety wins
                 qp, yielding = yielding_qp(qp, forced), True
                 sol = exact.solve(qp)
-        if not sol.found and (qp.l > 0).any():  # separating rows may conflict: only forbid approach
-            relaxation = 1
-            np.minimum(qp.l, 0.0, out=qp.l)
-            sol = exact.solve(qp)
+        if not sol.found and (qp.l > 0).any():  # separating rows conflict: ask less of them, down to no approach
+            separating = qp.l > 0.0
+            demand = qp.l[separating].copy()
+            for kept in RELAXED:
+                qp.l[separating] = kept * demand
+                sol = exact.solve(qp)
+                if sol.found:
+                    relaxation = 1.0 - kept
+                    break
         t2 = time.perf_counter()
         lb, ub = qp.lb, qp.ub
         info = StepInfo(solver_status=sol.status, solve_time=t2 - t1, relaxation=relaxation)
@@ -257,7 +278,7 @@ class Controller:
         return v
 
     def _past_limit(self, q: np.ndarray) -> bool:
-        return any((q < lim._lo).any() or (q > lim._hi).any() for lim in self.config_limits)
+        return any((q < lim.range[0]).any() or (q > lim.range[1]).any() for lim in self.config_limits)
 
     def solve_ik(
         self,
@@ -326,6 +347,32 @@ class Controller:
         raise UnreachableError(
             f"solve_ik: smallest pose error {best:.3g} (m, rad) after {restarts + 1} attempts "
             f"of {max_iters} iterations (tol {tol:g})"
+        )
+
+
+def _items(items: Sequence, kind: type, name: str) -> tuple:
+    """``items`` as a tuple, each a ``kind``; else :class:`InputError` naming ``name`` and the position."""
+    try:
+        out = tuple(items)
+    except TypeError:
+        raise InputError(f"{name}: expected a sequence of {kind.__name__}s, got {type(items).__name__}") from None
+    for i, item in enumerate(out):
+        if not isinstance(item, kind):
+            raise InputError(f"{name}[{i}]: expected a {kind.__name__}, got {type(item).__name__}")
+    return out
+
+
+def _check_ranges(limits: Sequence[ConfigurationLimit]) -> None:
+    """Raise :class:`InfeasibleError` if the position ranges of several limits (after ``check``) do not meet."""
+    if len(limits) < 2:
+        return
+    lo = np.max([lim.range[0] for lim in limits], axis=0)
+    hi = np.min([lim.range[1] for lim in limits], axis=0)
+    bad = np.flatnonzero(lo > hi)
+    if len(bad):
+        raise InfeasibleError(
+            "ConfigurationLimit: the position ranges of the limits do not meet for joint(s) "
+            + ", ".join(str(j + 1) for j in bad)
         )
 
 

@@ -29,7 +29,7 @@ import numpy as np
 
 from qpik.control.state import State, SymState, _unique, evaluate, kinematics_of
 from qpik.errors import InfeasibleError, InputError
-from qpik.validate import finite_array
+from qpik.validate import finite_array, number
 
 if TYPE_CHECKING:
     from qpik.geometry.shapes import Shape
@@ -123,9 +123,7 @@ class ConfigurationLimit(BoxLimit):
     name = "position"
 
     def __init__(self, margin: float = 0.0, q_min: np.ndarray | None = None, q_max: np.ndarray | None = None):
-        self.margin = float(margin)
-        if not np.isfinite(self.margin) or self.margin < 0:
-            raise InputError(f"ConfigurationLimit.margin: must be finite and >= 0, got {margin}")
+        self.margin = number(margin, "ConfigurationLimit.margin")
         self.q_min = None if q_min is None else finite_array(q_min, "q_min", (None,)).copy()
         self.q_max = None if q_max is None else finite_array(q_max, "q_max", (None,)).copy()
         self._lo = self._hi = None
@@ -142,6 +140,11 @@ class ConfigurationLimit(BoxLimit):
                 + ", ".join(str(j + 1) for j in bad)
             )
         self._lo, self._hi = lo, hi
+
+    @property
+    def range(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(q_min + μ, q_max − μ)``, each (n,), rad: the range kept (after :meth:`check`)."""
+        return self._lo, self._hi
 
     def structure(self) -> tuple:
         return ()
@@ -262,9 +265,10 @@ class ObstacleLimit(RowLimit):
         from qpik.geometry.distance import ObstacleSet
 
         self.obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
-        self.d_influence, self.d_safe, self.xi, self.buffer = map(float, (d_influence, d_safe, xi, buffer))
-        if not (np.isfinite([self.d_influence, self.d_safe, self.xi, self.buffer]).all()):
-            raise InputError("ObstacleLimit: d_influence, d_safe, xi, buffer must be finite")
+        self.d_influence = number(d_influence, "d_influence", minimum=None)
+        self.d_safe = number(d_safe, "d_safe", minimum=None)
+        self.xi = number(xi, "xi", minimum=None)
+        self.buffer = number(buffer, "buffer", minimum=None)
         if not self.d_safe + self.buffer < self.d_influence:
             raise InfeasibleError("ObstacleLimit: need d_safe + buffer < d_influence")
         if self.xi <= 0 or self.buffer < 0:

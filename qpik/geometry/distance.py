@@ -141,7 +141,10 @@ class ObstacleSet:
     """
 
     def __init__(self, shapes: Sequence[Shape]):
-        self.shapes: tuple[Shape, ...] = tuple(shapes)
+        try:
+            self.shapes: tuple[Shape, ...] = tuple(shapes)
+        except TypeError:
+            raise InputError(f"obstacles: expected a sequence of shapes, got {type(shapes).__name__}") from None
         packed = []
         for i, sh in enumerate(self.shapes):
             try:

@@ -32,6 +32,7 @@ import mujoco
 import numpy as np
 
 from qpik.errors import InputError
+from qpik.geometry.distance import ObstacleSet
 from qpik.geometry.shapes import Shape
 from qpik.robots.mujoco_backend import MjKinematics
 from qpik.robots.robot import Robot
@@ -111,11 +112,9 @@ def build_scene(
         spec = mujoco.MjSpec.from_string(robot.to_mjcf())
         joint_names = [f"joint{k}" for k in range(1, robot.dof + 1)]
         site = "ee"
-    elif str(arm).lstrip().startswith("<"):
-        spec = mujoco.MjSpec.from_string(str(arm))
     else:
-        spec = mujoco.MjSpec.from_file(os.fspath(arm))
-    obstacles = tuple(obstacles)
+        spec = _mjcf_spec(arm)
+    obstacles = ObstacleSet(obstacles).shapes  # checks that each is a shape (InputError naming it)
     if obstacles:
         geoms = "".join(replace(o, name=str(i)).to_mjcf_geom() for i, o in enumerate(obstacles))
         child = mujoco.MjSpec.from_string(f'<mujoco><worldbody><body name="all">{geoms}</body></worldbody></mujoco>')
@@ -144,6 +143,25 @@ def build_scene(
         obstacles=obstacles,
         robot=robot,
     )
+
+
+def _mjcf_spec(arm: object) -> mujoco.MjSpec:
+    """The MjSpec of an MJCF string or file; :class:`InputError` for anything else or MJCF that MuJoCo rejects."""
+    if isinstance(arm, str) and arm.lstrip().startswith("<"):
+        load, what = mujoco.MjSpec.from_string, "MJCF string"
+    elif isinstance(arm, str | os.PathLike) and os.path.isfile(arm):
+        load, what = mujoco.MjSpec.from_file, f"MJCF file {os.fspath(arm)}"
+        arm = os.fspath(arm)
+    elif isinstance(arm, str):
+        raise InputError(
+            f"arm: {arm!r} is neither an MJCF string nor a file (a catalog arm: pass qpik.load_robot({arm!r}))"
+        )
+    else:
+        raise InputError(f"arm: expected a qpik.Robot, an MJCF string or a file path, got {type(arm).__name__}")
+    try:
+        return load(arm)
+    except ValueError as exc:  # MuJoCo's parser
+        raise InputError(f"arm: {what} rejected by MuJoCo: {exc}") from None
 
 
 def follow(controller: object, target: Target) -> PolicyFn:
