@@ -32,11 +32,11 @@ def finite_array(x: object, name: str, shape: tuple[int | None, ...] | None = No
         arr = x  # fast path of the 1 kHz loops: no conversion
     else:
         try:
-            if x is None:
-                raise TypeError("got None")
-            if np.iscomplexobj(x):
-                raise TypeError("complex values are not accepted")
-            arr = np.asarray(x, dtype=float)
+            raw = np.asarray(x)
+            if raw.dtype.kind in "USc" or x is None:
+                what = {"U": "text", "S": "bytes", "c": "complex values"}.get(raw.dtype.kind, "None")
+                raise TypeError(f"{what} not accepted, got {x!r}"[:120])
+            arr = raw.astype(float, copy=False)
         except (TypeError, ValueError, OverflowError) as exc:
             raise InputError(f"{name}: cannot be read as a float array ({exc})") from None
     if shape is not None:
@@ -166,6 +166,14 @@ def pose(T: object, name: str = "pose", project: bool = False) -> tuple[np.ndarr
     return arr, arr.ndim == 3
 
 
+def single_pose(T: object, name: str = "pose", project: bool = False) -> np.ndarray:
+    """:func:`pose` of exactly one pose (4, 4); a batch raises :class:`InputError` naming ``name``."""
+    arr, batched = pose(T, name, project)
+    if batched:
+        raise InputError(f"{name}: expected one pose (4, 4), got {arr.shape}")
+    return arr
+
+
 _LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
 
 
@@ -187,11 +195,13 @@ def _rotation_defect(R: np.ndarray) -> np.ndarray:
     """
     a, b, c = np.moveaxis(R, -1, 0)  # columns, each (N, 3)
     a, b, c = a.T, b.T, c.T  # (3, N): rows of contiguous component arrays
-    err = np.abs(a[0] * a[0] + a[1] * a[1] + a[2] * a[2] - 1.0)
-    for x, y, one in ((b, b, 1.0), (c, c, 1.0), (a, b, 0.0), (a, c, 0.0), (b, c, 0.0)):
-        np.maximum(err, np.abs(x[0] * y[0] + x[1] * y[1] + x[2] * y[2] - one), out=err)
-    det = a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])
-    return np.maximum(err, np.abs(det - 1.0), out=err)
+    with np.errstate(over="ignore", invalid="ignore"):  # huge entries: an inf defect is the answer
+        err = np.abs(a[0] * a[0] + a[1] * a[1] + a[2] * a[2] - 1.0)
+        for x, y, one in ((b, b, 1.0), (c, c, 1.0), (a, b, 0.0), (a, c, 0.0), (b, c, 0.0)):
+            np.maximum(err, np.abs(x[0] * y[0] + x[1] * y[1] + x[2] * y[2] - one), out=err)
+        det = a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+        det += a[2] * (b[0] * c[1] - b[1] * c[0])
+        return np.maximum(err, np.abs(det - 1.0), out=err)
 
 
 def _rotation_defect_one(R: np.ndarray) -> float:

@@ -1,8 +1,9 @@
-"""Limits of the QP: damper rows vs finite differences of the geometry, and limits holding on
-integrated trajectories (q_{k+1} = q_k + v dt) over many random episodes."""
+"""Limits of the QP: damper rows vs finite differences of the geometry, and limits and clearances holding in
+closed loop over 1,008 seeded random episodes on the MuJoCo twin (:mod:`episodes`)."""
 
 from __future__ import annotations
 
+import episodes
 import numpy as np
 import pytest
 from conftest import SEEDS, random_q
@@ -16,6 +17,7 @@ from qpik.geometry.shapes import Box, Capsule, HalfSpace, Sphere
 
 D_SAFE = 0.02
 D_INFL = 0.10
+EPISODES = 1008  # 21 rounds of every (arm, solver, family)
 
 
 def clearance(robot: qpik.Robot, Q: np.ndarray, obstacles) -> np.ndarray:
@@ -44,54 +46,30 @@ def scene(robot: qpik.Robot, q0: np.ndarray, rng: np.random.Generator) -> list:
     return obstacles if d.min() > D_SAFE + 0.005 else scene(robot, q0, rng)
 
 
-def episode(robot: qpik.Robot, rng: np.random.Generator, steps: int) -> tuple:
-    """One reach or track episode from a random start; returns (Q, V, obstacles, ctrl)."""
-    q0 = rng.uniform(robot.q_min + 0.02, robot.q_max - 0.02)
-    obstacles = scene(robot, q0, rng)
-    dt = float(rng.choice([0.001, 0.002, 0.005]))  # 200 Hz – 1 kHz control
-    ctrl = Controller.for_robot(robot, obstacles=obstacles, dt=dt, d_safe=D_SAFE, d_influence=D_INFL)
-    T0 = robot.fk(q0)
-    # reach: a pose of a configuration up to 30 % past the limits (so limits get pushed); track: a moving pose
-    track = rng.uniform() < 0.5
-    if not track:
-        mid, half = (robot.q_max + robot.q_min) / 2, (robot.q_max - robot.q_min) / 2
-        ctrl.frame_task.set_target(robot.fk(rng.uniform(mid - 1.3 * half, mid + 1.3 * half)))
-    amp, w = rng.uniform(0.05, 0.4, 3) * rng.choice([-1, 1], 3), rng.uniform(1.0, 6.0)
-    Q = np.empty((steps + 1, robot.dof))
-    V = np.empty((steps, robot.dof))
-    Q[0] = q0
-    for k in range(steps):
-        if track:
-            t = k * dt
-            T = T0.copy()
-            T[:3, 3] += amp * np.sin(w * t)
-            ctrl.frame_task.set_target(T, np.r_[amp * w * np.cos(w * t), 0, 0, 0])
-        V[k] = ctrl.step(Q[k])
-        Q[k + 1] = Q[k] + V[k] * dt
-    return Q, V, obstacles, ctrl
-
-
-@pytest.mark.parametrize("name", ["iiwa14", "panda"])
-def test_limits_hold_over_random_episodes(name):
-    """≥ 500 episodes per arm (1,000 in all): position, velocity and clearance limits on the integrated path."""
-    robot = qpik.load_robot(name)
-    rng = np.random.default_rng(2024)
-    worst = {"position": 0.0, "velocity": 0.0, "clearance": np.inf}
-    statuses = set()
-    active_obstacle = 0
-    for _ in range(500):
-        Q, V, obstacles, ctrl = episode(robot, rng, steps=100)
-        worst["position"] = max(worst["position"], np.max(Q - robot.q_max), np.max(robot.q_min - Q))
-        worst["velocity"] = max(worst["velocity"], np.max(np.abs(V) - robot.v_max))
-        d = clearance(robot, Q, obstacles)
-        worst["clearance"] = min(worst["clearance"], d.min())
-        active_obstacle += bool((d < D_INFL).any())
-        statuses.add(ctrl.last.status)
-    assert worst["position"] <= 1e-6, worst
-    assert worst["velocity"] <= 1e-6, worst
-    assert worst["clearance"] >= D_SAFE - 1e-4, worst
-    assert active_obstacle > 100  # the obstacles were close enough to matter
-    assert "failed" not in statuses
+@pytest.mark.parametrize("arm", episodes.ARMS)
+def test_limits_and_clearance_hold_over_random_episodes(arm):
+    """1,008 seeded closed-loop episodes (252 per arm, both solvers, six scene families: :mod:`episodes`), run on
+    the MuJoCo twin, which measures every link–obstacle clearance at every step (mj_geomDistance, not qpik's
+    distance code). Over every one: no joint further past a limit than it has been (1e-6 rad), no velocity above
+    its limit (1e-6 rad/s), a clearance that has been at d_s never below d_s − 1e-4 m, one that starts inside d_s
+    never decreasing (by more than 1e-6 m in a step) until it is out, no NaN, no exception, no failed step."""
+    seeds = [s for s in range(EPISODES) if episodes.ARMS[s % len(episodes.ARMS)] == arm]
+    worst = {"position": 0.0, "velocity": 0.0, "drop": -np.inf, "decrease": -np.inf}
+    seen, close, inside = set(), 0, 0
+    for seed in seeds:
+        ep = episodes.make_episode(seed)
+        out = episodes.run_episode(ep)
+        for key in worst:
+            worst[key] = max(worst[key], getattr(out, key))
+        assert out.finite and "failed" not in out.statuses, (seed, out)
+        seen.add((ep.solver, ep.family, ep.target_kind))
+        close += out.closest < episodes.D_SAFE + 0.002
+        inside += out.started_inside
+    assert worst["position"] <= 1e-6 and worst["velocity"] <= 1e-6, worst
+    assert worst["drop"] <= 1e-4 and worst["decrease"] <= 1e-6, worst
+    assert {(s, f) for s, f, _ in seen} == {(s, f) for s in episodes.SOLVERS for f in episodes.FAMILIES}
+    assert {t for _, _, t in seen} == {*episodes.TARGETS, "pushing"}
+    assert close > len(seeds) // 4 and inside >= len(seeds) // 6  # the obstacles were close enough to matter
 
 
 def scene_with_planes(robot: qpik.Robot, q0: np.ndarray, rng: np.random.Generator) -> list:
@@ -221,3 +199,44 @@ def test_conflicting_limits_raise():
         ObstacleLimit([Sphere([1, 0, 0], 0.1)], d_influence=0.02, d_safe=0.05)
     with pytest.raises(qpik.InfeasibleError):  # ξ dt larger than the damper band
         Controller(robot, tasks, [ObstacleLimit([Sphere([1, 0, 0], 0.1)], xi=100.0)], dt=0.01)
+
+
+def _link_along_a_box(robot: qpik.Robot, seed: int):
+    """A random start, a box face parallel to a random link's axis 1–20 mm beyond d_s, and a target 20 % past
+    the limits: the link slides along the face at full speed while tilting about it."""
+    rng = np.random.default_rng(seed)
+    while True:
+        q0 = rng.uniform(robot.q_min + 0.05, robot.q_max - 0.05)
+        seg = robot.capsule_segments(q0)
+        c = rng.integers(2, len(seg))
+        a, b = seg[c]
+        if np.linalg.norm(b - a) < 0.05:
+            continue
+        axis = (b - a) / np.linalg.norm(b - a)
+        n = np.cross(axis, rng.normal(size=3))
+        n /= np.linalg.norm(n)
+        gap = robot.capsule_radii[c] + D_SAFE + rng.uniform(0.002, 0.02)
+        mid = a + rng.uniform(0.2, 0.8) * (b - a)
+        h = np.array([rng.uniform(0.05, 0.3), rng.uniform(0.05, 0.3), rng.uniform(0.02, 0.1)])
+        centre = mid - n * (gap + h[2]) + axis * rng.uniform(-0.1, 0.1)
+        box = Box(centre, h, rotation=episodes._rotation_with_z(n, axis))
+        if clearance(robot, q0[None], [box]).min() >= D_SAFE + 0.001:
+            break
+    mid, half = (robot.q_max + robot.q_min) / 2, (robot.q_max - robot.q_min) / 2
+    return q0, box, robot.fk(rng.uniform(mid - 1.2 * half, mid + 1.2 * half))
+
+
+@pytest.mark.parametrize(("name", "seed"), [("iiwa14", 12), ("iiwa14", 14), ("panda", 16)])
+def test_link_sliding_along_a_box_keeps_d_safe(name, seed):
+    """A link sliding along a box face at full speed: as it tilts, the face's nearest point jumps from one part of
+    the link to another, which one witness row per pair did not see: these three scenes (of 40 drawn) lost
+    0.1–0.9 mm in single steps and went down to 17.6, 5.7 and 16.7 mm with d_s = 20 mm. MuJoCo's clearance stays
+    above d_s − 1e-4 m."""
+    from qpik.sim import simulate
+
+    robot = qpik.load_robot(name)
+    q0, box, target = _link_along_a_box(robot, seed)
+    dt = 0.002
+    ctrl = Controller.for_robot(robot, target=target, obstacles=[box], dt=dt, d_safe=D_SAFE)
+    log = simulate(robot, ctrl, q0, 0.8, dt, obstacles=[box])
+    assert log.clearance.min() >= D_SAFE - 1e-4

@@ -106,10 +106,8 @@ def ik(robot: Robot, pose: np.ndarray, param: float | np.ndarray, project: bool 
             par = float(p)
         sol = solver.solve_one(T, par)
     else:
-        if np.ndim(param) == 0:
-            par = np.full(T.shape[0], float(finite_array(param, "param")))
-        else:
-            par = finite_array(param, "param", (T.shape[0],))
+        p = finite_array(param, "param")
+        par = np.full(T.shape[0], float(p)) if p.ndim == 0 else finite_array(p, "param", (T.shape[0],))
         sol = solver.solve_batch(T, par)
     return IKSolutions(
         q=sol.q,

@@ -46,10 +46,10 @@ from qpik.control.solvers import Solver, get_solver
 from qpik.control.state import SymState
 from qpik.control.tasks import DampingTask, FrameTask, ManipulabilityTask, PostureTask, Task
 from qpik.errors import InfeasibleError, InputError, SolverError, UnreachableError
+from qpik.geometry.distance import ObstacleSet
 from qpik.lie import pose_error
 from qpik.robots.robot import as_robot
-from qpik.validate import joint_vector, number
-from qpik.validate import pose as check_pose
+from qpik.validate import joint_vector, number, single_pose
 
 FALLBACK = "daqp"  # exact active-set solver tried when the main solver reports no solution
 ACTIVE_TOL = 1e-7  # rad/s (box) and row units: a constraint within this of its bound is reported active
@@ -204,6 +204,7 @@ class Controller:
             DampingTask(number(damping, "damping")),
         ]
         limits: list[Limit] = [ConfigurationLimit(margin), VelocityLimit()]
+        obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
         if len(obstacles):
             limits.append(ObstacleLimit(obstacles, d_influence, d_safe, xi))
         return cls(robot, tasks, limits, solver=solver, dt=dt)
@@ -317,12 +318,17 @@ class Controller:
 
         Raises:
             UnreachableError: no attempt converged (the message gives the smallest residual).
-            InputError: NaN or wrong shapes.
+            InputError: NaN or wrong shapes; tol not > 0; max_iters, restarts or seed not an integer in range.
         """
         q, batched = joint_vector(q0, self.robot.dof, "q0")
         if batched:
             raise InputError(f"q0: expected shape ({self.robot.dof},), got {q.shape}")
-        target = check_pose(pose, "pose")[0]
+        target = single_pose(pose, "pose")
+        if number(tol, "tol") <= 0:
+            raise InputError(f"tol: must be > 0, got {tol}")
+        for name, value, least in (("max_iters", max_iters, 1), ("restarts", restarts, 0), ("seed", seed, 0)):
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < least:
+                raise InputError(f"{name}: expected an integer >= {least}, got {value!r}")
         if self._ik is None:
             ft = self.frame_task
             w = (1.0, 1.0) if ft is None else (ft.weight[0], ft.weight[3])

@@ -34,7 +34,10 @@ import numpy as np
 
 from qpik import symbolic as sy
 from qpik.compiled import Compiled
+from qpik.errors import InputError
 from qpik.robots.dh import _hessian_rows, _jacobian_rows, manipulability_gradient_expr
+from qpik.robots.robot import as_robot
+from qpik.validate import joint_vector, number
 
 if TYPE_CHECKING:
     from qpik.geometry.distance import Distances, ObstacleSet
@@ -159,7 +162,7 @@ class State:
 
     Args:
         robot: the arm.
-        q: joint positions (n,), rad (already validated).
+        q: joint positions (n,), rad.
         dt: control period, s.
         obstacles: the obstacle set evaluated with the kinematics in the same compiled
             call (others are evaluated on demand by :meth:`distances`).
@@ -174,6 +177,11 @@ class State:
     """
 
     def __init__(self, robot: Robot, q: np.ndarray, dt: float, obstacles: ObstacleSet | None = None):
+        robot = as_robot(robot)
+        q, batched = joint_vector(q, robot.dof)
+        if batched:
+            raise InputError(f"q: expected shape ({robot.dof},), got {q.shape}")
+        dt = number(dt, "dt", minimum=None)
         kin = kinematics_of(robot)
         self.kin = kin
         self.robot = robot

@@ -23,7 +23,7 @@ import numpy as np
 from qpik.control.state import State, SymState, _unique, evaluate
 from qpik.errors import InputError
 from qpik.lie import pose_error_expr, se3_ljacinv_expr, se3_log_expr
-from qpik.validate import finite_array, number, pose
+from qpik.validate import finite_array, number, single_pose
 
 _EMPTY = np.zeros(0)
 
@@ -116,7 +116,7 @@ class FrameTask(Task):
         twist: np.ndarray | None = None,
         error: Literal["world", "se3"] = "world",
     ):
-        if error not in ("world", "se3"):
+        if not isinstance(error, str) or error not in ("world", "se3"):
             raise InputError(f"error: FrameTask error must be 'world' or 'se3', got {error!r}")
         self.convention = error
         self.target: np.ndarray | None = None
@@ -130,7 +130,7 @@ class FrameTask(Task):
 
     def set_target(self, target: np.ndarray, twist: np.ndarray | None = None) -> None:
         """Set the target pose (4, 4) and feedforward twist (6,) ``[v; ω]``, base frame (zero if omitted)."""
-        self.target = pose(target, "target")[0]
+        self.target = single_pose(target, "target")
         self.twist = np.zeros(6) if twist is None else finite_array(twist, "twist", (6,)).copy()
 
     def structure(self) -> tuple:

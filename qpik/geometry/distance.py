@@ -56,7 +56,7 @@ from qpik.errors import InputError
 from qpik.geometry.segment import segment_box, segment_capsule, segment_halfspace
 from qpik.geometry.shapes import Box, Capsule, HalfSpace, Shape, Sphere
 from qpik.symbolic import CASADI, NUMPY, Mat, Ops, Scalar, Vec, matvec, transpose, vadd, vscale, vsub
-from qpik.validate import finite_array
+from qpik.validate import bounded, finite_array
 
 Kernel = tuple[Scalar, Scalar, Vec, Vec]
 
@@ -209,10 +209,10 @@ def distances(segments: np.ndarray, radii: np.ndarray, obstacles: Sequence[Shape
     Returns:
         :class:`Distances` with C rows and ``len(obstacles)`` columns.
     """
-    seg = finite_array(segments, "segments")
+    seg = bounded(finite_array(segments, "segments"), "segments")
     if seg.ndim not in (3, 4) or seg.shape[-2:] != (2, 3):
         raise InputError(f"segments: expected shape (C, 2, 3) or (N, C, 2, 3), got {seg.shape}")
-    r = finite_array(radii, "radii", (seg.shape[-3],))
+    r = bounded(finite_array(radii, "radii", (seg.shape[-3],)), "radii")
     if np.any(r < 0.0):
         raise InputError("radii: must be >= 0")
     packed = isinstance(obstacles, ObstacleSet)

@@ -291,7 +291,6 @@ def run_reach(problem: Problem, out: Path) -> str:
          summ.final_pos_error <= pos_tol),
         (f"reached: final orientation error {summ.final_rot_error:.3g} rad ≤ {rot_tol:g} rad",
          summ.final_rot_error <= rot_tol),
-        (f"clearance ≥ d_s: min {closest * 1e3:.2f} mm vs d_s = {d_safe * 1e3:g} mm", closest >= d_safe - 1e-4),
         (f"joint limits kept: max violation {summ.max_limit_violation:.3g} rad", summ.max_limit_violation <= 1e-9),
         (f"velocity limits kept: max abs(v)/v_max = {summ.max_velocity_ratio:.4g}",
          summ.max_velocity_ratio <= 1 + 1e-6),
@@ -299,8 +298,11 @@ def run_reach(problem: Problem, out: Path) -> str:
          branch == ref.branch and dpsi <= psi_tol),
     ]  # fmt: skip
     if problem.obstacles:
-        checks.append((f"obstacle limit needed: without it the min clearance is {free_closest * 1e3:.1f} mm < d_s",
-                       free_closest < d_safe))  # fmt: skip
+        checks += [
+            (f"clearance ≥ d_s: min {closest * 1e3:.2f} mm vs d_s = {d_safe * 1e3:g} mm", closest >= d_safe - 1e-4),
+            (f"obstacle limit needed: without it the min clearance is {free_closest * 1e3:.1f} mm < d_s",
+             free_closest < d_safe),
+        ]  # fmt: skip
     link = [n.replace("_capsule", "") for n in log.link_names]
     lines = [
         f"# {problem.name} (reach)",

@@ -198,9 +198,15 @@ def list_problems(folder: Path | None = None) -> list[Problem]:
     return [load(f) for f in problem_files(folder)]
 
 
+def _path(value: object, what: str) -> Path:
+    if not isinstance(value, str | Path) or not str(value):
+        raise ProblemFileError(f"{what}: expected a file path or a problem name, got {value!r}")
+    return Path(value)
+
+
 def find_problem(name_or_path: str | Path) -> Path:
     """A file path as given if it exists, else ``<problems folder>/<name>.toml``."""
-    p = Path(name_or_path)
+    p = _path(name_or_path, "problem")
     if p.is_file():
         return p
     candidate = problems_folder() / f"{p.name}.toml"
@@ -211,7 +217,7 @@ def find_problem(name_or_path: str | Path) -> Path:
 
 def load(path: str | Path) -> Problem:
     """Read and check one problem file; see the module docstring for the format."""
-    return _Reader(Path(path)).problem()
+    return _Reader(_path(path, "problem file")).problem()
 
 
 class _Reader:
@@ -284,6 +290,8 @@ class _Reader:
                 data = tomllib.load(fh)
         except FileNotFoundError:
             raise ProblemFileError(f"{self.file}: no such file") from None
+        except OSError as exc:  # a folder, no permission, ...
+            raise ProblemFileError(f"{self.file}: cannot be read ({exc.strerror})") from None
         except tomllib.TOMLDecodeError as exc:
             raise ProblemFileError(f"{self.file}: not valid TOML ({exc})") from None
         optional = {"name", "description", "source", "parameter", "obstacles", "solver", "expected"}

@@ -29,7 +29,7 @@ from qpik import symbolic as sy
 from qpik.compiled import Compiled
 from qpik.errors import InputError
 from qpik.symbolic import Frame, Ops, Scalar
-from qpik.validate import finite_array, joint_vector
+from qpik.validate import bounded, finite_array, flag, joint_vector
 
 Convention = Literal["standard", "modified"]
 
@@ -56,8 +56,10 @@ class DHChain:
     tool: np.ndarray = field(default_factory=lambda: np.eye(4))
 
     def __post_init__(self) -> None:
+        for name in ("a", "d", "alpha", "offset"):  # finite numbers, lengths within 1e6 m
+            bounded(finite_array(getattr(self, name), f"DHChain.{name}", (None,)), f"DHChain.{name}")
         n = len(self.a)
-        if not (len(self.d) == len(self.alpha) == n) or (self.offset and len(self.offset) != n):
+        if not (len(self.d) == len(self.alpha) == n) or (len(self.offset) and len(self.offset) != n):
             raise InputError("DHChain: a, d, alpha (and offset) must have the same length")
         if self.convention not in ("standard", "modified"):
             raise InputError(f"DHChain.convention: unknown convention {self.convention!r}")
@@ -229,7 +231,7 @@ class DHChain:
         Returns a float for q (n,) and an array (N,) for q (N, n).
         """
         J = self.jacobian(q)
-        if translational:
+        if flag(translational, "translational"):
             J = J[..., :3, :]
         # Jᵀ = QR gives det(J Jᵀ) = det(RᵀR) = Π R_ii²; unlike det(J Jᵀ), which squares the
         # condition number, this keeps m accurate to ~ε·σ_max near singular configurations
@@ -244,7 +246,7 @@ class DHChain:
         """
         q, batched = joint_vector(q, self.dof)
         if not batched:
-            return self._compiled["manipulability_gradient"](q)[int(translational)].copy()
+            return self._compiled["manipulability_gradient"](q)[int(flag(translational, "translational"))].copy()
         return manipulability_gradient_from(self.jacobian(q), self.hessian(q), translational)
 
 
