@@ -105,15 +105,22 @@ def joint_vector(q: object, dof: int, name: str = "q") -> tuple[np.ndarray, bool
     raise InputError(f"{name}: expected shape ({dof},) or (N, {dof}), got {arr.shape}")
 
 
-def project_to_so3(R: np.ndarray, name: str = "rotation") -> np.ndarray:
-    """Nearest rotation (Frobenius norm) to ``R`` (..., 3, 3), by SVD, for a rotation with rounding error.
+def project_to_so3(R: np.ndarray) -> np.ndarray:
+    """Nearest rotation (Frobenius norm) to ``R`` (..., 3, 3), by SVD with det fixed to +1."""
+    U, _, Vt = np.linalg.svd(R)
+    D = np.ones(R.shape[:-1])
+    D[..., -1] = np.sign(np.linalg.det(U @ Vt))
+    return (U * D[..., None, :]) @ Vt
 
-    Raises:
-        RotationError: some ``R`` has det <= 0 (a reflection, or singular) or a singular value
-            farther than :data:`PROJECT_TOL` from 1: it is not a rotation, and the nearest
-            rotation would be an arbitrary answer.
+
+def check_projectable(R: np.ndarray, name: str = "rotation") -> None:
+    """Raise :class:`RotationError` unless every ``R`` (..., 3, 3) is a rotation with rounding error.
+
+    That is: det > 0 and every singular value within :data:`PROJECT_TOL` of 1. A reflection, a
+    singular or a far from orthonormal matrix is not a rotation, and its nearest rotation would be
+    an arbitrary answer (``-R`` would project to a rotation of another orientation).
     """
-    U, sv, Vt = np.linalg.svd(R)
+    sv = np.linalg.svd(R, compute_uv=False)
     det = np.linalg.det(R)
     bad = (det <= 0.0) | (np.abs(sv - 1.0).max(axis=-1) > PROJECT_TOL)
     if np.any(bad):
@@ -125,7 +132,6 @@ def project_to_so3(R: np.ndarray, name: str = "rotation") -> np.ndarray:
             f"singular values {np.array2string(s, precision=3)} (a rotation with rounding error has det > 0 "
             f"and singular values within {PROJECT_TOL:g} of 1)"
         )
-    return U @ Vt
 
 
 def pose(T: object, name: str = "pose", project: bool = False) -> tuple[np.ndarray, bool]:
@@ -133,8 +139,8 @@ def pose(T: object, name: str = "pose", project: bool = False) -> tuple[np.ndarr
 
     The rotation block must be orthonormal with det +1 within
     ``ORTHONORMAL_TOL``, unless ``project=True``, in which case a rotation with rounding
-    error is replaced by the nearest rotation (:func:`project_to_so3`: a reflection, a
-    singular or a far from orthonormal matrix still raises :class:`RotationError`).
+    error is replaced by the nearest rotation (:func:`project_to_so3`; a reflection, a
+    singular or a far from orthonormal matrix raises :class:`RotationError`, :func:`check_projectable`).
     The last row must be ``[0, 0, 0, 1]`` (within 1e-12); positions within
     :data:`MAX_LENGTH` m. Returns a new array and whether it is batched.
     """
@@ -150,7 +156,8 @@ def pose(T: object, name: str = "pose", project: bool = False) -> tuple[np.ndarr
         raise InputError(f"{name}: position magnitude must be <= {MAX_LENGTH:g} m")
     R = arr[..., :3, :3]
     if project:
-        arr[..., :3, :3] = project_to_so3(R, name)
+        check_projectable(R, name)
+        arr[..., :3, :3] = project_to_so3(R)
         return arr, arr.ndim == 3
     bad = _rotation_defect(R) > ORTHONORMAL_TOL if arr.ndim == 3 else _rotation_defect_one(R) > ORTHONORMAL_TOL
     if bad.any() if arr.ndim == 3 else bad:

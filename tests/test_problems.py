@@ -373,3 +373,17 @@ def test_expected_numbers_are_checked(tmp_path):
     assert p.expected_number("fk_tolerance") == 0.1 and p.expected_number("absent", 2.0) == 2.0
     with pytest.raises(ProblemFileError, match=r"expected\.tolerance: expected a finite number, got 'small'"):
         p.expected_number("tolerance")
+
+
+def test_project_true_refuses_what_is_not_a_rotation(tmp_path):
+    """TOML ``project = true`` used to turn −R, a reflection, into some rotation of another orientation."""
+    text = with_target("rotation = [[-1, 0, 0], [0, -1, 0], [0, 0, -1]]\nposition = [0, 0, 1]\nproject = true")
+    with pytest.raises(ProblemFileError, match="cannot be projected"):
+        load(write(tmp_path, text))
+    box = BASE + '[[obstacles]]\ntype = "box"\ncenter = [0, 0, 0]\nhalf_extents = [1, 1, 1]\n'
+    box += "rotation = [[1, 0, 0], [0, 1, 0], [0, 0, -1]]\nproject = true\n"
+    with pytest.raises(ProblemFileError, match=r"obstacles\[0\]: .*cannot be projected"):
+        load(write(tmp_path, box))
+    text = with_target('rotation = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]\nposition = [0, 0, 1]\nproject = "no"')
+    with pytest.raises(ProblemFileError, match=r"target\.project: expected true or false"):
+        load(write(tmp_path, text))

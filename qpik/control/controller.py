@@ -122,7 +122,7 @@ class Controller:
             warm-started) or a :class:`~qpik.control.solvers.Solver`.
         dt: control period, s (position limits and dampers look one step ahead).
         raise_on_failure: raise :class:`SolverError` on a failed solve instead of
-            returning the safe velocity.
+            returning ``v = 0``.
 
     Raises:
         InfeasibleError: the limits can never be met (e.g. ``q_min > q_max`` overrides, or two
