@@ -71,6 +71,7 @@ ISSUE_CASES = {
     "ik huge position": lambda tmp: ["ik", "-r", "nammoto7", "--position", "1e155 0 0", "-p", "0"],
     "fk complex-looking": lambda tmp: ["fk", "-r", "iiwa14", "--q", "nan 0 0 0 0 0 0"],
     "run a folder": lambda tmp: ["run", str(tmp)],
+    "plot a path problem": lambda tmp: ["plot", "selfmotion", "--problem", "zheng2019_clik", "-o", str(tmp / "a.png")],
 }  # fmt: skip
 
 

@@ -42,6 +42,8 @@ def _run(args: argparse.Namespace) -> int:
         from qpik.problems import find_problem, load
 
         problem = load(find_problem(args.problem))
+        if problem.poses is None:
+            raise InputError(f"--problem: {problem.name} has a path target, not a pose")
         robot, T = problem.robot, problem.poses[0]
         if param is None and problem.params is not None:
             param = float(problem.params[0])
