@@ -13,6 +13,7 @@ import casadi as ca
 import numpy as np
 
 from qpik.compiled import Compiled
+from qpik.validate import finite_array, single_pose
 
 
 def log_expr(R: ca.SX) -> ca.SX:
@@ -139,10 +140,20 @@ def _numeric(name: str) -> Compiled:
 
 
 def so3_log(R: np.ndarray) -> np.ndarray:
-    """Rotation vector (3,) of a rotation matrix ``R`` (3, 3): :func:`log_expr`, compiled."""
-    return _numeric("log")(np.asarray(R, dtype=float))[0].copy()
+    """Rotation vector (3,) of a rotation matrix ``R`` (3, 3): :func:`log_expr`, compiled.
+
+    Raises:
+        InputError: not a (3, 3) finite array; :class:`~qpik.errors.RotationError` if not a rotation.
+    """
+    T = np.eye(4)
+    T[:3, :3] = finite_array(R, "R", (3, 3))
+    return _numeric("log")(single_pose(T, "R")[:3, :3].copy())[0].copy()
 
 
 def pose_error(target: np.ndarray, current: np.ndarray) -> np.ndarray:
-    r"""World-frame pose error :math:`[p^* - p;\ \log(R^* R^T)]` (6,) of ``current`` toward ``target`` (4, 4)."""
-    return _numeric("pose_error")(target, current)[0].copy()
+    r"""World-frame pose error :math:`[p^* - p;\ \log(R^* R^T)]` (6,) of ``current`` toward ``target`` (4, 4).
+
+    Raises:
+        InputError: a pose that is not a (4, 4) homogeneous pose with a rotation block (``qpik.validate.pose``).
+    """
+    return _numeric("pose_error")(single_pose(target, "target"), single_pose(current, "current"))[0].copy()

@@ -71,8 +71,8 @@ def render_configurations(
     Args:
         arm: a :class:`Robot` (its MJCF twin is drawn) or an :class:`MjKinematics` arm.
         qs: joint vectors, (n,) or (K, n).
-        path: PNG file to write (parent folders are made); ``None`` writes nothing.
-        cols: tiles per row (default ``ceil(sqrt(K))``).
+        path: PNG file to write, ``.png`` (parent folders are made); ``None`` writes nothing.
+        cols: tiles per row, ≥ 1 (default ``ceil(sqrt(K))``).
         size: tile (width, height) in pixels.
         camera: the view; by default one fixed view that fits all K configurations,
             so that tiles compare.
@@ -90,7 +90,8 @@ def render_configurations(
 
     Raises:
         RenderUnavailable: no OpenGL context can be made.
-        InputError: bad ``qs``, ``size``, ``labels``, or ``extra_worldbody`` with an MjKinematics arm.
+        InputError: bad ``qs``, ``size``, ``cols``, ``labels``, ``path`` (not ``.png``), or
+            ``extra_worldbody`` with an MjKinematics arm.
     """
     if isinstance(arm, Robot):
         kin = MjKinematics.from_robot(arm, extra_worldbody)
@@ -102,13 +103,18 @@ def render_configurations(
     qs = qs[None] if qs.ndim == 1 else qs
     if qs.ndim != 2 or qs.shape[1] != kin.dof or len(qs) == 0:
         raise InputError(f"qs: expected shape ({kin.dof},) or (K, {kin.dof}), got {qs.shape}")
+    size = finite_array(size, "size", (2,))
     width, height = (int(s) for s in size)
-    if width < 16 or height < 16:
-        raise InputError(f"size: tiles must be at least 16x16 pixels, got {size}")
+    if width < 16 or height < 16 or np.any(size != np.round(size)):
+        raise InputError(f"size: tiles must be whole pixels, at least 16x16, got {tuple(size.tolist())}")
     ntiles = 1 if overlay else len(qs)
     if labels is not None and len(labels) != ntiles:
         raise InputError(f"labels: expected {ntiles} texts, got {len(labels)}")
-    cols = max(1, min(cols or int(np.ceil(np.sqrt(ntiles))), ntiles))
+    if cols is not None and (isinstance(cols, bool) or not isinstance(cols, int | np.integer) or cols < 1):
+        raise InputError(f"cols: expected an integer >= 1, got {cols!r}")
+    if path is not None and Path(path).suffix.lower() != ".png":
+        raise InputError(f"path: the picture is written as PNG, so the file name must end in .png, got {path}")
+    cols = min(cols or int(np.ceil(np.sqrt(ntiles))), ntiles)
     rows = -(-ntiles // cols)
 
     model, data = kin.model, kin.data

@@ -108,3 +108,89 @@ def test_a_chain_of_the_wrong_kind_raises_no_closed_form_error(solver: str, arm:
     cls = {"OffsetShoulderSolver": OffsetShoulderSolver, "SRSSolver": SRSSolver}[solver]
     with pytest.raises(NoClosedFormError):
         cls(qpik.load_robot(arm))
+
+
+def test_unwrapped_q_gives_the_same_parameter_and_branch(robot) -> None:
+    """redundancy_parameter wraps q first: q + 2πk on any joints is the same configuration (θ2 − 2π used to give
+    another branch number)."""
+    rng = np.random.default_rng(4)
+    Q = rng.uniform(robot.q_min, robot.q_max, size=(500, robot.dof))
+    shifted = Q + 2.0 * np.pi * rng.integers(-3, 4, size=Q.shape)
+    p0, b0 = qpik.redundancy_parameter(robot, Q)
+    p1, b1 = qpik.redundancy_parameter(robot, shifted)
+    np.testing.assert_array_equal(b1, b0)
+    np.testing.assert_allclose(np.angle(np.exp(1j * (p1 - p0))), 0.0, atol=1e-9)
+    q = Q[0].copy()
+    q[1] -= 2.0 * np.pi
+    assert qpik.redundancy_parameter(robot, q)[1] == b0[0]
+
+
+def test_robot_names_and_other_objects_are_not_robots(robot) -> None:
+    T = robot.fk(robot.q_home)
+    for bad in (robot.name, None, 7):
+        with pytest.raises(InputError, match=r"^robot: expected a qpik\.Robot"):
+            qpik.ik(bad, T, 0.0)
+        with pytest.raises(InputError, match=r"^robot"):
+            qpik.feasible_intervals(bad, T)
+        with pytest.raises(InputError, match=r"^robot"):
+            qpik.redundancy_parameter(bad, robot.q_home)
+    with pytest.raises(InputError, match=r"load_robot\('iiwa14'\)"):
+        qpik.ik("iiwa14", T, 0.0)
+
+
+def test_empty_batches(robot) -> None:
+    sols = qpik.ik(robot, np.zeros((0, 4, 4)), 0.3)
+    B = len(sols.branch)
+    assert sols.q.shape == (0, B, robot.dof) and sols.valid.shape == sols.singular.shape == (0, B)
+    param, branch = qpik.redundancy_parameter(robot, np.zeros((0, robot.dof)))
+    assert param.shape == branch.shape == (0,)
+
+
+def test_huge_positions_are_refused_not_overflowed(robot) -> None:
+    """A position of 1e155 m made every nammoto7 branch valid with FK at (0, 0, 0.6) and 11.9 rad of feasible δ:
+    squares overflowed. Positions beyond 1e6 m are refused; far but finite ones are unreachable."""
+    T = robot.fk(robot.q_home)
+    for mag in (1e155, 1e300, 2e6):
+        far = T.copy()
+        far[0, 3] = mag
+        with pytest.raises(InputError, match=r"^pose: position"):
+            qpik.ik(robot, far, 0.0)
+        with pytest.raises(InputError, match=r"^pose: position"):
+            qpik.feasible_intervals(robot, far)
+    far = T.copy()
+    far[:3, 3] = (1e6, -1e6, 1e6)
+    sols = qpik.ik(robot, far, 0.3)
+    assert not sols.valid.any() and np.isfinite(sols.q).all()
+    fi = qpik.feasible_intervals(robot, far)
+    assert sum(fi.measure(int(b)) for b in fi.branch) == 0.0
+
+
+def test_complex_and_text_inputs_are_refused(robot) -> None:
+    T = robot.fk(robot.q_home)
+    with pytest.raises(InputError, match=r"^q: .*complex"):
+        robot.fk(robot.q_home + 1e-3j)
+    with pytest.raises(InputError, match=r"^q"):
+        qpik.redundancy_parameter(robot, robot.q_home.astype(complex))
+    with pytest.raises(InputError, match=r"^param"):
+        qpik.ik(robot, T, 0.3 + 0.1j)
+    with pytest.raises(InputError, match=r"^pose"):
+        qpik.ik(robot, T.astype(complex), 0.3)
+    with pytest.raises(InputError, match=r"^param"):
+        qpik.ik(robot, T, "0.3")
+
+
+def test_projection_is_only_for_rounded_rotations(robot) -> None:
+    """project=True used to accept −R (8 or 16 "valid" branches of another orientation), the zero matrix and a rank-1
+    matrix; and project="no" projected."""
+    T = robot.fk(robot.q_home)
+    for R in (-T[:3, :3], np.zeros((3, 3)), np.outer(T[:3, 0], T[:3, 0])):
+        bad = T.copy()
+        bad[:3, :3] = R
+        with pytest.raises(RotationError, match="cannot be projected"):
+            qpik.ik(robot, bad, 0.0, project=True)
+        with pytest.raises(RotationError, match="cannot be projected"):
+            qpik.feasible_intervals(robot, bad, project=True)
+    skew = T.copy()
+    skew[:3, :3] *= 1.01
+    with pytest.raises(InputError, match=r"^project"):
+        qpik.ik(robot, skew, 0.0, project="no")

@@ -102,3 +102,10 @@ def _pose(R: np.ndarray, p: tuple[float, float, float]) -> np.ndarray:
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = R, p
     return T
+
+
+@pytest.mark.parametrize("tol", [np.nan, -1e-3, np.inf, "0.1", None])
+def test_within_limits_tolerance_must_be_a_finite_number_at_least_zero(tol):
+    robot = qpik.load_robot("iiwa14")
+    with pytest.raises(qpik.InputError, match=r"^tol"):
+        robot.within_limits(robot.q_home, tol=tol)

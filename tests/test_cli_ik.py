@@ -69,9 +69,10 @@ def test_ik_rejects_a_rotation_that_is_not_orthonormal(capsys) -> None:
     assert "project" in capsys.readouterr().err
 
 
-def test_ik_needs_a_param_without_q() -> None:
-    with pytest.raises(SystemExit):
-        main(["ik", "-r", "iiwa14", "--position", "0.5 0 0.5"])
+def test_ik_needs_a_param_without_q(capsys) -> None:
+    assert main(["ik", "-r", "iiwa14", "--position", "0.5 0 0.5"]) == 2
+    err = capsys.readouterr().err
+    assert err == "qpik ik: --param is required (unless --q is given: then the parameter of q is used)\n"
 
 
 def test_plot_selfmotion_and_branches_write_pngs(tmp_path, capsys) -> None:

@@ -170,3 +170,110 @@ def test_bad_input():
         Controller(robot, [PostureTask(np.zeros(6))])
     with pytest.raises(qpik.InputError):
         Controller(robot, [DampingTask()]).step(robot.q_home, target=robot.fk(robot.q_home))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        ({"position_gain": np.nan}, "position_gain"),
+        ({"orientation_gain": -1.0}, "orientation_gain"),
+        ({"position_gain": np.inf}, "position_gain"),
+        ({"posture_weight": np.nan}, "posture_weight"),
+        ({"posture_weight": -1e-3}, "posture_weight"),
+        ({"manipulability_weight": np.inf}, "manipulability_weight"),
+        ({"damping": -1.0}, "damping"),
+        ({"d_safe": "x"}, "d_safe"),
+        ({"xi": np.nan}, "xi"),
+        ({"margin": -0.1}, "margin"),
+        ({"dt": "fast"}, "dt"),
+        ({"solver": None}, "solver"),
+        ({"solver": 3}, "solver"),
+    ],
+)
+def test_bad_parameters_raise_at_construction(kwargs, name):
+    """NaN, negative or infinite gains and weights, and wrong types, are refused when the controller is built
+    (they used to give v = 0 with "failed", or an OSQP exception from step)."""
+    robot = qpik.load_robot("iiwa14")
+    with pytest.raises(qpik.InputError, match=name):
+        Controller.for_robot(robot, target=robot.fk(robot.q_home), obstacles=[Sphere((1, 1, 1), 0.1)], **kwargs)
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda r: FrameTask(None, np.nan),
+        lambda r: FrameTask(None, 1.0, 1.0, -1.0),
+        lambda r: FrameTask(None, 1.0, 1.0, 1.0, np.inf),
+        lambda r: PostureTask(r.q_home, -1.0),
+        lambda r: PostureTask(r.q_home, 1.0, np.nan),
+        lambda r: DampingTask(-1e-4),
+        lambda r: ConfigurationLimit(np.nan),
+        lambda r: Controller(r, ["frame"]),
+        lambda r: Controller(r, [DampingTask()], [VelocityLimit(), "position"]),
+        lambda r: Controller(r, DampingTask()),
+        lambda r: Controller("iiwa14", [DampingTask()]),
+        lambda r: Controller.for_robot("iiwa14"),
+    ],
+)
+def test_bad_tasks_limits_and_robots_raise_input_error(make):
+    with pytest.raises(qpik.InputError):
+        make(qpik.load_robot("iiwa14"))
+
+
+def test_disjoint_configuration_limits_raise_at_construction():
+    """Two limits whose ranges of a joint do not meet: InfeasibleError at construction, not at step time."""
+    robot = qpik.load_robot("iiwa14")
+    tasks = Controller.for_robot(robot, target=robot.fk(robot.q_home)).tasks
+    lo, hi = robot.q_min.copy(), robot.q_max.copy()
+    hi[3] = -1.5
+    lo2 = robot.q_min.copy()
+    lo2[3] = -1.0
+    with pytest.raises(qpik.InfeasibleError, match=r"joint\(s\) 4$"):
+        Controller(robot, tasks, [ConfigurationLimit(q_min=lo, q_max=hi), ConfigurationLimit(q_min=lo2)])
+    # ranges that meet are fine, and the step keeps the intersection
+    lo2[3] = -1.6
+    ctrl = Controller(robot, tasks, [ConfigurationLimit(q_min=lo, q_max=hi), ConfigurationLimit(q_min=lo2)])
+    q = robot.q_home.copy()
+    q[3] = -1.55
+    for _ in range(50):
+        q = q + ctrl.step(q) * ctrl.dt
+        assert -1.6 - 1e-12 <= q[3] <= -1.5 + 1e-12
+
+
+def _return_toward_a_sphere(rng: np.random.Generator):
+    """zheng7 with joints 3 and 5 2° past +170° and a sphere 42.5 mm from link 7, in the direction in which the
+    return from the limits moves it (the issue's example)."""
+    robot = qpik.load_robot("zheng7")
+    q0 = rng.uniform(robot.q_min * 0.6, robot.q_max * 0.6)
+    q0[[2, 4]] = robot.q_max[[2, 4]] + np.radians(2.0)
+    v = np.zeros(7)
+    v[[2, 4]] = -robot.v_max[[2, 4]]
+    seg0, seg1 = robot.capsule_segments(q0), robot.capsule_segments(q0 + 0.01 * v)
+    s = rng.uniform()
+    p0, p1 = (sg[6, 0] + s * (sg[6, 1] - sg[6, 0]) for sg in (seg0, seg1))
+    u = (p1 - p0) / np.linalg.norm(p1 - p0)
+    return robot, q0, [Sphere(p0 + u * (robot.capsule_radii[6] + 0.05 + 0.0425), 0.05)]
+
+
+@pytest.mark.parametrize("solver", ["osqp", "daqp"])
+def test_return_from_a_limit_yields_to_an_obstacle(solver):
+    """Started past a limit next to an obstacle, the return conflicts with the damper rows: safety wins. Clearance
+    measured by MuJoCo never falls below min(its start, d_s) − 1e-4 m, the joints never move further out, and the
+    status says "yielding" (it used to be infeasible, and the fallback was the full-speed return into the sphere)."""
+    from qpik.sim import simulate
+
+    d_safe, dt = 0.0213, 0.002
+    rng = np.random.default_rng(7)
+    yielded = 0
+    for _ in range(6):
+        robot, q0, obstacles = _return_toward_a_sphere(rng)
+        ctrl = Controller.for_robot(robot, target=robot.fk(q0), obstacles=obstacles, dt=dt, solver=solver,
+                                    d_safe=d_safe)  # fmt: skip
+        log = simulate(robot, ctrl, q0, 0.3, dt, obstacles=obstacles)
+        cl = log.clearance.min(axis=(1, 2))
+        assert cl.min() >= min(cl[0], d_safe) - 1e-4
+        excess = np.maximum(log.q - robot.q_max, robot.q_min - log.q).clip(0)
+        assert np.all(np.diff(excess, axis=0) <= 1e-12)
+        assert "failed" not in log.status
+        yielded += int((log.status == "yielding").sum())
+    assert yielded > 20

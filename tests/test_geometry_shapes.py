@@ -93,3 +93,34 @@ def test_mjcf_geoms_compile_to_the_same_shapes():
     plane_z = data.geom_xmat[4].reshape(3, 3)[:, 2]
     assert np.allclose(plane_z, [0.0, 0.6, 0.8]) and np.isclose(plane_z @ data.geom_xpos[4], 0.1)
     assert all('rgba="1 0 0 0.35"' in s.to_mjcf_geom() for s in shapes)
+
+
+def test_box_rotation_that_is_not_one():
+    """A reflection is refused with or without project=True, and its message does not suggest projection."""
+    with pytest.raises(RotationError, match="det = -1") as info:
+        Box((0, 0, 0), (1, 1, 1), rotation=-np.eye(3))
+    assert "project=True" not in str(info.value)
+    for R in (-np.eye(3), np.zeros((3, 3)), np.diag([1.0, 1.0, 0.0])):
+        with pytest.raises(RotationError, match="cannot be projected"):
+            Box((0, 0, 0), (1, 1, 1), rotation=R, project=True)
+    with pytest.raises(InputError, match="project"):
+        Box((0, 0, 0), (1, 1, 1), rotation=np.eye(3) * 1.001, project="no")
+    rounded = Box((0, 0, 0), (1, 1, 1), rotation=np.eye(3) * 1.001, project=True).rotation
+    np.testing.assert_allclose(rounded, np.eye(3), atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: Sphere((1e7, 0, 0), 0.1),
+        lambda: Sphere((0, 0, 0), 1e155),
+        lambda: Capsule((0, 0, 0), (0, 0, 1e200), 0.1),
+        lambda: Box((0, 0, 0), (1e9, 1, 1)),
+        lambda: HalfSpace((0, 0, 1), 1e300),
+        lambda: Sphere((0, 0, 0), 0.1 + 0.1j),
+        lambda: Sphere("abc", 0.1),
+    ],
+)
+def test_huge_or_non_real_shape_data_is_refused(make):
+    with pytest.raises(InputError):
+        make()

@@ -330,3 +330,60 @@ def test_runner_modules_are_imported_on_demand(monkeypatch):
     monkeypatch.setattr(runners_module, "RUNNER_MODULES", ("qpik.no_such_runner_module",))
     with pytest.raises(ModuleNotFoundError):
         get_runner("ik")
+
+
+REACH = BASE.replace('kind = "ik"', 'kind = "reach"')
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (REACH + "[solver]\nd_saef = 0.03\n", r"solver\.d_saef: unknown key for kind 'reach'; did you mean 'd_safe'\?"),
+        (REACH + "[solver]\nkp_positon = 5\n", r"solver\.kp_positon: .*did you mean 'kp_position'\?"),
+        (REACH + "[solver]\nbranch = 1\n", r"solver\.branch: unknown key for kind 'reach'"),
+        (BASE + "[solver]\nd_safe = 0.03\n", r"solver\.d_safe: unknown key for kind 'ik' \(known: branch\)"),
+        (REACH + '[solver]\ndt = "fast"\n', r"solver\.dt: expected a number \(control period, s\), got 'fast'"),
+        (REACH + "[solver]\ndt = 0\n", r"solver\.dt: must be > 0"),
+        (REACH + "[solver]\ndamping = -1e-4\n", r"solver\.damping: must be >= 0"),
+        (REACH + "[solver]\nxi = nan\n", r"solver\.xi: contains NaN"),
+        (REACH + "[solver]\nkp_position = true\n", r"solver\.kp_position: expected a number"),
+        (BASE + "[solver]\nbranch = 1.5\n", r"solver\.branch: expected an integer"),
+        (with_robot("q_home = [0, 0, 0, 3.0, 0, 0, 0]"), r"robot\.q_home: outside \[q_min, q_max\] on joint\(s\) 4"),
+    ],
+)
+def test_solver_keys_and_q_home_are_checked(tmp_path, text, message):
+    with pytest.raises(ProblemFileError, match=message):
+        load(write(tmp_path, text))
+
+
+def test_solver_table_is_complete_with_defaults(tmp_path):
+    from qpik.problems.schema import SOLVER_KEYS
+
+    p = load(write(tmp_path, REACH + "[solver]\nd_safe = 0.03\nkp_position = 10\n"))
+    assert set(p.solver) == set(SOLVER_KEYS["reach"])
+    assert p.solver["d_safe"] == 0.03 and p.solver["kp_position"] == 10.0 and isinstance(p.solver["kp_position"], float)
+    assert p.solver["d_influence"] == SOLVER_KEYS["reach"]["d_influence"].default
+    assert load(write(tmp_path, BASE)).solver == {"branch": None}
+    for problem in list_problems():  # every shipped file's keys are known to its kind
+        assert set(problem.solver) == set(SOLVER_KEYS[problem.kind])
+
+
+def test_expected_numbers_are_checked(tmp_path):
+    p = load(write(tmp_path, BASE + '[expected]\ntolerance = "small"\nfk_tolerance = 0.1\n'))
+    assert p.expected_number("fk_tolerance") == 0.1 and p.expected_number("absent", 2.0) == 2.0
+    with pytest.raises(ProblemFileError, match=r"expected\.tolerance: expected a finite number, got 'small'"):
+        p.expected_number("tolerance")
+
+
+def test_project_true_refuses_what_is_not_a_rotation(tmp_path):
+    """TOML ``project = true`` used to turn −R, a reflection, into some rotation of another orientation."""
+    text = with_target("rotation = [[-1, 0, 0], [0, -1, 0], [0, 0, -1]]\nposition = [0, 0, 1]\nproject = true")
+    with pytest.raises(ProblemFileError, match="cannot be projected"):
+        load(write(tmp_path, text))
+    box = BASE + '[[obstacles]]\ntype = "box"\ncenter = [0, 0, 0]\nhalf_extents = [1, 1, 1]\n'
+    box += "rotation = [[1, 0, 0], [0, 1, 0], [0, 0, -1]]\nproject = true\n"
+    with pytest.raises(ProblemFileError, match=r"obstacles\[0\]: .*cannot be projected"):
+        load(write(tmp_path, box))
+    text = with_target('rotation = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]\nposition = [0, 0, 1]\nproject = "no"')
+    with pytest.raises(ProblemFileError, match=r"target\.project: expected true or false"):
+        load(write(tmp_path, text))

@@ -173,3 +173,22 @@ def test_render_strip(tmp_path):
     img = Image.open(path)
     assert img.size == (3 * 96, 2 * 80)  # 4 snapshots in up to 3 columns
     assert _non_blank(path)
+
+
+def test_bad_arms_and_obstacles_are_input_errors(tmp_path):
+    """obstacles=[1] used to fail in dataclasses.replace with a TypeError; a robot's name was read as a file."""
+    policy = constant(np.zeros(7))
+    with pytest.raises(InputError, match=r"obstacles\[1\]"):
+        simulate(IIWA, policy, IIWA.q_home, 0.01, 0.01, obstacles=[SCENE[0], 1])
+    with pytest.raises(InputError, match="obstacles"):
+        simulate(IIWA, policy, IIWA.q_home, 0.01, 0.01, obstacles=5)
+    with pytest.raises(InputError, match=r"load_robot\('iiwa14'\)"):
+        simulate("iiwa14", policy, IIWA.q_home, 0.01, 0.01)
+    with pytest.raises(InputError, match=r"^arm"):
+        simulate(None, policy, IIWA.q_home, 0.01, 0.01)
+    with pytest.raises(InputError, match="rejected by MuJoCo"):
+        simulate("<mujoco><worldbody><geom/></mujoco>", policy, IIWA.q_home, 0.01, 0.01)
+    bad = tmp_path / "arm.xml"
+    bad.write_text("not xml")
+    with pytest.raises(InputError, match="rejected by MuJoCo"):
+        simulate(bad, policy, IIWA.q_home, 0.01, 0.01)

@@ -304,3 +304,23 @@ def test_unreachable_pose_is_invalid_not_an_error(where):
         assert np.all(np.isfinite(sols.q))
     fi = qpik.feasible_intervals(ROBOT, T)
     assert all(iv == [] for iv in fi.intervals)
+
+
+def test_stretched_elbow_is_flagged_on_every_configuration():
+    """θ4 = 0 exactly on 1,000 random configurations: ik(fk(q), ψ(q)) flags q's branch singular, returns θ4 = 0 and
+    gives q back. θ4 ∝ sqrt(d_se + d_ew − |x_sw|), so the pose's rounding alone made θ4 ≈ 1.5e-8 (arccos of a cosine
+    that rounds to 1) and the sine test flagged 419 of the 1,000."""
+    Q = random_q(ROBOT, 1000, 11)
+    Q[:, 3] = 0.0
+    psi, branch = qpik.redundancy_parameter(ROBOT, Q)
+    sols = qpik.ik(ROBOT, ROBOT.fk(Q), psi)
+    rows = sols.q[np.arange(len(Q)), branch]
+    assert sols.singular[np.arange(len(Q)), branch].all()
+    np.testing.assert_array_equal(rows[:, 3], 0.0)
+    assert angle_diff(rows, Q).max() < 1e-8
+    assert_reaches(ROBOT, sols, ROBOT.fk(Q))
+    # a bent elbow just beyond the rounding is not flagged
+    Q[:, 3] = 1e-5
+    psi, branch = qpik.redundancy_parameter(ROBOT, Q)
+    sols = qpik.ik(ROBOT, ROBOT.fk(Q), psi)
+    assert not sols.singular[np.arange(len(Q)), branch][np.abs(np.sin(Q[:, [1, 5]])).min(axis=1) > 1e-6].any()

@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from qpik.errors import InputError, RotationError
-from qpik.validate import finite_array, joint_vector, pose, project_to_so3
+from qpik.validate import check_projectable, finite_array, joint_vector, pose, project_to_so3
 
 
 def random_rotations(n: int, seed: int) -> np.ndarray:
@@ -98,7 +98,7 @@ def test_exact_rotations_pass_unchanged(seed):
 
 
 @settings(max_examples=5, deadline=None)
-@given(seed=SEEDS, scale=st.floats(1e-5, 0.2))
+@given(seed=SEEDS, scale=st.floats(1e-5, 0.05))
 def test_non_orthonormal_rotations_raise_unless_projected(seed, scale):
     rng = np.random.default_rng(seed)
     R = random_rotations(200, seed)
@@ -118,22 +118,62 @@ def test_non_orthonormal_rotations_raise_unless_projected(seed, scale):
     assert np.all(d_proj <= d_true + 1e-12)
 
 
-def test_reflections_are_rejected_and_projected_to_a_rotation():
-    F = np.diag([1.0, 1.0, -1.0])  # orthonormal but det -1
+@pytest.mark.parametrize(
+    "M",
+    [
+        np.diag([1.0, 1.0, -1.0]),  # orthonormal but det -1
+        -random_rotations(1, 4)[0],  # -R: det -1
+        np.zeros((3, 3)),
+        np.outer([1.0, 0.0, 0.0], [1.0, 0.0, 0.0]),  # rank 1
+        np.diag([1.0, 1.0, 1e-9]),  # det > 0 but (numerically) singular
+        3.0 * np.eye(3),  # full rank, det > 0, far from orthonormal
+    ],
+)
+def test_what_is_not_a_rotation_is_not_projected(M):
+    """Projection is for rounding error: a reflection, a singular matrix or a far from orthonormal one raises."""
+    with pytest.raises(RotationError, match="cannot be projected"):
+        pose(homogeneous(M), project=True)
+    with pytest.raises(RotationError, match="cannot be projected"):
+        pose(homogeneous(np.stack([random_rotations(1, 1)[0], M])), project=True)
+    with pytest.raises(RotationError) as info:
+        pose(homogeneous(M))
+    if np.linalg.det(M) <= 0.0:  # no projection could fix it: the message must not suggest one
+        assert "project=True" not in str(info.value) and "det" in str(info.value)
     with pytest.raises(RotationError):
-        pose(homogeneous(F))
-    out, _ = pose(homogeneous(F), project=True)
-    assert np.linalg.det(out[:3, :3]) == pytest.approx(1.0)
-    np.testing.assert_allclose(project_to_so3(F) @ project_to_so3(F).T, np.eye(3), atol=1e-12)
+        check_projectable(M)
+
+
+def test_project_must_be_a_bool():
+    T = homogeneous(np.eye(3) * 1.001)
+    for bad in ("no", "yes", 1, 0.0, None):
+        with pytest.raises(InputError, match="project"):
+            pose(T, project=bad)
+    assert pose(T, project=np.bool_(True))[0][0, 0] == pytest.approx(1.0)
 
 
 def test_projection_is_idempotent_and_does_not_touch_position():
     rng = np.random.default_rng(3)
-    T = homogeneous(rng.normal(size=(10, 3, 3)), rng.normal(size=(10, 3)))
+    T = homogeneous(random_rotations(10, 3) + 0.03 * rng.normal(size=(10, 3, 3)), rng.normal(size=(10, 3)))
     out, _ = pose(T, project=True)
     np.testing.assert_array_equal(out[:, :3, 3], T[:, :3, 3])
     np.testing.assert_allclose(project_to_so3(out[:, :3, :3]), out[:, :3, :3], atol=1e-12)
     assert not np.shares_memory(out, T)
+
+
+def test_empty_batch_and_huge_positions():
+    out, batched = pose(np.zeros((0, 4, 4)))
+    assert out.shape == (0, 4, 4) and batched
+    T = homogeneous(np.eye(3), np.array([1e7, 0.0, 0.0]))
+    for arg in (T, T[None]):
+        with pytest.raises(InputError, match="goal: position magnitude"):
+            pose(arg, "goal")
+    assert pose(homogeneous(np.eye(3), np.array([0.0, -9e5, 0.0])))[0][1, 3] == -9e5
+
+
+def test_complex_and_text_are_not_numbers():
+    for bad in (np.array([1.0 + 1e-3j, 2.0]), [1j, 0.0], "abc", ["a", "b"], None, object()):
+        with pytest.raises(InputError, match="q: cannot be read"):
+            finite_array(bad, "q")
 
 
 @pytest.mark.parametrize(

@@ -8,10 +8,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from qpik.analytic.intervals import FeasibleIntervals
+from qpik.analytic.intervals import FeasibleIntervals, wrap
 from qpik.analytic.solver import AnalyticSolver
 from qpik.errors import InputError, NoClosedFormError
-from qpik.robots.robot import Robot
+from qpik.robots.robot import Robot, as_robot
 from qpik.validate import finite_array, joint_vector
 from qpik.validate import pose as check_pose
 
@@ -23,7 +23,13 @@ _instances: dict[int, AnalyticSolver] = {}  # id(robot) -> solver; the solver ho
 
 
 def solver_for(robot: Robot) -> AnalyticSolver:
-    """The closed-form solver of ``robot`` (cached per robot object)."""
+    """The closed-form solver of ``robot`` (cached per robot object).
+
+    Raises:
+        InputError: ``robot`` is not a :class:`~qpik.robots.robot.Robot` (e.g. its name).
+        NoClosedFormError: the arm has no closed form.
+    """
+    robot = as_robot(robot)
     if robot.closed_form not in _SOLVERS:
         why = robot.notes if robot.notes.startswith("no closed form") else "only offset-shoulder and S-R-S arms do"
         raise NoClosedFormError(f"{robot.name} has no closed-form IK ({why}); use qpik.solve_ik instead")
@@ -98,10 +104,8 @@ def ik(robot: Robot, pose: np.ndarray, param: float | np.ndarray, project: bool 
             par = float(p)
         sol = solver.solve_one(T, par)
     else:
-        if np.ndim(param) == 0:
-            par = np.full(T.shape[0], float(finite_array(param, "param")))
-        else:
-            par = finite_array(param, "param", (T.shape[0],))
+        p = finite_array(param, "param")
+        par = np.full(T.shape[0], float(p)) if p.ndim == 0 else finite_array(p, "param", (T.shape[0],))
         sol = solver.solve_batch(T, par)
     return IKSolutions(
         q=sol.q,
@@ -115,10 +119,13 @@ def ik(robot: Robot, pose: np.ndarray, param: float | np.ndarray, project: bool 
 
 
 def redundancy_parameter(robot: Robot, q: np.ndarray) -> tuple[float | np.ndarray, int | np.ndarray]:
-    """The redundancy parameter (rad) and branch id of a configuration (n,) or batch (N, n)."""
+    """The redundancy parameter (rad) and branch id of a configuration (n,) or batch (N, n).
+
+    ``q`` may be given unwrapped (any ``q + 2πk``): it is wrapped to (−π, π] first, as ``ik`` returns it.
+    """
     solver = solver_for(robot)
     qa, batched = joint_vector(q, robot.dof)
-    param, branch = solver.parameter(np.atleast_2d(qa))
+    param, branch = solver.parameter(wrap(np.atleast_2d(qa)))
     if batched:
         return param, branch
     return float(param[0]), int(branch[0])

@@ -23,6 +23,7 @@ import numpy as np
 from qpik import symbolic as sy
 from qpik.compiled import Compiled, shared_library
 from qpik.errors import InputError, SolverError
+from qpik.validate import finite_array, number
 
 if TYPE_CHECKING:
     from qpik.analytic.solver import AnalyticSolver
@@ -58,6 +59,9 @@ class FeasibleIntervals:
         return self.intervals[self.index(b)]
 
     def index(self, b: int) -> int:
+        """Position of branch id ``b`` in :attr:`branch`; :class:`InputError` if there is no such branch."""
+        if isinstance(b, bool) or not isinstance(b, int | np.integer):
+            raise InputError(f"branch: expected a branch id (an integer), got {b!r}")
         hits = np.flatnonzero(self.branch == b)
         if hits.size == 0:
             raise InputError(f"branch: no branch {b}; branches are {self.branch.tolist()}")
@@ -65,7 +69,8 @@ class FeasibleIntervals:
 
     def contains(self, b: int, value: float | np.ndarray, tol: float = 0.0) -> np.ndarray | bool:
         """Whether ``value`` (rad, any shape) lies in branch ``b``'s feasible set."""
-        v = np.asarray(value, dtype=float)
+        v = finite_array(value, "value")
+        tol = number(tol, "tol")
         out = np.zeros(v.shape, dtype=bool)
         for lo, hi in self[b]:
             out |= (v >= lo - tol) & (v <= hi + tol)

@@ -17,7 +17,9 @@ first mapped through the chain's constant ``base`` and ``tool`` transforms). Bot
 are ZYZ Euler triples; the elbow is a rotation about the y axis.
 
 **Elbow.** :math:`\cos\theta_4 = (|x_{sw}|^2 - d_{se}^2 - d_{ew}^2)/(2 d_{se} d_{ew})`,
-two signs.
+two signs. Computed from :math:`k(1 - \cos\theta_4) = (d_{se} + d_{ew})^2 - |x_{sw}|^2` and
+:math:`k(1 + \cos\theta_4) = |x_{sw}|^2 - (d_{se} - d_{ew})^2` (:math:`k = 2 d_{se} d_{ew}`), which keep
+their precision near the stretched and folded elbow where :math:`\cos\theta_4` itself rounds to ±1.
 
 **Reference plane and arm angle.** The reference configuration is the
 *virtual* one with θ3 = 0 that reaches the same wrist point with the same θ4 and
@@ -76,12 +78,13 @@ branch still reaches the pose):
   azimuth of :math:`x_{sw}`. The formulas above are kept (they hold for any
   nonzero azimuth, however small); only an exactly vertical :math:`x_{sw}` uses
   the fallback :math:`\theta_1^0 = 0` (reference plane = base x–z plane).
-- *elbow stretched or folded*, |sin θ4| < ``SINGULAR_TOL``: the two elbow
-  branches coincide; ψ is still defined (joint-4 axis, above).
+- *elbow stretched or folded*, :math:`1 \mp \cos\theta_4 <` ``ELBOW_TOL`` (the rounding of the pose
+  alone reaches that): θ4 := 0 (π), the two elbow branches coincide; ψ is still defined
+  (joint-4 axis, above).
 
 An unreachable pose (:math:`|x_{sw}| > d_{se} + d_{ew}` or
 :math:`< |d_{se} - d_{ew}|`) gives ``valid = 0`` on every branch; cos θ4 is
-clamped so that q stays finite.
+clamped so that q stays finite (1 ∓ cos θ4 at 0).
 """
 
 from __future__ import annotations
@@ -96,6 +99,7 @@ from qpik import symbolic as sy
 from qpik.analytic import trig
 from qpik.analytic.intervals import FeasibleIntervals
 from qpik.analytic.solver import AnalyticSolver, Branches
+from qpik.analytic.trig import EPS
 from qpik.errors import NoClosedFormError
 from qpik.robots.recognize import PATTERNS
 from qpik.symbolic import Mat, Ops, Scalar, Vec
@@ -107,6 +111,12 @@ if TYPE_CHECKING:
 
 SINGULAR_TOL = 1e-10
 """A sine below this (|sin θ2|, |sin θ4|, |sin θ6|, horizontal/total length of x_sw) marks a singular case."""
+ELBOW_TOL = 1e-13
+"""Where ``1 ∓ cos θ4`` is below this the elbow is stretched (folded): θ4 := 0 (π) and ``singular`` is set.
+
+θ4 near 0 goes as the square root of :math:`d_{se} + d_{ew} - |x_{sw}|`: the rounding of a pose
+(~1e-16 m in :math:`|x_{sw}|^2`) alone moves it by ~1e-8 rad there, so a sine test cannot tell a
+stretched elbow from a bent one; this tolerance (θ4 below ~4.5e-7 rad) covers that rounding."""
 
 ALPHA = PATTERNS["srs"].alpha
 """The DH twist pattern the closed form is written for."""
@@ -251,10 +261,16 @@ def arm_setup(R: Mat, p: Vec, geo: SRSGeometry, ops: Ops) -> ArmSetup:
     x_sw = (w[0], w[1], sy.sub(w[2], geo.d_bs))
     r2 = sy.dot(x_sw, x_sw)
     u = sy.vscale(1.0 / ops.sqrt(ops.fmax(r2, _TINY)), x_sw)
-    c4 = (r2 - geo.d_se**2 - geo.d_ew**2) / (2.0 * geo.d_se * geo.d_ew)
-    t4, _, valid = trig.acos2(c4, ops)
-    c4 = ops.fmin(ops.fmax(c4, -1.0), 1.0)
-    s4 = ops.sin(t4)
+    # 1 ∓ cos θ4 from the distances themselves (not from a rounded cos θ4 near ±1), snapped to 0 within rounding
+    k = 2.0 * geo.d_se * geo.d_ew
+    stretch = (geo.d_se + geo.d_ew) ** 2 - r2  # k (1 − cos θ4)
+    fold = r2 - (geo.d_se - geo.d_ew) ** 2  # k (1 + cos θ4)
+    valid = (stretch >= -EPS * k) * (fold >= -EPS * k)
+    stretch = ops.where(stretch < ELBOW_TOL * k, 0.0, stretch)
+    fold = ops.where(fold < ELBOW_TOL * k, 0.0, fold)
+    total = stretch + fold  # = 2k before the snap
+    c4, s4 = (fold - stretch) / total, 2.0 * ops.sqrt(stretch * fold) / total
+    t4 = ops.atan2(s4, c4)
     c1, s1, ref_singular = reference_azimuth(x_sw, ops)
     # elevation of x_sw from the vertical, in the plane of azimuth θ1⁰
     hz = sy.lin((c1, x_sw[0]), (s1, x_sw[1]))

@@ -30,13 +30,23 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``qpik`` console script."""
+    """Entry point of the ``qpik`` console script.
+
+    Every error ends the command with one line on stderr, ``qpik COMMAND: ...``, and exit
+    code 2: qpik's own errors (bad input, problem files, solvers) and the operating
+    system's (files that cannot be read or written) as they are; anything else, a bug,
+    as ``internal error: <type>: <message>``. Argument syntax errors are argparse's (usage
+    and message, exit code 2).
+    """
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except QpikError as exc:
-        print(f"qpik {args.command}: {exc}", file=sys.stderr)
-        return 2
+    except (QpikError, OSError) as exc:
+        message = str(exc)
+    except Exception as exc:  # a bug: still one line, never a traceback
+        message = f"internal error: {type(exc).__name__}: {exc}"
+    print(f"qpik {args.command}: {' '.join(message.split())}", file=sys.stderr)
+    return 2
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -43,13 +43,33 @@ def add_robot(parser: argparse.ArgumentParser, required: bool = True) -> None:
 def robot_from_args(args: argparse.Namespace):
     """The :class:`qpik.Robot` named by the :func:`add_robot` options."""
     from qpik import load_robot
+    from qpik.errors import InputError
 
     options = {k: getattr(args, k) for k in ("base", "tip", "joints") if getattr(args, k) is not None}
     if args.package:
         bad = [p for p in args.package if "=" not in p]
         if bad:
-            raise SystemExit(f"qpik {args.command}: --package expects NAME=DIR, got {bad[0]!r}")
+            raise InputError(f"--package: expected NAME=DIR, got {bad[0]!r}")
         options["package_map"] = dict(p.split("=", 1) for p in args.package)
     if args.collision_only:
         options["collision_only"] = True
     return load_robot(args.robot, **options)
+
+
+
+def whole(values: np.ndarray, option: str) -> list[int]:
+    """The numbers of ``option`` as integers; :class:`InputError` if one is not a whole number."""
+    from qpik.errors import InputError
+
+    if np.any(values != np.round(values)):
+        raise InputError(f"{option}: expected whole numbers, got {values.tolist()}")
+    return [int(v) for v in values]
+
+
+def at_least_one(value: int, option: str) -> int:
+    """``value`` if it is >= 1, else :class:`InputError` naming ``option``."""
+    from qpik.errors import InputError
+
+    if value < 1:
+        raise InputError(f"{option}: must be >= 1, got {value}")
+    return value

@@ -17,10 +17,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _run(args: argparse.Namespace) -> int:
     from qpik.bench import BENCHES, render
+    from qpik.cli.args import at_least_one
+    from qpik.errors import InputError
 
     unknown = sorted(set(args.which) - set(BENCHES))
     if unknown:
-        raise SystemExit(f"qpik bench: unknown bench {', '.join(unknown)}; choose from {', '.join(BENCHES)}")
+        raise InputError(f"unknown bench {', '.join(unknown)}; choose from {', '.join(BENCHES)}")
+    at_least_one(args.repeat, "--repeat")
     for name in args.which or BENCHES:
         module = importlib.import_module(f"qpik.bench.{name}")
         print(render(module.TITLE, module.run(args)))

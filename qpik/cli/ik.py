@@ -13,6 +13,7 @@ import argparse
 import numpy as np
 
 from qpik.cli.args import add_robot, floats, robot_from_args
+from qpik.errors import InputError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -38,17 +39,17 @@ def pose_from_args(args: argparse.Namespace, robot) -> np.ndarray:
     """The (4, 4) pose named by the :func:`add_pose` options (not yet validated)."""
     if args.pose is not None:
         if args.pose.size != 16:
-            raise SystemExit(f"qpik {args.command}: --pose needs 16 numbers, got {args.pose.size}")
+            raise InputError(f"--pose needs 16 numbers, got {args.pose.size}")
         return args.pose.reshape(4, 4)
     if args.q is not None:
         if args.rotation is not None:
-            raise SystemExit(f"qpik {args.command}: --rotation goes with --position, not --q")
+            raise InputError("--rotation goes with --position, not --q")
         return robot.fk(args.q)
     if args.position.size != 3:
-        raise SystemExit(f"qpik {args.command}: --position needs 3 numbers, got {args.position.size}")
+        raise InputError(f"--position needs 3 numbers, got {args.position.size}")
     R = np.eye(3) if args.rotation is None else args.rotation
     if R.size != 9:
-        raise SystemExit(f"qpik {args.command}: --rotation needs 9 numbers, got {R.size}")
+        raise InputError(f"--rotation needs 9 numbers, got {R.size}")
     T = np.eye(4)
     T[:3, :3] = R.reshape(3, 3)
     T[:3, 3] = args.position
@@ -66,7 +67,7 @@ def _run(args: argparse.Namespace) -> int:
     param = args.param
     if param is None:
         if args.q is None:
-            raise SystemExit("qpik ik: --param is required (unless --q is given: then the parameter of q is used)")
+            raise InputError("--param is required (unless --q is given: then the parameter of q is used)")
         param, branch = redundancy_parameter(robot, args.q)
         print(f"parameter of the given q: {param:.6f} rad (branch {branch})")
     sols = ik(robot, T, param)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from qpik.cli.args import add_robot, floats, robot_from_args
+from qpik.cli.args import add_robot, floats, robot_from_args, whole
 from qpik.cli.ik import add_pose, pose_from_args
 
 
@@ -32,6 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _run(args: argparse.Namespace) -> int:
     from qpik import ik
+    from qpik.errors import InputError
     from qpik.plots import save
     from qpik.plots.closed_form import branch_pictures, selfmotion_map
     from qpik.validate import pose as check_pose
@@ -41,21 +42,23 @@ def _run(args: argparse.Namespace) -> int:
         from qpik.problems import find_problem, load
 
         problem = load(find_problem(args.problem))
+        if problem.poses is None:
+            raise InputError(f"--problem: {problem.name} has a path target, not a pose")
         robot, T = problem.robot, problem.poses[0]
         if param is None and problem.params is not None:
             param = float(problem.params[0])
     else:
         if args.robot is None:
-            raise SystemExit("qpik plot: --robot is required unless --problem is given")
+            raise InputError("--robot is required unless --problem is given")
         robot = robot_from_args(args)
         T, _ = check_pose(pose_from_args(args, robot), "pose", args.project)
     if args.what == "selfmotion":
-        branches = None if args.branches is None else [int(b) for b in args.branches]
+        branches = None if args.branches is None else whole(args.branches, "--branches")
         save(selfmotion_map(robot, T, branches=branches, shade_branch=args.shade), args.out)
         print(f"self-motion map of {robot.name} written to {args.out}")
         return 0
     if param is None:
-        raise SystemExit("qpik plot branches: --param is required")
+        raise InputError("branches: --param is required")
     how = branch_pictures(robot, ik(robot, T, param), args.out)
     print(f"branch poses of {robot.name} at {param:.4f} rad written to {args.out} ({how})")
     return 0

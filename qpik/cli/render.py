@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from qpik.cli.args import add_robot, floats, robot_from_args
+from qpik.cli.args import add_robot, at_least_one, floats, robot_from_args, whole
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -36,9 +36,11 @@ def _run(args: argparse.Namespace) -> int:
     if bad:
         raise InputError(f"--q: expected {robot.dof} angles, got {bad[0]}")
     qs = np.array(args.q) if args.q else robot.q_home[None]
-    size = (480, 400) if args.size is None else tuple(int(s) for s in args.size)
+    size = (480, 400) if args.size is None else tuple(whole(args.size, "--size"))
     if len(size) != 2:
         raise InputError(f"--size: expected W,H, got {args.size}")
+    if args.cols is not None:
+        at_least_one(args.cols, "--cols")
     try:
         render_configurations(robot, qs, args.out, cols=args.cols, size=size, overlay=args.overlay)
     except RenderUnavailable as exc:

@@ -30,8 +30,8 @@ from qpik.control.controller import StepInfo
 from qpik.control.state import State
 from qpik.errors import InputError
 from qpik.lie import pose_error
-from qpik.validate import finite_array, joint_vector
-from qpik.validate import pose as check_pose
+from qpik.robots.robot import as_robot
+from qpik.validate import finite_array, joint_vector, number, single_pose
 
 
 class CLIK:
@@ -46,16 +46,18 @@ class CLIK:
     name = "clik"
 
     def __init__(self, robot, position_gain: float = 50.0, orientation_gain: float = 50.0, dt: float = 0.001):
-        self.robot = robot
-        self.dt = float(dt)
-        self.gain = np.repeat([float(position_gain), float(orientation_gain)], 3)
+        self.robot = as_robot(robot)
+        self.dt = number(dt, "dt", minimum=None)
+        if self.dt <= 0:
+            raise InputError(f"dt: must be > 0, got {dt}")
+        self.gain = np.repeat([number(position_gain, "position_gain"), number(orientation_gain, "orientation_gain")], 3)
         self.target: np.ndarray | None = None
         self.twist = np.zeros(6)
         self.last = StepInfo()
 
     def set_target(self, target: np.ndarray, twist: np.ndarray | None = None) -> None:
         """Target pose (4, 4) and desired twist (6,) ``[v; ω]`` (base frame; zero if omitted)."""
-        self.target = check_pose(target, "target")[0]
+        self.target = single_pose(target, "target")
         self.twist = np.zeros(6) if twist is None else finite_array(twist, "twist", (6,)).copy()
 
     def step(self, q: np.ndarray, target: np.ndarray | None = None, twist: np.ndarray | None = None) -> np.ndarray:
@@ -92,8 +94,8 @@ class PseudoInverseCLIK(CLIK):
         self, robot, position_gain: float = 50.0, orientation_gain: float = 50.0, kd: float = 0.0, dt: float = 0.001
     ):
         super().__init__(robot, position_gain, orientation_gain, dt)
-        self.kd = float(kd)
-        self._v_prev = np.zeros(robot.dof)
+        self.kd = number(kd, "kd")
+        self._v_prev = np.zeros(self.robot.dof)
 
     def _velocity(self, state: State, b: np.ndarray) -> np.ndarray:
         if self.kd:
@@ -129,7 +131,7 @@ class DampedLeastSquares(CLIK):
         dt: float = 0.001,
     ):
         super().__init__(robot, position_gain, orientation_gain, dt)
-        self.damping = float(damping)
+        self.damping = number(damping, "damping")
 
     def _velocity(self, state: State, b: np.ndarray) -> np.ndarray:
         J = state.J
@@ -154,7 +156,7 @@ class GradientProjection(CLIK):
         dt: float = 0.001,
     ):
         super().__init__(robot, position_gain, orientation_gain, dt)
-        self.null_gain = float(null_gain)
+        self.null_gain = number(null_gain, "null_gain")
 
     def _velocity(self, state: State, b: np.ndarray) -> np.ndarray:
         J = state.J

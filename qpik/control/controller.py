@@ -11,12 +11,23 @@ Failure policy (never raises in the loop unless ``raise_on_failure=True``):
 
 1. the main solver; if it reports no solution (e.g. OSQP stopping on a degenerate QP),
 2. DAQP, an exact active-set solver (:data:`FALLBACK`), on the same QP;
-3. if the QP is truly infeasible and obstacle rows demand separation (several of them
-   conflict), those rows are relaxed to only forbid approach (``l ← min(l, 0)``, which
-   ``v = 0`` meets) and it is solved again (``last.relaxation == 1``);
-4. otherwise the step returns the point of the box ``[lb, ub]`` nearest to zero velocity
-   (it meets the position and velocity limits and never moves toward an obstacle by
-   itself) with ``last.status == "failed"`` — or raises
+3. if the QP is truly infeasible while the box makes a joint move back from past a position
+   limit (``lb_j > 0`` or ``ub_j < 0``), the return conflicts with the obstacle rows and
+   safety wins: the *yielding* QP keeps every row and the velocity caps, lets the joints
+   past a limit stop (the box widened to contain ``v = 0``: never further out) and asks for
+   the return in the cost, :math:`w \sum_{j\ \rm forced} (v_j - r_j)^2` with the box's
+   return velocity :math:`r_j` and ``w`` = :data:`YIELD_WEIGHT` × (1 + max diag P), above the
+   tasks: the limit is recovered as fast as the obstacle rows allow (``last.status ==
+   "yielding"``). The obstacle rows are bounded inside that widened box
+   (:class:`~qpik.control.limits.ObstacleLimit`), so only rows among themselves can still conflict;
+4. if obstacle rows demand separation and conflict (an arm inside the safety distance of two
+   obstacles on opposite sides), their demands are scaled by 1/4, then 1/16, then 0 (only
+   forbid approach, which ``v = 0`` meets) until it is solved (``last.relaxation`` = 3/4,
+   15/16 or 1, the part of the demand dropped): a part of the separating speed is kept
+   where it can be, since rows held at exactly zero approach let the second-order terms of
+   the motion (see :class:`~qpik.control.limits.ObstacleLimit`) creep closer;
+5. otherwise the step returns ``v = 0`` (the arm holds still: never further past a limit,
+   never toward an obstacle) with ``last.status == "failed"`` — or raises
    :class:`~qpik.errors.SolverError` with ``raise_on_failure=True``.
 """
 
@@ -30,15 +41,21 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from qpik.control.limits import ConfigurationLimit, Limit, ObstacleLimit, VelocityLimit
-from qpik.control.qp import Assembler
+from qpik.control.qp import QP, Assembler
 from qpik.control.solvers import Solver, get_solver
 from qpik.control.state import SymState
 from qpik.control.tasks import DampingTask, FrameTask, ManipulabilityTask, PostureTask, Task
-from qpik.errors import InputError, SolverError
-from qpik.validate import joint_vector
+from qpik.errors import InfeasibleError, InputError, SolverError
+from qpik.geometry.distance import ObstacleSet
+from qpik.robots.robot import as_robot
+from qpik.validate import joint_vector, number
 
 FALLBACK = "daqp"  # exact active-set solver tried when the main solver reports no solution
 ACTIVE_TOL = 1e-7  # rad/s (box) and row units: a constraint within this of its bound is reported active
+RELAXED = (0.25, 0.0625, 0.0)
+"""Fractions of their demand that separating obstacle rows keep when they conflict, tried in turn (failure policy)."""
+YIELD_WEIGHT = 1e3
+"""Weight of the return from past a limit in the yielding QP, relative to 1 + the largest diagonal entry of P."""
 
 
 @dataclass
@@ -48,12 +65,16 @@ class StepInfo:
     Attributes:
         status: ``"ok"``; ``"recovering"`` (started past a position limit or inside the
             safety distance, moving back); ``"penetrating"`` (a capsule overlaps an obstacle,
-            d < 0; moving away); ``"failed"`` (no QP solution: the safe velocity was returned).
+            d < 0; moving away); ``"yielding"`` (past a position limit, the return conflicts
+            with the obstacle rows: it goes only as fast as they allow, see the failure
+            policy); ``"failed"`` (no QP solution: ``v = 0`` was returned). When several
+            hold, the first of failed, yielding, penetrating, recovering is reported.
         active: names of the constraints at their bound (``"joint3 position upper"``,
             ``"obstacle sphere0 / link4"``, ...).
         min_clearance: smallest capsule–obstacle signed distance, m (inf without obstacles).
-        relaxation: 1 if the QP had no solution and the rows that demanded separation were
-            relaxed to only forbid approach (``l ← min(l, 0)``, which ``v = 0`` meets), else 0.
+        relaxation: 0 if the QP was solved as built; else the part of the separating rows'
+            demand that was dropped (3/4, 15/16, or 1: only approach is forbidden, which
+            ``v = 0`` meets) when they conflicted (failure policy, step 4).
         task_error: norm of the first FrameTask's pose error ``[m; rad]`` (nan without one).
         solver_status: the solver's own status string.
         solve_time, total_time: seconds in the solver, and in the whole step.
@@ -61,7 +82,7 @@ class StepInfo:
 
     status: str = "ok"
     min_clearance: float = np.inf
-    relaxation: int = 0
+    relaxation: float = 0.0
     task_error: float = np.nan
     solver_status: str = ""
     solve_time: float = 0.0
@@ -100,11 +121,13 @@ class Controller:
             warm-started) or a :class:`~qpik.control.solvers.Solver`.
         dt: control period, s (position limits and dampers look one step ahead).
         raise_on_failure: raise :class:`SolverError` on a failed solve instead of
-            returning the safe velocity.
+            returning ``v = 0``.
 
     Raises:
-        InfeasibleError: the limits can never be met (e.g. ``q_min > q_max`` overrides).
-        InputError: bad dt or task/limit shapes.
+        InfeasibleError: the limits can never be met (e.g. ``q_min > q_max`` overrides, or two
+            :class:`ConfigurationLimit` s whose ranges of a joint do not meet).
+        InputError: bad dt, robot, solver, tasks, limits or task/limit shapes.
+        SolverError: an unknown or uninstalled solver name.
     """
 
     def __init__(
@@ -116,18 +139,24 @@ class Controller:
         dt: float = 0.001,
         raise_on_failure: bool = False,
     ):
-        self.dt = float(dt)
-        if not np.isfinite(self.dt) or self.dt <= 0:
-            raise InputError(f"dt: must be finite and > 0, got {dt}")
-        self.robot = robot
-        self.tasks = tuple(tasks)
-        self.limits = tuple(limits)
+        self.dt = number(dt, "dt", minimum=None)
+        if self.dt <= 0:
+            raise InputError(f"dt: must be > 0, got {dt}")
+        self.robot = robot = as_robot(robot)
+        self.tasks = _items(tasks, Task, "tasks")
+        self.limits = _items(limits, Limit, "limits")
         for task in self.tasks:
             if isinstance(task, PostureTask) and task.q_ref.shape != (robot.dof,):
                 raise InputError(f"PostureTask.q_ref: expected shape ({robot.dof},), got {task.q_ref.shape}")
         for lim in self.limits:
             lim.check(robot, self.dt)
-        self.solver = get_solver(solver) if isinstance(solver, str) else solver
+        _check_ranges([lim for lim in self.limits if isinstance(lim, ConfigurationLimit)])
+        if isinstance(solver, str):
+            self.solver = get_solver(solver)
+        elif isinstance(solver, Solver):
+            self.solver = solver
+        else:
+            raise InputError(f"solver: expected a solver name or a qpik.control.solvers.Solver, got {solver!r}")
         self.fallback = get_solver(FALLBACK) if self.solver.name != FALLBACK else None
         self.raise_on_failure = raise_on_failure
         self.frame_task = next((t for t in self.tasks if isinstance(t, FrameTask)), None)
@@ -165,13 +194,15 @@ class Controller:
         :class:`ConfigurationLimit` (``margin``), :class:`VelocityLimit` (the robot's) and,
         with ``obstacles``, :class:`ObstacleLimit` (``d_influence``, ``d_safe`` in m, ``xi`` in m/s).
         """
+        robot = as_robot(robot)
         tasks: list[Task] = [
             FrameTask(target, position_gain, orientation_gain),
-            PostureTask(robot.q_home if q_ref is None else q_ref, 1.0, posture_weight),
-            ManipulabilityTask(manipulability_weight),
-            DampingTask(damping),
+            PostureTask(robot.q_home if q_ref is None else q_ref, 1.0, number(posture_weight, "posture_weight")),
+            ManipulabilityTask(number(manipulability_weight, "manipulability_weight")),
+            DampingTask(number(damping, "damping")),
         ]
         limits: list[Limit] = [ConfigurationLimit(margin), VelocityLimit()]
+        obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
         if len(obstacles):
             limits.append(ObstacleLimit(obstacles, d_influence, d_safe, xi))
         return cls(robot, tasks, limits, solver=solver, dt=dt)
@@ -200,13 +231,24 @@ class Controller:
         extra = self.assembler.extra
         t1 = time.perf_counter()
         sol = self.solver.solve(qp)
-        relaxation = 0
+        exact = self.fallback or self.solver
+        relaxation, yielding = 0.0, False
         if not sol.found and self.fallback is not None:
             sol = self.fallback.solve(qp)
-        if not sol.found and (qp.l > 0).any():  # separating rows may conflict: only forbid approach
-            relaxation = 1
-            np.minimum(qp.l, 0.0, out=qp.l)
-            sol = (self.fallback or self.solver).solve(qp)
+        if not sol.found:
+            forced = (qp.lb > 0.0) | (qp.ub < 0.0)
+            if forced.any():  # the return from past a limit conflicts with the rows: safety wins
+                qp, yielding = yielding_qp(qp, forced), True
+                sol = exact.solve(qp)
+        if not sol.found and (qp.l > 0).any():  # separating rows conflict: ask less of them, down to no approach
+            separating = qp.l > 0.0
+            demand = qp.l[separating].copy()
+            for kept in RELAXED:
+                qp.l[separating] = kept * demand
+                sol = exact.solve(qp)
+                if sol.found:
+                    relaxation = 1.0 - kept
+                    break
         t2 = time.perf_counter()
         lb, ub = qp.lb, qp.ub
         info = StepInfo(solver_status=sol.status, solve_time=t2 - t1, relaxation=relaxation)
@@ -216,7 +258,7 @@ class Controller:
         else:
             if self.raise_on_failure:
                 raise SolverError(f"{self.solver.name}: no solution ({sol.status})")
-            v = np.clip(0.0, lb, ub)
+            v = np.zeros(self.robot.dof)
             info.status = "failed"
         for d in extra[: len(self.obstacle_limits)]:
             info.min_clearance = min(info.min_clearance, float(d.min()))
@@ -224,7 +266,9 @@ class Controller:
             e = extra[-1]
             info.task_error = math.sqrt(e @ e)
         if info.status == "ok":
-            if info.min_clearance < 0.0:
+            if yielding:
+                info.status = "yielding"
+            elif info.min_clearance < 0.0:
                 info.status = "penetrating"
             elif any(info.min_clearance < lim.d_safe for lim in self.obstacle_limits) or self._past_limit(q):
                 info.status = "recovering"
@@ -233,7 +277,7 @@ class Controller:
         return v
 
     def _past_limit(self, q: np.ndarray) -> bool:
-        return any((q < lim._lo).any() or (q > lim._hi).any() for lim in self.config_limits)
+        return any((q < lim.range[0]).any() or (q > lim.range[1]).any() for lim in self.config_limits)
 
     def solve_ik(
         self,
@@ -266,3 +310,50 @@ class Controller:
         from qpik.nlp.ik import solve_ik
 
         return solve_ik(self.robot, pose, q0, tol=tol, max_iters=max_iters, max_time=max_time, seed=seed)
+
+
+def _items(items: Sequence, kind: type, name: str) -> tuple:
+    """``items`` as a tuple, each a ``kind``; else :class:`InputError` naming ``name`` and the position."""
+    try:
+        out = tuple(items)
+    except TypeError:
+        raise InputError(f"{name}: expected a sequence of {kind.__name__}s, got {type(items).__name__}") from None
+    for i, item in enumerate(out):
+        if not isinstance(item, kind):
+            raise InputError(f"{name}[{i}]: expected a {kind.__name__}, got {type(item).__name__}")
+    return out
+
+
+def _check_ranges(limits: Sequence[ConfigurationLimit]) -> None:
+    """Raise :class:`InfeasibleError` if the position ranges of several limits (after ``check``) do not meet."""
+    if len(limits) < 2:
+        return
+    lo = np.max([lim.range[0] for lim in limits], axis=0)
+    hi = np.min([lim.range[1] for lim in limits], axis=0)
+    bad = np.flatnonzero(lo > hi)
+    if len(bad):
+        raise InfeasibleError(
+            "ConfigurationLimit: the position ranges of the limits do not meet for joint(s) "
+            + ", ".join(str(j + 1) for j in bad)
+        )
+
+
+def yielding_qp(qp: QP, forced: np.ndarray) -> QP:
+    r"""The QP of step 3 of the failure policy (module docstring), as a new QP.
+
+    ``forced`` (n,) bool marks the joints whose box excludes ``v = 0`` (past a position
+    limit). Their bounds are widened to contain 0 (``lb ← min(lb, 0)``, ``ub ← max(ub, 0)``:
+    they may stop but not move further out), and the cost gains
+    :math:`w (v_j - r_j)^2` toward the velocity :math:`r_j` the box demanded (its bound
+    nearer to 0), ``w`` = :data:`YIELD_WEIGHT` × (1 + max diag P): the return comes first,
+    the tasks after it; every row is kept.
+    """
+    out = qp.copy()
+    r = np.where(qp.lb > 0.0, qp.lb, qp.ub)
+    np.minimum(out.lb, 0.0, out=out.lb)
+    np.maximum(out.ub, 0.0, out=out.ub)
+    w = YIELD_WEIGHT * (1.0 + float(np.abs(np.diagonal(qp.P)).max()))
+    idx = np.flatnonzero(forced)
+    out.P[idx, idx] += 2.0 * w
+    out.c[idx] -= 2.0 * w * r[idx]
+    return out

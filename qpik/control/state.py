@@ -12,8 +12,9 @@ from the expression builders of the other layers — nothing here re-derives the
   (:meth:`~qpik.robots.robot.Robot.capsule_segments_expr`);
 - for a packed obstacle set (:class:`~qpik.geometry.distance.ObstacleSet`), every
   capsule–obstacle distance and witness point (:func:`~qpik.geometry.distance.set_expr`)
-  and the velocity-damper coefficients :math:`n^T J_p(p_{link})` (C·O, n), with the point
-  Jacobian of :meth:`~qpik.robots.chain.SerialChain.point_jacobian_expr`: joint ``j`` turns about
+  and the velocity-damper rows (:meth:`Kinematics.damper_layout`): per row a height ``h``
+  (m) and its rate :math:`n^T J_p(x)` (n,) with the point Jacobian of
+  :meth:`~qpik.robots.chain.SerialChain.point_jacobian_expr`: joint ``j`` turns about
   :math:`z_j` through :math:`o_j`, and a point :math:`p` of link ``k`` moves with
   :math:`\dot p = \sum_{j \le k} z_j \times (p - o_j)\,\dot q_j`.
 
@@ -33,7 +34,10 @@ import numpy as np
 
 from qpik import symbolic as sy
 from qpik.compiled import Compiled
+from qpik.errors import InputError
 from qpik.robots.manipulability import hessian_rows, jacobian_rows, manipulability_gradient_expr
+from qpik.robots.robot import as_robot
+from qpik.validate import joint_vector, number
 
 if TYPE_CHECKING:
     from qpik.geometry.distance import Distances, ObstacleSet
@@ -46,7 +50,8 @@ class Kinematics:
     ``function(kinds)`` maps ``q`` (n,) [and the obstacle parameters] to one flat vector:
     pose (16, row-major), J (6n, row-major), ∇m (n), translational ∇m (n), capsule end
     points (6C), then for C capsules × O obstacles: ``[d, p_link, p_obs, n, s]`` (11 per
-    pair) and the damper rows (C·O × n, row-major). Built once per robot by :func:`kinematics_of`.
+    pair), the R damper rows (R × n, row-major) and their heights (R) of
+    :meth:`damper_layout`. Built once per robot by :func:`kinematics_of`.
     """
 
     def __init__(self, robot: Robot):
@@ -55,6 +60,7 @@ class Kinematics:
         self.n_capsules = len(robot.capsules)
         self.base_size = 16 + 8 * self.n + 6 * self.n_capsules
         self._functions: dict[tuple[str, ...], Compiled] = {}
+        self._layouts: dict[tuple[str, ...], tuple[tuple[int, int, int], ...]] = {}
         self.composed: dict[tuple, ca.Function] = {}  # the controllers' compiled QP functions, by structure
 
     def function(self, kinds: tuple[str, ...]) -> Compiled:
@@ -79,19 +85,52 @@ class Kinematics:
         out += [x for ab in segments for end in ab for x in end]
         return frames, ca.vertcat(*out)
 
+    def damper_layout(self, kinds: tuple[str, ...]) -> tuple[tuple[int, int, int], ...]:
+        r"""``(capsule, obstacle, end)`` of every velocity-damper row for obstacles of families ``kinds``.
+
+        A pair whose distance is C¹ in q (a sphere, :data:`~qpik.geometry.distance.SMOOTH`) or whose
+        link capsule is a point gets one row, ``end = -1``: the witness point :math:`p_{link}`,
+        height ``h = d``. Any other pair gets two rows, ``end = 0`` and ``1``: the capsule's axis
+        end points :math:`x_0 = a`, :math:`x_1 = b` against the *separating plane* of the step,
+        through :math:`p_{obs}` with normal ``n``: height :math:`h_e = n^T (x_e - p_{obs}) - r`.
+        The obstacle lies behind that plane and the capsule's distance to the plane is
+        :math:`\min_e h_e` (an affine function of the axis point is least at an end), so
+        :math:`d \ge \min_e h_e` after any motion: keeping both heights above :math:`d_s`
+        keeps the capsule there, whichever feature of the obstacle is nearest next.
+        """
+        from qpik.geometry.distance import SMOOTH
+
+        layout = self._layouts.get(kinds)
+        if layout is None:
+            out = []
+            for c, cap in enumerate(self.robot.capsules):
+                point = not np.any(np.asarray(cap.p0) != np.asarray(cap.p1))
+                for o, kind in enumerate(kinds):
+                    out += [(c, o, -1)] if point or kind in SMOOTH else [(c, o, 0), (c, o, 1)]
+            layout = self._layouts[kinds] = tuple(out)
+        return layout
+
     def pairs_expr(self, frames: list, kinds: tuple[str, ...], prm: ca.SX) -> ca.SX:
         """The flat pair part of the output (SX column) for obstacles ``kinds`` with parameters ``prm``."""
         from qpik.geometry.distance import set_expr
 
         robot, chain, n = self.robot, self.robot.chain, self.n
         segments = robot.capsule_segments_expr(frames)
-        pairs = set_expr(segments, robot.capsule_radii, kinds, [prm[i] for i in range(prm.numel())], sy.CASADI)
+        radii = robot.capsule_radii
+        pairs = set_expr(segments, radii, kinds, [prm[i] for i in range(prm.numel())], sy.CASADI)
         out = [x for row in pairs for d, p_link, p_obs, nrm, s in row for x in (d, *p_link, *p_obs, *nrm, s)]
-        for cap, row in zip(robot.capsules, pairs):
-            for _, p_link, _, nrm, _ in row:
-                cols = chain.point_jacobian_expr(frames, p_link, cap.link)
-                out += [sy.dot(nrm, col) for col in cols] + [0.0] * (n - cap.link)
-        return ca.vertcat(*out)
+        heights = []
+        for c, o, end in self.damper_layout(kinds):
+            d, p_link, p_obs, nrm, _ = pairs[c][o]
+            point = p_link if end < 0 else segments[c][end]
+            heights.append(d if end < 0 else sy.dot(nrm, sy.vsub(point, p_obs)) - radii[c])
+            link = robot.capsules[c].link
+            out += [sy.dot(nrm, col) for col in chain.point_jacobian_expr(frames, point, link)] + [0.0] * (n - link)
+        return ca.vertcat(*out, *heights)
+
+    def pairs_size(self, kinds: tuple[str, ...]) -> int:
+        """Length of :meth:`pairs_expr`'s output: 11 per pair, then n + 1 per damper row."""
+        return 11 * self.n_capsules * len(kinds) + (self.n + 1) * len(self.damper_layout(kinds))
 
     def _build(self, kinds: tuple[str, ...]) -> ca.Function:
         from qpik.geometry.distance import PARAMS
@@ -123,7 +162,7 @@ class State:
 
     Args:
         robot: the arm.
-        q: joint positions (n,), rad (already validated).
+        q: joint positions (n,), rad.
         dt: control period, s.
         obstacles: the obstacle set evaluated with the kinematics in the same compiled
             call (others are evaluated on demand by :meth:`distances`).
@@ -138,6 +177,11 @@ class State:
     """
 
     def __init__(self, robot: Robot, q: np.ndarray, dt: float, obstacles: ObstacleSet | None = None):
+        robot = as_robot(robot)
+        q, batched = joint_vector(q, robot.dof)
+        if batched:
+            raise InputError(f"q: expected shape ({robot.dof},), got {q.shape}")
+        dt = number(dt, "dt", minimum=None)
         kin = kinematics_of(robot)
         self.kin = kin
         self.robot = robot
@@ -150,7 +194,7 @@ class State:
         self._grad = out[16 + 6 * n : 16 + 8 * n].reshape(2, n)
         self.segments = out[16 + 8 * n : kin.base_size].reshape(C, 2, 3)
         self.base = out[: kin.base_size]  # the flat base part (the input of :class:`SymState` ``.free``)
-        self._pairs: dict[int, tuple[ObstacleSet, Distances, np.ndarray, np.ndarray]] = {}
+        self._pairs: dict[int, tuple[ObstacleSet, Distances, np.ndarray, np.ndarray, np.ndarray]] = {}
         if obstacles is not None and len(obstacles):
             self._unpack(obstacles, out)
 
@@ -163,19 +207,23 @@ class State:
         out.flags.writeable = False
         return out
 
-    def _unpack(self, obstacles: ObstacleSet, out: np.ndarray) -> tuple[ObstacleSet, Distances, np.ndarray, np.ndarray]:
+    def _unpack(
+        self, obstacles: ObstacleSet, out: np.ndarray
+    ) -> tuple[ObstacleSet, Distances, np.ndarray, np.ndarray, np.ndarray]:
         from qpik.geometry.distance import Distances
 
-        C, O, base = self.kin.n_capsules, len(obstacles), self.kin.base_size
+        C, O, base, n = self.kin.n_capsules, len(obstacles), self.kin.base_size, self.kin.n
+        R = len(self.kin.damper_layout(obstacles.kinds))
         pairs = out[base : base + 11 * C * O].reshape(C, O, 11)
         dist = Distances(
             d=pairs[..., 0], p_link=pairs[..., 1:4], p_obs=pairs[..., 4:7], normal=pairs[..., 7:10], s=pairs[..., 10]
         )
-        rows = out[base + 11 * C * O :].reshape(C * O, self.kin.n)
-        entry = self._pairs[id(obstacles)] = (obstacles, dist, rows, out[base:])
+        start = base + 11 * C * O
+        rows, heights = out[start : start + R * n].reshape(R, n), out[start + R * n :]
+        entry = self._pairs[id(obstacles)] = (obstacles, dist, rows, heights, out[base:])
         return entry
 
-    def _entry(self, obstacles: ObstacleSet) -> tuple[ObstacleSet, Distances, np.ndarray, np.ndarray]:
+    def _entry(self, obstacles: ObstacleSet) -> tuple[ObstacleSet, Distances, np.ndarray, np.ndarray, np.ndarray]:
         entry = self._pairs.get(id(obstacles))
         if entry is None or entry[0] is not obstacles:
             entry = self._unpack(obstacles, self._evaluate(obstacles))
@@ -190,17 +238,22 @@ class State:
         return self._entry(obstacles)[1]
 
     def damper_rows(self, obstacles: ObstacleSet) -> np.ndarray:
-        r"""Rows :math:`n^T J_p(p_{link})` (C·O, n), pair ``(c, o)`` at row ``c·O + o``.
+        r"""Rows :math:`n^T J_p(x)` (R, n) in the order of :meth:`Kinematics.damper_layout`.
 
-        ``n`` and ``p_link`` are the pair's unit normal and witness point on the capsule
-        (:meth:`distances`); ``J_p`` is the point Jacobian of capsule c's link (zero
-        columns for the joints beyond it), so the row is :math:`\dot d` per unit ``v``.
+        ``n`` is the pair's unit normal (:meth:`distances`) and ``x`` the row's point on the
+        capsule (the witness point or an axis end); ``J_p`` is the point Jacobian of the
+        capsule's link (zero columns for the joints beyond it), so the row is the rate
+        :math:`\dot h` of the row's height (:meth:`damper_heights`) per unit ``v``.
         """
         return self._entry(obstacles)[2]
 
+    def damper_heights(self, obstacles: ObstacleSet) -> np.ndarray:
+        """Heights h (R,), m, of the damper rows (:meth:`Kinematics.damper_layout`): each is ≥ the pair's d."""
+        return self._entry(obstacles)[3]
+
     def pairs(self, obstacles: ObstacleSet) -> np.ndarray:
         """The flat pair part of the step output for ``obstacles`` (the input of :class:`SymState` ``.free``)."""
-        return self._entry(obstacles)[3]
+        return self._entry(obstacles)[4]
 
 
 _TOKENS = itertools.count()
@@ -261,7 +314,7 @@ class SymState:
             prm = s.parameter(len(obstacles.params), lambda state: obstacles.params)
             if trace:
                 return kin.pairs_expr(frames, obstacles.kinds, prm)
-            return ca.SX.sym("pairs", (11 + kin.n) * kin.n_capsules * len(obstacles))
+            return ca.SX.sym("pairs", kin.pairs_size(obstacles.kinds))
 
         return cls(kin, q, dt, base, pairs_of)
 
@@ -271,8 +324,7 @@ class SymState:
         base = ca.SX.sym("base", kin.base_size)
 
         def pairs_of(s: SymState, obstacles: ObstacleSet) -> ca.SX:
-            size = (11 + kin.n) * kin.n_capsules * len(obstacles)
-            return s.parameter(size, lambda state: state.pairs(obstacles))
+            return s.parameter(kin.pairs_size(obstacles.kinds), lambda state: state.pairs(obstacles))
 
         s = cls(kin, ca.SX.sym("q", kin.n), ca.SX.sym("dt"), base, pairs_of)
         s.inputs += [(s.q, lambda state: state.q), (s.dt, lambda state: state.dt), (base, lambda state: state.base)]
@@ -307,9 +359,14 @@ class SymState:
         return self._entry(obstacles)[0 : 11 * C * O : 11]
 
     def damper_rows(self, obstacles: ObstacleSet) -> ca.SX:
-        """Rows (C·O, n) as in :meth:`State.damper_rows`."""
-        C, O = self.kin.n_capsules, len(obstacles)
-        return _rows(self._entry(obstacles)[11 * C * O :], C * O, self.n)
+        """Rows (R, n) as in :meth:`State.damper_rows`."""
+        start, R = 11 * self.kin.n_capsules * len(obstacles), len(self.kin.damper_layout(obstacles.kinds))
+        return _rows(self._entry(obstacles)[start : start + R * self.n], R, self.n)
+
+    def damper_heights(self, obstacles: ObstacleSet) -> ca.SX:
+        """Heights (R,) as in :meth:`State.damper_heights`, m."""
+        start, R = 11 * self.kin.n_capsules * len(obstacles), len(self.kin.damper_layout(obstacles.kinds))
+        return self._entry(obstacles)[start + R * self.n : start + R * (self.n + 1)]
 
 
 def evaluate(owner, state: State, build, *extra: np.ndarray) -> list[np.ndarray]:

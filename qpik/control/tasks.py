@@ -23,7 +23,7 @@ import numpy as np
 from qpik.control.state import State, SymState, _unique, evaluate
 from qpik.errors import InputError
 from qpik.lie import pose_error_expr, se3_ljacinv_expr, se3_log_expr
-from qpik.validate import finite_array, pose
+from qpik.validate import finite_array, number, single_pose
 
 _EMPTY = np.zeros(0)
 
@@ -95,8 +95,8 @@ class FrameTask(Task):
 
     Args:
         target: (4, 4) target pose in the base frame (may be set later by :meth:`set_target`).
-        position_gain, orientation_gain: :math:`k_p, k_o`, 1/s.
-        position_weight, orientation_weight: :math:`w_p` (per m²/s²), :math:`w_o` (per rad²/s²).
+        position_gain, orientation_gain: :math:`k_p, k_o`, 1/s (finite, ≥ 0).
+        position_weight, orientation_weight: :math:`w_p` (per m²/s²), :math:`w_o` (per rad²/s²) (finite, ≥ 0).
         twist: (6,) feedforward twist ``[v; ω]`` of the target, base frame (m/s; rad/s), in both conventions.
         error: the error convention, ``"world"`` or ``"se3"`` (fixed: it sets the compiled expression's form).
 
@@ -116,21 +116,21 @@ class FrameTask(Task):
         twist: np.ndarray | None = None,
         error: Literal["world", "se3"] = "world",
     ):
-        if error not in ("world", "se3"):
+        if not isinstance(error, str) or error not in ("world", "se3"):
             raise InputError(f"error: FrameTask error must be 'world' or 'se3', got {error!r}")
         self.convention = error
         self.target: np.ndarray | None = None
         self.twist = np.zeros(6)
-        self.gain = np.repeat([float(position_gain), float(orientation_gain)], 3)
-        self.weight = np.repeat([float(position_weight), float(orientation_weight)], 3)
-        if np.any(self.weight < 0) or np.any(self.gain < 0):
-            raise InputError("FrameTask: gains and weights must be >= 0")
+        self.gain = np.repeat([number(position_gain, "position_gain"), number(orientation_gain, "orientation_gain")], 3)
+        self.weight = np.repeat(
+            [number(position_weight, "position_weight"), number(orientation_weight, "orientation_weight")], 3
+        )
         if target is not None:
             self.set_target(target, twist)
 
     def set_target(self, target: np.ndarray, twist: np.ndarray | None = None) -> None:
         """Set the target pose (4, 4) and feedforward twist (6,) ``[v; ω]``, base frame (zero if omitted)."""
-        self.target = pose(target, "target")[0]
+        self.target = single_pose(target, "target")
         self.twist = np.zeros(6) if twist is None else finite_array(twist, "twist", (6,)).copy()
 
     def structure(self) -> tuple:
@@ -185,16 +185,16 @@ class PostureTask(Task):
 
     Args:
         q_ref: (n,) reference configuration, rad.
-        gain: k, 1/s.
-        weight: w, per (rad/s)².
+        gain: k, 1/s (finite, ≥ 0).
+        weight: w, per (rad/s)² (finite, ≥ 0).
     """
 
     name = "posture"
 
     def __init__(self, q_ref: np.ndarray, gain: float = 1.0, weight: float = 1e-3):
         self.q_ref = finite_array(q_ref, "q_ref", (None,)).copy()
-        self.gain = float(gain)
-        self.weight = float(weight)
+        self.gain = number(gain, "gain")
+        self.weight = number(weight, "weight")
 
     def structure(self) -> tuple:
         return ()
@@ -212,12 +212,12 @@ class PostureTask(Task):
 
 
 class DampingTask(Task):
-    r"""Velocity damping :math:`\lambda \|v\|^2` (λ per (rad/s)²): regularises the null space."""
+    r"""Velocity damping :math:`\lambda \|v\|^2` (λ per (rad/s)², finite, ≥ 0): regularises the null space."""
 
     name = "damping"
 
     def __init__(self, weight: float = 1e-4):
-        self.weight = float(weight)
+        self.weight = number(weight, "damping weight")
 
     def structure(self) -> tuple:
         return ()
@@ -242,14 +242,14 @@ class ManipulabilityTask(Task):
     freedom (its magnitude is set by the quadratic terms).
 
     Args:
-        weight: w (s/rad per unit of m).
+        weight: w (s/rad per unit of m; finite, ≥ 0).
         translational: use the translational part of the Jacobian only.
     """
 
     name = "manipulability"
 
     def __init__(self, weight: float = 1e-2, translational: bool = False):
-        self.weight = float(weight)
+        self.weight = number(weight, "manipulability weight")
         self.translational = bool(translational)
 
     def param_size(self, n: int) -> int:

@@ -35,7 +35,7 @@ The velocity-damper row is then ``nᵀ J_p v ≥ −ξ (d − d_s)/(d_i − d_s)
 The kernels (:mod:`qpik.geometry.segment`) are written once in the scalar
 algebra of :mod:`qpik.symbolic` and run two ways. A list of shapes (or a batch
 of configurations) goes through numpy, vectorised over capsules × obstacles of
-each type (spheres and capsules share the segment–segment kernel). An
+each kernel family (a sphere is the segment–segment kernel with a point). An
 :class:`ObstacleSet` packed once and called with one (C, 2, 3) set of segments
 goes through a CasADi function traced from the same kernels and evaluated via
 :class:`qpik.compiled.Compiled` — the 1 kHz path (numpy's per-call overhead of
@@ -56,7 +56,7 @@ from qpik.errors import InputError
 from qpik.geometry.segment import segment_box, segment_capsule, segment_halfspace
 from qpik.geometry.shapes import Box, Capsule, HalfSpace, Shape, Sphere
 from qpik.symbolic import CASADI, NUMPY, Mat, Ops, Scalar, Vec, matvec, transpose, vadd, vscale, vsub
-from qpik.validate import finite_array
+from qpik.validate import bounded, finite_array
 
 Kernel = tuple[Scalar, Scalar, Vec, Vec]
 
@@ -64,8 +64,10 @@ Kernel = tuple[Scalar, Scalar, Vec, Vec]
 def _params(shape: Shape) -> tuple[str, np.ndarray]:
     """The kernel family of a shape and its flat parameter vector (world frame)."""
     if isinstance(shape, Sphere):
-        return "capsule", np.r_[shape.center, np.zeros(3), shape.radius]
+        return "sphere", np.r_[shape.center, shape.radius]
     if isinstance(shape, Capsule):
+        if not np.any(shape.p1 != shape.p0):  # a zero-length capsule is a sphere
+            return "sphere", np.r_[shape.p0, shape.radius]
         return "capsule", np.r_[shape.p0, shape.p1 - shape.p0, shape.radius]
     if isinstance(shape, Box):
         return "box", np.r_[shape.center, shape.rotation.ravel(), shape.half_extents]
@@ -74,12 +76,19 @@ def _params(shape: Shape) -> tuple[str, np.ndarray]:
     raise InputError(f"obstacle: expected a Sphere, Capsule, Box or HalfSpace, got {type(shape).__name__}")
 
 
-PARAMS = {"capsule": 7, "box": 15, "halfspace": 4}
+PARAMS = {"sphere": 4, "capsule": 7, "box": 15, "halfspace": 4}
 """Length of the parameter vector of each kernel family (see :func:`_params`)."""
+SMOOTH = frozenset({"sphere"})
+"""Kernel families whose witness point on a link capsule is unique and moves continuously with the
+capsule (the closest point of a segment to a point): the distance is C¹ in the configuration. For
+the others (a capsule axis parallel to a box face, a half-space or another capsule) the witness can
+jump along the capsule from one step to the next; see :class:`qpik.control.limits.ObstacleLimit`."""
 
 
 def _pair(kind: str, a: Vec, u: Vec, prm: Sequence[Scalar], ops: Ops) -> Kernel:
     """``(s, sd, p, n)`` of the segment ``a + s u`` to one obstacle given by its parameters (world frame)."""
+    if kind == "sphere":
+        return segment_capsule(a, u, tuple(prm[0:3]), (0.0, 0.0, 0.0), prm[3], ops)  # type: ignore[arg-type]
     if kind == "capsule":
         return segment_capsule(a, u, tuple(prm[0:3]), tuple(prm[3:6]), prm[6], ops)  # type: ignore[arg-type]
     if kind == "halfspace":
@@ -132,7 +141,10 @@ class ObstacleSet:
     """
 
     def __init__(self, shapes: Sequence[Shape]):
-        self.shapes: tuple[Shape, ...] = tuple(shapes)
+        try:
+            self.shapes: tuple[Shape, ...] = tuple(shapes)
+        except TypeError:
+            raise InputError(f"obstacles: expected a sequence of shapes, got {type(shapes).__name__}") from None
         packed = []
         for i, sh in enumerate(self.shapes):
             try:
@@ -197,10 +209,10 @@ def distances(segments: np.ndarray, radii: np.ndarray, obstacles: Sequence[Shape
     Returns:
         :class:`Distances` with C rows and ``len(obstacles)`` columns.
     """
-    seg = finite_array(segments, "segments")
+    seg = bounded(finite_array(segments, "segments"), "segments")
     if seg.ndim not in (3, 4) or seg.shape[-2:] != (2, 3):
         raise InputError(f"segments: expected shape (C, 2, 3) or (N, C, 2, 3), got {seg.shape}")
-    r = finite_array(radii, "radii", (seg.shape[-3],))
+    r = bounded(finite_array(radii, "radii", (seg.shape[-3],)), "radii")
     if np.any(r < 0.0):
         raise InputError("radii: must be >= 0")
     packed = isinstance(obstacles, ObstacleSet)

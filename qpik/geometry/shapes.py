@@ -28,19 +28,16 @@ PLANE_EXTENT = 2.0
 
 
 def _vec3(x: object, name: str) -> np.ndarray:
-    arr = validate.finite_array(x, name, (3,)).copy()
+    arr = validate.bounded(validate.finite_array(x, name, (3,)).copy(), name)
     arr.flags.writeable = False
     return arr
 
 
 def _positive(x: object, name: str) -> float:
-    try:
-        val = float(x)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise InputError(f"{name}: expected a number, got {x!r}") from None
+    val = validate.number(x, name, minimum=None, finite=False)
     if not np.isfinite(val) or val <= 0.0:
         raise InputError(f"{name}: must be finite and > 0, got {val}")
-    return val
+    return float(validate.bounded(np.array(val), name))
 
 
 def _fmt(values: Sequence[float] | np.ndarray) -> str:
@@ -157,12 +154,12 @@ class HalfSpace(Shape):
     kind: ClassVar[str] = "halfspace"
 
     def __post_init__(self) -> None:
-        n = validate.finite_array(self.normal, "normal", (3,))
+        n = validate.bounded(validate.finite_array(self.normal, "normal", (3,)), "normal")
         norm = float(np.linalg.norm(n))
         if not norm > 1e-12:
             raise InputError("normal: must not be the zero vector")
         object.__setattr__(self, "normal", _vec3(n / norm, "normal"))
-        offset = validate.finite_array(self.offset, "offset", ())
+        offset = validate.bounded(validate.finite_array(self.offset, "offset", ()), "offset")
         object.__setattr__(self, "offset", float(offset) / norm)
 
     def _geom_attrs(self) -> str:
@@ -197,7 +194,7 @@ def shape_from_spec(spec: Mapping[str, object]) -> Shape:
     if not isinstance(spec, Mapping):
         raise InputError(f"obstacle: expected a table/dict, got {type(spec).__name__}")
     kind = spec.get("type")
-    if kind not in SHAPES:
+    if not isinstance(kind, str) or kind not in SHAPES:
         raise InputError(f"obstacle type: expected one of {sorted(SHAPES)}, got {kind!r}")
     required, optional = _FIELDS[kind]
     missing = [k for k in required if k not in spec]
@@ -218,6 +215,8 @@ def obstacles_from_specs(specs: Sequence[Mapping[str, object]]) -> tuple[Shape, 
 
     Errors name the position of the offending entry, e.g. ``obstacles[2]: ...``.
     """
+    if isinstance(specs, str | Mapping) or not isinstance(specs, Sequence):
+        raise InputError(f"obstacles: expected a list of tables/dicts, got {type(specs).__name__}")
     out = []
     for i, spec in enumerate(specs):
         try:

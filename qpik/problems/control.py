@@ -16,9 +16,10 @@ form (:func:`closed_form_reference`): over the feasible arm-angle intervals of t
 start's branch, the configuration with the best clearance. The same controller
 without the obstacle limit is run on the same scene to show that the limit is needed.
 
-``[solver]`` keys (all optional): ``dt`` (s), ``duration`` (s), ``kp_position``,
-``kp_orientation`` (1/s), ``posture_weight``, ``manipulability_weight``, ``damping``;
-``reach`` also ``d_safe``, ``d_influence`` (m), ``xi`` (m/s). ``[expected]`` keys:
+``[solver]`` keys (all optional; their defaults and values: :data:`qpik.problems.schema.SOLVER_KEYS`):
+``dt`` (s), ``duration`` (s), ``kp_position``, ``kp_orientation`` (1/s), ``posture_weight``,
+``manipulability_weight``, ``damping``; ``reach`` also ``d_safe``, ``d_influence`` (m), ``xi`` (m/s).
+``[expected]`` keys:
 ``track``: ``tracking_error`` (m), ``transient`` (s); ``reach``: ``position_error`` (m),
 ``orientation_error`` (rad), ``psi_tolerance`` (rad).
 """
@@ -122,10 +123,7 @@ def closed_form_reference(
 
 def _settings(problem: Problem) -> dict[str, Any]:
     s = problem.solver
-    return {
-        "position_gain": float(s.get("kp_position", 50.0)),
-        "orientation_gain": float(s.get("kp_orientation", 50.0)),
-    }
+    return {"position_gain": s["kp_position"], "orientation_gain": s["kp_orientation"]}
 
 
 def _verdict(ok: bool) -> str:
@@ -143,17 +141,17 @@ def track_runs(problem: Problem) -> list[SimLog]:
     """The three closed loops of a ``track`` problem: QP, PD CLIK, velocity-only (in that order)."""
     robot, path = problem.robot, problem.path
     s = problem.solver
-    dt = float(s.get("dt", 0.001))
-    duration = float(s.get("duration", path.duration))
+    dt = s["dt"]
+    duration = path.duration if s["duration"] is None else s["duration"]
     q0 = robot.q_home if path.q0 is None else path.q0
     gains = _settings(problem)
     qp = Controller.for_robot(
         robot,
         dt=dt,
         q_ref=q0,
-        posture_weight=float(s.get("posture_weight", 1e-5)),
-        manipulability_weight=float(s.get("manipulability_weight", 0.0)),
-        damping=float(s.get("damping", 1e-8)),
+        posture_weight=s["posture_weight"],
+        manipulability_weight=s["manipulability_weight"],
+        damping=s["damping"],
         **gains,
     )
     policies = {
@@ -172,14 +170,14 @@ def run_track(problem: Problem, out: Path) -> str:
     logs = track_runs(problem)
     dt, duration = logs[0].dt, float(logs[0].t[-1])
     gains = _settings(problem)
-    transient = float(problem.expected.get("transient", 1.0))
+    transient = problem.expected_number("transient", 1.0)
     sums = [log.summary(transient) for log in logs]
     qp_s, pd_s, vel_s = sums
     figure = plot_comparison(logs, out / f"{problem.name}_errors.png", title=f"{problem.name}: tracking error")
     qp_plot = plot_log(logs[0], out / f"{problem.name}_qp.png")
 
     drift = vel_s.max_pos_error / max(pd_s.max_pos_error, 1e-15)
-    tol = problem.expected.get("tracking_error")
+    tol = problem.expected_number("tracking_error")
     lines = [
         f"# {problem.name} (track)",
         "",
@@ -202,7 +200,6 @@ def run_track(problem: Problem, out: Path) -> str:
     ]
     checks = [("velocity-only drifts more than PD CLIK", drift > 1.0)]
     if tol is not None:
-        tol = float(tol)
         checks += [
             (f"PD CLIK error ≤ {tol:g} m (the paper's claim)", pd_s.max_pos_error <= tol),
             (f"QP error ≤ {tol:g} m", qp_s.max_pos_error <= tol),
@@ -244,8 +241,8 @@ def reach_runs(problem: Problem) -> ReachRuns:
     pose = problem.poses[0]
     obstacles = problem.obstacles
     s = problem.solver
-    dt, duration = float(s.get("dt", 0.002)), float(s.get("duration", 5.0))
-    d_safe, d_influence, xi = float(s.get("d_safe", 0.02)), float(s.get("d_influence", 0.10)), float(s.get("xi", 0.5))
+    dt, duration = s["dt"], s["duration"]
+    d_safe, d_influence, xi = s["d_safe"], s["d_influence"], s["xi"]
     q0 = robot.q_home
     ref = closed_form_reference(robot, pose, obstacles, q0, cap=d_influence)
     kwargs = dict(
@@ -255,9 +252,9 @@ def reach_runs(problem: Problem) -> ReachRuns:
         d_safe=d_safe,
         d_influence=d_influence,
         xi=xi,
-        posture_weight=float(s.get("posture_weight", 1e-3)),
-        manipulability_weight=float(s.get("manipulability_weight", 0.0)),
-        damping=float(s.get("damping", 1e-4)),
+        posture_weight=s["posture_weight"],
+        manipulability_weight=s["manipulability_weight"],
+        damping=s["damping"],
         **_settings(problem),
     )
     every = max(1, round(0.01 / dt))
@@ -284,25 +281,28 @@ def run_reach(problem: Problem, out: Path) -> str:
     plot_log(free, out / f"{problem.name}_free_log.png", title=f"{problem.name}: {free.label}")
     strip = render_strip(log, out / f"{problem.name}_strip.png")
 
-    e = problem.expected
-    pos_tol, rot_tol = float(e.get("position_error", 1e-3)), float(e.get("orientation_error", 1e-2))
-    psi_tol = float(e.get("psi_tolerance", 0.05))
+    pos_tol = problem.expected_number("position_error", 1e-3)
+    rot_tol = problem.expected_number("orientation_error", 1e-2)
+    psi_tol = problem.expected_number("psi_tolerance", 0.05)
     margins = log.limit_margin.min(axis=0)
+    closest, free_closest = (float(sm.min_clearance.min(initial=np.inf)) for sm in (summ, free_s))
     checks = [
         (f"reached: final position error {summ.final_pos_error * 1e3:.3g} mm ≤ {pos_tol * 1e3:g} mm",
          summ.final_pos_error <= pos_tol),
         (f"reached: final orientation error {summ.final_rot_error:.3g} rad ≤ {rot_tol:g} rad",
          summ.final_rot_error <= rot_tol),
-        (f"clearance ≥ d_s: min {summ.min_clearance.min() * 1e3:.2f} mm vs d_s = {d_safe * 1e3:g} mm",
-         summ.min_clearance.min() >= d_safe - 1e-4),
         (f"joint limits kept: max violation {summ.max_limit_violation:.3g} rad", summ.max_limit_violation <= 1e-9),
         (f"velocity limits kept: max abs(v)/v_max = {summ.max_velocity_ratio:.4g}",
          summ.max_velocity_ratio <= 1 + 1e-6),
         (f"final q on the chosen branch {ref.branch} (got {branch}), abs(Δψ) = {dpsi:.3g} rad ≤ {psi_tol:g}",
          branch == ref.branch and dpsi <= psi_tol),
-        (f"obstacle limit needed: without it the min clearance is {free_s.min_clearance.min() * 1e3:.1f} mm < d_s",
-         free_s.min_clearance.min() < d_safe),
     ]  # fmt: skip
+    if problem.obstacles:
+        checks += [
+            (f"clearance ≥ d_s: min {closest * 1e3:.2f} mm vs d_s = {d_safe * 1e3:g} mm", closest >= d_safe - 1e-4),
+            (f"obstacle limit needed: without it the min clearance is {free_closest * 1e3:.1f} mm < d_s",
+             free_closest < d_safe),
+        ]  # fmt: skip
     link = [n.replace("_capsule", "") for n in log.link_names]
     lines = [
         f"# {problem.name} (reach)",
@@ -322,7 +322,7 @@ def run_reach(problem: Problem, out: Path) -> str:
         "|---|---|---|---|---|---|",
         *(
             f"| {lg.label} | {sm.final_pos_error * 1e3:.3g} | {sm.final_rot_error:.3g} |"
-            f" {sm.min_clearance.min() * 1e3:.1f} | {sm.min_limit_margin:.3f} |"
+            f" {sm.min_clearance.min(initial=np.inf) * 1e3:.1f} | {sm.min_limit_margin:.3f} |"
             f" {sm.solve_time.get('median', np.nan) * 1e6:.0f} |"
             for lg, sm in ((log, summ), (free, free_s))
         ),

@@ -164,7 +164,7 @@ def _compare_expected(problem: Problem, grid: _Grid, poses: np.ndarray) -> tuple
         raise ProblemFileError(f"{problem.file}: expected.q needs one pose and one parameter value")
     q_exp = np.atleast_2d(exp["q"])
     ids = np.asarray(exp.get("branches", grid.branch[: len(q_exp)]))
-    tol = float(exp.get("tolerance", 0.05))
+    tol = problem.expected_number("tolerance", 0.05)
     sym = symbol(grid.param_name)
     idx = [int(np.flatnonzero(grid.branch == b)[0]) for b in ids]
     q = grid.q[0, 0, idx]
@@ -193,7 +193,7 @@ def _compare_expected(problem: Problem, grid: _Grid, poses: np.ndarray) -> tuple
     lines += ["", f"Max difference: {worst:.4f} rad (tolerance {tol:g} rad)", ""]
     checks = [(f"every expected row within {tol:g} rad of qpik's branch (max {worst:.4f} rad)", worst <= tol)]
     if "fk_tolerance" in exp:
-        ftol = float(exp["fk_tolerance"])
+        ftol = problem.expected_number("fk_tolerance")
         p_err, _ = fk_residual(robot, q_exp, poses[0])
         lines += [f"FK of the file's rounded rows: position error up to {p_err.max() * 1e3:.1f} mm", ""]
         checks.append((f"the file's rows reach p within {ftol:g} m (max {p_err.max():.4f} m)", p_err.max() <= ftol))
@@ -203,7 +203,7 @@ def _compare_expected(problem: Problem, grid: _Grid, poses: np.ndarray) -> tuple
 def _recovery(problem: Problem, poses: np.ndarray) -> tuple[list[str], tuple[str, bool]]:
     """For targets made from q: one branch at the parameter of q gives q back."""
     robot, qt = problem.robot, problem.q_targets
-    tol = float(problem.expected.get("tolerance", 1e-9))
+    tol = problem.expected_number("tolerance", 1e-9)
     par, br = redundancy_parameter(robot, qt)
     sols = ik(robot, poses, np.asarray(par))
     err = np.abs(wrap(sols.q - qt[:, None, :])).max(axis=-1)
@@ -279,8 +279,8 @@ def _sweep_section(
 
 def _chosen_branch(problem: Problem, grid: _Grid) -> int:
     """``[solver] branch``, else the branch of the (first) target q, else the first branch."""
-    if "branch" in problem.solver:
-        b = int(problem.solver["branch"])
+    if problem.solver["branch"] is not None:
+        b = problem.solver["branch"]
         if b not in grid.branch:
             raise ProblemFileError(f"{problem.file}: solver.branch {b} is not one of {grid.branch.tolist()}")
         return b

@@ -52,12 +52,17 @@ Format (TOML; every key below is the whole vocabulary: an unknown key is an erro
     # type = "halfspace"      # normal (3,) != 0, offset: the solid normal·x <= offset
     # (read by qpik.geometry.shape_from_spec, the one obstacle parser)
 
-    [solver]                  # optional, free-form: passed to the runner (dt, gains, ...)
+    [solver]                  # optional: the runner's settings, the keys of SOLVER_KEYS[kind] only
     [expected]                # optional, free-form: figures from the paper; lists of
                               # numbers become arrays (e.g. q = [[..7..], ...]: float (16, 7))
 
 Kinds and targets: ``ik`` and ``reach`` need poses (forms 1-4), ``track`` a path
 (form 5), ``plan`` either.
+
+``[solver]`` keys: :data:`SOLVER_KEYS` lists, per kind, every key its runner reads, with
+its default and its values; an unknown key is an error that names the closest known
+one (a typo such as ``d_saef`` is never ignored), and :attr:`Problem.solver` holds every
+key of the kind (the file's value or the default).
 
 All positions and obstacle data are in the robot's base frame, metres. Errors
 raise :class:`qpik.errors.ProblemFileError` naming the file and the field.
@@ -66,6 +71,7 @@ raise :class:`qpik.errors.ProblemFileError` naming the file and the field.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -85,6 +91,51 @@ Kind = Literal["ik", "track", "reach", "plan"]
 KINDS: tuple[str, ...] = ("ik", "track", "reach", "plan")
 
 
+@dataclass(frozen=True)
+class Setting:
+    """One ``[solver]`` key: its default and the values it takes.
+
+    Attributes:
+        default: the value when the file omits the key (``None``: the runner decides, see ``doc``).
+        doc: what it is, with its unit.
+        integer: an integer (else a float).
+        positive: the value must be > 0 (else ≥ 0, or any integer).
+    """
+
+    default: float | int | None
+    doc: str
+    integer: bool = False
+    positive: bool = False
+
+
+_GAINS = {
+    "kp_position": Setting(50.0, "position gain of the frame task, 1/s"),
+    "kp_orientation": Setting(50.0, "orientation gain of the frame task, 1/s"),
+    "manipulability_weight": Setting(0.0, "weight of the manipulability task"),
+}
+SOLVER_KEYS: dict[str, dict[str, Setting]] = {
+    "ik": {"branch": Setting(None, "branch drawn in sweeps (default: the target q's, else the first)", integer=True)},
+    "track": {
+        "dt": Setting(0.001, "control period, s", positive=True),
+        "duration": Setting(None, "simulated time, s (default: the path's duration)", positive=True),
+        **_GAINS,
+        "posture_weight": Setting(1e-5, "weight of the posture task"),
+        "damping": Setting(1e-8, "weight of the damping task"),
+    },
+    "reach": {
+        "dt": Setting(0.002, "control period, s", positive=True),
+        "duration": Setting(5.0, "simulated time, s", positive=True),
+        **_GAINS,
+        "posture_weight": Setting(1e-3, "weight of the posture task"),
+        "damping": Setting(1e-4, "weight of the damping task"),
+        "d_safe": Setting(0.02, "safety distance of the velocity dampers, m", positive=True),
+        "d_influence": Setting(0.10, "influence distance of the velocity dampers, m", positive=True),
+        "xi": Setting(0.5, "largest approach speed of the velocity dampers, m/s", positive=True),
+    },
+    "plan": {},
+}
+"""Per kind, every ``[solver]`` key its runner (:mod:`qpik.problems.runners`) reads: the one list of them."""
+
 @dataclass(frozen=True, eq=False)
 class Problem:
     """One problem file, checked and converted.
@@ -100,7 +151,8 @@ class Problem:
         obstacles: the obstacle shapes (:mod:`qpik.geometry`, world frame), built by
             :func:`qpik.geometry.shape_from_spec`; an obstacle without a ``name`` is
             named by its place in the file, ``"obstacles[i]"``.
-        solver: the ``[solver]`` table.
+        solver: the ``[solver]`` settings: every key of :data:`SOLVER_KEYS` for the kind, the file's
+            value (checked and converted) or the default.
         expected: the ``[expected]`` table, numeric lists as arrays (int if all are integers, else float).
         file: the path it was read from.
     """
@@ -118,6 +170,15 @@ class Problem:
     solver: dict[str, Any]
     expected: dict[str, Any]
     file: Path
+
+    def expected_number(self, key: str, default: float | None = None) -> float | None:
+        """``[expected] key`` as a finite float (``default`` if absent); :class:`ProblemFileError` if not a number."""
+        if key not in self.expected:
+            return default
+        value = self.expected[key]
+        if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value):
+            raise ProblemFileError(f"{self.file}: expected.{key}: expected a finite number, got {value!r}")
+        return float(value)
 
 
 def problems_folder() -> Path:
@@ -140,9 +201,15 @@ def list_problems(folder: Path | None = None) -> list[Problem]:
     return [load(f) for f in problem_files(folder)]
 
 
+def _path(value: object, what: str) -> Path:
+    if not isinstance(value, str | Path) or not str(value):
+        raise ProblemFileError(f"{what}: expected a file path or a problem name, got {value!r}")
+    return Path(value)
+
+
 def find_problem(name_or_path: str | Path) -> Path:
     """A file path as given if it exists, else ``<problems folder>/<name>.toml``."""
-    p = Path(name_or_path)
+    p = _path(name_or_path, "problem")
     if p.is_file():
         return p
     candidate = problems_folder() / f"{p.name}.toml"
@@ -153,7 +220,7 @@ def find_problem(name_or_path: str | Path) -> Path:
 
 def load(path: str | Path) -> Problem:
     """Read and check one problem file; see the module docstring for the format."""
-    return _Reader(Path(path)).problem()
+    return _Reader(_path(path, "problem file")).problem()
 
 
 class _Reader:
@@ -226,6 +293,8 @@ class _Reader:
                 data = tomllib.load(fh)
         except FileNotFoundError:
             raise ProblemFileError(f"{self.file}: no such file") from None
+        except OSError as exc:  # a folder, no permission, ...
+            raise ProblemFileError(f"{self.file}: cannot be read ({exc.strerror})") from None
         except tomllib.TOMLDecodeError as exc:
             raise ProblemFileError(f"{self.file}: not valid TOML ({exc})") from None
         optional = {"name", "description", "source", "parameter", "obstacles", "solver", "expected"}
@@ -258,10 +327,38 @@ class _Reader:
             path=path,
             params=params,
             obstacles=tuple(self.obstacle(o, f"obstacles[{i}]") for i, o in enumerate(obstacles)),
-            solver=self.free(data.get("solver", {}), "solver"),
+            solver=self.solver(data.get("solver", {}), kind),
             expected={k: _numeric(v) for k, v in self.free(data.get("expected", {}), "expected").items()},
             file=self.file,
         )
+
+    def solver(self, value: Any, kind: str) -> dict[str, Any]:
+        """The ``[solver]`` table checked against :data:`SOLVER_KEYS` of ``kind``, with the defaults filled in."""
+        table = self.free(value, "solver")
+        known = SOLVER_KEYS[kind]
+        for key in table:
+            if key not in known:
+                close = difflib.get_close_matches(key, known, n=1)
+                hint = f"; did you mean {close[0]!r}?" if close else ""
+                keys = ", ".join(known) or "none"
+                raise self.fail(f"solver.{key}", f"unknown key for kind {kind!r}{hint} (known: {keys})")
+        out: dict[str, Any] = {}
+        for key, setting in known.items():
+            raw = table.get(key, setting.default)
+            out[key] = raw if raw is None or key not in table else self.setting(raw, f"solver.{key}", setting)
+        return out
+
+    def setting(self, value: Any, field: str, setting: Setting) -> float | int:
+        if setting.integer:
+            if not isinstance(value, int) or isinstance(value, bool):
+                raise self.fail(field, f"expected an integer, got {value!r}")
+            return value
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise self.fail(field, f"expected a number ({setting.doc}), got {value!r}")
+        x = self.number(value, field, positive=setting.positive)
+        if x < 0:
+            raise self.fail(field, f"must be >= 0, got {x}")
+        return x
 
     def robot(self, value: Any) -> Robot:
         overrides = ("q_min", "q_max", "v_max", "q_home")
@@ -302,6 +399,10 @@ class _Reader:
             raise self.fail("robot", "q_min must be < q_max on every joint")
         if not np.all(robot.v_max > 0):
             raise self.fail("robot.v_max", "must be > 0 on every joint")
+        outside = np.flatnonzero((robot.q_home < robot.q_min) | (robot.q_home > robot.q_max))
+        if "q_home" in changes and len(outside):
+            joints = ", ".join(str(j + 1) for j in outside)
+            raise self.fail("robot.q_home", f"outside [q_min, q_max] on joint(s) {joints}")
         return robot
 
     def target(self, value: Any, robot: Robot) -> tuple[np.ndarray | None, np.ndarray | None, TargetPath | None]:

@@ -134,7 +134,7 @@ def load_robot(name: str) -> Robot:
 
     The same object is returned on every call (robots are immutable).
     """
-    if name not in CATALOG:
+    if not isinstance(name, str) or name not in CATALOG:
         raise UnknownRobotError(f"unknown robot {name!r}; known: {', '.join(CATALOG)}")
     if name not in _cache:
         _cache[name] = CATALOG[name]()

@@ -39,7 +39,7 @@ from qpik.robots.manipulability import (
     manipulability_gradient_from,
 )
 from qpik.symbolic import Frame, Ops, Scalar
-from qpik.validate import finite_array, joint_vector
+from qpik.validate import flag, joint_vector, number, single_pose
 
 JointKind = Literal["revolute", "prismatic"]
 ZERO_VEC = (0.0, 0.0, 0.0)
@@ -68,11 +68,11 @@ class Joint:
     name: str = ""
 
     def __post_init__(self) -> None:
-        if self.kind not in ("revolute", "prismatic"):
+        if not isinstance(self.kind, str) or self.kind not in ("revolute", "prismatic"):
             raise InputError(f"Joint.kind: unknown kind {self.kind!r} (revolute or prismatic)")
-        for name in ("pre", "post"):
-            finite_array(getattr(self, name), f"Joint.{name}", (4, 4))
-        object.__setattr__(self, "offset", float(self.offset))
+        for name in ("pre", "post"):  # rigid transforms: rotation blocks orthonormal, lengths within 1e6 m
+            object.__setattr__(self, name, single_pose(getattr(self, name), f"Joint.{name}"))
+        object.__setattr__(self, "offset", number(self.offset, "Joint.offset", minimum=None))
 
     def motion(self, q: Scalar, ops: Ops) -> Frame:
         """:math:`M(q + o)` as a :mod:`qpik.symbolic` frame."""
@@ -115,13 +115,19 @@ class SerialChain:
 
     def _set(self, joints: Sequence[Joint], base: np.ndarray | None, tool: np.ndarray | None) -> None:
         """Check and store the joints, base and tool (also for frozen dataclass subclasses)."""
-        joints = tuple(joints)
+        cls = type(self).__name__
+        try:
+            joints = tuple(joints)
+        except TypeError:
+            raise InputError(f"{cls}.joints: expected a sequence of Joints, got {type(joints).__name__}") from None
         if not joints:
-            raise InputError(f"{type(self).__name__}.joints: a chain needs at least one joint")
-        for name, T in (("joints", joints), ("base", base), ("tool", tool)):
-            if name != "joints":
-                T = np.eye(4) if T is None else finite_array(T, f"{type(self).__name__}.{name}", (4, 4)).copy()
-            object.__setattr__(self, name, T)
+            raise InputError(f"{cls}.joints: a chain needs at least one joint")
+        bad = [i for i, j in enumerate(joints) if not isinstance(j, Joint)]
+        if bad:
+            raise InputError(f"{cls}.joints[{bad[0]}]: expected a Joint, got {type(joints[bad[0]]).__name__}")
+        object.__setattr__(self, "joints", joints)
+        for name, T in (("base", base), ("tool", tool)):
+            object.__setattr__(self, name, np.eye(4) if T is None else single_pose(T, f"{cls}.{name}"))
 
     @property
     def dof(self) -> int:
@@ -303,7 +309,7 @@ class SerialChain:
         Returns a float for q (n,) and an array (N,) for q (N, n); 0 for a chain of fewer joints than rows.
         """
         J = self.jacobian(q)
-        if translational:
+        if flag(translational, "translational"):
             J = J[..., :3, :]
         if J.shape[-2] > self.dof:  # fewer joints than rows: det(J Jᵀ) = 0
             return 0.0 if J.ndim == 2 else np.zeros(len(J))
@@ -321,7 +327,7 @@ class SerialChain:
         """
         q, batched = joint_vector(q, self.dof)
         if not batched:
-            return self._compiled["manipulability_gradient"](q)[int(translational)].copy()
+            return self._compiled["manipulability_gradient"](q)[int(flag(translational, "translational"))].copy()
         return manipulability_gradient_from(self.jacobian(q), self.hessian(q), translational)
 
 

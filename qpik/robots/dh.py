@@ -24,6 +24,7 @@ import numpy as np
 from qpik import symbolic as sy
 from qpik.errors import InputError
 from qpik.robots.chain import Joint, SerialChain
+from qpik.validate import bounded, finite_array
 
 Convention = Literal["standard", "modified"]
 
@@ -51,8 +52,10 @@ class DHChain(SerialChain):
     tool: np.ndarray = field(default_factory=lambda: np.eye(4))
 
     def __post_init__(self) -> None:
+        for name in ("a", "d", "alpha", "offset"):  # finite numbers, lengths within 1e6 m
+            bounded(finite_array(getattr(self, name), f"DHChain.{name}", (None,)), f"DHChain.{name}")
         n = len(self.a)
-        if not (len(self.d) == len(self.alpha) == n) or (self.offset and len(self.offset) != n):
+        if not (len(self.d) == len(self.alpha) == n) or (len(self.offset) and len(self.offset) != n):
             raise InputError("DHChain: a, d, alpha (and offset) must have the same length")
         if self.convention not in ("standard", "modified"):
             raise InputError(f"DHChain.convention: unknown convention {self.convention!r}")

@@ -116,10 +116,14 @@ class ModelSource:
             g.name = f"qpik_capsule{c}"
             g.contype, g.conaffinity, g.group = 0, 0, 2
             g.rgba = CAPSULE_RGBA
-            if np.linalg.norm(p1 - p0) < 1e-12:
+            half = 0.5 * float(np.linalg.norm(p1 - p0))
+            if half < 1e-9:
                 g.type, g.size, g.pos = mujoco.mjtGeom.mjGEOM_SPHERE, [cap.radius, 0, 0], p0
-            else:
-                g.type, g.size, g.fromto = mujoco.mjtGeom.mjGEOM_CAPSULE, [cap.radius, 0, 0], np.concatenate([p0, p1])
+            else:  # centre and orientation rather than fromto, which MuJoCo refuses for very short segments
+                quat = np.zeros(4)
+                mujoco.mju_quatZ2Vec(quat, p1 - p0)
+                g.type, g.size = mujoco.mjtGeom.mjGEOM_CAPSULE, [cap.radius, half, 0]
+                g.pos, g.quat = 0.5 * (p0 + p1), quat
         q_ref = -np.array([j.offset for j in robot.chain.joints])  # MuJoCo's reference configuration
         ee = np.linalg.inv(_Tree(model).pose(model.body(self.tip_body).id)) @ robot.fk(q_ref)
         quat = np.zeros(4)
@@ -185,6 +189,10 @@ def load_robot(
         InputError: a bad model: MuJoCo cannot read it, a mesh is missing, the chain from base
             to tip branches or has no joint, a joint on it is a ball or free joint, unknown names.
     """
+    if not isinstance(path_or_name, str | os.PathLike):
+        raise UnknownRobotError(
+            f"path_or_name: expected a catalog name or a file path, got {type(path_or_name).__name__}"
+        )
     text = os.fspath(path_or_name)
     options = (base, tip, joints, ee, package_map, q_home, name)
     if text in CATALOG:

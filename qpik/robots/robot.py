@@ -9,9 +9,10 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from qpik import symbolic as sy
+from qpik.errors import InputError
 from qpik.robots.chain import SerialChain
 from qpik.symbolic import Frame, Vec
-from qpik.validate import joint_vector
+from qpik.validate import joint_vector, number
 
 if TYPE_CHECKING:
     import mujoco
@@ -104,7 +105,8 @@ class Robot:
         return self.chain.manipulability_gradient(q, translational)
 
     def within_limits(self, q: np.ndarray, tol: float = 0.0) -> np.ndarray | bool:
-        """Whether every joint of q (n,) or (N, n) is in [q_min - tol, q_max + tol]."""
+        """Whether every joint of q (n,) or (N, n) is in [q_min - tol, q_max + tol] (``tol`` ≥ 0, rad)."""
+        tol = number(tol, "tol")
         q, _ = joint_vector(q, self.dof)
         ok = np.all((q >= self.q_min - tol) & (q <= self.q_max + tol), axis=-1)
         return bool(ok) if ok.ndim == 0 else ok
@@ -193,3 +195,12 @@ def default_capsules(chain: SerialChain, radii: tuple[float, ...]) -> tuple[Link
 
 def _clean(p: np.ndarray) -> np.ndarray:
     return np.where(np.abs(p) < 1e-12, 0.0, p)
+
+
+def as_robot(robot: object, name: str = "robot") -> Robot:
+    """``robot`` if it is a :class:`Robot`, else :class:`InputError` naming ``name`` (a name: how to load it)."""
+    if isinstance(robot, Robot):
+        return robot
+    if isinstance(robot, str):
+        raise InputError(f"{name}: expected a qpik.Robot, got the string {robot!r} (use qpik.load_robot({robot!r}))")
+    raise InputError(f"{name}: expected a qpik.Robot, got {type(robot).__name__}")

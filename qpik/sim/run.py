@@ -33,15 +33,19 @@ import mujoco
 import numpy as np
 
 from qpik.errors import InputError
+from qpik.geometry.distance import ObstacleSet
 from qpik.geometry.shapes import Shape
 from qpik.robots.mujoco_backend import MjKinematics
 from qpik.robots.robot import Robot
 from qpik.sim.log import SimLog
-from qpik.validate import finite_array, joint_vector
-from qpik.validate import pose as check_pose
+from qpik.validate import finite_array, joint_vector, single_pose
 
 DISTMAX = 10.0
 """Distances (m) beyond this are reported as this value by ``mj_geomDistance``."""
+MAX_STEPS = 1e8
+"""Most steps of one run (``duration / dt``)."""
+MAX_RECORDS = 10**6
+"""Most records of one log (``steps / record_every``): each holds the clearance of every link–obstacle pair."""
 OBSTACLE_PREFIX = "obstacles/"
 
 
@@ -114,11 +118,9 @@ def build_scene(
     if robot is not None:
         spec = robot.mj_spec()
         joint_names, site = robot.joint_names, robot.site
-    elif str(arm).lstrip().startswith("<"):
-        spec = mujoco.MjSpec.from_string(str(arm))
     else:
-        spec = mujoco.MjSpec.from_file(os.fspath(arm))
-    obstacles = tuple(obstacles)
+        spec = _mjcf_spec(arm)
+    obstacles = ObstacleSet(obstacles).shapes  # checks that each is a shape (InputError naming it)
     if obstacles:
         geoms = "".join(replace(o, name=str(i)).to_mjcf_geom() for i, o in enumerate(obstacles))
         child = mujoco.MjSpec.from_string(f'<mujoco><worldbody><body name="all">{geoms}</body></worldbody></mujoco>')
@@ -149,6 +151,25 @@ def build_scene(
         obstacles=obstacles,
         robot=robot,
     )
+
+
+def _mjcf_spec(arm: object) -> mujoco.MjSpec:
+    """The MjSpec of an MJCF string or file; :class:`InputError` for anything else or MJCF that MuJoCo rejects."""
+    if isinstance(arm, str) and arm.lstrip().startswith("<"):
+        load, what = mujoco.MjSpec.from_string, "MJCF string"
+    elif isinstance(arm, str | os.PathLike) and os.path.isfile(arm):
+        load, what = mujoco.MjSpec.from_file, f"MJCF file {os.fspath(arm)}"
+        arm = os.fspath(arm)
+    elif isinstance(arm, str):
+        raise InputError(
+            f"arm: {arm!r} is neither an MJCF string nor a file (a catalog arm: pass qpik.load_robot({arm!r}))"
+        )
+    else:
+        raise InputError(f"arm: expected a qpik.Robot, an MJCF string or a file path, got {type(arm).__name__}")
+    try:
+        return load(arm)
+    except ValueError as exc:  # MuJoCo's parser
+        raise InputError(f"arm: {what} rejected by MuJoCo: {exc}") from None
 
 
 def follow(controller: object, target: Target) -> PolicyFn:
@@ -209,7 +230,8 @@ def simulate(
         obstacles: shapes (world frame) added to the model (ignored for a Scene).
         target: a pose (4, 4), a :class:`TimedPath` (``pose(t)``, ``twist(t)``) or
             ``None``; logged, and handed to a controller.
-        record_every: log every this many steps (and always the last state).
+        record_every: log every this many steps (and always the last state); at most
+            :data:`MAX_RECORDS` records, :data:`MAX_STEPS` steps.
         v_max: velocity limits (rad/s) (n,) for the summary; default the robot's.
         d_safe: safety distance (m) to mark on plots.
         label: a name for plots and summaries.
@@ -228,12 +250,16 @@ def simulate(
     duration = float(finite_array(duration, "duration", ()))
     if dt <= 0 or duration < 0:
         raise InputError(f"dt must be > 0 and duration >= 0, got dt={dt}, duration={duration}")
-    if int(record_every) < 1:
-        raise InputError(f"record_every: must be >= 1, got {record_every}")
+    if isinstance(record_every, bool) or not isinstance(record_every, int | np.integer) or record_every < 1:
+        raise InputError(f"record_every: must be an integer >= 1, got {record_every!r}")
     if target is not None and not hasattr(target, "pose"):
-        target = check_pose(target, "target")[0]
+        target = single_pose(target, "target")
     every = int(record_every)
+    if duration / dt > MAX_STEPS:
+        raise InputError(f"duration / dt: at most {MAX_STEPS:g} steps, got {duration / dt:.3g}")
     steps = round(duration / dt)
+    if steps // every + 2 > MAX_RECORDS:
+        raise InputError(f"record_every: at most {MAX_RECORDS:g} records are kept, {steps} steps need {every} or more")
     records = sorted(set(range(0, steps + 1, every)) | {steps})
     fn, reporter = _policy(policy, target)
     if v_max is None and scene.robot is not None:

@@ -57,6 +57,8 @@ def get_solver(name: str, **options: object) -> Solver:
     Raises:
         SolverError: the name is unknown or its package is not installed.
     """
+    if not isinstance(name, str):
+        raise SolverError(f"solver name: expected a string, got {name!r}")
     if name == "osqp":
         from qpik.control.solvers.osqp import OSQPSolver
 

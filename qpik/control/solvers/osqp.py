@@ -103,6 +103,13 @@ class OSQPSolver(Solver):
         self._stale = 0  # steps since OSQP last got P and Ā
 
     def solve(self, qp: QP) -> Solution:
+        try:
+            return self._solve(qp)
+        except (osqp.OSQPException, ValueError) as exc:  # OSQP's own data checks: report, never raise in the loop
+            self._shape = None  # set up again on the next call
+            return Solution(None, False, f"error: {exc}")
+
+    def _solve(self, qp: QP) -> Solution:
         N = qp.P.shape[0]
         if self._shape != (N, qp.A.shape[0]):
             self._setup(qp)

@@ -73,8 +73,11 @@ class ProxqpSolver(Solver):
                 setattr(self._qp.settings, key, value)
             self._shape = shape
         solver = self._qp
-        solver.init(qp.P, qp.c, None, None, qp.A, qp.l, qp.u, qp.lb, qp.ub)
-        solver.solve()
+        try:
+            solver.init(qp.P, qp.c, None, None, qp.A, qp.l, qp.u, qp.lb, qp.ub)
+            solver.solve()
+        except (RuntimeError, ValueError) as exc:  # ProxQP's own data checks: report, never raise in the loop
+            return Solution(None, False, f"error: {exc}")
         info, x = solver.results.info, solver.results.x
         found = info.status == proxqp.QPSolverOutput.PROXQP_SOLVED and bool(np.isfinite(x).all())
         return Solution(x.copy() if found else None, found, info.status.name, int(info.iter))
