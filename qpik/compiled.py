@@ -183,3 +183,52 @@ class Compiled:
                 dst[:] = np.asarray(src, dtype=float).reshape(-1, order="F")
         self._eval()
         return self._views
+
+
+class RowMap:
+    """A CasADi function of one row, evaluated over M rows in compiled chunks.
+
+    ``fn.map`` over ``chunks[0]`` rows per call while more than 3/4 of that is left, then
+    over ``chunks[1]`` (the last call padded with copies of its first row): one call per
+    chunk, the loop over rows in machine code (:class:`Compiled`). Each size is compiled
+    on first use; equal sizes compile once.
+
+    Args:
+        fn: dense inputs (a matrix input is given per row as its entries in CasADi's
+            column-major order) and dense column-vector outputs.
+        shared: indices of the inputs that are the same for every row (given once, 1-D).
+        chunks: rows per call, large then small.
+    """
+
+    def __init__(self, fn: ca.Function, shared: Sequence[int] = (), chunks: tuple[int, int] = (32, 4)):
+        self.fn, self.shared, self.chunks = fn, tuple(shared), chunks
+        self._maps: dict[int, Compiled] = {}
+
+    def _map(self, size: int) -> Compiled:
+        if size not in self._maps:
+            name = f"{self.fn.name()}_rows{size}"
+            self._maps[size] = Compiled(self.fn.map(name, "serial", size, list(self.shared), []))
+        return self._maps[size]
+
+    def __call__(self, *args: np.ndarray) -> list[np.ndarray]:
+        """Each output as (M, nnz) for per-row inputs (M, nnz_i) (shared inputs: (nnz_i,))."""
+        per_row = [(k, np.asarray(a, dtype=float).reshape(len(a), -1)) for k, a in enumerate(args) if k not in self.shared]
+        M = len(per_row[0][1]) if per_row else 1
+        outs = [np.empty((M, self.fn.nnz_out(k))) for k in range(self.fn.n_out())]
+        big, small = self.chunks
+        i = 0
+        while i < M:
+            size = big if M - i > 3 * big // 4 else small
+            m = min(size, M - i)
+            call = self._map(size)
+            for k in self.shared:
+                call._args[k][:] = np.asarray(args[k], dtype=float).ravel()
+            for k, rows in per_row:
+                buf = call._args[k].reshape(size, -1)  # column-major (nnz, size): one row's entries contiguous
+                buf[:m] = rows[i : i + m]
+                buf[m:] = rows[i]
+            call._eval()
+            for out, res in zip(outs, call._res):
+                out[i : i + m] = res.reshape(size, -1)[:m]
+            i += m
+        return outs

@@ -44,6 +44,7 @@ import casadi as ca
 import numpy as np
 
 from qpik import symbolic as sy
+from qpik.compiled import RowMap
 from qpik.errors import InputError
 from qpik.geometry.distance import ObstacleSet, set_expr
 from qpik.robots.dh import _hessian_rows, _jacobian_rows, manipulability_gradient_expr
@@ -85,13 +86,22 @@ class Context:
         q_ref: (n,) reference configuration, rad (an input of the compiled function).
         obstacles: the obstacles of the problem (their families fix the expression's form).
         obstacle_params: their packed parameters (:attr:`ObstacleSet.params`), an input.
+        witness: (n,) a second symbol for q, or None; see :attr:`distances`.
 
     The kinematics are built on first use, so an objective that needs none costs nothing.
     """
 
-    def __init__(self, robot: Robot, q: ca.SX, q_ref: ca.SX, obstacles: ObstacleSet, obstacle_params: ca.SX):
+    def __init__(
+        self,
+        robot: Robot,
+        q: ca.SX,
+        q_ref: ca.SX,
+        obstacles: ObstacleSet,
+        obstacle_params: ca.SX,
+        witness: ca.SX | None = None,
+    ):
         self.robot, self.q, self.q_ref = robot, q, q_ref
-        self.obstacles, self.obstacle_params = obstacles, obstacle_params
+        self.obstacles, self.obstacle_params, self.witness = obstacles, obstacle_params, witness
         self.n = robot.dof
 
     @cached_property
@@ -114,13 +124,35 @@ class Context:
 
     @cached_property
     def distances(self) -> ca.SX:
-        """Signed distances (C·O,) of every capsule–obstacle pair, pair (c, o) at c·O + o, m."""
+        r"""Signed distances (C·O,) of every capsule–obstacle pair, pair (c, o) at c·O + o, m.
+
+        With a ``witness`` symbol w, the closest points are found at w and the distance is
+        written :math:`n^T(x_s(q) - p_{obs}) - r` with the unit normal n, the obstacle's witness
+        point and the capsule-axis parameter s taken at w, and :math:`x_s(q)` the axis point at q.
+        At w = q this equals the distance, and (Danskin's theorem) its gradient in q is the
+        gradient of the distance, :math:`n^T J_p` (:mod:`qpik.geometry.distance`), at a fraction of
+        the cost of differentiating the closest-point kernels; substitute w = q after differentiating.
+        Exact wherever the closest points are unique, which holds for every pair clear of its
+        obstacle; for a capsule axis inside a box it is the rate of the deepest point's depth
+        with that point held (the kernel's own normal), not a derivative of the depth.
+        """
         if not len(self.obstacles):
             return ca.SX(0, 1)
-        segments = self.robot.capsule_segments_expr(self.frames)
         prm = [self.obstacle_params[i] for i in range(self.obstacle_params.numel())]
-        pairs = set_expr(segments, self.robot.capsule_radii, self.obstacles.kinds, prm, sy.CASADI)
-        return ca.vertcat(*[d for row in pairs for d, *_ in row])
+        radii, kinds = self.robot.capsule_radii, self.obstacles.kinds
+        at = self.frames if self.witness is None else self._frames_of(self.witness)
+        pairs = set_expr(self.robot.capsule_segments_expr(at), radii, kinds, prm, sy.CASADI)
+        if self.witness is None:
+            return ca.vertcat(*[d for row in pairs for d, *_ in row])
+        out = []
+        for (a, b), r, row in zip(self.robot.capsule_segments_expr(self.frames), radii, pairs):
+            for _, _, p_obs, normal, s in row:
+                x = sy.vadd(a, sy.vscale(s, sy.vsub(b, a)))
+                out.append(sy.dot(normal, sy.vsub(x, p_obs)) - r)
+        return ca.vertcat(*out)
+
+    def _frames_of(self, q: ca.SX) -> list:
+        return self.robot.chain.frames_expr([q[i] for i in range(self.n)], sy.CASADI)
 
 
 @dataclass
@@ -212,6 +244,11 @@ class Objective(ABC):
         """(M,) lower bounds of f over each box, or None when no rigorous bound is known."""
         return None
 
+    @property
+    def bounded(self) -> bool:
+        """Whether :meth:`lower_bound` gives bounds (a certificate is possible)."""
+        return type(self).lower_bound is not Objective.lower_bound
+
     def __mul__(self, weight: float) -> Sum:
         return Sum([(w * float(weight), o) for w, o in self.terms])
 
@@ -278,6 +315,10 @@ class Sum(Objective):
     @property
     def smooth(self) -> bool:
         return all(o.smooth for _, o in self._terms)
+
+    @property
+    def bounded(self) -> bool:
+        return all(o.bounded for _, o in self._terms)
 
     def lower_bound(self, box: Box, p: np.ndarray) -> np.ndarray | None:
         total = 0.0
@@ -504,8 +545,8 @@ class Expression(Objective):
         return Split(out)
 
 
-CHUNK = 64
-"""Rows per call of an :class:`Evaluator`'s mapped function (the last call of a batch is padded)."""
+CHUNK = 32
+"""Rows per call of an :class:`Evaluator`'s compiled map (:class:`~qpik.compiled.RowMap`)."""
 
 
 class Evaluator:
@@ -527,64 +568,40 @@ class Evaluator:
         self.robot, self.objective = robot, objective
         self.obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
         self.n_pairs = len(robot.capsules) * len(self.obstacles)
-        self.width = 1 + robot.dof + self.n_pairs
         self.params = objective.params(robot)
         key = (id(robot), objective.key(), self.obstacles.kinds, len(self.params))
         entry = _EVALUATORS.get(key)
         if entry is None or entry[0] is not robot:
-            entry = _EVALUATORS[key] = (robot, self.function(), {})
-        self._fn, self._maps = entry[1], entry[2]
+            entry = _EVALUATORS[key] = (robot, RowMap(self.function(), shared=(1, 3), chunks=(CHUNK, 4)))
+        self._rows = entry[1]
 
     def function(self) -> ca.Function:
-        """``(q (n,), p, q_ref (n,), obstacle params) -> [f, ∇f (n), d (C·O)]`` stacked in one column."""
+        """``(q (n,), p, q_ref (n,), obstacle params) -> [f, ∇f (n), d (C·O), ∇ min d (n)]`` in one column."""
         robot, n = self.robot, self.robot.dof
-        q, q_ref = ca.SX.sym("q", n), ca.SX.sym("q_ref", n)
+        q, q_ref, w = ca.SX.sym("q", n), ca.SX.sym("q_ref", n), ca.SX.sym("w", n)
         p = ca.SX.sym("p", len(self.params))
         prm = ca.SX.sym("obstacles", len(self.obstacles.params))
-        ctx = Context(robot, q, q_ref, self.obstacles, prm)
+        ctx = Context(robot, q, q_ref, self.obstacles, prm, witness=w)
         f = self.objective.expr(ctx, p)
-        out = ca.vertcat(f, ca.gradient(f, q), ctx.distances)
+        d = ctx.distances
+        nearest = ca.gradient(ca.mmin(d), q) if self.n_pairs else ca.SX.zeros(n)
+        out = ca.densify(ca.substitute(ca.vertcat(f, ca.gradient(f, q), d, nearest), w, q))
         return ca.Function(f"objective_{robot.name or 'robot'}", [q, p, q_ref, prm], [out])
 
-    def _mapped(self, size: int):
-        from qpik.compiled import Compiled
-
-        if size not in self._maps:
-            fn = self._fn if size == 1 else self._fn.map(f"{self._fn.name()}_{size}", "serial", size, [1, 3], [])
-            self._maps[size] = Compiled(fn)
-        return self._maps[size]
-
-    def __call__(self, q: np.ndarray, q_ref: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(f (M,), ∇f (M, n), d (M, C·O))`` at configurations q (M, n) (or (n,): then shapes drop M).
-
-        ``q_ref``: (n,) or (M, n), rad (zeros if None; only :class:`ReferenceDistance` reads it).
-        """
+    def __call__(self, q: np.ndarray, q_ref: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+        """``(f (M,), ∇f (M, n), d (M, C·O), ∇ min d (M, n))`` at configurations q (M, n) (or (n,): then
+        the shapes drop M). ``q_ref``: (n,) or (M, n), rad (zeros if None; only :class:`ReferenceDistance`
+        reads it). ``∇ min d`` is the gradient of the smallest pair distance (zeros without obstacles)."""
         n = self.robot.dof
         q = finite_array(q, "q")
-        single = q.ndim == 1
         Q = np.atleast_2d(q)
-        if Q.shape[1] != n:
+        if Q.ndim != 2 or Q.shape[1] != n:
             raise InputError(f"q: expected shape ({n},) or (M, {n}), got {q.shape}")
         ref = np.zeros(n) if q_ref is None else finite_array(q_ref, "q_ref")
-        R = np.broadcast_to(ref, Q.shape)
-        out = np.empty((len(Q), self.width))
-        prm = self.obstacles.params
-        if len(Q) == 1:
-            out[0] = self._mapped(1)(Q[0], self.params, R[0], prm)[0]
-        for i in range(0, len(Q) if len(Q) > 1 else 0, CHUNK):
-            m = min(CHUNK, len(Q) - i)
-            size = CHUNK if m > CHUNK // 4 else 8 if m > 1 else 1
-            size = max(size, m)
-            q_in = np.zeros((size, n))
-            r_in = np.zeros((size, n))
-            q_in[:m], r_in[:m] = Q[i : i + m], R[i : i + m]
-            q_in[m:] = Q[i]
-            (res,) = self._mapped(size)(q_in.T, self.params, r_in.T, prm) if size > 1 else self._mapped(1)(
-                q_in[0], self.params, r_in[0], prm
-            )
-            out[i : i + m] = (res.T if size > 1 else res[None])[:m]
-        f, grad, d = out[:, 0], out[:, 1 : 1 + n], out[:, 1 + n :]
-        return (f[0], grad[0], d[0]) if single else (f, grad, d)
+        (out,) = self._rows(Q, self.params, np.broadcast_to(ref, Q.shape), self.obstacles.params)
+        parts = np.split(out, np.cumsum([1, n, self.n_pairs]), axis=1)
+        f, grad, d, grad_d = parts[0][:, 0], parts[1], parts[2], parts[3]
+        return (f[0], grad[0], d[0], grad_d[0]) if q.ndim == 1 else (f, grad, d, grad_d)
 
 
 _EVALUATORS: dict[tuple, tuple] = {}

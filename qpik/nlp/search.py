@@ -1,0 +1,242 @@
+r"""The 1-D search of :func:`qpik.solve_best`: sample, split at the clearance constraint, polish.
+
+For each pose, every branch's exact feasible set (:func:`qpik.feasible_intervals`) is a union
+of closed intervals of δ/ψ. On each:
+
+1. **Sample** ``f``, ``f'``, ``c``, ``c'`` (:class:`~qpik.nlp.scene.Scene`) every
+   :data:`SAMPLE_STEP` rad or closer, both ends included.
+2. **Split** at the clearance constraint ``c ≥ 0``: a sign change of ``c`` between two samples
+   is refined to its root (:func:`roots`: secant, Newton and bisection steps in a bracket),
+   giving the feasible *pieces*.
+3. **Polish** the discrete local minima of the samples of each piece (:func:`polish`): a
+   bracket ``a ≤ m ≤ b`` with ``f(m) ≤ f(a), f(b)`` shrinks around a local minimum. Each round
+   tries, on the side where ``f'(m)`` descends, the root of the secant of ``f'`` (exact for a
+   quadratic), the crossing of the tangents at the two ends (exact at a kink of the epigraph
+   terms, where the slope jumps), its mirror image through m (so that the far end of the bracket
+   closes in too, and the tangents meet ever closer to the kink) and the midpoint (a guaranteed
+   halving), all evaluated in one compiled call; the best point becomes ``m``. A minimum at a piece's end (``f'`` pointing out)
+   is returned as it is.
+
+The local minima found are the candidates; the best is the answer. Whether it is the global
+minimum is what :mod:`qpik.nlp.certificate` proves (or fails to).
+
+Why this and not IPOPT (:mod:`qpik.nlp.ipopt`, ``method="ipopt"``): both reach the same local
+minima (the tests compare them), but one IPOPT solve per feasible interval costs ~1–5 ms of
+setup and iterations (``qpik bench nlp`` measures it), while the bracket steps for all
+candidates of all branches share each compiled call; and IPOPT started inside an interval finds
+the minimum of its basin, not of the interval, so it still needs the sampling to be global.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from qpik.nlp.scene import Points, Scene
+
+SAMPLE_STEP = 0.1
+"""Largest spacing (rad) of the samples of a feasible interval."""
+END = 2e-9
+"""The first and last samples lie this far (rad) inside a feasible interval: its ends are exact to
+:data:`qpik.analytic.intervals.SAME` (1e-9), and the branch may stop reaching the pose just beyond."""
+PSI_TOL = 1e-13
+"""A bracket narrower than this (rad, relative to 1 + |ψ|) has converged."""
+MAX_ROUNDS = 60
+"""Most rounds of :func:`polish` or :func:`roots`."""
+POLISHED_PER_BRANCH = 1
+"""Candidates polished per (pose, branch): its best discrete local minima."""
+POLISHED_PER_POSE = 4
+"""Further candidates polished per pose: the best ones left."""
+
+
+@dataclass
+class Pieces:
+    """Feasible pieces: row i is the interval [lo[i], hi[i]] of branch row ``row[i]`` of pose ``pose[i]``."""
+
+    pose: np.ndarray
+    row: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.lo)
+
+
+def sample(scene: Scene, pieces: Pieces, step: float = SAMPLE_STEP) -> tuple[Points, np.ndarray]:
+    """Samples of every piece, at most ``step`` apart, from :data:`END` inside each end: (points, piece (M,)).
+
+    Points of one piece are consecutive and in increasing ψ. Only points where the branch reaches
+    the pose with a finite objective are kept.
+    """
+    shrink = np.minimum(END, 0.5 * (pieces.hi - pieces.lo))
+    pieces = Pieces(pieces.pose, pieces.row, pieces.lo + shrink, pieces.hi - shrink)
+    width = pieces.hi - pieces.lo
+    k = np.where(width > 0.0, np.maximum(2, np.ceil(width / step).astype(int) + 1), 1)
+    piece = np.repeat(np.arange(len(pieces)), k)
+    start = np.repeat(np.cumsum(k) - k, k)
+    j = np.arange(len(piece)) - start
+    t = np.where(k[piece] > 1, j / np.maximum(k[piece] - 1, 1), 0.0)
+    psi = pieces.lo[piece] + width[piece] * t
+    psi[j == k[piece] - 1] = pieces.hi[piece][j == k[piece] - 1]  # the end exactly
+    pts = scene.evaluate(pieces.pose[piece], pieces.row[piece], psi)
+    keep = pts.valid & np.isfinite(pts.f)
+    return pts.take(keep), piece[keep]
+
+
+def roots(scene: Scene, left: Points, right: Points) -> Points:
+    """The root of c between each pair (left[i], right[i]) whose c differ in sign: its point on the feasible side.
+
+    Bracketed iteration: the secant, a Newton step from the feasible end and the midpoint are
+    tried together each round; the tightest bracket with a sign change is kept.
+    """
+    pose, row = left.pose, left.row
+    ps, cs, ds = np.stack([left.psi, right.psi]), np.stack([left.c, right.c]), np.stack([left.dc, right.dc])
+    for _ in range(MAX_ROUNDS):
+        active = np.abs(ps[1] - ps[0]) > PSI_TOL * (1.0 + np.abs(ps[0]))
+        if not active.any():
+            break
+        i = np.flatnonzero(active)
+        (a, b), (ca_, cb), (da, db) = ps[:, i], cs[:, i], ds[:, i]
+        secant = a - ca_ * (b - a) / np.where(cb != ca_, cb - ca_, np.nan)
+        feasible_a = ca_ >= 0
+        start, c0, d0 = np.where(feasible_a, a, b), np.where(feasible_a, ca_, cb), np.where(feasible_a, da, db)
+        newton = start - c0 / np.where(d0 != 0, d0, np.nan)
+        trials = np.stack([_inside(secant, a, b), _inside(newton, a, b), 0.5 * (a + b)], axis=1)
+        pts = scene.evaluate(np.repeat(pose[i], 3), np.repeat(row[i], 3), trials.ravel())
+        for t in range(3):
+            x, cx, dx = pts.psi[t::3], pts.c[t::3], pts.dc[t::3]
+            side = (cx >= 0) == feasible_a  # replaces the end on its own side of the root
+            for k, sel in ((0, side), (1, ~side)):
+                ps[k, i] = np.where(sel, x, ps[k, i])
+                cs[k, i] = np.where(sel, cx, cs[k, i])
+                ds[k, i] = np.where(sel, dx, ds[k, i])
+    return scene.evaluate(pose, row, np.where(cs[0] >= 0, ps[0], ps[1]))
+
+
+def _inside(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``x`` if strictly between a and b, else the midpoint (the round's midpoint trial guarantees progress)."""
+    ok = np.isfinite(x) & (x > np.minimum(a, b)) & (x < np.maximum(a, b))
+    return np.where(ok, x, 0.5 * (a + b))
+
+
+@dataclass
+class Polished:
+    """Local minima: ``point`` (Points) with ``rounds`` (M,) of polish each."""
+
+    point: Points
+    rounds: np.ndarray
+
+
+def polish(scene: Scene, a: Points, m: Points, b: Points) -> Polished:
+    """Shrink brackets ``a.ψ ≤ m.ψ ≤ b.ψ`` with ``f(m) ≤ f(a), f(b)`` to local minima (see the module docstring).
+
+    ``a`` or ``b`` may equal ``m`` (a minimum at the end of a piece). Each round also probes
+    :data:`PSI_TOL` away from m on the side of descent: when the probe is no better, f rises
+    from m in that direction within that distance, so m is the minimum to that accuracy
+    (at a kink the slope jumps there). Returns the final middle points.
+    """
+    pose, row = m.pose, m.row
+    # rows 0, 1, 2: a, m, b; each with ψ, f, f'
+    P = np.stack([a.psi, m.psi, b.psi])
+    F = np.stack([a.f, m.f, b.f])
+    D = np.stack([a.df, m.df, b.df])
+    rounds = np.zeros(len(m), int)
+    done = np.zeros(len(m), bool)
+    cols = np.arange(len(m))
+    for _ in range(MAX_ROUNDS):
+        # descend to the right (toward b) where f' < 0; where f' is not finite (a singular end of an
+        # interval, where dq/dψ is unbounded) toward the side that is not empty, or the lower end
+        known = np.isfinite(D[1])
+        right = np.where(known, D[1] < 0, (P[0] == P[1]) | ((P[2] != P[1]) & (F[2] < F[0])))
+        side = np.where(right, 2, 0)
+        vp, vf, vd = P[side, cols], F[side, cols], D[side, cols]
+        width = np.abs(vp - P[1])
+        tiny = PSI_TOL * (1.0 + np.abs(P[1]))
+        done |= (width <= tiny) | (known & (D[1] == 0))
+        if done.all():
+            break
+        i = np.flatnonzero(~done)
+        up, uf, ud, wp, wf, wd = P[1, i], F[1, i], D[1, i], vp[i], vf[i], vd[i]
+        secant = up - ud * (wp - up) / np.where(wd != ud, wd - ud, np.nan)
+        tangent = (wf - uf + ud * up - wd * wp) / np.where(ud != wd, ud - wd, np.nan)
+        probe = up + np.sign(wp - up) * np.minimum(tiny[i], 0.5 * width[i])
+        tangent = _inside(tangent, up, wp)
+        mirror = _inside(2.0 * tangent - up, up, wp)  # beyond the kink estimate: the far end moves in too
+        near = up + 1e-3 * (wp - up)  # off a singular end, where f' is not finite
+        trials = np.stack([_inside(secant, up, wp), tangent, mirror, 0.5 * (up + wp), near, probe], axis=1)
+        k = trials.shape[1]
+        pts = scene.evaluate(np.repeat(pose[i], k), np.repeat(row[i], k), trials.ravel())
+        for t in range(k):
+            x, fx, dx = pts.psi[t::k], pts.f[t::k], pts.df[t::k]
+            better = fx < F[1, i]
+            left = x < P[1, i]
+            # a better point becomes m and the old m the end on its side; a worse one may shrink its side
+            new_a = np.where(better & ~left, 1, np.where(~better & left & (x > P[0, i]), 3, 0))
+            new_b = np.where(better & left, 1, np.where(~better & (x > P[1, i]) & (x < P[2, i]), 3, 2))
+            new_m = np.where(better, 3, 1)
+            stack = [np.stack([P[r, i] for r in range(3)] + [x]), np.stack([F[r, i] for r in range(3)] + [fx]),
+                     np.stack([D[r, i] for r in range(3)] + [dx])]  # fmt: skip
+            cols_i = np.arange(len(i))
+            for arr, src in zip((P, F, D), stack):
+                arr[0, i], arr[1, i], arr[2, i] = src[new_a, cols_i], src[new_m, cols_i], src[new_b, cols_i]
+        improved = F[1, i] < uf
+        probe_worse = pts.f[k - 1 :: k] >= uf
+        done[i] |= probe_worse & ~improved  # nothing improved and f rises right next to m
+        rounds[i] += 1
+    return Polished(scene.evaluate(pose, row, P[1]), rounds)
+
+
+def split(scene: Scene, pts: Points, piece: np.ndarray) -> tuple[Points, np.ndarray]:
+    """The feasible runs of the samples under ``c ≥ 0``, with the roots of c inserted at their ends.
+
+    Returns the points of the runs (consecutive, increasing ψ within a run) and their run index.
+    Without obstacles (c = +∞) the runs are the pieces.
+    """
+    if not np.isfinite(pts.c).any():
+        return pts, piece
+    ok = pts.c >= 0
+    change = np.flatnonzero((piece[1:] == piece[:-1]) & (ok[1:] != ok[:-1]))
+    found = roots(scene, pts.take(change), pts.take(change + 1)) if len(change) else None
+    key = np.arange(len(pts), dtype=float)
+    all_pts, all_piece = pts, piece
+    if found is not None:
+        key = np.concatenate([key, change + 0.5])
+        all_pts = Points.join([pts, found])
+        all_piece = np.concatenate([piece, piece[change]])
+    order = np.argsort(key, kind="stable")
+    all_pts, all_piece = all_pts.take(order), all_piece[order]
+    keep = all_pts.c >= 0
+    all_pts, all_piece = all_pts.take(keep), all_piece[keep]
+    kept_key = np.flatnonzero(keep)
+    # a new run starts at a new piece or after a removed (infeasible) point
+    start = np.ones(len(all_pts), bool)
+    start[1:] = (all_piece[1:] != all_piece[:-1]) | (kept_key[1:] != kept_key[:-1] + 1)
+    return all_pts, np.cumsum(start) - 1
+
+
+def candidates(pts: Points, run: np.ndarray) -> tuple[Points, Points, Points]:
+    """Brackets ``(a, m, b)`` of the discrete local minima of f along each run, the ones to polish.
+
+    Per (pose, branch row) its :data:`POLISHED_PER_BRANCH` best, then per pose the
+    :data:`POLISHED_PER_POSE` best of the rest.
+    """
+    M = len(pts)
+    first = np.ones(M, bool)
+    first[1:] = run[1:] != run[:-1]
+    last = np.ones(M, bool)
+    last[:-1] = run[1:] != run[:-1]
+    prev = np.where(first, np.inf, np.roll(pts.f, 1))
+    nxt = np.where(last, np.inf, np.roll(pts.f, -1))
+    local = np.flatnonzero((pts.f <= prev) & (pts.f <= nxt) & np.isfinite(pts.f))
+    order = local[np.lexsort((pts.f[local], pts.row[local], pts.pose[local]))]  # by pose, branch, then f
+    group = pts.pose[order] * 10_000 + pts.row[order]
+    rank = np.arange(len(order)) - np.searchsorted(group, group)
+    chosen = order[rank < POLISHED_PER_BRANCH]
+    rest = order[rank >= POLISHED_PER_BRANCH]
+    rest = rest[np.lexsort((pts.f[rest], pts.pose[rest]))]
+    prank = np.arange(len(rest)) - np.searchsorted(pts.pose[rest], pts.pose[rest])
+    chosen = np.concatenate([chosen, rest[prank < POLISHED_PER_POSE]])
+    a = np.where(first[chosen], chosen, chosen - 1)
+    b = np.where(last[chosen], chosen, chosen + 1)
+    return pts.take(a), pts.take(chosen), pts.take(b)
