@@ -76,6 +76,17 @@ class Split:
             out = out + w * ca.mmax(h)
         return out
 
+    def epigraph(self) -> tuple[ca.SX, ca.SX, ca.SX]:
+        """The epigraph form: ``(t, cost, g)`` with new variables t (K,), the smooth cost
+        :math:`s + \\sum_k w_k t_k` and the constraints ``g ≤ 0``, :math:`h_{k,i} - t_k` stacked."""
+        t = ca.SX.sym("t", len(self.maxima))
+        cost = self.smooth
+        g = [ca.SX(0, 1)]
+        for k, (w, h) in enumerate(self.maxima):
+            cost = cost + w * t[k]
+            g.append(h - t[k])
+        return t, cost, ca.vertcat(*g)
+
 
 class Context:
     """The symbols an objective is written against (CasADi SX).

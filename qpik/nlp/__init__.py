@@ -1,5 +1,10 @@
-"""Optimisation over the self-motion: the best closed-form branch and δ/ψ (:func:`solve_best`), certified."""
+"""Optimisation over the self-motion and over the joints.
+
+- :func:`solve_best`: the best closed-form branch and δ/ψ for a pose, certified (:mod:`qpik.nlp.best`);
+- :func:`solve_full`: the full-joint NLP (7 variables, pose equality) for every arm (:mod:`qpik.nlp.full`).
+"""
 
 from qpik.nlp.best import BestResult, BestResults, BranchOptimum, solve_best
+from qpik.nlp.full import FullResult, solve_full
 
-__all__ = ["BestResult", "BestResults", "BranchOptimum", "solve_best"]
+__all__ = ["BestResult", "BestResults", "BranchOptimum", "FullResult", "solve_best", "solve_full"]

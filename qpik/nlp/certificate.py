@@ -52,7 +52,7 @@ SPLIT = 4
 """A cell that is kept is cut in this many."""
 SMALLEST_CELL = 1e-9
 """Cells are not cut below this width (rad): one kept there leaves the answer uncertified."""
-MAX_CELLS = 20_000
+MAX_CELLS = 3_000
 """Most cells examined per pose."""
 
 
