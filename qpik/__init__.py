@@ -20,12 +20,14 @@ from qpik.errors import (
     UnknownRobotError,
     UnreachableError,
 )
+from qpik.nlp import BestResult, solve_best
 from qpik.robots import CATALOG, DHChain, LinkCapsule, Robot, load_robot
 
 __version__ = "0.1.0"
 
 __all__ = [
     "CATALOG",
+    "BestResult",
     "Controller",
     "DHChain",
     "FeasibleIntervals",
@@ -47,4 +49,5 @@ __all__ = [
     "ik",
     "load_robot",
     "redundancy_parameter",
+    "solve_best",
 ]

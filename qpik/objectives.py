@@ -178,7 +178,6 @@ class Box:
         n_obstacles: O.
         q_ref: (n,) reference configuration, rad (zeros if none was given).
         lever: (C, n) :func:`lever_arms` of the robot.
-        jacobian_rate: (n,) :func:`jacobian_rates` of the robot.
     """
 
     robot: Robot
@@ -189,7 +188,6 @@ class Box:
     n_obstacles: int
     q_ref: np.ndarray
     lever: np.ndarray
-    jacobian_rate: np.ndarray
 
     @cached_property
     def spread(self) -> np.ndarray:
@@ -411,6 +409,9 @@ class Manipulability(Objective):
     r"""Minus the log of Yoshikawa's manipulability: :math:`f = -\log \sqrt{\det J J^T}`.
 
     ``translational``: of the rows :math:`J_v` (m) only. Infinite at a singular configuration.
+    No lower bound over a box is given: a bound through the singular values (Weyl's inequality
+    with the kinematic Hessian) loses :math:`\sum_i \delta/\sigma_i` for a change δ of J, which
+    needs boxes of ~1e-4 rad, too many to certify an answer.
     """
 
     name = "manipulability"
@@ -423,17 +424,6 @@ class Manipulability(Objective):
 
     def split(self, ctx: Context, p: ca.SX) -> Split:
         return Split(-ca.log(ctx.manipulability(self.translational)))
-
-    def lower_bound(self, box: Box, p: np.ndarray) -> np.ndarray:
-        r"""By Weyl's inequality :math:`\sigma_i(J(q)) \le \sigma_i(J(q_{mid})) + \|J(q) - J(q_{mid})\|_2` and
-        :math:`\|J(q) - J(q_{mid})\|_2 \le \sum_j \kappa_j |\Delta q_j|` (:func:`jacobian_rates`), so
-        :math:`f \ge -\sum_i \log(\sigma_i(q_{mid}) + \sum_j \kappa_j |\Delta q_j|)`."""
-        J = box.robot.jacobian(box.q_mid)
-        if self.translational:
-            J = J[:, :3]
-        sigma = np.linalg.svd(J, compute_uv=False)
-        grow = box.spread @ box.jacobian_rate
-        return -np.log(sigma + grow[:, None]).sum(axis=1)
 
 
 class Clearance(Objective):
@@ -633,22 +623,6 @@ def lever_arms(robot: Robot) -> np.ndarray:
         for j in range(cap.link):
             out[c, j] = step[j : cap.link].sum() + end
     return out
-
-
-def jacobian_rates(robot: Robot) -> np.ndarray:
-    r"""(n,): :math:`\kappa_j \ge \|\partial J/\partial q_j\|_2` for every q (per rad; m/rad in the rows J_v).
-
-    Column i of :math:`\partial J/\partial q_j` is :math:`(z_{\min(i,j)} \times J_{v,\max(i,j)},\ z_j \times z_i)`
-    (:meth:`DHChain.hessian_expr`) with unit axes z and :math:`|J_{v,i}|` at most the reach beyond joint
-    i (the sum of :math:`|a| + |d|` of the transforms after it, plus the tool), so the Frobenius norm
-    bounds the spectral one: :math:`\kappa_j^2 = \sum_i (R_{\max(i,j)}^2 + 1)`.
-    """
-    chain = robot.chain
-    step = np.abs(np.asarray(chain.a, float)) + np.abs(np.asarray(chain.d, float))
-    tool = float(np.linalg.norm(np.asarray(chain.tool, float)[:3, 3]))
-    reach = np.array([step[i:].sum() + tool for i in range(robot.dof)])
-    n = robot.dof
-    return np.array([np.sqrt(sum(reach[max(i, j)] ** 2 + 1.0 for i in range(n))) for j in range(n)])
 
 
 def resolve(objective: Objective | str) -> Objective:

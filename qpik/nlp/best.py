@@ -49,6 +49,7 @@ class BranchOptimum:
 
     Attributes:
         branch: public branch id.
+        searched: whether it was searched (``branches`` of :func:`solve_best`).
         feasible: some δ/ψ of it keeps the joints in their limits (and clear of the obstacles).
         param: its best δ/ψ (rad; nan if not feasible); objective: the value there.
         q: (n,) its configuration, rad (nan if not feasible).
@@ -58,6 +59,7 @@ class BranchOptimum:
     """
 
     branch: int
+    searched: bool
     feasible: bool
     param: float
     objective: float
@@ -108,9 +110,9 @@ class BestResult:
         for r in self.branches:
             mark = " *" if r.branch == self.branch and self.status == "optimal" else ""
             val = f"{r.param:11.6f} {r.objective:13.8g}" if r.feasible else f"{'—':>11} {'—':>13}"
+            feasible = ("yes" if r.feasible else "no") if r.searched else "skipped"
             lines.append(
-                f"{r.branch:>6} {'yes' if r.feasible else 'no':>8} {val} {r.rounds:>6} {r.evaluations:>6}"
-                f" {r.time * 1e6:9.1f}{mark}"
+                f"{r.branch:>6} {feasible:>8} {val} {r.rounds:>6} {r.evaluations:>6} {r.time * 1e6:9.1f}{mark}"
             )
         return "\n".join(lines)
 
@@ -181,8 +183,9 @@ def solve_best(
     *,
     d_safe: float = 0.02,
     certify: bool = True,
-    tol: float = 1e-6,
+    tol: float = 1e-4,
     method: str = "search",
+    branches=None,
 ) -> BestResult | BestResults:
     """The best branch and δ/ψ for ``pose`` under ``objective``; see the module docstring.
 
@@ -197,8 +200,12 @@ def solve_best(
         project: project a non-orthonormal rotation onto SO(3) instead of raising.
         d_safe: the clearance constraint's distance, m (≥ 0).
         certify: prove global optimality (:mod:`qpik.nlp.certificate`).
-        tol: the certificate's tolerance on the objective.
+        tol: the certificate's tolerance, relative: it proves that no feasible point is better than the
+            answer by more than ``tol · max(1, |f|)``.
         method: ``"search"`` (sampling and polish) or ``"ipopt"`` (IPOPT from every interval).
+        branches: public ids of the branches to search (None: all), e.g. the branch of the
+            current configuration (:func:`qpik.redundancy_parameter`), which a continuous motion
+            keeps unless it passes a singular configuration.
 
     Returns:
         A :class:`BestResult`, or :class:`BestResults` for a batch.
@@ -236,8 +243,9 @@ def solve_best(
     if method not in ("search", "ipopt"):
         raise InputError(f"method: expected 'search' or 'ipopt', got {method!r}")
     sm = selfmotion_of(robot)
+    rows = _rows(sm, branches)
     scene = Scene(robot, sm, obj, obs, d_safe, T, ref)
-    results = _solve(scene, certify, tol, method)
+    results = _solve(scene, certify, tol, method, rows)
     elapsed = (time.perf_counter() - t0) / len(T)
     for r in results:
         r.time = elapsed
@@ -246,13 +254,31 @@ def solve_best(
     return BestResults(results) if batched else results[0]
 
 
-def _solve(scene: Scene, certify: bool, tol: float, method: str) -> list[BestResult]:
+def _rows(sm, branches) -> list[int]:
+    """The searched rows of the closed form for the public ids ``branches`` (None: all)."""
+    all_rows = list(range(sm.searched))
+    if branches is None:
+        return all_rows
+    ids = [int(b) for b in np.atleast_1d(np.asarray(branches))]
+    known = sm.branch_ids.tolist()
+    bad = [b for b in ids if b not in known]
+    if bad:
+        raise InputError(f"branches: unknown branch id(s) {bad}; the branches are {known}")
+    rows = set()
+    for b in ids:
+        k = known.index(b)
+        m = sm.mirror(k)
+        rows.add(k if m is None else m[0])
+    return sorted(rows)
+
+
+def _solve(scene: Scene, certify: bool, tol: float, method: str, rows: list[int]) -> list[BestResult]:
     sm = scene.selfmotion
     N, B = len(scene.poses), sm.searched
     fis = [sm.solver.feasible_intervals(T) for T in scene.poses]
     pose, row, lo, hi = [], [], [], []
     for i, fi in enumerate(fis):
-        for b in range(B):
+        for b in rows:
             for a, c in fi.intervals[b]:
                 pose.append(i), row.append(b), lo.append(a), hi.append(c)
     pieces = Pieces(np.array(pose, int), np.array(row, int), np.array(lo, float), np.array(hi, float))
@@ -271,7 +297,8 @@ def _solve(scene: Scene, certify: bool, tol: float, method: str) -> list[BestRes
     for attempt in range(RETRIES + 1):
         if not len(todo):
             break
-        cert = prove(scene, pieces, best.pose_value(), tol, todo)
+        value = best.pose_value()
+        cert = prove(scene, pieces, value, tol * np.maximum(1.0, np.abs(value)), todo)
         for i in todo:
             cert_ok[i], bound[i], reason[i] = cert.certified[i], cert.bound[i], cert.reason[i]
         if cert.better is None or attempt == RETRIES:
@@ -280,7 +307,7 @@ def _solve(scene: Scene, certify: bool, tol: float, method: str) -> list[BestRes
         sub = Pieces(*(x[np.isin(pieces.pose, redo)] for x in (pieces.pose, pieces.row, pieces.lo, pieces.hi)))
         best.update_from(*_search(scene, sub, SAMPLE_STEP / 4 ** (attempt + 1), extra=cert.better))
         todo = redo
-    return [_result(scene, fis[i], best, i, cert_ok[i], bound[i], reason[i]) for i in range(N)]
+    return [_result(scene, fis[i], best, i, cert_ok[i], bound[i], reason[i], rows) for i in range(N)]
 
 
 def _search(scene: Scene, pieces: Pieces, step: float, extra: Points | None = None) -> tuple[Points, np.ndarray]:
@@ -349,7 +376,9 @@ class _BestSoFar:
         return self.f.min(axis=1)
 
 
-def _result(scene: Scene, fi, best: _BestSoFar, i: int, certified: bool, bound: float, reason: str) -> BestResult:
+def _result(
+    scene: Scene, fi, best: _BestSoFar, i: int, certified: bool, bound: float, reason: str, searched: list[int]
+) -> BestResult:
     sm, robot = scene.selfmotion, scene.robot
     ids = sm.branch_ids
     total = max(int(scene.counts[i].sum()), 1)
@@ -361,7 +390,7 @@ def _result(scene: Scene, fi, best: _BestSoFar, i: int, certified: bool, bound: 
         param = sm.shifted(k, best.psi[i, r]) if feasible else np.nan
         evals = int(scene.counts[i, r]) if m is None else 0
         rows.append(
-            BranchOptimum(int(bid), feasible, float(param), float(best.f[i, r]), best.q[i, r].copy(),
+            BranchOptimum(int(bid), r in searched, feasible, float(param), float(best.f[i, r]), best.q[i, r].copy(),
                           int(best.rounds[i, r]) if m is None else 0, evals, evals / total)
         )  # fmt: skip
     name = sm.solver.param_name

@@ -132,9 +132,10 @@ def polish(scene: Scene, a: Points, m: Points, b: Points) -> Polished:
     """Shrink brackets ``a.ψ ≤ m.ψ ≤ b.ψ`` with ``f(m) ≤ f(a), f(b)`` to local minima (see the module docstring).
 
     ``a`` or ``b`` may equal ``m`` (a minimum at the end of a piece). Each round also probes
-    :data:`PSI_TOL` away from m on the side of descent: when the probe is no better, f rises
-    from m in that direction within that distance, so m is the minimum to that accuracy
-    (at a kink the slope jumps there). Returns the final middle points.
+    :data:`PSI_TOL` away from m on the side of descent: when nothing improved and the probe's
+    slope has the opposite sign, f turns within that distance (a kink of an epigraph term, where
+    the bracket ends would otherwise only close in by halving): m is the minimum to that accuracy.
+    Returns the final middle points.
     """
     pose, row = m.pose, m.row
     # rows 0, 1, 2: a, m, b; each with ψ, f, f'
@@ -181,8 +182,8 @@ def polish(scene: Scene, a: Points, m: Points, b: Points) -> Polished:
             for arr, src in zip((P, F, D), stack):
                 arr[0, i], arr[1, i], arr[2, i] = src[new_a, cols_i], src[new_m, cols_i], src[new_b, cols_i]
         improved = F[1, i] < uf
-        probe_worse = pts.f[k - 1 :: k] >= uf
-        done[i] |= probe_worse & ~improved  # nothing improved and f rises right next to m
+        across = np.sign(pts.df[k - 1 :: k]) == -np.sign(ud)  # the probe's slope has turned: a kink within tiny
+        done[i] |= across & ~improved
         rounds[i] += 1
     return Polished(scene.evaluate(pose, row, P[1]), rounds)
 
