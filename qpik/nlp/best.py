@@ -292,7 +292,7 @@ def _solve(scene: Scene, certify: bool, tol: float, method: str, rows: list[int]
         best.update_from(*_search(scene, pieces, SAMPLE_STEP))
     cert_ok = np.zeros(N, bool)
     bound = np.full(N, -np.inf)
-    reason = ["not certified (certify=False)"] * N
+    reason = ["certify=False"] * N
     todo = np.flatnonzero(best.found() & certify)
     for attempt in range(RETRIES + 1):
         if not len(todo):
@@ -419,8 +419,7 @@ def _infeasible(scene: Scene, fi, i: int, rows: list[BranchOptimum], name: str) 
 
         k, b = np.nonzero(within)
         Q = sol.q[k, b]
-        seg = robot.capsule_segments(Q)
-        d = distances(seg.reshape(-1, 2, 3), np.tile(robot.capsule_radii, len(Q)), scene.obstacles).d
+        d = distances(robot.capsule_segments(Q), robot.capsule_radii, scene.obstacles).d  # (M, C, O)
         clear = d.reshape(len(Q), -1).min(axis=1)
         j = int(np.argmax(clear))
         violation = float(scene.d_safe - clear[j])

@@ -122,7 +122,7 @@ def certify(scene: Scene, pieces: Pieces, best: np.ndarray, tol: np.ndarray, pos
         over = cells_used > MAX_CELLS
         for i in np.flatnonzero(over & ~failed & todo):
             failed[i] = True
-            reason[i] = f"more than {MAX_CELLS} cells"
+            reason[i] = f"the bounds did not reach the tolerance within {MAX_CELLS} cells"
         keep &= ~failed[pose]
         if not keep.any():
             break

@@ -92,13 +92,16 @@ class Scene:
         """Every quantity of :class:`Points` at the rows (pose (M,), branch row (M,), ψ (M,))."""
         pose, row, psi = np.asarray(pose, int), np.asarray(row, int), np.asarray(psi, float)
         M, n = len(psi), self.robot.dof
+        if not M:
+            e = np.zeros(0)
+            return Points(pose, row, psi, np.zeros((0, n)), np.zeros((0, n)), np.zeros(0, bool), e, e, e, e,
+                          np.zeros((0, self.evaluator.n_pairs)))  # fmt: skip
         q, dq, valid = np.empty((M, n)), np.empty((M, n)), np.empty(M, bool)
         for b in np.unique(row):
             at = np.flatnonzero(row == b)
             q[at], dq[at], valid[at] = self.selfmotion.points(int(b), self.poses[pose[at]], psi[at])
-        f, grad, d, grad_d = self.evaluator(q, self.q_ref[pose]) if M else (np.zeros(0),) * 4
-        f, grad, d, grad_d = np.atleast_1d(f), np.atleast_2d(grad), np.atleast_2d(d), np.atleast_2d(grad_d)
-        df = np.einsum("ij,ij->i", grad, dq) if M else np.zeros(0)
+        f, grad, d, grad_d = self.evaluator(q, self.q_ref[pose])
+        df = np.einsum("ij,ij->i", grad, dq)
         if d.shape[1]:
             c, dc = d.min(axis=1) - self.d_safe, np.einsum("ij,ij->i", grad_d, dq)
         else:
