@@ -204,15 +204,22 @@ class RowMap:
         self.fn, self.shared, self.chunks = fn, tuple(shared), chunks
         self._maps: dict[int, Compiled] = {}
 
-    def _map(self, size: int) -> Compiled:
-        if size not in self._maps:
+    def _map(self, size: int) -> tuple[Compiled, list[np.ndarray], list[np.ndarray]]:
+        """The compiled map of ``size`` rows and views (size, nnz) of its per-row input and output buffers."""
+        entry = self._maps.get(size)
+        if entry is None:
             name = f"{self.fn.name()}_rows{size}"
-            self._maps[size] = Compiled(self.fn.map(name, "serial", size, list(self.shared), []))
-        return self._maps[size]
+            call = Compiled(self.fn.map(name, "serial", size, list(self.shared), []))
+            # column-major (nnz, size) buffers: one row's entries are contiguous
+            ins = [None if k in self.shared else a.reshape(size, -1) for k, a in enumerate(call._args)]
+            outs = [r.reshape(size, -1) for r in call._res]
+            entry = self._maps[size] = (call, ins, outs)
+        return entry
 
     def __call__(self, *args: np.ndarray) -> list[np.ndarray]:
         """Each output as (M, nnz) for per-row inputs (M, nnz_i) (shared inputs: (nnz_i,))."""
-        per_row = [(k, np.asarray(a, dtype=float).reshape(len(a), -1)) for k, a in enumerate(args) if k not in self.shared]
+        shared = self.shared
+        per_row = [(k, np.asarray(a, dtype=float).reshape(len(a), -1)) for k, a in enumerate(args) if k not in shared]
         M = len(per_row[0][1]) if per_row else 1
         outs = [np.empty((M, self.fn.nnz_out(k))) for k in range(self.fn.n_out())]
         big, small = self.chunks
@@ -220,15 +227,16 @@ class RowMap:
         while i < M:
             size = big if M - i > 3 * big // 4 else small
             m = min(size, M - i)
-            call = self._map(size)
-            for k in self.shared:
-                call._args[k][:] = np.asarray(args[k], dtype=float).ravel()
+            call, ins, res = self._map(size)
+            for k in shared:
+                call._args[k][:] = np.ravel(args[k])
             for k, rows in per_row:
-                buf = call._args[k].reshape(size, -1)  # column-major (nnz, size): one row's entries contiguous
+                buf = ins[k]
                 buf[:m] = rows[i : i + m]
-                buf[m:] = rows[i]
+                if m < size:
+                    buf[m:] = rows[i]
             call._eval()
-            for out, res in zip(outs, call._res):
-                out[i : i + m] = res.reshape(size, -1)[:m]
+            for out, r in zip(outs, res):
+                out[i : i + m] = r[:m]
             i += m
         return outs

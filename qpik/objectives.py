@@ -546,8 +546,8 @@ class Expression(Objective):
         return Split(out)
 
 
-CHUNK = 32
-"""Rows per call of an :class:`Evaluator`'s compiled map (:class:`~qpik.compiled.RowMap`)."""
+CHUNK = 16
+"""Rows per call of an :class:`Evaluator`'s compiled map (:class:`~qpik.compiled.RowMap`, one size: one compile)."""
 
 
 class Evaluator:
@@ -573,7 +573,7 @@ class Evaluator:
         key = (id(robot), objective.key(), self.obstacles.kinds, len(self.params))
         entry = _EVALUATORS.get(key)
         if entry is None or entry[0] is not robot:
-            entry = _EVALUATORS[key] = (robot, RowMap(self.function(), shared=(1, 3), chunks=(CHUNK, 4)))
+            entry = _EVALUATORS[key] = (robot, RowMap(self.function(), shared=(1, 3), chunks=(CHUNK, CHUNK)))
         self._rows = entry[1]
 
     def function(self) -> ca.Function:

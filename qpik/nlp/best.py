@@ -245,7 +245,13 @@ def solve_best(
     sm = selfmotion_of(robot)
     rows = _rows(sm, branches)
     scene = Scene(robot, sm, obj, obs, d_safe, T, ref)
-    results = _solve(scene, certify, tol, method, rows)
+    try:
+        results = _solve(scene, certify, tol, method, rows)
+    except (RuntimeError, FloatingPointError, np.linalg.LinAlgError) as exc:  # a numerical failure: a status
+        why = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+        nan = np.full(n, np.nan)
+        results = [BestResult("solver failed", -1, np.nan, nan.copy(), np.nan, param_name=sm.solver.param_name,
+                              message=why) for _ in range(len(T))]  # fmt: skip
     elapsed = (time.perf_counter() - t0) / len(T)
     for r in results:
         r.time = elapsed

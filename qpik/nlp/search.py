@@ -38,6 +38,8 @@ from qpik.nlp.scene import Points, Scene
 SAMPLE_STEP = 0.1
 """Largest spacing (rad) of the samples of a feasible interval."""
 END = 2e-9
+ENDS = (1e-3, 4e-3, 1.6e-2)
+"""Extra samples (rad) inside each end of a feasible interval (see :func:`sample`)."""
 """The first and last samples lie this far (rad) inside a feasible interval: its ends are exact to
 :data:`qpik.analytic.intervals.SAME` (1e-9), and the branch may stop reaching the pose just beyond."""
 PSI_TOL = 1e-13
@@ -64,7 +66,8 @@ class Pieces:
 
 
 def sample(scene: Scene, pieces: Pieces, step: float = SAMPLE_STEP) -> tuple[Points, np.ndarray]:
-    """Samples of every piece, at most ``step`` apart, from :data:`END` inside each end: (points, piece (M,)).
+    """Samples of every piece, at most ``step`` apart, from :data:`END` inside each end, and at :data:`ENDS` from
+    each end: (points, piece (M,)).
 
     Points of one piece are consecutive and in increasing ψ. Only points where the branch reaches
     the pose with a finite objective are kept.
@@ -79,6 +82,15 @@ def sample(scene: Scene, pieces: Pieces, step: float = SAMPLE_STEP) -> tuple[Poi
     t = np.where(k[piece] > 1, j / np.maximum(k[piece] - 1, 1), 0.0)
     psi = pieces.lo[piece] + width[piece] * t
     psi[j == k[piece] - 1] = pieces.hi[piece][j == k[piece] - 1]  # the end exactly
+    # near each end, more samples at geometric spacing: at a singular end (where dq/dψ is unbounded) the
+    # objective can turn within a fraction of a step
+    near = np.array([*ENDS, *(-e for e in ENDS)])
+    wide = np.flatnonzero(width > 4 * ENDS[-1])
+    extra_piece = np.repeat(wide, len(near))
+    extra = np.where(np.tile(near, len(wide)) > 0, pieces.lo[extra_piece], pieces.hi[extra_piece]) + np.tile(near, len(wide))
+    piece, psi = np.concatenate([piece, extra_piece]), np.concatenate([psi, extra])
+    order = np.lexsort((psi, piece))
+    piece, psi = piece[order], psi[order]
     pts = scene.evaluate(pieces.pose[piece], pieces.row[piece], psi)
     keep = pts.valid & np.isfinite(pts.f)
     return pts.take(keep), piece[keep]
@@ -135,13 +147,20 @@ def polish(scene: Scene, a: Points, m: Points, b: Points) -> Polished:
     :data:`PSI_TOL` away from m on the side of descent: when nothing improved and the probe's
     slope has the opposite sign, f turns within that distance (a kink of an epigraph term, where
     the bracket ends would otherwise only close in by halving): m is the minimum to that accuracy.
+    The clearance constraint holds at a, m and b; a trial where it fails counts as no better
+    than any point. A Newton step on c from m (to the constraint's boundary) is tried as well,
+    so that a minimum on the boundary of a gap in the clearance between two samples is met as
+    fast as one at a kink; when the probe next to m fails the constraint and nothing improved,
+    m is on that boundary to :data:`PSI_TOL`.
     Returns the final middle points.
     """
     pose, row = m.pose, m.row
-    # rows 0, 1, 2: a, m, b; each with ψ, f, f'
+    # rows 0, 1, 2: a, m, b; each with ψ, f, f', and c, c' for m
     P = np.stack([a.psi, m.psi, b.psi])
     F = np.stack([a.f, m.f, b.f])
     D = np.stack([a.df, m.df, b.df])
+    C = np.stack([a.c, m.c, b.c])
+    DC = np.stack([a.dc, m.dc, b.dc])
     rounds = np.zeros(len(m), int)
     done = np.zeros(len(m), bool)
     cols = np.arange(len(m))
@@ -165,25 +184,31 @@ def polish(scene: Scene, a: Points, m: Points, b: Points) -> Polished:
         tangent = _inside(tangent, up, wp)
         mirror = _inside(2.0 * tangent - up, up, wp)  # beyond the kink estimate: the far end moves in too
         near = up + 1e-3 * (wp - up)  # off a singular end, where f' is not finite
-        trials = np.stack([_inside(secant, up, wp), tangent, mirror, 0.5 * (up + wp), near, probe], axis=1)
+        edge = P[1, i] - C[1, i] / np.where(DC[1, i] != 0, DC[1, i], np.nan)  # Newton on c toward its boundary
+        edge = _inside(edge - 1e-12 * (edge - up), up, wp)
+        trials = np.stack([_inside(secant, up, wp), tangent, mirror, 0.5 * (up + wp), near, edge, probe], axis=1)
         k = trials.shape[1]
         pts = scene.evaluate(np.repeat(pose[i], k), np.repeat(row[i], k), trials.ravel())
-        for t in range(k):
-            x, fx, dx = pts.psi[t::k], pts.f[t::k], pts.df[t::k]
-            better = fx < F[1, i]
-            left = x < P[1, i]
-            # a better point becomes m and the old m the end on its side; a worse one may shrink its side
-            new_a = np.where(better & ~left, 1, np.where(~better & left & (x > P[0, i]), 3, 0))
-            new_b = np.where(better & left, 1, np.where(~better & (x > P[1, i]) & (x < P[2, i]), 3, 2))
-            new_m = np.where(better, 3, 1)
-            stack = [np.stack([P[r, i] for r in range(3)] + [x]), np.stack([F[r, i] for r in range(3)] + [fx]),
-                     np.stack([D[r, i] for r in range(3)] + [dx])]  # fmt: skip
-            cols_i = np.arange(len(i))
-            for arr, src in zip((P, F, D), stack):
-                arr[0, i], arr[1, i], arr[2, i] = src[new_a, cols_i], src[new_m, cols_i], src[new_b, cols_i]
+        # every point known: a, m, b and the trials; the best becomes m, the nearest on each side a and b
+        allP = np.concatenate([P[:, i].T, trials], axis=1)
+        allF = np.concatenate([F[:, i].T, np.where(pts.c >= 0, pts.f, np.inf).reshape(-1, k)], axis=1)
+        allD = np.concatenate([D[:, i].T, pts.df.reshape(-1, k)], axis=1)
+        allC = np.concatenate([C[:, i].T, pts.c.reshape(-1, k)], axis=1)
+        allDC = np.concatenate([DC[:, i].T, pts.dc.reshape(-1, k)], axis=1)
+        allF = np.where(np.isnan(allF), np.inf, allF)
+        best = np.argmin(allF, axis=1)
+        cols_i = np.arange(len(i))
+        pm = allP[cols_i, best]
+        left = np.where(allP < pm[:, None], allP, -np.inf)
+        right = np.where(allP > pm[:, None], allP, np.inf)
+        ia = np.where(np.isfinite(left.max(axis=1)), left.argmax(axis=1), best)
+        ib = np.where(np.isfinite(right.min(axis=1)), right.argmin(axis=1), best)
+        for arr, src in ((P, allP), (F, allF), (D, allD), (C, allC), (DC, allDC)):
+            arr[0, i], arr[1, i], arr[2, i] = src[cols_i, ia], src[cols_i, best], src[cols_i, ib]
         improved = F[1, i] < uf
         across = np.sign(pts.df[k - 1 :: k]) == -np.sign(ud)  # the probe's slope has turned: a kink within tiny
-        done[i] |= across & ~improved
+        blocked = pts.c[k - 1 :: k] < 0  # the probe fails the constraint: m is on its boundary
+        done[i] |= (across | blocked) & ~improved
         rounds[i] += 1
     return Polished(scene.evaluate(pose, row, P[1]), rounds)
 

@@ -28,8 +28,8 @@ from qpik.robots.robot import Robot
 
 MIRRORED = {"offset_shoulder": 8}
 """Closed-form families whose branches k + half at a parameter are branch k at the parameter + π: half."""
-CHUNK = 32
-"""Rows per call of the compiled self-motion functions."""
+CHUNKS = (32, 8)
+"""Rows per call of the compiled self-motion functions (:class:`~qpik.compiled.RowMap`)."""
 
 
 class SelfMotion:
@@ -60,7 +60,7 @@ class SelfMotion:
             T, psi, Q, valid = self._symbols
             q = Q[b, :].T
             fn = ca.Function(f"selfmotion_{self.solver.kind}_{b}", [T, psi], [ca.densify(ca.vertcat(q, ca.jacobian(q, psi), valid[b]))])
-            self._points[b] = RowMap(fn, chunks=(CHUNK, CHUNK))
+            self._points[b] = RowMap(fn, chunks=CHUNKS)
         return self._points[b]
 
     def _box_map(self, b: int) -> RowMap:
@@ -68,7 +68,7 @@ class SelfMotion:
             T, psi, Q, _ = self._symbols
             fn = ca.Function(f"selfmotion_{self.solver.kind}_{b}", [T, psi], [ca.densify(Q[b, :].T)])
             box = interval_function(fn, [1], name=f"selfmotion_box_{self.solver.kind}_{b}")
-            self._boxes[b] = RowMap(box, chunks=(CHUNK, CHUNK))
+            self._boxes[b] = RowMap(box, chunks=CHUNKS)
         return self._boxes[b]
 
     def points(self, b: int, T: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
