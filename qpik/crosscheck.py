@@ -43,7 +43,7 @@ from qpik.robots.robot import Robot
 
 FRAME_WEIGHT = 1e8
 """Weight of the QP's frame task, per m² (and rad²)."""
-OBJECTIVE_WEIGHT = 1e-2
+OBJECTIVE_WEIGHT = 1e-3
 """Weight w of the QP's objective task."""
 DAMPING = 1e-6
 """λ of the QP's damping task."""
@@ -61,6 +61,8 @@ class CrossCheck:
         velocity: (c), the QP's step (n,), rad/s.
         q_gap: max |q_b − q_a|, rad; f_gap: |f_b − f_a|; kkt: (b)'s KKT residual; speed: max |v| of (c).
         failures: the checks that failed, in words ([] when all agree).
+        applicable: False when (a) has no answer (no feasible or no reachable configuration): then
+            nothing was compared.
         random_rate: of :attr:`random_starts` IPOPT runs from random configurations alone, the
             fraction that reached the pose with f within :data:`TOL_F` of (a) (nan if none were run).
     """
@@ -73,15 +75,19 @@ class CrossCheck:
     kkt: float
     speed: float
     failures: list[str] = field(default_factory=list)
+    applicable: bool = True
     random_starts: int = 0
     random_rate: float = np.nan
 
     @property
     def passed(self) -> bool:
-        return not self.failures
+        """All three agree (False when not applicable)."""
+        return self.applicable and not self.failures
 
     def report(self) -> str:
         """A few lines: the three answers and the verdict."""
+        if not self.applicable:
+            return f"(a) has no answer, nothing to compare: {self.best.summary()}"
         lines = [
             f"(a) closed form + 1-D search: {self.best.summary()}",
             f"(b) full-joint NLP from (a): max |Δq| = {self.q_gap:.2e} rad, |Δf| = {self.f_gap:.2e},"
@@ -128,7 +134,7 @@ def crosscheck(
     best = solve_best(robot, pose, obj, obs, q_ref, d_safe=d_safe, certify=False)
     nan = np.full(robot.dof, np.nan)
     if best.status != "optimal":
-        return CrossCheck(best, None, nan, np.nan, np.nan, np.nan, np.nan, [f"(a) found no answer: {best.summary()}"])
+        return CrossCheck(best, None, nan, np.nan, np.nan, np.nan, np.nan, applicable=False)
     full = solve_full(robot, pose, obj, obs, q_ref, q0=best.q, d_safe=d_safe, starts=1, max_starts=1)
     velocity = _qp_step(robot, pose, obj, obs, q_ref, best.q, d_safe)
     q_gap = float(np.abs(full.q - best.q).max())

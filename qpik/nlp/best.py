@@ -29,7 +29,7 @@ from qpik.errors import InputError, NoClosedFormError
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.certificate import certify as prove
 from qpik.nlp.scene import Points, Scene
-from qpik.nlp.search import SAMPLE_STEP, Pieces, candidates, polish, sample, split
+from qpik.nlp.search import SAMPLE_STEP, Pieces, candidates, onto_limits, polish, sample, split
 from qpik.nlp.selfmotion import selfmotion_of
 from qpik.objectives import Objective, ReferenceDistance, resolve
 from qpik.robots.robot import Robot
@@ -339,7 +339,7 @@ def _search(scene: Scene, pieces: Pieces, step: float, extra: Points | None = No
     pol = polish(scene, a, m, b)
     share = (scene.evaluations - before) / max(len(m), 1)
     np.add.at(scene.counts, (m.pose, m.row), np.round(share).astype(int))
-    return Points.join([pol.point, runs]), np.concatenate([pol.rounds, np.zeros(len(runs), int)])
+    return Points.join([onto_limits(scene, pol.point), runs]), np.concatenate([pol.rounds, np.zeros(len(runs), int)])
 
 
 def _count(scene: Scene, pts: Points) -> None:

@@ -29,7 +29,7 @@ the minimum of its basin, not of the interval, so it still needs the sampling to
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -44,6 +44,8 @@ ENDS = (1e-3, 4e-3, 1.6e-2)
 :data:`qpik.analytic.intervals.SAME` (1e-9), and the branch may stop reaching the pose just beyond."""
 PSI_TOL = 1e-13
 """A bracket narrower than this (rad, relative to 1 + |ψ|) has converged."""
+NOISE = 1e-15
+"""Relative rounding of an objective value: values closer than this count as equal in :func:`polish`."""
 MAX_ROUNDS = 60
 """Most rounds of :func:`polish` or :func:`roots`."""
 POLISHED_PER_BRANCH = 1
@@ -196,7 +198,11 @@ def polish(scene: Scene, a: Points, m: Points, b: Points) -> Polished:
         allC = np.concatenate([C[:, i].T, pts.c.reshape(-1, k)], axis=1)
         allDC = np.concatenate([DC[:, i].T, pts.dc.reshape(-1, k)], axis=1)
         allF = np.where(np.isnan(allF), np.inf, allF)
-        best = np.argmin(allF, axis=1)
+        # f's rounding hides the last digits of ψ at a smooth minimum: among the points whose f is
+        # within rounding of the least, the one with the smallest |f'| is the best estimate of the root
+        low = allF.min(axis=1, keepdims=True)
+        ties = allF <= low + NOISE * (1.0 + np.abs(low))
+        best = np.argmin(np.where(ties, np.abs(np.where(np.isnan(allD), np.inf, allD)), np.inf), axis=1)
         cols_i = np.arange(len(i))
         pm = allP[cols_i, best]
         left = np.where(allP < pm[:, None], allP, -np.inf)
@@ -266,3 +272,42 @@ def candidates(pts: Points, run: np.ndarray) -> tuple[Points, Points, Points]:
     a = np.where(first[chosen], chosen, chosen - 1)
     b = np.where(last[chosen], chosen, chosen + 1)
     return pts.take(a), pts.take(chosen), pts.take(b)
+
+
+AT_LIMIT = 1e-7
+"""A joint this close (rad) to a limit at a polished point is taken to be on it (:func:`onto_limits`)."""
+
+
+def onto_limits(scene: Scene, pts: Points) -> Points:
+    r"""Polished points next to a joint limit, moved onto it where that lowers f.
+
+    A minimum at the end of a feasible interval where a joint reaches its limit is found to the
+    accuracy of the interval's end (1e-9 rad, and :data:`END` inside it). Newton steps on
+    :math:`q_j(\psi) = l_j` for the joint nearest its limit l_j (with the exact dq/dψ) put it on
+    the limit to rounding; the joint values are then clipped into the limits (by at most a few ulps).
+    """
+    robot = scene.robot
+    gap = np.minimum(pts.q - robot.q_min, robot.q_max - pts.q)
+    j = gap.argmin(axis=1)
+    rows = np.arange(len(pts))
+    near = (gap[rows, j] < AT_LIMIT) & (pts.dq[rows, j] != 0)
+    if not near.any():
+        return pts
+    idx = np.flatnonzero(near)
+    cur = pts.take(idx)
+    jj = j[idx]
+    r = np.arange(len(idx))
+    limit = np.where(cur.q[r, jj] - robot.q_min[jj] < robot.q_max[jj] - cur.q[r, jj], robot.q_min[jj], robot.q_max[jj])
+    psi = cur.psi
+    for _ in range(3):
+        new = scene.evaluate(cur.pose, cur.row, psi - (cur.q[r, jj] - limit) / cur.dq[r, jj])
+        ok = new.valid & np.isfinite(new.f) & (new.c >= 0)
+        cur = Points(*(np.where(ok.reshape(-1, *[1] * (getattr(new, f.name).ndim - 1)), getattr(new, f.name),
+                                getattr(cur, f.name)) for f in fields(Points)))  # fmt: skip
+        psi = cur.psi
+    cur.q = np.clip(cur.q, robot.q_min, robot.q_max)
+    better = cur.f <= pts.f[idx]
+    out = pts.take(np.arange(len(pts)))
+    for f in fields(Points):
+        getattr(out, f.name)[idx[better]] = getattr(cur, f.name)[better]
+    return out
