@@ -96,7 +96,8 @@ class CrossCheck:
         ]
         if self.random_starts:
             lines.append(
-                f"full-joint NLP from {self.random_starts} random starts alone: {self.random_rate:.0%} reach the global optimum"
+                f"full-joint NLP from {self.random_starts} random starts alone:"
+                f" {self.random_rate:.0%} reach the global optimum"
             )
         lines.append("agree: all three" if self.passed else "DISAGREE: " + "; ".join(self.failures))
         return "\n".join(lines)
@@ -129,7 +130,9 @@ def crosscheck(
     """
     obj = resolve(objective)
     if not obj.smooth:
-        raise InputError(f"objective: the cross-check needs a smooth objective (its gradient is the QP's task), got {obj.name}")
+        raise InputError(
+            f"objective: the cross-check needs a smooth objective (its gradient is the QP's task), got {obj.name}"
+        )
     obs = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
     best = solve_best(robot, pose, obj, obs, q_ref, d_safe=d_safe, certify=False)
     nan = np.full(robot.dof, np.nan)

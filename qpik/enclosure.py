@@ -200,9 +200,11 @@ _UNARY = {
     ca.OP_ASSIGN: lambda x: x,
     ca.OP_SIN: lambda x: _Range.of(ca.sin(x.lo)) if x.point else _sin(x.lo, x.hi),
     ca.OP_COS: lambda x: _Range.of(ca.cos(x.lo)) if x.point else _sin(x.lo + _PI / 2, x.hi + _PI / 2),
-    ca.OP_FABS: lambda x: _Range.of(ca.fabs(x.lo))
-    if x.point
-    else _pair(ca.if_else(x.lo >= 0, x.lo, ca.if_else(x.hi <= 0, -x.hi, 0.0)), ca.fmax(-x.lo, x.hi)),
+    ca.OP_FABS: lambda x: (
+        _Range.of(ca.fabs(x.lo))
+        if x.point
+        else _pair(ca.if_else(x.lo >= 0, x.lo, ca.if_else(x.hi <= 0, -x.hi, 0.0)), ca.fmax(-x.lo, x.hi))
+    ),
 }
 
 
@@ -222,7 +224,9 @@ def interval_function(fn: ca.Function, intervals: Sequence[int], name: str | Non
     if not fn.is_a("SXFunction"):
         raise InputError(f"fn: interval_function needs an SX function, got {fn.class_name()}")
     boxed = list(dict.fromkeys(int(i) for i in intervals))
-    lo_in = [ca.SX.sym(f"{fn.name_in(i)}_lo" if i in boxed else fn.name_in(i), fn.sparsity_in(i)) for i in range(fn.n_in())]
+    lo_in = [
+        ca.SX.sym(f"{fn.name_in(i)}_lo" if i in boxed else fn.name_in(i), fn.sparsity_in(i)) for i in range(fn.n_in())
+    ]
     hi_in = {i: ca.SX.sym(f"{fn.name_in(i)}_hi", fn.sparsity_in(i)) for i in boxed}
     out_lo = [ca.SX.zeros(fn.sparsity_out(i)) for i in range(fn.n_out())]
     out_hi = [ca.SX.zeros(fn.sparsity_out(i)) for i in range(fn.n_out())]

@@ -19,6 +19,14 @@ EXPECTED = {
         "qpik.feasible_intervals (iiwa14)",
     ],
     "controller": ["mink + osqp", "mink + daqp", "qpik + osqp", "qpik + daqp", "qpik + proxqp", "qpik + quadprog"],
+    "nlp": [
+        "ssik iiwa14_ik.solve (16 ψ × 8 branches)",
+        "solve_best margin, certified (iiwa14)",
+        "solve_best manipulability + 2 obstacles (nammoto7)",
+        "solve_best margin, batch of 200, per pose (iiwa14)",
+        "solve_full, IPOPT (panda)",
+        "mink.solve_ik iterated, daqp (zheng7)",
+    ],
 }
 
 

@@ -97,8 +97,15 @@ def test_margin_is_global_on_500_poses_with_and_without_obstacles(name):
     assert certified >= 0.8 * POSES  # the margin's minima are mostly kinks, which the certificate proves cheaply
 
 
-@pytest.mark.parametrize("name, objective", [("iiwa14", "smooth-margin"), ("nammoto7", "distance"),
-                                             ("iiwa14", "manipulability"), ("nammoto7", "smooth-clearance")])  # fmt: skip
+@pytest.mark.parametrize(
+    "name, objective",
+    [
+        ("iiwa14", "smooth-margin"),
+        ("nammoto7", "distance"),
+        ("iiwa14", "manipulability"),
+        ("nammoto7", "smooth-clearance"),
+    ],
+)
 def test_other_objectives_against_dense_samples(name, objective):
     robot = qpik.load_robot(name)
     T = _poses(robot, 25, 13)
@@ -204,5 +211,5 @@ def test_user_expressions_are_optimised_but_never_certified():
     T = robot.fk(robot.q_home)
     res = solve_best(robot, T, user)
     assert res.status == "optimal" and not res.certified and "lower bound" in res.message
-    (q, ok), = _dense(robot, T[None], num=3000)
+    ((q, ok),) = _dense(robot, T[None], num=3000)
     assert res.objective <= (((q[ok][:, :3] - 0.3) ** 2).sum(axis=1)).min() + 1e-8

@@ -73,11 +73,14 @@ def test_values_equal_their_definitions(name):
 def test_gradients_match_finite_differences(seed):
     robot = qpik.load_robot("iiwa14")
     q = random_q(robot, 60, seed, margin=0.05)
-    objective = Manipulability() + 3.0 * Clearance(smooth=True, cap=0.3) + 0.5 * ReferenceDistance() + JointLimitMargin(
-        smooth=True
+    objective = (
+        Manipulability()
+        + 3.0 * Clearance(smooth=True, cap=0.3)
+        + 0.5 * ReferenceDistance()
+        + JointLimitMargin(smooth=True)
     )
     ev = Evaluator(robot, objective, OBSTACLES)
-    f, grad, d, grad_d = ev(q, robot.q_home)
+    _, grad, d, grad_d = ev(q, robot.q_home)
     clear = d.min(axis=1) > 0.01  # the distances' gradient is exact where the closest points are unique
     num = fd(lambda x: ev(x, robot.q_home)[0], q, 1e-6)
     np.testing.assert_allclose(grad[clear], num[clear], atol=2e-6, rtol=1e-5)
@@ -134,8 +137,8 @@ def test_user_expression_and_split_epigraph():
     np.testing.assert_allclose(grad[:, :3], 2 * q[:, :3], rtol=1e-14)
     assert not user.bounded and user.key() != Expression(lambda q: q[0]).key()
     # the epigraph form: t >= every piece, cost = t: at the smallest feasible t it equals the value
-    from qpik.objectives import Context
     from qpik.geometry.distance import ObstacleSet
+    from qpik.objectives import Context
 
     qs = ca.SX.sym("q", 7)
     ctx = Context(robot, qs, ca.SX.zeros(7), ObstacleSet([]), ca.SX(0, 1))

@@ -58,7 +58,7 @@ def _run(args: argparse.Namespace) -> int:
     print(best.table())
     print(best.summary())
     if best.status == "optimal":
-        print("q* = " + np.array2string(best.q, precision=6) + " rad")
+        print("q* = " + np.array2string(best.q, precision=6, max_line_width=200) + " rad")
     if args.plot:
         from qpik.plots import save
         from qpik.plots.objective import objective_map

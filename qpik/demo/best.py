@@ -32,7 +32,10 @@ def run(out: Path) -> None:
     problem = load(find_problem("iiwa_obstacle_reach"))
     robot, pose, obstacles = problem.robot, problem.poses[0], problem.obstacles
     best = solve_best(robot, pose, "margin", obstacles, d_safe=D_SAFE)
-    print(f"{robot.name}, target of {problem.name}: largest joint-limit margin, every capsule ≥ {D_SAFE} m from the obstacles")
+    print(
+        f"{robot.name}, target of {problem.name}: largest joint-limit margin,"
+        f" every capsule ≥ {D_SAFE} m from the obstacles"
+    )
     print(best.table())
     print(best.summary())
     path = save(objective_map(robot, pose, "margin", obstacles, result=best, d_safe=D_SAFE), folder / "iiwa_margin.png")

@@ -106,7 +106,10 @@ class BestResult:
     def table(self) -> str:
         """The per-branch table as text (rad)."""
         sym = {"delta": "δ", "psi": "ψ"}.get(self.param_name, self.param_name)
-        lines = [f"{'branch':>6} {'feasible':>8} {sym + '* [rad]':>11} {'objective':>13} {'rounds':>6} {'evals':>6} {'time [µs]':>9}"]
+        lines = [
+            f"{'branch':>6} {'feasible':>8} {sym + '* [rad]':>11} {'objective':>13}"
+            f" {'rounds':>6} {'evals':>6} {'time [µs]':>9}"
+        ]
         for r in self.branches:
             mark = " *" if r.branch == self.branch and self.status == "optimal" else ""
             val = f"{r.param:11.6f} {r.objective:13.8g}" if r.feasible else f"{'—':>11} {'—':>13}"
@@ -372,7 +375,9 @@ class _BestSoFar:
         key = pts.pose[order] * 10_000 + pts.row[order]
         first[1:] = key[1:] != key[:-1]
         top = order[first]
-        self.update(pts.pose[top], pts.row[top], pts.psi[top], pts.q[top], pts.f[top], np.zeros(len(top), int), clear[top])
+        self.update(
+            pts.pose[top], pts.row[top], pts.psi[top], pts.q[top], pts.f[top], np.zeros(len(top), int), clear[top]
+        )
         np.maximum.at(self.rounds, (pts.pose, pts.row), rounds)
 
     def found(self) -> np.ndarray:
@@ -385,7 +390,7 @@ class _BestSoFar:
 def _result(
     scene: Scene, fi, best: _BestSoFar, i: int, certified: bool, bound: float, reason: str, searched: list[int]
 ) -> BestResult:
-    sm, robot = scene.selfmotion, scene.robot
+    sm = scene.selfmotion
     ids = sm.branch_ids
     total = max(int(scene.counts[i].sum()), 1)
     rows = []
@@ -404,8 +409,10 @@ def _result(
         r = int(np.argmin(best.f[i]))
         value = float(best.f[i, r])
         gap = value - bound if certified else np.inf
-        return BestResult("optimal", int(ids[r]), float(best.psi[i, r]), best.q[i, r].copy(), value, bool(certified),
-                          float(gap), float(best.clearance[i, r]), 0.0, rows, name, "" if certified else reason)  # fmt: skip
+        return BestResult(
+            "optimal", int(ids[r]), float(best.psi[i, r]), best.q[i, r].copy(), value, bool(certified), float(gap),
+            float(best.clearance[i, r]), 0.0, rows, name, "" if certified else reason,
+        )  # fmt: skip
     return _infeasible(scene, fi, i, rows, name)
 
 
@@ -436,4 +443,5 @@ def _infeasible(scene: Scene, fi, i: int, rows: list[BranchOptimum], name: str) 
         violation, at, q = float(score[k, br]), psi[k], sol.q[k, br]
     return BestResult("no feasible branch", int(sm.branch_ids[br]), float(wrap(at)), q.copy(), np.nan,
                       violation=violation, branches=rows, param_name=name,
-                      message=f"no branch keeps the joints in their limits{' and clear of the obstacles' if len(scene.obstacles) else ''}")  # fmt: skip
+                      message="no branch keeps the joints in their limits"
+                      + (" and clear of the obstacles" if len(scene.obstacles) else ""))  # fmt: skip

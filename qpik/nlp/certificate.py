@@ -11,7 +11,8 @@ crossings):
    the interval extension of the closed form (:meth:`~qpik.nlp.selfmotion.SelfMotion.boxes`,
    :mod:`qpik.enclosure`). Over that box, the objective's rigorous lower bound
    (:meth:`qpik.objectives.Objective.lower_bound`: exact for the joint-limit margin and the
-   reference distance, Lipschitz bounds for the clearance) bounds f from below on the cell, and upper bounds of the pair distances
+   reference distance, Lipschitz bounds for the clearance) bounds f from below on the cell, and upper
+   bounds of the pair distances
    (:meth:`qpik.objectives.Box.distance_upper`) show cells where the clearance constraint fails.
 3. A cell whose bound is :math:`\ge f^* - \varepsilon`, or where some pair is surely closer than
    :math:`d_s`, holds nothing better: it is dropped. The others are cut in :data:`SPLIT` and
@@ -138,4 +139,3 @@ def certify(scene: Scene, pieces: Pieces, best: np.ndarray, tol: np.ndarray, pos
             reason[i] = "a feasible point better than the answer was found"
     bound[~certified] = -np.inf
     return Certificate(certified, bound, cells_used, reason, Points.join(better) if better else None)
-

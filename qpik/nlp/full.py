@@ -82,7 +82,7 @@ class FullResult:
 
 
 def rotation_error(D: ca.SX) -> ca.SX:
-    r"""The rotation vector :math:`\theta u = \log D` (3,) of an SX rotation D (3, 3), for θ < π, differentiable at θ = 0.
+    r"""The rotation vector :math:`\theta u = \log D` (3,) of an SX rotation D (3, 3), θ < π, differentiable at θ = 0.
 
     :math:`\log D = f(c)\, w` with :math:`w = \mathrm{vee}(D - D^T)/2 = \sin\theta\, u`,
     :math:`c = (\mathrm{tr} D - 1)/2 = \cos\theta` and :math:`f(c) = \arccos c / \sqrt{1 - c^2} = \theta/\sin\theta`,
@@ -128,7 +128,11 @@ class FullNLP:
         grad = ca.gradient(cost + ca.dot(lam_g, g), x) + lam_x
         self.kkt_terms = ca.Function("kkt", [x, p, lam_g, lam_x], [grad, g])
         self.value = ca.Function("value", [q, p], [value, ca.mmin(ctx.distances) if len(obstacles) else ca.inf])
-        self.start_t = ca.Function("start_t", [q, p], [ca.vertcat(*[ca.mmax(h) for _, h in split.maxima], ca.SX(0, 1))]) if objective is not None else None
+        self.start_t = (
+            ca.Function("start_t", [q, p], [ca.vertcat(*[ca.mmax(h) for _, h in split.maxima], ca.SX(0, 1))])
+            if objective is not None
+            else None
+        )
 
 
 _NLPS: dict[tuple, FullNLP] = {}
@@ -216,7 +220,9 @@ def solve_full(
                           "no start produced a configuration")  # fmt: skip
     q, value, kkt, clear = best
     status = "optimal" if best_err < REACHED else "unreachable"
-    msg = "" if status == "optimal" else f"no start reached the pose (smallest error {best_err:.3g} after {tried} starts)"
+    msg = (
+        "" if status == "optimal" else f"no start reached the pose (smallest error {best_err:.3g} after {tried} starts)"
+    )
     return FullResult(status, q, value, best_err, kkt, clear, tried, iters, elapsed, msg)
 
 
@@ -256,7 +262,9 @@ def _solve_from(nlp: FullNLP, q_start: np.ndarray, p: np.ndarray) -> tuple:
     T = np.asarray(p[:16]).reshape(4, 4).T
     err = float(np.linalg.norm(pose_error(T, robot.fk(q))))
     value, clear = (float(v) for v in nlp.value(q, p))
-    kkt = kkt_residual(nlp, x, p, np.asarray(sol["lam_g"]).ravel(), np.asarray(sol["lam_x"]).ravel(), lbx, ubx, lbg, ubg)
+    kkt = kkt_residual(
+        nlp, x, p, np.asarray(sol["lam_g"]).ravel(), np.asarray(sol["lam_x"]).ravel(), lbx, ubx, lbg, ubg
+    )
     return q, value, err, iters, kkt, clear
 
 
@@ -269,4 +277,12 @@ def kkt_residual(nlp: FullNLP, x, p, lam_g, lam_x, lbx, ubx, lbg, ubg) -> float:
     comp = np.abs(lam_g[ineq] * (g[ineq] - ubg[ineq]))
     bound = np.where(lam_x < 0, np.abs(lam_x * (x - lbx)), np.abs(lam_x * (ubx - x)))
     bound = bound[np.isfinite(bound)]
-    return float(max(np.abs(grad).max(), viol.max(initial=0.0), viol_x.max(initial=0.0), comp.max(initial=0.0), bound.max(initial=0.0)))
+    return float(
+        max(
+            np.abs(grad).max(),
+            viol.max(initial=0.0),
+            viol_x.max(initial=0.0),
+            comp.max(initial=0.0),
+            bound.max(initial=0.0),
+        )
+    )

@@ -69,7 +69,9 @@ def solve_pieces(scene: Scene, pieces: Pieces):
     n_g = None
     for i, b, lo, hi in zip(pieces.pose, pieces.row, pieces.lo, pieces.hi):
         solver, start = _solver(scene, int(b))
-        p = np.concatenate([scene.poses[i].T.ravel(), scene.params, scene.q_ref[i], scene.obstacles.params, [scene.d_safe]])
+        p = np.concatenate(
+            [scene.poses[i].T.ravel(), scene.params, scene.q_ref[i], scene.obstacles.params, [scene.d_safe]]
+        )
         mid = 0.5 * (lo + hi)
         t0 = np.asarray(start(mid, p)).ravel()
         n_g = solver.size1_out("g") if n_g is None else n_g

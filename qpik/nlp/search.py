@@ -14,8 +14,8 @@ of closed intervals of δ/ψ. On each:
    quadratic), the crossing of the tangents at the two ends (exact at a kink of the epigraph
    terms, where the slope jumps), its mirror image through m (so that the far end of the bracket
    closes in too, and the tangents meet ever closer to the kink) and the midpoint (a guaranteed
-   halving), all evaluated in one compiled call; the best point becomes ``m``. A minimum at a piece's end (``f'`` pointing out)
-   is returned as it is.
+   halving), all evaluated in one compiled call; the best point becomes ``m``. A minimum at a piece's
+   end (``f'`` pointing out) is returned as it is.
 
 The local minima found are the candidates; the best is the answer. Whether it is the global
 minimum is what :mod:`qpik.nlp.certificate` proves (or fails to).
@@ -89,7 +89,9 @@ def sample(scene: Scene, pieces: Pieces, step: float = SAMPLE_STEP) -> tuple[Poi
     near = np.array([*ENDS, *(-e for e in ENDS)])
     wide = np.flatnonzero(width > 4 * ENDS[-1])
     extra_piece = np.repeat(wide, len(near))
-    extra = np.where(np.tile(near, len(wide)) > 0, pieces.lo[extra_piece], pieces.hi[extra_piece]) + np.tile(near, len(wide))
+    extra = np.where(np.tile(near, len(wide)) > 0, pieces.lo[extra_piece], pieces.hi[extra_piece]) + np.tile(
+        near, len(wide)
+    )
     piece, psi = np.concatenate([piece, extra_piece]), np.concatenate([psi, extra])
     order = np.lexsort((psi, piece))
     piece, psi = piece[order], psi[order]

@@ -59,7 +59,11 @@ class SelfMotion:
         if b not in self._points:
             T, psi, Q, valid = self._symbols
             q = Q[b, :].T
-            fn = ca.Function(f"selfmotion_{self.solver.kind}_{b}", [T, psi], [ca.densify(ca.vertcat(q, ca.jacobian(q, psi), valid[b]))])
+            fn = ca.Function(
+                f"selfmotion_{self.solver.kind}_{b}",
+                [T, psi],
+                [ca.densify(ca.vertcat(q, ca.jacobian(q, psi), valid[b]))],
+            )
             self._points[b] = RowMap(fn, chunks=CHUNKS)
         return self._points[b]
 

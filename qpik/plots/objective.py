@@ -70,8 +70,8 @@ def objective_map(
             top.plot(psi, np.where(clear[:, k], np.nan, y), color=colors[b], lw=1.0, ls=":")
     if result.status == "optimal":
         top.plot([result.param], [result.objective], "*", color="k", ms=16, zorder=5, gid=OPTIMUM_GID)
-        top.annotate(f"branch {result.branch}, {sym} = {result.param:.3f}\n{obj.name} = {result.objective:.4g}",
-                     (result.param, result.objective), textcoords="offset points", xytext=(10, 10), fontsize=9)  # fmt: skip
+        text = f"branch {result.branch}, {sym} = {result.param:.3f}\n{obj.name} = {result.objective:.4g}"
+        top.annotate(text, (result.param, result.objective), textcoords="offset points", xytext=(10, 10), fontsize=9)
     top.set_ylabel(f"objective ({obj.name})")
     top.grid(alpha=0.3)
     top.legend(loc="upper right", fontsize=7, ncol=2)

@@ -188,7 +188,9 @@ def reach_runs(problem: Problem) -> ReachRuns:
     start_branch = redundancy_parameter(robot, q0)[1]
     ref = solve_best(robot, pose, reach_objective(d_influence), obstacles, d_safe=d_safe, branches=[start_branch])
     if ref.status != "optimal":
-        raise UnreachableError(f"{robot.name}: no arm angle of branch {start_branch} reaches the target ({ref.summary()})")
+        raise UnreachableError(
+            f"{robot.name}: no arm angle of branch {start_branch} reaches the target ({ref.summary()})"
+        )
     kwargs = dict(
         target=pose,
         dt=dt,
