@@ -625,23 +625,22 @@ def lever_arms(robot: Robot) -> np.ndarray:
     return out
 
 
+_NAMED: dict[str, Callable[[], Objective]] = {
+    "margin": JointLimitMargin,
+    "smooth-margin": lambda: JointLimitMargin(smooth=True),
+    "manipulability": Manipulability,
+    "clearance": Clearance,
+    "smooth-clearance": lambda: Clearance(smooth=True),
+    "distance": ReferenceDistance,
+}
+NAMES = tuple(_NAMED)
+"""The names :func:`resolve` accepts."""
+
+
 def resolve(objective: Objective | str) -> Objective:
-    """An objective from its name: ``"margin"``, ``"smooth-margin"``, ``"manipulability"``,
-    ``"clearance"``, ``"smooth-clearance"``, ``"distance"``; objects pass through."""
+    """An objective, or one with default parameters from its name (:data:`NAMES`)."""
     if isinstance(objective, Objective):
         return objective
-    named = {
-        "margin": JointLimitMargin,
-        "smooth-margin": lambda: JointLimitMargin(smooth=True),
-        "manipulability": Manipulability,
-        "clearance": Clearance,
-        "smooth-clearance": lambda: Clearance(smooth=True),
-        "distance": ReferenceDistance,
-    }
-    if objective not in named:
-        raise InputError(f"objective: expected an Objective or one of {sorted(named)}, got {objective!r}")
-    return named[objective]()
-
-
-NAMES = ("margin", "smooth-margin", "manipulability", "clearance", "smooth-clearance", "distance")
-"""The names :func:`resolve` accepts."""
+    if objective not in _NAMED:
+        raise InputError(f"objective: expected an Objective or one of {list(NAMES)}, got {objective!r}")
+    return _NAMED[objective]()

@@ -291,7 +291,6 @@ def _solve(scene: Scene, certify: bool, tol: float, method: str, rows: list[int]
             for a, c in fi.intervals[b]:
                 pose.append(i), row.append(b), lo.append(a), hi.append(c)
     pieces = Pieces(np.array(pose, int), np.array(row, int), np.array(lo, float), np.array(hi, float))
-    scene.counts = np.zeros((N, B), int)
     best = _BestSoFar(N, B, scene.robot.dof)
     if method == "ipopt":
         from qpik.nlp.ipopt import solve_pieces

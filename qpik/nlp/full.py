@@ -275,8 +275,8 @@ def kkt_residual(nlp: FullNLP, x, p, lam_g, lam_x, lbx, ubx, lbg, ubg) -> float:
     viol_x = np.maximum(np.maximum(lbx - x, x - ubx), 0.0)
     ineq = np.isinf(lbg)
     comp = np.abs(lam_g[ineq] * (g[ineq] - ubg[ineq]))
-    bound = np.where(lam_x < 0, np.abs(lam_x * (x - lbx)), np.abs(lam_x * (ubx - x)))
-    bound = bound[np.isfinite(bound)]
+    gap_x = np.where(lam_x < 0, x - lbx, ubx - x)  # the distance to the bound the multiplier acts on
+    bound = np.abs(lam_x[np.isfinite(gap_x)] * gap_x[np.isfinite(gap_x)])
     return float(
         max(
             np.abs(grad).max(),

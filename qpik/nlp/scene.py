@@ -61,6 +61,10 @@ class Points:
 class Scene:
     """The data of one solve and the evaluation of rows (see the module docstring).
 
+    Attributes:
+        evaluations: rows evaluated so far; counts: (N, searched branches) of them per pose and branch,
+            as attributed by the search (:mod:`qpik.nlp.best`).
+
     Args:
         robot: the arm (with a closed form).
         selfmotion: its :class:`SelfMotion`.
@@ -87,6 +91,7 @@ class Scene:
         self.evaluator = Evaluator(robot, objective, obstacles)
         self.params = self.evaluator.params
         self.evaluations = 0
+        self.counts = np.zeros((len(poses), selfmotion.searched), int)
 
     def evaluate(self, pose: np.ndarray, row: np.ndarray, psi: np.ndarray) -> Points:
         """Every quantity of :class:`Points` at the rows (pose (M,), branch row (M,), ψ (M,))."""
