@@ -599,10 +599,15 @@ class Evaluator:
         if Q.ndim != 2 or Q.shape[1] != n:
             raise InputError(f"q: expected shape ({n},) or (M, {n}), got {q.shape}")
         ref = np.zeros(n) if q_ref is None else finite_array(q_ref, "q_ref")
-        (out,) = self._rows(Q, self.params, np.broadcast_to(ref, Q.shape), self.obstacles.params)
-        parts = np.split(out, np.cumsum([1, n, self.n_pairs]), axis=1)
-        f, grad, d, grad_d = parts[0][:, 0], parts[1], parts[2], parts[3]
+        f, grad, d, grad_d = self.rows(Q, np.broadcast_to(ref, Q.shape))
         return (f[0], grad[0], d[0], grad_d[0]) if q.ndim == 1 else (f, grad, d, grad_d)
+
+    def rows(self, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, ...]:
+        """:meth:`__call__` for configurations Q (M, n) and references R (M, n) that the caller built
+        (float arrays of the right shapes, no check): the search's inner loop."""
+        (out,) = self._rows(Q, self.params, R, self.obstacles.params)
+        parts = np.split(out, np.cumsum([1, self.robot.dof, self.n_pairs]), axis=1)
+        return parts[0][:, 0], parts[1], parts[2], parts[3]
 
 
 _EVALUATORS: dict[tuple, tuple] = {}

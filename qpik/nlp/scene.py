@@ -105,7 +105,7 @@ class Scene:
         for b in np.unique(row):
             at = np.flatnonzero(row == b)
             q[at], dq[at], valid[at] = self.selfmotion.points(int(b), self.poses[pose[at]], psi[at])
-        f, grad, d, grad_d = self.evaluator(q, self.q_ref[pose])
+        f, grad, d, grad_d = self.evaluator.rows(q, self.q_ref[pose])
         df = np.einsum("ij,ij->i", grad, dq)
         if d.shape[1]:
             c, dc = d.min(axis=1) - self.d_safe, np.einsum("ij,ij->i", grad_d, dq)

@@ -187,10 +187,13 @@ def polish(scene: Scene, a: Points, m: Points, b: Points) -> Polished:
         probe = up + np.sign(wp - up) * np.minimum(tiny[i], 0.5 * width[i])
         tangent = _inside(tangent, up, wp)
         mirror = _inside(2.0 * tangent - up, up, wp)  # beyond the kink estimate: the far end moves in too
-        near = up + 1e-3 * (wp - up)  # off a singular end, where f' is not finite
-        edge = P[1, i] - C[1, i] / np.where(DC[1, i] != 0, DC[1, i], np.nan)  # Newton on c toward its boundary
-        edge = _inside(edge - 1e-12 * (edge - up), up, wp)
-        trials = np.stack([_inside(secant, up, wp), tangent, mirror, 0.5 * (up + wp), near, edge, probe], axis=1)
+        steps = [_inside(secant, up, wp), tangent, mirror, 0.5 * (up + wp)]
+        if not np.isfinite(ud).all():
+            steps.append(up + 1e-3 * (wp - up))  # off a singular end, where f' is not finite
+        if np.isfinite(C[1, i]).any():
+            edge = P[1, i] - C[1, i] / np.where(DC[1, i] != 0, DC[1, i], np.nan)  # Newton on c toward its boundary
+            steps.append(_inside(edge - 1e-12 * (edge - up), up, wp))
+        trials = np.stack([*steps, probe], axis=1)
         k = trials.shape[1]
         pts = scene.evaluate(np.repeat(pose[i], k), np.repeat(row[i], k), trials.ravel())
         # every point known: a, m, b and the trials; the best becomes m, the nearest on each side a and b
