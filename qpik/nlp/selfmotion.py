@@ -30,6 +30,8 @@ MIRRORED = {"offset_shoulder": 8}
 """Closed-form families whose branches k + half at a parameter are branch k at the parameter + π: half."""
 CHUNKS = (32, 8)
 """Rows per call of the compiled self-motion functions (:class:`~qpik.compiled.RowMap`)."""
+BOX_CHUNKS = (16, 16)
+"""The same for the boxes: one size, since their interval extensions take seconds to compile."""
 
 
 class SelfMotion:
@@ -72,7 +74,7 @@ class SelfMotion:
             T, psi, Q, _ = self._symbols
             fn = ca.Function(f"selfmotion_{self.solver.kind}_{b}", [T, psi], [ca.densify(Q[b, :].T)])
             box = interval_function(fn, [1], name=f"selfmotion_box_{self.solver.kind}_{b}")
-            self._boxes[b] = RowMap(box, chunks=CHUNKS)
+            self._boxes[b] = RowMap(box, chunks=BOX_CHUNKS)
         return self._boxes[b]
 
     def points(self, b: int, T: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
