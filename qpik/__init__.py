@@ -20,13 +20,14 @@ from qpik.errors import (
     UnknownRobotError,
     UnreachableError,
 )
-from qpik.nlp import solve_ik
+from qpik.nlp import BestResult, solve_best, solve_ik
 from qpik.robots import CATALOG, DHChain, Joint, LinkCapsule, Robot, SerialChain, load_robot
 
 __version__ = "0.1.0"
 
 __all__ = [
     "CATALOG",
+    "BestResult",
     "Controller",
     "DHChain",
     "FeasibleIntervals",
@@ -50,5 +51,6 @@ __all__ = [
     "ik",
     "load_robot",
     "redundancy_parameter",
+    "solve_best",
     "solve_ik",
 ]

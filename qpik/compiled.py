@@ -183,3 +183,60 @@ class Compiled:
                 dst[:] = np.asarray(src, dtype=float).reshape(-1, order="F")
         self._eval()
         return self._views
+
+
+class RowMap:
+    """A CasADi function of one row, evaluated over M rows in compiled chunks.
+
+    ``fn.map`` over ``chunks[0]`` rows per call while more than 3/4 of that is left, then
+    over ``chunks[1]`` (the last call padded with copies of its first row): one call per
+    chunk, the loop over rows in machine code (:class:`Compiled`). Each size is compiled
+    on first use; equal sizes compile once.
+
+    Args:
+        fn: dense inputs (a matrix input is given per row as its entries in CasADi's
+            column-major order) and dense column-vector outputs.
+        shared: indices of the inputs that are the same for every row (given once, 1-D).
+        chunks: rows per call, large then small.
+    """
+
+    def __init__(self, fn: ca.Function, shared: Sequence[int] = (), chunks: tuple[int, int] = (32, 4)):
+        self.fn, self.shared, self.chunks = fn, tuple(shared), chunks
+        self._maps: dict[int, Compiled] = {}
+
+    def _map(self, size: int) -> tuple[Compiled, list[np.ndarray], list[np.ndarray]]:
+        """The compiled map of ``size`` rows and views (size, nnz) of its per-row input and output buffers."""
+        entry = self._maps.get(size)
+        if entry is None:
+            name = f"{self.fn.name()}_rows{size}"
+            call = Compiled(self.fn.map(name, "serial", size, list(self.shared), []))
+            # column-major (nnz, size) buffers: one row's entries are contiguous
+            ins = [None if k in self.shared else a.reshape(size, -1) for k, a in enumerate(call._args)]
+            outs = [r.reshape(size, -1) for r in call._res]
+            entry = self._maps[size] = (call, ins, outs)
+        return entry
+
+    def __call__(self, *args: np.ndarray) -> list[np.ndarray]:
+        """Each output as (M, nnz) for per-row inputs (M, nnz_i) (shared inputs: (nnz_i,))."""
+        shared = self.shared
+        per_row = [(k, np.asarray(a, dtype=float).reshape(len(a), -1)) for k, a in enumerate(args) if k not in shared]
+        M = len(per_row[0][1]) if per_row else 1
+        outs = [np.empty((M, self.fn.nnz_out(k))) for k in range(self.fn.n_out())]
+        big, small = self.chunks
+        i = 0
+        while i < M:
+            size = big if M - i > 3 * big // 4 else small
+            m = min(size, M - i)
+            call, ins, res = self._map(size)
+            for k in shared:
+                call._args[k][:] = np.ravel(args[k])
+            for k, rows in per_row:
+                buf = ins[k]
+                buf[:m] = rows[i : i + m]
+                if m < size:
+                    buf[m:] = rows[i]
+            call._eval()
+            for out, r in zip(outs, res):
+                out[i : i + m] = r[:m]
+            i += m
+        return outs

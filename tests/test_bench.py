@@ -28,6 +28,14 @@ EXPECTED = {
         "zheng7: qpik.solve_ik (Levenberg–Marquardt)",
         "nammoto7: qpik.solve_ik (closed form)",
     ],
+    "nlp": [
+        "ssik iiwa14_ik.solve (16 ψ × 8 branches)",
+        "solve_best margin, certified (iiwa14)",
+        "solve_best manipulability + 2 obstacles (nammoto7)",
+        "solve_best margin, batched, per pose (iiwa14)",
+        "solve_full, IPOPT (panda)",
+        "mink.solve_ik iterated, daqp (zheng7)",
+    ],
 }
 
 

@@ -74,3 +74,19 @@ def test_native_code_equals_the_virtual_machine_and_can_be_turned_off(monkeypatc
             np.testing.assert_allclose(g, np.array(w).reshape(g.shape, order="F"), atol=1e-13, rtol=0)
     monkeypatch.setenv("QPIK_NATIVE", "0")
     assert compiled.native(f) is f
+
+
+def test_row_map_equals_one_call_per_row():
+    from qpik.compiled import RowMap
+
+    T, x, p = ca.SX.sym("T", 2, 2), ca.SX.sym("x", 3), ca.SX.sym("p", 2)
+    fn = ca.Function("g", [T, x, p], [ca.vertcat(ca.mtimes(T, x[:2]) * p[0], ca.sum1(x) + p[1]), ca.sin(x)])
+    rows = RowMap(fn, shared=(2,), chunks=(8, 3))
+    rng = np.random.default_rng(0)
+    for M in (1, 2, 7, 8, 13):
+        Ts, xs, pv = rng.normal(size=(M, 2, 2)), rng.normal(size=(M, 3)), rng.normal(size=2)
+        a, b = rows(np.swapaxes(Ts, 1, 2).reshape(M, 4), xs, pv)  # matrices per row in column-major order
+        for k in range(M):
+            want = [np.asarray(v).ravel() for v in fn(Ts[k], xs[k], pv)]
+            np.testing.assert_allclose(a[k], want[0], rtol=1e-14)
+            np.testing.assert_allclose(b[k], want[1], rtol=1e-14)

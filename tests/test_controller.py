@@ -277,3 +277,17 @@ def test_return_from_a_limit_yields_to_an_obstacle(solver):
         assert "failed" not in log.status
         yielded += int((log.status == "yielding").sum())
     assert yielded > 20
+
+
+def test_set_posture_takes_the_nlp_answer():
+    """The controller's posture reference is the answer of qpik.solve_best: the QP then settles on it."""
+    robot = qpik.load_robot("iiwa14")
+    target = robot.fk(robot.q_home + 0.2)
+    best = qpik.solve_best(robot, target, certify=False)
+    ctrl = Controller.for_robot(robot, target=target, posture_weight=1e-2, manipulability_weight=0.0, dt=0.01)
+    ctrl.set_posture(best.q)
+    assert np.array_equal(ctrl.tasks[1].q_ref, best.q)
+    q = best.q.copy()
+    assert np.abs(ctrl.step(q)).max() < 1e-9  # on the target and on the reference: nothing to do
+    with pytest.raises(qpik.InputError, match="q_ref"):
+        ctrl.set_posture(np.zeros(3))

@@ -397,7 +397,8 @@ def test_every_public_name_is_fuzzed_or_a_type():
     plain = {"QpikError", "InputError", "RotationError", "UnknownRobotError", "NoClosedFormError", "ProblemFileError",
              "UnreachableError", "InfeasibleError", "SolverError", "RenderUnavailable", "StepInfo", "LinkCapsule",
              "Robot", "IKSolutions", "FeasibleIntervals", "CATALOG", "Shape", "Distances", "PairDistance", "QP",
-             "Solution", "Solver", "Task", "Limit", "BoxLimit", "RowLimit", "CLIK"}  # fmt: skip
+             "Solution", "Solver", "Task", "Limit", "BoxLimit", "RowLimit", "CLIK",
+             "BestResult", "ObjectiveTask", "solve_best"}  # fmt: skip
     names = {*qpik.__all__, *geometry.__all__, *control.__all__}
     tasks_and_limits = {"FrameTask", "PostureTask", "ManipulabilityTask", "DampingTask", "ConfigurationLimit",
                         "VelocityLimit", "ObstacleLimit", "PseudoInverseCLIK", "DampedLeastSquares",

@@ -1,7 +1,7 @@
 """qpik.problems.control: the ``reach`` and ``track`` runners, judged on MuJoCo's measurements.
 
 The reach run is checked on its log (MuJoCo clearances, DH forward kinematics of
-the final q); the closed-form reference by forward kinematics and against an
+the final q); the NLP's posture reference by forward kinematics and against an
 independent grid of arm angles; the track runner on the drift of velocity-only
 feedback; both runners end to end through ``qpik run``.
 """
@@ -18,6 +18,7 @@ import qpik
 import qpik.problems.control as report
 from qpik.cli import main
 from qpik.geometry import distances
+from qpik.objectives import Evaluator
 from qpik.problems import find_problem, load
 
 REACH = find_problem("iiwa_obstacle_reach")
@@ -64,20 +65,23 @@ def test_obstacle_limit_is_needed(reach):
     assert runs.log.clearance.min() >= runs.d_safe - 1e-4
 
 
-def test_closed_form_reference(reach):
-    """q_ref reaches the pose (FK), is within limits, and no arm angle of its branch has more clearance."""
+def test_nlp_reference(reach):
+    """q_ref reaches the pose (FK), keeps the limits and d_s, no arm angle of its branch does better
+    (dense samples of the closed form), and the run ends on that branch near that arm angle."""
     problem, runs = reach
     robot, ref, pose = problem.robot, runs.reference, problem.poses[0]
     np.testing.assert_allclose(robot.fk(ref.q), pose, atol=1e-9)
     assert robot.within_limits(ref.q)
     obstacles = problem.obstacles
-    psi = np.linspace(-np.pi, np.pi, 721)
-    sols = qpik.ik(robot, np.broadcast_to(pose, (721, 4, 4)), psi)
+    assert distances(robot.capsule_segments(ref.q), robot.capsule_radii, obstacles).d.min() >= runs.d_safe - 1e-9
+    assert ref.branch == runs.start_branch == qpik.redundancy_parameter(robot, robot.q_home)[1]
+    psi = np.linspace(-np.pi, np.pi, 2000)
+    sols = qpik.ik(robot, np.broadcast_to(pose, (len(psi), 4, 4)), psi)
     col = int(np.flatnonzero(sols.branch == ref.branch)[0])
     q = sols.q[sols.within_limits[:, col], col]
-    best = max(distances(robot.capsule_segments(qi), robot.capsule_radii, obstacles).d.min() for qi in q)
-    mine = distances(robot.capsule_segments(ref.q), robot.capsule_radii, obstacles).d.min()
-    assert mine >= min(best, runs.d_influence) - 1e-4
+    f, _, d, _ = Evaluator(robot, report.reach_objective(runs.d_influence), obstacles)(q)
+    clear = d.min(axis=1) >= runs.d_safe
+    assert ref.objective <= f[clear].min() + 1e-8
     # the final configuration of the run keeps the chosen branch, near the chosen arm angle
     psi_end, branch = qpik.redundancy_parameter(robot, runs.log.q[-1])
     assert branch == ref.branch

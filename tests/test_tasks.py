@@ -136,3 +136,42 @@ def test_frame_task_without_target_and_bad_input():
         FrameTask(robot.fk(robot.q_home), twist=np.ones(5))
     with pytest.raises(ValueError, match="error"):
         FrameTask(robot.fk(robot.q_home), error="body")
+
+
+def test_posture_set_target_changes_the_reference_not_the_form():
+    robot = qpik.load_robot("iiwa14")
+    task = PostureTask(robot.q_home, 2.0, 0.5)
+    q = random_q(robot, 1, 3)[0]
+    task.set_target(robot.q_home + 0.1)
+    _, c = task.compute(State(robot, q, 0.001))
+    np.testing.assert_allclose(c, -2 * 0.5 * 2.0 * (robot.q_home + 0.1 - q), atol=1e-14)
+    assert task.structure() == ()
+    with pytest.raises(qpik.InputError, match="q_ref"):
+        task.set_target(np.zeros(6))
+
+
+@pytest.mark.parametrize("name", ["iiwa14", "panda"])
+def test_objective_task_is_the_weighted_gradient(name):
+    """c = w ∇f for the objectives of qpik.objectives (finite differences of their values, from numpy distances)."""
+    from qpik.control import ObjectiveTask
+    from qpik.geometry import Sphere, distances
+    from qpik.objectives import Clearance, JointLimitMargin, ReferenceDistance
+
+    robot = qpik.load_robot(name)
+    ball = [Sphere((0.4, 0.2, 0.7), 0.1)]
+    objective = JointLimitMargin(smooth=True) + 2.0 * Clearance(smooth=True, cap=0.5) + ReferenceDistance()
+
+    def value(q):
+        half = 0.5 * (robot.q_max - robot.q_min)
+        g = np.concatenate([(q - robot.q_min) / half, (robot.q_max - q) / half])
+        d = distances(robot.capsule_segments(q), robot.capsule_radii, ball).d.ravel()
+        soft = np.log(np.exp(-20 * g).sum()) / 20 + 2 * np.log(np.exp(-100 * np.r_[d, 0.5]).sum()) / 100
+        return soft + 0.5 * np.sum((q - robot.q_home) ** 2)
+
+    task = ObjectiveTask(robot, objective, weight=0.3, q_ref=robot.q_home, obstacles=ball)
+    for q in random_q(robot, 4, 12, margin=0.1):
+        if distances(robot.capsule_segments(q), robot.capsule_radii, ball).d.min() < 0.01:
+            continue
+        P, c = task.compute(State(robot, q, 0.001))
+        assert np.all(P == 0)
+        np.testing.assert_allclose(c, 0.3 * fd(value, q), atol=2e-7)

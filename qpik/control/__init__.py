@@ -21,6 +21,7 @@ from qpik.control.tasks import (
     DampingTask,
     FrameTask,
     ManipulabilityTask,
+    ObjectiveTask,
     PostureTask,
     Task,
 )
@@ -38,6 +39,7 @@ __all__ = [
     "GradientProjection",
     "Limit",
     "ManipulabilityTask",
+    "ObjectiveTask",
     "ObstacleLimit",
     "PostureTask",
     "PseudoInverseCLIK",

@@ -207,6 +207,14 @@ class Controller:
             limits.append(ObstacleLimit(obstacles, d_influence, d_safe, xi))
         return cls(robot, tasks, limits, solver=solver, dt=dt)
 
+    def set_posture(self, q_ref: np.ndarray) -> None:
+        """Set the reference of every :class:`PostureTask` (n,), rad: for example the best configuration
+        of :func:`qpik.solve_best` for the target, ``ctrl.set_posture(best.q)``."""
+        q_ref = joint_vector(q_ref, self.robot.dof, "q_ref")[0]
+        for task in self.tasks:
+            if isinstance(task, PostureTask):
+                task.set_target(q_ref)
+
     def _extra(self, s: SymState) -> list:
         out = [lim.distances_expr(s) for lim in self.obstacle_limits]
         if self.frame_task is not None:

@@ -22,7 +22,9 @@ import numpy as np
 
 from qpik.control.state import State, SymState, _unique, evaluate
 from qpik.errors import InputError
+from qpik.geometry.distance import ObstacleSet
 from qpik.lie import pose_error_expr, se3_ljacinv_expr, se3_log_expr
+from qpik.objectives import Context, Objective
 from qpik.validate import finite_array, number, single_pose
 
 _EMPTY = np.zeros(0)
@@ -196,6 +198,11 @@ class PostureTask(Task):
         self.gain = number(gain, "gain")
         self.weight = number(weight, "weight")
 
+    def set_target(self, q_ref: np.ndarray) -> None:
+        """Set the reference configuration (n,), rad (same length as before: the QP's form is fixed)."""
+        q_ref = finite_array(q_ref, "q_ref", (len(self.q_ref),))
+        self.q_ref = q_ref.copy()
+
     def structure(self) -> tuple:
         return ()
 
@@ -264,3 +271,54 @@ class ManipulabilityTask(Task):
     def expr(self, s: SymState, p: ca.SX) -> tuple[ca.SX, ca.SX]:
         """∇m(q) from :func:`qpik.robots.manipulability.manipulability_gradient_expr`, traced into the state."""
         return ca.SX.zeros(s.n, s.n), -p[0] * s.manipulability_gradient(self.translational)
+
+
+class ObjectiveTask(Task):
+    r"""An objective of :mod:`qpik.objectives` as a secondary task: the linear cost :math:`w\,\nabla f(q)^T v`.
+
+    Minimising :math:`w \nabla f^T v` moves v down the gradient wherever the other terms leave
+    freedom, as :class:`ManipulabilityTask` does for −m. ∇f is CasADi's exact derivative of the
+    objective's expression (for capsule–obstacle distances, :math:`n^T J_p` at the closest points,
+    :class:`qpik.objectives.Context`). At a minimum of f over the self-motion, ∇f lies in the row
+    space of J, so with a dominant frame task the step is 0 (:mod:`qpik.crosscheck` checks this).
+
+    Parameters: w, the objective's parameters, q_ref (n), the obstacles' parameters.
+
+    Args:
+        robot: the arm (fixes the objective's parameters).
+        objective: a smooth objective (an epigraph term has no gradient at its kinks).
+        weight: w, s/rad per unit of f.
+        q_ref: (n,) reference configuration of a :class:`~qpik.objectives.ReferenceDistance` term, rad.
+        obstacles: shapes for the objective's clearance terms (world frame).
+    """
+
+    name = "objective"
+
+    def __init__(
+        self, robot, objective: Objective, weight: float = 1e-2, q_ref: np.ndarray | None = None, obstacles=()
+    ):
+        self.robot, self.objective, self.weight = robot, objective, float(weight)
+        if not np.isfinite(self.weight):
+            raise InputError(f"weight: must be finite, got {weight}")
+        self.q_ref = np.zeros(robot.dof) if q_ref is None else finite_array(q_ref, "q_ref", (robot.dof,)).copy()
+        self.obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
+
+    def structure(self) -> tuple:
+        return (self.objective.key(), self.obstacles.kinds)
+
+    def param_size(self, n: int) -> int:
+        return 1 + self.objective.param_size(self.robot) + n + len(self.obstacles.params)
+
+    def params(self) -> np.ndarray:
+        return np.concatenate(([self.weight], self.objective.params(self.robot), self.q_ref, self.obstacles.params))
+
+    def gradient_expr(self, s: SymState, p: ca.SX) -> ca.SX:
+        """∇f (n,) at the state's q (SX)."""
+        n, k = s.n, self.objective.param_size(self.robot)
+        w = ca.SX.sym("witness", n)
+        ctx = Context(self.robot, s.q, p[1 + k : 1 + k + n], self.obstacles, p[1 + k + n :], witness=w)
+        grad = ca.gradient(self.objective.expr(ctx, p[1 : 1 + k]), s.q)
+        return ca.substitute(grad, w, s.q)
+
+    def expr(self, s: SymState, p: ca.SX) -> tuple[ca.SX, ca.SX]:
+        return ca.SX.zeros(s.n, s.n), p[0] * self.gradient_expr(s, p)

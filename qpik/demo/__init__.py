@@ -10,7 +10,7 @@ from __future__ import annotations
 import importlib
 from pathlib import Path
 
-ORDER = ("catalog", "closed_form", "controller")
+ORDER = ("catalog", "closed_form", "best", "controller")
 
 
 def run_all(out: Path, only: list[str] | None = None) -> None:

@@ -24,6 +24,8 @@ TINY2 = 1e-24
 """Squared length (m²) under which a segment counts as a point, or a distance as zero."""
 PARALLEL = 1e-12
 """Two segments count as parallel when ``sin²`` of their angle is below this."""
+FLAT = 1e-100
+"""A piece of the box kernel's ``f′`` rising by less than this is flat (its root fraction is then 0 or 1)."""
 _SORT6 = ((0, 5), (1, 3), (2, 4), (1, 2), (3, 4), (0, 3), (2, 5), (0, 1), (2, 3), (4, 5), (1, 2), (3, 4))
 """An optimal sorting network for 6 values (12 compare-exchanges)."""
 
@@ -143,7 +145,9 @@ def segment_box(a: Vec, u: Vec, h: Vec, ops: Ops) -> tuple[Scalar, Scalar, Vec, 
     s_out = 0.0
     for (k0, k1), (f0, f1) in zip(pairwise(knots), pairwise(slopes)):
         df = f1 - f0
-        rho = _clip01(-f0 / ops.fmax(df, 1e-200), ops)  # a flat piece (df = 0) gives 1 if f' < 0 there, else 0
+        sloped = df > FLAT
+        # a flat piece gives 1 if f' < 0 there, else 0; the guarded division keeps derivatives finite (NLPs)
+        rho = ops.where(sloped, _clip01(_div(-f0, df, sloped, ops), ops), ops.where(f0 < 0.0, 1.0, 0.0))
         s_out = s_out + rho * (k1 - k0)
     y = vadd(a, vscale(s_out, u))
     p_out = tuple(ops.fmin(ops.fmax(y[i], -h[i]), h[i]) for i in range(3))

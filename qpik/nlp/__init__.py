@@ -1,5 +1,22 @@
-"""Optimisation over configurations: numerical inverse kinematics (:func:`solve_ik`)."""
+"""Optimisation over the self-motion and over the joints.
 
+- :func:`solve_best`: the best closed-form branch and δ/ψ for a pose, certified (:mod:`qpik.nlp.best`);
+- :func:`solve_full`: the full-joint NLP (7 variables, pose equality) for every arm (:mod:`qpik.nlp.full`);
+- :func:`solve_ik`: numerical inverse kinematics for every arm (:mod:`qpik.nlp.ik`).
+"""
+
+from qpik.nlp.best import BestResult, BestResults, BranchOptimum, solve_best
+from qpik.nlp.full import FullResult, solve_full
 from qpik.nlp.ik import IKResult, IKSolver, solve_ik
 
-__all__ = ["IKResult", "IKSolver", "solve_ik"]
+__all__ = [
+    "BestResult",
+    "BestResults",
+    "BranchOptimum",
+    "FullResult",
+    "IKResult",
+    "IKSolver",
+    "solve_best",
+    "solve_full",
+    "solve_ik",
+]

@@ -133,7 +133,7 @@ def selfmotion_map(
         ax.set_ylim(-3.3, 3.3)
         ax.set_ylabel(f"θ{j + 1} [rad]" if sols.param_name == "delta" else f"q{j + 1} [rad]")
         ax.grid(alpha=0.3)
-    _feasible_panel(axes.flat[7], fi, draw, shade, colors)
+    feasible_panel(axes.flat[7], fi, draw, shade, colors)
     for ax in axes[-1]:
         ax.set_xlabel(f"{sym} [rad]")
         ax.set_xlim(-PI, PI)
@@ -153,7 +153,7 @@ def selfmotion_map(
     return fig
 
 
-def _feasible_panel(ax: Axes, fi: FeasibleIntervals, draw: list[int], shade: int, colors: dict) -> None:
+def feasible_panel(ax: Axes, fi: FeasibleIntervals, draw: list[int], shade: int, colors: dict) -> None:
     """Bars of the feasible parameter set of each drawn branch (exact intervals)."""
     for k, b in enumerate(draw):
         segs = [(lo, hi - lo) for lo, hi in fi[b]]

@@ -11,10 +11,11 @@ same configuration. Reported: each one's largest position error after the
 transient, and the drift of velocity-only feedback (its error over PD CLIK's).
 
 ``reach``: the QP controller takes the arm from its home configuration to a target
-pose among obstacles. Its posture reference :math:`q_{ref}` comes from the closed
-form (:func:`closed_form_reference`): over the feasible arm-angle intervals of the
-start's branch, the configuration with the best clearance. The same controller
-without the obstacle limit is run on the same scene to show that the limit is needed.
+pose among obstacles. Its posture reference :math:`q_{ref}` is the NLP's answer
+(:func:`qpik.solve_best`): over the exact feasible arm-angle intervals of the start's branch
+(the branch a continuous motion keeps unless it passes a singular configuration), the
+configuration that minimises :func:`reach_objective`, certified. The same controller without
+the obstacle limit is run on the same scene to show that the limit is needed.
 
 ``[solver]`` keys (all optional; their defaults and values: :data:`qpik.problems.schema.SOLVER_KEYS`):
 ``dt`` (s), ``duration`` (s), ``kp_position``, ``kp_orientation`` (1/s), ``posture_weight``,
@@ -32,93 +33,29 @@ from typing import Any
 
 import numpy as np
 
-from qpik.analytic import feasible_intervals, ik, redundancy_parameter
+from qpik.analytic import feasible_intervals, redundancy_parameter
 from qpik.analytic.intervals import wrap
 from qpik.control.clik import PseudoInverseCLIK, VelocityOnly
 from qpik.control.controller import Controller
 from qpik.errors import ProblemFileError, UnreachableError
-from qpik.geometry import Shape, distances
+from qpik.geometry import distances
+from qpik.nlp import BestResult, solve_best
+from qpik.objectives import Clearance, JointLimitMargin, Objective
 from qpik.plots.runs import plot_comparison, plot_log, render_strip
 from qpik.problems.runners import runner
 from qpik.problems.schema import Problem
-from qpik.robots.robot import Robot
 from qpik.sim import SimLog, Summary, simulate
 
-PSI_STEP = np.radians(1.0)
-"""Spacing (rad) of the arm-angle samples inside each feasible interval."""
-CLEARANCE_RESOLUTION = 1e-4
-"""Clearances (m) are compared to this resolution when ranking closed-form candidates."""
 SINGULAR_FRACTION = 0.01
 """A track report flags a singular passage when the manipulability falls below this fraction of its start."""
+MARGIN_WEIGHT = 0.1
+"""Weight of the joint-limit margin beside the clearance in the reach runner's objective."""
 
 
-@dataclass
-class Reference:
-    """A closed-form posture reference for a target pose.
-
-    Attributes:
-        q: (n,) configuration (rad) reaching the pose, within the joint limits.
-        branch: its closed-form branch id; param: its redundancy parameter (rad).
-        clearance: (C,) distance of each link capsule to its nearest obstacle (m).
-        candidates: how many (branch, parameter) samples were ranked.
-    """
-
-    q: np.ndarray
-    branch: int
-    param: float
-    clearance: np.ndarray
-    candidates: int
-
-
-def closed_form_reference(
-    robot: Robot,
-    pose: np.ndarray,
-    obstacles: tuple[Shape, ...],
-    q_start: np.ndarray | None = None,
-    cap: float = np.inf,
-    step: float = PSI_STEP,
-) -> Reference:
-    """The within-limits closed-form solution of ``pose`` with the best clearance.
-
-    Candidates: parameters spaced about ``step`` (rad) inside every feasible
-    interval (:func:`qpik.feasible_intervals`) of the branch of ``q_start`` — the
-    branch a continuous motion from ``q_start`` keeps unless it crosses a singular
-    configuration — or of every branch if that one has none or ``q_start`` is
-    ``None``. Ranking (leximin): each candidate's per-link clearances, capped at
-    ``cap`` (m) and sorted ascending, compared lexicographically (to 0.1 mm), so the
-    smallest clearance is maximised first, then the next; ties go to the larger
-    joint-limit margin.
-
-    Raises:
-        UnreachableError: no branch reaches the pose within the limits.
-    """
-    fi = feasible_intervals(robot, pose)
-    start_branch = None if q_start is None else redundancy_parameter(robot, q_start)[1]
-    branches = [b for b in fi.branch if b == start_branch and fi[b]] or [b for b in fi.branch if fi[b]]
-    qs, bs, ps = [], [], []
-    for b in branches:
-        for lo, hi in fi[b]:
-            k = max(1, int(np.ceil((hi - lo) / step)))
-            psi = lo + (hi - lo) * (np.arange(k) + 0.5) / k
-            sols = ik(robot, np.broadcast_to(pose, (k, 4, 4)), psi)
-            col = int(np.flatnonzero(sols.branch == b)[0])
-            ok = sols.within_limits[:, col]
-            qs.append(sols.q[ok, col])
-            bs += [int(b)] * int(ok.sum())
-            ps.append(psi[ok])
-    if not bs:
-        raise UnreachableError(f"{robot.name}: no closed-form branch reaches the target within the joint limits")
-    Q, P = np.concatenate(qs), np.concatenate(ps)
-    C = len(robot.capsules)
-    if obstacles:
-        seg = robot.capsule_segments(Q).reshape(-1, 2, 3)
-        d = distances(seg, np.tile(robot.capsule_radii, len(Q)), obstacles).d.reshape(len(Q), C, -1).min(axis=2)
-    else:
-        d = np.full((len(Q), C), np.inf)
-    ranked = np.round(np.sort(np.minimum(d, cap), axis=1) / CLEARANCE_RESOLUTION)
-    margin = np.minimum(Q - robot.q_min, robot.q_max - Q).min(axis=1)
-    best = np.lexsort((margin, *ranked.T[::-1]))[-1]  # primary key: the smallest clearance
-    return Reference(Q[best].copy(), bs[best], float(P[best]), d[best], len(Q))
+def reach_objective(d_influence: float) -> Objective:
+    """The posture reference's objective: the soft minimum of every capsule–obstacle clearance, capped at
+    the dampers' influence distance (m), plus :data:`MARGIN_WEIGHT` times the joint-limit margin."""
+    return Clearance(cap=d_influence, smooth=True) + MARGIN_WEIGHT * JointLimitMargin()
 
 
 def _settings(problem: Problem) -> dict[str, Any]:
@@ -220,12 +157,13 @@ class ReachRuns:
     """The closed loops of a ``reach`` problem.
 
     Attributes:
-        reference: the closed-form posture reference.
+        reference: the NLP's answer, the posture reference; start_branch: the branch of q_home (searched).
         log: the QP controller with the obstacle limit; free: the same without it.
         d_safe, d_influence, xi: the obstacle-limit settings (m, m, m/s).
     """
 
-    reference: Reference
+    reference: BestResult
+    start_branch: int
     log: SimLog
     free: SimLog
     d_safe: float
@@ -234,7 +172,7 @@ class ReachRuns:
 
 
 def reach_runs(problem: Problem) -> ReachRuns:
-    """Closed-form reference, then the QP controller with and without the obstacle limit, same scene."""
+    """The NLP's posture reference, then the QP controller with and without the obstacle limit, same scene."""
     robot = problem.robot
     if len(problem.poses) != 1:
         raise ProblemFileError(f"{problem.file}: target: kind 'reach' takes one pose, got {len(problem.poses)}")
@@ -244,7 +182,12 @@ def reach_runs(problem: Problem) -> ReachRuns:
     dt, duration = s["dt"], s["duration"]
     d_safe, d_influence, xi = s["d_safe"], s["d_influence"], s["xi"]
     q0 = robot.q_home
-    ref = closed_form_reference(robot, pose, obstacles, q0, cap=d_influence)
+    start_branch = redundancy_parameter(robot, q0)[1]
+    ref = solve_best(robot, pose, reach_objective(d_influence), obstacles, d_safe=d_safe, branches=[start_branch])
+    if ref.status != "optimal":
+        raise UnreachableError(
+            f"{robot.name}: no arm angle of branch {start_branch} reaches the target ({ref.summary()})"
+        )
     kwargs = dict(
         target=pose,
         dt=dt,
@@ -263,12 +206,12 @@ def reach_runs(problem: Problem) -> ReachRuns:
         ctrl = Controller.for_robot(robot, obstacles=obs, **kwargs)
         logs.append(simulate(robot, ctrl, q0, duration, dt, obstacles=obstacles, target=pose,
                              record_every=every, d_safe=d_safe, label=label))  # fmt: skip
-    return ReachRuns(ref, logs[0], logs[1], d_safe, d_influence, xi)
+    return ReachRuns(ref, int(start_branch), logs[0], logs[1], d_safe, d_influence, xi)
 
 
 @runner("reach")
 def run_reach(problem: Problem, out: Path) -> str:
-    """QP controller from home to a pose among obstacles, posture from the closed form; see the module docstring."""
+    """QP controller from home to a pose among obstacles, posture from the NLP; see the module docstring."""
     robot = problem.robot
     runs = reach_runs(problem)
     ref, log, free = runs.reference, runs.log, runs.free
@@ -304,6 +247,15 @@ def run_reach(problem: Problem, out: Path) -> str:
              free_closest < d_safe),
         ]  # fmt: skip
     link = [n.replace("_capsule", "") for n in log.link_names]
+    fi = feasible_intervals(robot, problem.poses[0])
+    open_branches = [str(b) for b in fi.branch if fi[int(b)]]
+    if problem.obstacles:
+        ref_d = distances(robot.capsule_segments(ref.q), robot.capsule_radii, problem.obstacles).d.min(axis=1)
+        what = f"soft minimum of the clearances capped at d_i + {MARGIN_WEIGHT:g} × joint-limit margin, clearance ≥ d_s"
+        its = f"; its clearances (mm): {', '.join(f'{n} {d * 1e3:.0f}' for n, d in zip(link, ref_d))}"
+    else:
+        what, its = f"{MARGIN_WEIGHT:g} × joint-limit margin (no obstacles)", ""
+    cert = f"certified to {ref.gap:.1e}" if ref.certified else f"not certified: {ref.message}"
     lines = [
         f"# {problem.name} (reach)",
         "",
@@ -312,10 +264,13 @@ def run_reach(problem: Problem, out: Path) -> str:
         f"{robot.name} from q_home to the target, {duration:g} s at dt = {dt:g} s;"
         f" d_s = {d_safe:g} m, d_i = {d_influence:g} m, ξ = {xi:g} m/s.",
         "",
-        f"Closed-form posture reference: branch {ref.branch}, ψ = {ref.param:.4f} rad"
-        f" (best of {ref.candidates} within-limits samples), q_ref = {np.array2string(ref.q, precision=3)};"
-        f" its clearances (mm): {', '.join(f'{n} {d * 1e3:.0f}' for n, d in zip(link, ref.clearance))}.",
-        f"Final configuration: branch {branch}, ψ = {psi:.4f} rad.",
+        f"1. Closed form: the branches with ψ inside the joint limits (exact feasible intervals) are"
+        f" {', '.join(open_branches) or 'none'}; q_home is on branch {runs.start_branch}.",
+        f"2. NLP (qpik.solve_best over branch {runs.start_branch}, objective: {what}): branch {ref.branch},"
+        f" ψ = {ref.param:.4f} rad, objective {ref.objective:.6g}, {cert}, {ref.time * 1e3:.1f} ms;"
+        f" q_ref = {np.array2string(ref.q, precision=3)}{its}.",
+        f"3. QP controller from q_home toward the target with q_ref as its posture reference: final"
+        f" configuration on branch {branch}, ψ = {psi:.4f} rad.",
         "",
         "| run | final position error (mm) | final orientation error (rad) | min clearance (mm) |"
         " min limit margin (rad) | QP median solve (µs) |",

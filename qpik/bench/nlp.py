@@ -1,0 +1,176 @@
+"""Bench: :func:`qpik.solve_best` beside ssik's full sweep, and the full-joint NLP beside mink's iterated IK.
+
+Poses are ``fk(q)`` of configurations drawn uniformly inside the joint limits (seed 0).
+
+Part 1, per ``solve_best`` call (both closed-form arms), median and p95 over the poses:
+
+- ``ssik iiwa14_ik.solve``: ssik's full solve on the same iiwa poses — a sweep of 16 arm
+  angles × 8 branches (every solution it enumerates), the reference of the ratios;
+- ``solve_best margin``: the joint-limit margin, with the certificate (the default) and without;
+- ``solve_best margin, method=ipopt``: the same problem with IPOPT from every feasible interval
+  (the alternative the search was measured against; fewer poses);
+- ``solve_best manipulability + 2 obstacles``: −log m with two spheres as clearance constraints
+  (no certificate exists for −log m: the flag stays off at no cost);
+- ``solve_best margin, batched``: :data:`BATCH` poses in one call, time per pose (and poses per second).
+
+The certificate's success rate and its median cell count are in the notes.
+
+Part 2, the full-joint NLP on ``zheng7`` and ``panda`` (no closed form): the same poses and the
+same starts (``q0``, then the seeded random starts of :func:`qpik.nlp.solve_full`) for both
+peers, each stopping at its first start that reaches the pose to 1e-9:
+
+- ``solve_full`` (IPOPT, exact derivatives, pose as an equality, joint limits as bounds);
+- ``mink.solve_ik`` iterated on the MJCF twin (FrameTask gain 1, dt = 1, daqp, ConfigurationLimit)
+  until the pose error is below 1e-9 or :data:`MINK_ITERS` iterations, per start (a start whose QP
+  has no solution counts as failed).
+
+Rows: seconds per pose (median; p95 in the note) and the success rate over the poses.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from qpik.bench import Row
+from qpik.geometry.shapes import Sphere
+from qpik.lie import pose_error
+from qpik.nlp import solve_best, solve_full
+from qpik.nlp.full import REACHED
+from qpik.robots.catalog import load_robot
+
+TITLE = "NLP: best branch and δ/ψ (solve_best) and the full-joint NLP"
+SSIK = "ssik iiwa14_ik.solve (16 ψ × 8 branches)"
+BATCH = 200
+"""Most poses of the batched row (fewer with a small ``--repeat``)."""
+MINK_ITERS = 200
+MAX_STARTS = 30
+
+
+def run(args: argparse.Namespace) -> list[Row]:
+    import time
+
+    repeat = max(5, int(getattr(args, "repeat", 2000)) // 20)
+    batch = min(BATCH, 10 * repeat)
+    rows: list[Row] = []
+    ref = _ssik_row(repeat)
+    if ref is not None:
+        rows.append(ref)
+    obstacles = [Sphere((0.45, 0.3, 0.6), 0.08), Sphere((0.3, -0.4, 0.4), 0.08)]
+    for name in ("iiwa14", "nammoto7"):
+        robot = load_robot(name)
+        T = robot.fk(np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (max(repeat, batch), robot.dof)))
+        r = SSIK if name == "iiwa14" and ref is not None else None
+        cases = [
+            ("margin, certified", dict(objective="margin"), repeat),
+            ("margin, no certificate", dict(objective="margin", certify=False), repeat),
+            ("margin, method=ipopt", dict(objective="margin", certify=False, method="ipopt"), max(3, repeat // 10)),
+            ("manipulability + 2 obstacles", dict(objective="manipulability", obstacles=obstacles), repeat),
+        ]
+        for label, kw, n in cases:
+            solve_best(robot, T[0], **kw)  # builds and compiles
+            times, cert = [], []
+            for k in range(n):
+                t0 = time.perf_counter()
+                res = solve_best(robot, T[k], **kw)
+                times.append(time.perf_counter() - t0)
+                cert.append(res.certified)
+            t = np.array(times)
+            note = f"p95 {_ms(np.percentile(t, 95))}"
+            if kw.get("certify", True) and label.startswith("margin"):
+                note += f"; certified {np.mean(cert):.0%} of {n}"
+            rows.append(Row(f"solve_best {label} ({name})", float(np.median(t)), r, note=note))
+        solve_best(robot, T[:4])
+        t0 = time.perf_counter()
+        solve_best(robot, T[:batch], certify=False)
+        per = (time.perf_counter() - t0) / batch
+        note = f"{batch} poses in one call: {1.0 / per:.0f} poses/s, no certificate"
+        rows.append(Row(f"solve_best margin, batched, per pose ({name})", per, r, note=note))
+    for name in ("zheng7", "panda"):
+        rows += _full_rows(name, max(10, repeat))
+    return rows
+
+
+def _ms(s: float) -> str:
+    return f"{s * 1e3:.3g} ms"
+
+
+def _ssik_row(repeat: int) -> Row | None:
+    import time
+
+    try:
+        from ssik.prebuilt.kuka import iiwa14_ik
+    except ImportError:
+        return None
+    robot = load_robot("iiwa14")
+    T = robot.fk(np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (repeat, robot.dof)))
+    iiwa14_ik.solve(T[0])
+    times = []
+    for k in range(repeat):
+        t0 = time.perf_counter()
+        iiwa14_ik.solve(T[k])
+        times.append(time.perf_counter() - t0)
+    t = np.array(times)
+    return Row(SSIK, float(np.median(t)), note=f"p95 {_ms(np.percentile(t, 95))}")
+
+
+def _full_rows(name: str, n: int) -> list[Row]:
+    """solve_full and mink's iterated solve_ik on the same poses and starts."""
+    import time
+
+    robot = load_robot(name)
+    rng = np.random.default_rng(0)
+    Q = rng.uniform(robot.q_min, robot.q_max, (n, robot.dof))
+    starts = rng.uniform(robot.q_min, robot.q_max, (n, robot.dof))
+    T = robot.fk(Q)
+    mink_solve = _mink(robot)
+    solve_full(robot, T[0], q0=starts[0])
+    out = {"qpik": ([], []), "mink": ([], [])}
+    for k in range(n):
+        t0 = time.perf_counter()
+        res = solve_full(robot, T[k], q0=starts[k], seed=k, max_starts=MAX_STARTS)
+        out["qpik"][0].append(time.perf_counter() - t0)
+        out["qpik"][1].append(res.status == "optimal" and robot.within_limits(res.q))
+        t0 = time.perf_counter()
+        ok = mink_solve(T[k], starts[k], k)
+        out["mink"][0].append(time.perf_counter() - t0)
+        out["mink"][1].append(ok)
+    rows = []
+    labels = {"qpik": f"solve_full, IPOPT ({name})", "mink": f"mink.solve_ik iterated, daqp ({name})"}
+    for peer in ("mink", "qpik"):
+        t, ok = np.array(out[peer][0]), np.array(out[peer][1])
+        note = f"p95 {_ms(np.percentile(t, 95))}; reached 1e-9 on {ok.mean():.1%} of {n} poses"
+        rows.append(Row(labels[peer], float(np.median(t)), labels["mink"] if peer == "qpik" else None, note=note))
+    return rows
+
+
+def _mink(robot):
+    """``solve(T, q0, seed) -> bool``: mink.solve_ik iterated from q0, then from the same seeded random starts."""
+    import mink
+
+    model = robot.mj_model()
+    conf = mink.Configuration(model)
+    task = mink.FrameTask("ee", "site", position_cost=1.0, orientation_cost=1.0, gain=1.0)
+    limits = [mink.ConfigurationLimit(model)]
+
+    def attempt(T: np.ndarray, q0: np.ndarray) -> bool:
+        conf.update(q0)
+        for _ in range(MINK_ITERS):
+            if np.linalg.norm(pose_error(T, robot.fk(conf.q))) < REACHED:
+                return True
+            try:
+                v = mink.solve_ik(conf, [task], 1.0, solver="daqp", limits=limits)
+            except mink.NoSolutionFound:  # the attempt fails; the next start follows
+                return False
+            conf.integrate_inplace(v, 1.0)
+        return bool(np.linalg.norm(pose_error(T, robot.fk(conf.q))) < REACHED)
+
+    def solve(T: np.ndarray, q0: np.ndarray, seed: int) -> bool:
+        task.set_target(mink.SE3.from_matrix(T))
+        if attempt(T, q0):
+            return True
+        rng = np.random.default_rng(seed)
+        return any(attempt(T, rng.uniform(robot.q_min, robot.q_max)) for _ in range(MAX_STARTS - 1))
+
+    return solve

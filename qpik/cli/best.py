@@ -1,0 +1,68 @@
+"""``qpik best``: the globally best closed-form branch and δ/ψ for one pose, with the per-branch table.
+
+The pose options are those of ``qpik ik``. Obstacles come from a problem file (``--problem``,
+its obstacles only) or from ``--sphere x,y,z,r`` options (m, world frame). ``--plot FILE``
+also draws the objective against δ/ψ for every branch (:mod:`qpik.plots.objective`).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from qpik.cli.args import add_robot, floats
+from qpik.cli.ik import add_pose, pose_from_args
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from qpik.objectives import NAMES
+
+    p = sub.add_parser("best", help="the globally best branch and δ/ψ for a pose (certified NLP over every branch)")
+    add_robot(p)
+    add_pose(p)
+    p.add_argument("--objective", default="margin", choices=NAMES, help="what to minimise (default: margin)")
+    p.add_argument("--q-ref", type=floats, help="7 joint angles (rad): the reference of --objective distance")
+    p.add_argument("--sphere", type=floats, action="append", default=[], help="an obstacle: x,y,z,radius (m)")
+    p.add_argument("--problem", help="take the obstacles of this problem file (or name in problems/)")
+    p.add_argument("--d-safe", type=float, default=0.02, help="smallest capsule–obstacle distance allowed (m)")
+    p.add_argument("--tol", type=float, default=1e-4, help="the certificate's relative tolerance")
+    p.add_argument("--no-certify", action="store_true", help="skip the certificate of global optimality")
+    p.add_argument("--plot", type=Path, help="also write the objective against δ/ψ (PNG)")
+    p.set_defaults(func=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from qpik import load_robot, solve_best
+    from qpik.errors import InputError
+    from qpik.geometry import Sphere
+    from qpik.validate import pose as check_pose
+
+    robot = load_robot(args.robot)
+    T, _ = check_pose(pose_from_args(args, robot), "pose", args.project)
+    obstacles = []
+    if args.problem:
+        from qpik.problems import find_problem, load
+
+        obstacles += list(load(find_problem(args.problem)).obstacles)
+    for s in args.sphere:
+        if s.size != 4:
+            raise InputError(f"--sphere: expected x,y,z,radius (4 numbers), got {s.size}")
+        obstacles.append(Sphere(s[:3], s[3]))
+    best = solve_best(robot, T, args.objective, obstacles, args.q_ref, d_safe=args.d_safe, certify=not args.no_certify,
+                      tol=args.tol)  # fmt: skip
+    p = np.array2string(T[:3, 3], precision=4)
+    extra = f", {len(obstacles)} obstacle(s), d_s = {args.d_safe:g} m" if obstacles else ""
+    print(f"{robot.name}: objective {args.objective} at p = {p} m{extra}")
+    print(best.table())
+    print(best.summary())
+    if best.status == "optimal":
+        print("q* = " + np.array2string(best.q, precision=6, max_line_width=200) + " rad")
+    if args.plot:
+        from qpik.plots import save
+        from qpik.plots.objective import objective_map
+
+        save(objective_map(robot, T, args.objective, obstacles, args.q_ref, best, args.d_safe), args.plot)
+        print(f"objective against the redundancy parameter written to {args.plot}")
+    return 0 if best.status in ("optimal", "no feasible branch", "unreachable") else 2

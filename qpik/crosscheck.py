@@ -1,0 +1,181 @@
+r"""Three-way cross-validation of the closed form, the NLP and the QP controller on one pose.
+
+For a pose and a smooth objective f (:mod:`qpik.objectives`):
+
+(a) :func:`qpik.solve_best`: the best branch and δ/ψ — the global minimum of f over the
+    self-motion of the closed form, inside the limits and clear of the obstacles;
+(b) :func:`qpik.nlp.solve_full` started at (a)'s configuration: f minimised over the 7 joints
+    with the pose as an equality constraint, by IPOPT;
+(c) the QP controller (:class:`qpik.Controller`) at (a)'s configuration, with the same target (a
+    :class:`~qpik.control.tasks.FrameTask` that dominates) and f as its secondary task
+    (:class:`~qpik.control.tasks.ObjectiveTask`), the joint limits and the obstacles' velocity
+    dampers at the same d_s (:class:`~qpik.control.limits.ObstacleLimit` without its buffer).
+
+All three state the same first-order optimality: at a minimum of f on the self-motion manifold
+{q : fk(q) = pose}, ∇f is a combination of the pose constraints' gradients, the active joint
+limits and the active clearance constraints. So (b) must stay at (a)'s q with the same f and a
+vanishing KKT residual, and (c) must return a zero velocity: a nonzero self-motion component
+would mean f can still decrease along the self-motion. The step of (c) is
+:math:`v = -(2 J^T W J + 2\lambda I)^{-1} w \nabla f` when nothing is active, so the frame weight W
+is large (:data:`FRAME_WEIGHT`) to make the part of ∇f in the row space of J (which W trades
+against the target) negligible, and the damping λ small (:data:`DAMPING`), so that a self-motion
+gradient :math:`N \nabla f` shows up amplified by w/λ.
+
+Tolerances (issue): same q to 1e-6 rad, same f to 1e-8, KKT residual of (b) ≤ 1e-8, |v| of (c)
+≤ 1e-6 rad/s. A disagreement is reported in :attr:`CrossCheck.failures`, never hidden.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from qpik.control.controller import Controller
+from qpik.control.limits import ConfigurationLimit, ObstacleLimit
+from qpik.control.tasks import DampingTask, FrameTask, ObjectiveTask
+from qpik.errors import InputError
+from qpik.geometry.distance import ObstacleSet
+from qpik.nlp.best import BestResult, solve_best
+from qpik.nlp.full import FullResult, solve_full
+from qpik.objectives import Objective, resolve
+from qpik.robots.robot import Robot
+
+FRAME_WEIGHT = 1e8
+"""Weight of the QP's frame task, per m² (and rad²)."""
+OBJECTIVE_WEIGHT = 1e-3
+"""Weight w of the QP's objective task."""
+DAMPING = 1e-6
+"""λ of the QP's damping task."""
+TOL_Q, TOL_F, TOL_KKT, TOL_V = 1e-6, 1e-8, 1e-8, 1e-6
+"""The agreement required: rad, objective units, KKT residual, rad/s."""
+
+
+@dataclass
+class CrossCheck:
+    """The three answers for one pose and how far apart they are.
+
+    Attributes:
+        best: (a), :class:`~qpik.nlp.best.BestResult`.
+        full: (b), :class:`~qpik.nlp.full.FullResult`.
+        velocity: (c), the QP's step (n,), rad/s.
+        q_gap: max |q_b − q_a|, rad; f_gap: |f_b − f_a|; kkt: (b)'s KKT residual; speed: max |v| of (c).
+        failures: the checks that failed, in words ([] when all agree).
+        applicable: False when (a) has no answer (no feasible or no reachable configuration): then
+            nothing was compared.
+        random_rate: of :attr:`random_starts` IPOPT runs from random configurations alone, the
+            fraction that reached the pose with f within :data:`TOL_F` of (a) (nan if none were run).
+    """
+
+    best: BestResult
+    full: FullResult | None
+    velocity: np.ndarray
+    q_gap: float
+    f_gap: float
+    kkt: float
+    speed: float
+    failures: list[str] = field(default_factory=list)
+    applicable: bool = True
+    random_starts: int = 0
+    random_rate: float = np.nan
+
+    @property
+    def passed(self) -> bool:
+        """All three agree (False when not applicable)."""
+        return self.applicable and not self.failures
+
+    def report(self) -> str:
+        """A few lines: the three answers and the verdict."""
+        if not self.applicable:
+            return f"(a) has no answer, nothing to compare: {self.best.summary()}"
+        lines = [
+            f"(a) closed form + 1-D search: {self.best.summary()}",
+            f"(b) full-joint NLP from (a): max |Δq| = {self.q_gap:.2e} rad, |Δf| = {self.f_gap:.2e},"
+            f" KKT residual {self.kkt:.2e}",
+            f"(c) QP controller at (a): max |v| = {self.speed:.2e} rad/s",
+        ]
+        if self.random_starts:
+            lines.append(
+                f"full-joint NLP from {self.random_starts} random starts alone:"
+                f" {self.random_rate:.0%} reach the global optimum"
+            )
+        lines.append("agree: all three" if self.passed else "DISAGREE: " + "; ".join(self.failures))
+        return "\n".join(lines)
+
+
+def crosscheck(
+    robot: Robot,
+    pose: np.ndarray,
+    objective: Objective | str = "smooth-margin",
+    obstacles=(),
+    q_ref: np.ndarray | None = None,
+    *,
+    d_safe: float = 0.02,
+    random_starts: int = 0,
+    seed: int = 0,
+) -> CrossCheck:
+    """Solve (a), (b), (c) of the module docstring for ``pose`` and compare them.
+
+    Args:
+        robot: an arm with a closed form.
+        pose: (4, 4) end-effector pose, base frame.
+        objective: a smooth objective (or its name).
+        obstacles: shapes (world frame), with the clearance constraint ≥ ``d_safe`` (m).
+        q_ref: (n,) reference configuration, rad (a ``"distance"`` objective's).
+        random_starts: also run the full-joint NLP from this many random configurations
+            (seeded with ``seed``) and report how often it reaches (a)'s optimum.
+
+    Raises:
+        InputError: a non-smooth objective (the QP needs its gradient), bad input.
+    """
+    obj = resolve(objective)
+    if not obj.smooth:
+        raise InputError(
+            f"objective: the cross-check needs a smooth objective (its gradient is the QP's task), got {obj.name}"
+        )
+    obs = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
+    best = solve_best(robot, pose, obj, obs, q_ref, d_safe=d_safe, certify=False)
+    nan = np.full(robot.dof, np.nan)
+    if best.status != "optimal":
+        return CrossCheck(best, None, nan, np.nan, np.nan, np.nan, np.nan, applicable=False)
+    full = solve_full(robot, pose, obj, obs, q_ref, q0=best.q, d_safe=d_safe, starts=1, max_starts=1)
+    velocity = _qp_step(robot, pose, obj, obs, q_ref, best.q, d_safe)
+    q_gap = float(np.abs(full.q - best.q).max())
+    f_gap = float(abs(full.objective - best.objective))
+    speed = float(np.abs(velocity).max())
+    failures = []
+    if full.status != "optimal":
+        failures.append(f"(b) did not converge: {full.message or full.status}")
+    if not q_gap <= TOL_Q:
+        failures.append(f"(b) moved {q_gap:.2e} rad from (a) (> {TOL_Q:g})")
+    if not f_gap <= TOL_F:
+        failures.append(f"(b)'s objective differs by {f_gap:.2e} (> {TOL_F:g})")
+    if not full.kkt <= TOL_KKT:
+        failures.append(f"(b)'s KKT residual is {full.kkt:.2e} (> {TOL_KKT:g})")
+    if not speed <= TOL_V:
+        failures.append(f"(c) moves at {speed:.2e} rad/s (> {TOL_V:g})")
+    out = CrossCheck(best, full, velocity, q_gap, f_gap, full.kkt, speed, failures)
+    if random_starts:
+        rng = np.random.default_rng(seed)
+        hits = 0
+        for _ in range(random_starts):
+            q0 = rng.uniform(robot.q_min, robot.q_max)
+            r = solve_full(robot, pose, obj, obs, q_ref, q0=q0, d_safe=d_safe, starts=1, max_starts=1)
+            hits += r.status == "optimal" and r.objective <= best.objective + TOL_F
+        out.random_starts, out.random_rate = random_starts, hits / random_starts
+    return out
+
+
+def _qp_step(robot, pose, obj, obs, q_ref, q, d_safe) -> np.ndarray:
+    """(c): one step of the QP controller at q (daqp, exact) with the target, f as a task, limits and dampers."""
+    dt = 0.01
+    tasks = [
+        FrameTask(pose, 1.0 / dt, 1.0 / dt, FRAME_WEIGHT, FRAME_WEIGHT),
+        ObjectiveTask(robot, obj, OBJECTIVE_WEIGHT, q_ref=q_ref, obstacles=obs),
+        DampingTask(DAMPING),
+    ]
+    limits = [ConfigurationLimit()]
+    if len(obs):
+        limits.append(ObstacleLimit(obs, d_influence=d_safe + 0.1, d_safe=d_safe, xi=0.5, buffer=0.0))
+    ctrl = Controller(robot, tasks, limits, solver="daqp", dt=dt)
+    return ctrl.step(q)

@@ -1,0 +1,446 @@
+r"""``qpik.solve_best``: the globally best branch and δ/ψ of a closed-form arm for a pose.
+
+Minimises an objective (:mod:`qpik.objectives`) over every branch and every δ (offset
+shoulder) or ψ (S-R-S) that keeps the joints inside their limits (the exact
+:func:`qpik.feasible_intervals`) and every link capsule at least ``d_safe`` from every obstacle.
+The variable is the one parameter; q is the branch's closed form, traced in CasADi with exact
+derivatives (:mod:`qpik.nlp.selfmotion`). Every feasible interval of every branch is searched
+(:mod:`qpik.nlp.search`: sampling, then a bracketed polish of the local minima; or, with
+``method="ipopt"``, IPOPT from the middle of each interval, :mod:`qpik.nlp.ipopt`), and the
+answer is checked for global optimality (:mod:`qpik.nlp.certificate`).
+
+Statuses: ``"optimal"`` (the best point found; :attr:`BestResult.certified` says whether it is
+proved global), ``"unreachable"`` (no branch reaches the pose at any parameter),
+``"no feasible branch"`` (reachable, but not inside the limits and clear of the obstacles:
+:attr:`BestResult.branch` and :attr:`BestResult.q` are then the least-violating branch and
+configuration, :attr:`BestResult.violation` by how much), ``"solver failed"`` (a numerical
+failure, with the reason in :attr:`BestResult.message`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from qpik.analytic.intervals import wrap
+from qpik.errors import InputError, NoClosedFormError
+from qpik.geometry.distance import ObstacleSet
+from qpik.nlp.certificate import certify as prove
+from qpik.nlp.scene import Points, Scene
+from qpik.nlp.search import SAMPLE_STEP, Pieces, candidates, onto_limits, polish, sample, split
+from qpik.nlp.selfmotion import selfmotion_of
+from qpik.objectives import Objective, ReferenceDistance, resolve
+from qpik.robots.robot import Robot
+from qpik.validate import finite_array
+from qpik.validate import pose as check_pose
+
+STATUSES = ("optimal", "unreachable", "no feasible branch", "solver failed")
+VIOLATION_SAMPLES = 720
+"""Parameter samples per branch when looking for the least-violating branch."""
+RETRIES = 2
+"""Searches again (with samples 4x closer each time) when the certificate finds a better point."""
+
+
+@dataclass
+class BranchOptimum:
+    """One branch's row of the table.
+
+    Attributes:
+        branch: public branch id.
+        searched: whether it was searched (``branches`` of :func:`solve_best`).
+        feasible: some δ/ψ of it keeps the joints in their limits (and clear of the obstacles).
+        param: its best δ/ψ (rad; nan if not feasible); objective: the value there.
+        q: (n,) its configuration, rad (nan if not feasible).
+        rounds: polish rounds (iterations) of its best local minimum.
+        evaluations: objective evaluations spent on the branch.
+        time: its share of the pose's solve time (by evaluations), s.
+    """
+
+    branch: int
+    searched: bool
+    feasible: bool
+    param: float
+    objective: float
+    q: np.ndarray
+    rounds: int = 0
+    evaluations: int = 0
+    time: float = 0.0
+
+
+@dataclass
+class BestResult:
+    """The answer for one pose.
+
+    Attributes:
+        status: one of :data:`STATUSES`.
+        branch: the best branch's public id (the least-violating one without a feasible branch;
+            -1 if unreachable).
+        param: its δ/ψ, rad; q: (n,) its configuration, rad; objective: the value at q.
+        certified: proved to be the global minimum to ``gap`` (:mod:`qpik.nlp.certificate`).
+        gap: the objective minus the certified lower bound (inf when not certified).
+        clearance: smallest capsule–obstacle distance at q, m (inf without obstacles).
+        violation: without a feasible branch, how far the least-violating configuration is
+            outside the limits (rad) or inside d_s (m); else 0.
+        branches: the per-branch table (:class:`BranchOptimum`).
+        param_name: ``"delta"`` or ``"psi"``.
+        message: why it is not certified, or what failed ("" otherwise).
+        time: seconds (a batch: the call's time divided by the number of poses).
+    """
+
+    status: str
+    branch: int
+    param: float
+    q: np.ndarray
+    objective: float
+    certified: bool = False
+    gap: float = np.inf
+    clearance: float = np.inf
+    violation: float = 0.0
+    branches: list[BranchOptimum] = field(default_factory=list)
+    param_name: str = "psi"
+    message: str = ""
+    time: float = 0.0
+
+    def table(self) -> str:
+        """The per-branch table as text (rad)."""
+        sym = {"delta": "δ", "psi": "ψ"}.get(self.param_name, self.param_name)
+        lines = [
+            f"{'branch':>6} {'feasible':>8} {sym + '* [rad]':>11} {'objective':>13}"
+            f" {'rounds':>6} {'evals':>6} {'time [µs]':>9}"
+        ]
+        for r in self.branches:
+            mark = " *" if r.branch == self.branch and self.status == "optimal" else ""
+            val = f"{r.param:11.6f} {r.objective:13.8g}" if r.feasible else f"{'—':>11} {'—':>13}"
+            feasible = ("yes" if r.feasible else "no") if r.searched else "skipped"
+            lines.append(
+                f"{r.branch:>6} {feasible:>8} {val} {r.rounds:>6} {r.evaluations:>6} {r.time * 1e6:9.1f}{mark}"
+            )
+        return "\n".join(lines)
+
+    def summary(self) -> str:
+        """One line: status, branch, parameter, objective, certificate."""
+        sym = {"delta": "δ", "psi": "ψ"}.get(self.param_name, self.param_name)
+        if self.status == "unreachable":
+            return "unreachable: no branch reaches the pose"
+        if self.status == "no feasible branch":
+            return (
+                f"no feasible branch: least violating is branch {self.branch} at {sym} = {self.param:.6f} rad"
+                f" (violation {self.violation:.3g})"
+            )
+        if self.status != "optimal":
+            return f"{self.status}: {self.message}"
+        cert = f"certified (gap {self.gap:.2g})" if self.certified else f"not certified ({self.message})"
+        return f"best: branch {self.branch}, {sym} = {self.param:.6f} rad, objective {self.objective:.10g}, {cert}"
+
+
+class BestResults:
+    """Answers for a batch of poses: ``results[i]`` is a :class:`BestResult`; the arrays stack them."""
+
+    def __init__(self, results: list[BestResult]):
+        self.results = results
+
+    def __len__(self) -> int:
+        return len(self.results)
+
+    def __getitem__(self, i: int) -> BestResult:
+        return self.results[i]
+
+    def __iter__(self):
+        return iter(self.results)
+
+    @property
+    def status(self) -> np.ndarray:
+        return np.array([r.status for r in self.results])
+
+    @property
+    def q(self) -> np.ndarray:
+        """(N, n), rad."""
+        return np.array([r.q for r in self.results])
+
+    @property
+    def objective(self) -> np.ndarray:
+        return np.array([r.objective for r in self.results])
+
+    @property
+    def param(self) -> np.ndarray:
+        return np.array([r.param for r in self.results])
+
+    @property
+    def branch(self) -> np.ndarray:
+        return np.array([r.branch for r in self.results])
+
+    @property
+    def certified(self) -> np.ndarray:
+        return np.array([r.certified for r in self.results])
+
+
+def solve_best(
+    robot: Robot,
+    pose: np.ndarray,
+    objective: Objective | str = "margin",
+    obstacles=(),
+    q_ref: np.ndarray | None = None,
+    project: bool = False,
+    *,
+    d_safe: float = 0.02,
+    certify: bool = True,
+    tol: float = 1e-4,
+    method: str = "search",
+    branches=None,
+) -> BestResult | BestResults:
+    """The best branch and δ/ψ for ``pose`` under ``objective``; see the module docstring.
+
+    Args:
+        robot: an arm with a closed form (``nammoto7``: δ, ``iiwa14``: ψ).
+        pose: end-effector pose (4, 4) in the base frame, or a batch (N, 4, 4).
+        objective: an :class:`~qpik.objectives.Objective` or a name of
+            :func:`qpik.objectives.resolve` (``"margin"``, ``"manipulability"``, ...).
+        obstacles: shapes of :mod:`qpik.geometry` (world frame): the constraint
+            clearance ≥ ``d_safe`` for every link capsule, and the pairs of a clearance objective.
+        q_ref: (n,) or (N, n) reference configuration, rad (the ``"distance"`` objective's).
+        project: project a non-orthonormal rotation onto SO(3) instead of raising.
+        d_safe: the clearance constraint's distance, m (≥ 0).
+        certify: prove global optimality (:mod:`qpik.nlp.certificate`).
+        tol: the certificate's tolerance, relative: it proves that no feasible point is better than the
+            answer by more than ``tol · max(1, |f|)``.
+        method: ``"search"`` (sampling and polish) or ``"ipopt"`` (IPOPT from every interval).
+        branches: public ids of the branches to search (None: all), e.g. the branch of the
+            current configuration (:func:`qpik.redundancy_parameter`), which a continuous motion
+            keeps unless it passes a singular configuration.
+
+    Returns:
+        A :class:`BestResult`, or :class:`BestResults` for a batch.
+
+    Raises:
+        NoClosedFormError: the robot has no closed form (use :func:`qpik.nlp.solve_full`).
+        InputError: NaN/inf or wrong shapes (the message names the argument), unknown objective
+            or method.
+    """
+    t0 = time.perf_counter()
+    if robot.closed_form is None:
+        raise NoClosedFormError(
+            f"{robot.name} has no closed-form IK, so no δ/ψ to search; use qpik.nlp.solve_full (7 joint variables)"
+        )
+    T, batched = check_pose(pose, "pose", project)
+    T = T if batched else T[None]
+    n = robot.dof
+    if q_ref is None:
+        ref = np.zeros((len(T), n))
+    else:
+        ref = finite_array(q_ref, "q_ref")
+        if ref.shape not in ((n,), (len(T), n)):
+            raise InputError(f"q_ref: expected shape ({n},) or ({len(T)}, {n}), got {ref.shape}")
+        ref = np.broadcast_to(ref, (len(T), n)).copy()
+    obj = resolve(objective)
+    if q_ref is None and any(isinstance(o, ReferenceDistance) for _, o in obj.terms):
+        raise InputError("q_ref: the distance objective needs a reference configuration q_ref")
+    obs = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
+    d_safe = float(finite_array(d_safe, "d_safe", ()))
+    if d_safe < 0:
+        raise InputError(f"d_safe: must be >= 0, got {d_safe}")
+    tol = float(finite_array(tol, "tol", ()))
+    if tol <= 0:
+        raise InputError(f"tol: must be > 0, got {tol}")
+    if method not in ("search", "ipopt"):
+        raise InputError(f"method: expected 'search' or 'ipopt', got {method!r}")
+    sm = selfmotion_of(robot)
+    rows = _rows(sm, branches)
+    scene = Scene(robot, sm, obj, obs, d_safe, T, ref)
+    try:
+        results = _solve(scene, certify, tol, method, rows)
+    except (RuntimeError, FloatingPointError, np.linalg.LinAlgError) as exc:  # a numerical failure: a status
+        why = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+        nan = np.full(n, np.nan)
+        results = [BestResult("solver failed", -1, np.nan, nan.copy(), np.nan, param_name=sm.solver.param_name,
+                              message=why) for _ in range(len(T))]  # fmt: skip
+    elapsed = (time.perf_counter() - t0) / len(T)
+    for r in results:
+        r.time = elapsed
+        for b in r.branches:
+            b.time *= elapsed
+    return BestResults(results) if batched else results[0]
+
+
+def _rows(sm, branches) -> list[int]:
+    """The searched rows of the closed form for the public ids ``branches`` (None: all)."""
+    all_rows = list(range(sm.searched))
+    if branches is None:
+        return all_rows
+    ids = [int(b) for b in np.atleast_1d(np.asarray(branches))]
+    known = sm.branch_ids.tolist()
+    bad = [b for b in ids if b not in known]
+    if bad:
+        raise InputError(f"branches: unknown branch id(s) {bad}; the branches are {known}")
+    rows = set()
+    for b in ids:
+        k = known.index(b)
+        m = sm.mirror(k)
+        rows.add(k if m is None else m[0])
+    return sorted(rows)
+
+
+def _solve(scene: Scene, certify: bool, tol: float, method: str, rows: list[int]) -> list[BestResult]:
+    sm = scene.selfmotion
+    N, B = len(scene.poses), sm.searched
+    fis = [sm.solver.feasible_intervals(T) for T in scene.poses]
+    pose, row, lo, hi = [], [], [], []
+    for i, fi in enumerate(fis):
+        for b in rows:
+            for a, c in fi.intervals[b]:
+                pose.append(i), row.append(b), lo.append(a), hi.append(c)
+    pieces = Pieces(np.array(pose, int), np.array(row, int), np.array(lo, float), np.array(hi, float))
+    best = _BestSoFar(N, B, scene.robot.dof)
+    if method == "ipopt":
+        from qpik.nlp.ipopt import solve_pieces
+
+        best.update(*solve_pieces(scene, pieces))
+    else:
+        best.update_from(*_search(scene, pieces, SAMPLE_STEP))
+    cert_ok = np.zeros(N, bool)
+    bound = np.full(N, -np.inf)
+    reason = ["certify=False"] * N
+    todo = np.flatnonzero(best.found() & certify)
+    for attempt in range(RETRIES + 1):
+        if not len(todo):
+            break
+        value = best.pose_value()
+        cert = prove(scene, pieces, value, tol * np.maximum(1.0, np.abs(value)), todo)
+        for i in todo:
+            cert_ok[i], bound[i], reason[i] = cert.certified[i], cert.bound[i], cert.reason[i]
+        if cert.better is None or attempt == RETRIES:
+            break
+        redo = np.unique(cert.better.pose)
+        sub = Pieces(*(x[np.isin(pieces.pose, redo)] for x in (pieces.pose, pieces.row, pieces.lo, pieces.hi)))
+        best.update_from(*_search(scene, sub, SAMPLE_STEP / 4 ** (attempt + 1), extra=cert.better))
+        todo = redo
+    return [_result(scene, fis[i], best, i, cert_ok[i], bound[i], reason[i], rows) for i in range(N)]
+
+
+def _search(scene: Scene, pieces: Pieces, step: float, extra: Points | None = None) -> tuple[Points, np.ndarray]:
+    """Sample, split and polish: the polished local minima and every feasible sample, and their polish rounds."""
+    if not len(pieces):
+        return scene.evaluate(np.zeros(0, int), np.zeros(0, int), np.zeros(0)), np.zeros(0, int)
+    pts, piece = sample(scene, pieces, step)
+    if extra is not None:
+        # a certificate's better points join the samples of their piece
+        inside = (extra.pose[:, None] == pieces.pose) & (extra.row[:, None] == pieces.row)
+        inside &= (extra.psi[:, None] >= pieces.lo) & (extra.psi[:, None] <= pieces.hi)
+        hit = inside.any(axis=1)
+        extra_piece = inside.argmax(axis=1)[hit]
+        pts, piece = Points.join([pts, extra.take(hit)]), np.concatenate([piece, extra_piece])
+        order = np.lexsort((pts.psi, piece))
+        pts, piece = pts.take(order), piece[order]
+    _count(scene, pts)
+    runs, run = split(scene, pts, piece)
+    if not len(runs):
+        return runs, np.zeros(0, int)
+    a, m, b = candidates(runs, run)
+    before = scene.evaluations
+    pol = polish(scene, a, m, b)
+    share = (scene.evaluations - before) / max(len(m), 1)
+    np.add.at(scene.counts, (m.pose, m.row), np.round(share).astype(int))
+    return Points.join([onto_limits(scene, pol.point), runs]), np.concatenate([pol.rounds, np.zeros(len(runs), int)])
+
+
+def _count(scene: Scene, pts: Points) -> None:
+    np.add.at(scene.counts, (pts.pose, pts.row), 1)
+
+
+class _BestSoFar:
+    """Per (pose, branch row): the best feasible point found so far."""
+
+    def __init__(self, N: int, B: int, n: int):
+        self.f = np.full((N, B), np.inf)
+        self.psi = np.full((N, B), np.nan)
+        self.q = np.full((N, B, n), np.nan)
+        self.rounds = np.zeros((N, B), int)
+        self.clearance = np.full((N, B), np.inf)
+
+    def update(self, pose, row, psi, q, f, rounds, clearance) -> None:
+        for i, b, p, qq, v, k, c in zip(pose, row, psi, q, f, rounds, clearance):
+            if np.isfinite(v) and v < self.f[i, b]:
+                self.f[i, b], self.psi[i, b], self.q[i, b], self.clearance[i, b] = v, p, qq, c
+            self.rounds[i, b] = max(self.rounds[i, b], k)
+
+    def update_from(self, pts: Points, rounds: np.ndarray) -> None:
+        if not len(pts):
+            return
+        ok = np.flatnonzero(pts.valid & np.isfinite(pts.f))
+        clear = pts.d.min(axis=1) if pts.d.shape[1] else np.full(len(pts), np.inf)
+        order = ok[np.lexsort((pts.f[ok], pts.row[ok], pts.pose[ok]))]
+        first = np.ones(len(order), bool)
+        key = pts.pose[order] * 10_000 + pts.row[order]
+        first[1:] = key[1:] != key[:-1]
+        top = order[first]
+        self.update(
+            pts.pose[top], pts.row[top], pts.psi[top], pts.q[top], pts.f[top], np.zeros(len(top), int), clear[top]
+        )
+        np.maximum.at(self.rounds, (pts.pose, pts.row), rounds)
+
+    def found(self) -> np.ndarray:
+        return np.isfinite(self.f).any(axis=1)
+
+    def pose_value(self) -> np.ndarray:
+        return self.f.min(axis=1)
+
+
+def _result(
+    scene: Scene, fi, best: _BestSoFar, i: int, certified: bool, bound: float, reason: str, searched: list[int]
+) -> BestResult:
+    sm = scene.selfmotion
+    ids = sm.branch_ids
+    total = max(int(scene.counts[i].sum()), 1)
+    rows = []
+    for k, bid in enumerate(ids):
+        m = sm.mirror(k)
+        r = k if m is None else m[0]
+        feasible = bool(np.isfinite(best.f[i, r]))
+        param = sm.shifted(k, best.psi[i, r]) if feasible else np.nan
+        evals = int(scene.counts[i, r]) if m is None else 0
+        rows.append(
+            BranchOptimum(int(bid), r in searched, feasible, float(param), float(best.f[i, r]), best.q[i, r].copy(),
+                          int(best.rounds[i, r]) if m is None else 0, evals, evals / total)
+        )  # fmt: skip
+    name = sm.solver.param_name
+    if best.found()[i]:
+        r = int(np.argmin(best.f[i]))
+        value = float(best.f[i, r])
+        gap = value - bound if certified else np.inf
+        return BestResult(
+            "optimal", int(ids[r]), float(best.psi[i, r]), best.q[i, r].copy(), value, bool(certified), float(gap),
+            float(best.clearance[i, r]), 0.0, rows, name, "" if certified else reason,
+        )  # fmt: skip
+    return _infeasible(scene, fi, i, rows, name)
+
+
+def _infeasible(scene: Scene, fi, i: int, rows: list[BranchOptimum], name: str) -> BestResult:
+    """Unreachable, or the least-violating branch (limits, then clearance) on a grid of parameters."""
+    robot, sm = scene.robot, scene.selfmotion
+    psi = np.linspace(-np.pi, np.pi, VIOLATION_SAMPLES, endpoint=False)
+    sol = sm.solver.solve_batch(np.broadcast_to(scene.poses[i], (len(psi), 4, 4)), psi)
+    if not sol.valid.any():
+        return BestResult("unreachable", -1, np.nan, np.full(robot.dof, np.nan), np.nan, branches=rows, param_name=name,
+                          message="no branch reaches the pose at any parameter")  # fmt: skip
+    beyond = np.maximum(robot.q_min - sol.q, sol.q - robot.q_max).max(axis=2)  # (M, B) rad outside the limits
+    within = sol.within_limits
+    if within.any() and len(scene.obstacles):
+        # inside the limits but never clear: the configuration with the largest clearance
+        from qpik.geometry.distance import distances
+
+        k, b = np.nonzero(within)
+        Q = sol.q[k, b]
+        d = distances(robot.capsule_segments(Q), robot.capsule_radii, scene.obstacles).d  # (M, C, O)
+        clear = d.reshape(len(Q), -1).min(axis=1)
+        j = int(np.argmax(clear))
+        violation = float(scene.d_safe - clear[j])
+        at, br, q = psi[k[j]], b[j], Q[j]
+    else:
+        score = np.where(sol.valid, np.maximum(beyond, 0.0), np.inf)
+        k, br = np.unravel_index(int(np.argmin(score)), score.shape)
+        violation, at, q = float(score[k, br]), psi[k], sol.q[k, br]
+    return BestResult("no feasible branch", int(sm.branch_ids[br]), float(wrap(at)), q.copy(), np.nan,
+                      violation=violation, branches=rows, param_name=name,
+                      message="no branch keeps the joints in their limits"
+                      + (" and clear of the obstacles" if len(scene.obstacles) else ""))  # fmt: skip

@@ -1,0 +1,288 @@
+r"""The full-joint NLP: minimise an objective over the 7 joints with the pose as an equality.
+
+.. math::
+
+    \min_{q,\ t}\ s(q) + \sum_k w_k t_k \quad\text{s.t.}\quad
+    \begin{bmatrix} p^* - p(q) \\ \log(R^* R(q)^T) \end{bmatrix} = 0,\quad
+    h_{k,i}(q) \le t_k,\quad d_{c,o}(q) \ge d_s,\quad q_{min} \le q \le q_{max}
+
+(the objective's split in epigraph form, :class:`qpik.objectives.Split`; the world-frame pose
+error of :func:`qpik.lie.pose_error`, its rotation part written by :func:`rotation_error` so that
+its derivatives exist at the solution; the capsule–obstacle distances of
+:mod:`qpik.geometry.distance`), solved by IPOPT (``casadi.nlpsol``, exact derivatives). It
+works for every arm, with or without a closed form. ``objective=None`` is a pure IK (the
+feasibility problem).
+
+A local method: :func:`solve_full` starts it from several configurations — ``q0`` (given),
+then, for an arm with a closed form, the within-limits branches of the pose at the middle of
+each branch's feasible interval (:func:`qpik.feasible_intervals`, one start per branch),
+then configurations drawn uniformly inside the limits from a generator seeded with ``seed`` —
+and keeps the best start that reaches the pose (pure IK: the first). Its KKT residual
+(:attr:`FullResult.kkt`) is the ∞-norm of the Lagrangian's gradient and of the constraint
+violation at the answer, with IPOPT's multipliers.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from qpik.errors import InputError
+from qpik.geometry.distance import ObstacleSet
+from qpik.lie import pose_error
+from qpik.objectives import Context, Objective, ReferenceDistance, resolve
+from qpik.robots.robot import Robot
+from qpik.validate import finite_array, joint_vector
+from qpik.validate import pose as check_pose
+
+REACHED = 1e-9
+"""A configuration reaches the pose when ‖[p* − p; log(R* Rᵀ)]‖ (m and rad together) is below this."""
+OPTIONS = {
+    "ipopt.print_level": 0,
+    "ipopt.sb": "yes",
+    "print_time": False,
+    "ipopt.tol": 1e-12,
+    "ipopt.constr_viol_tol": 1e-12,
+    "ipopt.max_iter": 300,
+    "show_eval_warnings": False,
+    "calc_lam_p": False,
+}
+"""IPOPT options of the full-joint NLP."""
+
+
+@dataclass
+class FullResult:
+    """The answer of :func:`solve_full`.
+
+    Attributes:
+        status: ``"optimal"`` (reached the pose; with an objective, the best start's local
+            minimum), ``"unreachable"`` (no start reached it), ``"solver failed"``.
+        q: (n,) configuration, rad (the start's end point with the smallest pose error if not reached).
+        objective: the objective at q (0 for a pure IK).
+        pose_error: ‖[p* − p; log(R* Rᵀ)]‖ at q, m and rad together.
+        kkt: the KKT residual at q (∞-norm of ∇L and of the constraint violation).
+        clearance: smallest capsule–obstacle distance at q, m (inf without obstacles).
+        starts: starts tried; iterations: IPOPT iterations over all of them.
+        time: seconds.
+    """
+
+    status: str
+    q: np.ndarray
+    objective: float
+    pose_error: float
+    kkt: float
+    clearance: float
+    starts: int
+    iterations: int
+    time: float = 0.0
+    message: str = ""
+
+
+def rotation_error(D: ca.SX) -> ca.SX:
+    r"""The rotation vector :math:`\theta u = \log D` (3,) of an SX rotation D (3, 3), θ < π, differentiable at θ = 0.
+
+    :math:`\log D = f(c)\, w` with :math:`w = \mathrm{vee}(D - D^T)/2 = \sin\theta\, u`,
+    :math:`c = (\mathrm{tr} D - 1)/2 = \cos\theta` and :math:`f(c) = \arccos c / \sqrt{1 - c^2} = \theta/\sin\theta`,
+    written through c (not θ = atan2(|w|, c), whose derivative is 0/0 at w = 0): its Taylor series
+    :math:`1 + x/3 + 2x^2/15 + 2x^3/35` in :math:`x = 1 - c` below x = 1e-4 (error < 1e-17).
+    """
+    w = 0.5 * ca.vertcat(D[2, 1] - D[1, 2], D[0, 2] - D[2, 0], D[1, 0] - D[0, 1])
+    c = 0.5 * (D[0, 0] + D[1, 1] + D[2, 2] - 1.0)
+    x = 1.0 - c
+    series = 1.0 + x * (1.0 / 3.0 + x * (2.0 / 15.0 + x * 2.0 / 35.0))
+    exact = ca.acos(ca.fmax(c, -1.0)) / ca.sqrt(ca.fmax(1.0 - c * c, 1e-300))
+    return ca.if_else(x < 1e-4, series, exact) * w
+
+
+class FullNLP:
+    """The compiled full-joint NLP of one robot, objective form and obstacle families (built once, cached)."""
+
+    def __init__(self, robot: Robot, objective: Objective | None, obstacles: ObstacleSet):
+        self.robot, self.objective, self.obstacles = robot, objective, obstacles
+        n = robot.dof
+        self.params = np.zeros(0) if objective is None else objective.params(robot)
+        T = ca.SX.sym("T", 4, 4)
+        q, q_ref = ca.SX.sym("q", n), ca.SX.sym("q_ref", n)
+        p_obj = ca.SX.sym("p", len(self.params))
+        prm, d_s = ca.SX.sym("obstacles", len(obstacles.params)), ca.SX.sym("d_safe")
+        ctx = Context(robot, q, q_ref, obstacles, prm)
+        if objective is None:
+            t, cost, g_epi = ca.SX(0, 1), ca.SX(0.0), ca.SX(0, 1)
+            value = ca.SX(0.0)
+        else:
+            split = objective.split(ctx, p_obj)
+            t, cost, g_epi = split.epigraph()
+            value = split.value()
+        R, pos = ctx.frames[-1]
+        D = ca.mtimes(T[:3, :3], ca.vertcat(*[ca.horzcat(*R[i]) for i in range(3)]).T)  # R* Rᵀ
+        err = ca.vertcat(T[:3, 3] - ca.vertcat(*pos), rotation_error(D))
+        x = ca.vertcat(q, t)
+        g = ca.vertcat(err, g_epi, d_s - ctx.distances)
+        p = ca.vertcat(ca.vec(T), p_obj, q_ref, prm, d_s)
+        self.n_eq, self.n_t = 6, t.numel()
+        self.solver = ca.nlpsol(f"full_{robot.name}", "ipopt", {"x": x, "f": cost, "g": g, "p": p}, OPTIONS)
+        lam_g, lam_x = ca.SX.sym("lam_g", g.numel()), ca.SX.sym("lam_x", x.numel())
+        grad = ca.gradient(cost + ca.dot(lam_g, g), x) + lam_x
+        self.kkt_terms = ca.Function("kkt", [x, p, lam_g, lam_x], [grad, g])
+        self.value = ca.Function("value", [q, p], [value, ca.mmin(ctx.distances) if len(obstacles) else ca.inf])
+        self.start_t = (
+            ca.Function("start_t", [q, p], [ca.vertcat(*[ca.mmax(h) for _, h in split.maxima], ca.SX(0, 1))])
+            if objective is not None
+            else None
+        )
+
+
+_NLPS: dict[tuple, FullNLP] = {}
+
+
+def full_nlp(robot: Robot, objective: Objective | None, obstacles: ObstacleSet) -> FullNLP:
+    """The cached :class:`FullNLP` for ``robot``, the objective's form and the obstacle families."""
+    key = (id(robot), None if objective is None else (objective.key(), len(objective.params(robot))), obstacles.kinds)
+    nlp = _NLPS.get(key)
+    if nlp is None or nlp.robot is not robot:
+        nlp = _NLPS[key] = FullNLP(robot, objective, obstacles)
+    return nlp
+
+
+def solve_full(
+    robot: Robot,
+    pose: np.ndarray,
+    objective: Objective | str | None = None,
+    obstacles=(),
+    q_ref: np.ndarray | None = None,
+    q0: np.ndarray | None = None,
+    project: bool = False,
+    *,
+    d_safe: float = 0.02,
+    starts: int = 8,
+    max_starts: int = 30,
+    seed: int = 0,
+) -> FullResult:
+    """Minimise ``objective`` over q with ``fk(q) = pose`` (see the module docstring).
+
+    Args:
+        robot: any arm of the catalog.
+        pose: (4, 4) end-effector pose, base frame.
+        objective: an :class:`~qpik.objectives.Objective`, a name of :func:`qpik.objectives.resolve`, or
+            None for a pure IK.
+        obstacles: shapes (world frame): clearance ≥ ``d_safe`` for every link capsule.
+        q_ref: (n,) reference configuration, rad (the ``"distance"`` objective's).
+        q0: (n,) or (S, n) first start(s), rad.
+        project: project a non-orthonormal rotation onto SO(3) instead of raising.
+        d_safe: m.
+        starts: with an objective, starts solved (the best one that reaches the pose wins; more
+            if none has reached it yet). A pure IK stops at the first that reaches it.
+        max_starts: most starts tried before giving up (``"unreachable"``).
+        seed: seed of the random starts.
+
+    Raises:
+        InputError: NaN/inf or wrong shapes (naming the argument).
+    """
+    t0 = time.perf_counter()
+    T = check_pose(pose, "pose", project)[0]
+    if T.ndim != 2:
+        raise InputError(f"pose: solve_full takes one pose (4, 4), got {T.shape}")
+    n = robot.dof
+    obj = None if objective is None else resolve(objective)
+    if obj is not None and q_ref is None and any(isinstance(o, ReferenceDistance) for _, o in obj.terms):
+        raise InputError("q_ref: the distance objective needs a reference configuration q_ref")
+    ref = np.zeros(n) if q_ref is None else finite_array(q_ref, "q_ref", (n,))
+    obs = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
+    d_safe = float(finite_array(d_safe, "d_safe", ()))
+    if starts < 1 or max_starts < 1:
+        raise InputError(f"starts, max_starts: must be >= 1, got {starts}, {max_starts}")
+    first = np.zeros((0, n)) if q0 is None else np.atleast_2d(joint_vector(q0, n, "q0")[0])
+    nlp = full_nlp(robot, obj, obs)
+    p = np.concatenate([T.T.ravel(), nlp.params if obj is None else obj.params(robot), ref, obs.params, [d_safe]])
+    queue = _starts(robot, T, first, seed)
+    best, best_err, tried, iters = None, np.inf, 0, 0
+    wanted = 1 if obj is None else starts
+    reached = 0
+    for q_start in queue:
+        if tried >= max_starts or (reached and tried >= wanted):
+            break
+        tried += 1
+        out = _solve_from(nlp, q_start, p)
+        iters += out[3]
+        q, value, err, _, kkt, clear = out
+        if err < REACHED and clear >= d_safe - 1e-9:
+            reached += 1
+            if best is None or best_err >= REACHED or value < best[1]:
+                best, best_err = (q, value, kkt, clear), err
+        elif best is None or (best_err >= REACHED and err < best_err):
+            best, best_err = (q, value, kkt, clear), err
+    elapsed = time.perf_counter() - t0
+    if best is None:
+        return FullResult("solver failed", np.full(n, np.nan), np.nan, np.inf, np.inf, np.inf, tried, iters, elapsed,
+                          "no start produced a configuration")  # fmt: skip
+    q, value, kkt, clear = best
+    status = "optimal" if best_err < REACHED else "unreachable"
+    msg = (
+        "" if status == "optimal" else f"no start reached the pose (smallest error {best_err:.3g} after {tried} starts)"
+    )
+    return FullResult(status, q, value, best_err, kkt, clear, tried, iters, elapsed, msg)
+
+
+def _starts(robot: Robot, T: np.ndarray, first: np.ndarray, seed: int):
+    """``first``, then one closed-form start per branch with a feasible interval, then seeded random ones."""
+    yield from first
+    if robot.closed_form is not None:
+        from qpik.analytic import feasible_intervals, ik
+
+        fi = feasible_intervals(robot, T)
+        for b, ivs in zip(fi.branch, fi.intervals):
+            if ivs:
+                lo, hi = max(ivs, key=lambda iv: iv[1] - iv[0])
+                sols = ik(robot, T, 0.5 * (lo + hi))
+                k = int(np.flatnonzero(sols.branch == b)[0])
+                if sols.within_limits[k]:
+                    yield sols.q[k]
+    rng = np.random.default_rng(seed)
+    while True:
+        yield rng.uniform(robot.q_min, robot.q_max)
+
+
+def _solve_from(nlp: FullNLP, q_start: np.ndarray, p: np.ndarray) -> tuple:
+    """``(q, objective, pose error, iterations, kkt, clearance)`` of IPOPT started at ``q_start``."""
+    robot = nlp.robot
+    t0 = np.asarray(nlp.start_t(q_start, p)).ravel() + 1e-3 if nlp.start_t is not None else np.zeros(0)
+    x0 = np.concatenate([q_start, t0])
+    lbx = np.concatenate([robot.q_min, np.full(nlp.n_t, -np.inf)])
+    ubx = np.concatenate([robot.q_max, np.full(nlp.n_t, np.inf)])
+    n_g = nlp.solver.size1_out("g")
+    lbg = np.concatenate([np.zeros(nlp.n_eq), np.full(n_g - nlp.n_eq, -np.inf)])
+    ubg = np.zeros(n_g)
+    sol = nlp.solver(x0=x0, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+    iters = int(nlp.solver.stats().get("iter_count", 0))
+    x = np.asarray(sol["x"]).ravel()
+    q = np.clip(x[: robot.dof], robot.q_min, robot.q_max)
+    T = np.asarray(p[:16]).reshape(4, 4).T
+    err = float(np.linalg.norm(pose_error(T, robot.fk(q))))
+    value, clear = (float(v) for v in nlp.value(q, p))
+    kkt = kkt_residual(
+        nlp, x, p, np.asarray(sol["lam_g"]).ravel(), np.asarray(sol["lam_x"]).ravel(), lbx, ubx, lbg, ubg
+    )
+    return q, value, err, iters, kkt, clear
+
+
+def kkt_residual(nlp: FullNLP, x, p, lam_g, lam_x, lbx, ubx, lbg, ubg) -> float:
+    """∞-norm of the Lagrangian's gradient, the constraint violation and the complementarity at x."""
+    grad, g = (np.asarray(v).ravel() for v in nlp.kkt_terms(x, p, lam_g, lam_x))
+    viol = np.maximum(np.maximum(lbg - g, g - ubg), 0.0)
+    viol_x = np.maximum(np.maximum(lbx - x, x - ubx), 0.0)
+    ineq = np.isinf(lbg)
+    comp = np.abs(lam_g[ineq] * (g[ineq] - ubg[ineq]))
+    gap_x = np.where(lam_x < 0, x - lbx, ubx - x)  # the distance to the bound the multiplier acts on
+    bound = np.abs(lam_x[np.isfinite(gap_x)] * gap_x[np.isfinite(gap_x)])
+    return float(
+        max(
+            np.abs(grad).max(),
+            viol.max(initial=0.0),
+            viol_x.max(initial=0.0),
+            comp.max(initial=0.0),
+            bound.max(initial=0.0),
+        )
+    )

@@ -1,0 +1,115 @@
+r"""What one :func:`qpik.solve_best` call evaluates: poses, objective, obstacles, and the 1-D functions of δ/ψ.
+
+A :class:`Scene` evaluates, for rows (pose i, branch row b, parameter ψ), everything the
+search and the certificate need, from two compiled functions: the self-motion
+(:class:`~qpik.nlp.selfmotion.SelfMotion`: q, dq/dψ) and the objective
+(:class:`~qpik.objectives.Evaluator`: f, ∇f, the capsule–obstacle distances):
+
+- the objective :math:`f(\psi) = f(q_b(\psi))` and :math:`f'(\psi) = \nabla f \cdot dq_b/d\psi`;
+- the clearance constraint :math:`c(\psi) = \min_{k,o} d_{k,o}(q_b(\psi)) - d_s` (+∞ without
+  obstacles) and :math:`c'(\psi)`, the rate of the nearest pair.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from qpik.geometry.distance import ObstacleSet
+from qpik.nlp.selfmotion import SelfMotion
+from qpik.objectives import Evaluator, Objective
+from qpik.robots.robot import Robot
+
+
+@dataclass
+class Points:
+    """Evaluations at M rows (pose, branch row, parameter).
+
+    Attributes:
+        pose, row: (M,) int; psi: (M,) rad.
+        q, dq: (M, n) configuration (rad) and dq/dψ; valid: (M,) the branch reaches the pose.
+        f, df: (M,) objective and its derivative in ψ.
+        c, dc: (M,) clearance margin min d − d_s (m; +inf without obstacles) and its derivative.
+        d: (M, C·O) the pair distances, m.
+    """
+
+    pose: np.ndarray
+    row: np.ndarray
+    psi: np.ndarray
+    q: np.ndarray
+    dq: np.ndarray
+    valid: np.ndarray
+    f: np.ndarray
+    df: np.ndarray
+    c: np.ndarray
+    dc: np.ndarray
+    d: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.psi)
+
+    def take(self, idx: np.ndarray) -> Points:
+        """The rows ``idx`` (an index array or a boolean mask)."""
+        return Points(*(getattr(self, f.name)[idx] for f in fields(self)))
+
+    @staticmethod
+    def join(parts: list[Points]) -> Points:
+        return Points(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(Points)))
+
+
+class Scene:
+    """The data of one solve and the evaluation of rows (see the module docstring).
+
+    Attributes:
+        evaluations: rows evaluated so far; counts: (N, searched branches) of them per pose and branch,
+            as attributed by the search (:mod:`qpik.nlp.best`).
+
+    Args:
+        robot: the arm (with a closed form).
+        selfmotion: its :class:`SelfMotion`.
+        objective: the cost to minimise.
+        obstacles: the obstacles (clearance constraint, and the objective's pairs).
+        d_safe: the clearance constraint's d_s, m.
+        poses: (N, 4, 4) end-effector poses.
+        q_ref: (N, n) reference configurations, rad.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        selfmotion: SelfMotion,
+        objective: Objective,
+        obstacles: ObstacleSet,
+        d_safe: float,
+        poses: np.ndarray,
+        q_ref: np.ndarray,
+    ):
+        self.robot, self.selfmotion, self.objective = robot, selfmotion, objective
+        self.obstacles, self.d_safe = obstacles, float(d_safe)
+        self.poses, self.q_ref = poses, q_ref
+        self.evaluator = Evaluator(robot, objective, obstacles)
+        self.params = self.evaluator.params
+        self.evaluations = 0
+        self.counts = np.zeros((len(poses), selfmotion.searched), int)
+
+    def evaluate(self, pose: np.ndarray, row: np.ndarray, psi: np.ndarray) -> Points:
+        """Every quantity of :class:`Points` at the rows (pose (M,), branch row (M,), ψ (M,))."""
+        pose, row, psi = np.asarray(pose, int), np.asarray(row, int), np.asarray(psi, float)
+        M, n = len(psi), self.robot.dof
+        if not M:
+            e = np.zeros(0)
+            return Points(pose, row, psi, np.zeros((0, n)), np.zeros((0, n)), np.zeros(0, bool), e, e, e, e,
+                          np.zeros((0, self.evaluator.n_pairs)))  # fmt: skip
+        q, dq, valid = np.empty((M, n)), np.empty((M, n)), np.empty(M, bool)
+        for b in np.unique(row):
+            at = np.flatnonzero(row == b)
+            q[at], dq[at], valid[at] = self.selfmotion.points(int(b), self.poses[pose[at]], psi[at])
+        f, grad, d, grad_d = self.evaluator.rows(q, self.q_ref[pose])
+        df = np.einsum("ij,ij->i", grad, dq)
+        if d.shape[1]:
+            c, dc = d.min(axis=1) - self.d_safe, np.einsum("ij,ij->i", grad_d, dq)
+        else:
+            c, dc = np.full(M, np.inf), np.zeros(M)
+        self.evaluations += M
+        return Points(pose, row, psi, q, dq, valid, f, df, c, dc, d.reshape(M, -1))

@@ -1,0 +1,318 @@
+r"""The 1-D search of :func:`qpik.solve_best`: sample, split at the clearance constraint, polish.
+
+For each pose, every branch's exact feasible set (:func:`qpik.feasible_intervals`) is a union
+of closed intervals of δ/ψ. On each:
+
+1. **Sample** ``f``, ``f'``, ``c``, ``c'`` (:class:`~qpik.nlp.scene.Scene`) every
+   :data:`SAMPLE_STEP` rad or closer, both ends included.
+2. **Split** at the clearance constraint ``c ≥ 0``: a sign change of ``c`` between two samples
+   is refined to its root (:func:`roots`: secant, Newton and bisection steps in a bracket),
+   giving the feasible *pieces*.
+3. **Polish** the discrete local minima of the samples of each piece (:func:`polish`): a
+   bracket ``a ≤ m ≤ b`` with ``f(m) ≤ f(a), f(b)`` shrinks around a local minimum. Each round
+   tries, on the side where ``f'(m)`` descends, the root of the secant of ``f'`` (exact for a
+   quadratic), the crossing of the tangents at the two ends (exact at a kink of the epigraph
+   terms, where the slope jumps), its mirror image through m (so that the far end of the bracket
+   closes in too, and the tangents meet ever closer to the kink) and the midpoint (a guaranteed
+   halving), all evaluated in one compiled call; the best point becomes ``m``. A minimum at a piece's
+   end (``f'`` pointing out) is returned as it is.
+
+The local minima found are the candidates; the best is the answer. Whether it is the global
+minimum is what :mod:`qpik.nlp.certificate` proves (or fails to).
+
+Why this and not IPOPT (:mod:`qpik.nlp.ipopt`, ``method="ipopt"``): both reach the same local
+minima (the tests compare them), but one IPOPT solve per feasible interval costs ~1–5 ms of
+setup and iterations (``qpik bench nlp`` measures it), while the bracket steps for all
+candidates of all branches share each compiled call; and IPOPT started inside an interval finds
+the minimum of its basin, not of the interval, so it still needs the sampling to be global.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from qpik.nlp.scene import Points, Scene
+
+SAMPLE_STEP = 0.1
+"""Largest spacing (rad) of the samples of a feasible interval."""
+END = 2e-9
+ENDS = (1e-3, 4e-3, 1.6e-2)
+"""Extra samples (rad) inside each end of a feasible interval (see :func:`sample`)."""
+"""The first and last samples lie this far (rad) inside a feasible interval: its ends are exact to
+:data:`qpik.analytic.intervals.SAME` (1e-9), and the branch may stop reaching the pose just beyond."""
+PSI_TOL = 1e-13
+"""A bracket narrower than this (rad, relative to 1 + |ψ|) has converged."""
+NOISE = 1e-15
+"""Relative rounding of an objective value: values closer than this count as equal in :func:`polish`."""
+MAX_ROUNDS = 60
+"""Most rounds of :func:`polish` or :func:`roots`."""
+POLISHED_PER_BRANCH = 1
+"""Candidates polished per (pose, branch): its best discrete local minima."""
+POLISHED_PER_POSE = 4
+"""Further candidates polished per pose: the best ones left."""
+
+
+@dataclass
+class Pieces:
+    """Feasible pieces: row i is the interval [lo[i], hi[i]] of branch row ``row[i]`` of pose ``pose[i]``."""
+
+    pose: np.ndarray
+    row: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.lo)
+
+
+def sample(scene: Scene, pieces: Pieces, step: float = SAMPLE_STEP) -> tuple[Points, np.ndarray]:
+    """Samples of every piece, at most ``step`` apart, from :data:`END` inside each end, and at :data:`ENDS` from
+    each end: (points, piece (M,)).
+
+    Points of one piece are consecutive and in increasing ψ. Only points where the branch reaches
+    the pose with a finite objective are kept.
+    """
+    shrink = np.minimum(END, 0.5 * (pieces.hi - pieces.lo))
+    pieces = Pieces(pieces.pose, pieces.row, pieces.lo + shrink, pieces.hi - shrink)
+    width = pieces.hi - pieces.lo
+    k = np.where(width > 0.0, np.maximum(2, np.ceil(width / step).astype(int) + 1), 1)
+    piece = np.repeat(np.arange(len(pieces)), k)
+    start = np.repeat(np.cumsum(k) - k, k)
+    j = np.arange(len(piece)) - start
+    t = np.where(k[piece] > 1, j / np.maximum(k[piece] - 1, 1), 0.0)
+    psi = pieces.lo[piece] + width[piece] * t
+    psi[j == k[piece] - 1] = pieces.hi[piece][j == k[piece] - 1]  # the end exactly
+    # near each end, more samples at geometric spacing: at a singular end (where dq/dψ is unbounded) the
+    # objective can turn within a fraction of a step
+    near = np.array([*ENDS, *(-e for e in ENDS)])
+    wide = np.flatnonzero(width > 4 * ENDS[-1])
+    extra_piece = np.repeat(wide, len(near))
+    extra = np.where(np.tile(near, len(wide)) > 0, pieces.lo[extra_piece], pieces.hi[extra_piece]) + np.tile(
+        near, len(wide)
+    )
+    piece, psi = np.concatenate([piece, extra_piece]), np.concatenate([psi, extra])
+    order = np.lexsort((psi, piece))
+    piece, psi = piece[order], psi[order]
+    pts = scene.evaluate(pieces.pose[piece], pieces.row[piece], psi)
+    keep = pts.valid & np.isfinite(pts.f)
+    return pts.take(keep), piece[keep]
+
+
+def roots(scene: Scene, left: Points, right: Points) -> Points:
+    """The root of c between each pair (left[i], right[i]) whose c differ in sign: its point on the feasible side.
+
+    Bracketed iteration: the secant, a Newton step from the feasible end and the midpoint are
+    tried together each round; the tightest bracket with a sign change is kept.
+    """
+    pose, row = left.pose, left.row
+    ps, cs, ds = np.stack([left.psi, right.psi]), np.stack([left.c, right.c]), np.stack([left.dc, right.dc])
+    for _ in range(MAX_ROUNDS):
+        active = np.abs(ps[1] - ps[0]) > PSI_TOL * (1.0 + np.abs(ps[0]))
+        if not active.any():
+            break
+        i = np.flatnonzero(active)
+        (a, b), (ca_, cb), (da, db) = ps[:, i], cs[:, i], ds[:, i]
+        secant = a - ca_ * (b - a) / np.where(cb != ca_, cb - ca_, np.nan)
+        feasible_a = ca_ >= 0
+        start, c0, d0 = np.where(feasible_a, a, b), np.where(feasible_a, ca_, cb), np.where(feasible_a, da, db)
+        newton = start - c0 / np.where(d0 != 0, d0, np.nan)
+        trials = np.stack([_inside(secant, a, b), _inside(newton, a, b), 0.5 * (a + b)], axis=1)
+        pts = scene.evaluate(np.repeat(pose[i], 3), np.repeat(row[i], 3), trials.ravel())
+        for t in range(3):
+            x, cx, dx = pts.psi[t::3], pts.c[t::3], pts.dc[t::3]
+            side = (cx >= 0) == feasible_a  # replaces the end on its own side of the root
+            for k, sel in ((0, side), (1, ~side)):
+                ps[k, i] = np.where(sel, x, ps[k, i])
+                cs[k, i] = np.where(sel, cx, cs[k, i])
+                ds[k, i] = np.where(sel, dx, ds[k, i])
+    return scene.evaluate(pose, row, np.where(cs[0] >= 0, ps[0], ps[1]))
+
+
+def _inside(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``x`` if strictly between a and b, else the midpoint (the round's midpoint trial guarantees progress)."""
+    ok = np.isfinite(x) & (x > np.minimum(a, b)) & (x < np.maximum(a, b))
+    return np.where(ok, x, 0.5 * (a + b))
+
+
+@dataclass
+class Polished:
+    """Local minima: ``point`` (Points) with ``rounds`` (M,) of polish each."""
+
+    point: Points
+    rounds: np.ndarray
+
+
+def polish(scene: Scene, a: Points, m: Points, b: Points) -> Polished:
+    """Shrink brackets ``a.ψ ≤ m.ψ ≤ b.ψ`` with ``f(m) ≤ f(a), f(b)`` to local minima (see the module docstring).
+
+    ``a`` or ``b`` may equal ``m`` (a minimum at the end of a piece). Each round also probes
+    :data:`PSI_TOL` away from m on the side of descent: when nothing improved and the probe's
+    slope has the opposite sign, f turns within that distance (a kink of an epigraph term, where
+    the bracket ends would otherwise only close in by halving): m is the minimum to that accuracy.
+    The clearance constraint holds at a, m and b; a trial where it fails counts as no better
+    than any point. A Newton step on c from m (to the constraint's boundary) is tried as well,
+    so that a minimum on the boundary of a gap in the clearance between two samples is met as
+    fast as one at a kink; when the probe next to m fails the constraint and nothing improved,
+    m is on that boundary to :data:`PSI_TOL`.
+    Returns the final middle points.
+    """
+    pose, row = m.pose, m.row
+    # rows 0, 1, 2: a, m, b; each with ψ, f, f', and c, c' for m
+    P = np.stack([a.psi, m.psi, b.psi])
+    F = np.stack([a.f, m.f, b.f])
+    D = np.stack([a.df, m.df, b.df])
+    C = np.stack([a.c, m.c, b.c])
+    DC = np.stack([a.dc, m.dc, b.dc])
+    rounds = np.zeros(len(m), int)
+    done = np.zeros(len(m), bool)
+    cols = np.arange(len(m))
+    for _ in range(MAX_ROUNDS):
+        # descend to the right (toward b) where f' < 0; where f' is not finite (a singular end of an
+        # interval, where dq/dψ is unbounded) toward the side that is not empty, or the lower end
+        known = np.isfinite(D[1])
+        right = np.where(known, D[1] < 0, (P[0] == P[1]) | ((P[2] != P[1]) & (F[2] < F[0])))
+        side = np.where(right, 2, 0)
+        vp, vf, vd = P[side, cols], F[side, cols], D[side, cols]
+        width = np.abs(vp - P[1])
+        tiny = PSI_TOL * (1.0 + np.abs(P[1]))
+        done |= (width <= tiny) | (known & (D[1] == 0))
+        if done.all():
+            break
+        i = np.flatnonzero(~done)
+        up, uf, ud, wp, wf, wd = P[1, i], F[1, i], D[1, i], vp[i], vf[i], vd[i]
+        secant = up - ud * (wp - up) / np.where(wd != ud, wd - ud, np.nan)
+        tangent = (wf - uf + ud * up - wd * wp) / np.where(ud != wd, ud - wd, np.nan)
+        probe = up + np.sign(wp - up) * np.minimum(tiny[i], 0.5 * width[i])
+        tangent = _inside(tangent, up, wp)
+        mirror = _inside(2.0 * tangent - up, up, wp)  # beyond the kink estimate: the far end moves in too
+        steps = [_inside(secant, up, wp), tangent, mirror, 0.5 * (up + wp)]
+        if not np.isfinite(ud).all():
+            steps.append(up + 1e-3 * (wp - up))  # off a singular end, where f' is not finite
+        if np.isfinite(C[1, i]).any():
+            edge = P[1, i] - C[1, i] / np.where(DC[1, i] != 0, DC[1, i], np.nan)  # Newton on c toward its boundary
+            steps.append(_inside(edge - 1e-12 * (edge - up), up, wp))
+        trials = np.stack([*steps, probe], axis=1)
+        k = trials.shape[1]
+        pts = scene.evaluate(np.repeat(pose[i], k), np.repeat(row[i], k), trials.ravel())
+        # every point known: a, m, b and the trials; the best becomes m, the nearest on each side a and b
+        allP = np.concatenate([P[:, i].T, trials], axis=1)
+        allF = np.concatenate([F[:, i].T, np.where(pts.c >= 0, pts.f, np.inf).reshape(-1, k)], axis=1)
+        allD = np.concatenate([D[:, i].T, pts.df.reshape(-1, k)], axis=1)
+        allC = np.concatenate([C[:, i].T, pts.c.reshape(-1, k)], axis=1)
+        allDC = np.concatenate([DC[:, i].T, pts.dc.reshape(-1, k)], axis=1)
+        allF = np.where(np.isnan(allF), np.inf, allF)
+        # f's rounding hides the last digits of ψ at a smooth minimum: among the points whose f is
+        # within rounding of the least, the one with the smallest |f'| is the best estimate of the root
+        low = allF.min(axis=1, keepdims=True)
+        ties = allF <= low + NOISE * (1.0 + np.abs(low))
+        best = np.argmin(np.where(ties, np.abs(np.where(np.isnan(allD), np.inf, allD)), np.inf), axis=1)
+        cols_i = np.arange(len(i))
+        pm = allP[cols_i, best]
+        left = np.where(allP < pm[:, None], allP, -np.inf)
+        right = np.where(allP > pm[:, None], allP, np.inf)
+        ia = np.where(np.isfinite(left.max(axis=1)), left.argmax(axis=1), best)
+        ib = np.where(np.isfinite(right.min(axis=1)), right.argmin(axis=1), best)
+        for arr, src in ((P, allP), (F, allF), (D, allD), (C, allC), (DC, allDC)):
+            arr[0, i], arr[1, i], arr[2, i] = src[cols_i, ia], src[cols_i, best], src[cols_i, ib]
+        improved = F[1, i] < uf
+        across = np.sign(pts.df[k - 1 :: k]) == -np.sign(ud)  # the probe's slope has turned: a kink within tiny
+        blocked = pts.c[k - 1 :: k] < 0  # the probe fails the constraint: m is on its boundary
+        done[i] |= (across | blocked) & ~improved
+        rounds[i] += 1
+    return Polished(scene.evaluate(pose, row, P[1]), rounds)
+
+
+def split(scene: Scene, pts: Points, piece: np.ndarray) -> tuple[Points, np.ndarray]:
+    """The feasible runs of the samples under ``c ≥ 0``, with the roots of c inserted at their ends.
+
+    Returns the points of the runs (consecutive, increasing ψ within a run) and their run index.
+    Without obstacles (c = +∞) the runs are the pieces.
+    """
+    if not np.isfinite(pts.c).any():
+        return pts, piece
+    ok = pts.c >= 0
+    change = np.flatnonzero((piece[1:] == piece[:-1]) & (ok[1:] != ok[:-1]))
+    found = roots(scene, pts.take(change), pts.take(change + 1)) if len(change) else None
+    key = np.arange(len(pts), dtype=float)
+    all_pts, all_piece = pts, piece
+    if found is not None:
+        key = np.concatenate([key, change + 0.5])
+        all_pts = Points.join([pts, found])
+        all_piece = np.concatenate([piece, piece[change]])
+    order = np.argsort(key, kind="stable")
+    all_pts, all_piece = all_pts.take(order), all_piece[order]
+    keep = all_pts.c >= 0
+    all_pts, all_piece = all_pts.take(keep), all_piece[keep]
+    kept_key = np.flatnonzero(keep)
+    # a new run starts at a new piece or after a removed (infeasible) point
+    start = np.ones(len(all_pts), bool)
+    start[1:] = (all_piece[1:] != all_piece[:-1]) | (kept_key[1:] != kept_key[:-1] + 1)
+    return all_pts, np.cumsum(start) - 1
+
+
+def candidates(pts: Points, run: np.ndarray) -> tuple[Points, Points, Points]:
+    """Brackets ``(a, m, b)`` of the discrete local minima of f along each run, the ones to polish.
+
+    Per (pose, branch row) its :data:`POLISHED_PER_BRANCH` best, then per pose the
+    :data:`POLISHED_PER_POSE` best of the rest.
+    """
+    M = len(pts)
+    first = np.ones(M, bool)
+    first[1:] = run[1:] != run[:-1]
+    last = np.ones(M, bool)
+    last[:-1] = run[1:] != run[:-1]
+    prev = np.where(first, np.inf, np.roll(pts.f, 1))
+    nxt = np.where(last, np.inf, np.roll(pts.f, -1))
+    local = np.flatnonzero((pts.f <= prev) & (pts.f <= nxt) & np.isfinite(pts.f))
+    order = local[np.lexsort((pts.f[local], pts.row[local], pts.pose[local]))]  # by pose, branch, then f
+    group = pts.pose[order] * 10_000 + pts.row[order]
+    rank = np.arange(len(order)) - np.searchsorted(group, group)
+    chosen = order[rank < POLISHED_PER_BRANCH]
+    rest = order[rank >= POLISHED_PER_BRANCH]
+    rest = rest[np.lexsort((pts.f[rest], pts.pose[rest]))]
+    prank = np.arange(len(rest)) - np.searchsorted(pts.pose[rest], pts.pose[rest])
+    chosen = np.concatenate([chosen, rest[prank < POLISHED_PER_POSE]])
+    a = np.where(first[chosen], chosen, chosen - 1)
+    b = np.where(last[chosen], chosen, chosen + 1)
+    return pts.take(a), pts.take(chosen), pts.take(b)
+
+
+AT_LIMIT = 1e-7
+"""A joint this close (rad) to a limit at a polished point is taken to be on it (:func:`onto_limits`)."""
+
+
+def onto_limits(scene: Scene, pts: Points) -> Points:
+    r"""Polished points next to a joint limit, moved onto it where that lowers f.
+
+    A minimum at the end of a feasible interval where a joint reaches its limit is found to the
+    accuracy of the interval's end (1e-9 rad, and :data:`END` inside it). Newton steps on
+    :math:`q_j(\psi) = l_j` for the joint nearest its limit l_j (with the exact dq/dψ) put it on
+    the limit to rounding; the joint values are then clipped into the limits (by at most a few ulps).
+    """
+    robot = scene.robot
+    gap = np.minimum(pts.q - robot.q_min, robot.q_max - pts.q)
+    j = gap.argmin(axis=1)
+    rows = np.arange(len(pts))
+    near = (gap[rows, j] < AT_LIMIT) & (pts.dq[rows, j] != 0)
+    if not near.any():
+        return pts
+    idx = np.flatnonzero(near)
+    cur = pts.take(idx)
+    jj = j[idx]
+    r = np.arange(len(idx))
+    limit = np.where(cur.q[r, jj] - robot.q_min[jj] < robot.q_max[jj] - cur.q[r, jj], robot.q_min[jj], robot.q_max[jj])
+    psi = cur.psi
+    for _ in range(3):
+        new = scene.evaluate(cur.pose, cur.row, psi - (cur.q[r, jj] - limit) / cur.dq[r, jj])
+        ok = new.valid & np.isfinite(new.f) & (new.c >= 0)
+        cur = Points(*(np.where(ok.reshape(-1, *[1] * (getattr(new, f.name).ndim - 1)), getattr(new, f.name),
+                                getattr(cur, f.name)) for f in fields(Points)))  # fmt: skip
+        psi = cur.psi
+    cur.q = np.clip(cur.q, robot.q_min, robot.q_max)
+    better = cur.f <= pts.f[idx]
+    out = pts.take(np.arange(len(pts)))
+    for f in fields(Points):
+        getattr(out, f.name)[idx[better]] = getattr(cur, f.name)[better]
+    return out

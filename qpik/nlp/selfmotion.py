@@ -1,0 +1,116 @@
+r"""The self-motion of a closed-form arm for one pose: q(δ/ψ), dq/dδ and boxes enclosing q over ranges.
+
+For each branch b of :meth:`~qpik.analytic.solver.AnalyticSolver.casadi_function`, three
+compiled row functions (:class:`~qpik.compiled.RowMap`, one row = a pose and a parameter):
+
+- :meth:`SelfMotion.points`: ``q_b(T, ψ)`` (n,), its exact derivative ``dq_b/dψ`` (CasADi)
+  and whether the branch reaches the pose;
+- :meth:`SelfMotion.boxes`: bounds ``[q_lo, q_hi]`` (n each) containing ``q_b(T, ψ)`` for every ψ
+  of a range, the interval extension of the same closed form (:func:`qpik.enclosure.interval_function`).
+
+Offset-shoulder arms have 16 branches, but branch k + 8 at δ is branch k at δ + π
+(Nammoto & Kosuge 2012, eq. 7: θ1[2] = θ1[1] + π with the rest following), so only the
+first 8 are searched (:attr:`SelfMotion.searched`); :meth:`SelfMotion.mirror` maps the others.
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+
+import casadi as ca
+import numpy as np
+
+from qpik.analytic import solver_for
+from qpik.analytic.intervals import wrap
+from qpik.compiled import RowMap
+from qpik.enclosure import interval_function
+from qpik.robots.robot import Robot
+
+MIRRORED = {"offset_shoulder": 8}
+"""Closed-form families whose branches k + half at a parameter are branch k at the parameter + π: half."""
+CHUNKS = (32, 8)
+"""Rows per call of the compiled self-motion functions (:class:`~qpik.compiled.RowMap`)."""
+BOX_CHUNKS = (16, 16)
+"""The same for the boxes: one size, since their interval extensions take seconds to compile."""
+
+
+class SelfMotion:
+    """The compiled self-motion functions of one robot (built per branch on first use; see the module).
+
+    Attributes:
+        solver: the closed-form solver.
+        searched: the branches searched (output rows 0..searched-1 of the closed form).
+        branch_ids: public ids of all branches.
+    """
+
+    def __init__(self, robot: Robot):
+        self.robot = robot
+        self.solver = solver_for(robot)
+        self.branch_ids = np.array(self.solver.branch_ids)
+        self.searched = MIRRORED.get(self.solver.kind, self.solver.n_branches)
+        self._points: dict[int, RowMap] = {}
+        self._boxes: dict[int, RowMap] = {}
+
+    @cached_property
+    def _symbols(self) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
+        T, psi = ca.SX.sym("T", 4, 4), ca.SX.sym(self.solver.param_name)
+        Q, valid, _ = self.solver.casadi_function(T, psi)
+        return T, psi, Q, valid
+
+    def _point_map(self, b: int) -> RowMap:
+        if b not in self._points:
+            T, psi, Q, valid = self._symbols
+            q = Q[b, :].T
+            fn = ca.Function(
+                f"selfmotion_{self.solver.kind}_{b}",
+                [T, psi],
+                [ca.densify(ca.vertcat(q, ca.jacobian(q, psi), valid[b]))],
+            )
+            self._points[b] = RowMap(fn, chunks=CHUNKS)
+        return self._points[b]
+
+    def _box_map(self, b: int) -> RowMap:
+        if b not in self._boxes:
+            T, psi, Q, _ = self._symbols
+            fn = ca.Function(f"selfmotion_{self.solver.kind}_{b}", [T, psi], [ca.densify(Q[b, :].T)])
+            box = interval_function(fn, [1], name=f"selfmotion_box_{self.solver.kind}_{b}")
+            self._boxes[b] = RowMap(box, chunks=BOX_CHUNKS)
+        return self._boxes[b]
+
+    def points(self, b: int, T: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Branch row b at poses T (M, 4, 4) and parameters ψ (M,): q (M, n), dq/dψ (M, n), valid (M,) bool."""
+        n = self.robot.dof
+        (out,) = self._point_map(b)(_columns(T), psi)
+        return out[:, :n], out[:, n : 2 * n], out[:, 2 * n] > 0.5
+
+    def boxes(self, b: int, T: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Branch row b: (M, n) bounds of q over ψ ∈ [lo, hi] (M,) at poses T (M, 4, 4)."""
+        q_lo, q_hi = self._box_map(b)(_columns(T), lo, hi)
+        return q_lo, q_hi
+
+    def mirror(self, b: int) -> tuple[int, float] | None:
+        """``(row, shift)`` when branch row b is row ``row`` at the parameter + ``shift`` (rad), else None."""
+        if b < self.searched:
+            return None
+        return b - self.searched, np.pi
+
+    def shifted(self, b: int, psi: float) -> float:
+        """The parameter (rad) of branch row b's configuration found on its searched row at ``psi``."""
+        m = self.mirror(b)
+        return psi if m is None else float(wrap(psi - m[1]))
+
+
+def _columns(T: np.ndarray) -> np.ndarray:
+    """Poses (M, 4, 4) as rows of their 16 entries in column-major order (CasADi's)."""
+    return np.ascontiguousarray(np.swapaxes(T, 1, 2)).reshape(len(T), 16)
+
+
+_CACHE: dict[int, SelfMotion] = {}
+
+
+def selfmotion_of(robot: Robot) -> SelfMotion:
+    """The cached :class:`SelfMotion` of ``robot``."""
+    sm = _CACHE.get(id(robot))
+    if sm is None or sm.robot is not robot:
+        sm = _CACHE[id(robot)] = SelfMotion(robot)
+    return sm

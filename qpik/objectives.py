@@ -1,0 +1,651 @@
+r"""Objectives over a configuration ``q`` (n,), rad: one CasADi expression each, composable.
+
+Shared by the NLPs (:mod:`qpik.nlp`: minimised over δ/ψ or over q) and the QP controller
+(:class:`qpik.control.tasks.ObjectiveTask`: its gradient as a secondary task). Every
+objective is a cost to *minimise*; :class:`Sum` adds them with weights (``2.0 * a + b``).
+
+An objective writes its math once, :meth:`Objective.split`, against a :class:`Context` of
+CasADi symbols (``q``, the robot's frames and Jacobian, the link-capsule/obstacle distances,
+the reference configuration ``q_ref``) and its own parameter vector (weights, sharpness,
+cap). Parameters, ``q_ref`` and the obstacle geometry are *inputs* of the compiled
+functions, so changing them never recompiles. A split is a smooth part plus weighted maxima
+of smooth pieces,
+
+.. math:: f(q) = s(q) + \sum_k w_k \max_i h_{k,i}(q),\qquad w_k \ge 0,
+
+so that an NLP can write each maximum in epigraph form (:math:`\min t_k` s.t.
+:math:`t_k \ge h_{k,i}`) and stay smooth. :meth:`Objective.lower_bound` gives a rigorous lower
+bound of ``f`` over a box of configurations (for the certificate of :mod:`qpik.nlp.certificate`).
+
+The objectives (units: the margin is unitless, distances in m, angles in rad):
+
+- :class:`JointLimitMargin`: :math:`-\min_j \min(q_j - l_j, u_j - q_j)/\rho_j`,
+  :math:`\rho_j = (u_j - l_j)/2` (0 on a limit, −1 at the middle of every range); epigraph
+  form, or with ``smooth=True`` the soft minimum :math:`\tfrac1\beta\log\sum_i e^{-\beta g_i}`
+  of the same 2n normalised distances :math:`g_i`;
+- :class:`Manipulability`: :math:`-\log m(q)`, Yoshikawa's :math:`m = \sqrt{\det J J^T}`
+  (``translational``: :math:`J_v`);
+- :class:`Clearance`: :math:`-\min(c, \min_{k,o} d_{k,o}(q))` over every (link capsule k,
+  obstacle o) pair, capped at ``cap`` = c (m); epigraph form or the soft minimum;
+- :class:`ReferenceDistance`: :math:`\tfrac12 \sum_j w_j (q_j - q_{ref,j})^2`;
+- :class:`Expression`: a user's CasADi expression of q.
+"""
+
+from __future__ import annotations
+
+import itertools
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import TYPE_CHECKING
+
+import casadi as ca
+import numpy as np
+
+from qpik import symbolic as sy
+from qpik.compiled import RowMap
+from qpik.errors import InputError
+from qpik.geometry.distance import ObstacleSet, set_expr
+from qpik.robots.manipulability import hessian_rows, jacobian_rows, manipulability_gradient_expr
+from qpik.validate import finite_array
+
+if TYPE_CHECKING:
+    from qpik.robots.robot import Robot
+
+_EMPTY = np.zeros(0)
+_TOKENS = itertools.count()
+
+
+@dataclass
+class Split:
+    r"""An objective as :math:`s + \sum_k w_k \max(h_k)` (SX).
+
+    Attributes:
+        smooth: the smooth part s, a scalar.
+        maxima: ``(w_k, h_k)``: a weight (scalar, ≥ 0) and the pieces (m_k,) of each maximum.
+    """
+
+    smooth: ca.SX
+    maxima: list[tuple[ca.SX, ca.SX]] = field(default_factory=list)
+
+    def value(self) -> ca.SX:
+        """:math:`s + \\sum_k w_k \\max(h_k)`."""
+        out = self.smooth
+        for w, h in self.maxima:
+            out = out + w * ca.mmax(h)
+        return out
+
+    def epigraph(self) -> tuple[ca.SX, ca.SX, ca.SX]:
+        """The epigraph form: ``(t, cost, g)`` with new variables t (K,), the smooth cost
+        :math:`s + \\sum_k w_k t_k` and the constraints ``g ≤ 0``, :math:`h_{k,i} - t_k` stacked."""
+        t = ca.SX.sym("t", len(self.maxima))
+        cost = self.smooth
+        g = [ca.SX(0, 1)]
+        for k, (w, h) in enumerate(self.maxima):
+            cost = cost + w * t[k]
+            g.append(h - t[k])
+        return t, cost, ca.vertcat(*g)
+
+
+class Context:
+    """The symbols an objective is written against (CasADi SX).
+
+    Args:
+        robot: the arm.
+        q: (n,) joint positions, rad.
+        q_ref: (n,) reference configuration, rad (an input of the compiled function).
+        obstacles: the obstacles of the problem (their families fix the expression's form).
+        obstacle_params: their packed parameters (:attr:`ObstacleSet.params`), an input.
+        witness: (n,) a second symbol for q, or None; see :attr:`distances`.
+
+    The kinematics are built on first use, so an objective that needs none costs nothing.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        q: ca.SX,
+        q_ref: ca.SX,
+        obstacles: ObstacleSet,
+        obstacle_params: ca.SX,
+        witness: ca.SX | None = None,
+    ):
+        self.robot, self.q, self.q_ref = robot, q, q_ref
+        self.obstacles, self.obstacle_params, self.witness = obstacles, obstacle_params, witness
+        self.n = robot.dof
+
+    @cached_property
+    def frames(self) -> list:
+        """The chain's frames ``[base, frame_1..frame_n, ee]`` (:meth:`DHChain.frames_expr`)."""
+        return self.robot.chain.frames_expr([self.q[i] for i in range(self.n)], sy.CASADI)
+
+    @cached_property
+    def _jacobian(self) -> tuple[list, list]:
+        chain = self.robot.chain
+        jv, jw = chain.jacobian_expr(self.frames)
+        return jacobian_rows(jv, jw), hessian_rows(chain.hessian_expr(self.frames, (jv, jw)))
+
+    def manipulability(self, translational: bool = False) -> ca.SX:
+        """Yoshikawa's :math:`\\sqrt{\\det J J^T}` (``translational``: of J_v), from the QR of
+        :func:`~qpik.robots.dh.manipulability_gradient_expr`."""
+        J, H = self._jacobian
+        rows = 3 if translational else 6
+        return manipulability_gradient_expr(J[:rows], [Hk[:rows] for Hk in H])[1]
+
+    @cached_property
+    def distances(self) -> ca.SX:
+        r"""Signed distances (C·O,) of every capsule–obstacle pair, pair (c, o) at c·O + o, m.
+
+        With a ``witness`` symbol w, the closest points are found at w and the distance is
+        written :math:`n^T(x_s(q) - p_{obs}) - r` with the unit normal n, the obstacle's witness
+        point and the capsule-axis parameter s taken at w, and :math:`x_s(q)` the axis point at q.
+        At w = q this equals the distance, and (Danskin's theorem) its gradient in q is the
+        gradient of the distance, :math:`n^T J_p` (:mod:`qpik.geometry.distance`), at a fraction of
+        the cost of differentiating the closest-point kernels; substitute w = q after differentiating.
+        Exact wherever the closest points are unique, which holds for every pair clear of its
+        obstacle; for a capsule axis inside a box it is the rate of the deepest point's depth
+        with that point held (the kernel's own normal), not a derivative of the depth.
+        """
+        if not len(self.obstacles):
+            return ca.SX(0, 1)
+        prm = [self.obstacle_params[i] for i in range(self.obstacle_params.numel())]
+        radii, kinds = self.robot.capsule_radii, self.obstacles.kinds
+        at = self.frames if self.witness is None else self._frames_of(self.witness)
+        pairs = set_expr(self.robot.capsule_segments_expr(at), radii, kinds, prm, sy.CASADI)
+        if self.witness is None:
+            return ca.vertcat(*[d for row in pairs for d, *_ in row])
+        out = []
+        for (a, b), r, row in zip(self.robot.capsule_segments_expr(self.frames), radii, pairs):
+            for _, _, p_obs, normal, s in row:
+                x = sy.vadd(a, sy.vscale(s, sy.vsub(b, a)))
+                out.append(sy.dot(normal, sy.vsub(x, p_obs)) - r)
+        return ca.vertcat(*out)
+
+    def _frames_of(self, q: ca.SX) -> list:
+        return self.robot.chain.frames_expr([q[i] for i in range(self.n)], sy.CASADI)
+
+
+@dataclass
+class Box:
+    """Numbers for :meth:`Objective.lower_bound`: M boxes of configurations and what is known at their centres.
+
+    Attributes:
+        robot: the arm.
+        q_lo, q_hi: (M, n) bounds of each box, rad.
+        q_mid: (M, n) a configuration inside each box (where ``d_mid`` was evaluated), rad.
+        d_mid: (M, C·O) capsule–obstacle distances at ``q_mid``, m.
+        n_obstacles: O.
+        q_ref: (n,) reference configuration, rad (zeros if none was given).
+        lever: (C, n) :func:`lever_arms` of the robot.
+    """
+
+    robot: Robot
+    q_lo: np.ndarray
+    q_hi: np.ndarray
+    q_mid: np.ndarray
+    d_mid: np.ndarray
+    n_obstacles: int
+    q_ref: np.ndarray
+    lever: np.ndarray
+
+    @cached_property
+    def spread(self) -> np.ndarray:
+        """(M, n): the largest ``|q_j − q_mid,j|`` in each box, rad."""
+        return np.maximum(self.q_hi - self.q_mid, self.q_mid - self.q_lo)
+
+    def distance_upper(self) -> np.ndarray:
+        """(M, C·O) upper bounds of every pair distance over each box, m.
+
+        A point of link k moves by at most :math:`\\sum_{j \\le k} r_{kj} |\\Delta q_j|` when the
+        joints move by Δq (joint j turns it about an axis at most :math:`r_{kj}` away,
+        :func:`lever_arms`), and the distance of a capsule to a convex obstacle changes by at
+        most the largest displacement of its axis points.
+        """
+        move = self.spread @ self.lever.T  # (M, C)
+        return self.d_mid + np.repeat(move, self.n_obstacles, axis=1)
+
+
+class Objective(ABC):
+    """A cost :math:`f(q)` to minimise (see the module docstring for the form).
+
+    Subclasses implement :meth:`split` and, where a rigorous bound over a box of
+    configurations is known, :meth:`lower_bound`. Combine them with ``*`` (a weight) and ``+``.
+    """
+
+    name: str = "objective"
+
+    def param_size(self, robot: Robot) -> int:
+        """Length of :meth:`params` for ``robot`` (default 0)."""
+        return 0
+
+    def params(self, robot: Robot) -> np.ndarray:
+        """The current parameters, a flat vector (weights, sharpness, cap, ...)."""
+        return _EMPTY
+
+    def structure(self) -> tuple:
+        """What fixes the expression's form beyond the parameters (part of a compiled function's key)."""
+        return ()
+
+    def key(self) -> tuple:
+        """Type and :meth:`structure`: objectives with the same key share compiled functions."""
+        return (type(self).__module__, type(self).__qualname__, self.structure())
+
+    @abstractmethod
+    def split(self, ctx: Context, p: ca.SX) -> Split:
+        """The objective at ``ctx.q`` with parameters ``p`` (param_size,), as a :class:`Split`."""
+
+    def expr(self, ctx: Context, p: ca.SX) -> ca.SX:
+        """The value f(q) (SX scalar): :meth:`split` summed."""
+        return self.split(ctx, p).value()
+
+    @property
+    def smooth(self) -> bool:
+        """Whether f is twice differentiable (no maximum in its split)."""
+        return True
+
+    @property
+    def terms(self) -> tuple[tuple[float, Objective], ...]:
+        """``((weight, objective), ...)`` whose weighted sum this is (itself with weight 1)."""
+        return ((1.0, self),)
+
+    def lower_bound(self, box: Box, p: np.ndarray) -> np.ndarray | None:
+        """(M,) lower bounds of f over each box, or None when no rigorous bound is known."""
+        return None
+
+    @property
+    def bounded(self) -> bool:
+        """Whether :meth:`lower_bound` gives bounds (a certificate is possible)."""
+        return type(self).lower_bound is not Objective.lower_bound
+
+    def __mul__(self, weight: float) -> Sum:
+        return Sum([(w * float(weight), o) for w, o in self.terms])
+
+    __rmul__ = __mul__
+
+    def __add__(self, other: Objective) -> Sum:
+        if not isinstance(other, Objective):
+            return NotImplemented
+        return Sum([*self.terms, *other.terms])
+
+
+class Sum(Objective):
+    r"""A weighted sum :math:`\sum_i w_i f_i` (weights ≥ 0, parameters: the weights then each term's).
+
+    Args:
+        terms: ``(weight, objective)`` pairs (nested sums are flattened).
+    """
+
+    name = "sum"
+
+    def __init__(self, terms: Sequence[tuple[float, Objective]]):
+        flat: list[tuple[float, Objective]] = []
+        for w, o in terms:
+            if not isinstance(o, Objective):
+                raise InputError(f"terms: expected Objective instances, got {type(o).__name__}")
+            flat += [(float(w) * v, t) for v, t in o.terms]
+        if not flat:
+            raise InputError("terms: a Sum needs at least one objective")
+        weights = np.array([w for w, _ in flat])
+        if not np.isfinite(weights).all() or (weights < 0).any():
+            raise InputError(f"terms: weights must be finite and >= 0, got {weights.tolist()}")
+        self._terms = tuple(flat)
+        self.weights = weights
+
+    @property
+    def terms(self) -> tuple[tuple[float, Objective], ...]:
+        return tuple((float(w), o) for w, (_, o) in zip(self.weights, self._terms))
+
+    def param_size(self, robot: Robot) -> int:
+        return len(self._terms) + sum(o.param_size(robot) for _, o in self._terms)
+
+    def params(self, robot: Robot) -> np.ndarray:
+        return np.concatenate([self.weights, *(o.params(robot) for _, o in self._terms)])
+
+    def structure(self) -> tuple:
+        return tuple(o.key() for _, o in self._terms)
+
+    def _slices(self, robot: Robot) -> list[slice]:
+        start, out = len(self._terms), []
+        for _, o in self._terms:
+            size = o.param_size(robot)
+            out.append(slice(start, start + size))
+            start += size
+        return out
+
+    def split(self, ctx: Context, p: ca.SX) -> Split:
+        out = Split(ca.SX(0.0))
+        for i, ((_, o), sl) in enumerate(zip(self._terms, self._slices(ctx.robot))):
+            part = o.split(ctx, p[sl])
+            out.smooth = out.smooth + p[i] * part.smooth
+            out.maxima += [(p[i] * w, h) for w, h in part.maxima]
+        return out
+
+    @property
+    def smooth(self) -> bool:
+        return all(o.smooth for _, o in self._terms)
+
+    @property
+    def bounded(self) -> bool:
+        return all(o.bounded for _, o in self._terms)
+
+    def lower_bound(self, box: Box, p: np.ndarray) -> np.ndarray | None:
+        total = 0.0
+        for i, ((_, o), sl) in enumerate(zip(self._terms, self._slices(box.robot))):
+            if p[i] == 0.0:
+                continue
+            part = o.lower_bound(box, p[sl])
+            if part is None:
+                return None
+            total = total + p[i] * part
+        return np.broadcast_to(total, (len(box.q_lo),)).astype(float)
+
+
+def _normalised(robot: Robot, q: ca.SX) -> ca.SX:
+    """The 2n normalised distances to the limits, :math:`(q - l)/\\rho` and :math:`(u - q)/\\rho`."""
+    lo, hi = np.asarray(robot.q_min, float), np.asarray(robot.q_max, float)
+    half = 0.5 * (hi - lo)
+    return ca.vertcat((q - lo) / half, (hi - q) / half)
+
+
+def _soft_max(h: ca.SX, beta: ca.SX) -> ca.SX:
+    r""":math:`\tfrac1\beta \log \sum_i e^{\beta h_i}` (≥ max h, within log(m)/β), shifted by max h for range."""
+    top = ca.mmax(h)
+    return top + ca.log(ca.sum1(ca.exp(beta * (h - top)))) / beta
+
+
+def _soft_max_np(h: np.ndarray, beta: float) -> np.ndarray:
+    top = h.max(axis=-1)
+    return top + np.log(np.exp(beta * (h - top[..., None])).sum(axis=-1)) / beta
+
+
+class JointLimitMargin(Objective):
+    r"""Minus the smallest normalised distance to a joint limit.
+
+    With :math:`g = ((q - l)/\rho,\ (u - q)/\rho)` (2n values, :math:`\rho = (u - l)/2`):
+    :math:`f = \max_i(-g_i) = -\min_j \min(q_j - l_j, u_j - q_j)/\rho_j` (epigraph form), or with
+    ``smooth=True`` :math:`f = \tfrac1\beta \log \sum_i e^{-\beta g_i}`, which is smooth, lies
+    above the exact value by at most :math:`\log(2n)/\beta` and has the same minimiser as β → ∞.
+
+    Parameters: β (``sharpness``, only with ``smooth=True``).
+    """
+
+    name = "margin"
+
+    def __init__(self, smooth: bool = False, sharpness: float = 20.0):
+        self._smooth = bool(smooth)
+        self.sharpness = float(sharpness)
+        if not np.isfinite(self.sharpness) or self.sharpness <= 0:
+            raise InputError(f"sharpness: must be finite and > 0, got {sharpness}")
+
+    def structure(self) -> tuple:
+        return (self._smooth,)
+
+    def param_size(self, robot: Robot) -> int:
+        return 1 if self._smooth else 0
+
+    def params(self, robot: Robot) -> np.ndarray:
+        return np.array([self.sharpness]) if self._smooth else _EMPTY
+
+    @property
+    def smooth(self) -> bool:
+        return self._smooth
+
+    def split(self, ctx: Context, p: ca.SX) -> Split:
+        g = _normalised(ctx.robot, ctx.q)
+        if self._smooth:
+            return Split(_soft_max(-g, p[0]))
+        return Split(ca.SX(0.0), [(ca.SX(1.0), -g)])
+
+    def lower_bound(self, box: Box, p: np.ndarray) -> np.ndarray:
+        """Exact over the box: each :math:`-g_i` is monotone in one joint, and f is increasing in each."""
+        lo, hi = box.robot.q_min, box.robot.q_max
+        half = 0.5 * (hi - lo)
+        h = np.concatenate([-(box.q_hi - lo) / half, -(hi - box.q_lo) / half], axis=1)  # the least -g_i
+        return _soft_max_np(h, p[0]) if self._smooth else h.max(axis=1)
+
+
+class Manipulability(Objective):
+    r"""Minus the log of Yoshikawa's manipulability: :math:`f = -\log \sqrt{\det J J^T}`.
+
+    ``translational``: of the rows :math:`J_v` (m) only. Infinite at a singular configuration.
+    No lower bound over a box is given: a bound through the singular values (Weyl's inequality
+    with the kinematic Hessian) loses :math:`\sum_i \delta/\sigma_i` for a change δ of J, which
+    needs boxes of ~1e-4 rad, too many to certify an answer.
+    """
+
+    name = "manipulability"
+
+    def __init__(self, translational: bool = False):
+        self.translational = bool(translational)
+
+    def structure(self) -> tuple:
+        return (self.translational,)
+
+    def split(self, ctx: Context, p: ca.SX) -> Split:
+        return Split(-ca.log(ctx.manipulability(self.translational)))
+
+
+class Clearance(Objective):
+    r"""Minus the smallest link-capsule/obstacle distance, capped: :math:`f = -\min(c, \min_{k,o} d_{k,o})`.
+
+    The pairs are every link capsule against every obstacle of the problem (m). Distances
+    beyond the cap c (m) do not count. Epigraph form, or with ``smooth=True`` the soft
+    minimum :math:`\tfrac1\beta \log(e^{-\beta c} + \sum e^{-\beta d_{k,o}})` (β in 1/m).
+
+    Parameters: c, then β (with ``smooth=True``).
+    """
+
+    name = "clearance"
+
+    def __init__(self, cap: float = 0.1, smooth: bool = False, sharpness: float = 100.0):
+        self.cap, self.sharpness, self._smooth = float(cap), float(sharpness), bool(smooth)
+        if not (np.isfinite(self.cap) and self.cap > 0 and np.isfinite(self.sharpness) and self.sharpness > 0):
+            raise InputError(f"Clearance: cap and sharpness must be finite and > 0, got {cap}, {sharpness}")
+
+    def structure(self) -> tuple:
+        return (self._smooth,)
+
+    def param_size(self, robot: Robot) -> int:
+        return 2 if self._smooth else 1
+
+    def params(self, robot: Robot) -> np.ndarray:
+        return np.array([self.cap, self.sharpness][: self.param_size(robot)])
+
+    @property
+    def smooth(self) -> bool:
+        return self._smooth
+
+    def split(self, ctx: Context, p: ca.SX) -> Split:
+        h = -ca.vertcat(ctx.distances, p[0])
+        if self._smooth:
+            return Split(_soft_max(h, p[1]))
+        return Split(ca.SX(0.0), [(ca.SX(1.0), h)])
+
+    def lower_bound(self, box: Box, p: np.ndarray) -> np.ndarray:
+        """From the distances' upper bounds over the box (:meth:`Box.distance_upper`); f decreases in each."""
+        d = box.distance_upper()
+        h = -np.concatenate([d, np.full((len(d), 1), p[0])], axis=1)
+        return _soft_max_np(h, p[1]) if self._smooth else h.max(axis=1)
+
+
+class ReferenceDistance(Objective):
+    r"""Distance to a reference configuration: :math:`f = \tfrac12 \sum_j w_j (q_j - q_{ref,j})^2` (rad²).
+
+    ``q_ref`` is the problem's (the ``q_ref`` argument of :func:`qpik.solve_best`, or
+    :class:`~qpik.control.tasks.ObjectiveTask`'s): the current configuration, for continuity.
+
+    Parameters: the weights w (n,), default 1.
+
+    Args:
+        weights: (n,) per-joint weights ≥ 0 (None: all 1).
+    """
+
+    name = "distance"
+
+    def __init__(self, weights: np.ndarray | None = None):
+        self.weights = None if weights is None else finite_array(weights, "weights", (None,)).copy()
+        if self.weights is not None and (self.weights < 0).any():
+            raise InputError("weights: must be >= 0")
+
+    def _w(self, robot: Robot) -> np.ndarray:
+        if self.weights is None:
+            return np.ones(robot.dof)
+        if self.weights.shape != (robot.dof,):
+            raise InputError(f"weights: expected shape ({robot.dof},), got {self.weights.shape}")
+        return self.weights
+
+    def param_size(self, robot: Robot) -> int:
+        return robot.dof
+
+    def params(self, robot: Robot) -> np.ndarray:
+        return self._w(robot)
+
+    def split(self, ctx: Context, p: ca.SX) -> Split:
+        e = ctx.q - ctx.q_ref
+        return Split(0.5 * ca.dot(p * e, e))
+
+    def lower_bound(self, box: Box, p: np.ndarray) -> np.ndarray:
+        """Exact over the box: each term is least at the point of ``[q_lo, q_hi]`` nearest ``q_ref``."""
+        gap = np.maximum(box.q_lo - box.q_ref, 0.0) + np.maximum(box.q_ref - box.q_hi, 0.0)
+        return 0.5 * (gap * gap) @ p
+
+
+class Expression(Objective):
+    """A user's objective: ``fn(q)``, a CasADi expression (SX scalar) of q (n,) SX.
+
+    ``fn`` is a :class:`casadi.Function` of one (n,) input, or a Python function building the
+    expression. No bound over a box is known, so answers with it are not certified.
+
+    Args:
+        fn: the expression's builder.
+        smooth: whether it is twice differentiable (the QP task and the cross-check need that).
+        name: a label for tables.
+    """
+
+    def __init__(self, fn: Callable[[ca.SX], ca.SX] | ca.Function, smooth: bool = True, name: str = "expression"):
+        if not callable(fn):
+            raise InputError(f"fn: expected a casadi.Function or a callable, got {type(fn).__name__}")
+        self.fn, self._smooth, self.name = fn, bool(smooth), str(name)
+        self._token = next(_TOKENS)
+
+    def structure(self) -> tuple:
+        return (self._token,)
+
+    @property
+    def smooth(self) -> bool:
+        return self._smooth
+
+    def split(self, ctx: Context, p: ca.SX) -> Split:
+        out = self.fn(ctx.q)
+        if isinstance(out, (list, tuple)):
+            out = out[0]
+        out = ca.SX(out) if not isinstance(out, ca.SX) else out
+        if out.numel() != 1:
+            raise InputError(f"fn: must return a scalar expression of q, got shape {out.shape}")
+        return Split(out)
+
+
+CHUNK = 16
+"""Rows per call of an :class:`Evaluator`'s compiled map (:class:`~qpik.compiled.RowMap`, one size: one compile)."""
+
+
+class Evaluator:
+    """An objective and the capsule–obstacle distances, compiled for one robot and obstacle families.
+
+    Evaluates, per configuration, ``f(q)``, ``∇f(q)`` (n,) (CasADi's exact derivative; at a kink
+    of an epigraph term, the gradient of one active piece) and the pair distances (C·O,), m.
+    The objective's parameters, ``q_ref`` and the obstacle geometry are inputs: one compiled
+    function serves every value of them (it is cached per robot, objective key and families).
+
+    Args:
+        robot: the arm.
+        objective: the objective.
+        obstacles: shapes or an :class:`ObstacleSet` (their families fix the function; the
+            geometry is read at every call from :attr:`obstacles`).
+    """
+
+    def __init__(self, robot: Robot, objective: Objective, obstacles: Sequence | ObstacleSet = ()):
+        self.robot, self.objective = robot, objective
+        self.obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
+        self.n_pairs = len(robot.capsules) * len(self.obstacles)
+        self.params = objective.params(robot)
+        key = (id(robot), objective.key(), self.obstacles.kinds, len(self.params))
+        entry = _EVALUATORS.get(key)
+        if entry is None or entry[0] is not robot:
+            entry = _EVALUATORS[key] = (robot, RowMap(self.function(), shared=(1, 3), chunks=(CHUNK, CHUNK)))
+        self._rows = entry[1]
+
+    def function(self) -> ca.Function:
+        """``(q (n,), p, q_ref (n,), obstacle params) -> [f, ∇f (n), d (C·O), ∇ min d (n)]`` in one column."""
+        robot, n = self.robot, self.robot.dof
+        q, q_ref, w = ca.SX.sym("q", n), ca.SX.sym("q_ref", n), ca.SX.sym("w", n)
+        p = ca.SX.sym("p", len(self.params))
+        prm = ca.SX.sym("obstacles", len(self.obstacles.params))
+        ctx = Context(robot, q, q_ref, self.obstacles, prm, witness=w)
+        f = self.objective.expr(ctx, p)
+        d = ctx.distances
+        nearest = ca.gradient(ca.mmin(d), q) if self.n_pairs else ca.SX.zeros(n)
+        out = ca.densify(ca.substitute(ca.vertcat(f, ca.gradient(f, q), d, nearest), w, q))
+        return ca.Function(f"objective_{robot.name or 'robot'}", [q, p, q_ref, prm], [out])
+
+    def __call__(self, q: np.ndarray, q_ref: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+        """``(f (M,), ∇f (M, n), d (M, C·O), ∇ min d (M, n))`` at configurations q (M, n) (or (n,): then
+        the shapes drop M). ``q_ref``: (n,) or (M, n), rad (zeros if None; only :class:`ReferenceDistance`
+        reads it). ``∇ min d`` is the gradient of the smallest pair distance (zeros without obstacles)."""
+        n = self.robot.dof
+        q = finite_array(q, "q")
+        Q = np.atleast_2d(q)
+        if Q.ndim != 2 or Q.shape[1] != n:
+            raise InputError(f"q: expected shape ({n},) or (M, {n}), got {q.shape}")
+        ref = np.zeros(n) if q_ref is None else finite_array(q_ref, "q_ref")
+        f, grad, d, grad_d = self.rows(Q, np.broadcast_to(ref, Q.shape))
+        return (f[0], grad[0], d[0], grad_d[0]) if q.ndim == 1 else (f, grad, d, grad_d)
+
+    def rows(self, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, ...]:
+        """:meth:`__call__` for configurations Q (M, n) and references R (M, n) that the caller built
+        (float arrays of the right shapes, no check): the search's inner loop."""
+        (out,) = self._rows(Q, self.params, R, self.obstacles.params)
+        parts = np.split(out, np.cumsum([1, self.robot.dof, self.n_pairs]), axis=1)
+        return parts[0][:, 0], parts[1], parts[2], parts[3]
+
+
+_EVALUATORS: dict[tuple, tuple] = {}
+
+
+def lever_arms(robot: Robot) -> np.ndarray:
+    r"""(C, n): for capsule c, a bound :math:`r_{cj}` (m) on the distance of its axis points from joint j's axis.
+
+    Zero for joints beyond the capsule's link. The points of link k are reached from joint j's axis
+    through the DH transforms j..k, each a translation of :math:`|a_i| + |d_i|` at most, then the
+    capsule's end point in frame k; the sum of these lengths bounds the distance for every q.
+    """
+    chain = robot.chain
+    step = np.abs(np.asarray(chain.a, float)) + np.abs(np.asarray(chain.d, float))
+    out = np.zeros((len(robot.capsules), robot.dof))
+    for c, cap in enumerate(robot.capsules):
+        end = max(float(np.linalg.norm(cap.p0)), float(np.linalg.norm(cap.p1)))
+        for j in range(cap.link):
+            out[c, j] = step[j : cap.link].sum() + end
+    return out
+
+
+_NAMED: dict[str, Callable[[], Objective]] = {
+    "margin": JointLimitMargin,
+    "smooth-margin": lambda: JointLimitMargin(smooth=True),
+    "manipulability": Manipulability,
+    "clearance": Clearance,
+    "smooth-clearance": lambda: Clearance(smooth=True),
+    "distance": ReferenceDistance,
+}
+NAMES = tuple(_NAMED)
+"""The names :func:`resolve` accepts."""
+
+
+def resolve(objective: Objective | str) -> Objective:
+    """An objective, or one with default parameters from its name (:data:`NAMES`)."""
+    if isinstance(objective, Objective):
+        return objective
+    if objective not in _NAMED:
+        raise InputError(f"objective: expected an Objective or one of {list(NAMES)}, got {objective!r}")
+    return _NAMED[objective]()

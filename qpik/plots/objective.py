@@ -1,0 +1,85 @@
+"""The objective of :func:`qpik.solve_best` against δ/ψ: every branch, its feasible set, the optimum.
+
+:func:`objective_map` returns a matplotlib ``Figure`` (no pyplot state): on top, the objective
+along every branch's self-motion over (−π, π] where the branch is inside the joint limits (the
+curves break where it leaves them) and, with obstacles, dotted where a link capsule comes
+closer than d_s; the answer marked with a star and its value; below, each branch's exact
+feasible set (:func:`qpik.feasible_intervals`) as bars.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from qpik.analytic.api import feasible_intervals, ik
+from qpik.geometry.distance import ObstacleSet
+from qpik.nlp.best import BestResult, solve_best
+from qpik.objectives import Evaluator, Objective, resolve
+from qpik.plots.closed_form import PI, branch_colors, feasible_panel, symbol
+from qpik.robots.robot import Robot
+
+OPTIMUM_GID = "optimum"  # gid of the star at the answer (for readers of the figure)
+
+
+def objective_map(
+    robot: Robot,
+    pose: np.ndarray,
+    objective: Objective | str = "margin",
+    obstacles=(),
+    q_ref: np.ndarray | None = None,
+    result: BestResult | None = None,
+    d_safe: float = 0.02,
+    num: int = 1441,
+    title: str | None = None,
+) -> Figure:
+    """The objective against δ/ψ for every branch, the feasible sets shaded, the optimum marked.
+
+    Args:
+        robot: an arm with a closed form.
+        pose: (4, 4) end-effector pose, base frame.
+        objective, obstacles, q_ref, d_safe: as for :func:`qpik.solve_best`.
+        result: the answer to mark (default: :func:`qpik.solve_best` of the same problem).
+        num: parameter samples over [−π, π] for the curves.
+        title: figure title (default: robot, objective and the answer).
+    """
+    obj = resolve(objective)
+    obs = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
+    if result is None:
+        result = solve_best(robot, pose, obj, obs, q_ref, d_safe=d_safe)
+    psi = np.linspace(-PI, PI, num)
+    sols = ik(robot, np.broadcast_to(np.asarray(pose, float), (num, 4, 4)), psi)
+    fi = feasible_intervals(robot, pose)
+    ids = [int(b) for b in sols.branch]
+    colors = branch_colors(ids)
+    ok = sols.within_limits
+    f = np.full(ok.shape, np.nan)
+    clear = np.full(ok.shape, True)
+    if ok.any():
+        values, _, d, _ = Evaluator(robot, obj, obs)(sols.q[ok], q_ref)
+        f[ok] = values
+        if d.shape[1]:
+            clear[ok] = d.min(axis=1) >= d_safe
+    sym = symbol(sols.param_name)
+    fig = Figure(figsize=(11, 8), layout="constrained")
+    top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=(2.2, 1))
+    for k, b in enumerate(ids):
+        y = f[:, k]
+        top.plot(psi, np.where(clear[:, k], y, np.nan), color=colors[b], lw=1.6, label=f"branch {b}")
+        if not clear[:, k].all():
+            top.plot(psi, np.where(clear[:, k], np.nan, y), color=colors[b], lw=1.0, ls=":")
+    if result.status == "optimal":
+        top.plot([result.param], [result.objective], "*", color="k", ms=16, zorder=5, gid=OPTIMUM_GID)
+        text = f"branch {result.branch}, {sym} = {result.param:.3f}\n{obj.name} = {result.objective:.4g}"
+        top.annotate(text, (result.param, result.objective), textcoords="offset points", xytext=(10, 10), fontsize=9)
+    top.set_ylabel(f"objective ({obj.name})")
+    top.grid(alpha=0.3)
+    top.legend(loc="upper right", fontsize=7, ncol=2)
+    feasible_panel(bottom, fi, ids, result.branch if result.status == "optimal" else ids[0], colors)
+    bottom.set_xlabel(f"{sym} [rad]")
+    bottom.set_xlim(-PI, PI)
+    bottom.set_xticks(np.linspace(-PI, PI, 5), ["−π", "−π/2", "0", "π/2", "π"])
+    cert = "" if result.status != "optimal" else (", certified" if result.certified else ", not certified")
+    fig.suptitle(title or f"{robot.name}: {obj.name} against {sym} for every branch ({result.status}{cert})",
+                 fontsize=11)  # fmt: skip
+    return fig

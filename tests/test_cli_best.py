@@ -1,0 +1,52 @@
+"""``qpik best``: the printed configuration reaches the pose (FK), the table lists every branch, errors are one line."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import qpik
+from qpik.cli import main
+
+
+def _q_star(out: str) -> np.ndarray:
+    line = next(ln for ln in out.splitlines() if ln.startswith("q* = "))
+    return np.array([float(v) for v in line[line.index("[") + 1 : line.index("]")].split()])
+
+
+@pytest.mark.parametrize("name, count", [("iiwa14", 8), ("nammoto7", 16)])
+def test_best_prints_the_table_and_a_configuration_on_the_pose(capsys, tmp_path, name, count):
+    robot = qpik.load_robot(name)
+    q = np.random.default_rng(4).uniform(0.7 * robot.q_min, 0.7 * robot.q_max)
+    T = robot.fk(q)
+    args = ["best", "-r", name, "--position", " ".join(repr(float(v)) for v in T[:3, 3]),
+            "--rotation", " ".join(repr(float(v)) for v in T[:3, :3].ravel()), "--objective", "margin",
+            "--sphere", "0.5,0.5,1.5,0.05", "--plot", str(tmp_path / "best.png")]  # fmt: skip
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    rows = [ln.split() for ln in out.splitlines() if ln.split() and ln.split()[0].isdigit()]
+    assert len(rows) == count and sum(r[-1] == "*" for r in rows) == 1
+    qs = _q_star(out)
+    assert np.abs(robot.fk(qs) - T).max() < 1e-5  # printed to 6 decimals
+    assert robot.within_limits(qs, tol=1e-6)
+    assert "best: branch" in out
+    img = np.asarray(Image.open(tmp_path / "best.png").convert("L"), dtype=float)
+    assert img.std() > 5
+
+
+def test_best_errors_are_one_line_with_exit_2(capsys):
+    assert main(["best", "-r", "iiwa14", "--position", "0.4 0.2 nan"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("qpik best: pose")
+    assert main(["best", "-r", "panda", "--position", "0.4 0.2 0.5"]) == 2
+    assert "no closed-form" in capsys.readouterr().err
+    assert main(["best", "-r", "iiwa14", "--position", "0.4 0.2 0.5", "--objective", "distance"]) == 2
+    assert "q_ref" in capsys.readouterr().err
+    assert main(["best", "-r", "iiwa14", "--position", "0.4 0.2 0.5", "--sphere", "1,2,3"]) == 2
+    assert "--sphere" in capsys.readouterr().err
+
+
+def test_unreachable_pose_is_a_status_not_an_error(capsys):
+    assert main(["best", "-r", "iiwa14", "--position", "3 0 0"]) == 0
+    assert "unreachable" in capsys.readouterr().out

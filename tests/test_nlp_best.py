@@ -1,0 +1,215 @@
+"""qpik.solve_best against dense sampling, on 500 seeded random reachable poses per closed-form arm.
+
+The reference is independent of the search: every branch's closed form (the batched numpy path,
+:meth:`AnalyticSolver.solve_batch`) at 10,000 values of δ/ψ, the joint-limit margin computed in
+numpy from its definition, the clearance from :func:`qpik.geometry.distances`. The answer must
+reach the pose (forward kinematics), lie inside the limits and clear of the obstacles, and be
+at least as good as every sample (to 1e-8).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+from conftest import random_q
+
+import qpik
+from qpik.analytic import solver_for
+from qpik.errors import InputError, NoClosedFormError
+from qpik.geometry import Sphere, distances
+from qpik.nlp import BestResults, solve_best
+from qpik.objectives import Evaluator, Expression, resolve
+
+POSES = 500
+DENSE = 10_000
+ARMS = ("iiwa14", "nammoto7")
+OBSTACLES = [Sphere((0.35, 0.25, 0.6), 0.1), Sphere((0.3, -0.35, 0.45), 0.1)]
+D_SAFE = 0.02
+
+
+def _poses(robot, n, seed):
+    return robot.fk(random_q(robot, n, seed))
+
+
+def _margin(robot, q):
+    half = 0.5 * (robot.q_max - robot.q_min)
+    return -np.minimum((q - robot.q_min) / half, (robot.q_max - q) / half).min(axis=-1)
+
+
+def _dense(robot, T, num=DENSE, block=10):
+    """For each pose: (q (num, B, n), within limits (num, B)) of every branch at ``num`` parameters, in blocks."""
+    solver = solver_for(robot)
+    psi = np.linspace(-np.pi, np.pi, num, endpoint=False)
+    for start in range(0, len(T), block):
+        Tb = T[start : start + block]
+        sol = solver.solve_batch(np.repeat(Tb, num, axis=0), np.tile(psi, len(Tb)))
+        for k in range(len(Tb)):
+            yield sol.q[k * num : (k + 1) * num], sol.within_limits[k * num : (k + 1) * num]
+
+
+def _check_answer(robot, T, res, obstacles=()):
+    assert res.status == "optimal", res.summary()
+    np.testing.assert_allclose(robot.fk(res.q), T, atol=1e-9)
+    assert robot.within_limits(res.q)
+    if obstacles:
+        d = distances(robot.capsule_segments(res.q), robot.capsule_radii, obstacles).d
+        assert d.min() >= D_SAFE - 1e-9
+
+
+@pytest.mark.parametrize("name", ARMS)
+def test_margin_is_global_on_500_poses_with_and_without_obstacles(name):
+    """Without obstacles (the default certificate on): at least as good as every dense sample inside the
+    limits. With two spheres (certificate off: the search alone): clear of them on every pose, and no
+    dense sample inside the limits and clear of them is better.
+
+    The dense samples' clearances come from the compiled capsule–obstacle distances of
+    :class:`qpik.objectives.Evaluator` (the kernels of :mod:`qpik.geometry.distance`, checked against
+    scipy and MuJoCo in tests/test_geometry_distance.py): numpy's path is too slow for the millions
+    of samples that beat an answer pushed back by the obstacles.
+    """
+    robot = qpik.load_robot(name)
+    T = _poses(robot, POSES, 11)
+    free = solve_best(robot, T)
+    blocked = solve_best(robot, T, "margin", OBSTACLES, d_safe=D_SAFE, certify=False)
+    assert isinstance(free, BestResults) and len(free) == POSES
+    clearance = Evaluator(robot, resolve("margin"), OBSTACLES)
+    certified = 0
+    for k, (q, ok) in enumerate(_dense(robot, T)):
+        assert ok.any(), f"pose {k}: the dense samples found no feasible configuration"
+        f = np.where(ok, _margin(robot, q), np.inf)
+        res = free[k]
+        _check_answer(robot, T[k], res)
+        assert res.objective <= f.min() + 1e-8, (k, res.objective, f.min())
+        assert res.objective == pytest.approx(_margin(robot, res.q), abs=1e-14)
+        certified += res.certified
+        if res.certified:
+            assert res.gap <= 1e-4 * max(1.0, abs(res.objective))
+        res = blocked[k]
+        if res.status == "optimal":
+            _check_answer(robot, T[k], res, OBSTACLES)
+        else:
+            assert res.status == "no feasible branch" and res.violation > 0, res.summary()
+        better = np.argwhere(f < (res.objective if res.status == "optimal" else np.inf) - 1e-8)
+        if len(better):  # every configuration better than the answer must come closer than d_s
+            d = clearance(q[better[:, 0], better[:, 1]])[2]
+            assert d.min(axis=1).max() < D_SAFE, (k, res.summary())
+    assert certified >= 0.8 * POSES  # the margin's minima are mostly kinks, which the certificate proves cheaply
+
+
+@pytest.mark.parametrize(
+    "name, objective",
+    [
+        ("iiwa14", "smooth-margin"),
+        ("nammoto7", "distance"),
+        ("iiwa14", "manipulability"),
+        ("nammoto7", "smooth-clearance"),
+    ],
+)
+def test_other_objectives_against_dense_samples(name, objective):
+    robot = qpik.load_robot(name)
+    T = _poses(robot, 25, 13)
+    obstacles = OBSTACLES if "clearance" in objective else ()
+    results = solve_best(robot, T, objective, obstacles, q_ref=robot.q_home, d_safe=D_SAFE, certify=False)
+    ev = Evaluator(robot, resolve(objective), obstacles)
+    for k, ((q, ok), res) in enumerate(zip(_dense(robot, T, num=3000), results)):
+        f, _, d, _ = ev(q[ok], robot.q_home)
+        clear = d.min(axis=1) >= D_SAFE if d.shape[1] else np.ones(len(f), bool)
+        if not clear.any():
+            continue
+        _check_answer(robot, T[k], res, obstacles)
+        assert res.objective <= f[clear].min() + 1e-8, (k, res.objective, f[clear].min())
+
+
+@pytest.mark.parametrize("name", ARMS)
+def test_ipopt_per_branch_reaches_no_better_optimum(name):
+    """method="ipopt" (one IPOPT solve per feasible interval) never beats the search, and often meets it."""
+    robot = qpik.load_robot(name)
+    T = _poses(robot, 4, 14)
+    for k in range(len(T)):
+        search = solve_best(robot, T[k], certify=False)
+        ipopt = solve_best(robot, T[k], certify=False, method="ipopt")
+        _check_answer(robot, T[k], ipopt)
+        assert search.objective <= ipopt.objective + 1e-9
+
+
+def test_statuses_and_the_least_violating_branch():
+    robot = qpik.load_robot("iiwa14")
+    far = np.eye(4)
+    far[:3, 3] = (2.0, 0.0, 0.5)
+    res = solve_best(robot, far)
+    assert res.status == "unreachable" and np.isnan(res.q).all() and not any(b.feasible for b in res.branches)
+    # the elbow (q4, which no arm angle changes) beyond its limit: reachable, no branch feasible
+    q = np.array([0.3, 0.5, 0.0, 2.5, 0.2, 0.5, 0.0])
+    res = solve_best(robot, robot.fk(q))
+    assert res.status == "no feasible branch"
+    np.testing.assert_allclose(robot.fk(res.q), robot.fk(q), atol=1e-9)  # the least-violating configuration
+    assert res.violation == pytest.approx(2.5 - robot.q_max[3], abs=1e-6)
+    # inside the limits, but an obstacle around the whole arm: the least violating clearance
+    res = solve_best(robot, robot.fk(robot.q_home), obstacles=[Sphere((0, 0, 0.6), 0.5)], d_safe=0.01)
+    assert res.status == "no feasible branch" and res.violation > 0.01
+
+
+def test_a_numerical_failure_is_a_status(monkeypatch):
+    import qpik.nlp.scene
+
+    robot = qpik.load_robot("iiwa14")
+
+    def broken(self, pose, row, psi):
+        raise RuntimeError("CasADi: evaluation failed")
+
+    monkeypatch.setattr(qpik.nlp.scene.Scene, "evaluate", broken)
+    res = solve_best(robot, robot.fk(robot.q_home))
+    assert res.status == "solver failed" and "evaluation failed" in res.message
+
+
+def test_bad_input_names_the_argument():
+    robot = qpik.load_robot("iiwa14")
+    T = robot.fk(robot.q_home)
+    bad = T.copy()
+    bad[0, 3] = np.nan
+    with pytest.raises(InputError, match="pose"):
+        solve_best(robot, bad)
+    with pytest.raises(InputError, match="pose"):
+        solve_best(robot, T[:3])
+    with pytest.raises(InputError, match="q_ref"):
+        solve_best(robot, T, "distance")
+    with pytest.raises(InputError, match="q_ref"):
+        solve_best(robot, T, "distance", q_ref=np.zeros(6))
+    with pytest.raises(InputError, match="objective"):
+        solve_best(robot, T, "comfort")
+    with pytest.raises(InputError, match="d_safe"):
+        solve_best(robot, T, d_safe=np.inf)
+    with pytest.raises(InputError, match="branches"):
+        solve_best(robot, T, branches=[9])
+    with pytest.raises(InputError, match="obstacles"):
+        solve_best(robot, T, obstacles=["ball"])
+    with pytest.raises(NoClosedFormError):
+        solve_best(qpik.load_robot("panda"), T)
+
+
+def test_branch_table_restriction_and_mirrored_branches():
+    robot = qpik.load_robot("nammoto7")
+    q = np.array([0.57, -0.96, -1.91, -2.01, 1.3, 1.21, 0.46])
+    T = robot.fk(q)
+    res = solve_best(robot, T, certify=False)
+    rows = {b.branch: b for b in res.branches}
+    for k in range(1, 9):  # branch k + 8 at δ is branch k at δ + π: the same configurations
+        if rows[k].feasible:
+            np.testing.assert_allclose(rows[k].q, rows[k + 8].q)
+            assert np.angle(np.exp(1j * (rows[k + 8].param - rows[k].param - np.pi))) == pytest.approx(0, abs=1e-12)
+    own = qpik.redundancy_parameter(robot, q)[1]
+    only = solve_best(robot, T, branches=[own], certify=False)
+    assert only.branch in (own, own + 8 if own <= 8 else own - 8)
+    assert [b.searched for b in only.branches].count(True) == 2
+    assert "skipped" in only.table() and only.objective >= res.objective - 1e-12
+
+
+def test_user_expressions_are_optimised_but_never_certified():
+    robot = qpik.load_robot("iiwa14")
+    user = Expression(lambda q: ca.sumsqr(q[:3] - 0.3), name="shoulder")
+    T = robot.fk(robot.q_home)
+    res = solve_best(robot, T, user)
+    assert res.status == "optimal" and not res.certified and "lower bound" in res.message
+    ((q, ok),) = _dense(robot, T[None], num=3000)
+    assert res.objective <= (((q[ok][:, :3] - 0.3) ** 2).sum(axis=1)).min() + 1e-8

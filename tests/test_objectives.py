@@ -1,0 +1,152 @@
+"""qpik.objectives: values against independent formulas, gradients by finite differences, box bounds by sampling.
+
+The margin is checked against its definition in numpy, the manipulability against
+``Robot.manipulability`` (QR of J), the clearance against :func:`qpik.geometry.distances` (the
+numpy path); gradients (including the capsule–obstacle distances' closest-point form) against
+central differences at configurations clear of the obstacles; every lower bound over a box
+against the smallest value of many configurations drawn inside it.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+from conftest import SEEDS, fd, random_q
+from hypothesis import given, settings
+
+import qpik
+from qpik.errors import InputError
+from qpik.geometry import Box as BoxShape
+from qpik.geometry import Sphere, distances
+from qpik.objectives import (
+    NAMES,
+    Box,
+    Clearance,
+    Evaluator,
+    Expression,
+    JointLimitMargin,
+    Manipulability,
+    ReferenceDistance,
+    Sum,
+    lever_arms,
+    resolve,
+)
+
+OBSTACLES = [Sphere((0.45, 0.25, 0.65), 0.1), BoxShape((0.5, -0.35, 0.3), (0.1, 0.12, 0.08))]
+
+
+def _normalised(robot, q):
+    half = 0.5 * (robot.q_max - robot.q_min)
+    return np.concatenate([(q - robot.q_min) / half, (robot.q_max - q) / half], axis=-1)
+
+
+def _clearances(robot, q, obstacles):
+    return distances(robot.capsule_segments(q), robot.capsule_radii, obstacles).d.reshape(len(q), -1)
+
+
+@pytest.mark.parametrize("name", ["iiwa14", "panda"])
+def test_values_equal_their_definitions(name):
+    """Every named objective on iiwa14; the margin and the clearance on panda (modified DH, its own limits)."""
+    robot = qpik.load_robot(name)
+    q = random_q(robot, 200, 1)
+    ref = robot.q_home
+    g = _normalised(robot, q)
+    d = _clearances(robot, q, OBSTACLES)
+    beta = 20.0
+    expected = {
+        "margin": -g.min(axis=1),
+        "smooth-margin": np.log(np.exp(-beta * g).sum(axis=1)) / beta,
+        "manipulability": -np.log(robot.manipulability(q)),
+        "clearance": -np.minimum(d.min(axis=1), 0.1),
+        "smooth-clearance": np.log(np.exp(-100.0 * np.c_[d, np.full(len(d), 0.1)]).sum(axis=1)) / 100.0,
+        "distance": 0.5 * ((q - ref) ** 2).sum(axis=1),
+    }
+    for key in NAMES if name == "iiwa14" else ("margin", "clearance"):
+        f, _, dist, _ = Evaluator(robot, resolve(key), OBSTACLES)(q, ref)
+        np.testing.assert_allclose(f, expected[key], rtol=1e-10, atol=1e-12, err_msg=key)
+        np.testing.assert_allclose(dist, d, atol=1e-12)
+
+
+@settings(max_examples=4, deadline=None)
+@given(seed=SEEDS)
+def test_gradients_match_finite_differences(seed):
+    robot = qpik.load_robot("iiwa14")
+    q = random_q(robot, 60, seed, margin=0.05)
+    objective = (
+        Manipulability()
+        + 3.0 * Clearance(smooth=True, cap=0.3)
+        + 0.5 * ReferenceDistance()
+        + JointLimitMargin(smooth=True)
+    )
+    ev = Evaluator(robot, objective, OBSTACLES)
+    _, grad, d, grad_d = ev(q, robot.q_home)
+    clear = d.min(axis=1) > 0.01  # the distances' gradient is exact where the closest points are unique
+    num = fd(lambda x: ev(x, robot.q_home)[0], q, 1e-6)
+    np.testing.assert_allclose(grad[clear], num[clear], atol=2e-6, rtol=1e-5)
+    num_d = fd(lambda x: ev(x)[2].min(axis=1), q, 1e-6)
+    np.testing.assert_allclose(grad_d[clear], num_d[clear], atol=2e-6)
+
+
+@pytest.mark.parametrize("objective", [JointLimitMargin(), JointLimitMargin(smooth=True), ReferenceDistance(),
+                                       Clearance(cap=0.25), Clearance(smooth=True)])  # fmt: skip
+def test_lower_bound_is_below_every_value_in_the_box(objective):
+    robot = qpik.load_robot("nammoto7")
+    rng = np.random.default_rng(5)
+    ev = Evaluator(robot, objective, OBSTACLES)
+    centres = random_q(robot, 30, 2, margin=0.3)
+    half = rng.uniform(0.0, 0.2, centres.shape)
+    lo, hi = centres - half, centres + half
+    _, _, d_mid, _ = ev(centres, robot.q_home)
+    box = Box(robot, lo, hi, centres, d_mid, len(OBSTACLES), robot.q_home, lever_arms(robot))
+    bound = objective.lower_bound(box, objective.params(robot))
+    for k in range(len(centres)):
+        inside = rng.uniform(lo[k], hi[k], (400, robot.dof))
+        values = ev(inside, robot.q_home)[0]
+        assert bound[k] <= values.min() + 1e-12
+
+
+def test_sums_weights_parameters_and_names():
+    robot = qpik.load_robot("iiwa14")
+    s = 2.0 * JointLimitMargin() + Manipulability() + 0.5 * (Clearance() + ReferenceDistance())
+    assert isinstance(s, Sum) and [w for w, _ in s.terms] == [2.0, 1.0, 0.5, 0.5]
+    assert s.param_size(robot) == len(s.params(robot)) == 4 + 0 + 0 + 1 + robot.dof
+    assert not s.smooth and not s.bounded  # a maximum inside; the manipulability has no box bound
+    assert JointLimitMargin(smooth=True).smooth and (JointLimitMargin() + Clearance()).bounded
+    q = random_q(robot, 20, 3)
+    parts = [Evaluator(robot, o, OBSTACLES)(q, robot.q_home)[0] for _, o in s.terms]
+    total = Evaluator(robot, s, OBSTACLES)(q, robot.q_home)[0]
+    np.testing.assert_allclose(total, 2 * parts[0] + parts[1] + 0.5 * (parts[2] + parts[3]), rtol=1e-12)
+    # weights are parameters: another weight, the same compiled function
+    s2 = 5.0 * JointLimitMargin() + Manipulability() + 0.5 * (Clearance() + ReferenceDistance())
+    assert s2.key() == s.key()
+    with pytest.raises(InputError, match="weights"):
+        Sum([(-1.0, JointLimitMargin())])
+    with pytest.raises(InputError, match="objective"):
+        resolve("fastest")
+    with pytest.raises(InputError, match="sharpness"):
+        JointLimitMargin(smooth=True, sharpness=0.0)
+
+
+def test_user_expression_and_split_epigraph():
+    robot = qpik.load_robot("iiwa14")
+    user = Expression(lambda q: ca.sumsqr(q[:3]), name="shoulder")
+    q = random_q(robot, 10, 4)
+    f, grad, _, _ = Evaluator(robot, user)(q)
+    np.testing.assert_allclose(f, (q[:, :3] ** 2).sum(axis=1), rtol=1e-14)
+    np.testing.assert_allclose(grad[:, :3], 2 * q[:, :3], rtol=1e-14)
+    assert not user.bounded and user.key() != Expression(lambda q: q[0]).key()
+    # the epigraph form: t >= every piece, cost = t: at the smallest feasible t it equals the value
+    from qpik.geometry.distance import ObstacleSet
+    from qpik.objectives import Context
+
+    qs = ca.SX.sym("q", 7)
+    ctx = Context(robot, qs, ca.SX.zeros(7), ObstacleSet([]), ca.SX(0, 1))
+    split = JointLimitMargin().split(ctx, ca.SX(0, 1))
+    t, cost, g = split.epigraph()
+    fn = ca.Function("e", [qs, t], [cost, g, split.value()])
+    value = float(fn(q[0], 0.0)[2])
+    c, gg, _ = fn(q[0], value)
+    assert float(c) == value and float(np.max(np.asarray(gg))) == pytest.approx(0.0, abs=1e-15)
+    with pytest.raises(InputError, match="scalar"):
+        Evaluator(robot, Expression(lambda q: q[:2]))
