@@ -314,7 +314,21 @@ static PyObject *set_input_error(PyObject *mod, PyObject *cls) {
     Py_RETURN_NONE;
 }
 
+/* pose_ok(T): whether T is a float64 (4, 4) C-contiguous array holding a finite pose that
+ * qpik.validate.single_pose accepts without projection (False for anything else). */
+static PyObject *module_pose_ok(PyObject *mod, PyObject *a) {
+    PyArrayObject *arr = (PyArrayObject *)a;
+    if (!PyArray_CheckExact(a) || PyArray_TYPE(arr) != NPY_DOUBLE || !PyArray_IS_C_CONTIGUOUS(arr) ||
+        !PyArray_ISALIGNED(arr) || PyArray_NDIM(arr) != 2 || PyArray_DIMS(arr)[0] != 4 || PyArray_DIMS(arr)[1] != 4)
+        Py_RETURN_FALSE;
+    const double *T = (const double *)PyArray_DATA(arr);
+    for (int i = 0; i < 16; ++i)
+        if (!isfinite(T[i])) Py_RETURN_FALSE;
+    return PyBool_FromLong(pose_ok(T));
+}
+
 static PyMethodDef module_methods[] = {
+    {"pose_ok", module_pose_ok, METH_O, "Whether a float64 (4, 4) array is a finite pose with an orthonormal rotation."},
     {"set_input_error", set_input_error, METH_O, "The exception class of bad arguments (qpik.errors.InputError)."},
     {NULL, NULL, 0, NULL},
 };
