@@ -327,7 +327,27 @@ static PyObject *module_pose_ok(PyObject *mod, PyObject *a) {
     return PyBool_FromLong(pose_ok(T));
 }
 
+/* vector_ok(q, n): whether q is a float64 1-D C-contiguous array of n finite entries (False for anything else). */
+static PyObject *module_vector_ok(PyObject *mod, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "vector_ok(q, n)");
+        return NULL;
+    }
+    PyArrayObject *arr = (PyArrayObject *)args[0];
+    Py_ssize_t n = PyLong_AsSsize_t(args[1]);
+    if (n == -1 && PyErr_Occurred()) return NULL;
+    if (!PyArray_CheckExact(args[0]) || PyArray_TYPE(arr) != NPY_DOUBLE || !PyArray_IS_C_CONTIGUOUS(arr) ||
+        !PyArray_ISALIGNED(arr) || PyArray_NDIM(arr) != 1 || PyArray_DIMS(arr)[0] != n)
+        Py_RETURN_FALSE;
+    const double *q = (const double *)PyArray_DATA(arr);
+    for (Py_ssize_t i = 0; i < n; ++i)
+        if (!isfinite(q[i])) Py_RETURN_FALSE;
+    Py_RETURN_TRUE;
+}
+
 static PyMethodDef module_methods[] = {
+    {"vector_ok", (PyCFunction)(void (*)(void))module_vector_ok, METH_FASTCALL,
+     "Whether q is a float64 1-D array of n finite entries."},
     {"pose_ok", module_pose_ok, METH_O, "Whether a float64 (4, 4) array is a finite pose with an orthonormal rotation."},
     {"set_input_error", set_input_error, METH_O, "The exception class of bad arguments (qpik.errors.InputError)."},
     {NULL, NULL, 0, NULL},

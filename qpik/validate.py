@@ -98,6 +98,8 @@ def flag(x: object, name: str) -> bool:
 
 def joint_vector(q: object, dof: int, name: str = "q") -> tuple[np.ndarray, bool]:
     """Check a joint vector ``(dof,)`` or batch ``(N, dof)``; return it and whether it is batched."""
+    if (check := _vector_check()) is not None and check(q, dof):  # one float64 vector, checked in C
+        return q, False
     arr = finite_array(q, name)
     if arr.ndim == 1 and arr.shape[0] == dof:
         return arr, False
@@ -185,6 +187,15 @@ def single_pose(T: object, name: str = "pose", project: bool = False) -> np.ndar
 
 
 _LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
+
+
+@cache
+def _vector_check():
+    """The compiled extension's ``vector_ok`` (:mod:`qpik.fastcall`), or None without it."""
+    from qpik.fastcall import extension
+
+    mod = extension()
+    return None if mod is None else mod.vector_ok
 
 
 @cache
