@@ -45,27 +45,35 @@ row-major array), ``raw`` (the entries in CasADi's order, in the given shape), `
 @cache
 def extension() -> ModuleType | None:
     """The compiled extension module ``qpik_fastcall``, or None (no compiler or headers, or ``QPIK_NATIVE=0``)."""
+    module = build("qpik_fastcall", Path(__file__).with_name("fastcall.c"))
+    if module is not None:
+        module.set_input_error(InputError)
+    return module
+
+
+def build(name: str, path: Path) -> ModuleType | None:
+    """The CPython extension module ``name`` (its ``PyInit_<name>``) compiled from the C file ``path`` against
+    this Python's and numpy's headers, cached (:func:`qpik.compiled.shared_library`), or None when there is no
+    compiler, no Python headers, or ``QPIK_NATIVE=0`` (a warning says why it does not build or load)."""
     from qpik.compiled import compiler, shared_library
 
     if compiler() is None:
         return None
     include = sysconfig.get_paths()["include"]
     if not Path(include, "Python.h").exists():
-        warnings.warn(f"qpik: no Python headers in {include}: the compiled extension is off", stacklevel=2)
+        warnings.warn(f"qpik: no Python headers in {include}: {name} is not compiled", stacklevel=2)
         return None
-    build = f"/* CPython {platform.python_version()}, numpy {np.__version__} */\n".encode()
-    source = build + Path(__file__).with_name("fastcall.c").read_bytes()
-    lib = shared_library("qpik_fastcall", source, ("-I", include, "-I", np.get_include()), fatal=False)
+    stamp = f"/* CPython {platform.python_version()}, numpy {np.__version__} */\n".encode()
+    lib = shared_library(name, stamp + path.read_bytes(), ("-I", include, "-I", np.get_include()), fatal=False)
     if lib is None:
         return None
     try:
-        spec = importlib.util.spec_from_file_location("qpik_fastcall", lib)
+        spec = importlib.util.spec_from_file_location(name, lib)
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
     except ImportError as exc:
-        warnings.warn(f"qpik: the compiled extension does not load ({exc})", stacklevel=2)
+        warnings.warn(f"qpik: {name} does not load ({exc})", stacklevel=2)
         return None
-    module.set_input_error(InputError)
     return module
 
 
