@@ -46,6 +46,8 @@ LOCKED = 0.3
 """rad: joint 3 of iiwa14 in the poses of the locked-joint rows (labelled "q3 locked"); the batched rows
 take :data:`BATCH` poses per call."""
 EAIK_THREADS = 2
+BLOCK = 20
+"""The locked-joint single-pose rows: each sample is a block of this many calls (poses cycling), divided."""
 SSIK = "ssik iiwa14_ik.solve (iiwa14)"
 PAPER_NOTE = "(paper: 31.3 µs, compiled, 2012 Core i7 965; quoted, not measured)"
 
@@ -155,7 +157,8 @@ def _locked_rows(repeat: int) -> list[Row]:
             "eaik": _cycle(bot.IK, list(T[:POSES])),
             "geo": _cycle(lambda c: geo.get_ik(*c), geo_poses),
         },
-        repeat,
+        max(20, repeat // BLOCK),
+        block=BLOCK,
     )
     calls = max(BATCH_CALLS, repeat // 100)
     tb = time_interleaved(
