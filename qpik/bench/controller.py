@@ -203,7 +203,8 @@ def _binding(robot, q0, target, spheres, steps: int) -> dict[str, str]:
             used = max(used, float(np.max(frac, initial=0.0)))
         qm += v * DT
     return {
-        "qpik": f"obstacle rows binding: {np.mean(active):.1f} per step, in {np.mean(np.array(active) > 0):.0%} of steps",
+        "qpik": f"obstacle rows binding: {np.mean(active):.1f} per step, "
+        f"in {np.mean(np.array(active) > 0):.0%} of steps",
         "mink": f"collision rows binding: {np.mean(bound) if bound else 0:.1f} per step; largest used fraction "
         f"of a bound {used:.1e}",
     }

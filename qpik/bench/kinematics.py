@@ -112,7 +112,8 @@ def _arm_rows(name: str, robot: Robot, repeat: int) -> list[Row]:
         peers[f"{name}: qpik fk_jacobian (1 q)"] = (qpik_single, mink_label, "")
     else:
         both, only, pin_agree = pin_calls
-        peers[pin_label] = (both, None, f"(computeFrameJacobian + oMf[ee].homogeneous; agrees with qpik to {pin_agree:.0e})")
+        note = f"(computeFrameJacobian + oMf[ee].homogeneous; agrees with qpik to {pin_agree:.0e})"
+        peers[pin_label] = (both, None, note)
         peers[f"{name}: pinocchio J only"] = (only, pin_label, "(computeFrameJacobian alone: no pose array)")
     times = time_interleaved({label: cycled(fn) for label, (fn, _, _) in peers.items()}, repeat, block=BLOCK)
     rows = [

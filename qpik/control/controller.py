@@ -33,7 +33,6 @@ Failure policy (never raises in the loop unless ``raise_on_failure=True``):
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
