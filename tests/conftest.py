@@ -41,7 +41,6 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-import mujoco
 import numpy as np
 import pytest
 from hypothesis import strategies as st
@@ -166,9 +165,11 @@ def fd_geometric_jacobian(fk: Callable[[np.ndarray], np.ndarray], q: np.ndarray,
     return np.concatenate([Jv, Jw], axis=-2)
 
 
-def mujoco_poses(robot: qpik.Robot, Q: np.ndarray, model: mujoco.MjModel | None = None, body: str | None = None):
+def mujoco_poses(robot: qpik.Robot, Q: np.ndarray, model=None, body: str | None = None) -> np.ndarray:
     """Poses (N, 4, 4) by MuJoCo's own kinematics of a loaded arm's model (default ``robot.mj_model()``):
     of the end-effector site, or of ``body``; the model's other joints at their reference."""
+    import mujoco  # here, not at the top: qpik must choose MuJoCo's GL backend before mujoco is imported
+
     model = robot.mj_model() if model is None else model
     data = mujoco.MjData(model)
     adr = [model.jnt_qposadr[model.joint(n).id] for n in robot.joint_names]
