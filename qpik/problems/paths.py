@@ -1,7 +1,7 @@
 r"""Named end-effector paths for ``[target] path = "..."`` in problem files.
 
-A path is a time-parametrised target: :meth:`TargetPath.pose` (4, 4) and the
-feed-forward :meth:`TargetPath.twist` ``[v; ω]`` (6,), both in the base frame,
+A path is a time-parametrised target (:class:`qpik.paths.TargetPath`): ``pose(t)`` (4, 4) and the
+feed-forward ``twist(t)`` ``[v; ω]`` (6,), both in the base frame,
 for ``0 <= t <= duration`` (s). Both accept a scalar ``t`` or an array ``t``
 (K,), which gives (K, 4, 4) and (K, 6).
 
@@ -29,52 +29,14 @@ Registered formulas:
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from qpik.errors import InputError
+from qpik.paths import TargetPath
 from qpik.robots.robot import Robot
 from qpik.validate import finite_array
-
-
-@dataclass(frozen=True)
-class TargetPath:
-    """A position path with a constant orientation (the form of every registered formula).
-
-    Attributes:
-        name: the formula's registry name.
-        duration: end time (s).
-        q0: initial configuration (rad) the path starts from, shape (7,), or ``None``.
-        rotation: the constant end-effector orientation, (3, 3), base frame.
-        position: ``t -> p(t)``, maps (K,) times to (K, 3) positions (m, base frame).
-        velocity: ``t -> ṗ(t)``, (K,) -> (K, 3) (m/s, base frame).
-    """
-
-    name: str
-    duration: float
-    q0: np.ndarray | None
-    rotation: np.ndarray
-    position: Callable[[np.ndarray], np.ndarray]
-    velocity: Callable[[np.ndarray], np.ndarray]
-
-    def pose(self, t: float | np.ndarray) -> np.ndarray:
-        """Target pose at time ``t`` (s): (4, 4), or (K, 4, 4) for ``t`` of shape (K,)."""
-        ts = np.atleast_1d(np.asarray(t, dtype=float))
-        T = np.zeros((len(ts), 4, 4))
-        T[:, :3, :3] = self.rotation
-        T[:, :3, 3] = self.position(ts)
-        T[:, 3, 3] = 1.0
-        return T[0] if np.ndim(t) == 0 else T
-
-    def twist(self, t: float | np.ndarray) -> np.ndarray:
-        """Feed-forward twist ``[v; ω]`` (m/s, rad/s, base frame) at ``t``: (6,) or (K, 6)."""
-        ts = np.atleast_1d(np.asarray(t, dtype=float))
-        V = np.zeros((len(ts), 6))
-        V[:, :3] = self.velocity(ts)
-        return V[0] if np.ndim(t) == 0 else V
-
 
 PathBuilder = Callable[[Robot, dict[str, Any]], TargetPath]
 PATHS: dict[str, PathBuilder] = {}

@@ -81,7 +81,8 @@ import numpy as np
 
 from qpik.errors import InputError, ProblemFileError, UnknownRobotError
 from qpik.geometry.shapes import Shape, shape_from_spec
-from qpik.problems.paths import PATHS, TargetPath
+from qpik.paths import TargetPath
+from qpik.problems.paths import PATHS
 from qpik.robots.loader import load_robot
 from qpik.robots.robot import Robot
 from qpik.validate import finite_array
@@ -146,7 +147,7 @@ class Problem:
         poses: target poses (N, 4, 4), base frame, or ``None`` for a path target.
         q_targets: (N, 7) configurations the poses were made from (target forms
             ``q`` and ``random``), else ``None``.
-        path: the :class:`~qpik.problems.paths.TargetPath` of form ``path``, else ``None``.
+        path: the :class:`~qpik.paths.TargetPath` of form ``path``, else ``None``.
         params: redundancy parameter values (M,) in rad, or ``None``.
         obstacles: the obstacle shapes (:mod:`qpik.geometry`, world frame), built by
             :func:`qpik.geometry.shape_from_spec`; an obstacle without a ``name`` is

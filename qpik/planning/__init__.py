@@ -1,0 +1,1 @@
+"""Offline self-motion planning along an end-effector path."""

@@ -1,0 +1,187 @@
+r"""The DP's states: a grid of the redundancy parameter on every branch at every waypoint.
+
+For a closed-form arm (offset shoulder: δ, S-R-S: ψ) the configurations that reach waypoint k
+form, per branch b, the curve :math:`q_b(T_k, \psi)`. The grid samples it at G values
+
+.. math:: \psi_i = -\pi + (i + \tfrac12)\,\frac{2\pi}{G},\qquad i = 0, \dots, G - 1,
+
+the same values on every branch and at every waypoint (so that a slowly changing parameter
+stays on nearby indices). A state (k, b, i) is *feasible* when ψ_i lies in branch b's exact
+feasible set at waypoint k (:func:`qpik.feasible_intervals`: every joint inside its limits, the
+branch reaches the pose) and every link capsule is at least ``d_safe`` from every obstacle.
+Parameter values outside the exact feasible set are never evaluated.
+
+Offset-shoulder arms have 16 branches, but branch k + 8 at δ is branch k at δ + π (Nammoto &
+Kosuge 2012, eq. 7), so only the first 8 are gridded (over the whole circle); with G even the
+grid maps onto itself under δ → δ + π. :meth:`Grid.branch_of` gives the public branch id of
+a state.
+
+Per feasible state the compiled row function (:func:`qpik.compiled.RowMap`, one row = a
+waypoint and a parameter value, every branch at once) gives q (n,), the point objective
+f(q) (:mod:`qpik.objectives`) and the smallest capsule–obstacle distance (m).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import casadi as ca
+import numpy as np
+
+from qpik.analytic import feasible_intervals, solver_for
+from qpik.analytic.intervals import FeasibleIntervals, wrap
+from qpik.compiled import RowMap
+from qpik.geometry.distance import ObstacleSet
+from qpik.nlp.selfmotion import MIRRORED
+from qpik.objectives import Context, Objective
+from qpik.robots.robot import Robot
+
+ROW_CHUNKS = (64, 16)
+"""Rows (waypoint, parameter value) per call of the compiled state function."""
+
+
+@dataclass
+class Layers:
+    """The states of waypoints k0 .. k0 + K - 1 (:meth:`Grid.layers`).
+
+    Attributes:
+        q: (K, B, G, n) configurations, rad (zeros where not feasible).
+        ok: (K, B, G) feasible.
+        f: (K, B, G) the point objective (0 without one; inf where not feasible).
+        clearance: (K, B, G) smallest capsule–obstacle distance, m (inf without obstacles).
+    """
+
+    q: np.ndarray
+    ok: np.ndarray
+    f: np.ndarray
+    clearance: np.ndarray
+
+
+class Grid:
+    """The parameter grid of a closed-form arm along N poses (see the module docstring).
+
+    Args:
+        robot: an arm with a closed form.
+        poses: (N, 4, 4) end-effector poses, base frame (checked by the caller).
+        objective: the point objective, or None.
+        obstacles: the obstacles (packed).
+        d_safe: smallest capsule–obstacle distance of a feasible state, m.
+        resolution: G, the number of parameter values (≥ 4, even).
+        q_ref: (n,) reference configuration of the objective, rad.
+
+    Attributes:
+        values: (G,) the parameter values ψ_i, rad.
+        rows: B, the branches gridded (the closed form's first B output rows).
+        intervals: per waypoint, its :class:`FeasibleIntervals`.
+        inside: (N, B, G) the grid values inside each branch's exact feasible set.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        poses: np.ndarray,
+        objective: Objective | None,
+        obstacles: ObstacleSet,
+        d_safe: float,
+        resolution: int,
+        q_ref: np.ndarray,
+    ):
+        self.robot, self.poses, self.objective = robot, poses, objective
+        self.obstacles, self.d_safe, self.q_ref = obstacles, float(d_safe), q_ref
+        self.solver = solver_for(robot)
+        self.G = int(resolution)
+        self.values = -np.pi + (np.arange(self.G) + 0.5) * (2.0 * np.pi / self.G)
+        self.rows = MIRRORED.get(self.solver.kind, self.solver.n_branches)
+        self.mirrored = self.rows < self.solver.n_branches
+        self.intervals: list[FeasibleIntervals] = [feasible_intervals(robot, T) for T in poses]
+        self.inside = np.zeros((len(poses), self.rows, self.G), bool)
+        for k, fi in enumerate(self.intervals):
+            for b in range(self.rows):
+                for lo, hi in fi.intervals[b]:
+                    a, c = np.searchsorted(self.values, lo, "left"), np.searchsorted(self.values, hi, "right")
+                    self.inside[k, b, a:c] = True
+
+    @property
+    def spacing(self) -> float:
+        """The grid step, 2π/G (rad)."""
+        return 2.0 * np.pi / self.G
+
+    @property
+    def param_name(self) -> str:
+        return self.solver.param_name
+
+    def branch_of(self, row: np.ndarray | int) -> np.ndarray | int:
+        """Public branch id(s) of grid row(s)."""
+        ids = np.asarray(self.solver.branch_ids)
+        out = ids[np.asarray(row, int)]
+        return int(out) if np.ndim(out) == 0 else out
+
+    def public(self, rows: np.ndarray, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Public branch ids and parameters (rad, wrapped) of rows (N,) at parameters (N,), as
+        :func:`qpik.redundancy_parameter` gives them: a mirrored arm's row b at |δ| > π/2 is branch
+        b + 8 at δ ∓ π."""
+        rows, params = np.asarray(rows, int), wrap(np.asarray(params, float))
+        if not self.mirrored:
+            return self.branch_of(rows), params
+        far = np.abs(params) > 0.5 * np.pi
+        return self.branch_of(np.where(far, rows + self.rows, rows)), np.where(far, wrap(params + np.pi), params)
+
+    def row_of(self, branch: int, param: float) -> tuple[int, float]:
+        """The grid row and parameter (rad) of public branch ``branch`` at ``param``: a mirrored branch is its
+        row at the parameter − π."""
+        k = list(self.solver.branch_ids).index(int(branch))
+        if k < self.rows:
+            return k, float(param)
+        return k - self.rows, float(wrap(param + np.pi))
+
+    @cached_property
+    def _rows(self) -> RowMap:
+        return RowMap(self.function(), shared=(2, 3, 4), chunks=ROW_CHUNKS)
+
+    def function(self) -> ca.Function:
+        """``(T (4x4), ψ, objective params, q_ref (n), obstacle params) -> (B·(n + 3),)``: per gridded branch,
+        ``[q (n), valid and within the limits, f(q), smallest clearance (m)]``."""
+        robot, n = self.robot, self.robot.dof
+        T, psi = ca.SX.sym("T", 4, 4), ca.SX.sym(self.param_name)
+        p = ca.SX.sym("p", self.objective_params.size)
+        q_ref = ca.SX.sym("q_ref", n)
+        prm = ca.SX.sym("obstacles", self.obstacles.params.size)
+        Q, valid, _ = self.solver.casadi_function(T, psi)
+        out = []
+        for b in range(self.rows):
+            q = Q[b, :].T
+            ok = valid[b]
+            for j in range(n):
+                ok = ok * (q[j] >= robot.q_min[j]) * (q[j] <= robot.q_max[j])
+            ctx = Context(robot, q, q_ref, self.obstacles, prm)
+            f = self.objective.expr(ctx, p) if self.objective is not None else ca.SX(0.0)
+            d = ca.mmin(ctx.distances) if len(self.obstacles) else ca.SX(np.inf)
+            out.append(ca.vertcat(q, ok, f, d))
+        name = f"plan_states_{self.solver.kind}_{robot.name or 'robot'}"
+        return ca.Function(name, [T, psi, p, q_ref, prm], [ca.densify(ca.vertcat(*out))])
+
+    @cached_property
+    def objective_params(self) -> np.ndarray:
+        return np.zeros(0) if self.objective is None else self.objective.params(self.robot)
+
+    def layers(self, k0: int, k1: int) -> Layers:
+        """The states of waypoints k0 .. k1 - 1 (see :class:`Layers`)."""
+        K, B, G, n = k1 - k0, self.rows, self.G, self.robot.dof
+        inside = self.inside[k0:k1]
+        q = np.zeros((K, B, G, n))
+        ok = np.zeros((K, B, G), bool)
+        f = np.full((K, B, G), np.inf)
+        clear = np.full((K, B, G), np.inf)
+        kk, ii = np.nonzero(inside.any(axis=1))
+        if len(kk):
+            cols = np.ascontiguousarray(np.swapaxes(self.poses[k0 + kk], 1, 2)).reshape(len(kk), 16)
+            (out,) = self._rows(cols, self.values[ii], self.objective_params, self.q_ref, self.obstacles.params)
+            out = out.reshape(len(kk), B, n + 3)
+            q[kk, :, ii] = out[:, :, :n]
+            within = (out[:, :, n] > 0.5) & inside[kk, :, ii]
+            clear[kk, :, ii] = out[:, :, n + 2]
+            good = within & (out[:, :, n + 2] >= self.d_safe) & np.isfinite(out[:, :, n + 1])
+            ok[kk, :, ii] = good
+            f[kk, :, ii] = np.where(good, out[:, :, n + 1], np.inf)
+        return Layers(q, ok, f, clear)
