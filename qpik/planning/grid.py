@@ -29,6 +29,7 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
+from qpik import symbolic as sy
 from qpik.analytic import feasible_intervals, solver_for
 from qpik.analytic.intervals import FeasibleIntervals, wrap
 from qpik.compiled import RowMap
@@ -141,25 +142,57 @@ class Grid:
 
     def function(self) -> ca.Function:
         """``(T (4x4), ψ, objective params, q_ref (n), obstacle params) -> (B·(n + 3),)``: per gridded branch,
-        ``[q (n), valid and within the limits, f(q), smallest clearance (m)]``."""
+        ``[q (n), valid and within the limits, f(q), smallest clearance (m)]``.
+
+        Branches whose link capsules always coincide (:meth:`twins`) share one distance computation."""
         robot, n = self.robot, self.robot.dof
         T, psi = ca.SX.sym("T", 4, 4), ca.SX.sym(self.param_name)
         p = ca.SX.sym("p", self.objective_params.size)
         q_ref = ca.SX.sym("q_ref", n)
         prm = ca.SX.sym("obstacles", self.obstacles.params.size)
         Q, valid, _ = self.solver.casadi_function(T, psi)
+        contexts = [Context(robot, Q[b, :].T, q_ref, self.obstacles, prm) for b in range(self.rows)]
+        twin = self.twins() if len(self.obstacles) else list(range(self.rows))
         out = []
-        for b in range(self.rows):
-            q = Q[b, :].T
+        for b, ctx in enumerate(contexts):
             ok = valid[b]
             for j in range(n):
-                ok = ok * (q[j] >= robot.q_min[j]) * (q[j] <= robot.q_max[j])
-            ctx = Context(robot, q, q_ref, self.obstacles, prm)
+                ok = ok * (ctx.q[j] >= robot.q_min[j]) * (ctx.q[j] <= robot.q_max[j])
             f = self.objective.expr(ctx, p) if self.objective is not None else ca.SX(0.0)
-            d = ca.mmin(ctx.distances) if len(self.obstacles) else ca.SX(np.inf)
-            out.append(ca.vertcat(q, ok, f, d))
+            d = ca.mmin(contexts[twin[b]].distances) if len(self.obstacles) else ca.SX(np.inf)
+            out.append(ca.vertcat(ctx.q, ok, f, d))
         name = f"plan_states_{self.solver.kind}_{robot.name or 'robot'}"
         return ca.Function(name, [T, psi, p, q_ref, prm], [ca.densify(ca.vertcat(*out))])
+
+    def twins(self, samples: int = 16) -> list[int]:
+        """For each gridded branch, the first branch whose link capsules are at the same place for every pose
+        and parameter (itself if none): found by evaluating the capsule segments of every branch at
+        ``samples`` random poses (FK of random configurations, seeded) and parameters, equal to 1e-9 m at all.
+
+        Branches that differ only by a joint turned by π about a capsule's own axis (the S-R-S shoulder
+        (θ1 + π, −θ2, θ3 + π) and wrist (θ5 + π, −θ6, θ7 + π) pairs, with capsules on the joint axes) are twins."""
+        robot = self.robot
+        T, psi = ca.SX.sym("T", 4, 4), ca.SX.sym("psi")
+        Q, valid, _ = self.solver.casadi_function(T, psi)
+        segs = []
+        for b in range(self.rows):
+            frames = robot.chain.frames_expr([Q[b, j] for j in range(robot.dof)], sy.CASADI)
+            segs.append(ca.vertcat(*[x for ab in robot.capsule_segments_expr(frames) for p_ in ab for x in p_]))
+        probe = ca.Function("capsule_probe", [T, psi], [ca.horzcat(*segs), valid])
+        rng = np.random.default_rng(0)
+        X, ok = [], []
+        for _ in range(samples):
+            S, v = probe(robot.fk(rng.uniform(robot.q_min, robot.q_max)), rng.uniform(-np.pi, np.pi))
+            X.append(np.asarray(S)), ok.append(np.asarray(v).ravel()[: self.rows] > 0.5)
+        X, ok = np.array(X), np.array(ok)  # (samples, 6C, B), (samples, B)
+        twin = list(range(self.rows))
+        for b in range(self.rows):
+            for a in range(b):
+                both = ok[:, a] & ok[:, b]
+                if both.sum() >= samples // 2 and np.abs(X[both, :, a] - X[both, :, b]).max() < 1e-9 and twin[a] == a:
+                    twin[b] = a
+                    break
+        return twin
 
     @cached_property
     def objective_params(self) -> np.ndarray:

@@ -19,6 +19,7 @@ import io
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -27,6 +28,9 @@ from qpik.geometry.distance import ObstacleSet, distances
 from qpik.robots.robot import Robot
 from qpik.sim.log import tracking_errors
 from qpik.validate import finite_array
+
+if TYPE_CHECKING:
+    from qpik.planning.planner import Setup
 
 FK_TOL = 1e-9
 """m and rad: FK of the plan must reach every waypoint to this."""
@@ -104,6 +108,9 @@ class Plan:
         step_bound: (N-1, n) the largest move of each joint allowed between waypoints, rad.
         d_safe: m. checks: the :class:`Check` list. profile: the DP's :class:`Profile` (closed form only).
         timings: seconds per stage (``"dp"``, ``"nlp"``, ``"tracking"``).
+        label: what made it (``"NLP"``, ``"DP"``, a baseline's name).
+        dp_plan: the DP's own plan, when the NLP replaced it. setup: the checked inputs (waypoints, weights,
+            bounds) the plan was made for.
     """
 
     robot: Robot
@@ -133,6 +140,9 @@ class Plan:
     checks: list[Check] = field(default_factory=list)
     profile: Profile | None = None
     timings: dict[str, float] = field(default_factory=dict)
+    label: str = ""
+    dp_plan: Plan | None = None
+    setup: Setup | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return len(self.q)

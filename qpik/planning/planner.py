@@ -116,7 +116,7 @@ class Setup:
         """A :class:`Plan` of configurations q (K, n) on these waypoints, measured."""
         return Plan(self.robot, self.poses, self.times, self.progress, q, kw.pop("param", np.full(len(q), np.nan)),
                     kw.pop("branch", np.full(len(q), -1)), kw.pop("param_name", ""), status, self.tr.step,
-                    self.d_safe, self.obstacles, **kw)  # fmt: skip
+                    self.d_safe, self.obstacles, setup=self, **kw)  # fmt: skip
 
     def cost(self, q: np.ndarray, continuous: np.ndarray) -> float:
         """J of configurations q (N, n) (see :mod:`qpik.planning.dp`); ``continuous`` (N-1,): which
@@ -230,7 +230,7 @@ def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fe
     branch, param = _public(grid, result.rows, result.index)
     plan = setup.plan(result.q, "dp", param=param, branch=branch, param_name=sym, cost=result.cost,
                       dp_cost=result.cost, reconfigurations=result.reconfigurations, timings={"dp": t_dp},
-                      profile=_profile(grid, result))  # fmt: skip
+                      profile=_profile(grid, result), label="DP")  # fmt: skip
     measure(plan, mujoco)
     if not refine:
         return plan
@@ -243,7 +243,7 @@ def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fe
         branch, param = grid.public(rows, out.param)
         better = setup.plan(out.q, "optimal", param=param, branch=branch, param_name=sym, cost=out.cost,
                             dp_cost=result.cost, reconfigurations=result.reconfigurations, timings=plan.timings,
-                            profile=plan.profile)  # fmt: skip
+                            profile=plan.profile, label="NLP", dp_plan=plan)  # fmt: skip
         measure(better, mujoco)
         if better.ok:
             return better
@@ -315,7 +315,8 @@ def _plan_joints(setup: Setup, refine: bool, mujoco: bool) -> Plan:
     q_track, _ = track(setup, q0)
     timings = {"tracking": time.perf_counter() - t0}
     continuous = np.ones(len(setup.poses) - 1, bool)
-    plan = setup.plan(q_track, "tracking", cost=setup.cost(q_track, continuous), timings=timings)
+    plan = setup.plan(q_track, "tracking", cost=setup.cost(q_track, continuous), timings=timings,
+                      label="QP controller (online)")
     measure(plan, mujoco)
     if not refine:
         return plan
@@ -323,7 +324,7 @@ def _plan_joints(setup: Setup, refine: bool, mujoco: bool) -> Plan:
                   setup.q_ref)  # fmt: skip
     out = nlp.solve(q_track)
     timings["nlp"] = out.time
-    refined = setup.plan(out.q, "optimal", cost=out.cost, timings=timings)
+    refined = setup.plan(out.q, "optimal", cost=out.cost, timings=timings, label="NLP", dp_plan=plan)
     measure(refined, mujoco)
     return refined if refined.ok or not plan.ok else plan
 

@@ -10,7 +10,7 @@ receives the robot and the ``[target.path_params]`` table and returns a
 :class:`TargetPath`. Unknown or missing parameters raise ``KeyError``/
 ``ValueError`` subclasses that the loader reports with the file name.
 
-Registered formulas:
+Registered formulas (``wipe``: see :func:`wipe`):
 
 - ``zheng2019`` — Zheng et al. 2019, eq. (19), from the initial configuration ``q0``
   (default the paper's ``(0, 1.0472, -0.5236, -2.0944, 0, 1.5708, -1.5708)``)
@@ -79,3 +79,34 @@ def zheng2019(robot: Robot, params: dict[str, Any]) -> TargetPath:
     # literal: p0 + wave(t); relative: the same curve moved so that it starts at p0
     origin = T0[:3, 3] - (wave(np.zeros(1))[0] if reading == "relative" else 0.0)
     return TargetPath("zheng2019", duration, q0, T0[:3, :3].copy(), lambda t: origin + wave(t), velocity)
+
+
+@path_formula("wipe")
+def wipe(robot: Robot, params: dict[str, Any]) -> TargetPath:
+    r"""A wiping motion over a table: the tool pointing straight down (its z axis along −z of the base),
+    sweeping sideways while it advances.
+
+    :math:`p(t) = c + (a \sin(2\pi k t / T),\ -\ell/2 + \ell t / T,\ 0)` for :math:`0 \le t \le T`, with
+    the centre ``center`` c (3 floats, m), the sideways amplitude ``amplitude`` a (m), ``length`` ℓ (m) along y,
+    ``strokes`` k (back-and-forth sweeps) and ``duration`` T (s). The rotation is diag(1, −1, −1).
+    """
+    known = {"center", "amplitude", "length", "strokes", "duration"}
+    unknown = set(params) - known
+    if unknown:
+        raise InputError(f"unknown parameter(s) {', '.join(sorted(unknown))}; known: {', '.join(sorted(known))}")
+    missing = known - set(params)
+    if missing:
+        raise InputError(f"missing parameter(s) {', '.join(sorted(missing))}")
+    c = finite_array(params["center"], "center", (3,)).copy()
+    a, length, k, T = (float(finite_array(params[x], x, ())) for x in ("amplitude", "length", "strokes", "duration"))
+    if not T > 0:
+        raise InputError(f"duration must be > 0 s, got {T}")
+    w = 2.0 * np.pi * k / T
+
+    def position(t: np.ndarray) -> np.ndarray:
+        return c + np.stack([a * np.sin(w * t), -0.5 * length + length * t / T, 0.0 * t], axis=-1)
+
+    def velocity(t: np.ndarray) -> np.ndarray:
+        return np.stack([a * w * np.cos(w * t), np.full_like(t, length / T), 0.0 * t], axis=-1)
+
+    return TargetPath("wipe", T, None, np.diag([1.0, -1.0, -1.0]), position, velocity)
