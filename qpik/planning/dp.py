@@ -39,6 +39,8 @@ from qpik.planning.grid import Grid, Layers
 
 CHUNK = 32
 """Waypoints whose states are evaluated per call of :meth:`Grid.layers`."""
+BLOCK = 256
+"""Source states per block when every pair of two waypoints is checked (:meth:`_Step.full`)."""
 
 
 @dataclass
@@ -124,14 +126,14 @@ def solve(grid: Grid, tr: Transitions, window: int, fewest: bool) -> DPResult:
     V = np.where(ok0, tr.point[0] * f0, np.inf)
     J = np.zeros((B, G), np.int64)
     vel = np.zeros((B, G, q0.shape[-1])) if tr.a_max is not None else None
-    failure = None
-    last = N - 1
-    for k in range(N - 1):
+    failure = None if ok0.any() else Failure(0, _empty(grid, layers, 0))
+    last = N - 1 if failure is None else -1
+    for k in range(N - 1 if failure is None else 0):
         qa, _, _ = layers(k)
         qb, okb, fb = layers(k + 1)
         step = _Step(qa, qb, okb, fb, tr, k, vel)
         Vn, Jn, s = step.banded(V, J, offsets)
-        if not np.isfinite(Vn).any():
+        if not np.isfinite(Vn).any() and okb.any():
             Vn, Jn, s = step.full(V, J)  # the band lost every state: every pair
         jump = np.zeros((B, G), bool)
         if fewest:
@@ -147,7 +149,7 @@ def solve(grid: Grid, tr: Transitions, window: int, fewest: bool) -> DPResult:
         V, J, src[k + 1], jumped[k + 1] = Vn, Jn, s, jump
     rows, index, q = _backtrack(layers, src, jumped, V, J, last, grid)
     recon = [k for k in range(last) if jumped[k + 1, rows[k + 1], index[k + 1]]]
-    cost = float(V.reshape(-1)[rows[last] * G + index[last]])
+    cost = float(V.reshape(-1)[rows[last] * G + index[last]]) if last >= 0 else np.inf
     return DPResult(rows, index, q, cost, recon, failure, layers.ok, layers.evaluated)
 
 
@@ -204,15 +206,34 @@ class _Step:
         return Vn, Jn, s
 
     def full(self, V, J):
-        """Every reachable source state against every destination (any branch): (S_src,) × (B, G)."""
+        """Every reachable source state against every feasible destination (any branch), in blocks of
+        :data:`BLOCK` sources; also the pair that comes closest to the bounds (for :func:`_failure`):
+        ``(largest step over its bound, source flat index, destination flat index)``."""
+        B, G = self.B, self.G
+        best = (np.full((B, G), np.inf), np.zeros((B, G), np.int64), np.full((B, G), -1))
+        closest = (np.inf, -1, -1)
         live = np.flatnonzero(np.isfinite(V.reshape(-1)))
-        if not len(live):
-            return np.full((self.B, self.G), np.inf), np.zeros((self.B, self.G), np.int64), np.full((self.B, self.G), -1)
-        qa = self.qa.reshape(self.B * self.G, -1)[live]  # (L, n)
-        D = self.qb[None] - qa[:, None, None]  # (L, B, G, n)
-        flat = np.broadcast_to(live[:, None, None], D.shape[:-1])
-        c = self._cost(V, D, flat)
-        return self._pick(c, J.reshape(-1)[flat], flat, 0)
+        dest = np.flatnonzero(self.okb.reshape(-1))
+        qa_all, qb = self.qa.reshape(B * G, -1), self.qb.reshape(B * G, -1)[dest]
+        for start in range(0, len(live), BLOCK):
+            src = live[start : start + BLOCK]
+            D = qb[None] - qa_all[src][:, None]  # (L, M, n)
+            ratio = (np.abs(D) / self.lim).max(axis=-1)
+            a, m = np.unravel_index(int(np.argmin(ratio)), ratio.shape)
+            if ratio[a, m] < closest[0]:
+                closest = (float(ratio[a, m]), int(src[a]), int(dest[m]))
+            flat = np.broadcast_to(src[:, None], D.shape[:-1])
+            c = np.full((len(src), B * G), np.inf)
+            c[:, dest] = self._cost(V, D, flat)
+            Jc = np.zeros((len(src), B * G), np.int64)
+            Jc[:, dest] = J.reshape(-1)[flat]
+            shape = (len(src), B, G)
+            cand = self._pick(c.reshape(shape), Jc.reshape(shape), np.broadcast_to(src[:, None, None], shape), 0)
+            better = (cand[1] < best[1]) | ((cand[1] == best[1]) & (cand[0] < best[0])) | ~np.isfinite(best[0])
+            better &= np.isfinite(cand[0])
+            best = tuple(np.where(better, x, y) for x, y in zip(cand, best))
+        self.closest = closest
+        return best
 
     def _pick(self, c, Jc, flat, axis: int):
         """Per destination (b, j), the candidate along ``axis`` of fewest jumps, then least value."""
@@ -250,7 +271,7 @@ def _backtrack(layers: _Layers, src, jumped, V, J, last: int, grid: Grid):
     Vf, Jf = V.reshape(-1), J.reshape(-1)
     live = np.isfinite(Vf)
     rows, index, q = np.full(N, -1), np.full(N, -1), np.full((N, n), np.nan)
-    if not live.any():
+    if last < 0 or not live.any():
         return rows, index, q
     jmin = Jf[live].min()
     cand = live & (Jf == jmin)
@@ -258,29 +279,28 @@ def _backtrack(layers: _Layers, src, jumped, V, J, last: int, grid: Grid):
     for k in range(last, -1, -1):
         rows[k], index[k] = divmod(s, G)
         s = int(src[k, rows[k], index[k]]) if k else -1
-    for k in range(last + 1):
-        q[k] = layers(k)[0][rows[k], index[k]]
+    q[: last + 1] = grid.configurations(np.arange(last + 1), rows[: last + 1], index[: last + 1])
     return rows, index, q
 
 
-def _failure(grid: Grid, layers: _Layers, step: _Step, k: int, V: np.ndarray) -> Failure:
-    """Why waypoint k + 1 cannot be reached from the states reachable at waypoint k."""
+def _empty(grid: Grid, layers: _Layers, k: int) -> str:
+    """Why waypoint k has no feasible state (words)."""
     sym = "δ" if grid.param_name == "delta" else "ψ"
-    fi = grid.intervals[k + 1]
-    if not any(fi.intervals[b] for b in range(grid.rows)):
-        return Failure(k + 1, "no branch keeps every joint inside its limits at this pose (see the least-violating option)")
-    _, okb, _ = layers(k + 1)
-    if not okb.any():
-        if len(grid.obstacles):
-            return Failure(k + 1, f"every configuration inside the joint limits is closer than d_s = {grid.d_safe:g} m"
-                                  " to an obstacle")  # fmt: skip
-        return Failure(k + 1, f"the feasible {sym} intervals are narrower than the grid step {grid.spacing:.3g} rad")
-    live = np.flatnonzero(np.isfinite(V.reshape(-1)))
-    qa = step.qa.reshape(-1, step.qa.shape[-1])[live]
-    qb = step.qb[okb]
-    ratio = (np.abs(qb[None] - qa[:, None]) / step.lim).max(axis=-1)  # (L, M) largest step over its bound
-    a, b = np.unravel_index(int(np.argmin(ratio)), ratio.shape)
-    d = np.abs(qb[b] - qa[a])
+    if not grid.inside[k].any():
+        if not any(grid.intervals[k].intervals[b] for b in range(grid.rows)):
+            return f"no branch reaches this pose with every joint inside its limits at any {sym}"
+        return f"its feasible {sym} intervals hold no grid value (narrower than the grid step {grid.spacing:.3g} rad)"
+    return (f"every configuration inside the joint limits is closer than d_s = {grid.d_safe:g} m to an obstacle"
+            f" (at the {grid.G} grid values of {sym})")  # fmt: skip
+
+
+def _failure(grid: Grid, layers: _Layers, step: _Step, k: int, V: np.ndarray) -> Failure:
+    """Why waypoint k + 1 cannot be reached from the states reachable at waypoint k (after :meth:`_Step.full`)."""
+    if not step.okb.any():
+        return Failure(k + 1, _empty(grid, layers, k + 1))
+    _, a, b = step.closest
+    n = step.qa.shape[-1]
+    d = np.abs(step.qb.reshape(-1, n)[b] - step.qa.reshape(-1, n)[a])
     j = int(np.argmax(d / step.lim))
     return Failure(k + 1, f"no feasible configuration within the joint-step bounds of one reachable at waypoint {k}:"
                           f" the smallest move needs joint {j + 1} to move {d[j]:.3g} rad (bound {step.lim[j]:.3g} rad)")  # fmt: skip

@@ -198,6 +198,13 @@ class Grid:
     def objective_params(self) -> np.ndarray:
         return np.zeros(0) if self.objective is None else self.objective.params(self.robot)
 
+    def configurations(self, ks: np.ndarray, rows: np.ndarray, index: np.ndarray) -> np.ndarray:
+        """(M, n) the configurations of the states (waypoint ks, grid row, grid index) (M,) each."""
+        n = self.robot.dof
+        cols = np.ascontiguousarray(np.swapaxes(self.poses[ks], 1, 2)).reshape(len(ks), 16)
+        (out,) = self._rows(cols, self.values[index], self.objective_params, self.q_ref, self.obstacles.params)
+        return out.reshape(len(ks), self.rows, n + 3)[np.arange(len(ks)), rows, :n]
+
     def layers(self, k0: int, k1: int) -> Layers:
         """The states of waypoints k0 .. k1 - 1 (see :class:`Layers`)."""
         K, B, G, n = k1 - k0, self.rows, self.G, self.robot.dof

@@ -213,9 +213,7 @@ def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fe
     sym = grid.param_name
     if result is None or result.failure is not None:
         k = int(empty[0]) if result is None else result.failure.waypoint
-        why = "" if result is None else result.failure.reason
-        if not why or not grid.inside[k].any():
-            why = _why_empty(grid, k)
+        why = _why_empty(grid, k) if result is None else result.failure.reason
         least = _least_violating(setup, k)
         prefix = np.zeros((0, setup.robot.dof)) if result is None else result.q[:k]
         plan = setup.plan(prefix, "failed", param_name=sym, failure=why, failure_waypoint=k, least_violating=least,
@@ -261,10 +259,10 @@ def _profile(grid: Grid, result: dp.DPResult) -> Profile:
 
 
 def _why_empty(grid: Grid, k: int) -> str:
+    """Why waypoint k has no grid value inside its exact feasible intervals (before any evaluation)."""
     sym = "δ" if grid.param_name == "delta" else "ψ"
-    fi = grid.intervals[k]
-    if not any(fi.intervals[b] for b in range(grid.rows)):
-        return "no branch reaches this pose with every joint inside its limits at any " + sym
+    if not any(grid.intervals[k].intervals[b] for b in range(grid.rows)):
+        return f"no branch reaches this pose with every joint inside its limits at any {sym}"
     return f"its feasible {sym} intervals hold no grid value (narrower than the grid step {grid.spacing:.3g} rad)"
 
 

@@ -56,7 +56,10 @@ OPTIONS = {
     "ipopt.mu_strategy": "adaptive",
     "show_eval_warnings": False,
 }
-"""IPOPT options of the refinement."""
+"""IPOPT options of the path NLP."""
+INSIDE = 1e-8
+"""rad and m: the NLP keeps ψ this far inside its feasible interval (whose ends are exact to 1e-9 rad) and the
+clearance this far above d_s, so that its answer, feasible to IPOPT's tolerance, meets every check exactly."""
 
 
 @dataclass
@@ -175,7 +178,8 @@ class PathNLP:
         tr, N, n, w = self.tr, len(self.rows), self.n, self.width
         z0 = np.unwrap(np.asarray(z0, float))[None] if self.grid is not None else np.asarray(z0, float).T
         lo, hi = self._bounds(z0)
-        lo, hi = np.atleast_2d(lo), np.atleast_2d(hi)
+        inward = INSIDE if self.grid is not None else 0.0
+        lo, hi = np.atleast_2d(lo) + inward, np.atleast_2d(hi) - inward
         z = ca.MX.sym("z", w, N)
         t = ca.MX.sym("t", self.n_t, N)
         cols = np.ascontiguousarray(np.swapaxes(self.poses, 1, 2)).reshape(N, 16).T  # (16, N) column-major poses
@@ -190,7 +194,7 @@ class PathNLP:
         f = ca.sum2(ca.sum1(D * D) * ca.DM(tr.motion * cont).T) + ca.sum2(cost_pt * ca.DM(tr.point).T)
         n_epi, n_d = sum(self.sizes), len(self.robot.capsules) * len(self.obstacles)
         n_eq = 0 if self.grid is not None else 6
-        point_lo = np.r_[np.full(n_epi, -np.inf), np.full(n_d, self.d_safe), np.zeros(n_eq)]
+        point_lo = np.r_[np.full(n_epi, -np.inf), np.full(n_d, self.d_safe + INSIDE), np.zeros(n_eq)]
         point_hi = np.r_[np.zeros(n_epi), np.full(n_d, np.inf), np.zeros(n_eq)]
         step = np.where(self.continuous[:, None], tr.step, np.inf)  # (N-1, n)
         g_parts, lbg, ubg = [ca.vec(G_pt), ca.vec(D)], [np.tile(point_lo, N), -step.ravel()], [np.tile(point_hi, N), step.ravel()]

@@ -4,11 +4,12 @@ Waypoints: the problem's poses (``pose``, a ``rotation``/``position`` sweep, ``q
 named path sampled at ``[solver] waypoints`` even times over its duration (the times then bound the
 joint velocities). :func:`qpik.plan_self_motion` plans them with the ``[solver]`` settings
 (:data:`qpik.problems.schema.SOLVER_KEYS`: ``objective`` and ``objective_weight``, ``max_joint_step``
-(rad), ``d_safe`` (m), ``resolution``, ``reconfigure``, ``a_max`` (rad/s²)).
+(rad), ``d_safe`` (m), ``resolution``, ``reconfigure``, ``a_max`` (rad/s²), ``branch``: the only branch the
+plan may use).
 
 The report compares, on the same waypoints and with the same checks (:mod:`qpik.planning.plan`):
-the plan; the DP-only plan; each ``[parameter]`` value held constant on one branch (``[solver] branch``,
-default the plan's first); the QP controller tracking the waypoints online. Per row: FK error,
+the plan; the DP-only plan; each ``[parameter]`` value held constant on one branch (``[solver]
+baseline_branch``, default the plan's first); the QP controller tracking the waypoints online. Per row: FK error,
 waypoints outside the joint limits and closer than d_s (capsules and MuJoCo), the largest joint step
 over its bound, the joint path length and the objective J. Files: the plan as CSV and NPZ, the
 self-motion map, the joint trajectories against their limits, an image strip of the arm.
@@ -49,7 +50,8 @@ def plan_problem(problem: Problem, mujoco: bool = True) -> Plan:
     objective = None if s["objective"] == "none" else resolve(s["objective"]) * s["objective_weight"]
     return plan_self_motion(problem.robot, poses, objective, problem.obstacles, times, s["max_joint_step"],
                             s["reconfigure"], d_safe=s["d_safe"], a_max=s["a_max"] if times is not None else None,
-                            resolution=s["resolution"], mujoco=mujoco)  # fmt: skip
+                            resolution=s["resolution"], mujoco=mujoco,
+                            branches=None if s["branch"] is None else [s["branch"]])  # fmt: skip
 
 
 def baselines(problem: Problem, plan: Plan, mujoco: bool = True) -> list[Plan]:
@@ -60,7 +62,8 @@ def baselines(problem: Problem, plan: Plan, mujoco: bool = True) -> list[Plan]:
     if plan.status == "failed" or not len(plan.q):
         return out
     if problem.robot.closed_form is not None and problem.params is not None:
-        branch = problem.solver["branch"] if problem.solver["branch"] is not None else int(plan.branch[0])
+        branch = problem.solver["baseline_branch"]
+        branch = int(plan.branch[0]) if branch is None else branch
         out += [constant_parameter(plan, float(v), branch, mujoco) for v in problem.params]
     if problem.robot.closed_form is not None:
         out.append(online(plan, mujoco))

@@ -147,8 +147,9 @@ SOLVER_KEYS: dict[str, dict[str, Setting]] = {
                                choices=("forbid", "fewest")),
         "waypoints": Setting(101, "waypoints sampled from a path target", integer=True, positive=True),
         "a_max": Setting(None, "joint acceleration limit of every joint along a path target, rad/s²", positive=True),
-        "branch": Setting(None, "branch of the constant-parameter baselines (default: the plan's first)",
-                          integer=True),
+        "branch": Setting(None, "the one branch the plan may use (default: every branch)", integer=True),
+        "baseline_branch": Setting(None, "branch of the constant-parameter baselines (default: the plan's first)",
+                                   integer=True),
     },
 }
 """Per kind, every ``[solver]`` key its runner (:mod:`qpik.problems.runners`) reads: the one list of them."""
