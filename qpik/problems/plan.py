@@ -70,6 +70,28 @@ def baselines(problem: Problem, plan: Plan, mujoco: bool = True) -> list[Plan]:
     return out
 
 
+def plan_file(job: tuple[str, str | None]) -> dict:
+    """One job of a batch (``qpik plan`` over many files, :func:`qpik.planning.batch.run_batch`): the problem
+    file ``job[0]`` planned; with an output folder ``job[1]``, its report (``report.md``) and files written there.
+
+    Returns a picklable summary: ``name``, ``file``, ``ok`` (every check holds), ``summary`` (one line),
+    ``q`` (K, n) the plan, ``cost``, ``reconfigurations``, ``report`` (the Markdown text or "")."""
+    from qpik.problems.schema import load
+
+    path, out = job
+    problem = load(path)
+    if out is None:
+        plan = plan_problem(problem, mujoco=False)
+        report = ""
+    else:
+        folder = Path(out)
+        folder.mkdir(parents=True, exist_ok=True)
+        report, plan = _report(problem, folder)
+        (folder / "report.md").write_text(report + "\n")
+    return {"name": problem.name, "file": str(path), "ok": plan.ok, "summary": plan.summary(), "q": plan.q,
+            "cost": plan.cost, "reconfigurations": list(plan.reconfigurations), "report": report}  # fmt: skip
+
+
 def _row(p: Plan) -> str:
     K = len(p.q)
     outside = int(np.sum(p.margin < 0)) if K else 0
@@ -84,6 +106,10 @@ def _row(p: Plan) -> str:
 @runner("plan")
 def run_plan(problem: Problem, out: Path) -> str:
     """Plan, compare with the baselines, write the files; return the Markdown report."""
+    return _report(problem, out)[0]
+
+
+def _report(problem: Problem, out: Path) -> tuple[str, Plan]:
     plan = plan_problem(problem)
     robot, name = problem.robot, problem.name
     sym = symbol(plan.param_name) if plan.param_name else ""
@@ -138,4 +164,4 @@ def run_plan(problem: Problem, out: Path) -> str:
         save(selfmotion_map(plan, f"{robot.name}: {sym} along the path (grey: infeasible)"), out / f"{name}_map.png")
         files.append(f"{name}_map.png")
     lines.append("Files: " + ", ".join(files))
-    return "\n".join(lines)
+    return "\n".join(lines), plan
