@@ -96,12 +96,18 @@ class Grid:
         self.rows = MIRRORED.get(self.solver.kind, self.solver.n_branches)
         self.mirrored = self.rows < self.solver.n_branches
         self.intervals: list[FeasibleIntervals] = [feasible_intervals(robot, T) for T in poses]
-        self.inside = np.zeros((len(poses), self.rows, self.G), bool)
-        for k, fi in enumerate(self.intervals):
-            for b in range(self.rows):
-                for lo, hi in fi.intervals[b]:
-                    a, c = np.searchsorted(self.values, lo, "left"), np.searchsorted(self.values, hi, "right")
-                    self.inside[k, b, a:c] = True
+        self.inside = self._inside()
+
+    def _inside(self) -> np.ndarray:
+        """(N, B, G): the grid values inside each branch's exact feasible set at each waypoint."""
+        N, B, G = len(self.intervals), self.rows, self.G
+        cells = [(k * B + b, lo, hi) for k, fi in enumerate(self.intervals) for b in range(B) for lo, hi in fi.intervals[b]]
+        count = np.zeros((N * B, G + 1), np.int64)
+        if cells:
+            row, lo, hi = (np.array(x) for x in zip(*cells))
+            np.add.at(count, (row, np.searchsorted(self.values, lo, "left")), 1)
+            np.add.at(count, (row, np.searchsorted(self.values, hi, "right")), -1)
+        return (np.cumsum(count[:, :G], axis=1) > 0).reshape(N, B, G)
 
     @property
     def spacing(self) -> float:
@@ -206,22 +212,14 @@ class Grid:
         return out.reshape(len(ks), self.rows, n + 3)[np.arange(len(ks)), rows, :n]
 
     def layers(self, k0: int, k1: int) -> Layers:
-        """The states of waypoints k0 .. k1 - 1 (see :class:`Layers`)."""
+        """The states of waypoints k0 .. k1 - 1 (see :class:`Layers`); every grid value is evaluated (all but a
+        few are inside some branch's feasible set) and only those inside count."""
         K, B, G, n = k1 - k0, self.rows, self.G, self.robot.dof
-        inside = self.inside[k0:k1]
-        q = np.zeros((K, B, G, n))
-        ok = np.zeros((K, B, G), bool)
-        f = np.full((K, B, G), np.inf)
-        clear = np.full((K, B, G), np.inf)
-        kk, ii = np.nonzero(inside.any(axis=1))
-        if len(kk):
-            cols = np.ascontiguousarray(np.swapaxes(self.poses[k0 + kk], 1, 2)).reshape(len(kk), 16)
-            (out,) = self._rows(cols, self.values[ii], self.objective_params, self.q_ref, self.obstacles.params)
-            out = out.reshape(len(kk), B, n + 3)
-            q[kk, :, ii] = out[:, :, :n]
-            within = (out[:, :, n] > 0.5) & inside[kk, :, ii]
-            clear[kk, :, ii] = out[:, :, n + 2]
-            good = within & (out[:, :, n + 2] >= self.d_safe) & np.isfinite(out[:, :, n + 1])
-            ok[kk, :, ii] = good
-            f[kk, :, ii] = np.where(good, out[:, :, n + 1], np.inf)
-        return Layers(q, ok, f, clear)
+        cols = np.ascontiguousarray(np.swapaxes(self.poses[k0:k1], 1, 2)).reshape(K, 16)
+        (out,) = self._rows(np.repeat(cols, G, axis=0), np.tile(self.values, K), self.objective_params, self.q_ref,
+                            self.obstacles.params)  # fmt: skip
+        out = out.reshape(K, G, B, n + 3).transpose(0, 2, 1, 3)
+        q = np.ascontiguousarray(out[..., :n])
+        clear = out[..., n + 2].copy()
+        ok = (out[..., n] > 0.5) & self.inside[k0:k1] & (clear >= self.d_safe) & np.isfinite(out[..., n + 1])
+        return Layers(q, ok, np.where(ok, out[..., n + 1], np.inf), clear)

@@ -32,6 +32,7 @@ the DP's cost).
 
 from __future__ import annotations
 
+import itertools
 import time
 from dataclasses import dataclass
 
@@ -39,7 +40,7 @@ import casadi as ca
 import numpy as np
 
 from qpik.analytic.intervals import wrap
-from qpik.geometry.distance import ObstacleSet
+from qpik.geometry.distance import ObstacleSet, distances
 from qpik.nlp.full import rotation_error
 from qpik.objectives import Context, Objective
 from qpik.planning.dp import Transitions
@@ -57,6 +58,10 @@ OPTIONS = {
     "show_eval_warnings": False,
 }
 """IPOPT options of the path NLP."""
+NEAR = 0.1
+"""m: a waypoint's clearance constraints enter the NLP where a capsule is closer than d_s + NEAR to an obstacle at the start."""
+ROUNDS = 3
+"""Solves of the NLP at most, each with the waypoints that came near an obstacle in the one before."""
 INSIDE = 1e-8
 """rad and m: the NLP keeps ψ this far inside its feasible interval (whose ends are exact to 1e-9 rad) and the
 clearance this far above d_s, so that its answer, feasible to IPOPT's tolerance, meets every check exactly."""
@@ -99,7 +104,13 @@ def interval_bounds(grid: Grid, rows: np.ndarray, param: np.ndarray) -> tuple[np
 
 
 class PathNLP:
-    """The NLP of the module docstring for one path, built once and solved by :meth:`solve`.
+    """The NLP of the module docstring for one path, built and solved by :meth:`solve`.
+
+    A waypoint's clearance constraints are in the NLP only where some link capsule is closer than
+    ``d_safe`` + :data:`NEAR` to an obstacle at the start: far-away obstacles cost nothing. If the answer
+    comes closer than d_s at a waypoint left out, that waypoint joins and the NLP is solved again from the
+    answer (at most :data:`ROUNDS` solves); an answer that keeps d_s everywhere is a KKT point of the
+    whole problem too (the constraints left out are inactive there).
 
     Args:
         robot: the arm.
@@ -134,11 +145,26 @@ class PathNLP:
         self.p_obj = np.zeros(0) if objective is None else objective.params(robot)
         self.n = n
         self.width = 1 if grid is not None else n  # variables per waypoint
-        self._points = {int(b): self._point(int(b)) for b in np.unique(self.rows)}
+        self._points: dict[tuple[int, bool], ca.Function] = {}
+        self._value_fn: ca.Function | None = None
+        self.sizes = self._sizes()
+        self.n_t = len(self.sizes)
 
-    def _point(self, b: int) -> ca.Function:
-        """``(T, z, t, p, q_ref, obstacle params) -> (q, cost, g)`` of one waypoint: g = [epigraph (≤ 0); distances
-        (≥ d_s); pose error (= 0, joints only)]."""
+    def _sizes(self) -> list[int]:
+        """The number of pieces of each maximum of the objective's split (the epigraph variables per waypoint)."""
+        if self.objective is None:
+            return []
+        q = ca.SX.sym("q", self.n)
+        ctx = Context(self.robot, q, ca.SX.sym("r", self.n), self.obstacles,
+                      ca.SX.sym("o", self.obstacles.params.size))  # fmt: skip
+        return [h.numel() for _, h in self.objective.split(ctx, ca.SX.sym("p", self.p_obj.size)).maxima]
+
+    def _point(self, b: int, near: bool) -> ca.Function:
+        """``(T, z, t, p, q_ref, obstacle params) -> (q, cost, epigraph (≤ 0), g)`` of one waypoint on row b:
+        g = [distances (≥ d_s) if ``near``; pose error (= 0, joints only)]."""
+        key = (b, near)
+        if key in self._points:
+            return self._points[key]
         robot, n = self.robot, self.n
         cols, z = ca.SX.sym("T", 16), ca.SX.sym("z", self.width)
         T = ca.reshape(cols, 4, 4)  # the pose's entries in CasADi's column-major order
@@ -147,57 +173,104 @@ class PathNLP:
         q = self.grid.solver.casadi_function(T, z)[0][b, :].T if self.grid is not None else z
         ctx = Context(robot, q, q_ref, self.obstacles, prm)
         if self.objective is None:
-            t, cost, g_epi, sizes = ca.SX.sym("t", 0), ca.SX(0.0), ca.SX(0, 1), []
+            t, cost, g_epi = ca.SX.sym("t", 0), ca.SX(0.0), ca.SX(0, 1)
         else:
-            split = self.objective.split(ctx, p)
-            t, cost, g_epi = split.epigraph()
-            sizes = [h.numel() for _, h in split.maxima]
-        self.n_t, self.sizes = t.numel(), sizes
-        g = [g_epi, ctx.distances if len(self.obstacles) else ca.SX(0, 1)]
+            t, cost, g_epi = self.objective.split(ctx, p).epigraph()
+        g = [ctx.distances if near else ca.SX(0, 1)]
         if self.grid is None:
             R, pos = ctx.frames[-1]
             D = ca.mtimes(T[:3, :3], ca.vertcat(*[ca.horzcat(*R[i]) for i in range(3)]).T)  # R* Rᵀ
             g.append(ca.vertcat(T[:3, 3] - ca.vertcat(*pos), rotation_error(D)))
-        return ca.Function(f"plan_point_{robot.name or 'robot'}_{b}", [cols, z, t, p, q_ref, prm],
-                           [q, cost, ca.vertcat(*g)])  # fmt: skip
+        name = f"plan_point_{robot.name or 'robot'}_{b}" + ("_near" if near else "")
+        self._points[key] = ca.Function(name, [cols, z, t, p, q_ref, prm], [q, cost, g_epi, ca.vertcat(*g)])
+        return self._points[key]
 
-    def _runs(self) -> list[tuple[int, int]]:
-        """(start, stop) of the runs of equal rows."""
-        cut = np.flatnonzero(np.diff(self.rows)) + 1
+    def _runs(self, near: np.ndarray) -> list[tuple[int, int]]:
+        """(start, stop) of the runs of equal rows and equal ``near``."""
+        cut = np.flatnonzero((np.diff(self.rows) != 0) | (np.diff(near.astype(int)) != 0)) + 1
         edges = [0, *cut.tolist(), len(self.rows)]
-        return list(zip(edges[:-1], edges[1:]))
+        return list(itertools.pairwise(edges))
 
     def _bounds(self, z0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if self.grid is not None:
             return interval_bounds(self.grid, self.rows, z0[0])
         return np.tile(self.robot.q_min[:, None], len(self.rows)), np.tile(self.robot.q_max[:, None], len(self.rows))
 
+    def _clearance(self, q: np.ndarray) -> np.ndarray:
+        """(N,) the smallest capsule–obstacle distance of configurations q (N, n), m (inf without obstacles)."""
+        if not len(self.obstacles):
+            return np.full(len(q), np.inf)
+        d = distances(self.robot.capsule_segments(q), self.robot.capsule_radii, self.obstacles).d
+        return d.reshape(len(q), -1).min(axis=1)
+
     def solve(self, z0: np.ndarray) -> Refined:
         """IPOPT from ``z0``: the parameters (N,) (rad; unwrapped here) or the joints (N, n) (rad)."""
         t_start = time.perf_counter()
-        tr, N, n, w = self.tr, len(self.rows), self.n, self.width
         z0 = np.unwrap(np.asarray(z0, float))[None] if self.grid is not None else np.asarray(z0, float).T
         lo, hi = self._bounds(z0)
         inward = INSIDE if self.grid is not None else 0.0
         lo, hi = np.atleast_2d(lo) + inward, np.atleast_2d(hi) - inward
-        z = ca.MX.sym("z", w, N)
-        t = ca.MX.sym("t", self.n_t, N)
+        z = np.clip(z0, lo, hi)
+        near = self._clearance(self._q(z)) < self.d_safe + NEAR
+        start_cost, iterations = None, 0
+        for _ in range(ROUNDS):
+            z, cost0, its, status = self._solve(z, lo, hi, near)
+            start_cost = cost0 if start_cost is None else start_cost
+            iterations += its
+            grow = (self._clearance(self._q(z)) < self.d_safe + INSIDE) & ~near
+            if not grow.any():
+                break
+            near |= grow
+        cost, _, q = self._value()(z, self._least_t(z))
+        return Refined(z[0] if self.grid is not None else np.zeros(0), np.asarray(q), float(cost), float(start_cost),
+                       status, iterations, time.perf_counter() - t_start)  # fmt: skip
+
+    def _q(self, z: np.ndarray) -> np.ndarray:
+        """(N, n) the configurations at the variables z (w, N)."""
+        return np.asarray(self._value()(z, np.zeros((self.n_t, len(self.rows))))[2])
+
+    def _graph(self, near: np.ndarray):
+        """MX symbols z (w, N), t (n_t, N) and expressions Q (n, N), the cost per waypoint (1, N), the epigraph
+        pieces (n_epi, N) and the other constraints per run (a list)."""
+        N = len(self.rows)
+        z, t = ca.MX.sym("z", self.width, N), ca.MX.sym("t", self.n_t, N)
         cols = np.ascontiguousarray(np.swapaxes(self.poses, 1, 2)).reshape(N, 16).T  # (16, N) column-major poses
-        Qs, costs, gs = [], [], []
-        for a, b in self._runs():
-            mapped = self._points[int(self.rows[a])].map(b - a, "serial")
-            q, c, g = mapped(ca.DM(cols[:, a:b]), z[:, a:b], t[:, a:b], self.p_obj, self.q_ref, self.obstacles.params)
-            Qs.append(q), costs.append(c), gs.append(g)
-        Q, cost_pt, G_pt = ca.horzcat(*Qs), ca.horzcat(*costs), ca.horzcat(*gs)
+        Qs, costs, epis, others = [], [], [], []
+        for a, b in self._runs(near):
+            mapped = self._point(int(self.rows[a]), bool(near[a])).map(b - a, "serial")
+            q, c, e, g = mapped(ca.DM(cols[:, a:b]), z[:, a:b], t[:, a:b], self.p_obj, self.q_ref,
+                                self.obstacles.params)  # fmt: skip
+            Qs.append(q), costs.append(c), epis.append(e), others.append((a, b, g))
+        return z, t, ca.horzcat(*Qs), ca.horzcat(*costs), ca.horzcat(*epis), others
+
+    def _value(self) -> ca.Function:
+        """``(z, t) -> (J, epigraph pieces (n_epi, N), Q^T (N, n))`` (built once)."""
+        if self._value_fn is None:
+            z, t, Q, cost_pt, E, _ = self._graph(np.zeros(len(self.rows), bool))
+            self._value_fn = ca.Function("value", [z, t], [self._cost(Q, cost_pt), E, Q.T])
+        return self._value_fn
+
+    def _cost(self, Q: ca.MX, cost_pt: ca.MX) -> ca.MX:
+        """J: the motion term over the continuous transitions plus the weighted point costs."""
+        D = Q[:, 1:] - Q[:, :-1]
+        motion = ca.sum2(ca.sum1(D * D) * ca.DM(self.tr.motion * self.continuous).T)
+        return motion + ca.sum2(cost_pt * ca.DM(self.tr.point).T)
+
+    def _solve(self, z0: np.ndarray, lo: np.ndarray, hi: np.ndarray, near: np.ndarray):
+        tr, N = self.tr, len(self.rows)
+        z, t, Q, cost_pt, E, others = self._graph(near)
         D = Q[:, 1:] - Q[:, :-1]  # (n, N-1)
-        cont = self.continuous.astype(float)
-        f = ca.sum2(ca.sum1(D * D) * ca.DM(tr.motion * cont).T) + ca.sum2(cost_pt * ca.DM(tr.point).T)
-        n_epi, n_d = sum(self.sizes), len(self.robot.capsules) * len(self.obstacles)
+        f = self._cost(Q, cost_pt)
+        n_d = len(self.robot.capsules) * len(self.obstacles)
         n_eq = 0 if self.grid is not None else 6
-        point_lo = np.r_[np.full(n_epi, -np.inf), np.full(n_d, self.d_safe + INSIDE), np.zeros(n_eq)]
-        point_hi = np.r_[np.zeros(n_epi), np.full(n_d, np.inf), np.zeros(n_eq)]
+        g_parts, lbg, ubg = [ca.vec(E)], [np.full(E.numel(), -np.inf)], [np.zeros(E.numel())]
+        for a, b, g in others:
+            d = n_d if near[a] else 0
+            g_parts.append(ca.vec(g))
+            lbg.append(np.tile(np.r_[np.full(d, self.d_safe + INSIDE), np.zeros(n_eq)], b - a))
+            ubg.append(np.tile(np.r_[np.full(d, np.inf), np.zeros(n_eq)], b - a))
         step = np.where(self.continuous[:, None], tr.step, np.inf)  # (N-1, n)
-        g_parts, lbg, ubg = [ca.vec(G_pt), ca.vec(D)], [np.tile(point_lo, N), -step.ravel()], [np.tile(point_hi, N), step.ravel()]
+        g_parts.append(ca.vec(D)), lbg.append(-step.ravel()), ubg.append(step.ravel())
         if tr.a_max is not None and N > 2:
             V = D / ca.DM(tr.dt).T
             both = self.continuous[1:] & self.continuous[:-1]
@@ -205,26 +278,22 @@ class PathNLP:
             g_parts.append(ca.vec(V[:, 1:] - V[:, :-1])), lbg.append(-bound.ravel()), ubg.append(bound.ravel())
         x = ca.vertcat(ca.vec(z), ca.vec(t))
         solver = ca.nlpsol("plan_nlp", "ipopt", {"x": x, "f": f, "g": ca.vertcat(*g_parts)}, OPTIONS)
-        value = ca.Function("value", [z, t], [f, G_pt[:n_epi, :], Q.T])
-        t0 = self._least_t(value, z0, N)
+        t0 = self._least_t(z0)
+        start = float(ca.Function("f", [z, t], [f])(z0, t0))
         x0 = np.concatenate([z0.T.ravel(), t0.T.ravel()])
         lbx = np.concatenate([lo.T.ravel(), np.full(self.n_t * N, -np.inf)])
         ubx = np.concatenate([hi.T.ravel(), np.full(self.n_t * N, np.inf)])
-        start_cost = float(value(z0, t0)[0])
-        sol = solver(x0=np.clip(x0, lbx, ubx), lbx=lbx, ubx=ubx, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
+        sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
         stats = solver.stats()
-        zs = np.clip(np.asarray(sol["x"]).ravel()[: w * N].reshape(N, w).T, lo, hi)
-        ts = self._least_t(value, zs, N)  # the epigraph variables at their least: the objective's true value
-        cost, _, q = value(zs, ts)
-        return Refined(zs[0] if self.grid is not None else np.zeros(0), np.asarray(q), float(cost), start_cost,
-                       str(stats.get("return_status", "")), int(stats.get("iter_count", 0)),
-                       time.perf_counter() - t_start)  # fmt: skip
+        zs = np.clip(np.asarray(sol["x"]).ravel()[: self.width * N].reshape(N, self.width).T, lo, hi)
+        return zs, start, int(stats.get("iter_count", 0)), str(stats.get("return_status", ""))
 
-    def _least_t(self, value: ca.Function, z: np.ndarray, N: int) -> np.ndarray:
+    def _least_t(self, z: np.ndarray) -> np.ndarray:
         """(n_t, N): each epigraph variable at the largest of its pieces (where the objective's true value is)."""
+        N = len(self.rows)
         if not self.n_t:
             return np.zeros((0, N))
-        h = np.asarray(value(z, np.zeros((self.n_t, N)))[1])  # pieces h - t at t = 0: the pieces themselves
+        h = np.asarray(self._value()(z, np.zeros((self.n_t, N)))[1])  # pieces h - t at t = 0: the pieces
         out, start = [], 0
         for size in self.sizes:
             out.append(h[start : start + size].max(axis=0))
