@@ -46,7 +46,7 @@ def _brute_force(q: np.ndarray, ok: np.ndarray, lim: float, motion: np.ndarray) 
         cost += np.where(bad, 0.0, motion[k] * (D * D).sum(axis=-1)).reshape(shape)
     J = np.where(valid, jumps, np.iinfo(np.int16).max)
     least = int(J.min())
-    return least, float(cost[J == least].min())
+    return least, float(cost[least == J].min())
 
 
 @pytest.mark.parametrize("angles, least", [((0.0, 0.5, 2.0, 2.5), 1), ((0.0, 0.9, 1.8, 2.7), 0)])

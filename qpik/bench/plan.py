@@ -52,8 +52,8 @@ def run(args: argparse.Namespace) -> list[Row]:
     nlp = np.median([p.timings["nlp"] for p in runs["obstacle"]])
     free = np.median([p.timings["dp"] for p in runs["free"]])
     checks = "all checks hold" if last.ok else "CHECKS FAIL: " + "; ".join(c.text for c in last.checks if not c.ok)
-    note = (f"{WAYPOINTS} waypoints × 8 branches × 720 ψ; {last.summary()}; NLP {last.cost:.6g} vs DP {last.dp_cost:.6g};"
-            f" {checks}; median of {repeat}")  # fmt: skip
+    note = (f"{WAYPOINTS} waypoints × 8 branches × 720 ψ; {last.summary()};"
+            f" NLP {last.cost:.6g} vs DP {last.dp_cost:.6g}; {checks}; median of {repeat}")  # fmt: skip
     return [
         Row("DP, 1 obstacle (iiwa14)", float(dp), note=DESCARTES),
         Row("NLP from the DP, 1 obstacle (iiwa14)", float(nlp), note=note),

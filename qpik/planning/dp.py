@@ -199,10 +199,10 @@ class _Step:
         vel = None if self.vel is None else np.ascontiguousarray(self.vel, float)
         dv = None if self.vel is None else np.ascontiguousarray(self.dv, float)
         ptr = [a.ctypes.data for a in args]
-        lib.qpik_dp_banded(B, G, n, len(offsets), *ptr[:7], ptr[7], ctypes.c_double(self.wm),
-                           ctypes.c_double(self.wp), None if vel is None else vel.ctypes.data,
-                           ctypes.c_double(0.0 if vel is None else 1.0 / self.dt),
-                           None if dv is None else dv.ctypes.data, Vn.ctypes.data, Jn.ctypes.data, s.ctypes.data)  # fmt: skip
+        vel_ptr, dv_ptr = (None, None) if vel is None else (vel.ctypes.data, dv.ctypes.data)
+        inv_dt = 0.0 if vel is None else 1.0 / self.dt
+        lib.qpik_dp_banded(B, G, n, len(offsets), *ptr, self.wm, self.wp, vel_ptr, inv_dt, dv_ptr, Vn.ctypes.data,
+                           Jn.ctypes.data, s.ctypes.data)  # fmt: skip
         return Vn, Jn, s
 
     def full(self, V, J):
@@ -266,7 +266,7 @@ def _jumps(V, J, Vn, Jn, s, okb, fb):
 
 def _backtrack(layers: _Layers, src, jumped, V, J, last: int, grid: Grid):
     """The best final state (fewest jumps, least value) and its predecessors back to waypoint 0."""
-    N, B, G = src.shape
+    N, _, G = src.shape
     n = grid.robot.dof
     Vf, Jf = V.reshape(-1), J.reshape(-1)
     live = np.isfinite(Vf)
@@ -303,7 +303,8 @@ def _failure(grid: Grid, layers: _Layers, step: _Step, k: int, V: np.ndarray) ->
     d = np.abs(step.qb.reshape(-1, n)[b] - step.qa.reshape(-1, n)[a])
     j = int(np.argmax(d / step.lim))
     return Failure(k + 1, f"no feasible configuration within the joint-step bounds of one reachable at waypoint {k}:"
-                          f" the smallest move needs joint {j + 1} to move {d[j]:.3g} rad (bound {step.lim[j]:.3g} rad)")  # fmt: skip
+                          f" the smallest move needs joint {j + 1} to move {d[j]:.3g} rad"
+                          f" (bound {step.lim[j]:.3g} rad)")  # fmt: skip
 
 
 @cache

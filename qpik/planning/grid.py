@@ -101,7 +101,8 @@ class Grid:
     def _inside(self) -> np.ndarray:
         """(N, B, G): the grid values inside each branch's exact feasible set at each waypoint."""
         N, B, G = len(self.intervals), self.rows, self.G
-        cells = [(k * B + b, lo, hi) for k, fi in enumerate(self.intervals) for b in range(B) for lo, hi in fi.intervals[b]]
+        cells = [(k * B + b, lo, hi) for k, fi in enumerate(self.intervals) for b in range(B)
+                 for lo, hi in fi.intervals[b]]  # fmt: skip
         count = np.zeros((N * B, G + 1), np.int64)
         if cells:
             row, lo, hi = (np.array(x) for x in zip(*cells))

@@ -16,6 +16,7 @@ were found:
 from __future__ import annotations
 
 import io
+import itertools
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -201,7 +202,9 @@ class Plan:
                  step_bound=self.step_bound)  # fmt: skip
         return path
 
-    def retime(self, v_max: np.ndarray | None = None, a_max: np.ndarray | None = None, samples: int = 200) -> Trajectory:
+    def retime(
+        self, v_max: np.ndarray | None = None, a_max: np.ndarray | None = None, samples: int = 200
+    ) -> Trajectory:
         """Time-optimal timing of the plan under joint velocity and acceleration limits (toppra).
 
         Each continuous segment (between reconfigurations) is a cubic spline through its configurations
@@ -227,7 +230,7 @@ class Plan:
             raise InputError("v_max, a_max: must be > 0")
         cuts = [0, *[k + 1 for k in self.reconfigurations], len(self.q)]
         t_all, q_all, qd_all, qdd_all, seg_all, start = [], [], [], [], [], 0.0
-        for s, (a0, b0) in enumerate(zip(cuts[:-1], cuts[1:])):
+        for s, (a0, b0) in enumerate(itertools.pairwise(cuts)):
             way = self.q[a0:b0]
             if len(way) < 2:
                 continue
@@ -290,11 +293,11 @@ def measure(plan: Plan, mujoco: bool = True) -> None:
     ]  # fmt: skip
     if len(obs):
         c, cm = float(plan.clearance.min()), float(plan.clearance_mujoco.min())
-        checks.append(Check("clearance", c >= plan.d_safe - 1e-12,
-                            f"clearance (capsules): min {c * 1e3:.3f} mm vs d_s = {plan.d_safe * 1e3:g} mm"))  # fmt: skip
+        text = f"clearance (capsules): min {c * 1e3:.3f} mm vs d_s = {plan.d_safe * 1e3:g} mm"
+        checks.append(Check("clearance", c >= plan.d_safe - 1e-12, text))
         if mujoco:
-            checks.append(Check("clearance_mujoco", cm >= plan.d_safe - CLEARANCE_TOL,
-                                f"clearance (MuJoCo mj_geomDistance on the arm's model): min {cm * 1e3:.3f} mm"))  # fmt: skip
+            text = f"clearance (MuJoCo mj_geomDistance on the arm's model): min {cm * 1e3:.3f} mm"
+            checks.append(Check("clearance_mujoco", cm >= plan.d_safe - CLEARANCE_TOL, text))
     plan.checks = checks
 
 

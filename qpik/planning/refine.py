@@ -59,7 +59,8 @@ OPTIONS = {
 }
 """IPOPT options of the path NLP."""
 NEAR = 0.1
-"""m: a waypoint's clearance constraints enter the NLP where a capsule is closer than d_s + NEAR to an obstacle at the start."""
+"""m: a waypoint's clearance constraints enter the NLP where a capsule is closer than d_s + NEAR to an obstacle
+at the start."""
 ROUNDS = 3
 """Solves of the NLP at most, each with the waypoints that came near an obstacle in the one before."""
 INSIDE = 1e-8

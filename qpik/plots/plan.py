@@ -22,8 +22,8 @@ from matplotlib.figure import Figure
 
 from qpik.analytic.intervals import wrap
 from qpik.errors import InputError
-from qpik.plots.closed_form import symbol
 from qpik.planning.plan import Plan
+from qpik.plots.closed_form import symbol
 from qpik.render import RenderUnavailable, render_configurations
 
 SHADE = ListedColormap([(0.78, 0.78, 0.78, 1.0), (1.0, 1.0, 1.0, 0.0)])
@@ -35,7 +35,7 @@ def selfmotion_map(plan: Plan, title: str | None = None) -> Figure:
     prof = plan.profile
     if prof is None:
         raise InputError("plan: no DP profile (an arm without a closed form, or a baseline)")
-    N, B, G = prof.ok.shape
+    B = prof.ok.shape[1]
     x = plan.progress
     sym = symbol(plan.param_name)
     cols = min(B, 4)
@@ -111,7 +111,9 @@ def joint_trajectories(plan: Plan, others: Sequence[Plan] = (), title: str | Non
     return fig
 
 
-def render_plan(plan: Plan, path: str | os.PathLike, frames: int = 6, size: tuple[int, int] = (360, 320)) -> Path | None:
+def render_plan(
+    plan: Plan, path: str | os.PathLike, frames: int = 6, size: tuple[int, int] = (360, 320)
+) -> Path | None:
     """A PNG of ``frames`` snapshots of the arm along the plan (evenly spaced waypoints) with the obstacles;
     None when no OpenGL context can be made."""
     if not len(plan.q):

@@ -118,7 +118,8 @@ def _report(problem: Problem, out: Path) -> tuple[str, Plan]:
     times = plan.times is not None
     lines.append(
         f"{robot.name}, {len(plan.poses)} waypoints" + (f" over {plan.progress[-1]:g} s" if times else "")
-        + f", {len(problem.obstacles)} obstacle(s), d_s = {plan.d_safe:g} m, joint step ≤ {problem.solver['max_joint_step']:g} rad"
+        + f", {len(problem.obstacles)} obstacle(s), d_s = {plan.d_safe:g} m,"
+        + f" joint step ≤ {problem.solver['max_joint_step']:g} rad"
         + (" and ≤ v_max·Δt" if times else "") + f"; objective: {problem.solver['objective']}"
         + (f" × {problem.solver['objective_weight']:g}" if problem.solver["objective"] != "none" else "")
         + f"; reconfigurations: {problem.solver['reconfigure']}."

@@ -80,8 +80,8 @@ from typing import Any, Literal
 import numpy as np
 
 from qpik.errors import InputError, ProblemFileError, UnknownRobotError
-from qpik.objectives import NAMES as OBJECTIVE_NAMES
 from qpik.geometry.shapes import Shape, shape_from_spec
+from qpik.objectives import NAMES as OBJECTIVE_NAMES
 from qpik.paths import TargetPath
 from qpik.problems.paths import PATHS
 from qpik.robots.loader import load_robot
