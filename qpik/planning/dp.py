@@ -76,7 +76,7 @@ class DPResult:
 
     Attributes:
         rows, index: (N,) the grid row and index of each waypoint's state (-1 past a failure).
-        q: (N, n) configurations, rad (nan past a failure).
+        q: (K, n) configurations, rad, of the waypoints before a failure (K = N without one).
         cost: J of the plan (its prefix up to the failure).
         reconfigurations: the waypoints k whose transition to k + 1 is a reconfiguration.
         failure: why the plan stops early ("forbid" only), or None.
@@ -270,16 +270,16 @@ def _backtrack(layers: _Layers, src, jumped, V, J, last: int, grid: Grid):
     n = grid.robot.dof
     Vf, Jf = V.reshape(-1), J.reshape(-1)
     live = np.isfinite(Vf)
-    rows, index, q = np.full(N, -1), np.full(N, -1), np.full((N, n), np.nan)
+    rows, index = np.full(N, -1), np.full(N, -1)
     if last < 0 or not live.any():
-        return rows, index, q
+        return rows, index, np.zeros((0, n))
     jmin = Jf[live].min()
     cand = live & (Jf == jmin)
     s = int(np.flatnonzero(cand)[np.argmin(Vf[cand])])
     for k in range(last, -1, -1):
         rows[k], index[k] = divmod(s, G)
         s = int(src[k, rows[k], index[k]]) if k else -1
-    q[: last + 1] = grid.configurations(np.arange(last + 1), rows[: last + 1], index[: last + 1])
+    q = grid.configurations(np.arange(last + 1), rows[: last + 1], index[: last + 1])
     return rows, index, q
 
 

@@ -57,7 +57,7 @@ class Profile:
     Attributes:
         values: (G,) the grid's parameter values, rad; ok: (N, B, G) feasible states.
         branches: (B,) public branch ids of the grid rows.
-        dp_param: (N,) the DP's parameter (rad, wrapped); dp_row: (N,) its grid row.
+        dp_param: (K,) the DP's parameter (rad, wrapped) and dp_row: (K,) its grid row at the planned waypoints.
     """
 
     values: np.ndarray
@@ -94,7 +94,7 @@ class Plan:
         progress: (N,) path progress in [0, 1] (or the times, s, when given).
         q: (K, n) the configuration at each planned waypoint, rad (K = N unless the plan failed).
         param: (K,) the redundancy parameter (δ or ψ, rad, wrapped) and branch: (K,) the public branch id
-            of each configuration (NaN and -1 for an arm without a closed form).
+            of each configuration (both empty for an arm without a closed form).
         param_name: ``"delta"``, ``"psi"`` or ``""``.
         status: ``"optimal"`` (the NLP improved the DP's plan), ``"dp"`` (the DP's plan: the NLP did not
             improve it or was not run), ``"tracking"`` (the QP controller's run, refined by the NLP for an
@@ -102,9 +102,11 @@ class Plan:
         failure: the first waypoint that cannot be planned and why, or "".
         least_violating: at that waypoint, the best the arm can do (a :class:`qpik.BestResult`'s summary), or "".
         reconfigurations: the waypoints k whose transition to k + 1 is a reconfiguration.
-        cost: the objective J of the plan; dp_cost: J of the DP's plan (NaN without one).
+        cost: the objective J of the plan (of its planned waypoints); dp_cost: J of the plan the NLP started
+            from (the DP's; without a closed form the QP controller's run).
         margin: (K,) the smallest distance to a joint limit, rad; clearance: (K,) the smallest capsule–obstacle
-            distance, m (inf without obstacles); clearance_mujoco: (K,) the same measured by MuJoCo;
+            distance, m (inf without obstacles); clearance_mujoco: (K,) the same measured by MuJoCo (empty when
+            not measured);
             manipulability: (K,) Yoshikawa's.
         step_bound: (N-1, n) the largest move of each joint allowed between waypoints, rad.
         d_safe: m. checks: the :class:`Check` list. profile: the DP's :class:`Profile` (closed form only).
@@ -126,8 +128,8 @@ class Plan:
     step_bound: np.ndarray
     d_safe: float
     obstacles: ObstacleSet
-    cost: float = np.nan
-    dp_cost: float = np.nan
+    cost: float = np.inf
+    dp_cost: float = np.inf
     failure: str = ""
     failure_waypoint: int = -1
     least_violating: str = ""
@@ -172,17 +174,22 @@ class Plan:
 
     def to_csv(self, path: str | os.PathLike | None = None) -> str:
         """The plan as CSV text (one row per planned waypoint; written to ``path`` if given): progress, q (rad),
-        parameter, branch, limit margin (rad), clearance (m, capsules and MuJoCo), manipulability."""
+        parameter, branch, limit margin (rad), clearance (m, capsules and MuJoCo), manipulability; a column
+        the plan does not have (no closed form, MuJoCo not measured) is left blank."""
         n = self.robot.dof
+
+        def cell(x: np.ndarray, k: int) -> str:
+            return repr(float(x[k])) if len(x) else ""
+
         head = ["waypoint", "progress", *[f"q{j + 1}" for j in range(n)], self.param_name or "param", "branch",
                 "margin_rad", "clearance_m", "clearance_mujoco_m", "manipulability"]  # fmt: skip
         buf = io.StringIO()
         buf.write(",".join(head) + "\n")
         for k in range(len(self.q)):
             vals = [str(k), repr(float(self.progress[k])), *(repr(float(v)) for v in self.q[k]),
-                    repr(float(self.param[k])), str(int(self.branch[k])), repr(float(self.margin[k])),
-                    repr(float(self.clearance[k])), repr(float(self.clearance_mujoco[k])),
-                    repr(float(self.manipulability[k]))]  # fmt: skip
+                    cell(self.param, k), str(int(self.branch[k])) if len(self.branch) else "",
+                    cell(self.margin, k), cell(self.clearance, k), cell(self.clearance_mujoco, k),
+                    cell(self.manipulability, k)]  # fmt: skip
             buf.write(",".join(vals) + "\n")
         text = buf.getvalue()
         if path is not None:
@@ -274,7 +281,7 @@ def measure(plan: Plan, mujoco: bool = True) -> None:
     if len(obs):
         d = distances(robot.capsule_segments(q), robot.capsule_radii, obs).d
         plan.clearance = d.reshape(K, -1).min(axis=1)
-        plan.clearance_mujoco = _mujoco_clearance(robot, obs, q) if mujoco else np.full(K, np.nan)
+        plan.clearance_mujoco = _mujoco_clearance(robot, obs, q) if mujoco else np.zeros(0)
     else:
         plan.clearance = plan.clearance_mujoco = np.full(K, np.inf)
     steps = np.abs(np.diff(q, axis=0)) / plan.step_bound[: K - 1]
@@ -292,10 +299,11 @@ def measure(plan: Plan, mujoco: bool = True) -> None:
               f"largest joint step {plan.max_step_ratio:.4g} × its bound (continuous transitions)"),
     ]  # fmt: skip
     if len(obs):
-        c, cm = float(plan.clearance.min()), float(plan.clearance_mujoco.min())
+        c = float(plan.clearance.min())
         text = f"clearance (capsules): min {c * 1e3:.3f} mm vs d_s = {plan.d_safe * 1e3:g} mm"
         checks.append(Check("clearance", c >= plan.d_safe - 1e-12, text))
         if mujoco:
+            cm = float(plan.clearance_mujoco.min())
             text = f"clearance (MuJoCo mj_geomDistance on the arm's model): min {cm * 1e3:.3f} mm"
             checks.append(Check("clearance_mujoco", cm >= plan.d_safe - CLEARANCE_TOL, text))
     plan.checks = checks

@@ -104,6 +104,8 @@ class Setup:
         point[:-1] += 0.5 * delta
         point[1:] += 0.5 * delta
         self.tr = dp.Transitions(lim, 1.0 / delta, point, dt, acc)
+        if objective is not None and not isinstance(objective, Objective | str):
+            raise InputError(f"objective: expected None, an Objective or a name, got {type(objective).__name__}")
         self.objective = None if objective is None else resolve(objective)
         self.obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
         self.d_safe = number(d_safe, "d_safe")
@@ -114,15 +116,15 @@ class Setup:
 
     def plan(self, q: np.ndarray, status: str, **kw) -> Plan:
         """A :class:`Plan` of configurations q (K, n) on these waypoints, measured."""
-        return Plan(self.robot, self.poses, self.times, self.progress, q, kw.pop("param", np.full(len(q), np.nan)),
-                    kw.pop("branch", np.full(len(q), -1)), kw.pop("param_name", ""), status, self.tr.step,
+        return Plan(self.robot, self.poses, self.times, self.progress, q, kw.pop("param", np.zeros(0)),
+                    kw.pop("branch", np.zeros(0, int)), kw.pop("param_name", ""), status, self.tr.step,
                     self.d_safe, self.obstacles, setup=self, **kw)  # fmt: skip
 
     def cost(self, q: np.ndarray, continuous: np.ndarray) -> float:
         """J of configurations q (N, n) (see :mod:`qpik.planning.dp`); ``continuous`` (N-1,): which
         transitions count in the motion term."""
         D = np.diff(q, axis=0)
-        motion = float(np.sum(np.einsum("kj,kj->k", D, D) * self.tr.motion * continuous))
+        motion = float(np.sum(np.einsum("kj,kj->k", D, D) * self.tr.motion[: len(D)] * continuous))
         if self.objective is None:
             return motion
         f = Evaluator(self.robot, self.objective, self.obstacles)(q, self.q_ref)[0]
@@ -182,7 +184,7 @@ def plan_self_motion(
         InputError: bad arguments (naming them).
     """
     setup = Setup(robot, path, objective, obstacles, times, max_joint_step, d_safe, a_max, q_ref, waypoints, project)
-    if reconfigure not in RECONFIGURE:
+    if not isinstance(reconfigure, str) or reconfigure not in RECONFIGURE:
         raise InputError(f"reconfigure: expected one of {RECONFIGURE}, got {reconfigure!r}")
     if setup.robot.closed_form is None:
         return _plan_joints(setup, flag(refine, "refine"), flag(mujoco, "mujoco"))
@@ -207,20 +209,19 @@ def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fe
         keep = np.zeros(grid.rows, bool)
         keep[[known.index(b) % grid.rows for b in ids]] = True
         grid.inside &= keep[None, :, None]
-    empty = np.flatnonzero(~grid.inside.any(axis=(1, 2)))
-    result = dp.solve(grid, setup.tr, int(np.ceil(window / grid.spacing)), fewest) if not len(empty) else None
+    result = dp.solve(grid, setup.tr, int(np.ceil(window / grid.spacing)), fewest)
     t_dp = time.perf_counter() - t0
     sym = grid.param_name
-    if result is None or result.failure is not None:
-        k = int(empty[0]) if result is None else result.failure.waypoint
-        why = _why_empty(grid, k) if result is None else result.failure.reason
-        least = _least_violating(setup, k)
-        prefix = np.zeros((0, setup.robot.dof)) if result is None else result.q[:k]
-        plan = setup.plan(prefix, "failed", param_name=sym, failure=why, failure_waypoint=k, least_violating=least,
-                          timings={"dp": t_dp})  # fmt: skip
-        if result is not None:
-            plan.branch, plan.param = _public(grid, result.rows[:k], result.index[:k])
-            plan.profile = _profile(grid, result)
+    if result.failure is not None:
+        k = result.failure.waypoint
+        continuous = np.ones(max(k - 1, 0), bool)
+        continuous[[j for j in result.reconfigurations if j < k - 1]] = False
+        cost = setup.cost(result.q[:k], continuous) if k else 0.0
+        plan = setup.plan(result.q[:k], "failed", param_name=sym, failure=result.failure.reason, failure_waypoint=k,
+                          least_violating=_least_violating(setup, k), timings={"dp": t_dp}, cost=cost,
+                          dp_cost=cost, reconfigurations=[j for j in result.reconfigurations if j < k - 1])  # fmt: skip
+        plan.branch, plan.param = _public(grid, result.rows[:k], result.index[:k])
+        plan.profile = _profile(grid, result)
         measure(plan, mujoco)
         return plan
     continuous = np.ones(len(setup.poses) - 1, bool)
@@ -255,15 +256,7 @@ def _public(grid: Grid, rows: np.ndarray, index: np.ndarray) -> tuple[np.ndarray
 def _profile(grid: Grid, result: dp.DPResult) -> Profile:
     live = result.index >= 0
     return Profile(grid.values, result.ok, grid.branch_of(np.arange(grid.rows)),
-                   np.where(live, grid.values[np.maximum(result.index, 0)], np.nan), result.rows)  # fmt: skip
-
-
-def _why_empty(grid: Grid, k: int) -> str:
-    """Why waypoint k has no grid value inside its exact feasible intervals (before any evaluation)."""
-    sym = "δ" if grid.param_name == "delta" else "ψ"
-    if not any(grid.intervals[k].intervals[b] for b in range(grid.rows)):
-        return f"no branch reaches this pose with every joint inside its limits at any {sym}"
-    return f"its feasible {sym} intervals hold no grid value (narrower than the grid step {grid.spacing:.3g} rad)"
+                   grid.values[result.index[live]], result.rows[live])  # fmt: skip
 
 
 def _least_violating(setup: Setup, k: int) -> str:

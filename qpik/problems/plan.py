@@ -144,7 +144,7 @@ def _report(problem: Problem, out: Path) -> tuple[str, Plan]:
     checks = [(c.text, c.ok) for c in plan.checks]
     if plan.status != "failed":
         checks.append((f"every waypoint planned ({len(plan.q)})", True))
-        if not np.isnan(plan.dp_cost):
+        if plan.dp_plan is not None:
             checks.append((f"NLP objective {plan.cost:.8g} ≤ DP objective {plan.dp_cost:.8g}",
                            plan.cost <= plan.dp_cost + 1e-12 * max(1.0, abs(plan.dp_cost))))  # fmt: skip
     else:
