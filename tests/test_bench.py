@@ -36,6 +36,7 @@ EXPECTED = {
         "solve_full, IPOPT (panda)",
         "mink.solve_ik iterated, daqp (zheng7)",
     ],
+    "plan": ["DP, 1 obstacle (iiwa14)", "NLP from the DP, 1 obstacle (iiwa14)", "DP, no obstacle (iiwa14)"],
 }
 
 
@@ -55,3 +56,5 @@ def test_bench_prints_every_row(name):
         assert all("p95" in row.note and "success" in row.note for row in rows)
     if name == "controller":  # the worst step, also as the best of the replays, is printed for every row
         assert all("best of 3 replays" in row.note for row in rows)
+    if name == "plan":  # the planned path passes every check, and the quoted peer says it is quoted
+        assert "all checks hold" in rows[1].note and "quoted, not measured" in rows[0].note

@@ -23,6 +23,9 @@ from typing import Any
 
 from qpik.errors import InputError
 
+CONNECT = "10s"
+"""How long to wait for a Dask scheduler."""
+
 
 def run_batch(
     fn: Callable[[Any], Any],
@@ -75,8 +78,8 @@ def _dask(fn, items, scheduler: str):
     except ImportError:
         raise InputError("scheduler: a Dask cluster needs dask.distributed (pip install 'qpik[cluster]')") from None
     try:
-        client = Client(scheduler, timeout="10s")
-    except OSError as exc:
+        client = Client(scheduler, timeout=CONNECT)
+    except (OSError, ValueError) as exc:  # no scheduler there, or not an address
         raise InputError(f"scheduler: cannot reach the Dask scheduler at {scheduler} ({exc})") from None
     try:
         futures = client.map(_call, [fn] * len(items), items, pure=False)
