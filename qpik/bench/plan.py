@@ -7,7 +7,8 @@ The DP grids 720 values of ψ on each of the 8 branches at every waypoint (5.76 
 exact feasible intervals; the DP and the NLP are timed separately (``Plan.timings``), after one
 warm-up run that compiles and caches the functions. Rows: the DP (grid, feasible intervals, states,
 transitions, backtracking), the NLP (building the sparse NLP and IPOPT), and the same DP without the
-obstacle. With ``--repeat`` below 1,000 the path has 100 waypoints and runs once (a quick look). Descartes' 65 s for 900 points without collision checking (its issue #55) is quoted, not measured.
+obstacle. With ``--repeat`` below 1,000 the path has 100 waypoints and runs once (a quick
+look). Descartes' 65 s for 900 points without collision checking (its issue #55) is quoted, not measured.
 """
 
 from __future__ import annotations
