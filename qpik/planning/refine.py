@@ -58,7 +58,7 @@ OPTIONS = {
     "show_eval_warnings": False,
 }
 """IPOPT options of the path NLP."""
-NEAR = 0.1
+NEAR = 0.05
 """m: a waypoint's clearance constraints enter the NLP where a capsule is closer than d_s + NEAR to an obstacle
 at the start."""
 ROUNDS = 3
