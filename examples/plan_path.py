@@ -17,7 +17,6 @@ from pathlib import Path
 
 import numpy as np
 
-import qpik
 from qpik.planning.baselines import constant_parameter
 from qpik.plots import save
 from qpik.plots.plan import joint_trajectories, render_plan, selfmotion_map
@@ -32,7 +31,8 @@ sweep = load(find_problem("nammoto2012_joint_limits_plan"))
 plan = plan_problem(sweep)
 robot = sweep.robot
 print(f"{robot.name}, p_z from 0.9 to 0.3 m, hand down: {plan.summary()}")
-print(f"  plan: δ from {plan.param[0]:.3f} to {plan.param[-1]:.3f} rad on branch(es) {sorted({int(b) for b in plan.branch})},"
+branches = sorted({int(b) for b in plan.branch})
+print(f"  plan: δ from {plan.param[0]:.3f} to {plan.param[-1]:.3f} rad on branch(es) {branches},"
       f" max |θ6| = {np.abs(plan.q[:, 5]).max():.3f} rad (limit {robot.q_max[5]:.3f})")
 length = lambda q: float(np.linalg.norm(np.diff(q, axis=0), axis=1).sum())  # noqa: E731
 for delta in (0.0, 0.70):
