@@ -55,6 +55,7 @@ EXPECTED = {
         "solve_full, IPOPT (panda)",
         "mink.solve_ik iterated, daqp (zheng7)",
     ],
+    "plan": ["DP, 1 obstacle (iiwa14)", "NLP from the DP, 1 obstacle (iiwa14)", "DP, no obstacle (iiwa14)"],
 }
 
 
@@ -76,3 +77,5 @@ def test_bench_prints_every_row(name):
         assert all("best of 3 replays" in row.note for row in rows)
         # with obstacles, every row says how often its library's obstacle rows bind
         assert all("binding" in row.note for row in rows if not row.label.startswith("no obstacles"))
+    if name == "plan":  # the planned path passes every check, and the quoted peer says it is quoted
+        assert "all checks hold" in rows[1].note and "quoted, not measured" in rows[0].note

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-BENCHES = ("kinematics", "analytic", "controller", "ik", "nlp")
+BENCHES = ("kinematics", "analytic", "controller", "ik", "nlp", "plan")
 
 
 @dataclass
