@@ -99,4 +99,7 @@ def main(out: Path) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("qpik-out/examples") / Path(__file__).stem)
+    try:
+        main(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("qpik-out/examples") / Path(__file__).stem)
+    except qpik.InputError as error:  # example-robot-data not installed: say so in one line
+        sys.exit(f"{Path(__file__).name}: {error}")
