@@ -291,3 +291,26 @@ def test_set_posture_takes_the_nlp_answer():
     assert np.abs(ctrl.step(q)).max() < 1e-9  # on the target and on the reference: nothing to do
     with pytest.raises(qpik.InputError, match="q_ref"):
         ctrl.set_posture(np.zeros(3))
+
+
+def test_a_floor_under_the_base_is_not_a_penetration():
+    """A floor at the base (z <= 0) overlaps the iiwa's first capsule, which no joint moves: the controller
+    still reaches the pose, never reports "penetrating", and its clearance is that of the moving capsules."""
+    from qpik.geometry.shapes import HalfSpace
+
+    robot = qpik.load_robot("iiwa14")
+    floor = HalfSpace(np.array([0.0, 0.0, 1.0]), 0.0, name="floor")
+    q = np.array([0.0, 0.5, 0.0, -1.2, 0.0, 0.8, 0.0])
+    target = robot.fk(np.array([0.3, 0.6, 0.0, -1.0, 0.0, 0.9, 0.0]))
+    ctrl = Controller.for_robot(robot, target=target, obstacles=[floor], dt=0.002)
+    statuses = set()
+    for _ in range(400):
+        q_before = q
+        q = q + ctrl.step(q) * ctrl.dt
+        statuses.add(ctrl.last.status)
+    segments = robot.capsule_segments(q_before)  # the configuration of the last step
+    lowest = segments[..., 2].min(axis=1) - robot.capsule_radii  # capsule to plane z = 0, m
+    assert lowest[0] < 0  # the first capsule overlaps the floor
+    assert ctrl.last.min_clearance == pytest.approx(lowest[2:].min(), abs=1e-9)
+    assert statuses == {"ok"}
+    assert np.linalg.norm(pose_error(target, robot.fk(q))) < 1e-3

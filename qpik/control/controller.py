@@ -71,7 +71,8 @@ class StepInfo:
             hold, the first of failed, yielding, penetrating, recovering is reported.
         active: names of the constraints at their bound (``"joint3 position upper"``,
             ``"obstacle sphere0 / link4"``, ...).
-        min_clearance: smallest capsule–obstacle signed distance, m (inf without obstacles).
+        min_clearance: smallest capsule–obstacle signed distance, m, over the capsules a joint moves
+            (inf without obstacles).
         relaxation: 0 if the QP was solved as built; else the part of the separating rows'
             demand that was dropped (3/4, 15/16, or 1: only approach is forbidden, which
             ``v = 0`` meets) when they conflicted (failure policy, step 4).
@@ -217,11 +218,13 @@ class Controller:
 
     def _summary(self, s: SymState) -> list:
         """The step's summary, computed in the compiled call: per :class:`ObstacleLimit` its smallest
-        capsule–obstacle distance (m; inf without pairs), then 1.0 if q is past a :class:`ConfigurationLimit`'s
+        capsule–obstacle distance (m; inf without pairs) over the capsules a joint moves
+        (:attr:`~qpik.robots.robot.Robot.fixed_capsules` are left out), then 1.0 if q is past a :class:`ConfigurationLimit`'s
         range (else 0.0), then the norm of the first :class:`FrameTask`'s pose error ``[m; rad]`` (nan without one)."""
         out = []
         for lim in self.obstacle_limits:
-            d = lim.distances_expr(s)
+            moving = np.repeat(~self.robot.fixed_capsules, len(lim.obstacles))  # pair (c, o) at c·O + o
+            d = lim.distances_expr(s)[np.flatnonzero(moving).tolist()]
             out.append(ca.mmin(d) if d.numel() else ca.inf)
         past = ca.SX(0.0)
         for lim in self.config_limits:

@@ -133,6 +133,20 @@ class Robot:
         return out if batched else out[0]
 
     @cached_property
+    def fixed_capsules(self) -> np.ndarray:
+        """Which capsules no joint moves (C,) bool: e.g. a first link's capsule on the first joint's axis.
+
+        A capsule is fixed when its world end points are the same, to 1e-12 m, at 16 configurations
+        drawn uniformly inside the limits (clipped to ±π) from a fixed seed; a capsule that any joint
+        moves moves at almost every configuration. Its distance to an obstacle is a constant that no
+        velocity can change: the controller leaves such pairs out of its rows and clearances.
+        """
+        lo, hi = np.maximum(self.q_min, -np.pi), np.minimum(self.q_max, np.pi)
+        q = lo + (hi - lo) * np.random.default_rng(0).random((16, self.dof))
+        segments = self.capsule_segments(q)  # (16, C, 2, 3)
+        return np.all(np.abs(segments - segments[:1]) <= 1e-12, axis=(0, 2, 3))
+
+    @cached_property
     def capsule_radii(self) -> np.ndarray:
         return np.array([c.radius for c in self.capsules])
 
