@@ -219,8 +219,9 @@ class Controller:
     def _summary(self, s: SymState) -> list:
         """The step's summary, computed in the compiled call: per :class:`ObstacleLimit` its smallest
         capsule–obstacle distance (m; inf without pairs) over the capsules a joint moves
-        (:attr:`~qpik.robots.robot.Robot.fixed_capsules` are left out), then 1.0 if q is past a :class:`ConfigurationLimit`'s
-        range (else 0.0), then the norm of the first :class:`FrameTask`'s pose error ``[m; rad]`` (nan without one)."""
+        (:attr:`~qpik.robots.robot.Robot.fixed_capsules` are left out), then 1.0 if q is past a
+        :class:`ConfigurationLimit`'s range (else 0.0), then the norm of the first :class:`FrameTask`'s pose
+        error ``[m; rad]`` (nan without one)."""
         out = []
         for lim in self.obstacle_limits:
             moving = np.repeat(~self.robot.fixed_capsules, len(lim.obstacles))  # pair (c, o) at c·O + o
