@@ -38,11 +38,13 @@ round-off ~1e-16/eps, so agreement to 1e-6 (absolute) is a meaningful test.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import settings
 from hypothesis import strategies as st
 
 import qpik  # first: it chooses MuJoCo's GL backend before any test module imports mujoco
@@ -53,6 +55,12 @@ from qpik.validate import project_to_so3
 ARMS = ("nammoto7", "iiwa14", "zheng7", "panda")
 SEEDS = st.integers(min_value=0, max_value=2**32 - 1)
 MODEL_DIR = Path(__file__).parent / "models"
+
+# "reproducible" (the default): every run draws the same examples (a seed per test), so a CI run on a
+# clean checkout repeats the last one; HYPOTHESIS_PROFILE=explore draws new examples on every run.
+settings.register_profile("reproducible", derandomize=True)
+settings.register_profile("explore", derandomize=False)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "reproducible"))
 
 
 
