@@ -48,7 +48,7 @@ from qpik.compiled import RowMap
 from qpik.errors import InputError
 from qpik.geometry.distance import ObstacleSet, set_expr
 from qpik.robots.manipulability import hessian_rows, jacobian_rows, manipulability_gradient_expr
-from qpik.validate import finite_array
+from qpik.validate import finite_array, flag, number
 
 if TYPE_CHECKING:
     from qpik.robots.robot import Robot
@@ -214,6 +214,7 @@ class Objective(ABC):
     """
 
     name: str = "objective"
+    __array_ufunc__ = None  # ``array * objective`` calls :meth:`__rmul__` (which checks the weight), not numpy
 
     def param_size(self, robot: Robot) -> int:
         """Length of :meth:`params` for ``robot`` (default 0)."""
@@ -259,7 +260,8 @@ class Objective(ABC):
         return type(self).lower_bound is not Objective.lower_bound
 
     def __mul__(self, weight: float) -> Sum:
-        return Sum([(w * float(weight), o) for w, o in self.terms])
+        weight = number(weight, "weight")
+        return Sum([(w * weight, o) for w, o in self.terms])
 
     __rmul__ = __mul__
 
@@ -283,7 +285,8 @@ class Sum(Objective):
         for w, o in terms:
             if not isinstance(o, Objective):
                 raise InputError(f"terms: expected Objective instances, got {type(o).__name__}")
-            flat += [(float(w) * v, t) for v, t in o.terms]
+            weight = number(w, "terms: weight", minimum=None)
+            flat += [(weight * v, t) for v, t in o.terms]
         if not flat:
             raise InputError("terms: a Sum needs at least one objective")
         weights = np.array([w for w, _ in flat])
@@ -341,6 +344,14 @@ class Sum(Objective):
         return np.broadcast_to(total, (len(box.q_lo),)).astype(float)
 
 
+def _positive(x: object, name: str) -> float:
+    """``x`` as a finite float > 0, else :class:`InputError` naming ``name``."""
+    value = number(x, name)
+    if value <= 0:
+        raise InputError(f"{name}: must be > 0, got {value:g}")
+    return value
+
+
 def _normalised(robot: Robot, q: ca.SX) -> ca.SX:
     """The 2n normalised distances to the limits, :math:`(q - l)/\\rho` and :math:`(u - q)/\\rho`."""
     lo, hi = np.asarray(robot.q_min, float), np.asarray(robot.q_max, float)
@@ -373,10 +384,8 @@ class JointLimitMargin(Objective):
     name = "margin"
 
     def __init__(self, smooth: bool = False, sharpness: float = 20.0):
-        self._smooth = bool(smooth)
-        self.sharpness = float(sharpness)
-        if not np.isfinite(self.sharpness) or self.sharpness <= 0:
-            raise InputError(f"sharpness: must be finite and > 0, got {sharpness}")
+        self._smooth = flag(smooth, "smooth")
+        self.sharpness = _positive(sharpness, "sharpness")
 
     def structure(self) -> tuple:
         return (self._smooth,)
@@ -417,7 +426,7 @@ class Manipulability(Objective):
     name = "manipulability"
 
     def __init__(self, translational: bool = False):
-        self.translational = bool(translational)
+        self.translational = flag(translational, "translational")
 
     def structure(self) -> tuple:
         return (self.translational,)
@@ -439,9 +448,8 @@ class Clearance(Objective):
     name = "clearance"
 
     def __init__(self, cap: float = 0.1, smooth: bool = False, sharpness: float = 100.0):
-        self.cap, self.sharpness, self._smooth = float(cap), float(sharpness), bool(smooth)
-        if not (np.isfinite(self.cap) and self.cap > 0 and np.isfinite(self.sharpness) and self.sharpness > 0):
-            raise InputError(f"Clearance: cap and sharpness must be finite and > 0, got {cap}, {sharpness}")
+        self.cap, self.sharpness = _positive(cap, "cap"), _positive(sharpness, "sharpness")
+        self._smooth = flag(smooth, "smooth")
 
     def structure(self) -> tuple:
         return (self._smooth,)
@@ -526,7 +534,7 @@ class Expression(Objective):
     def __init__(self, fn: Callable[[ca.SX], ca.SX] | ca.Function, smooth: bool = True, name: str = "expression"):
         if not callable(fn):
             raise InputError(f"fn: expected a casadi.Function or a callable, got {type(fn).__name__}")
-        self.fn, self._smooth, self.name = fn, bool(smooth), str(name)
+        self.fn, self._smooth, self.name = fn, flag(smooth, "smooth"), str(name)
         self._token = next(_TOKENS)
 
     def structure(self) -> tuple:
@@ -538,9 +546,13 @@ class Expression(Objective):
 
     def split(self, ctx: Context, p: ca.SX) -> Split:
         out = self.fn(ctx.q)
-        if isinstance(out, (list, tuple)):
+        if isinstance(out, (list, tuple)) and out:
             out = out[0]
-        out = ca.SX(out) if not isinstance(out, ca.SX) else out
+        if not isinstance(out, ca.SX):
+            try:
+                out = ca.SX(out)
+            except (NotImplementedError, TypeError, RuntimeError):
+                raise InputError(f"fn: must return a scalar CasADi expression of q, got {type(out).__name__}") from None
         if out.numel() != 1:
             raise InputError(f"fn: must return a scalar expression of q, got shape {out.shape}")
         return Split(out)
@@ -646,6 +658,6 @@ def resolve(objective: Objective | str) -> Objective:
     """An objective, or one with default parameters from its name (:data:`NAMES`)."""
     if isinstance(objective, Objective):
         return objective
-    if objective not in _NAMED:
+    if not isinstance(objective, str) or objective not in _NAMED:
         raise InputError(f"objective: expected an Objective or one of {list(NAMES)}, got {objective!r}")
     return _NAMED[objective]()

@@ -138,7 +138,11 @@ def test_statuses_and_the_least_violating_branch():
     far = np.eye(4)
     far[:3, 3] = (2.0, 0.0, 0.5)
     res = solve_best(robot, far)
-    assert res.status == "unreachable" and np.isnan(res.q).all() and not any(b.feasible for b in res.branches)
+    assert res.status == "unreachable" and res.objective == np.inf and not any(b.feasible for b in res.branches)
+    # q: the closed form's nearest configuration (stretched toward the pose), its pose error the violation
+    reach = np.linalg.norm(robot.fk(res.q)[:3, 3] - far[:3, 3])
+    assert np.isfinite(res.q).all() and res.violation >= reach > 0.5
+    assert all(b.q is None and b.param is None and b.objective == np.inf for b in res.branches)
     # the elbow (q4, which no arm angle changes) beyond its limit: reachable, no branch feasible
     q = np.array([0.3, 0.5, 0.0, 2.5, 0.2, 0.5, 0.0])
     res = solve_best(robot, robot.fk(q))
