@@ -21,6 +21,7 @@ from qpik.errors import (
     UnreachableError,
 )
 from qpik.nlp import BestResult, solve_best, solve_ik
+from qpik.planning import Plan, plan_self_motion
 from qpik.robots import CATALOG, DHChain, Joint, LinkCapsule, Robot, SerialChain, load_robot
 
 __version__ = "0.1.0"
@@ -37,6 +38,7 @@ __all__ = [
     "Joint",
     "LinkCapsule",
     "NoClosedFormError",
+    "Plan",
     "ProblemFileError",
     "QpikError",
     "RenderUnavailable",
@@ -50,6 +52,7 @@ __all__ = [
     "feasible_intervals",
     "ik",
     "load_robot",
+    "plan_self_motion",
     "redundancy_parameter",
     "solve_best",
     "solve_ik",

@@ -56,18 +56,20 @@ def compiler() -> str | None:
     return found
 
 
-def shared_library(name: str, source: bytes) -> Path | None:
+def shared_library(name: str, source: bytes, flags: Sequence[str] = (), fatal: bool = True) -> Path | None:
     """C ``source`` compiled once into a shared library cached in :func:`cache_dir`, or None.
 
-    The library is keyed by a hash of the source, the flags and CasADi's version.
-    None when :func:`compiler` is None or compilation fails (then a warning says
-    why, once, and native code stays off in this process).
+    The library is keyed by a hash of the source, the flags (:data:`CFLAGS` and ``flags``,
+    e.g. include folders) and CasADi's version. None when :func:`compiler` is None or
+    compilation fails: then a warning says why, once, and with ``fatal`` native code stays
+    off in this process (without it only this library is missing).
     """
     global _native_failed
     cc = compiler()
     if cc is None:
         return None
-    key = hashlib.sha256(source + " ".join(CFLAGS).encode() + ca.__version__.encode()).hexdigest()[:20]
+    cflags = (*CFLAGS, *flags)
+    key = hashlib.sha256(source + " ".join(cflags).encode() + ca.__version__.encode()).hexdigest()[:20]
     try:
         folder = cache_dir()
         folder.mkdir(parents=True, exist_ok=True)
@@ -77,11 +79,15 @@ def shared_library(name: str, source: bytes) -> Path | None:
                 src = Path(tmp, f"{name}.c")
                 src.write_bytes(source)
                 partial = folder / f"{lib.name}.{os.getpid()}.tmp"
-                subprocess.run([cc, *CFLAGS, str(src), "-o", str(partial), "-lm"], check=True, capture_output=True)
+                subprocess.run([cc, *cflags, str(src), "-o", str(partial), "-lm"], check=True, capture_output=True)
                 os.replace(partial, lib)  # atomic: concurrent processes never see a partial library
         return lib
     except (OSError, subprocess.CalledProcessError) as exc:
-        _native_failed = f"{type(exc).__name__}: {exc}"
+        why = f"{type(exc).__name__}: {exc}"
+        if not fatal:
+            warnings.warn(f"qpik: {name} not compiled ({why})", stacklevel=2)
+            return None
+        _native_failed = why
         warnings.warn(f"qpik: native compilation off ({_native_failed})", stacklevel=2)
         return None
 
@@ -140,11 +146,16 @@ class Compiled:
         fn: a CasADi ``Function`` with dense inputs and outputs.
         compile: evaluate machine code from :func:`native` rather than CasADi's
             virtual machine (same results).
+        library: the shared library of ``fn`` already built by :func:`native_library`
+            (then ``compile`` is not consulted).
 
     Attributes:
         library: the shared library exporting the function as ``fn.name()`` (the C
             calling convention of CasADi's generated code, for C callers such as
             :class:`qpik.analytic.intervals.Assembler`), or None on the virtual machine.
+        kernel: the compiled extension's call of that library (:func:`qpik.fastcall.kernel`),
+            returning :attr:`outputs` (or None for arguments it does not take), or None
+            without the extension.
 
     Calling it with numpy inputs returns *views* of internal output buffers
     shaped like the CasADi outputs (row-major ``(rows, cols)``, squeezed to 1-D
@@ -152,8 +163,8 @@ class Compiled:
     they must outlive it.
     """
 
-    def __init__(self, fn: ca.Function, compile: bool = True):
-        lib = native_library(fn) if compile else None
+    def __init__(self, fn: ca.Function, compile: bool = True, library: Path | None = None):
+        lib = library if library is not None else native_library(fn) if compile else None
         self.fn = _load(fn, lib)
         self.library = lib if self.fn is not fn else None
         fn = self.fn
@@ -169,6 +180,21 @@ class Compiled:
             rows, cols = fn.size_out(i)
             # CasADi stores column-major: reshape (cols, rows) then transpose.
             self._views.append(r if cols == 1 else r.reshape(cols, rows).T)
+        self.kernel = self.fast(result=self._views)
+
+    def fast(
+        self,
+        inputs: Sequence[str] = (),
+        outputs: Sequence[tuple[str, tuple[int, ...]]] = (),
+        result: object = None,
+    ):
+        """A :class:`qpik.fastcall` kernel over this function's buffers (checked inputs, new or caller-owned
+        outputs: :func:`qpik.fastcall.kernel`), or None on the virtual machine or without the extension."""
+        if self.library is None:
+            return None
+        from qpik.fastcall import kernel
+
+        return kernel(self.fn, self.library, self._args, self._res, result, inputs, outputs)
 
     @property
     def outputs(self) -> Sequence[np.ndarray]:
@@ -176,6 +202,10 @@ class Compiled:
         return self._views
 
     def __call__(self, *args: np.ndarray) -> Sequence[np.ndarray]:
+        if self.kernel is not None:
+            out = self.kernel(*args)
+            if out is not None:
+                return out
         for dst, src in zip(self._args, args):
             if type(src) is np.ndarray and src.ndim == 1:
                 dst[:] = src  # the common case, without conversions

@@ -7,6 +7,7 @@ message that names the argument.
 from __future__ import annotations
 
 import math
+from functools import cache
 
 import numpy as np
 
@@ -109,6 +110,8 @@ def flag(x: object, name: str) -> bool:
 
 def joint_vector(q: object, dof: int, name: str = "q") -> tuple[np.ndarray, bool]:
     """Check a joint vector ``(dof,)`` or batch ``(N, dof)``; return it and whether it is batched."""
+    if (check := _vector_check()) is not None and check(q, dof):  # one float64 vector, checked in C
+        return q, False
     arr = finite_array(q, name)
     if arr.ndim == 1 and arr.shape[0] == dof:
         return arr, False
@@ -156,6 +159,8 @@ def pose(T: object, name: str = "pose", project: bool = False) -> tuple[np.ndarr
     The last row must be ``[0, 0, 0, 1]`` (within 1e-12); positions within
     :data:`MAX_LENGTH` m. Returns a new array and whether it is batched.
     """
+    if project is False and (check := _pose_check()) is not None and check(T):  # one pose, checked in C (qpik.fastcall)
+        return T.copy(), False
     project = flag(project, "project")
     arr = np.array(finite_array(T, name), dtype=float)  # a copy: projection writes into it
     if arr.shape[-2:] != (4, 4) or arr.ndim not in (2, 3):
@@ -194,6 +199,24 @@ def single_pose(T: object, name: str = "pose", project: bool = False) -> np.ndar
 
 
 _LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
+
+
+@cache
+def _vector_check():
+    """The compiled extension's ``vector_ok`` (:mod:`qpik.fastcall`), or None without it."""
+    from qpik.fastcall import extension
+
+    mod = extension()
+    return None if mod is None else mod.vector_ok
+
+
+@cache
+def _pose_check():
+    """The compiled extension's ``pose_ok`` (:mod:`qpik.fastcall`), or None without it."""
+    from qpik.fastcall import extension
+
+    mod = extension()
+    return None if mod is None else mod.pose_ok
 
 
 def _last_row_defect(T: np.ndarray) -> float:

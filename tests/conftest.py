@@ -163,3 +163,24 @@ def fd_geometric_jacobian(fk: Callable[[np.ndarray], np.ndarray], q: np.ndarray,
     W = np.einsum("...ijk,...lj->...kil", dT[..., :3, :3, :], T[..., :3, :3])  # (..., n, 3, 3)
     Jw = np.stack([W[..., 2, 1], W[..., 0, 2], W[..., 1, 0]], axis=-2)
     return np.concatenate([Jv, Jw], axis=-2)
+
+
+def mujoco_poses(robot: qpik.Robot, Q: np.ndarray, model=None, body: str | None = None) -> np.ndarray:
+    """Poses (N, 4, 4) by MuJoCo's own kinematics of a loaded arm's model (default ``robot.mj_model()``):
+    of the end-effector site, or of ``body``; the model's other joints at their reference."""
+    import mujoco  # here, not at the top: qpik must choose MuJoCo's GL backend before mujoco is imported
+
+    model = robot.mj_model() if model is None else model
+    data = mujoco.MjData(model)
+    adr = [model.jnt_qposadr[model.joint(n).id] for n in robot.joint_names]
+    out = np.zeros((len(Q), 4, 4))
+    for i, q in enumerate(np.atleast_2d(Q)):
+        data.qpos[:] = model.qpos0
+        data.qpos[adr] = q
+        mujoco.mj_kinematics(model, data)
+        if body is None:
+            R, p = data.site_xmat[model.site(robot.site).id], data.site_xpos[model.site(robot.site).id]
+        else:
+            R, p = data.xmat[model.body(body).id], data.xpos[model.body(body).id]
+        out[i, :3, :3], out[i, :3, 3], out[i, 3, 3] = R.reshape(3, 3), p, 1.0
+    return out

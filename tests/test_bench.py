@@ -11,14 +11,33 @@ import pytest
 from qpik.bench import BENCHES, Row, render
 
 EXPECTED = {
-    "kinematics": ["iiwa14: qpik fk_jacobian (1 q)", "iiwa14: mink", "panda: qpik batched N=10000, per q"],
+    "kinematics": [
+        "iiwa14: qpik fk_jacobian (1 q)",
+        "iiwa14: pinocchio J + pose",
+        "iiwa14: pinocchio J only",
+        "iiwa14: mink",
+        "panda: qpik batched N=10000, per q",
+    ],
     "analytic": [
         "ssik iiwa14_ik.solve (iiwa14)",
         "qpik.ik, 1 pose (nammoto7)",
         "qpik.feasible_intervals (nammoto7)",
         "qpik.feasible_intervals (iiwa14)",
+        "iiwa14 q3 locked: qpik.ik, 8 branches",
+        "iiwa14 q3 locked: EAIK IK (6R)",
+        "iiwa14 q3 locked: ik-geo get_ik (6R)",
     ],
-    "controller": ["mink + osqp", "mink + daqp", "qpik + osqp", "qpik + daqp", "qpik + proxqp", "qpik + quadprog"],
+    "controller": [
+        "no obstacles, hot: mink + osqp (rebuilt each call)",
+        "no obstacles, hot: qpik + osqp (persistent)",
+        "no obstacles, hot: qpik + daqp",
+        "mink + osqp (rebuilt each call)",
+        "mink + daqp",
+        "qpik + osqp (persistent)",
+        "qpik + daqp",
+        "qpik + proxqp",
+        "qpik + quadprog",
+    ],
     "ik": [
         "iiwa14: qpik.solve_ik (closed form)",
         "iiwa14: TRAC-IK Speed",
@@ -36,6 +55,7 @@ EXPECTED = {
         "solve_full, IPOPT (panda)",
         "mink.solve_ik iterated, daqp (zheng7)",
     ],
+    "plan": ["DP, 1 obstacle (iiwa14)", "NLP from the DP, 1 obstacle (iiwa14)", "DP, no obstacle (iiwa14)"],
 }
 
 
@@ -55,3 +75,7 @@ def test_bench_prints_every_row(name):
         assert all("p95" in row.note and "success" in row.note for row in rows)
     if name == "controller":  # the worst step, also as the best of the replays, is printed for every row
         assert all("best of 3 replays" in row.note for row in rows)
+        # with obstacles, every row says how often its library's obstacle rows bind
+        assert all("binding" in row.note for row in rows if not row.label.startswith("no obstacles"))
+    if name == "plan":  # the planned path passes every check, and the quoted peer says it is quoted
+        assert "all checks hold" in rows[1].note and "quoted, not measured" in rows[0].note

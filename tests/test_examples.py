@@ -482,3 +482,45 @@ def test_package_arm(run_example) -> None:
     assert clearance(run["q"]) * 1e3 == pytest.approx(with_limit, abs=1e-3)
     assert clearance(run["q_free"]) * 1e3 == pytest.approx(without, abs=1e-3)
     assert with_limit > 0 > without
+
+
+def test_plan_path(run_example) -> None:
+    """The iiwa plan's CSV: the DH product of each row reaches the wipe path of the problem file (the formula
+    written here from its TOML) to 1e-9 inside the datasheet limits, every capsule of the twin (MuJoCo
+    kinematics) 2 cm from the post, consecutive rows within the joint-step bounds; the retimed duration is
+    at least what the speed limits allow; the Nammoto lines say δ = 0 leaves the limits and the plan does not."""
+    result = run_example("plan_path")
+    out = result.stdout
+    spec = toml_problem("iiwa_wiping_plan")
+    prm, n = spec["target"]["path_params"], spec["solver"]["waypoints"]
+    t = np.linspace(0.0, prm["duration"], n)
+    w = 2 * np.pi * prm["strokes"] / prm["duration"]
+    p = np.asarray(prm["center"]) + np.stack(
+        [prm["amplitude"] * np.sin(w * t), -prm["length"] / 2 + prm["length"] * t / prm["duration"], 0 * t], axis=1
+    )
+    rows = np.loadtxt(result.out / "iiwa_wiping_plan.csv", delimiter=",", skiprows=1)
+    q = rows[:, 2:9]
+    assert q.shape == (n, 7)
+    chain = qpik.load_robot("iiwa14").chain
+    for k in range(n):
+        T = dh_fk(chain, q[k])
+        assert np.abs(T[:3, 3] - p[k]).max() < 1e-9 and np.abs(T[:3, :3] - np.diag([1.0, -1.0, -1.0])).max() < 1e-9
+    assert np.all(np.abs(q) <= IIWA_Q_MAX + 1e-12)
+    assert np.all(np.abs(np.diff(q, axis=0)) <= np.minimum(0.1, IIWA_V_MAX * (t[1] - t[0])) + 1e-9)
+    post = next(o for o in spec["obstacles"] if o["name"] == "post")
+    model = qpik.load_robot("iiwa14").mj_model()
+    data = mujoco.MjData(model)
+    names = [model.geom(i).name for i in range(model.ngeom) if model.geom(i).name.endswith("_capsule")]
+    a0, b0 = np.asarray(post["p0"]), np.asarray(post["p1"])
+    for qk in q[::5]:
+        segs, radii = capsule_segments(model, data, qk, names)
+        for (a, b), r in zip(segs, radii):  # segment–segment distance by dense sampling of one of them
+            pts = a + np.linspace(0, 1, 401)[:, None] * (b - a)
+            d = min(point_segment_distance(x, a0, b0) for x in pts) - r - post["radius"]
+            assert d >= 0.02 - 1e-4
+    duration = float(re.search(rf"retimed .*?: ({FLOAT}) s", out).group(1))
+    travel = np.abs(np.diff(q, axis=0)).sum(axis=0)  # the spline through the rows travels at least this far
+    assert duration >= (travel / IIWA_V_MAX).max() - 1e-6
+    lines = {m.group(1): int(m.group(2)) for m in re.finditer(r"δ = (0\.\d\d) held on branch 1: (\d+) waypoints", out)}
+    assert lines["0.00"] > 0 and lines["0.70"] == 0
+    assert "FAIL" not in out

@@ -274,6 +274,14 @@ def _clik(kind, robot, gain, dt, q, target):
     return law.step(q, target), law.last
 
 
+def _plan(robot, path, objective, obstacles, step, reconfigure):
+    return qpik.plan_self_motion(robot, path, objective, obstacles, max_joint_step=step, reconfigure=reconfigure,
+                                 resolution=36, refine=False, mujoco=False)  # fmt: skip
+
+
+PLAN_PATH = IIWA.fk(IIWA.q_home + np.linspace(0.0, 0.2, 4)[:, None])
+
+
 def _intervals(robot, pose, branch, value):
     fi = qpik.feasible_intervals(robot, pose)
     return fi[branch], fi.measure(branch), fi.contains(branch, value)
@@ -386,6 +394,10 @@ CASES = [
     Case("ObstacleSet", lambda shapes: len(geometry.ObstacleSet(shapes)), (OBSTACLES,)),
     Case("distances", geometry.distances, (SEGMENTS, RADII, OBSTACLES)),
     Case("distance", geometry.distance, (VEC3, VEC3, number_arg(0.05), Arg(st.sampled_from(SHAPES)))),
+    Case("plan_self_motion", _plan, (robot_arg((IIWA, NAMMOTO)), Arg(st.just(PLAN_PATH), _poisoned(PLAN_PATH)),
+         Arg(st.just(None), st.sampled_from(["nope", 3, object(), "margin"])),
+         Arg(st.sampled_from([SHAPES[:1], []]), OBSTACLES.bad),
+         number_arg(0.2, 0.0), Arg(st.sampled_from(["forbid", "fewest"]), st.sampled_from(["", None, 1])))),
     Case("simulate", _simulate, (Arg(st.sampled_from([IIWA, PANDA]), st.sampled_from(["iiwa14", None, "<mujoco/>"])),
          q_arg(IIWA), OBSTACLES, number_arg(0.02), number_arg(0.01, 0.0),
          Arg(st.just(None), _bad_pose(IIWA.fk(IIWA.q_home))))),
@@ -470,7 +482,7 @@ def test_every_public_name_is_fuzzed_or_a_type():
     plain = {"QpikError", "InputError", "RotationError", "UnknownRobotError", "NoClosedFormError", "ProblemFileError",
              "UnreachableError", "InfeasibleError", "SolverError", "RenderUnavailable", "StepInfo", "LinkCapsule",
              "Robot", "IKSolutions", "FeasibleIntervals", "CATALOG", "Shape", "Distances", "PairDistance", "QP",
-             "Solution", "Solver", "Task", "Limit", "BoxLimit", "RowLimit", "CLIK"}  # fmt: skip
+             "Solution", "Solver", "Task", "Limit", "BoxLimit", "RowLimit", "CLIK", "Plan"}  # fmt: skip
     names = {*qpik.__all__, *geometry.__all__, *control.__all__}
     tasks_and_limits = {"FrameTask", "PostureTask", "ManipulabilityTask", "DampingTask", "ConfigurationLimit",
                         "VelocityLimit", "ObstacleLimit", "PseudoInverseCLIK", "DampedLeastSquares",

@@ -121,3 +121,15 @@ def test_maths_packages_import_no_plotting_or_rendering() -> None:
     out = subprocess.run([sys.executable, "-c", code], env=_headless_env(), capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[]"
+
+
+def test_this_process_got_the_backend_qpik_would_choose() -> None:
+    """The test process itself imported qpik before mujoco (conftest), so rendering tests use the backend
+    qpik chooses where one loads, rather than being skipped."""
+    env = _headless_env()
+    if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"):
+        pytest.skip("a display: mujoco's default backend")
+    expected = choose_backend(env, platform=sys.platform, imported=())
+    if expected is None:
+        pytest.skip("no OSMesa or EGL library on this machine")
+    assert os.environ.get("MUJOCO_GL") == expected

@@ -9,10 +9,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 import pytest
-from conftest import model_robot
+from conftest import model_robot, mujoco_poses
 
 import qpik
 from qpik.geometry import Sphere, distances
@@ -111,8 +110,6 @@ def test_solve_ik_reaches_random_poses(key):
     rng = np.random.default_rng(3)
     Q, starts = (rng.uniform(robot.q_min, robot.q_max, (1000, robot.dof)) for _ in range(2))
     model = robot.mj_model()
-    data = mujoco.MjData(model)
-    site = model.site(robot.site).id
     reached = 0
     for q_goal, q0 in zip(Q, starts):
         try:
@@ -120,17 +117,7 @@ def test_solve_ik_reaches_random_poses(key):
         except qpik.UnreachableError:
             continue
         assert robot.within_limits(q)
-        T_goal, T = (_mujoco_fk(model, data, robot, site, x) for x in (q_goal, q))
+        T_goal, T = mujoco_poses(robot, np.stack([q_goal, q]), model)
         reached += np.linalg.norm(pose_error(T_goal, T)) < 1e-9
     assert reached >= 999
 
-
-def _mujoco_fk(model, data, robot, site: int, q: np.ndarray) -> np.ndarray:
-    """Pose (4, 4) of the end-effector site by MuJoCo's own kinematics of the model."""
-    data.qpos[:] = model.qpos0
-    data.qpos[model.jnt_qposadr[[model.joint(n).id for n in robot.joint_names]]] = q
-    mujoco.mj_kinematics(model, data)
-    T = np.eye(4)
-    T[:3, :3] = data.site_xmat[site].reshape(3, 3)
-    T[:3, 3] = data.site_xpos[site]
-    return T

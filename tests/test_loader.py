@@ -11,7 +11,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
-from conftest import MODEL_DIR, fd, fd_geometric_jacobian, model_robot, random_q
+from conftest import MODEL_DIR, fd, fd_geometric_jacobian, model_robot, mujoco_poses, random_q
 
 import qpik
 from qpik.errors import InputError, UnknownRobotError
@@ -20,17 +20,7 @@ from qpik.robots.mujoco_backend import MjKinematics
 
 def mujoco_tip_poses(robot: qpik.Robot, Q: np.ndarray) -> np.ndarray:
     """World poses (N, 4, 4) of the tip body by MuJoCo on the model file (other joints at their reference)."""
-    model = robot.model.spec().compile()
-    data = mujoco.MjData(model)
-    tip = model.body(robot.model.tip_body).id
-    adr = [model.jnt_qposadr[model.joint(n).id] for n in robot.joint_names]
-    out = np.zeros((len(Q), 4, 4))
-    for i, q in enumerate(Q):
-        data.qpos[:] = model.qpos0
-        data.qpos[adr] = q
-        mujoco.mj_kinematics(model, data)
-        out[i, :3, :3], out[i, :3, 3], out[i, 3, 3] = data.xmat[tip].reshape(3, 3), data.xpos[tip], 1.0
-    return out
+    return mujoco_poses(robot, Q, robot.model.spec().compile(), robot.model.tip_body)
 
 
 def test_fk_equals_mujoco_and_derivatives_are_fd(loaded):

@@ -83,14 +83,16 @@ def test_roots_at_zero_and_pi_and_clustered_near_them():
 @given(st.floats(-3.0, 3.0), st.sampled_from([1e-3, 1e-5, 1e-7, 1e-9, 1e-12]), st.floats(0.3, 3.0))
 def test_two_nearly_equal_roots_are_not_lost(r, gap, scale):
     """F = sin((δ − r1)/2) sin((δ − r2)/2) = ½ cos(Δ/2) − ½ cos(δ − m), m = (r1 + r2)/2, Δ = r2 − r1:
-    roots closer than rounding separates give at least a candidate next to them."""
+    roots closer than rounding separates give at least a candidate next to them (within 1e-9 rad on the C path;
+    the eigenvalue path without a compiler resolves a double root to about √ε, here 1e-7)."""
     r1, r2 = r, r + gap
     m = 0.5 * (r1 + r2)
     a = scale * np.array([[0.5 * np.cos(0.5 * gap), -0.5 * np.cos(m)]])
     b = scale * np.array([[-0.5 * np.sin(m), 0.0]])
     roots, _ = trig_roots(a, b)
     assert roots.size, "no root reported"
-    assert _circle_distance(np.array([r1, r2]), roots).min(axis=1).max() <= max(gap, 1e-9)
+    floor = 1e-9 if polyroots._library() is not None else 1e-7
+    assert _circle_distance(np.array([r1, r2]), roots).min(axis=1).max() <= max(gap, floor)
 
 
 def test_bad_shapes_are_rejected():

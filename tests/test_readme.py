@@ -32,3 +32,7 @@ def test_python_examples_run_and_mean_what_they_say() -> None:
     panda, q_ik = ns["panda"], ns["q_ik"]
     assert np.abs(panda.fk(q_ik) - ns["goal"]).max() < 1e-9 and panda.within_limits(q_ik)
     assert ns["res"].status == "ok" and np.array_equal(ns["res"].q, q_ik)
+    # the planning example's plan reaches every waypoint inside the limits, and its retiming respects v_max
+    arm, plan, timed = ns["arm"], ns["plan"], ns["timed"]
+    assert plan.ok and np.abs(arm.fk(plan.q) - ns["way"]).max() < 1e-9 and arm.within_limits(plan.q).all()
+    assert (np.abs(timed.qd) / arm.v_max).max() < 1.01

@@ -8,10 +8,9 @@ from __future__ import annotations
 
 import dataclasses
 
-import mujoco
 import numpy as np
 import pytest
-from conftest import MODEL_DIR, model_robot, random_q
+from conftest import MODEL_DIR, model_robot, mujoco_poses, random_q
 
 import qpik
 from qpik.errors import NoClosedFormError
@@ -74,21 +73,6 @@ def modified_iiwa(tmp_path) -> qpik.Robot:
     path = tmp_path / "iiwa_modified.xml"
     path.write_text(text)
     return qpik.load_robot(path, collision_only=True)
-
-
-def mujoco_poses(robot: qpik.Robot, Q: np.ndarray) -> np.ndarray:
-    """End-effector poses (N, 4, 4) by MuJoCo on the robot's model (its site)."""
-    model = robot.mj_model()
-    data = mujoco.MjData(model)
-    site = model.site(robot.site).id
-    adr = [model.jnt_qposadr[model.joint(n).id] for n in robot.joint_names]
-    out = np.zeros((len(Q), 4, 4))
-    for i, q in enumerate(Q):
-        data.qpos[:] = model.qpos0
-        data.qpos[adr] = q
-        mujoco.mj_kinematics(model, data)
-        out[i, :3, :3], out[i, :3, 3], out[i, 3, 3] = data.site_xmat[site].reshape(3, 3), data.site_xpos[site], 1.0
-    return out
 
 
 @pytest.fixture(scope="module")

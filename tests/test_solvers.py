@@ -127,6 +127,33 @@ def test_polish_completes_any_guess_exactly(recorded, guess):
     assert guess != "none" or steps_needed > 50  # the cold start really exercised the steps
 
 
+@pytest.mark.parametrize("guess", ("none", "every bound met"))
+def test_compiled_polish_equals_daqp(recorded, guess):
+    """polish.c (the controller's path with a compiler) from the same guesses: daqp's answer to 1e-8,
+    and no answer exactly where the numpy polish has none (a bound on the steps)."""
+    from qpik.control.solvers.osqp import _compiled_polish
+
+    compiled = _compiled_polish()
+    if compiled is None:
+        pytest.skip("no C compiler or Python headers (QPIK_NATIVE=0): the numpy polish is the only one")
+    ref = QpsolversSolver("daqp")
+    for run in recorded:
+        for qp, _ in run:
+            want = ref.solve(qp).x
+            Abar, lo, hi = _stacked(qp)
+            z = Abar @ want
+            y = np.zeros(len(z))
+            if guess != "none":
+                y = np.where(np.abs(z - lo) < 1e-9, -1.0, np.where(np.abs(hi - z) < 1e-9, 1.0, 0.0))
+            x = want if guess != "none" else np.zeros(qp.n)
+            got = compiled(qp.P, qp.c, np.ascontiguousarray(Abar.T), lo, hi, x, y, 1e-9, 100)
+            assert got is not None
+            np.testing.assert_allclose(got, want, atol=1e-8)
+            none = polish(qp.P, qp.c, Abar, lo, hi, np.zeros(qp.n), y, max_steps=0) is None
+            cold = compiled(qp.P, qp.c, np.ascontiguousarray(Abar.T), lo, hi, np.zeros(qp.n), y, 1e-9, 0)
+            assert none == (cold is None)
+
+
 def test_polish_rejects_an_infeasible_qp():
     robot_n = 3
     A = np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])  # v_1 ≥ 1 and v_1 ≤ -1

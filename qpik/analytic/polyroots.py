@@ -29,7 +29,8 @@ call (see ``qpik bench analytic``). The C source is
 compiled once by the system compiler (:func:`qpik.compiled.shared_library`); without
 one (or with ``QPIK_NATIVE=0``) the roots of H come from ``numpy``'s companion
 eigenvalues instead, every eigenvalue within ``EIG_IMAG`` of the real axis counting
-as real.
+as real; that path resolves a double root only to about √ε (1e-8 rad), the C path to 1e-9 rad
+or better.
 
 The roots are *candidates* for the feasible-interval breakpoints: an extra one
 only splits a gap, so both paths err on the side of reporting.
@@ -81,6 +82,10 @@ def trig_roots(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
     if A.ndim != 2 or A.shape != B.shape or A.shape[1] < 1:
         raise InputError(f"trig_roots: A, B must be (K, d + 1), the same shape; got {A.shape}, {B.shape}")
+    cols = np.arange(A.shape[1])
+    degree = max(cols[A.any(axis=0)].max(initial=0), cols[B.any(axis=0)].max(initial=-1) + 1)
+    if degree > MAX_DEGREE:  # both paths (the C one checks it too)
+        raise InputError(f"trig_roots: max(deg A, deg B + 1) above {MAX_DEGREE}")
     lib = _library()
     if lib is None:
         return _eig_roots(A, B)

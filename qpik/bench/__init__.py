@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-BENCHES = ("kinematics", "analytic", "controller", "ik", "nlp")
+BENCHES = ("kinematics", "analytic", "controller", "ik", "nlp", "plan")
 
 
 @dataclass
@@ -39,6 +39,7 @@ def time_interleaved(
     repeat: int,
     warmup: int = 20,
     cpu: dict[str, np.ndarray] | None = None,
+    block: int = 1,
 ) -> dict[str, np.ndarray]:
     """Seconds of ``repeat`` calls of each peer, interleaved: one call of every peer per round.
 
@@ -48,6 +49,9 @@ def time_interleaved(
     loop in Python would run it: what is timed is the call, not the collector.
     Returns wall-clock seconds; if ``cpu`` is a dict, it is filled with the same
     calls' thread CPU seconds, which leave out the time the host took the CPU away.
+    With ``block`` > 1 each sample is a block of that many calls of one peer ("hot"),
+    divided by ``block``: for calls of about a µs, whose single timing would be mostly
+    the clocks' own cost.
     """
     for _ in range(warmup):
         for fn in fns.values():
@@ -56,15 +60,17 @@ def time_interleaved(
     used = {label: np.empty(repeat) for label in fns}
     clock, thread = time.perf_counter, time.thread_time
     items = [(fn, out[label], used[label]) for label, fn in fns.items()]
+    calls = range(block)
     enabled = gc.isenabled()
     gc.disable()
     try:
         for i in range(repeat):
             for fn, t, u in items:
                 t0, u0 = clock(), thread()
-                fn()
-                u[i] = thread() - u0
-                t[i] = clock() - t0
+                for _ in calls:
+                    fn()
+                u[i] = (thread() - u0) / block
+                t[i] = (clock() - t0) / block
     finally:
         if enabled:
             gc.enable()

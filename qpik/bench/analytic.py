@@ -12,6 +12,15 @@ per pose (median over calls):
   reference: it enumerates the arm-angle self-motion, so it answers a larger
   question; it is the fastest published analytic iiwa solver we can call).
 
+Then, for iiwa14 on poses whose joint 3 is fixed (:data:`LOCKED`, so that 6-DOF solvers can lock
+it), timed interleaved: ``qpik.ik`` (all 8 branches at the ψ of the configuration), EAIK
+(``DhRobot`` of iiwa14's DH table with joint 3 locked, ``bot.IK(T)``: its 8 solutions of the 6R
+arm) and ik-geo (``Robot.spherical_two_intersecting`` of EAIK's remodelled axes, ``get_ik``, its
+rotation convention converted before timing), and the batched calls (EAIK's ``IK_batched`` with
+:data:`EAIK_THREADS` threads). Every peer's answers are first checked by qpik's FK: the rows say
+how many of a peer's solutions reach the pose to 1e-9. A peer that is not installed (the test
+extra) is left out with a note.
+
 Targets (issue): single ≤ 50 µs and ≥ 8x faster than ssik; batched ≤ 3 µs/pose;
 intervals ≤ 300 µs/pose. Nammoto & Kosuge report 31.3 µs per solution set
 (compiled code, Core i7 965, 2012): a note, not a measurement.
@@ -24,13 +33,21 @@ import argparse
 import numpy as np
 
 from qpik.analytic.api import feasible_intervals, ik, redundancy_parameter
-from qpik.bench import Row, time_calls
+from qpik.bench import Row, time_calls, time_interleaved
 from qpik.robots.catalog import load_robot
 
 TITLE = "Closed-form IK (per pose)"
 ARMS = ("nammoto7", "iiwa14")
 POSES = 64  # distinct poses cycled through by the single-pose rows
 BATCH = 10_000
+BATCH_CALLS = 20
+"""Batched calls timed per batched row (at least; more with a larger --repeat): each is 10,000 poses."""
+LOCKED = 0.3
+"""rad: joint 3 of iiwa14 in the poses of the locked-joint rows (labelled "q3 locked"); the batched rows
+take :data:`BATCH` poses per call."""
+EAIK_THREADS = 2
+BLOCK = 20
+"""The locked-joint single-pose rows: each sample is a block of this many calls (poses cycling), divided."""
 SSIK = "ssik iiwa14_ik.solve (iiwa14)"
 PAPER_NOTE = "(paper: 31.3 µs, compiled, 2012 Core i7 965; quoted, not measured)"
 
@@ -55,7 +72,7 @@ def run(args: argparse.Namespace) -> list[Row]:
         rows.append(ssik_row)
     for name in ARMS:
         rows += _arm_rows(name, repeat, SSIK if name == "iiwa14" and ssik_row is not None else None)
-    return rows
+    return rows + _locked_rows(repeat)
 
 
 def _arm_rows(name: str, repeat: int, ref: str | None) -> list[Row]:
@@ -66,7 +83,7 @@ def _arm_rows(name: str, repeat: int, ref: str | None) -> list[Row]:
     par = np.asarray(redundancy_parameter(robot, q)[0])
     cases = list(zip(T[:POSES], par[:POSES].tolist()))
     t1 = time_calls(_cycle(lambda c: ik(robot, c[0], c[1]), cases), repeat)
-    tb = time_calls(lambda: ik(robot, T, par), max(3, repeat // 400), warmup=1) / BATCH
+    tb = time_calls(lambda: ik(robot, T, par), max(BATCH_CALLS, repeat // 100), warmup=1) / BATCH
     ti = time_calls(_cycle(lambda c: feasible_intervals(robot, c[0]), cases), max(10, repeat // 10), warmup=3)
     return [
         _row(f"qpik.ik, 1 pose ({name})", t1, ref, PAPER_NOTE if name == "nammoto7" else ""),
@@ -90,3 +107,74 @@ def _ssik_row(repeat: int) -> Row | None:
     T = list(robot.fk(q))
     t = time_calls(_cycle(iiwa14_ik.solve, T), max(20, repeat // 20), warmup=5)
     return _row(SSIK, t, None)
+
+
+def _locked_rows(repeat: int) -> list[Row]:
+    """qpik.ik beside EAIK and ik-geo on iiwa14 poses with joint 3 at :data:`LOCKED` (see the module docstring)."""
+    try:
+        import ik_geo
+        from eaik.IK_DH import DhRobot
+    except ImportError as exc:
+        print(f"qpik bench analytic: EAIK or ik-geo not installed ({exc}; pip install -e '.[test]'), rows left out")
+        return []
+    robot = load_robot("iiwa14")
+    chain = robot.chain
+    q = np.random.default_rng(1).uniform(robot.q_min, robot.q_max, (BATCH, robot.dof))
+    q[:, 2] = LOCKED
+    T = robot.fk(q)
+    par = np.asarray(redundancy_parameter(robot, q)[0])
+    bot = DhRobot(np.array(chain.alpha), np.array(chain.a), np.array(chain.d), fixed_axes=[(2, LOCKED)])
+    geo = ik_geo.Robot.spherical_two_intersecting(bot.getRemodeled_H().T, bot.getRemodeled_P().T)
+    # ik-geo's end effector has the identity rotation at q = 0 and takes the rotation transposed
+    zero = np.zeros(robot.dof)
+    zero[2] = LOCKED
+    R0 = robot.fk(zero)[:3, :3]
+    geo_poses = [((t[:3, :3] @ R0.T).T.copy(), t[:3, 3].copy()) for t in T[:POSES]]
+
+    def reached(solutions: list[np.ndarray], pose: np.ndarray) -> tuple[int, int]:
+        good = sum(np.abs(robot.fk(x) - pose).max() <= 1e-9 for x in solutions)
+        return good, len(solutions)
+
+    counts = {"eaik": [0, 0], "geo": [0, 0], "qpik": [0, 0]}
+    for i in range(POSES):
+        for key, sols in (
+            ("eaik", list(np.asarray(bot.IK(T[i]).Q))),
+            ("geo", [np.insert(np.asarray(x), 2, LOCKED) for x, _ in geo.get_ik(*geo_poses[i])]),
+            ("qpik", list((s := ik(robot, T[i], float(par[i]))).q[s.valid])),
+        ):
+            good, total = reached(sols, T[i])
+            counts[key][0] += good
+            counts[key][1] += total
+
+    def note(key: str) -> str:
+        good, total = counts[key]
+        return f"({good}/{total} solutions of {POSES} poses reach the pose to 1e-9 by qpik's FK)"
+
+    cases = list(zip(T[:POSES], par[:POSES].tolist()))
+    t = time_interleaved(
+        {
+            "qpik": _cycle(lambda c: ik(robot, c[0], c[1]), cases),
+            "eaik": _cycle(bot.IK, list(T[:POSES])),
+            "geo": _cycle(lambda c: geo.get_ik(*c), geo_poses),
+        },
+        max(20, repeat // BLOCK),
+        block=BLOCK,
+    )
+    calls = max(BATCH_CALLS, repeat // 100)
+    tb = time_interleaved(
+        {
+            "qpik": lambda: ik(robot, T, par),
+            "eaik": lambda: bot.IK_batched(T, num_worker_threads=EAIK_THREADS),
+        },
+        calls,
+        warmup=1,
+    )
+    label = "iiwa14 q3 locked: "
+    eaik_label, eaik_batch = label + "EAIK IK (6R)", label + f"EAIK batched, {EAIK_THREADS} thr., per pose"
+    return [
+        _row(label + "qpik.ik, 8 branches", t["qpik"], eaik_label, note("qpik")),
+        _row(eaik_label, t["eaik"], None, note("eaik")),
+        _row(label + "ik-geo get_ik (6R)", t["geo"], eaik_label, note("geo")),
+        _row(label + "qpik.ik batched, per pose", tb["qpik"] / BATCH, eaik_batch),
+        _row(eaik_batch, tb["eaik"] / BATCH, None),
+    ]

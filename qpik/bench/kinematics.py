@@ -1,4 +1,4 @@
-"""Pose + Jacobian of the end effector: qpik beside mink and raw MuJoCo on the same arm.
+"""Pose + Jacobian of the end effector: qpik beside pinocchio, mink and raw MuJoCo on the same arm.
 
 For each arm, mink runs on the robot's MuJoCo model (:meth:`Robot.mj_model`, site
 :attr:`Robot.site`): the MJCF twin of a catalog arm, and for the arms loaded from the
@@ -7,7 +7,11 @@ all; its pose and Jacobian are first checked against qpik's (mink
 returns the Jacobian in the site frame, so it is rotated to the base frame).
 Rows per arm:
 
-- qpik single configuration, ``robot.fk_jacobian(q)`` (validated input, copied outputs);
+- qpik single configuration, ``robot.fk_jacobian(q)`` (q checked, new pose and Jacobian arrays);
+- pinocchio (``pin``, the test extra) on the URDF of :meth:`Robot.to_urdf`, first checked against
+  qpik: ``pin.computeFrameJacobian(model, data, q, ee, LOCAL_WORLD_ALIGNED)``, which returns J
+  and updates ``data.oMf[ee]``, plus ``data.oMf[ee].homogeneous`` (the pose as an array): the same
+  two outputs as qpik's call. A second row gives ``computeFrameJacobian`` alone (J only);
 - mink: ``cfg.update(q)``, ``get_frame_jacobian("ee", "site")``,
   ``get_transform_frame_to_world("ee", "site")``;
 - raw MuJoCo, the floor under mink: ``mj_kinematics + mj_comPos + mj_jacSite``
@@ -15,30 +19,37 @@ Rows per arm:
 - qpik batched, ``robot.fk_jacobian(Q)`` with Q (10000, 7), reported per configuration.
 
 Configurations are drawn once, uniformly inside the limits; the single-q rows
-cycle through the first 1000 of them.
+cycle through the first 1000 of them and are timed interleaved, in blocks of :data:`BLOCK` calls
+of one peer ("hot"; every row includes the same loop and cycling, about 0.1 µs).
 """
 
 from __future__ import annotations
 
 import argparse
 import itertools
+import tempfile
 from collections.abc import Callable
+from pathlib import Path
 
 import mink
 import mujoco
 import numpy as np
 
-from qpik.bench import Row, time_calls
+from qpik.bench import Row, time_calls, time_interleaved
 from qpik.errors import InputError
 from qpik.robots.loader import load_robot
 from qpik.robots.packaged import packaged_model
 from qpik.robots.robot import Robot
 
-TITLE = "kinematics: end-effector pose + geometric Jacobian (qpik vs mink vs raw MuJoCo)"
+TITLE = "kinematics: end-effector pose + geometric Jacobian (qpik vs pinocchio vs mink vs raw MuJoCo; hot)"
 ARMS = ("iiwa14", "panda", "nammoto7", "zheng7")
 LOADED = {"pybullet iiwa URDF": "pybullet/iiwa", "erd panda URDF": "erd/panda"}
 """Arms loaded from other packages' model files (:mod:`qpik.robots.packaged`; erd: example-robot-data): label -> key."""
 BATCH = 10_000
+BLOCK = 50
+"""Single-q rows: each sample is a block of this many calls (q cycling), timed as one and divided."""
+BATCH_CALLS = 20
+"""Batched calls timed per batched row (at least; more with a larger --repeat)."""
 
 
 def run(args: argparse.Namespace) -> list[Row]:
@@ -87,18 +98,60 @@ def _arm_rows(name: str, robot: Robot, repeat: int) -> list[Row]:
         return lambda: fn(next(it))
 
     mink_label = f"{name}: mink"
-    rows = []
-    for label, fn, ref, note in [
-        (f"{name}: qpik fk_jacobian (1 q)", qpik_single, mink_label, ""),
-        (mink_label, mink_single, None, f"(model agrees with qpik to {agree:.0e})"),
-        (f"{name}: raw mujoco (floor)", raw_single, mink_label, ""),
-    ]:
-        t = time_calls(cycled(fn), repeat)
-        rows.append(Row(label, float(np.median(t)), ref, float(np.percentile(t, 99)), float(t.max()), note))
-    tb = time_calls(lambda: robot.fk_jacobian(Q), max(3, repeat // 400), warmup=1)
+    pin_label = f"{name}: pinocchio J + pose"
+    peers = {
+        f"{name}: qpik fk_jacobian (1 q)": (qpik_single, pin_label, ""),
+        pin_label: None,
+        f"{name}: pinocchio J only": None,
+        mink_label: (mink_single, None, f"(model agrees with qpik to {agree:.0e})"),
+        f"{name}: raw mujoco (floor)": (raw_single, mink_label, ""),
+    }
+    pin_calls = _pinocchio(robot, Q[:100])
+    if pin_calls is None:
+        del peers[pin_label], peers[f"{name}: pinocchio J only"]
+        peers[f"{name}: qpik fk_jacobian (1 q)"] = (qpik_single, mink_label, "")
+    else:
+        both, only, pin_agree = pin_calls
+        note = f"(computeFrameJacobian + oMf[ee].homogeneous; agrees with qpik to {pin_agree:.0e})"
+        peers[pin_label] = (both, None, note)
+        peers[f"{name}: pinocchio J only"] = (only, pin_label, "(computeFrameJacobian alone: no pose array)")
+    times = time_interleaved({label: cycled(fn) for label, (fn, _, _) in peers.items()}, repeat, block=BLOCK)
+    rows = [
+        Row(label, float(np.median(t)), ref, float(np.percentile(t, 99)), float(t.max()), note)
+        for (label, (_, ref, note)), t in zip(peers.items(), times.values())
+    ]
+    tb = time_calls(lambda: robot.fk_jacobian(Q), max(BATCH_CALLS, repeat // 100), warmup=1)
     per_q = float(np.median(tb)) / BATCH
     rows.append(Row(f"{name}: qpik batched N={BATCH}, per q", per_q, mink_label, note=f"({1 / per_q:.2e} q/s)"))
     return rows
+
+
+def _pinocchio(robot: Robot, Q: np.ndarray):
+    """``(both, only, agreement)``: pinocchio's pose + Jacobian call and its Jacobian-only call of one q on the
+    robot's URDF, and their largest difference from qpik over ``Q``; None without pinocchio."""
+    try:
+        import pinocchio as pin
+    except ImportError:
+        print("qpik bench kinematics: pinocchio (pin) not installed (pip install -e '.[test]'), rows left out")
+        return None
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp, "arm.urdf")
+        path.write_text(robot.to_urdf())
+        model = pin.buildModelFromUrdf(str(path))
+    data, ee, frame = model.createData(), model.getFrameId("ee"), pin.LOCAL_WORLD_ALIGNED
+
+    def both(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return pin.computeFrameJacobian(model, data, q, ee, frame), data.oMf[ee].homogeneous
+
+    def only(q: np.ndarray) -> np.ndarray:
+        return pin.computeFrameJacobian(model, data, q, ee, frame)
+
+    err = 0.0
+    for q in Q:
+        J, T = both(q)
+        Tq, Jq = robot.fk_jacobian(q)
+        err = max(err, np.abs(T - Tq).max(), np.abs(J - Jq).max())
+    return both, only, err
 
 
 def _twin_error(robot: Robot, Q: np.ndarray, mink_single: Callable[[np.ndarray], tuple], dof: np.ndarray) -> float:

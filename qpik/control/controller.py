@@ -33,11 +33,11 @@ Failure policy (never raises in the loop unless ``raise_on_failure=True``):
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+import casadi as ca
 import numpy as np
 
 from qpik.control.limits import ConfigurationLimit, Limit, ObstacleLimit, VelocityLimit
@@ -94,10 +94,9 @@ class StepInfo:
         """Names of the constraints at their bound, built on first access."""
         if self._activity is None:
             return ()
-        v, bounds, row_names, caps = self._activity  # bounds: [lb, ub, l, u, A v] stacked
-        n, m = len(v), len(row_names)
-        lb, ub, l, u = bounds[:n], bounds[n : 2 * n], bounds[2 * n : 2 * n + m], bounds[2 * n + m : 2 * n + 2 * m]
-        Av = bounds[2 * n + 2 * m :]
+        v, qp, caps = self._activity
+        lb, ub, l, u = qp.lb, qp.ub, qp.l, qp.u
+        Av = qp.A @ v
         gap_lo, gap_hi = Av - l, u - Av
         cap = [lim._bounds for lim in caps if lim._bounds is not None]
 
@@ -106,7 +105,7 @@ class StepInfo:
 
         names = [f"joint{j + 1} {kind(j, lb[j], 0)} lower" for j in np.flatnonzero(v - lb < ACTIVE_TOL)]
         names += [f"joint{j + 1} {kind(j, ub[j], 1)} upper" for j in np.flatnonzero(ub - v < ACTIVE_TOL)]
-        names += [row_names[r] for r in np.flatnonzero((gap_lo < ACTIVE_TOL) | (gap_hi < ACTIVE_TOL))]
+        names += [qp.row_names[r] for r in np.flatnonzero((gap_lo < ACTIVE_TOL) | (gap_hi < ACTIVE_TOL))]
         return tuple(names)
 
 
@@ -161,10 +160,11 @@ class Controller:
         self.raise_on_failure = raise_on_failure
         self.frame_task = next((t for t in self.tasks if isinstance(t, FrameTask)), None)
         self.obstacle_limits = tuple(lim for lim in self.limits if isinstance(lim, ObstacleLimit))
-        # one compiled call per step: the QP, the first FrameTask's pose error, every obstacle limit's distances
-        self.assembler = Assembler(robot, self.tasks, self.limits, self.dt, self._extra)
         self.config_limits = tuple(lim for lim in self.limits if isinstance(lim, ConfigurationLimit))
         self.caps = tuple(lim for lim in self.limits if isinstance(lim, VelocityLimit))
+        # one compiled call per step: the QP and the step's summary (_summary)
+        self.assembler = Assembler(robot, self.tasks, self.limits, self.dt, self._summary)
+        self._d_safe = [lim.d_safe for lim in self.obstacle_limits]
         self.last = StepInfo()
 
     @classmethod
@@ -215,11 +215,24 @@ class Controller:
             if isinstance(task, PostureTask):
                 task.set_target(q_ref)
 
-    def _extra(self, s: SymState) -> list:
-        out = [lim.distances_expr(s) for lim in self.obstacle_limits]
+    def _summary(self, s: SymState) -> list:
+        """The step's summary, computed in the compiled call: per :class:`ObstacleLimit` its smallest
+        capsule–obstacle distance (m; inf without pairs), then 1.0 if q is past a :class:`ConfigurationLimit`'s
+        range (else 0.0), then the norm of the first :class:`FrameTask`'s pose error ``[m; rad]`` (nan without one)."""
+        out = []
+        for lim in self.obstacle_limits:
+            d = lim.distances_expr(s)
+            out.append(ca.mmin(d) if d.numel() else ca.inf)
+        past = ca.SX(0.0)
+        for lim in self.config_limits:
+            p = s.params_of(lim)
+            past = past + ca.sum1(s.q < p[: s.n]) + ca.sum1(s.q > p[s.n :])
+        out.append(past > 0)
         if self.frame_task is not None:
-            out.append(self.frame_task.error_expr(s, s.params_of(self.frame_task)))
-        return out
+            out.append(ca.norm_2(self.frame_task.error_expr(s, s.params_of(self.frame_task))))
+        else:
+            out.append(ca.SX(np.nan))
+        return [ca.vertcat(*out)]
 
     def step(self, q: np.ndarray, target: np.ndarray | None = None, twist: np.ndarray | None = None) -> np.ndarray:
         """One control step: the joint velocity v (n,), rad/s, for configuration ``q`` (n,), rad.
@@ -236,7 +249,7 @@ class Controller:
                 raise InputError("target: this controller has no FrameTask")
             self.frame_task.set_target(target, twist)
         qp = self.assembler.build(q)
-        extra = self.assembler.extra
+        summary = self.assembler.extra[0]
         t1 = time.perf_counter()
         sol = self.solver.solve(qp)
         exact = self.fallback or self.solver
@@ -258,34 +271,28 @@ class Controller:
                     relaxation = 1.0 - kept
                     break
         t2 = time.perf_counter()
-        lb, ub = qp.lb, qp.ub
         info = StepInfo(solver_status=sol.status, solve_time=t2 - t1, relaxation=relaxation)
         if sol.found:
-            v = np.minimum(np.maximum(sol.x, lb), ub)  # remove the solver's tolerance-level box violations
-            info._activity = (v, np.concatenate((lb, ub, qp.l, qp.u, qp.A @ v)), qp.row_names, self.caps)
+            v = np.minimum(np.maximum(sol.x, qp.lb), qp.ub)  # remove the solver's tolerance-level box violations
+            info._activity = (v, self.assembler.snapshot(qp), self.caps)
         else:
             if self.raise_on_failure:
                 raise SolverError(f"{self.solver.name}: no solution ({sol.status})")
             v = np.zeros(self.robot.dof)
             info.status = "failed"
-        for d in extra[: len(self.obstacle_limits)]:
-            info.min_clearance = min(info.min_clearance, float(d.min()))
-        if self.frame_task is not None:
-            e = extra[-1]
-            info.task_error = math.sqrt(e @ e)
+        *clearances, past, info.task_error = summary.tolist()
+        if clearances:
+            info.min_clearance = min(clearances)
         if info.status == "ok":
             if yielding:
                 info.status = "yielding"
             elif info.min_clearance < 0.0:
                 info.status = "penetrating"
-            elif any(info.min_clearance < lim.d_safe for lim in self.obstacle_limits) or self._past_limit(q):
+            elif past or any(d < ds for d, ds in zip(clearances, self._d_safe)):
                 info.status = "recovering"
         info.total_time = time.perf_counter() - t0
         self.last = info
         return v
-
-    def _past_limit(self, q: np.ndarray) -> bool:
-        return any((q < lim.range[0]).any() or (q > lim.range[1]).any() for lim in self.config_limits)
 
     def solve_ik(
         self,

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from qpik.compiled import Compiled, native
+from qpik.compiled import Compiled, native_library
 from qpik.control.limits import BoxLimit, Limit, RowLimit
 from qpik.control.state import SymState, kinematics_of
 from qpik.control.tasks import Task
@@ -115,13 +115,19 @@ class Assembler:
         names = tuple(nm for lim in self.row_limits for nm in lim.row_names(robot))
         kin = kinematics_of(robot)
         values, sizes, key = self._compose(kin, extra, trace=False)
-        fn = kin.composed.get(key)
-        if fn is None:
-            fn = kin.composed[key] = native(self._compose(kin, extra, trace=True))
+        entry = kin.composed.get(key)
+        if entry is None:
+            traced = self._compose(kin, extra, trace=True)
+            entry = kin.composed[key] = (traced, native_library(traced))
+        fn, lib = entry
         self._values = values
-        self._fn = Compiled(fn, compile=False)
+        self._fn = Compiled(fn, compile=False, library=lib)
         out = self._fn.outputs[0]
         offsets = np.cumsum([0, n * n, n, n, n, m * n, m, m])
+        shapes = ((n, n), (n,), (m, n), (m,), (m,), (n,), (n,))  # in QP's field order: P, c, A, l, u, lb, ub
+        order = (0, 1, 4, 5, 6, 2, 3)  # where each field is in the output
+        self._layout = [(offsets[k], offsets[k + 1], shape) for k, shape in zip(order, shapes)]
+        self._flat = out[: offsets[-1]]
         P, c, lb, ub, A, lo, hi = (out[a:b] for a, b in itertools.pairwise(offsets))
         self.qp = QP(P=P.reshape(n, n), c=c, A=A.reshape(m, n), l=lo, u=hi, lb=lb, ub=ub, n=n, row_names=names)
         self.extra = []
@@ -168,6 +174,14 @@ class Assembler:
         prm = ca.vertcat(*[sym for sym, _ in s.inputs])
         tag = hashlib.sha256(repr(self._compose(kin, extra, trace=False)[2]).encode()).hexdigest()[:12]
         return ca.Function(f"qp_{kin.robot.name or 'robot'}_{tag}", [q, prm], [out])
+
+    def snapshot(self, qp: QP) -> QP:
+        """A copy of ``qp`` that later builds do not overwrite: for the assembler's own QP one copy of the
+        output buffer (views into it), for any other QP :meth:`QP.copy`."""
+        if qp is not self.qp:
+            return qp.copy()
+        flat = self._flat.copy()
+        return QP(*(flat[a:b].reshape(shape) for a, b, shape in self._layout), self.n, self.qp.row_names)
 
     def build(self, q: np.ndarray) -> QP:
         """Fill the QP for configuration ``q`` (n,), rad, and return it (the same object every call)."""

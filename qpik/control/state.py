@@ -61,7 +61,7 @@ class Kinematics:
         self.base_size = 16 + 8 * self.n + 6 * self.n_capsules
         self._functions: dict[tuple[str, ...], Compiled] = {}
         self._layouts: dict[tuple[str, ...], tuple[tuple[int, int, int], ...]] = {}
-        self.composed: dict[tuple, ca.Function] = {}  # the controllers' compiled QP functions, by structure
+        self.composed: dict[tuple, tuple] = {}  # the controllers' QP functions and their libraries, by structure
 
     def function(self, kinds: tuple[str, ...]) -> Compiled:
         """The compiled step function for obstacles of families ``kinds`` (``()``: no obstacles)."""

@@ -10,7 +10,7 @@ from __future__ import annotations
 import importlib
 from pathlib import Path
 
-ORDER = ("catalog", "closed_form", "best", "controller")
+ORDER = ("catalog", "closed_form", "best", "plan", "controller")
 
 
 def run_all(out: Path, only: list[str] | None = None) -> None:

@@ -1,7 +1,7 @@
 r"""Named end-effector paths for ``[target] path = "..."`` in problem files.
 
-A path is a time-parametrised target: :meth:`TargetPath.pose` (4, 4) and the
-feed-forward :meth:`TargetPath.twist` ``[v; ω]`` (6,), both in the base frame,
+A path is a time-parametrised target (:class:`qpik.paths.TargetPath`): ``pose(t)`` (4, 4) and the
+feed-forward ``twist(t)`` ``[v; ω]`` (6,), both in the base frame,
 for ``0 <= t <= duration`` (s). Both accept a scalar ``t`` or an array ``t``
 (K,), which gives (K, 4, 4) and (K, 6).
 
@@ -10,7 +10,7 @@ receives the robot and the ``[target.path_params]`` table and returns a
 :class:`TargetPath`. Unknown or missing parameters raise ``KeyError``/
 ``ValueError`` subclasses that the loader reports with the file name.
 
-Registered formulas:
+Registered formulas (``wipe``: see :func:`wipe`):
 
 - ``zheng2019`` — Zheng et al. 2019, eq. (19), from the initial configuration ``q0``
   (default the paper's ``(0, 1.0472, -0.5236, -2.0944, 0, 1.5708, -1.5708)``)
@@ -29,52 +29,14 @@ Registered formulas:
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from qpik.errors import InputError
+from qpik.paths import TargetPath
 from qpik.robots.robot import Robot
 from qpik.validate import finite_array
-
-
-@dataclass(frozen=True)
-class TargetPath:
-    """A position path with a constant orientation (the form of every registered formula).
-
-    Attributes:
-        name: the formula's registry name.
-        duration: end time (s).
-        q0: initial configuration (rad) the path starts from, shape (7,), or ``None``.
-        rotation: the constant end-effector orientation, (3, 3), base frame.
-        position: ``t -> p(t)``, maps (K,) times to (K, 3) positions (m, base frame).
-        velocity: ``t -> ṗ(t)``, (K,) -> (K, 3) (m/s, base frame).
-    """
-
-    name: str
-    duration: float
-    q0: np.ndarray | None
-    rotation: np.ndarray
-    position: Callable[[np.ndarray], np.ndarray]
-    velocity: Callable[[np.ndarray], np.ndarray]
-
-    def pose(self, t: float | np.ndarray) -> np.ndarray:
-        """Target pose at time ``t`` (s): (4, 4), or (K, 4, 4) for ``t`` of shape (K,)."""
-        ts = np.atleast_1d(np.asarray(t, dtype=float))
-        T = np.zeros((len(ts), 4, 4))
-        T[:, :3, :3] = self.rotation
-        T[:, :3, 3] = self.position(ts)
-        T[:, 3, 3] = 1.0
-        return T[0] if np.ndim(t) == 0 else T
-
-    def twist(self, t: float | np.ndarray) -> np.ndarray:
-        """Feed-forward twist ``[v; ω]`` (m/s, rad/s, base frame) at ``t``: (6,) or (K, 6)."""
-        ts = np.atleast_1d(np.asarray(t, dtype=float))
-        V = np.zeros((len(ts), 6))
-        V[:, :3] = self.velocity(ts)
-        return V[0] if np.ndim(t) == 0 else V
-
 
 PathBuilder = Callable[[Robot, dict[str, Any]], TargetPath]
 PATHS: dict[str, PathBuilder] = {}
@@ -117,3 +79,34 @@ def zheng2019(robot: Robot, params: dict[str, Any]) -> TargetPath:
     # literal: p0 + wave(t); relative: the same curve moved so that it starts at p0
     origin = T0[:3, 3] - (wave(np.zeros(1))[0] if reading == "relative" else 0.0)
     return TargetPath("zheng2019", duration, q0, T0[:3, :3].copy(), lambda t: origin + wave(t), velocity)
+
+
+@path_formula("wipe")
+def wipe(robot: Robot, params: dict[str, Any]) -> TargetPath:
+    r"""A wiping motion over a table: the tool pointing straight down (its z axis along −z of the base),
+    sweeping sideways while it advances.
+
+    :math:`p(t) = c + (a \sin(2\pi k t / T),\ -\ell/2 + \ell t / T,\ 0)` for :math:`0 \le t \le T`, with
+    the centre ``center`` c (3 floats, m), the sideways amplitude ``amplitude`` a (m), ``length`` ℓ (m) along y,
+    ``strokes`` k (back-and-forth sweeps) and ``duration`` T (s). The rotation is diag(1, −1, −1).
+    """
+    known = {"center", "amplitude", "length", "strokes", "duration"}
+    unknown = set(params) - known
+    if unknown:
+        raise InputError(f"unknown parameter(s) {', '.join(sorted(unknown))}; known: {', '.join(sorted(known))}")
+    missing = known - set(params)
+    if missing:
+        raise InputError(f"missing parameter(s) {', '.join(sorted(missing))}")
+    c = finite_array(params["center"], "center", (3,)).copy()
+    a, length, k, T = (float(finite_array(params[x], x, ())) for x in ("amplitude", "length", "strokes", "duration"))
+    if not T > 0:
+        raise InputError(f"duration must be > 0 s, got {T}")
+    w = 2.0 * np.pi * k / T
+
+    def position(t: np.ndarray) -> np.ndarray:
+        return c + np.stack([a * np.sin(w * t), -0.5 * length + length * t / T, 0.0 * t], axis=-1)
+
+    def velocity(t: np.ndarray) -> np.ndarray:
+        return np.stack([a * w * np.cos(w * t), np.full_like(t, length / T), 0.0 * t], axis=-1)
+
+    return TargetPath("wipe", T, None, np.diag([1.0, -1.0, -1.0]), position, velocity)

@@ -26,7 +26,7 @@ from qpik.problems.schema import Problem
 Runner = Callable[[Problem, Path], str]
 
 #: modules that register runners when imported
-RUNNER_MODULES: tuple[str, ...] = ("qpik.problems.ik", "qpik.problems.control")
+RUNNER_MODULES: tuple[str, ...] = ("qpik.problems.ik", "qpik.problems.control", "qpik.problems.plan")
 
 #: kind -> runner, filled by :func:`runner`
 RUNNERS: dict[str, Runner] = {}

@@ -81,7 +81,9 @@ import numpy as np
 
 from qpik.errors import InputError, ProblemFileError, UnknownRobotError
 from qpik.geometry.shapes import Shape, shape_from_spec
-from qpik.problems.paths import PATHS, TargetPath
+from qpik.objectives import NAMES as OBJECTIVE_NAMES
+from qpik.paths import TargetPath
+from qpik.problems.paths import PATHS
 from qpik.robots.loader import load_robot
 from qpik.robots.robot import Robot
 from qpik.validate import finite_array
@@ -100,12 +102,14 @@ class Setting:
         doc: what it is, with its unit.
         integer: an integer (else a float).
         positive: the value must be > 0 (else ≥ 0, or any integer).
+        choices: the words it takes (then it is a string, one of them).
     """
 
-    default: float | int | None
+    default: float | int | str | None
     doc: str
     integer: bool = False
     positive: bool = False
+    choices: tuple[str, ...] = ()
 
 
 _GAINS = {
@@ -132,7 +136,21 @@ SOLVER_KEYS: dict[str, dict[str, Setting]] = {
         "d_influence": Setting(0.10, "influence distance of the velocity dampers, m", positive=True),
         "xi": Setting(0.5, "largest approach speed of the velocity dampers, m/s", positive=True),
     },
-    "plan": {},
+    "plan": {
+        "objective": Setting("none", "the point objective integrated along the path (qpik.objectives)",
+                             choices=("none", *OBJECTIVE_NAMES)),
+        "objective_weight": Setting(1.0, "weight of the objective beside the joint motion"),
+        "max_joint_step": Setting(0.1, "largest move of any joint between consecutive waypoints, rad", positive=True),
+        "d_safe": Setting(0.02, "smallest capsule–obstacle distance, m", positive=True),
+        "resolution": Setting(720, "parameter values per branch in the DP's grid", integer=True, positive=True),
+        "reconfigure": Setting("forbid", "without a continuous plan: report it, or plan the fewest reconfigurations",
+                               choices=("forbid", "fewest")),
+        "waypoints": Setting(101, "waypoints sampled from a path target", integer=True, positive=True),
+        "a_max": Setting(None, "joint acceleration limit of every joint along a path target, rad/s²", positive=True),
+        "branch": Setting(None, "the one branch the plan may use (default: every branch)", integer=True),
+        "baseline_branch": Setting(None, "branch of the constant-parameter baselines (default: the plan's first)",
+                                   integer=True),
+    },
 }
 """Per kind, every ``[solver]`` key its runner (:mod:`qpik.problems.runners`) reads: the one list of them."""
 
@@ -146,7 +164,7 @@ class Problem:
         poses: target poses (N, 4, 4), base frame, or ``None`` for a path target.
         q_targets: (N, 7) configurations the poses were made from (target forms
             ``q`` and ``random``), else ``None``.
-        path: the :class:`~qpik.problems.paths.TargetPath` of form ``path``, else ``None``.
+        path: the :class:`~qpik.paths.TargetPath` of form ``path``, else ``None``.
         params: redundancy parameter values (M,) in rad, or ``None``.
         obstacles: the obstacle shapes (:mod:`qpik.geometry`, world frame), built by
             :func:`qpik.geometry.shape_from_spec`; an obstacle without a ``name`` is
@@ -348,10 +366,16 @@ class _Reader:
             out[key] = raw if raw is None or key not in table else self.setting(raw, f"solver.{key}", setting)
         return out
 
-    def setting(self, value: Any, field: str, setting: Setting) -> float | int:
+    def setting(self, value: Any, field: str, setting: Setting) -> float | int | str:
+        if setting.choices:
+            if value not in setting.choices:
+                raise self.fail(field, f"expected one of {', '.join(setting.choices)}, got {value!r}")
+            return value
         if setting.integer:
             if not isinstance(value, int) or isinstance(value, bool):
                 raise self.fail(field, f"expected an integer, got {value!r}")
+            if setting.positive and value < 1:
+                raise self.fail(field, f"must be >= 1, got {value}")
             return value
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise self.fail(field, f"expected a number ({setting.doc}), got {value!r}")

@@ -240,6 +240,12 @@ class SerialChain:
         """The fast single-q evaluators of :attr:`casadi_functions`, each built on first use."""
         return _LazyCompiled(self.casadi_functions)
 
+    @cached_property
+    def _fresh(self) -> dict:
+        """``name -> fresh(q)`` of the compiled extension (:meth:`qpik.fastcall.Kernel.fresh`: q checked in C,
+        new row-major outputs; None for any q it does not take), or ``name -> None`` without the extension."""
+        return _LazyFresh(self._compiled)
+
     # ---- numeric API --------------------------------------------------------
 
     def _batch(self, q: np.ndarray) -> list[Frame]:
@@ -247,6 +253,9 @@ class SerialChain:
 
     def fk(self, q: np.ndarray) -> np.ndarray:
         """End-effector pose in the world frame: q (n,) -> (4, 4); q (N, n) -> (N, 4, 4)."""
+        fast = self._fresh["fk"]
+        if fast is not None and (out := fast(q)) is not None:
+            return out[0]
         q, batched = joint_vector(q, self.dof)
         if not batched:
             return self._compiled["fk"](q)[0].copy()
@@ -272,6 +281,9 @@ class SerialChain:
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """Geometric Jacobian ``[v; ω]`` (world frame): (6, n) or (N, 6, n)."""
+        fast = self._fresh["jacobian"]
+        if fast is not None and (out := fast(q)) is not None:
+            return out[0]
         q, batched = joint_vector(q, self.dof)
         if not batched:
             return self._compiled["jacobian"](q)[0].copy()
@@ -279,6 +291,9 @@ class SerialChain:
 
     def fk_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Pose and Jacobian together (one kinematics pass)."""
+        fast = self._fresh["fk_jacobian"]
+        if fast is not None and (out := fast(q)) is not None:
+            return out
         q, batched = joint_vector(q, self.dof)
         if not batched:
             T, J = self._compiled["fk_jacobian"](q)
@@ -325,9 +340,13 @@ class SerialChain:
 
         One configuration goes through the compiled function, a batch through numpy.
         """
+        which = int(flag(translational, "translational"))
+        fast = self._fresh["manipulability_gradient"]
+        if fast is not None and (out := fast(q)) is not None:
+            return out[which]
         q, batched = joint_vector(q, self.dof)
         if not batched:
-            return self._compiled["manipulability_gradient"](q)[int(flag(translational, "translational"))].copy()
+            return self._compiled["manipulability_gradient"](q)[which].copy()
         return manipulability_gradient_from(self.jacobian(q), self.hessian(q), translational)
 
 
@@ -340,6 +359,19 @@ class _LazyCompiled(dict):
 
     def __missing__(self, name: str) -> Compiled:
         self[name] = Compiled(self.functions[name])
+        return self[name]
+
+
+class _LazyFresh(dict):
+    """``name -> Kernel.fresh`` of ``compiled[name]`` (or None without the extension), made when first asked for."""
+
+    def __init__(self, compiled: dict[str, Compiled]):
+        super().__init__()
+        self.compiled = compiled
+
+    def __missing__(self, name: str):
+        kernel = self.compiled[name].fast()
+        self[name] = None if kernel is None else kernel.fresh
         return self[name]
 
 

@@ -27,7 +27,6 @@ import os
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from typing import Protocol
 
 import mujoco
 import numpy as np
@@ -35,6 +34,7 @@ import numpy as np
 from qpik.errors import InputError
 from qpik.geometry.distance import ObstacleSet
 from qpik.geometry.shapes import Shape
+from qpik.paths import TimedPath
 from qpik.robots.mujoco_backend import MjKinematics
 from qpik.robots.robot import Robot
 from qpik.sim.log import SimLog
@@ -47,16 +47,6 @@ MAX_STEPS = 1e8
 MAX_RECORDS = 10**6
 """Most records of one log (``steps / record_every``): each holds the clearance of every link–obstacle pair."""
 OBSTACLE_PREFIX = "obstacles/"
-
-
-class TimedPath(Protocol):
-    """A timed end-effector path: pose (4, 4) and twist ``[v; ω]`` (6,) in the world frame at t (s)."""
-
-    duration: float
-
-    def pose(self, t: float) -> np.ndarray: ...
-
-    def twist(self, t: float) -> np.ndarray: ...
 
 
 Target = np.ndarray | TimedPath | None

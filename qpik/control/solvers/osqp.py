@@ -34,6 +34,10 @@ where no constraint is active, which is most control steps.
 
 from __future__ import annotations
 
+import math
+from functools import cache
+from pathlib import Path
+
 import numpy as np
 import osqp
 from scipy import sparse
@@ -41,6 +45,7 @@ from scipy.linalg import lapack
 
 from qpik.control.qp import QP
 from qpik.control.solvers import Solution, Solver
+from qpik.fastcall import build
 
 DEFAULTS: dict[str, object] = {
     "eps_abs": 1e-5,
@@ -55,6 +60,8 @@ DEFAULTS: dict[str, object] = {
 
 MAX_POLISH_STEPS = 16
 """Bound on the dual active-set steps (additions and removals) of :func:`polish`; at most 8 were needed, see above."""
+POLISH_TOL = 1e-9
+"""Relative tolerance of :func:`polish`'s final checks (bounds and multiplier signs)."""
 REFRESH_EVERY = 10
 """Steps between updates of P and Ā in OSQP (q, l, u are updated every step); see the module docstring."""
 
@@ -127,15 +134,26 @@ class OSQPSolver(Solver):
         raw = self._raw
         raw.solve()
         info, sol = raw.info, raw.solution
-        x = None
-        if sol.x is not None and sol.y is not None and np.isfinite(sol.x).all() and np.isfinite(sol.y).all():
-            x = polish(qp.P, qp.c, self._Abar, self._l, self._u, sol.x, sol.y)
+        x, y = sol.x, sol.y
+        if x is None or y is None or not (math.isfinite(x @ x) and math.isfinite(y @ y)):
+            x = None
+        elif (compiled := _compiled_polish()) is not None:
+            x = compiled(qp.P, qp.c, self._AbarT, self._l, self._u, x, y, POLISH_TOL, MAX_POLISH_STEPS)
+        else:
+            x = polish(qp.P, qp.c, self._Abar, self._l, self._u, x, y, POLISH_TOL, MAX_POLISH_STEPS)
         return Solution(x, x is not None, info.status, int(info.iter))
 
     def _refresh(self, qp: QP) -> None:
         """Give OSQP the current P and Ā (it refactors its KKT matrix)."""
         self._raw.update_data_mat(P_x=qp.P.ravel()[self._pflat], P_i=None, A_x=self._AbarT.ravel(), A_i=None)
         self._stale = 0
+
+
+@cache
+def _compiled_polish():
+    """:func:`polish` in C (``polish.c``, the same steps; :func:`qpik.fastcall.build`), or None without a compiler."""
+    module = build("qpik_polish", Path(__file__).with_name("polish.c"))
+    return None if module is None else module.polish
 
 
 def polish(
@@ -146,7 +164,7 @@ def polish(
     hi: np.ndarray,
     x: np.ndarray,
     y: np.ndarray,
-    tol: float = 1e-9,
+    tol: float = POLISH_TOL,
     max_steps: int = MAX_POLISH_STEPS,
 ) -> np.ndarray | None:
     r"""The exact solution, from the active set guessed by an ADMM iterate; None if not found.

@@ -1,0 +1,336 @@
+/* The exact QP answer from an ADMM iterate's active-set guess: qpik.control.solvers.osqp.polish in C.
+ *
+ * The same steps as the numpy version (its docstring has the math): P = L L^T, x0 = -P^-1 c,
+ * H = Abar P^-1 Abar^T; the guessed rows (OSQP's rule on z + y), reduced to independent ones by a
+ * pivoted Cholesky of H_WW scaled to unit diagonal; negative multipliers dropped; then Goldfarb-Idnani
+ * dual active-set steps while a bound is violated; the answer checked (every bound within tol, every
+ * multiplier >= -tol, both scaled by 1 + max|c| + the largest finite bound). Returns None where the numpy
+ * version does. Module qpik_polish, built at first use by qpik.fastcall.build.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
+#include <numpy/arrayobject.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Cholesky P = L L^T in place (lower triangle of the row-major n x n L); 0 if P is not positive definite. */
+static int cholesky(double *L, int n) {
+    for (int j = 0; j < n; ++j) {
+        double d = L[j * n + j];
+        for (int k = 0; k < j; ++k) d -= L[j * n + k] * L[j * n + k];
+        if (!(d > 0.0)) return 0;
+        d = sqrt(d);
+        L[j * n + j] = d;
+        for (int i = j + 1; i < n; ++i) {
+            double s = L[i * n + j];
+            for (int k = 0; k < j; ++k) s -= L[i * n + k] * L[j * n + k];
+            L[i * n + j] = s / d;
+        }
+    }
+    return 1;
+}
+
+/* x <- P^-1 x with P = L L^T. */
+static void chol_solve(const double *L, int n, double *x) {
+    for (int i = 0; i < n; ++i) {
+        double s = x[i];
+        for (int k = 0; k < i; ++k) s -= L[i * n + k] * x[k];
+        x[i] = s / L[i * n + i];
+    }
+    for (int i = n - 1; i >= 0; --i) {
+        double s = x[i];
+        for (int k = i + 1; k < n; ++k) s -= L[k * n + i] * x[k];
+        x[i] = s / L[i * n + i];
+    }
+}
+
+/* Solve H[W, W] sol = rhs (k = |W|) by LU with partial pivoting; 0 if a pivot is exactly zero. */
+static int solve_w(const double *H, int M, const int *W, int k, const double *rhs, double *sol, double *G) {
+    for (int i = 0; i < k; ++i) {
+        for (int j = 0; j < k; ++j) G[i * k + j] = H[W[i] * M + W[j]];
+        sol[i] = rhs[i];
+    }
+    for (int c = 0; c < k; ++c) {
+        int p = c;
+        for (int i = c + 1; i < k; ++i)
+            if (fabs(G[i * k + c]) > fabs(G[p * k + c])) p = i;
+        if (G[p * k + c] == 0.0) return 0;
+        if (p != c) {
+            for (int j = 0; j < k; ++j) {
+                double t = G[c * k + j];
+                G[c * k + j] = G[p * k + j], G[p * k + j] = t;
+            }
+            double t = sol[c];
+            sol[c] = sol[p], sol[p] = t;
+        }
+        for (int i = c + 1; i < k; ++i) {
+            double f = G[i * k + c] / G[c * k + c];
+            if (f == 0.0) continue;
+            for (int j = c; j < k; ++j) G[i * k + j] -= f * G[c * k + j];
+            sol[i] -= f * sol[c];
+        }
+    }
+    for (int i = k - 1; i >= 0; --i) {
+        double s = sol[i];
+        for (int j = i + 1; j < k; ++j) s -= G[i * k + j] * sol[j];
+        sol[i] = s / G[i * k + i];
+    }
+    return 1;
+}
+
+static int ascending_int(const void *a, const void *b) { return *(const int *)a - *(const int *)b; }
+
+/* The rows of W (k of them) that are linearly independent: pivoted Cholesky of H[W, W] scaled to unit
+ * diagonal, stopping at a pivot <= 1e-12 (LAPACK dpstrf's rule); the kept rows sorted. Returns their count. */
+static int independent(const double *H, int M, int *W, int k, double *G) {
+    if (k <= 1) return k;
+    int *perm = malloc(sizeof(int) * (size_t)k);
+    if (!perm) return -1;
+    for (int i = 0; i < k; ++i) {
+        perm[i] = i;
+        for (int j = 0; j < k; ++j)
+            G[i * k + j] = H[W[i] * M + W[j]] / sqrt(H[W[i] * M + W[i]] * H[W[j] * M + W[j]]);
+    }
+    int rank = 0;
+    for (; rank < k; ++rank) { /* G holds the Schur complement in rows/columns rank..k-1 (permuted) */
+        int p = rank;
+        for (int i = rank + 1; i < k; ++i)
+            if (G[perm[i] * k + perm[i]] > G[perm[p] * k + perm[p]]) p = i;
+        double d = G[perm[p] * k + perm[p]];
+        if (!(d > 1e-12)) break;
+        int t = perm[rank];
+        perm[rank] = perm[p], perm[p] = t;
+        int r = perm[rank];
+        double s = sqrt(d);
+        for (int i = rank + 1; i < k; ++i) G[perm[i] * k + r] /= s;
+        for (int i = rank + 1; i < k; ++i)
+            for (int j = rank + 1; j < k; ++j) G[perm[i] * k + perm[j]] -= G[perm[i] * k + r] * G[perm[j] * k + r];
+    }
+    if (rank < k) {
+        qsort(perm, (size_t)rank, sizeof(int), ascending_int);
+        int *kept = malloc(sizeof(int) * (size_t)rank);
+        if (!kept) {
+            free(perm);
+            return -1;
+        }
+        for (int i = 0; i < rank; ++i) kept[i] = W[perm[i]];
+        memcpy(W, kept, sizeof(int) * (size_t)rank);
+        free(kept);
+    }
+    free(perm);
+    return rank;
+}
+
+/* The polish; 1 with the answer in out, 0 for no answer, -1 out of memory. */
+#define ABAR(i, j) AbarT[(size_t)(j) * M + (i)] /* Abar (M, n) stored column-major: AbarT (n, M) row-major */
+
+static int polish(int n, int M, const double *P, const double *c, const double *AbarT, const double *lo,
+                  const double *hi, const double *x, const double *y, double tol, int max_steps, double *out) {
+    size_t V = (size_t)M + 1; /* room of each vector over the rows (W holds at most M + 1) */
+    size_t need = (size_t)n * n + 2 * (size_t)n + (size_t)n * M + 2 * (size_t)M * M + 7 * V + V * V;
+    double *L = malloc(sizeof(double) * need);
+    int *W = malloc(sizeof(int) * 2 * ((size_t)M + 1));
+    unsigned char *lower = malloc((size_t)M + 1);
+    if (!L || !W || !lower) {
+        free(L), free(W), free(lower);
+        return -1;
+    }
+    double *x0 = L + n * n, *xs = x0 + n, *C = xs + n, *H = C + (size_t)n * M, *r0 = H + (size_t)M * M;
+    double *b = r0 + V, *z = b + V, *nu = z + V, *g = nu + V, *dz = g + V, *rhs = dz + V, *G = rhs + V;
+    int *guess = W + M + 1, status = 0;
+    int k = 0, ng = 0, steps = 0;
+    double *sigma = NULL;
+
+    for (int i = 0; i < M; ++i) { /* the guess: z + y below lo or above hi */
+        double w = y[i];
+        for (int j = 0; j < n; ++j) w += ABAR(i, j) * x[j];
+        lower[i] = w < lo[i];
+        if (lower[i] || w > hi[i]) guess[ng++] = i;
+    }
+    memcpy(L, P, sizeof(double) * (size_t)n * n);
+    if (!cholesky(L, n)) goto done;
+    for (int j = 0; j < n; ++j) x0[j] = -c[j];
+    chol_solve(L, n, x0);
+    double viol = -INFINITY, bound = 0.0, cmax = 0.0;
+    for (int i = 0; i < M; ++i) {
+        double r = 0.0;
+        for (int j = 0; j < n; ++j) r += ABAR(i, j) * x0[j];
+        r0[i] = r;
+        viol = fmax(viol, fmax(lo[i] - r, r - hi[i]));
+        if (isfinite(lo[i])) bound = fmax(bound, fabs(lo[i]));
+        if (isfinite(hi[i])) bound = fmax(bound, fabs(hi[i]));
+    }
+    if (viol <= 0.0 && ng == 0) { /* nothing active, every bound met strictly */
+        memcpy(out, x0, sizeof(double) * (size_t)n);
+        status = 1;
+        goto done;
+    }
+    for (int j = 0; j < n; ++j) cmax = fmax(cmax, fabs(c[j]));
+    double scale = tol * (1.0 + cmax + bound);
+    if (ng == 0 && viol <= scale) {
+        memcpy(out, x0, sizeof(double) * (size_t)n);
+        status = 1;
+        goto done;
+    }
+    for (int i = 0; i < M; ++i) { /* C[:, i] = P^-1 Abar_i, stored row i of C as (M, n) */
+        for (int j = 0; j < n; ++j) C[(size_t)i * n + j] = ABAR(i, j);
+        chol_solve(L, n, C + (size_t)i * n);
+    }
+    for (int i = 0; i < M; ++i)
+        for (int j = 0; j < M; ++j) {
+            double s = 0.0;
+            for (int t = 0; t < n; ++t) s += ABAR(i, t) * C[(size_t)j * n + t];
+            H[(size_t)i * M + j] = s;
+        }
+    for (int i = 0; i < M; ++i) b[i] = lower[i] ? lo[i] : hi[i];
+    memcpy(W, guess, sizeof(int) * (size_t)ng);
+    k = independent(H, M, W, ng, G);
+    if (k < 0) {
+        status = -1;
+        goto done;
+    }
+    sigma = malloc(sizeof(double) * ((size_t)M + 1));
+    if (!sigma) {
+        status = -1;
+        goto done;
+    }
+    for (int i = 0; i < k; ++i) sigma[i] = lower[W[i]] ? 1.0 : -1.0;
+    for (;;) { /* a dual feasible start: drop the most negative multiplier until none is */
+        for (int i = 0; i < k; ++i) rhs[i] = b[W[i]] - r0[W[i]];
+        if (!solve_w(H, M, W, k, rhs, nu, G)) goto done;
+        int worst = -1;
+        for (int i = 0; i < k; ++i)
+            if (sigma[i] * nu[i] < 0.0 && (worst < 0 || sigma[i] * nu[i] < sigma[worst] * nu[worst])) worst = i;
+        if (worst < 0) break;
+        for (int i = worst; i + 1 < k; ++i) W[i] = W[i + 1], sigma[i] = sigma[i + 1];
+        --k;
+    }
+    for (int i = 0; i < M; ++i) {
+        double s = r0[i];
+        for (int t = 0; t < k; ++t) s += H[(size_t)i * M + W[t]] * nu[t];
+        z[i] = s;
+    }
+    for (;;) {
+        int p = 0;
+        double vp = -INFINITY;
+        for (int i = 0; i < M; ++i) {
+            double v = fmax(lo[i] - z[i], z[i] - hi[i]);
+            if (v > vp) vp = v, p = i;
+        }
+        if (vp <= scale) break;
+        double sp = lo[p] - z[p] > 0.0 ? 1.0 : -1.0;
+        b[p] = sp > 0.0 ? lo[p] : hi[p];
+        double gap = vp, nu_p = 0.0;
+        for (;;) { /* raise p's multiplier until p is met (it joins W) or a constraint of W leaves */
+            if (++steps > max_steps) goto done;
+            if (k) {
+                for (int i = 0; i < k; ++i) rhs[i] = H[(size_t)W[i] * M + p];
+                if (!solve_w(H, M, W, k, rhs, g, G)) goto done;
+                for (int i = 0; i < k; ++i) g[i] = -g[i];
+            }
+            for (int i = 0; i < M; ++i) {
+                double s = H[(size_t)i * M + p];
+                for (int t = 0; t < k; ++t) s += H[(size_t)i * M + W[t]] * g[t];
+                dz[i] = sp * s;
+            }
+            double rate = sp * dz[p];
+            double full = rate > 1e-10 * H[(size_t)p * M + p] ? gap / rate : INFINITY;
+            int j = -1;
+            double ratio = INFINITY;
+            for (int i = 0; i < k; ++i) {
+                double u = sigma[i] * sp * g[i];
+                if (u < 0.0) {
+                    double r = sigma[i] * nu[i] / -u;
+                    if (j < 0 || r < ratio) ratio = r, j = i;
+                }
+            }
+            double t = j >= 0 ? fmin(full, ratio) : full;
+            if (!isfinite(t)) goto done; /* p cannot be met with W's constraints: infeasible */
+            for (int i = 0; i < M; ++i) z[i] += t * dz[i];
+            gap -= t * rate;
+            for (int i = 0; i < k; ++i) nu[i] += t * sp * g[i];
+            nu_p += sp * t;
+            if (t == full) {
+                W[k] = p, sigma[k] = sp, nu[k] = nu_p, ++k;
+                break;
+            }
+            for (int i = j; i + 1 < k; ++i) W[i] = W[i + 1], sigma[i] = sigma[i + 1], nu[i] = nu[i + 1];
+            --k;
+        }
+    }
+    if (steps) { /* re-solve on the final W: the answer is not left with the steps' rounding */
+        for (int i = 0; i < k; ++i) rhs[i] = b[W[i]] - r0[W[i]];
+        if (!solve_w(H, M, W, k, rhs, nu, G)) goto done;
+    }
+    for (int i = 0; i < k; ++i)
+        if (sigma[i] * nu[i] < -scale) goto done;
+    for (int j = 0; j < n; ++j) {
+        double s = x0[j];
+        for (int t = 0; t < k; ++t) s += C[(size_t)W[t] * n + j] * nu[t];
+        xs[j] = s;
+    }
+    for (int i = 0; i < M; ++i) {
+        double s = 0.0;
+        for (int j = 0; j < n; ++j) s += ABAR(i, j) * xs[j];
+        if (fmax(lo[i] - s, s - hi[i]) > scale) goto done;
+    }
+    memcpy(out, xs, sizeof(double) * (size_t)n);
+    status = 1;
+done:
+    free(L), free(W), free(lower), free(sigma);
+    return status;
+}
+
+/* The data of a float64 C-contiguous array of `size` entries, or NULL with a TypeError naming it. */
+static const double *data_of(PyObject *a, npy_intp size, const char *name) {
+    PyArrayObject *arr = (PyArrayObject *)a;
+    if (!PyArray_Check(a) || PyArray_TYPE(arr) != NPY_DOUBLE || !PyArray_IS_C_CONTIGUOUS(arr) ||
+        PyArray_SIZE(arr) != size) {
+        PyErr_Format(PyExc_TypeError, "polish: %s must be a float64 C-contiguous array of %zd entries", name,
+                     (Py_ssize_t)size);
+        return NULL;
+    }
+    return (const double *)PyArray_DATA(arr);
+}
+
+/* polish(P (n, n), c (n,), AbarT (n, M): Abar transposed, lo (M,), hi (M,), x (n,), y (M,), tol, max_steps)
+ * -> x (n,) or None */
+static PyObject *py_polish(PyObject *mod, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 9) {
+        PyErr_SetString(PyExc_TypeError, "polish takes 9 arguments");
+        return NULL;
+    }
+    if (!PyArray_Check(args[1]) || !PyArray_Check(args[3])) {
+        PyErr_SetString(PyExc_TypeError, "polish: c and lo must be arrays");
+        return NULL;
+    }
+    npy_intp n = PyArray_SIZE((PyArrayObject *)args[1]), M = PyArray_SIZE((PyArrayObject *)args[3]);
+    const double *P = data_of(args[0], n * n, "P"), *c = data_of(args[1], n, "c"), *A = data_of(args[2], M * n, "AbarT");
+    const double *lo = data_of(args[3], M, "lo"), *hi = data_of(args[4], M, "hi"), *x = data_of(args[5], n, "x");
+    const double *y = data_of(args[6], M, "y");
+    double tol = PyFloat_AsDouble(args[7]);
+    long steps = PyLong_AsLong(args[8]);
+    if (!P || !c || !A || !lo || !hi || !x || !y || PyErr_Occurred()) return NULL;
+    PyObject *out = PyArray_SimpleNew(1, &n, NPY_DOUBLE);
+    if (!out) return NULL;
+    int status = polish((int)n, (int)M, P, c, A, lo, hi, x, y, tol, (int)steps, PyArray_DATA((PyArrayObject *)out));
+    if (status == 1) return out;
+    Py_DECREF(out);
+    if (status < 0) return PyErr_NoMemory();
+    Py_RETURN_NONE;
+}
+
+static PyMethodDef methods[] = {
+    {"polish", (PyCFunction)(void (*)(void))py_polish, METH_FASTCALL,
+     "polish(P, c, AbarT, lo, hi, x, y, tol, max_steps): the exact QP answer, or None"},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "qpik_polish", NULL, -1, methods};
+
+PyMODINIT_FUNC PyInit_qpik_polish(void) {
+    import_array();
+    return PyModule_Create(&module);
+}

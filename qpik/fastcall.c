@@ -1,0 +1,370 @@
+/* qpik's CPython extension (qpik.fastcall): calls the CasADi-generated C of qpik's kernels from Python.
+ *
+ * A Kernel holds one generated function (its entry point, taken from the shared library that
+ * qpik.compiled built), the pointer and work arrays of CasADi's calling convention, and input and
+ * output buffers owned by numpy arrays that the Python side keeps. A call copies its arguments into
+ * the input buffers and runs the function: no CasADi dispatch, no ctypes marshalling.
+ *
+ * - kernel(*args): arguments as qpik.compiled.Compiled takes them (float64 vectors of the input's
+ *   size, (rows, cols) float64 matrices copied in column-major order, Python floats for scalars);
+ *   returns the object given at construction (the Compiled's output views). None when an argument is
+ *   of another form, for the caller's general path.
+ * - kernel.fresh(*args): the same with every argument checked in C (finite; a pose input is a
+ *   homogeneous transform with an orthonormal rotation); returns a tuple of new arrays, one per kept
+ *   output (a column-major matrix turned row-major, raw entries, or flags > 0.5 as bools). None when
+ *   an argument fails a check: the caller's Python path then raises the error that names it.
+ * - kernel.into(outs, *args): fresh's checks, the outputs written into the caller's arrays `outs`
+ *   (float64, C-contiguous, of the outputs' shapes). Returns outs, or None as fresh does.
+ *
+ * Arguments left out keep their buffer's content (constant inputs are written once by the caller).
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
+#include <numpy/arrayobject.h>
+#include <math.h>
+#include <stddef.h>
+#include <string.h>
+
+typedef long long casadi_int;
+typedef int (*casadi_fn)(const double **arg, double **res, casadi_int *iw, double *w, int mem);
+
+#define MAX_IO 16
+#define ORTHONORMAL_TOL 1e-6 /* qpik.validate.ORTHONORMAL_TOL */
+#define MAX_LENGTH 1e6       /* qpik.validate.MAX_LENGTH, m */
+
+enum { IN_PLAIN = 0, IN_POSE = 1 };
+enum { OUT_MATRIX = 0, OUT_RAW = 1, OUT_FLAGS = 2, OUT_SKIP = 3 };
+
+static PyObject *input_error; /* qpik.errors.InputError, given by set_input_error */
+
+static PyObject *qpik_input_error(void) { return input_error ? input_error : PyExc_ValueError; }
+
+typedef struct {
+    PyObject_HEAD
+    vectorcallfunc vectorcall;
+    casadi_fn fn;
+    int n_in, n_out, n_kept;
+    const double **arg;
+    double **res;
+    casadi_int *iw;
+    double *w;
+    double *in[MAX_IO];
+    Py_ssize_t in_rows[MAX_IO], in_cols[MAX_IO];
+    int in_kind[MAX_IO];
+    double *out[MAX_IO];
+    Py_ssize_t out_rows[MAX_IO], out_cols[MAX_IO];
+    int out_kind[MAX_IO], out_nd[MAX_IO];
+    npy_intp out_dims[MAX_IO][3];
+    PyObject *keep;   /* the arrays whose memory is used and the owner of fn */
+    PyObject *result; /* what a call returns */
+} Kernel;
+
+/* Whether the row-major 4x4 T is a pose qpik.validate.single_pose accepts without projection. */
+static int pose_ok(const double *T) {
+    if (fabs(T[12]) > 1e-12 || fabs(T[13]) > 1e-12 || fabs(T[14]) > 1e-12 || fabs(T[15] - 1.0) > 1e-12) return 0;
+    if (fabs(T[3]) > MAX_LENGTH || fabs(T[7]) > MAX_LENGTH || fabs(T[11]) > MAX_LENGTH) return 0;
+    double a = T[0], b = T[1], c = T[2], d = T[4], e = T[5], f = T[6], g = T[8], h = T[9], i = T[10];
+    double det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g);
+    double err[7] = {a * a + d * d + g * g - 1.0, b * b + e * e + h * h - 1.0, c * c + f * f + i * i - 1.0,
+                     a * b + d * e + g * h,       a * c + d * f + g * i,       b * c + e * f + h * i,
+                     det - 1.0};
+    for (int k = 0; k < 7; ++k)
+        if (!(fabs(err[k]) <= ORTHONORMAL_TOL)) return 0;
+    return 1;
+}
+
+/* Copy argument a into input k. Returns 1 on success, 0 when a is of another form (or fails the
+ * checks, with `checked`). */
+static int load_input(Kernel *self, int k, PyObject *a, int checked) {
+    double *dst = self->in[k];
+    Py_ssize_t rows = self->in_rows[k], cols = self->in_cols[k], size = rows * cols;
+    if (PyFloat_CheckExact(a)) {
+        if (size != 1) return 0;
+        dst[0] = PyFloat_AS_DOUBLE(a);
+        return !checked || isfinite(dst[0]);
+    }
+    if (!PyArray_CheckExact(a)) return 0;
+    PyArrayObject *arr = (PyArrayObject *)a;
+    if (PyArray_TYPE(arr) != NPY_DOUBLE || !PyArray_IS_C_CONTIGUOUS(arr) || !PyArray_ISALIGNED(arr)) return 0;
+    const double *src = (const double *)PyArray_DATA(arr);
+    int nd = PyArray_NDIM(arr);
+    const npy_intp *dims = PyArray_DIMS(arr);
+    if (nd == 1 && dims[0] == size && self->in_kind[k] == IN_PLAIN) {
+        memcpy(dst, src, sizeof(double) * (size_t)size);
+    } else if (nd == 2 && dims[0] == rows && dims[1] == cols) {
+        if (checked && self->in_kind[k] == IN_POSE && !pose_ok(src)) return 0;
+        for (Py_ssize_t i = 0; i < rows; ++i)
+            for (Py_ssize_t j = 0; j < cols; ++j) dst[j * rows + i] = src[i * cols + j];
+    } else {
+        return 0;
+    }
+    if (checked)
+        for (Py_ssize_t i = 0; i < size; ++i)
+            if (!isfinite(dst[i])) return 0;
+    return 1;
+}
+
+/* Load the arguments and evaluate; 1 on success, 0 when an argument does not fit, -1 with an exception. */
+static int run(Kernel *self, PyObject *const *args, Py_ssize_t nargs, int checked) {
+    if (nargs > self->n_in) {
+        PyErr_Format(PyExc_TypeError, "kernel takes at most %d arguments, got %zd", self->n_in, nargs);
+        return -1;
+    }
+    for (Py_ssize_t k = 0; k < nargs; ++k)
+        if (!load_input(self, (int)k, args[k], checked)) return 0;
+    if (self->fn(self->arg, self->res, self->iw, self->w, 0)) {
+        PyErr_SetString(PyExc_RuntimeError, "qpik kernel: the generated function failed");
+        return -1;
+    }
+    return 1;
+}
+
+/* Output k written into dst (its kept form, see the file's comment). */
+static void store(Kernel *self, int k, void *dst) {
+    const double *src = self->out[k];
+    Py_ssize_t rows = self->out_rows[k], cols = self->out_cols[k], size = rows * cols;
+    if (self->out_kind[k] == OUT_MATRIX) {
+        double *d = (double *)dst;
+        for (Py_ssize_t i = 0; i < rows; ++i)
+            for (Py_ssize_t j = 0; j < cols; ++j) d[i * cols + j] = src[j * rows + i];
+    } else if (self->out_kind[k] == OUT_RAW) {
+        memcpy(dst, src, sizeof(double) * (size_t)size);
+    } else {
+        npy_bool *d = (npy_bool *)dst;
+        for (Py_ssize_t i = 0; i < size; ++i) d[i] = src[i] > 0.5;
+    }
+}
+
+static PyObject *kernel_vectorcall(PyObject *obj, PyObject *const *args, size_t nargsf, PyObject *kwnames) {
+    Kernel *self = (Kernel *)obj;
+    if (kwnames && PyTuple_GET_SIZE(kwnames)) {
+        PyErr_SetString(PyExc_TypeError, "kernel takes no keyword arguments");
+        return NULL;
+    }
+    int ok = run(self, args, PyVectorcall_NARGS(nargsf), 0);
+    if (ok < 0) return NULL;
+    if (!ok) Py_RETURN_NONE;
+    Py_INCREF(self->result);
+    return self->result;
+}
+
+static PyObject *kernel_fresh(PyObject *obj, PyObject *const *args, Py_ssize_t nargs) {
+    Kernel *self = (Kernel *)obj;
+    int ok = run(self, args, nargs, 1);
+    if (ok < 0) return NULL;
+    if (!ok) Py_RETURN_NONE;
+    PyObject *out = PyTuple_New(self->n_kept);
+    if (!out) return NULL;
+    for (int k = 0, t = 0; k < self->n_out; ++k) {
+        if (self->out_kind[k] == OUT_SKIP) continue;
+        int type = self->out_kind[k] == OUT_FLAGS ? NPY_BOOL : NPY_DOUBLE;
+        PyObject *a = PyArray_SimpleNew(self->out_nd[k], self->out_dims[k], type);
+        if (!a) {
+            Py_DECREF(out);
+            return NULL;
+        }
+        store(self, k, PyArray_DATA((PyArrayObject *)a));
+        PyTuple_SET_ITEM(out, t++, a);
+    }
+    return out;
+}
+
+static PyObject *kernel_into(PyObject *obj, PyObject *const *args, Py_ssize_t nargs) {
+    Kernel *self = (Kernel *)obj;
+    if (nargs < 1 || !PyTuple_Check(args[0]) || PyTuple_GET_SIZE(args[0]) != self->n_kept) {
+        PyErr_Format(PyExc_TypeError, "out: expected a tuple of %d arrays", self->n_kept);
+        return NULL;
+    }
+    PyObject *outs = args[0];
+    for (int k = 0, t = 0; k < self->n_out; ++k) {
+        if (self->out_kind[k] == OUT_SKIP) continue;
+        PyObject *a = PyTuple_GET_ITEM(outs, t++);
+        int type = self->out_kind[k] == OUT_FLAGS ? NPY_BOOL : NPY_DOUBLE;
+        PyArrayObject *arr = (PyArrayObject *)a;
+        int fits = PyArray_Check(a) && PyArray_TYPE(arr) == type && PyArray_IS_C_CONTIGUOUS(arr) &&
+                   PyArray_ISWRITEABLE(arr) && PyArray_ISALIGNED(arr) && PyArray_NDIM(arr) == self->out_nd[k];
+        for (int d = 0; fits && d < self->out_nd[k]; ++d) fits = PyArray_DIMS(arr)[d] == self->out_dims[k][d];
+        if (!fits) {
+            PyErr_Format(qpik_input_error(), "out[%d]: expected a writeable C-contiguous %s array of the output's shape",
+                         t - 1, type == NPY_BOOL ? "bool" : "float64");
+            return NULL;
+        }
+    }
+    int ok = run(self, args + 1, nargs - 1, 1);
+    if (ok < 0) return NULL;
+    if (!ok) Py_RETURN_NONE;
+    for (int k = 0, t = 0; k < self->n_out; ++k)
+        if (self->out_kind[k] != OUT_SKIP) store(self, k, PyArray_DATA((PyArrayObject *)PyTuple_GET_ITEM(outs, t++)));
+    Py_INCREF(outs);
+    return outs;
+}
+
+/* The data pointer of a float64 C-contiguous array of `size` entries (borrowed), or NULL with an exception. */
+static double *buffer_of(PyObject *a, Py_ssize_t size, const char *what) {
+    PyArrayObject *arr = (PyArrayObject *)a;
+    if (!PyArray_Check(a) || PyArray_TYPE(arr) != NPY_DOUBLE || !PyArray_IS_C_CONTIGUOUS(arr) ||
+        PyArray_SIZE(arr) != size) {
+        PyErr_Format(PyExc_TypeError, "Kernel: %s must be a float64 C-contiguous array of %zd entries", what, size);
+        return NULL;
+    }
+    return (double *)PyArray_DATA(arr);
+}
+
+/* Kernel(address, work, inputs, outputs, result, owner)
+ *   address: the generated function's entry point; work: (sz_arg, sz_res, sz_iw, sz_w);
+ *   inputs: ((array, rows, cols, kind), ...); outputs: ((array, rows, cols, kind, shape), ...);
+ *   result: what a call returns; owner: kept alive with the kernel (the loaded library). */
+static PyObject *kernel_new(PyTypeObject *type, PyObject *args, PyObject *kwds) {
+    unsigned long long address;
+    Py_ssize_t sz_arg, sz_res, sz_iw, sz_w;
+    PyObject *inputs, *outputs, *result, *owner;
+    if (!PyArg_ParseTuple(args, "K(nnnn)O!O!OO", &address, &sz_arg, &sz_res, &sz_iw, &sz_w, &PyTuple_Type, &inputs,
+                          &PyTuple_Type, &outputs, &result, &owner))
+        return NULL;
+    Py_ssize_t n_in = PyTuple_GET_SIZE(inputs), n_out = PyTuple_GET_SIZE(outputs);
+    if (n_in > MAX_IO || n_out > MAX_IO || address == 0) {
+        PyErr_SetString(PyExc_ValueError, "Kernel: at most 16 inputs and outputs, and an entry point");
+        return NULL;
+    }
+    Kernel *self = (Kernel *)type->tp_alloc(type, 0);
+    if (!self) return NULL;
+    self->vectorcall = kernel_vectorcall;
+    self->fn = (casadi_fn)(uintptr_t)address;
+    self->n_in = (int)n_in, self->n_out = (int)n_out;
+    Py_ssize_t na = sz_arg > n_in ? sz_arg : n_in, nr = sz_res > n_out ? sz_res : n_out;
+    self->arg = PyMem_Calloc((size_t)na, sizeof(double *));
+    self->res = PyMem_Calloc((size_t)nr, sizeof(double *));
+    self->iw = PyMem_Calloc((size_t)(sz_iw > 0 ? sz_iw : 1), sizeof(casadi_int));
+    self->w = PyMem_Calloc((size_t)(sz_w > 0 ? sz_w : 1), sizeof(double));
+    self->keep = PyTuple_Pack(3, inputs, outputs, owner);
+    Py_INCREF(result);
+    self->result = result;
+    if (!self->arg || !self->res || !self->iw || !self->w || !self->keep) {
+        Py_DECREF(self);
+        return PyErr_NoMemory();
+    }
+    for (Py_ssize_t k = 0; k < n_in; ++k) {
+        PyObject *a;
+        if (!PyArg_ParseTuple(PyTuple_GET_ITEM(inputs, k), "Onni", &a, &self->in_rows[k], &self->in_cols[k],
+                              &self->in_kind[k]) ||
+            !(self->in[k] = buffer_of(a, self->in_rows[k] * self->in_cols[k], "an input"))) {
+            Py_DECREF(self);
+            return NULL;
+        }
+        self->arg[k] = self->in[k];
+    }
+    for (Py_ssize_t k = 0; k < n_out; ++k) {
+        PyObject *a, *shape;
+        if (!PyArg_ParseTuple(PyTuple_GET_ITEM(outputs, k), "OnniO!", &a, &self->out_rows[k], &self->out_cols[k],
+                              &self->out_kind[k], &PyTuple_Type, &shape) ||
+            !(self->out[k] = buffer_of(a, self->out_rows[k] * self->out_cols[k], "an output"))) {
+            Py_DECREF(self);
+            return NULL;
+        }
+        self->res[k] = self->out[k];
+        self->out_nd[k] = (int)PyTuple_GET_SIZE(shape);
+        npy_intp count = 1;
+        for (int d = 0; d < self->out_nd[k] && d < 3; ++d) {
+            self->out_dims[k][d] = PyLong_AsSsize_t(PyTuple_GET_ITEM(shape, d));
+            count *= self->out_dims[k][d];
+        }
+        if (self->out_nd[k] > 3 || (self->out_kind[k] != OUT_SKIP && count != self->out_rows[k] * self->out_cols[k])) {
+            PyErr_SetString(PyExc_ValueError, "Kernel: an output's shape does not hold its entries");
+            Py_DECREF(self);
+            return NULL;
+        }
+        self->n_kept += self->out_kind[k] != OUT_SKIP;
+    }
+    return (PyObject *)self;
+}
+
+static void kernel_dealloc(Kernel *self) {
+    PyMem_Free(self->arg);
+    PyMem_Free(self->res);
+    PyMem_Free(self->iw);
+    PyMem_Free(self->w);
+    Py_XDECREF(self->keep);
+    Py_XDECREF(self->result);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static PyMethodDef kernel_methods[] = {
+    {"fresh", (PyCFunction)(void (*)(void))kernel_fresh, METH_FASTCALL,
+     "fresh(*args): checked arguments, new output arrays (None when an argument fails a check)"},
+    {"into", (PyCFunction)(void (*)(void))kernel_into, METH_FASTCALL,
+     "into(outs, *args): checked arguments, outputs written into the arrays outs (None as fresh)"},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject KernelType = {
+    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "qpik_fastcall.Kernel",
+    .tp_basicsize = sizeof(Kernel),
+    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_VECTORCALL,
+    .tp_doc = "A CasADi-generated function called on numpy buffers (see qpik/fastcall.c).",
+    .tp_new = kernel_new,
+    .tp_dealloc = (destructor)kernel_dealloc,
+    .tp_vectorcall_offset = offsetof(Kernel, vectorcall),
+    .tp_call = PyVectorcall_Call,
+    .tp_methods = kernel_methods,
+};
+
+static PyObject *set_input_error(PyObject *mod, PyObject *cls) {
+    Py_XSETREF(input_error, Py_NewRef(cls));
+    Py_RETURN_NONE;
+}
+
+/* pose_ok(T): whether T is a float64 (4, 4) C-contiguous array holding a finite pose that
+ * qpik.validate.single_pose accepts without projection (False for anything else). */
+static PyObject *module_pose_ok(PyObject *mod, PyObject *a) {
+    PyArrayObject *arr = (PyArrayObject *)a;
+    if (!PyArray_CheckExact(a) || PyArray_TYPE(arr) != NPY_DOUBLE || !PyArray_IS_C_CONTIGUOUS(arr) ||
+        !PyArray_ISALIGNED(arr) || PyArray_NDIM(arr) != 2 || PyArray_DIMS(arr)[0] != 4 || PyArray_DIMS(arr)[1] != 4)
+        Py_RETURN_FALSE;
+    const double *T = (const double *)PyArray_DATA(arr);
+    for (int i = 0; i < 16; ++i)
+        if (!isfinite(T[i])) Py_RETURN_FALSE;
+    return PyBool_FromLong(pose_ok(T));
+}
+
+/* vector_ok(q, n): whether q is a float64 1-D C-contiguous array of n finite entries (False for anything else). */
+static PyObject *module_vector_ok(PyObject *mod, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 2) {
+        PyErr_SetString(PyExc_TypeError, "vector_ok(q, n)");
+        return NULL;
+    }
+    PyArrayObject *arr = (PyArrayObject *)args[0];
+    Py_ssize_t n = PyLong_AsSsize_t(args[1]);
+    if (n == -1 && PyErr_Occurred()) return NULL;
+    if (!PyArray_CheckExact(args[0]) || PyArray_TYPE(arr) != NPY_DOUBLE || !PyArray_IS_C_CONTIGUOUS(arr) ||
+        !PyArray_ISALIGNED(arr) || PyArray_NDIM(arr) != 1 || PyArray_DIMS(arr)[0] != n)
+        Py_RETURN_FALSE;
+    const double *q = (const double *)PyArray_DATA(arr);
+    for (Py_ssize_t i = 0; i < n; ++i)
+        if (!isfinite(q[i])) Py_RETURN_FALSE;
+    Py_RETURN_TRUE;
+}
+
+static PyMethodDef module_methods[] = {
+    {"vector_ok", (PyCFunction)(void (*)(void))module_vector_ok, METH_FASTCALL,
+     "Whether q is a float64 1-D array of n finite entries."},
+    {"pose_ok", module_pose_ok, METH_O, "Whether a float64 (4, 4) array is a finite pose with an orthonormal rotation."},
+    {"set_input_error", set_input_error, METH_O, "The exception class of bad arguments (qpik.errors.InputError)."},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "qpik_fastcall", NULL, -1, module_methods};
+
+PyMODINIT_FUNC PyInit_qpik_fastcall(void) {
+    import_array();
+    if (PyType_Ready(&KernelType) < 0) return NULL;
+    PyObject *m = PyModule_Create(&module);
+    if (!m) return NULL;
+    Py_INCREF(&KernelType);
+    if (PyModule_AddObject(m, "Kernel", (PyObject *)&KernelType) < 0) {
+        Py_DECREF(&KernelType);
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
+}

@@ -1,0 +1,13 @@
+"""Offline self-motion planning along an end-effector path.
+
+- :func:`plan_self_motion`: DP over the exact feasible intervals, refined by a sparse NLP, for closed-form
+  arms; the QP controller's run refined by the same NLP for the others (:mod:`qpik.planning.planner`);
+- :class:`Plan`: the answer, its checks, CSV/NPZ files and :meth:`Plan.retime` (toppra) (:mod:`qpik.planning.plan`);
+- :mod:`qpik.planning.baselines`: constant δ/ψ and the online QP controller on the same waypoints;
+- :mod:`qpik.planning.batch`: many path files, in local processes or on a Dask cluster.
+"""
+
+from qpik.planning.plan import Check, Plan, Trajectory
+from qpik.planning.planner import plan_self_motion
+
+__all__ = ["Check", "Plan", "Trajectory", "plan_self_motion"]

@@ -1,0 +1,321 @@
+r"""Dynamic programming over the parameter grid (:mod:`qpik.planning.grid`): the best sequence of states.
+
+A plan picks one feasible state :math:`s_k = (b_k, i_k)` per waypoint (branch row, grid index) and
+costs
+
+.. math:: J = \sum_{k} \frac{\lVert q(s_{k+1}) - q(s_k) \rVert^2}{\Delta_k} + \sum_k w_k\, f(q(s_k)),
+
+with :math:`\Delta_k` the progress (or time, s) between waypoints k and k+1 and :math:`w_k` the
+trapezoid weights of the same progress, so that J approximates
+:math:`\int \lVert dq/ds \rVert^2 ds + \int f\, ds`. A transition is *continuous* when every joint
+moves by at most its bound, :math:`|q_j(s_{k+1}) - q_j(s_k)| \le \ell_{k,j}` (the L∞ bound of the
+largest joint step and, with times, :math:`v_{max,j} \Delta t_k`; with ``a_max``, also the
+acceleration from the velocity of the state's best predecessor, as Ferrentino et al. check it).
+
+Continuous transitions are searched on the same branch between grid values at most ``window``
+indices apart (cyclically): a parameter change of Δ moves the shoulder by Δ about the
+shoulder–wrist line (S-R-S: :math:`\sum_{j \le 3} |\Delta q_j| \ge |\Delta\psi|`; offset shoulder:
+:math:`\Delta q_1 = \Delta\delta` plus the wrist's azimuth change), so a larger change is a large
+joint step. Where the banded search loses every state, every pair of the two waypoints is
+checked before giving up.
+
+``reconfigure="forbid"``: continuous transitions only; the first waypoint that no continuous
+transition reaches is reported. ``"fewest"``: a transition that is not continuous is a
+*reconfiguration* (the arm stops and changes configuration); the plan has the fewest of them
+and, among those, the least J (lexicographic order, exact on the grid).
+"""
+
+from __future__ import annotations
+
+import ctypes
+from dataclasses import dataclass, field
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+
+from qpik.compiled import shared_library
+from qpik.planning.grid import Grid, Layers
+
+CHUNK = 32
+"""Waypoints whose states are evaluated per call of :meth:`Grid.layers`."""
+BLOCK = 256
+"""Source states per block when every pair of two waypoints is checked (:meth:`_Step.full`)."""
+
+
+@dataclass
+class Transitions:
+    """What bounds a transition from waypoint k to k + 1 (k = 0..N-2).
+
+    Attributes:
+        step: (N-1, n) the largest move of each joint, rad.
+        motion: (N-1,) 1/Δ_k, the weight of ‖Δq‖².
+        point: (N,) w_k, the weight of f at each waypoint.
+        dt: (N-1,) seconds between waypoints (None without times).
+        a_max: (n,) acceleration limits, rad/s² (None: not checked).
+    """
+
+    step: np.ndarray
+    motion: np.ndarray
+    point: np.ndarray
+    dt: np.ndarray | None = None
+    a_max: np.ndarray | None = None
+
+
+@dataclass
+class Failure:
+    """Why no continuous plan exists: the first waypoint that cannot be reached and why (words)."""
+
+    waypoint: int
+    reason: str
+
+
+@dataclass
+class DPResult:
+    """The DP's plan.
+
+    Attributes:
+        rows, index: (N,) the grid row and index of each waypoint's state (-1 past a failure).
+        q: (K, n) configurations, rad, of the waypoints before a failure (K = N without one).
+        cost: J of the plan (its prefix up to the failure).
+        reconfigurations: the waypoints k whose transition to k + 1 is a reconfiguration.
+        failure: why the plan stops early ("forbid" only), or None.
+        ok: (N, B, G) which states are feasible (for the self-motion map).
+        evaluated: states evaluated (feasible or not).
+    """
+
+    rows: np.ndarray
+    index: np.ndarray
+    q: np.ndarray
+    cost: float
+    reconfigurations: list[int] = field(default_factory=list)
+    failure: Failure | None = None
+    ok: np.ndarray | None = None
+    evaluated: int = 0
+
+
+class _Layers:
+    """:meth:`Grid.layers` in chunks of :data:`CHUNK` waypoints, kept while used."""
+
+    def __init__(self, grid: Grid):
+        self.grid, self.k0, self.data = grid, -1, None
+        self.evaluated = 0
+        N = len(grid.poses)
+        self.ok = np.zeros((N, grid.rows, grid.G), bool)
+
+    def __call__(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """q (B, G, n), ok (B, G), f (B, G) of waypoint k."""
+        if self.data is None or not self.k0 <= k < self.k0 + len(self.data.ok):
+            self.k0 = k
+            self.data: Layers = self.grid.layers(k, min(k + CHUNK, len(self.grid.poses)))
+            self.ok[k : k + len(self.data.ok)] = self.data.ok
+            self.evaluated += int(self.grid.inside[k : k + len(self.data.ok)].sum())
+        j = k - self.k0
+        return self.data.q[j], self.data.ok[j], self.data.f[j]
+
+
+def solve(grid: Grid, tr: Transitions, window: int, fewest: bool) -> DPResult:
+    """The DP of the module docstring on ``grid``; ``window``: grid indices searched each way (≥ 1)."""
+    N, B, G = len(grid.poses), grid.rows, grid.G
+    layers = _Layers(grid)
+    w = int(min(max(window, 1), G // 2))
+    offsets = np.arange(-w, w + 1) if 2 * w + 1 <= G else np.arange(G)
+    src = np.full((N, B, G), -1, np.int64)  # flat source state b*G + i of each state's best predecessor
+    jumped = np.zeros((N, B, G), bool)
+    q0, ok0, f0 = layers(0)
+    V = np.where(ok0, tr.point[0] * f0, np.inf)
+    J = np.zeros((B, G), np.int64)
+    vel = np.zeros((B, G, q0.shape[-1])) if tr.a_max is not None else None
+    failure = None if ok0.any() else Failure(0, _empty(grid, layers, 0))
+    last = N - 1 if failure is None else -1
+    for k in range(N - 1 if failure is None else 0):
+        qa, _, _ = layers(k)
+        qb, okb, fb = layers(k + 1)
+        step = _Step(qa, qb, okb, fb, tr, k, vel)
+        Vn, Jn, s = step.banded(V, J, offsets)
+        if not np.isfinite(Vn).any() and okb.any():
+            Vn, Jn, s = step.full(V, J)  # the band lost every state: every pair
+        jump = np.zeros((B, G), bool)
+        if fewest:
+            Vn, Jn, s, jump = _jumps(V, J, Vn, Jn, s, okb, tr.point[k + 1] * fb)
+        if not np.isfinite(Vn).any():
+            failure = _failure(grid, layers, step, k, V)
+            last = k
+            break
+        if vel is not None:
+            has = s >= 0
+            prev = qa.reshape(B * G, -1)[np.where(has, s, 0)]
+            vel = np.where((has & ~jump)[..., None], (qb - prev) / tr.dt[k], 0.0)
+        V, J, src[k + 1], jumped[k + 1] = Vn, Jn, s, jump
+    rows, index, q = _backtrack(layers, src, jumped, V, J, last, grid)
+    recon = [k for k in range(last) if jumped[k + 1, rows[k + 1], index[k + 1]]]
+    cost = float(V.reshape(-1)[rows[last] * G + index[last]]) if last >= 0 else np.inf
+    return DPResult(rows, index, q, cost, recon, failure, layers.ok, layers.evaluated)
+
+
+class _Step:
+    """The transitions from waypoint k (states qa) to k + 1 (qb, okb, fb)."""
+
+    def __init__(self, qa, qb, okb, fb, tr: Transitions, k: int, vel):
+        self.qa, self.qb, self.okb, self.fb = qa, qb, okb, fb
+        self.lim = tr.step[k]
+        self.wm, self.wp = tr.motion[k], tr.point[k + 1]
+        self.vel = vel
+        if tr.a_max is not None:
+            self.dt = tr.dt[k]
+            self.dv = tr.a_max * 0.5 * (tr.dt[k] + (tr.dt[k - 1] if k > 0 else tr.dt[k]))
+        self.B, self.G = okb.shape
+
+    def _cost(self, V, D, src_flat):
+        """Candidate values for moves D (..., n) from the flat source states ``src_flat``; inf where not allowed."""
+        fits = (np.abs(D) <= self.lim).all(axis=-1)
+        if self.vel is not None:
+            v = self.vel.reshape(self.B * self.G, -1)[src_flat]
+            fits &= (np.abs(D / self.dt - v) <= self.dv).all(axis=-1)
+        c = V.reshape(-1)[src_flat] + self.wm * np.einsum("...j,...j->...", D, D)
+        return np.where(fits, c, np.inf)
+
+    def banded(self, V, J, offsets):
+        """Same branch, sources at j - o for every offset o: the best per destination (b, j).
+
+        Through ``dp.c`` (compiled at first use) when a C compiler works, else the same in numpy."""
+        lib = _library()
+        if lib is not None:
+            return self._native(lib, V, J, offsets)
+        B, G = self.B, self.G
+        j = np.arange(G)
+        i = (j[None, :] - offsets[:, None]) % G  # (O, G) source index of destination j at offset o
+        flat = np.arange(B)[:, None, None] * G + i[None]  # (B, O, G)
+        D = self.qb[:, None, :, :] - self.qa[:, i]  # (B, O, G, n)
+        c = self._cost(V, D, flat)
+        return self._pick(c, J.reshape(-1)[flat], flat, 1)
+
+    def _native(self, lib, V, J, offsets):
+        B, G, n = self.B, self.G, self.qa.shape[-1]
+        Vn, Jn, s = np.empty((B, G)), np.empty((B, G), np.int64), np.empty((B, G), np.int64)
+        args = [np.ascontiguousarray(x, dtype) for x, dtype in (
+            (offsets, np.int64), (self.qa, float), (self.qb, float), (self.okb, np.uint8), (self.fb, float),
+            (V, float), (J, np.int64), (self.lim, float))]  # fmt: skip
+        vel = None if self.vel is None else np.ascontiguousarray(self.vel, float)
+        dv = None if self.vel is None else np.ascontiguousarray(self.dv, float)
+        ptr = [a.ctypes.data for a in args]
+        vel_ptr, dv_ptr = (None, None) if vel is None else (vel.ctypes.data, dv.ctypes.data)
+        inv_dt = 0.0 if vel is None else 1.0 / self.dt
+        lib.qpik_dp_banded(B, G, n, len(offsets), *ptr, self.wm, self.wp, vel_ptr, inv_dt, dv_ptr, Vn.ctypes.data,
+                           Jn.ctypes.data, s.ctypes.data)  # fmt: skip
+        return Vn, Jn, s
+
+    def full(self, V, J):
+        """Every reachable source state against every feasible destination (any branch), in blocks of
+        :data:`BLOCK` sources; also the pair that comes closest to the bounds (for :func:`_failure`):
+        ``(largest step over its bound, source flat index, destination flat index)``."""
+        B, G = self.B, self.G
+        best = (np.full((B, G), np.inf), np.zeros((B, G), np.int64), np.full((B, G), -1))
+        closest = (np.inf, -1, -1)
+        live = np.flatnonzero(np.isfinite(V.reshape(-1)))
+        dest = np.flatnonzero(self.okb.reshape(-1))
+        qa_all, qb = self.qa.reshape(B * G, -1), self.qb.reshape(B * G, -1)[dest]
+        for start in range(0, len(live), BLOCK):
+            src = live[start : start + BLOCK]
+            D = qb[None] - qa_all[src][:, None]  # (L, M, n)
+            ratio = (np.abs(D) / self.lim).max(axis=-1)
+            a, m = np.unravel_index(int(np.argmin(ratio)), ratio.shape)
+            if ratio[a, m] < closest[0]:
+                closest = (float(ratio[a, m]), int(src[a]), int(dest[m]))
+            flat = np.broadcast_to(src[:, None], D.shape[:-1])
+            c = np.full((len(src), B * G), np.inf)
+            c[:, dest] = self._cost(V, D, flat)
+            Jc = np.zeros((len(src), B * G), np.int64)
+            Jc[:, dest] = J.reshape(-1)[flat]
+            shape = (len(src), B, G)
+            cand = self._pick(c.reshape(shape), Jc.reshape(shape), np.broadcast_to(src[:, None, None], shape), 0)
+            better = (cand[1] < best[1]) | ((cand[1] == best[1]) & (cand[0] < best[0])) | ~np.isfinite(best[0])
+            better &= np.isfinite(cand[0])
+            best = tuple(np.where(better, x, y) for x, y in zip(cand, best))
+        self.closest = closest
+        return best
+
+    def _pick(self, c, Jc, flat, axis: int):
+        """Per destination (b, j), the candidate along ``axis`` of fewest jumps, then least value."""
+        ok = np.expand_dims(self.okb, axis)
+        c = np.where(ok, c + self.wp * np.expand_dims(np.where(self.okb, self.fb, 0.0), axis), np.inf)
+        Jc = np.where(np.isfinite(c), Jc, np.iinfo(np.int64).max)
+        Jmin = Jc.min(axis=axis, keepdims=True)
+        c = np.where(Jc == Jmin, c, np.inf)
+        best = np.expand_dims(c.argmin(axis=axis), axis)
+        V = np.take_along_axis(c, best, axis).squeeze(axis)
+        s = np.take_along_axis(np.broadcast_to(flat, c.shape), best, axis).squeeze(axis)
+        live = np.isfinite(V)
+        return V, np.where(live, Jmin.squeeze(axis), 0), np.where(live, s, -1)
+
+
+def _jumps(V, J, Vn, Jn, s, okb, fb):
+    """With reconfigurations: every feasible state is reachable from the best (fewest jumps, least value) state
+    of the waypoint before, with one jump more; kept where it beats the continuous transitions."""
+    Vf, Jf = V.reshape(-1), J.reshape(-1)
+    live = np.isfinite(Vf)
+    if not live.any():
+        return Vn, Jn, s, np.zeros(okb.shape, bool)
+    jmin = Jf[live].min()
+    best = int(np.flatnonzero(live & (Jf == jmin))[np.argmin(Vf[live & (Jf == jmin)])])
+    Vj = np.where(okb, Vf[best] + np.where(okb, fb, 0.0), np.inf)
+    Jj = jmin + 1
+    better = okb & (~np.isfinite(Vn) | (Jj < Jn) | ((Jj == Jn) & (Vj < Vn)))
+    return (np.where(better, Vj, Vn), np.where(better, Jj, Jn), np.where(better, best, s), better)
+
+
+def _backtrack(layers: _Layers, src, jumped, V, J, last: int, grid: Grid):
+    """The best final state (fewest jumps, least value) and its predecessors back to waypoint 0."""
+    N, _, G = src.shape
+    n = grid.robot.dof
+    Vf, Jf = V.reshape(-1), J.reshape(-1)
+    live = np.isfinite(Vf)
+    rows, index = np.full(N, -1), np.full(N, -1)
+    if last < 0 or not live.any():
+        return rows, index, np.zeros((0, n))
+    jmin = Jf[live].min()
+    cand = live & (Jf == jmin)
+    s = int(np.flatnonzero(cand)[np.argmin(Vf[cand])])
+    for k in range(last, -1, -1):
+        rows[k], index[k] = divmod(s, G)
+        s = int(src[k, rows[k], index[k]]) if k else -1
+    q = grid.configurations(np.arange(last + 1), rows[: last + 1], index[: last + 1])
+    return rows, index, q
+
+
+def _empty(grid: Grid, layers: _Layers, k: int) -> str:
+    """Why waypoint k has no feasible state (words)."""
+    sym = "δ" if grid.param_name == "delta" else "ψ"
+    if not grid.inside[k].any():
+        if not any(grid.intervals[k].intervals[b] for b in range(grid.rows)):
+            return f"no branch reaches this pose with every joint inside its limits at any {sym}"
+        return f"its feasible {sym} intervals hold no grid value (narrower than the grid step {grid.spacing:.3g} rad)"
+    return (f"every configuration inside the joint limits is closer than d_s = {grid.d_safe:g} m to an obstacle"
+            f" (at the {grid.G} grid values of {sym})")  # fmt: skip
+
+
+def _failure(grid: Grid, layers: _Layers, step: _Step, k: int, V: np.ndarray) -> Failure:
+    """Why waypoint k + 1 cannot be reached from the states reachable at waypoint k (after :meth:`_Step.full`)."""
+    if not step.okb.any():
+        return Failure(k + 1, _empty(grid, layers, k + 1))
+    _, a, b = step.closest
+    n = step.qa.shape[-1]
+    d = np.abs(step.qb.reshape(-1, n)[b] - step.qa.reshape(-1, n)[a])
+    j = int(np.argmax(d / step.lim))
+    return Failure(k + 1, f"no feasible configuration within the joint-step bounds of one reachable at waypoint {k}:"
+                          f" the smallest move needs joint {j + 1} to move {d[j]:.3g} rad"
+                          f" (bound {step.lim[j]:.3g} rad)")  # fmt: skip
+
+
+@cache
+def _library() -> ctypes.CDLL | None:
+    """``dp.c`` compiled (cached on disk by :func:`qpik.compiled.shared_library`), or None without a compiler."""
+    lib = shared_library("qpik_dp", Path(__file__).with_name("dp.c").read_bytes())
+    if lib is None:
+        return None
+    dll = ctypes.CDLL(str(lib))
+    fn = dll.qpik_dp_banded
+    fn.argtypes = [ctypes.c_longlong] * 4 + [ctypes.c_void_p] * 8 + [ctypes.c_double] * 2 + [
+        ctypes.c_void_p, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
+    fn.restype = None
+    return dll

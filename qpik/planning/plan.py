@@ -1,0 +1,322 @@
+r"""The answer of :func:`qpik.plan_self_motion`: a :class:`Plan`, its checks, its files and its retiming.
+
+The checks (:func:`check`) are measured on the plan's configurations, independently of how they
+were found:
+
+- forward kinematics reproduces every waypoint: position error ‖p(q_k) − p_k‖ (m) and rotation
+  angle of :math:`R_k^T R(q_k)` (rad), both ≤ :data:`FK_TOL`;
+- every joint inside its limits (violation 0);
+- clearance ≥ d_s with the link capsules (:func:`qpik.geometry.distances`) and with MuJoCo's
+  ``mj_geomDistance`` between the collision geoms of the arm's MuJoCo model and the obstacles
+  (:func:`qpik.sim.build_scene`; the twin of a catalog arm, the model of a loaded one), within
+  :data:`CLEARANCE_TOL`;
+- every continuous transition moves each joint by at most its bound.
+"""
+
+from __future__ import annotations
+
+import io
+import itertools
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from qpik.errors import InputError
+from qpik.geometry.distance import ObstacleSet, distances
+from qpik.robots.robot import Robot
+from qpik.sim.log import tracking_errors
+from qpik.validate import finite_array
+
+if TYPE_CHECKING:
+    from qpik.planning.planner import Setup
+
+FK_TOL = 1e-9
+"""m and rad: FK of the plan must reach every waypoint to this."""
+CLEARANCE_TOL = 1e-6
+"""m: clearance measured by MuJoCo may fall short of d_s by this (its geoms are the capsules rounded to float)."""
+STEP_TOL = 1e-9
+"""rad: a joint step may exceed its bound by this."""
+
+
+@dataclass
+class Check:
+    """One check of a plan: its name, whether it holds and the measured figure in words."""
+
+    name: str
+    ok: bool
+    text: str
+
+
+@dataclass
+class Profile:
+    """A plan's parameter profile on the DP grid, for the self-motion map.
+
+    Attributes:
+        values: (G,) the grid's parameter values, rad; ok: (N, B, G) feasible states.
+        branches: (B,) public branch ids of the grid rows.
+        dp_param: (K,) the DP's parameter (rad, wrapped) and dp_row: (K,) its grid row at the planned waypoints.
+    """
+
+    values: np.ndarray
+    ok: np.ndarray
+    branches: np.ndarray
+    dp_param: np.ndarray
+    dp_row: np.ndarray
+
+
+@dataclass
+class Trajectory:
+    """A retimed plan (:meth:`Plan.retime`): samples of q(t) and its derivatives.
+
+    Attributes:
+        t: (M,) times, s; q: (M, n) rad; qd: (M, n) rad/s; qdd: (M, n) rad/s².
+        duration: s. segment: (M,) which continuous segment of the plan each sample is on (the arm
+            stops at every reconfiguration; the reconfiguration's own motion is not timed).
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    duration: float
+    segment: np.ndarray
+
+
+@dataclass
+class Plan:
+    """A joint trajectory that follows an end-effector path.
+
+    Attributes:
+        robot: the arm; poses: (N, 4, 4) the waypoints (base frame); times: (N,) s, or None.
+        progress: (N,) path progress in [0, 1] (or the times, s, when given).
+        q: (K, n) the configuration at each planned waypoint, rad (K = N unless the plan failed).
+        param: (K,) the redundancy parameter (δ or ψ, rad, wrapped) and branch: (K,) the public branch id
+            of each configuration (both empty for an arm without a closed form).
+        param_name: ``"delta"``, ``"psi"`` or ``""``.
+        status: ``"optimal"`` (the NLP improved the DP's plan), ``"dp"`` (the DP's plan: the NLP did not
+            improve it or was not run), ``"tracking"`` (the QP controller's run, refined by the NLP for an
+            arm without a closed form) or ``"failed"`` (see :attr:`failure`).
+        failure: the first waypoint that cannot be planned and why, or "".
+        least_violating: at that waypoint, the best the arm can do (a :class:`qpik.BestResult`'s summary), or "".
+        reconfigurations: the waypoints k whose transition to k + 1 is a reconfiguration.
+        cost: the objective J of the plan (of its planned waypoints); dp_cost: J of the plan the NLP started
+            from (the DP's; without a closed form the QP controller's run).
+        margin: (K,) the smallest distance to a joint limit, rad; clearance: (K,) the smallest capsule–obstacle
+            distance, m (inf without obstacles); clearance_mujoco: (K,) the same measured by MuJoCo (empty when
+            not measured);
+            manipulability: (K,) Yoshikawa's.
+        step_bound: (N-1, n) the largest move of each joint allowed between waypoints, rad.
+        d_safe: m. checks: the :class:`Check` list. profile: the DP's :class:`Profile` (closed form only).
+        timings: seconds per stage (``"dp"``, ``"nlp"``, ``"tracking"``).
+        label: what made it (``"NLP"``, ``"DP"``, a baseline's name).
+        dp_plan: the DP's own plan, when the NLP replaced it. setup: the checked inputs (waypoints, weights,
+            bounds) the plan was made for.
+    """
+
+    robot: Robot
+    poses: np.ndarray
+    times: np.ndarray | None
+    progress: np.ndarray
+    q: np.ndarray
+    param: np.ndarray
+    branch: np.ndarray
+    param_name: str
+    status: str
+    step_bound: np.ndarray
+    d_safe: float
+    obstacles: ObstacleSet
+    cost: float = np.inf
+    dp_cost: float = np.inf
+    failure: str = ""
+    failure_waypoint: int = -1
+    least_violating: str = ""
+    reconfigurations: list[int] = field(default_factory=list)
+    margin: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    clearance: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    clearance_mujoco: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    manipulability: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    fk_error: tuple[float, float] = (0.0, 0.0)
+    max_step_ratio: float = 0.0
+    checks: list[Check] = field(default_factory=list)
+    profile: Profile | None = None
+    timings: dict[str, float] = field(default_factory=dict)
+    label: str = ""
+    dp_plan: Plan | None = None
+    setup: Setup | None = field(default=None, repr=False)
+
+    def __len__(self) -> int:
+        return len(self.q)
+
+    @property
+    def ok(self) -> bool:
+        """Every waypoint planned and every check holds."""
+        return self.status != "failed" and all(c.ok for c in self.checks)
+
+    @property
+    def path_length(self) -> float:
+        """Σ ‖q_{k+1} − q_k‖ over the continuous transitions, rad."""
+        d = np.linalg.norm(np.diff(self.q, axis=0), axis=1)
+        keep = np.ones(len(d), bool)
+        keep[[k for k in self.reconfigurations if k < len(d)]] = False
+        return float(d[keep].sum())
+
+    def summary(self) -> str:
+        """One line: status, waypoints, reconfigurations, objective."""
+        if self.status == "failed":
+            return f"failed at waypoint {self.failure_waypoint}: {self.failure}"
+        rec = f"{len(self.reconfigurations)} reconfiguration(s)" + (
+            f" (after waypoints {', '.join(map(str, self.reconfigurations))})" if self.reconfigurations else ""
+        )
+        return f"{self.status}: {len(self.q)} waypoints, {rec}, objective {self.cost:.8g}"
+
+    def to_csv(self, path: str | os.PathLike | None = None) -> str:
+        """The plan as CSV text (one row per planned waypoint; written to ``path`` if given): progress, q (rad),
+        parameter, branch, limit margin (rad), clearance (m, capsules and MuJoCo), manipulability; a column
+        the plan does not have (no closed form, MuJoCo not measured) is left blank."""
+        n = self.robot.dof
+
+        def cell(x: np.ndarray, k: int) -> str:
+            return repr(float(x[k])) if len(x) else ""
+
+        head = ["waypoint", "progress", *[f"q{j + 1}" for j in range(n)], self.param_name or "param", "branch",
+                "margin_rad", "clearance_m", "clearance_mujoco_m", "manipulability"]  # fmt: skip
+        buf = io.StringIO()
+        buf.write(",".join(head) + "\n")
+        for k in range(len(self.q)):
+            vals = [str(k), repr(float(self.progress[k])), *(repr(float(v)) for v in self.q[k]),
+                    cell(self.param, k), str(int(self.branch[k])) if len(self.branch) else "",
+                    cell(self.margin, k), cell(self.clearance, k), cell(self.clearance_mujoco, k),
+                    cell(self.manipulability, k)]  # fmt: skip
+            buf.write(",".join(vals) + "\n")
+        text = buf.getvalue()
+        if path is not None:
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
+            Path(path).write_text(text)
+        return text
+
+    def to_npz(self, path: str | os.PathLike) -> Path:
+        """Write the plan's arrays (q, poses, progress, times, param, branch, margin, clearances,
+        manipulability, reconfigurations) to ``path`` (numpy ``.npz``)."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(path, q=self.q, poses=self.poses, progress=self.progress,
+                 times=np.zeros(0) if self.times is None else self.times, param=self.param, branch=self.branch,
+                 margin=self.margin, clearance=self.clearance, clearance_mujoco=self.clearance_mujoco,
+                 manipulability=self.manipulability, reconfigurations=np.array(self.reconfigurations, int),
+                 step_bound=self.step_bound)  # fmt: skip
+        return path
+
+    def retime(
+        self, v_max: np.ndarray | None = None, a_max: np.ndarray | None = None, samples: int = 200
+    ) -> Trajectory:
+        """Time-optimal timing of the plan under joint velocity and acceleration limits (toppra).
+
+        Each continuous segment (between reconfigurations) is a cubic spline through its configurations
+        (``toppra.SplineInterpolator`` over the path progress), timed from rest to rest by TOPP-RA with
+        ``JointVelocityConstraint`` and ``JointAccelerationConstraint`` (interpolation discretization) and
+        the constant-acceleration parametrizer (toppra's default one overshoots the acceleration limit by a
+        few per cent). The segments follow each other; the arm stops at every reconfiguration.
+
+        Args:
+            v_max: (n,) joint speed limits, rad/s (default the robot's).
+            a_max: (n,) joint acceleration limits, rad/s² (default 4 × v_max per second).
+            samples: samples per segment of the returned :class:`Trajectory`.
+        """
+        import toppra
+        from toppra import constraint
+
+        if self.status == "failed" or len(self.q) < 2:
+            raise InputError("plan: only a plan of at least two planned waypoints can be retimed")
+        n = self.robot.dof
+        v = self.robot.v_max if v_max is None else finite_array(v_max, "v_max", (n,))
+        a = 4.0 * v if a_max is None else finite_array(a_max, "a_max", (n,))
+        if np.any(v <= 0) or np.any(a <= 0):
+            raise InputError("v_max, a_max: must be > 0")
+        cuts = [0, *[k + 1 for k in self.reconfigurations], len(self.q)]
+        t_all, q_all, qd_all, qdd_all, seg_all, start = [], [], [], [], [], 0.0
+        for s, (a0, b0) in enumerate(itertools.pairwise(cuts)):
+            way = self.q[a0:b0]
+            if len(way) < 2:
+                continue
+            arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(way, axis=0), axis=1))])
+            if arc[-1] <= 0:
+                continue
+            path = toppra.SplineInterpolator(arc / arc[-1], way)
+            pc_v = constraint.JointVelocityConstraint(np.stack([-v, v], axis=1))
+            pc_a = constraint.JointAccelerationConstraint(
+                np.stack([-a, a], axis=1), discretization_scheme=constraint.DiscretizationType.Interpolation
+            )
+            traj = toppra.algorithm.TOPPRA([pc_v, pc_a], path, parametrizer="ParametrizeConstAccel").compute_trajectory(
+                0, 0
+            )
+            if traj is None:
+                raise InputError(f"plan: toppra found no timing of segment {s} under these limits")
+            ts = np.linspace(0.0, traj.duration, samples)
+            t_all.append(start + ts), q_all.append(traj(ts)), qd_all.append(traj(ts, 1)), qdd_all.append(traj(ts, 2))
+            seg_all.append(np.full(samples, s))
+            start += traj.duration
+        if not t_all:
+            raise InputError("plan: the arm does not move; nothing to retime")
+        return Trajectory(np.concatenate(t_all), np.concatenate(q_all), np.concatenate(qd_all),
+                          np.concatenate(qdd_all), start, np.concatenate(seg_all))  # fmt: skip
+
+
+def measure(plan: Plan, mujoco: bool = True) -> None:
+    """Fill in the plan's per-waypoint figures and its :class:`Check` list (see the module docstring)."""
+    robot, q = plan.robot, plan.q
+    K = len(q)
+    if not K:
+        plan.checks = []
+        return
+    T = plan.poses[:K]
+    F = robot.fk(q)
+    pos, rot = tracking_errors(F, T)
+    plan.fk_error = (float(pos.max()), float(rot.max()))
+    plan.margin = np.minimum(q - robot.q_min, robot.q_max - q).min(axis=1)
+    plan.manipulability = np.asarray(robot.manipulability(q), float)
+    obs = plan.obstacles
+    if len(obs):
+        d = distances(robot.capsule_segments(q), robot.capsule_radii, obs).d
+        plan.clearance = d.reshape(K, -1).min(axis=1)
+        plan.clearance_mujoco = _mujoco_clearance(robot, obs, q) if mujoco else np.zeros(0)
+    else:
+        plan.clearance = plan.clearance_mujoco = np.full(K, np.inf)
+    steps = np.abs(np.diff(q, axis=0)) / plan.step_bound[: K - 1]
+    keep = np.ones(K - 1, bool)
+    keep[[k for k in plan.reconfigurations if k < K - 1]] = False
+    plan.max_step_ratio = float(steps[keep].max(initial=0.0))
+    worst_step = float((np.abs(np.diff(q, axis=0)) - plan.step_bound[: K - 1])[keep].max(initial=-np.inf))
+    viol = float(np.maximum(np.maximum(robot.q_min - q, q - robot.q_max), 0.0).max())
+    checks = [
+        Check("fk", plan.fk_error[0] <= FK_TOL and plan.fk_error[1] <= FK_TOL,
+              f"FK reproduces every waypoint: max error {plan.fk_error[0]:.2e} m, {plan.fk_error[1]:.2e} rad"
+              f" (≤ {FK_TOL:g})"),
+        Check("limits", viol == 0.0, f"joint limits: max violation {viol:.3g} rad"),
+        Check("step", worst_step <= STEP_TOL,
+              f"largest joint step {plan.max_step_ratio:.4g} × its bound (continuous transitions)"),
+    ]  # fmt: skip
+    if len(obs):
+        c = float(plan.clearance.min())
+        text = f"clearance (capsules): min {c * 1e3:.3f} mm vs d_s = {plan.d_safe * 1e3:g} mm"
+        checks.append(Check("clearance", c >= plan.d_safe - 1e-12, text))
+        if mujoco:
+            cm = float(plan.clearance_mujoco.min())
+            text = f"clearance (MuJoCo mj_geomDistance on the arm's model): min {cm * 1e3:.3f} mm"
+            checks.append(Check("clearance_mujoco", cm >= plan.d_safe - CLEARANCE_TOL, text))
+    plan.checks = checks
+
+
+def _mujoco_clearance(robot: Robot, obstacles: ObstacleSet, q: np.ndarray) -> np.ndarray:
+    """(K,) the smallest distance between the collision geoms of the arm's MuJoCo model and the obstacles, m."""
+    from qpik.sim import build_scene
+
+    scene = build_scene(robot, obstacles.shapes)
+    out = np.empty((len(scene.link_geoms), len(scene.obstacle_geoms)))
+    res = np.empty(len(q))
+    for k, qk in enumerate(q):
+        scene.kin.update(qk)
+        res[k] = scene.clearances(out).min()
+    return res

@@ -1,0 +1,321 @@
+r"""``qpik.plan_self_motion``: the joint trajectory that follows an end-effector path exactly and uses the
+redundancy as well as possible.
+
+Closed-form arms (``nammoto7`` in δ, ``iiwa14`` in ψ, and loaded arms of those forms):
+
+1. the exact feasible intervals of every branch at every waypoint (:func:`qpik.feasible_intervals`) and
+   a grid of ``resolution`` parameter values on every branch, evaluated only inside them
+   (:mod:`qpik.planning.grid`);
+2. dynamic programming over the grid (:mod:`qpik.planning.dp`): the sequence of states with the least
+   :math:`J = \sum \lVert \Delta q \rVert^2/\Delta + \sum w_k f(q_k)` whose transitions keep every
+   joint step within its bound (L∞: ``max_joint_step``, and with ``times`` the velocity limits
+   :math:`v_{max}\Delta t` and ``a_max``), with the fewest reconfigurations when ``reconfigure="fewest"``;
+3. the sparse NLP over the parameter at every waypoint (:mod:`qpik.planning.refine`), started from the
+   DP's plan; its answer is kept when it is better and passes every check.
+
+Every configuration is the closed form at its waypoint, so the path is followed exactly.
+
+Arms without a closed form (``zheng7``, ``panda``): the QP controller tracks the path on the MuJoCo
+model (:func:`track`, also the online baseline), and the same NLP over the joints, with the pose as
+an equality at every waypoint, refines its configurations at the waypoints.
+
+Every plan is measured (:func:`qpik.planning.plan.measure`): FK, joint limits, clearance with the
+capsules and with MuJoCo, joint steps.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+
+import numpy as np
+
+from qpik.errors import InputError
+from qpik.geometry.distance import ObstacleSet
+from qpik.objectives import Evaluator, Objective, ReferenceDistance, resolve
+from qpik.paths import TimedPath, WaypointPath
+from qpik.planning import dp
+from qpik.planning.grid import Grid
+from qpik.planning.plan import Plan, Profile, measure
+from qpik.planning.refine import PathNLP
+from qpik.robots.robot import Robot, as_robot
+from qpik.validate import finite_array, flag, number
+from qpik.validate import pose as check_pose
+
+RECONFIGURE = ("forbid", "fewest")
+WAYPOINTS = 101
+"""Waypoints sampled from a timed path when no ``times`` are given."""
+IMPROVED = 1e-12
+"""The NLP's answer replaces the DP's when its objective is lower by more than this (relative)."""
+TRACK_DT = 0.002
+"""s: control period of the QP controller's tracking run."""
+TRACK_SPEED = (0.1, 0.5)
+"""m/s and rad/s: the end-effector speeds at which an untimed path is tracked by the QP controller."""
+
+
+class Setup:
+    """The checked inputs of one planning call: waypoints, progress, transition bounds and weights.
+
+    Attributes:
+        robot, poses (N, 4, 4), times (N,) or None, progress (N,), objective (or None), obstacles,
+        d_safe (m), q_ref (n,), tr (:class:`~qpik.planning.dp.Transitions`).
+    """
+
+    def __init__(self, robot, path, objective, obstacles, times, max_joint_step, d_safe, a_max, q_ref, waypoints,
+                 project):  # fmt: skip
+        self.robot = robot = as_robot(robot)
+        n = robot.dof
+        if isinstance(path, TimedPath) and not isinstance(path, np.ndarray):
+            duration = number(path.duration, "path.duration")
+            if times is None:
+                count = int(number(waypoints, "waypoints", 2))
+                times = np.linspace(0.0, duration, count)
+            poses = np.asarray(path.pose(finite_array(times, "times", (None,))), float)
+        else:
+            poses = path
+        T, batched = check_pose(poses, "path", flag(project, "project"))
+        if not batched or len(T) < 2:
+            raise InputError(f"path: expected (N, 4, 4) poses with N >= 2 or a timed path, got shape {np.shape(T)}")
+        N = len(T)
+        self.poses = T
+        if times is not None:
+            times = finite_array(times, "times", (N,)).copy()
+            if np.any(np.diff(times) <= 0):
+                raise InputError("times: must be strictly increasing")
+        self.times = times
+        self.progress = times if times is not None else np.linspace(0.0, 1.0, N)
+        step = finite_array(max_joint_step, "max_joint_step")
+        if step.shape not in ((), (n,)) or np.any(step <= 0):
+            raise InputError(f"max_joint_step: expected a number > 0 or ({n},) of them (rad), got {step}")
+        lim = np.broadcast_to(step, (N - 1, n)).copy()
+        dt = None
+        if times is not None:
+            dt = np.diff(times)
+            lim = np.minimum(lim, robot.v_max[None] * dt[:, None])
+        acc = None
+        if a_max is not None:
+            if times is None:
+                raise InputError("a_max: acceleration limits need times")
+            acc = np.broadcast_to(finite_array(a_max, "a_max"), (n,)).copy()
+            if np.any(acc <= 0):
+                raise InputError("a_max: must be > 0")
+        delta = np.diff(self.progress)
+        point = np.zeros(N)
+        point[:-1] += 0.5 * delta
+        point[1:] += 0.5 * delta
+        self.tr = dp.Transitions(lim, 1.0 / delta, point, dt, acc)
+        if objective is not None and not isinstance(objective, Objective | str):
+            raise InputError(f"objective: expected None, an Objective or a name, got {type(objective).__name__}")
+        self.objective = None if objective is None else resolve(objective)
+        self.obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
+        self.d_safe = number(d_safe, "d_safe")
+        if q_ref is None and self.objective is not None and any(isinstance(o, ReferenceDistance)
+                                                                 for _, o in self.objective.terms):  # fmt: skip
+            raise InputError("q_ref: the distance objective needs a reference configuration q_ref")
+        self.q_ref = np.zeros(n) if q_ref is None else finite_array(q_ref, "q_ref", (n,)).copy()
+
+    def plan(self, q: np.ndarray, status: str, **kw) -> Plan:
+        """A :class:`Plan` of configurations q (K, n) on these waypoints, measured."""
+        return Plan(self.robot, self.poses, self.times, self.progress, q, kw.pop("param", np.zeros(0)),
+                    kw.pop("branch", np.zeros(0, int)), kw.pop("param_name", ""), status, self.tr.step,
+                    self.d_safe, self.obstacles, setup=self, **kw)  # fmt: skip
+
+    def cost(self, q: np.ndarray, continuous: np.ndarray) -> float:
+        """J of configurations q (N, n) (see :mod:`qpik.planning.dp`); ``continuous`` (N-1,): which
+        transitions count in the motion term."""
+        D = np.diff(q, axis=0)
+        motion = float(np.sum(np.einsum("kj,kj->k", D, D) * self.tr.motion[: len(D)] * continuous))
+        if self.objective is None:
+            return motion
+        f = Evaluator(self.robot, self.objective, self.obstacles)(q, self.q_ref)[0]
+        return motion + float(np.sum(self.tr.point[: len(q)] * f))
+
+
+def plan_self_motion(
+    robot: Robot,
+    path: np.ndarray | TimedPath,
+    objective: Objective | str | None = None,
+    obstacles: Sequence = (),
+    times: np.ndarray | None = None,
+    max_joint_step: float | np.ndarray = 0.1,
+    reconfigure: str = "forbid",
+    *,
+    d_safe: float = 0.02,
+    a_max: float | np.ndarray | None = None,
+    q_ref: np.ndarray | None = None,
+    resolution: int = 720,
+    window: float | None = None,
+    branches: Sequence[int] | None = None,
+    refine: bool = True,
+    waypoints: int = WAYPOINTS,
+    project: bool = False,
+    mujoco: bool = True,
+) -> Plan:
+    """Plan the joint motion along an end-effector path (see the module docstring).
+
+    Args:
+        robot: the arm.
+        path: waypoints (N, 4, 4) (end-effector poses, base frame) or a timed path
+            (:class:`qpik.paths.TimedPath`, sampled at ``times`` or at ``waypoints`` even times).
+        objective: the point objective (:mod:`qpik.objectives`: an Objective or a name), integrated along
+            the path; None: joint motion only.
+        obstacles: shapes (world frame): every link capsule stays ≥ ``d_safe`` from each.
+        times: (N,) strictly increasing times, s: the motion term becomes ∫‖q̇‖² dt, the joint steps are
+            also bounded by the velocity limits (and ``a_max``).
+        max_joint_step: the largest move of any joint between consecutive waypoints, rad (a number or (n,)).
+        reconfigure: ``"forbid"`` (report the first waypoint with no continuous continuation) or
+            ``"fewest"`` (the fewest reconfigurations, then the least J).
+        d_safe: m. a_max: (n,) or a number, rad/s² (needs ``times``). q_ref: (n,) the reference of the
+            ``"distance"`` objective, rad.
+        resolution: parameter values per branch in the DP's grid (even, ≥ 8).
+        window: the largest parameter change (rad) between consecutive waypoints the DP searches (default:
+            the largest joint-step bound).
+        branches: public branch ids the plan may use (None: all).
+        refine: run the NLP after the DP.
+        waypoints: samples of a timed path without ``times``.
+        project: project non-orthonormal rotations of the waypoints onto SO(3).
+        mujoco: also measure the clearance with MuJoCo (:mod:`qpik.planning.plan`).
+
+    Returns:
+        A :class:`~qpik.planning.plan.Plan` (``status == "failed"`` with the waypoint and the reason when
+        the path cannot be planned; then ``q`` holds the planned prefix).
+
+    Raises:
+        InputError: bad arguments (naming them).
+    """
+    setup = Setup(robot, path, objective, obstacles, times, max_joint_step, d_safe, a_max, q_ref, waypoints, project)
+    if not isinstance(reconfigure, str) or reconfigure not in RECONFIGURE:
+        raise InputError(f"reconfigure: expected one of {RECONFIGURE}, got {reconfigure!r}")
+    if setup.robot.closed_form is None:
+        return _plan_joints(setup, flag(refine, "refine"), flag(mujoco, "mujoco"))
+    res = int(number(resolution, "resolution", 8))
+    if res % 2 or res != resolution:
+        raise InputError(f"resolution: expected an even integer >= 8, got {resolution!r}")
+    w = float(setup.tr.step.max()) if window is None else number(window, "window")
+    return _plan_closed_form(setup, res, w, branches, reconfigure == "fewest", flag(refine, "refine"),
+                             flag(mujoco, "mujoco"))  # fmt: skip
+
+
+def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fewest: bool, refine: bool,
+                      mujoco: bool) -> Plan:  # fmt: skip
+    t0 = time.perf_counter()
+    grid = Grid(setup.robot, setup.poses, setup.objective, setup.obstacles, setup.d_safe, resolution, setup.q_ref)
+    if branches is not None:
+        ids = [int(b) for b in np.atleast_1d(finite_array(branches, "branches"))]
+        known = list(grid.solver.branch_ids)
+        bad = [b for b in ids if b not in known]
+        if bad:
+            raise InputError(f"branches: unknown branch id(s) {bad}; the branches are {known}")
+        keep = np.zeros(grid.rows, bool)
+        keep[[known.index(b) % grid.rows for b in ids]] = True
+        grid.inside &= keep[None, :, None]
+    result = dp.solve(grid, setup.tr, int(np.ceil(window / grid.spacing)), fewest)
+    t_dp = time.perf_counter() - t0
+    sym = grid.param_name
+    if result.failure is not None:
+        k = result.failure.waypoint
+        continuous = np.ones(max(k - 1, 0), bool)
+        continuous[[j for j in result.reconfigurations if j < k - 1]] = False
+        cost = setup.cost(result.q[:k], continuous) if k else 0.0
+        plan = setup.plan(result.q[:k], "failed", param_name=sym, failure=result.failure.reason, failure_waypoint=k,
+                          least_violating=_least_violating(setup, k), timings={"dp": t_dp}, cost=cost,
+                          dp_cost=cost, reconfigurations=[j for j in result.reconfigurations if j < k - 1])  # fmt: skip
+        plan.branch, plan.param = _public(grid, result.rows[:k], result.index[:k])
+        plan.profile = _profile(grid, result)
+        measure(plan, mujoco)
+        return plan
+    continuous = np.ones(len(setup.poses) - 1, bool)
+    continuous[result.reconfigurations] = False
+    branch, param = _public(grid, result.rows, result.index)
+    plan = setup.plan(result.q, "dp", param=param, branch=branch, param_name=sym, cost=result.cost,
+                      dp_cost=result.cost, reconfigurations=result.reconfigurations, timings={"dp": t_dp},
+                      profile=_profile(grid, result), label="DP")  # fmt: skip
+    measure(plan, mujoco)
+    if not refine:
+        return plan
+    nlp = PathNLP(setup.robot, setup.poses, setup.objective, setup.obstacles, setup.d_safe, setup.tr, continuous,
+                  setup.q_ref, grid, result.rows)  # fmt: skip
+    out = nlp.solve(grid.values[result.index])
+    plan.timings["nlp"] = out.time
+    if out.cost < result.cost - IMPROVED * max(1.0, abs(result.cost)):
+        rows = result.rows
+        branch, param = grid.public(rows, out.param)
+        better = setup.plan(out.q, "optimal", param=param, branch=branch, param_name=sym, cost=out.cost,
+                            dp_cost=result.cost, reconfigurations=result.reconfigurations, timings=plan.timings,
+                            profile=plan.profile, label="NLP", dp_plan=plan)  # fmt: skip
+        measure(better, mujoco)
+        if better.ok:
+            return better
+    return plan
+
+
+def _public(grid: Grid, rows: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return grid.public(rows, grid.values[index])
+
+
+def _profile(grid: Grid, result: dp.DPResult) -> Profile:
+    live = result.index >= 0
+    return Profile(grid.values, result.ok, grid.branch_of(np.arange(grid.rows)),
+                   grid.values[result.index[live]], result.rows[live])  # fmt: skip
+
+
+def _least_violating(setup: Setup, k: int) -> str:
+    """What :func:`qpik.solve_best` says about waypoint k: unreachable, or the least-violating branch."""
+    from qpik.nlp import solve_best
+
+    best = solve_best(setup.robot, setup.poses[k], "margin", setup.obstacles, d_safe=setup.d_safe, certify=False)
+    return best.summary()
+
+
+def track(setup: Setup, q0: np.ndarray):
+    """The QP controller tracking the waypoints on the MuJoCo model from ``q0``: its configuration at each
+    waypoint (N, n) and the :class:`~qpik.sim.SimLog`.
+
+    The path is :class:`qpik.paths.WaypointPath` through the waypoints at their ``times`` (without times:
+    at the speeds of :data:`TRACK_SPEED`), the controller :meth:`qpik.Controller.for_robot` with the
+    obstacles and ``d_safe``, its posture reference ``q0``, at :data:`TRACK_DT`.
+    """
+    from qpik.control.controller import Controller
+    from qpik.sim import simulate
+
+    times = setup.times if setup.times is not None else _nominal_times(setup.poses)
+    path = WaypointPath(setup.poses, times)
+    ctrl = Controller.for_robot(setup.robot, obstacles=setup.obstacles, dt=TRACK_DT, q_ref=q0, d_safe=setup.d_safe,
+                                manipulability_weight=0.0)  # fmt: skip
+    log = simulate(setup.robot, ctrl, q0, path.duration, TRACK_DT, obstacles=setup.obstacles.shapes, target=path,
+                   label="QP controller (online)")  # fmt: skip
+    at = np.clip(np.round((times - times[0]) / TRACK_DT).astype(int), 0, len(log.q) - 1)
+    return log.q[at], log
+
+
+def _nominal_times(poses: np.ndarray) -> np.ndarray:
+    """Times (s) that move the end effector at :data:`TRACK_SPEED` between waypoints (at least one control period)."""
+    from qpik.sim.log import tracking_errors
+
+    dp_, dr = tracking_errors(poses[1:], poses[:-1])
+    dt = np.maximum(np.maximum(dp_ / TRACK_SPEED[0], dr / TRACK_SPEED[1]), TRACK_DT)
+    return np.concatenate([[0.0], np.cumsum(dt)])
+
+
+def _plan_joints(setup: Setup, refine: bool, mujoco: bool) -> Plan:
+    """An arm without a closed form: the QP controller's tracking run, refined by the NLP over the joints."""
+    from qpik.nlp import solve_ik
+
+    t0 = time.perf_counter()
+    q0 = solve_ik(setup.robot, setup.poses[0], setup.robot.q_home)
+    q_track, _ = track(setup, q0)
+    timings = {"tracking": time.perf_counter() - t0}
+    continuous = np.ones(len(setup.poses) - 1, bool)
+    plan = setup.plan(q_track, "tracking", cost=setup.cost(q_track, continuous), timings=timings,
+                      label="QP controller (online)")
+    measure(plan, mujoco)
+    if not refine:
+        return plan
+    nlp = PathNLP(setup.robot, setup.poses, setup.objective, setup.obstacles, setup.d_safe, setup.tr, continuous,
+                  setup.q_ref)  # fmt: skip
+    out = nlp.solve(q_track)
+    timings["nlp"] = out.time
+    refined = setup.plan(out.q, "optimal", cost=out.cost, timings=timings, label="NLP", dp_plan=plan)
+    measure(refined, mujoco)
+    return refined if refined.ok or not plan.ok else plan
+
