@@ -16,9 +16,10 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from qpik.compiled import RowMap
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.selfmotion import SelfMotion
-from qpik.objectives import Evaluator, Objective
+from qpik.objectives import BoundFunction, Evaluator, Objective
 from qpik.robots.robot import Robot
 
 
@@ -92,6 +93,7 @@ class Scene:
         self.params = self.evaluator.params
         self.evaluations = 0
         self.counts = np.zeros((len(poses), selfmotion.searched), int)
+        self._bound_map: tuple[int, RowMap] | None = None
 
     def evaluate(self, pose: np.ndarray, row: np.ndarray, psi: np.ndarray) -> Points:
         """Every quantity of :class:`Points` at the rows (pose (M,), branch row (M,), ψ (M,))."""
@@ -113,3 +115,13 @@ class Scene:
             c, dc = np.full(M, np.inf), np.zeros(M)
         self.evaluations += M
         return Points(pose, row, psi, q, dq, valid, f, df, c, dc, d.reshape(M, -1))
+
+    def bound_rows(self, bounds: BoundFunction, *q_model: np.ndarray) -> list[np.ndarray]:
+        """The Taylor models of the values of ``bounds`` (:class:`~qpik.objectives.BoundFunction`) for rows of
+        q's models ``centre, slope, radius, lo, hi`` (M, n each) and their poses (M,): ``[centre, slope,
+        radius, lo, hi]``, each (M, L)."""
+        c, s, r, lo, hi, pose = q_model
+        key = id(bounds)
+        if self._bound_map is None or self._bound_map[0] != key:
+            self._bound_map = (key, RowMap(bounds.function, shared=(1, 3), chunks=(16, 16)))
+        return self._bound_map[1](c, self.params, self.q_ref[pose], self.obstacles.params, s, r, lo, hi)
