@@ -595,6 +595,8 @@ class BoundFunction:
         self.values = ca.Function(f"bound_{robot.name or 'robot'}", [q, p, q_ref, prm], [ca.densify(values)])
         """v itself at one configuration: ``(q, p, q_ref, obstacle params) -> v`` (L,)."""
         self.function = taylor_function(self.values, [0])
+        self.rows = RowMap(self.function, shared=(1, 3), chunks=(16, 16))
+        """:attr:`function` over rows (compiled once per size, shared by every search with this form)."""
 
 
 _BOUNDS: dict[tuple, tuple] = {}

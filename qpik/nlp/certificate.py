@@ -34,9 +34,6 @@ may be off by a few units in the last place, far below ε); the objective is
 :attr:`~qpik.objectives.Objective.bounded` and every operation of it has a Taylor-model rule
 (:func:`qpik.enclosure.taylor_function`; otherwise it is never certified, and the reason says so:
 the manipulability, a user expression without rules).
-
-The same algorithm runs in C (:mod:`qpik.nlp.native`); this is its numpy form, for machines
-without a C compiler.
 """
 
 from __future__ import annotations
@@ -57,7 +54,7 @@ SMALLEST_CELL = 1e-9
 """Cells are not cut below this width (rad): one kept there leaves the answer uncertified."""
 MAX_CELLS = 3_000
 """Most cells examined per pose."""
-BISECTIONS = 40
+BISECTIONS = 20
 """Bisection steps of :func:`lower_bound` on t ∈ [−1, 1]."""
 NO_BOUND = "the objective has no lower bound (the manipulability, or an operation without a Taylor-model rule)"
 
@@ -89,38 +86,40 @@ def lower_bound(models: list[np.ndarray], sizes: tuple[int, ...]) -> np.ndarray:
     c, s, r, lo, _ = models
     K = len(sizes)
     w = c[:, 1 : 1 + K]
-    groups = [slice(0, 1)]
-    start = 1 + K
-    for m in sizes:
-        groups.append(slice(start, start + m))
-        start += m
-    M = len(c)
+    ends = np.cumsum((1 + K, *sizes))
+    groups = [(np.ones((len(c), 1)), slice(0, 1))]
+    groups += [(w[:, k : k + 1], slice(ends[k], ends[k + 1])) for k in range(K)]
+    parts = [(weight, c[:, g] - r[:, g], s[:, g], lo[:, g]) for weight, g in groups]
 
-    def value_and_slope(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        total, slope = np.zeros(M), np.zeros(M)
-        for k, g in enumerate(groups):
-            line = c[:, g] + s[:, g] * t[:, None] - r[:, g]
-            flat = lo[:, g] > line
-            low = np.where(flat, lo[:, g], line)
+    def value_and_slope(t: np.ndarray, parts: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, np.ndarray]:
+        """The function and a subgradient at t (one per row of ``parts``)."""
+        total, slope = np.zeros(len(t)), np.zeros(len(t))
+        rows = np.arange(len(t))
+        for weight, base, sl, floor in parts:
+            line = base + sl * t[:, None]
+            flat = floor > line
+            low = np.where(flat, floor, line)
             i = low.argmax(axis=1)
-            rows = np.arange(M)
-            weight = 1.0 if k == 0 else w[:, k - 1]
-            total += weight * low[rows, i]
-            slope += weight * np.where(flat[rows, i], 0.0, s[:, g][rows, i])
+            total += weight[:, 0] * low[rows, i]
+            slope += weight[:, 0] * np.where(flat[rows, i], 0.0, sl[rows, i])
         return total, slope
 
-    a, b = np.full(M, -1.0), np.full(M, 1.0)
-    (va, sa), (vb, sb) = value_and_slope(a), value_and_slope(b)
-    todo = (sa < 0) & (sb > 0)
+    ones = np.ones(len(c))
+    (va, sa), (vb, sb) = value_and_slope(-ones, parts), value_and_slope(ones, parts)
+    out = np.where(sa >= 0, va, vb)  # monotone on the cell: the minimum is at an end
+    at = np.flatnonzero((sa < 0) & (sb > 0))
+    inside = [tuple(x[at] for x in part) for part in parts]
+    a, b = np.full(len(at), -1.0), np.ones(len(at))
+    va, sa, vb, sb = va[at], sa[at], vb[at], sb[at]
     for _ in range(BISECTIONS):
         m = 0.5 * (a + b)
-        vm, sm = value_and_slope(m)
+        vm, sm = value_and_slope(m, inside)
         right = sm < 0  # the minimum lies right of m
-        a, va, sa = np.where(todo & right, m, a), np.where(todo & right, vm, va), np.where(todo & right, sm, sa)
-        b, vb, sb = np.where(todo & ~right, m, b), np.where(todo & ~right, vm, vb), np.where(todo & ~right, sm, sb)
+        a, va, sa = np.where(right, m, a), np.where(right, vm, va), np.where(right, sm, sa)
+        b, vb, sb = np.where(right, b, m), np.where(right, vb, vm), np.where(right, sb, sm)
     inner = (sa < 0) & (sb > 0)
     cross = (vb - va + sa * a - sb * b) / np.where(inner, sa - sb, -1.0)
-    out = np.where(inner, va + sa * (np.clip(cross, a, b) - a), np.where(sa >= 0, va, vb))
+    out[at] = np.where(inner, va + sa * (np.clip(cross, a, b) - a), np.where(sa >= 0, va, vb))
     bad = ~np.isfinite(np.concatenate(models[:4], axis=1)).all(axis=1) | (w < 0).any(axis=1)
     return np.where(bad | np.isnan(out), -np.inf, out)
 

@@ -16,7 +16,6 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from qpik.compiled import RowMap
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.selfmotion import SelfMotion
 from qpik.objectives import BoundFunction, Evaluator, Objective
@@ -93,7 +92,6 @@ class Scene:
         self.params = self.evaluator.params
         self.evaluations = 0
         self.counts = np.zeros((len(poses), selfmotion.searched), int)
-        self._bound_map: tuple[int, RowMap] | None = None
 
     def evaluate(self, pose: np.ndarray, row: np.ndarray, psi: np.ndarray) -> Points:
         """Every quantity of :class:`Points` at the rows (pose (M,), branch row (M,), ψ (M,))."""
@@ -121,7 +119,4 @@ class Scene:
         q's models ``centre, slope, radius, lo, hi`` (M, n each) and their poses (M,): ``[centre, slope,
         radius, lo, hi]``, each (M, L)."""
         c, s, r, lo, hi, pose = q_model
-        key = id(bounds)
-        if self._bound_map is None or self._bound_map[0] != key:
-            self._bound_map = (key, RowMap(bounds.function, shared=(1, 3), chunks=(16, 16)))
-        return self._bound_map[1](c, self.params, self.q_ref[pose], self.obstacles.params, s, r, lo, hi)
+        return bounds.rows(c, self.params, self.q_ref[pose], self.obstacles.params, s, r, lo, hi)

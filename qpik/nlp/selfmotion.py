@@ -10,8 +10,6 @@ row functions (:class:`~qpik.compiled.RowMap`, one row = a pose and a parameter 
   that every q over the range lies within them (:meth:`SelfMotion.taylor_function`,
   :func:`qpik.enclosure.taylor_function` of the same closed form).
 
-Both are also compiled as single rows for the C search (:mod:`qpik.nlp.native`).
-
 Offset-shoulder arms have 16 branches, but branch k + 8 at δ is branch k at δ + π
 (Nammoto & Kosuge 2012, eq. 7: θ1[2] = θ1[1] + π with the rest following), so only the
 first 8 are searched (:attr:`SelfMotion.searched`); :meth:`SelfMotion.mirror` maps the others.
