@@ -1,4 +1,4 @@
-r"""Interval extensions of CasADi SX functions: rigorous ranges over boxes of inputs.
+r"""Interval extensions and Taylor models of CasADi SX functions: rigorous ranges over boxes of inputs.
 
 :func:`interval_function` turns an SX :class:`casadi.Function` ``f`` into another SX
 function that, given lower and upper bounds of some of its inputs, returns lower and
@@ -30,6 +30,12 @@ extension is only as tight as the expression allows: a variable that appears sev
 times is treated as independent each time (the dependency problem), so the width of the
 bounds is a small multiple of the true range for narrow boxes and can be much more for
 wide ones.
+
+:func:`taylor_function` removes most of that for ranges along one variable t ∈ [−1, 1] (a
+δ/ψ range of the closed form): every value is kept as ``c + s·t ± r`` (first-order Taylor
+models, Makino & Berz 2003, in one variable) beside its interval bounds, so that the
+correlation of every value with t survives, and the width of the bounds is second order in
+the range's size.
 """
 
 from __future__ import annotations

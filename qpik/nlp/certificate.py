@@ -23,8 +23,9 @@ the analytic limit crossings):
 If every cell is dropped, the answer is certified: its :attr:`~qpik.nlp.best.BestResult.gap`
 (:math:`f^*` minus the smallest bound met) is at most ε. A cell that cannot be dropped at the
 smallest width, or more than :data:`MAX_CELLS` cells, leaves it uncertified (the flag says so;
-the answer is still the best found). A cell's test point (its middle) that is feasible and better
-than :math:`f^* - \varepsilon` is returned as a new start for the search, which then certifies again.
+the answer is still the best found). The test point (the middle) of a cell that is kept, if it is
+feasible and better than :math:`f^* - \varepsilon`, is returned as a new start for the search,
+which then certifies again.
 
 What the proof assumes: the feasible intervals are exact (up to :data:`qpik.analytic.intervals.SAME`,
 1e-9 rad, below which a gap is not classified); the closed form is continuous on each interval
@@ -150,12 +151,13 @@ def certify(scene: Scene, pieces: Pieces, best: np.ndarray, tol: np.ndarray, pos
     better: list[Points] = []
     while len(lo):
         np.add.at(cells_used, pose, 1)
-        pts = scene.evaluate(pose, row, 0.5 * (lo + hi))
         lb, blocked = cell_bounds(scene, bounds, pose, row, lo, hi)
-        good = pts.valid & (pts.c >= 0) & (pts.f < best[pose] - tol[pose])
+        open_ = np.flatnonzero(~blocked & ~(lb >= best[pose] - tol[pose]))  # only these can hold a better point
+        pts = scene.evaluate(pose[open_], row[open_], 0.5 * (lo[open_] + hi[open_]))
+        good = pts.valid & (pts.c >= 0) & (pts.f < best[pts.pose] - tol[pts.pose])
         if good.any():
             better.append(pts.take(good))
-            failed[pose[good]] = True
+            failed[pts.pose[good]] = True
         keep = ~blocked & ~(lb >= best[pose] - tol[pose]) & ~failed[pose]
         dropped = ~blocked & ~keep
         np.minimum.at(bound, pose[dropped], lb[dropped])
