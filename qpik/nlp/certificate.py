@@ -73,16 +73,18 @@ class Certificate:
     better: Points | None
 
 
-def lower_bound(models: list[np.ndarray], sizes: tuple[int, ...]) -> np.ndarray:
-    r"""(M,): the minimum over t ∈ [−1, 1] of :math:`\ell_s(t) + \sum_k w_k \max_i \ell_{k,i}(t)` per row.
+def lower_bound(models: list[np.ndarray], sizes: tuple[int, ...], decide: np.ndarray | None = None) -> np.ndarray:
+    r"""(M,): a lower bound of :math:`\min_{t \in [-1, 1]} \ell_s(t) + \sum_k w_k \max_i \ell_{k,i}(t)` per row.
 
     ``models``: ``[centre, slope, radius, lo, hi]`` of the values
     ``[s, w_1..w_K, h_1 (m_1), ..., h_K (m_K), ...]`` (each (M, L); :class:`~qpik.objectives.BoundFunction`),
     ``sizes``: (m_1..m_K). Each :math:`\ell(t) = \max(lo, c + s\,t - r)` lies below its value, so the
-    function is below f; it is convex and piecewise linear, and its minimum is found by bisection on
-    the sign of a subgradient, then bounded from below by the crossing of the supporting lines at the
-    two ends of the final bracket (exact to the bracket's width; sound whatever the number of steps).
-    A row with a non-finite value, or a negative weight, gets −inf.
+    function is below f; it is convex and piecewise linear. Its minimum is bracketed by bisection on
+    the sign of a subgradient, and bounded from below by the crossing of the supporting lines at the
+    two ends of the bracket (sound whatever the number of steps; exact to the bracket's width after
+    :data:`BISECTIONS` steps). ``decide`` (M,): a row stops as soon as its bound is ≥ ``decide`` or a
+    value of the function is below it (then the bound returned is below ``decide``, and the cell is
+    kept whatever its exact value). A row with a non-finite value, or a negative weight, gets −inf.
     """
     c, s, r, lo, _ = models
     K = len(sizes)
@@ -105,22 +107,37 @@ def lower_bound(models: list[np.ndarray], sizes: tuple[int, ...]) -> np.ndarray:
             slope += weight[:, 0] * np.where(flat[rows, i], 0.0, sl[rows, i])
         return total, slope
 
+    def crossing(a, va, sa, b, vb, sb) -> np.ndarray:
+        """The bound from a bracket [a, b] with sa < 0 < sb: where the supporting lines at a and b cross."""
+        cross = (vb - va + sa * a - sb * b) / (sa - sb)
+        return va + sa * (np.clip(cross, a, b) - a)
+
     ones = np.ones(len(c))
     (va, sa), (vb, sb) = value_and_slope(-ones, parts), value_and_slope(ones, parts)
     out = np.where(sa >= 0, va, vb)  # monotone on the cell: the minimum is at an end
     at = np.flatnonzero((sa < 0) & (sb > 0))
-    inside = [tuple(x[at] for x in part) for part in parts]
-    a, b = np.full(len(at), -1.0), np.ones(len(at))
+    a, b = -ones[at], ones[at]
     va, sa, vb, sb = va[at], sa[at], vb[at], sb[at]
-    for _ in range(BISECTIONS):
+    limit = None if decide is None else decide[at]
+    inside = [tuple(x[at] for x in part) for part in parts]
+    for step in range(BISECTIONS + 1):
+        inner = (sa < 0) & (sb > 0)
+        safe_a, safe_b = np.where(inner, sa, -1.0), np.where(inner, sb, 1.0)
+        low = np.where(inner, crossing(a, va, safe_a, b, vb, safe_b), np.where(sa >= 0, va, vb))
+        out[at] = low
+        go = inner if limit is None else inner & (low < limit) & (np.minimum(va, vb) >= limit)
+        if not go.any() or step == BISECTIONS:
+            break
+        if not go.all():
+            k = np.flatnonzero(go)
+            at, a, b, va, sa, vb, sb = at[k], a[k], b[k], va[k], sa[k], vb[k], sb[k]
+            limit = None if limit is None else limit[k]
+            inside = [tuple(x[k] for x in part) for part in inside]
         m = 0.5 * (a + b)
         vm, sm = value_and_slope(m, inside)
         right = sm < 0  # the minimum lies right of m
         a, va, sa = np.where(right, m, a), np.where(right, vm, va), np.where(right, sm, sa)
         b, vb, sb = np.where(right, b, m), np.where(right, vb, vm), np.where(right, sb, sm)
-    inner = (sa < 0) & (sb > 0)
-    cross = (vb - va + sa * a - sb * b) / np.where(inner, sa - sb, -1.0)
-    out[at] = np.where(inner, va + sa * (np.clip(cross, a, b) - a), np.where(sa >= 0, va, vb))
     bad = ~np.isfinite(np.concatenate(models[:4], axis=1)).all(axis=1) | (w < 0).any(axis=1)
     return np.where(bad | np.isnan(out), -np.inf, out)
 
@@ -151,7 +168,7 @@ def certify(scene: Scene, pieces: Pieces, best: np.ndarray, tol: np.ndarray, pos
     better: list[Points] = []
     while len(lo):
         np.add.at(cells_used, pose, 1)
-        lb, blocked = cell_bounds(scene, bounds, pose, row, lo, hi)
+        lb, blocked = cell_bounds(scene, bounds, pose, row, lo, hi, best[pose] - tol[pose])
         open_ = np.flatnonzero(~blocked & ~(lb >= best[pose] - tol[pose]))  # only these can hold a better point
         pts = scene.evaluate(pose[open_], row[open_], 0.5 * (lo[open_] + hi[open_]))
         good = pts.valid & (pts.c >= 0) & (pts.f < best[pts.pose] - tol[pts.pose])
@@ -188,10 +205,17 @@ def certify(scene: Scene, pieces: Pieces, best: np.ndarray, tol: np.ndarray, pos
 
 
 def cell_bounds(
-    scene: Scene, bounds: BoundFunction, pose: np.ndarray, row: np.ndarray, lo: np.ndarray, hi: np.ndarray
+    scene: Scene,
+    bounds: BoundFunction,
+    pose: np.ndarray,
+    row: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    decide: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """For cells (pose, branch row, [lo, hi]) (M,): the lower bound of f (:func:`lower_bound`) and whether the
-    clearance constraint surely fails on the whole cell (some distance's upper bound below d_s)."""
+    """For cells (pose, branch row, [lo, hi]) (M,): the lower bound of f (:func:`lower_bound`, refined until it
+    decides whether it is below ``decide`` (M,)) and whether the clearance constraint surely fails on the whole
+    cell (some distance's upper bound below d_s)."""
     n, M = scene.robot.dof, len(lo)
     q = [np.empty((M, n)) for _ in range(5)]
     for b in np.unique(row):
@@ -200,7 +224,7 @@ def cell_bounds(
             dst[at] = src
     c, s, r, q_lo, q_hi = q
     models = scene.bound_rows(bounds, c, s, r, q_lo, q_hi, pose)
-    lb = lower_bound(models, bounds.sizes)
+    lb = lower_bound(models, bounds.sizes, decide)
     if not bounds.n_pairs:
         return lb, np.zeros(M, bool)
     d_hi = models[4][:, -bounds.n_pairs :]
