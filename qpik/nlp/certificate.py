@@ -47,9 +47,9 @@ from qpik.nlp.scene import Points, Scene
 from qpik.nlp.search import Pieces
 from qpik.objectives import BoundFunction, bound_function
 
-FIRST_CELL = 0.8
+FIRST_CELL = 0.4
 """Width (rad) of the first cells."""
-SPLIT = 2
+SPLIT = 4
 """A cell that is kept is cut in this many."""
 SMALLEST_CELL = 1e-9
 """Cells are not cut below this width (rad): one kept there leaves the answer uncertified."""
