@@ -39,7 +39,8 @@ from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.best import BestResult, solve_best
 from qpik.nlp.full import FullResult, solve_full
 from qpik.objectives import Objective, resolve
-from qpik.robots.robot import Robot
+from qpik.robots.robot import Robot, as_robot
+from qpik.validate import count, single_pose
 
 FRAME_WEIGHT = 1e8
 """Weight of the QP's frame task, per m² (and rad²)."""
@@ -57,19 +58,20 @@ class CrossCheck:
 
     Attributes:
         best: (a), :class:`~qpik.nlp.best.BestResult`.
-        full: (b), :class:`~qpik.nlp.full.FullResult`.
-        velocity: (c), the QP's step (n,), rad/s.
-        q_gap: max |q_b − q_a|, rad; f_gap: |f_b − f_a|; kkt: (b)'s KKT residual; speed: max |v| of (c).
+        full: (b), :class:`~qpik.nlp.full.FullResult` (None when not applicable).
+        velocity: (c), the QP's step (n,), rad/s (None when not applicable).
+        q_gap: max |q_b − q_a|, rad; f_gap: |f_b − f_a|; kkt: (b)'s KKT residual; speed: max |v| of (c)
+            (each +inf when not applicable).
         failures: the checks that failed, in words ([] when all agree).
         applicable: False when (a) has no answer (no feasible or no reachable configuration): then
             nothing was compared.
         random_rate: of :attr:`random_starts` IPOPT runs from random configurations alone, the
-            fraction that reached the pose with f within :data:`TOL_F` of (a) (nan if none were run).
+            fraction that reached the pose with f within :data:`TOL_F` of (a) (None if none were run).
     """
 
     best: BestResult
     full: FullResult | None
-    velocity: np.ndarray
+    velocity: np.ndarray | None
     q_gap: float
     f_gap: float
     kkt: float
@@ -77,7 +79,7 @@ class CrossCheck:
     failures: list[str] = field(default_factory=list)
     applicable: bool = True
     random_starts: int = 0
-    random_rate: float = np.nan
+    random_rate: float | None = None
 
     @property
     def passed(self) -> bool:
@@ -126,8 +128,11 @@ def crosscheck(
             (seeded with ``seed``) and report how often it reaches (a)'s optimum.
 
     Raises:
-        InputError: a non-smooth objective (the QP needs its gradient), bad input.
+        InputError: a non-smooth objective (the QP needs its gradient), bad input (naming the argument).
     """
+    robot = as_robot(robot)
+    pose = single_pose(pose, "pose")
+    random_starts, seed = count(random_starts, "random_starts"), count(seed, "seed")
     obj = resolve(objective)
     if not obj.smooth:
         raise InputError(
@@ -135,9 +140,8 @@ def crosscheck(
         )
     obs = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
     best = solve_best(robot, pose, obj, obs, q_ref, d_safe=d_safe, certify=False)
-    nan = np.full(robot.dof, np.nan)
     if best.status != "optimal":
-        return CrossCheck(best, None, nan, np.nan, np.nan, np.nan, np.nan, applicable=False)
+        return CrossCheck(best, None, None, np.inf, np.inf, np.inf, np.inf, applicable=False)
     full = solve_full(robot, pose, obj, obs, q_ref, q0=best.q, d_safe=d_safe, starts=1, max_starts=1)
     velocity = _qp_step(robot, pose, obj, obs, q_ref, best.q, d_safe)
     q_gap = float(np.abs(full.q - best.q).max())

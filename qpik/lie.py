@@ -19,24 +19,32 @@ from qpik.validate import finite_array, single_pose
 def log_expr(R: ca.SX) -> ca.SX:
     r"""Rotation vector :math:`\omega = \theta u` (3,) of an SX rotation matrix ``R`` (3, 3), with θ ∈ [0, π].
 
-    :math:`\sin\theta\,u = \mathrm{vee}(R - R^T)/2` and :math:`\cos\theta = (\mathrm{tr} R - 1)/2`,
-    so :math:`\theta = \mathrm{atan2}(\|\mathrm{vee}\|, \cos\theta)` is accurate at every angle.
-    Away from π (cos θ > −0.9) the vector is :math:`\mathrm{vee}\,\theta/\sin\theta` (a series
-    below θ = 1e-4); near π, where vee loses its digits, the axis comes from the symmetric part
-    :math:`(R + R^T)/2 - \cos\theta\,I = (1 - \cos\theta)\,u u^T` (its largest diagonal
-    column) with the sign of vee. The branches are selections (both are evaluated).
+    :math:`\sin\theta\,u = \mathrm{vee}(R - R^T)/2` and :math:`c = \cos\theta = (\mathrm{tr} R - 1)/2`.
+    Away from π (c > −0.9) the vector is :math:`\mathrm{vee}\cdot g(c)` with
+    :math:`g(c) = \arccos c/\sqrt{1 - c^2} = \theta/\sin\theta`, below x = 1 − c = 1e-4 its series
+    :math:`1 + x/3 + 2x^2/15 + 2x^3/35` (error < 1e-17): written through c, not through |vee|, so that
+    it is smooth at θ = 0 to every order (the NLPs and the QP differentiate the pose error at its
+    solution; a square root of |vee|² there has a 0/0 derivative and second derivatives of order
+    1/θ). Near π, where vee loses its digits, :math:`\theta = \mathrm{atan2}(\|\mathrm{vee}\|, c)` and
+    the axis comes from the symmetric part :math:`(R + R^T)/2 - c\,I = (1 - c)\,u u^T` (its largest
+    diagonal column) with the sign of vee. The branches are selections (both are evaluated, and a
+    selection's derivative multiplies the unselected branch's by 0, so that one must be finite too):
+    the square roots of the near-π branch are taken of their argument's maximum with a bound that
+    changes no value where it is selected (1e-300 for |vee|², 1 for the axis' scale), and its first
+    and second derivatives stay finite at θ = 0.
     """
     w = 0.5 * ca.vertcat(R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1])
-    s = ca.sqrt(ca.dot(w, w))
     c = 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)
-    theta = ca.atan2(s, c)
-    scale = ca.if_else(theta < 1e-4, 1.0 + theta * theta / 6.0 + 7.0 * theta**4 / 360.0, theta / s)
+    x = 1.0 - c
+    series = 1.0 + x * (1.0 / 3.0 + x * (2.0 / 15.0 + x * 2.0 / 35.0))
+    scale = ca.if_else(x < 1e-4, series, ca.acos(ca.fmax(c, -1.0)) / ca.sqrt(ca.fmax(1.0 - c * c, 1e-300)))
+    theta = ca.atan2(ca.sqrt(ca.fmax(ca.dot(w, w), 1e-300)), c)
     B = 0.5 * (R + R.T) - c * ca.SX.eye(3)
     b0, b1, b2 = B[0, 0], B[1, 1], B[2, 2]
     first = ca.logic_and(b0 >= b1, b0 >= b2)
     col = ca.if_else(first, B[:, 0], ca.if_else(b1 >= b2, B[:, 1], B[:, 2]))
     bkk = ca.if_else(first, b0, ca.if_else(b1 >= b2, b1, b2))
-    u = col / ca.sqrt(bkk * (1.0 - c))
+    u = col / ca.sqrt(ca.fmax(bkk * (1.0 - c), 1.0))  # ≥ (1 − c)²/3 > 1.2 where the branch is selected
     u = ca.if_else(ca.dot(u, w) < 0.0, -u, u)
     return ca.if_else(c > -0.9, w * scale, theta * u)
 

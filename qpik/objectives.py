@@ -14,8 +14,9 @@ of smooth pieces,
 .. math:: f(q) = s(q) + \sum_k w_k \max_i h_{k,i}(q),\qquad w_k \ge 0,
 
 so that an NLP can write each maximum in epigraph form (:math:`\min t_k` s.t.
-:math:`t_k \ge h_{k,i}`) and stay smooth. :meth:`Objective.lower_bound` gives a rigorous lower
-bound of ``f`` over a box of configurations (for the certificate of :mod:`qpik.nlp.certificate`).
+:math:`t_k \ge h_{k,i}`) and stay smooth, and so that the certificate of :mod:`qpik.nlp.certificate`
+can bound f over a range of configurations from Taylor models of s and of every piece
+(:class:`BoundFunction`).
 
 The objectives (units: the margin is unitless, distances in m, angles in rad):
 
@@ -45,10 +46,11 @@ import numpy as np
 
 from qpik import symbolic as sy
 from qpik.compiled import RowMap
+from qpik.enclosure import taylor_function
 from qpik.errors import InputError
 from qpik.geometry.distance import ObstacleSet, set_expr
 from qpik.robots.manipulability import hessian_rows, jacobian_rows, manipulability_gradient_expr
-from qpik.validate import finite_array
+from qpik.validate import finite_array, flag, number
 
 if TYPE_CHECKING:
     from qpik.robots.robot import Robot
@@ -166,54 +168,17 @@ class Context:
         return self.robot.chain.frames_expr([q[i] for i in range(self.n)], sy.CASADI)
 
 
-@dataclass
-class Box:
-    """Numbers for :meth:`Objective.lower_bound`: M boxes of configurations and what is known at their centres.
-
-    Attributes:
-        robot: the arm.
-        q_lo, q_hi: (M, n) bounds of each box, rad.
-        q_mid: (M, n) a configuration inside each box (where ``d_mid`` was evaluated), rad.
-        d_mid: (M, C·O) capsule–obstacle distances at ``q_mid``, m.
-        n_obstacles: O.
-        q_ref: (n,) reference configuration, rad (zeros if none was given).
-        lever: (C, n) :func:`lever_arms` of the robot.
-    """
-
-    robot: Robot
-    q_lo: np.ndarray
-    q_hi: np.ndarray
-    q_mid: np.ndarray
-    d_mid: np.ndarray
-    n_obstacles: int
-    q_ref: np.ndarray
-    lever: np.ndarray
-
-    @cached_property
-    def spread(self) -> np.ndarray:
-        """(M, n): the largest ``|q_j − q_mid,j|`` in each box, rad."""
-        return np.maximum(self.q_hi - self.q_mid, self.q_mid - self.q_lo)
-
-    def distance_upper(self) -> np.ndarray:
-        """(M, C·O) upper bounds of every pair distance over each box, m.
-
-        A point of link k moves by at most :math:`\\sum_{j \\le k} r_{kj} |\\Delta q_j|` when the
-        joints move by Δq (joint j turns it about an axis at most :math:`r_{kj}` away,
-        :func:`lever_arms`), and the distance of a capsule to a convex obstacle changes by at
-        most the largest displacement of its axis points.
-        """
-        move = self.spread @ self.lever.T  # (M, C)
-        return self.d_mid + np.repeat(move, self.n_obstacles, axis=1)
-
-
 class Objective(ABC):
     """A cost :math:`f(q)` to minimise (see the module docstring for the form).
 
-    Subclasses implement :meth:`split` and, where a rigorous bound over a box of
-    configurations is known, :meth:`lower_bound`. Combine them with ``*`` (a weight) and ``+``.
+    Subclasses implement :meth:`split`. Combine them with ``*`` (a weight) and ``+``.
     """
 
     name: str = "objective"
+    bounded: bool = True
+    """Whether the certificate bounds it (:class:`BoundFunction`); False where the Taylor models are too
+    loose to prove anything at a useful cell width."""
+    __array_ufunc__ = None  # ``array * objective`` calls :meth:`__rmul__` (which checks the weight), not numpy
 
     def param_size(self, robot: Robot) -> int:
         """Length of :meth:`params` for ``robot`` (default 0)."""
@@ -249,17 +214,9 @@ class Objective(ABC):
         """``((weight, objective), ...)`` whose weighted sum this is (itself with weight 1)."""
         return ((1.0, self),)
 
-    def lower_bound(self, box: Box, p: np.ndarray) -> np.ndarray | None:
-        """(M,) lower bounds of f over each box, or None when no rigorous bound is known."""
-        return None
-
-    @property
-    def bounded(self) -> bool:
-        """Whether :meth:`lower_bound` gives bounds (a certificate is possible)."""
-        return type(self).lower_bound is not Objective.lower_bound
-
     def __mul__(self, weight: float) -> Sum:
-        return Sum([(w * float(weight), o) for w, o in self.terms])
+        weight = number(weight, "weight")
+        return Sum([(w * weight, o) for w, o in self.terms])
 
     __rmul__ = __mul__
 
@@ -278,12 +235,17 @@ class Sum(Objective):
 
     name = "sum"
 
+    @property
+    def bounded(self) -> bool:
+        return all(o.bounded for _, o in self._terms)
+
     def __init__(self, terms: Sequence[tuple[float, Objective]]):
         flat: list[tuple[float, Objective]] = []
         for w, o in terms:
             if not isinstance(o, Objective):
                 raise InputError(f"terms: expected Objective instances, got {type(o).__name__}")
-            flat += [(float(w) * v, t) for v, t in o.terms]
+            weight = number(w, "terms: weight", minimum=None)
+            flat += [(weight * v, t) for v, t in o.terms]
         if not flat:
             raise InputError("terms: a Sum needs at least one objective")
         weights = np.array([w for w, _ in flat])
@@ -325,20 +287,14 @@ class Sum(Objective):
     def smooth(self) -> bool:
         return all(o.smooth for _, o in self._terms)
 
-    @property
-    def bounded(self) -> bool:
-        return all(o.bounded for _, o in self._terms)
 
-    def lower_bound(self, box: Box, p: np.ndarray) -> np.ndarray | None:
-        total = 0.0
-        for i, ((_, o), sl) in enumerate(zip(self._terms, self._slices(box.robot))):
-            if p[i] == 0.0:
-                continue
-            part = o.lower_bound(box, p[sl])
-            if part is None:
-                return None
-            total = total + p[i] * part
-        return np.broadcast_to(total, (len(box.q_lo),)).astype(float)
+
+def _positive(x: object, name: str) -> float:
+    """``x`` as a finite float > 0, else :class:`InputError` naming ``name``."""
+    value = number(x, name)
+    if value <= 0:
+        raise InputError(f"{name}: must be > 0, got {value:g}")
+    return value
 
 
 def _normalised(robot: Robot, q: ca.SX) -> ca.SX:
@@ -352,11 +308,6 @@ def _soft_max(h: ca.SX, beta: ca.SX) -> ca.SX:
     r""":math:`\tfrac1\beta \log \sum_i e^{\beta h_i}` (≥ max h, within log(m)/β), shifted by max h for range."""
     top = ca.mmax(h)
     return top + ca.log(ca.sum1(ca.exp(beta * (h - top)))) / beta
-
-
-def _soft_max_np(h: np.ndarray, beta: float) -> np.ndarray:
-    top = h.max(axis=-1)
-    return top + np.log(np.exp(beta * (h - top[..., None])).sum(axis=-1)) / beta
 
 
 class JointLimitMargin(Objective):
@@ -373,10 +324,8 @@ class JointLimitMargin(Objective):
     name = "margin"
 
     def __init__(self, smooth: bool = False, sharpness: float = 20.0):
-        self._smooth = bool(smooth)
-        self.sharpness = float(sharpness)
-        if not np.isfinite(self.sharpness) or self.sharpness <= 0:
-            raise InputError(f"sharpness: must be finite and > 0, got {sharpness}")
+        self._smooth = flag(smooth, "smooth")
+        self.sharpness = _positive(sharpness, "sharpness")
 
     def structure(self) -> tuple:
         return (self._smooth,)
@@ -397,27 +346,23 @@ class JointLimitMargin(Objective):
             return Split(_soft_max(-g, p[0]))
         return Split(ca.SX(0.0), [(ca.SX(1.0), -g)])
 
-    def lower_bound(self, box: Box, p: np.ndarray) -> np.ndarray:
-        """Exact over the box: each :math:`-g_i` is monotone in one joint, and f is increasing in each."""
-        lo, hi = box.robot.q_min, box.robot.q_max
-        half = 0.5 * (hi - lo)
-        h = np.concatenate([-(box.q_hi - lo) / half, -(hi - box.q_lo) / half], axis=1)  # the least -g_i
-        return _soft_max_np(h, p[0]) if self._smooth else h.max(axis=1)
-
 
 class Manipulability(Objective):
     r"""Minus the log of Yoshikawa's manipulability: :math:`f = -\log \sqrt{\det J J^T}`.
 
     ``translational``: of the rows :math:`J_v` (m) only. Infinite at a singular configuration.
-    No lower bound over a box is given: a bound through the singular values (Weyl's inequality
-    with the kinematic Hessian) loses :math:`\sum_i \delta/\sigma_i` for a change δ of J, which
-    needs boxes of ~1e-4 rad, too many to certify an answer.
+
+    Not :attr:`~Objective.bounded`: the Taylor model of m through the QR of J is finite only on
+    δ/ψ ranges narrower than about 1e-3 rad (measured on iiwa14: infinite at 1e-2, within 1.5e-4 of
+    the minimum at 1e-4), so a certificate would examine some 10⁴ cells per pose; answers with it are
+    the search's, not certified.
     """
 
     name = "manipulability"
+    bounded = False
 
     def __init__(self, translational: bool = False):
-        self.translational = bool(translational)
+        self.translational = flag(translational, "translational")
 
     def structure(self) -> tuple:
         return (self.translational,)
@@ -439,9 +384,8 @@ class Clearance(Objective):
     name = "clearance"
 
     def __init__(self, cap: float = 0.1, smooth: bool = False, sharpness: float = 100.0):
-        self.cap, self.sharpness, self._smooth = float(cap), float(sharpness), bool(smooth)
-        if not (np.isfinite(self.cap) and self.cap > 0 and np.isfinite(self.sharpness) and self.sharpness > 0):
-            raise InputError(f"Clearance: cap and sharpness must be finite and > 0, got {cap}, {sharpness}")
+        self.cap, self.sharpness = _positive(cap, "cap"), _positive(sharpness, "sharpness")
+        self._smooth = flag(smooth, "smooth")
 
     def structure(self) -> tuple:
         return (self._smooth,)
@@ -461,12 +405,6 @@ class Clearance(Objective):
         if self._smooth:
             return Split(_soft_max(h, p[1]))
         return Split(ca.SX(0.0), [(ca.SX(1.0), h)])
-
-    def lower_bound(self, box: Box, p: np.ndarray) -> np.ndarray:
-        """From the distances' upper bounds over the box (:meth:`Box.distance_upper`); f decreases in each."""
-        d = box.distance_upper()
-        h = -np.concatenate([d, np.full((len(d), 1), p[0])], axis=1)
-        return _soft_max_np(h, p[1]) if self._smooth else h.max(axis=1)
 
 
 class ReferenceDistance(Objective):
@@ -505,17 +443,13 @@ class ReferenceDistance(Objective):
         e = ctx.q - ctx.q_ref
         return Split(0.5 * ca.dot(p * e, e))
 
-    def lower_bound(self, box: Box, p: np.ndarray) -> np.ndarray:
-        """Exact over the box: each term is least at the point of ``[q_lo, q_hi]`` nearest ``q_ref``."""
-        gap = np.maximum(box.q_lo - box.q_ref, 0.0) + np.maximum(box.q_ref - box.q_hi, 0.0)
-        return 0.5 * (gap * gap) @ p
-
 
 class Expression(Objective):
     """A user's objective: ``fn(q)``, a CasADi expression (SX scalar) of q (n,) SX.
 
     ``fn`` is a :class:`casadi.Function` of one (n,) input, or a Python function building the
-    expression. No bound over a box is known, so answers with it are not certified.
+    expression. Answers with it can be certified when every operation of the expression has a
+    Taylor-model rule (:func:`qpik.enclosure.taylor_function`); otherwise the certificate says so.
 
     Args:
         fn: the expression's builder.
@@ -526,7 +460,7 @@ class Expression(Objective):
     def __init__(self, fn: Callable[[ca.SX], ca.SX] | ca.Function, smooth: bool = True, name: str = "expression"):
         if not callable(fn):
             raise InputError(f"fn: expected a casadi.Function or a callable, got {type(fn).__name__}")
-        self.fn, self._smooth, self.name = fn, bool(smooth), str(name)
+        self.fn, self._smooth, self.name = fn, flag(smooth, "smooth"), str(name)
         self._token = next(_TOKENS)
 
     def structure(self) -> tuple:
@@ -538,9 +472,13 @@ class Expression(Objective):
 
     def split(self, ctx: Context, p: ca.SX) -> Split:
         out = self.fn(ctx.q)
-        if isinstance(out, (list, tuple)):
+        if isinstance(out, (list, tuple)) and out:
             out = out[0]
-        out = ca.SX(out) if not isinstance(out, ca.SX) else out
+        if not isinstance(out, ca.SX):
+            try:
+                out = ca.SX(out)
+            except (NotImplementedError, TypeError, RuntimeError):
+                raise InputError(f"fn: must return a scalar CasADi expression of q, got {type(out).__name__}") from None
         if out.numel() != 1:
             raise InputError(f"fn: must return a scalar expression of q, got shape {out.shape}")
         return Split(out)
@@ -613,21 +551,72 @@ class Evaluator:
 _EVALUATORS: dict[tuple, tuple] = {}
 
 
-def lever_arms(robot: Robot) -> np.ndarray:
-    r"""(C, n): for capsule c, a bound :math:`r_{cj}` (m) on the distance of its axis points from joint j's axis.
+class BoundFunction:
+    r"""Taylor models of an objective's split and of the capsule–obstacle distances, for the certificate.
 
-    Zero for joints beyond the capsule's link. The points of link k are reached from joint j's axis
-    through the DH transforms j..k, each a translation of :math:`|a_i| + |d_i|` at most, then the
-    capsule's end point in frame k; the sum of these lengths bounds the distance for every q.
+    For a range of configurations given as Taylor models :math:`q(t) = c + s\,t \pm r` in one
+    variable :math:`t \in [-1, 1]` (within [lo, hi]; :func:`qpik.enclosure.taylor_function`, e.g. the
+    closed form over a δ/ψ range), :attr:`function` gives the models of the values
+
+    .. math:: v = [\,s(q);\ w_1 \dots w_K;\ h_1 (m_1);\ \dots;\ h_K (m_K);\ d\ (C \cdot O)\,]
+
+    — the split's smooth part, its weights (parameters: single values), the pieces of each maximum
+    (:class:`Split`) and the capsule–obstacle distances (m). Each value lies, for the same t, within
+    ``centre + slope·t ± radius`` and within [lo, hi], so for every t, with
+    :math:`\ell(t) = \max(lo,\ c + s\,t - r)` of each value (lower lines),
+
+    .. math:: f(q(t)) \ge \ell_s(t) + \sum_k w_k \max_i \ell_{k,i}(t),
+
+    a convex piecewise-linear function of t whose minimum over [−1, 1] is a lower bound of f over the
+    range (:func:`qpik.nlp.certificate.lower_bound`); a distance whose upper bound is below d_s on the
+    whole range proves the clearance constraint violated there.
+
+    Inputs of :attr:`function`: q's centre (n,), the objective's parameters, q_ref (n,), the obstacle
+    parameters, then q's slope, radius, lo and hi (n each). Outputs: centre, slope, radius, lo and hi
+    of v (each (L,)).
+
+    Raises:
+        InputError: an operation of the objective's expression has no Taylor-model rule (a user
+            expression): then no bound exists, and no certificate.
     """
-    chain = robot.chain
-    step = np.abs(np.asarray(chain.a, float)) + np.abs(np.asarray(chain.d, float))
-    out = np.zeros((len(robot.capsules), robot.dof))
-    for c, cap in enumerate(robot.capsules):
-        end = max(float(np.linalg.norm(cap.p0)), float(np.linalg.norm(cap.p1)))
-        for j in range(cap.link):
-            out[c, j] = step[j : cap.link].sum() + end
-    return out
+
+    def __init__(self, robot: Robot, objective: Objective, obstacles: ObstacleSet):
+        n = robot.dof
+        self.params = objective.params(robot)
+        q, q_ref = ca.SX.sym("q", n), ca.SX.sym("q_ref", n)
+        p = ca.SX.sym("p", len(self.params))
+        prm = ca.SX.sym("obstacles", len(obstacles.params))
+        ctx = Context(robot, q, q_ref, obstacles, prm)
+        split = objective.split(ctx, p)
+        self.sizes = tuple(int(h.numel()) for _, h in split.maxima)
+        """m_k: the number of pieces of each maximum."""
+        self.n_pairs = len(robot.capsules) * len(obstacles)
+        values = ca.vertcat(split.smooth, *[w for w, _ in split.maxima], *[h for _, h in split.maxima], ctx.distances)
+        self.values = ca.Function(f"bound_{robot.name or 'robot'}", [q, p, q_ref, prm], [ca.densify(values)])
+        """v itself at one configuration: ``(q, p, q_ref, obstacle params) -> v`` (L,)."""
+        self.function = taylor_function(self.values, [0])
+        self.rows = RowMap(self.function, shared=(1, 3), chunks=(16, 16))
+        """:attr:`function` over rows (compiled once per size, shared by every search with this form)."""
+
+
+_BOUNDS: dict[tuple, tuple] = {}
+
+
+def bound_function(robot: Robot, objective: Objective, obstacles: ObstacleSet) -> BoundFunction | None:
+    """The cached :class:`BoundFunction` of the objective's form and the obstacle families, or None when
+    the objective is not :attr:`~Objective.bounded` or its expression has an operation without a
+    Taylor-model rule."""
+    if not objective.bounded:
+        return None
+    key = (id(robot), objective.key(), obstacles.kinds, len(objective.params(robot)))
+    entry = _BOUNDS.get(key)
+    if entry is None or entry[0] is not robot:
+        try:
+            found = BoundFunction(robot, objective, obstacles)
+        except InputError:
+            found = None
+        entry = _BOUNDS[key] = (robot, found)
+    return entry[1]
 
 
 _NAMED: dict[str, Callable[[], Objective]] = {
@@ -646,6 +635,6 @@ def resolve(objective: Objective | str) -> Objective:
     """An objective, or one with default parameters from its name (:data:`NAMES`)."""
     if isinstance(objective, Objective):
         return objective
-    if objective not in _NAMED:
+    if not isinstance(objective, str) or objective not in _NAMED:
         raise InputError(f"objective: expected an Objective or one of {list(NAMES)}, got {objective!r}")
     return _NAMED[objective]()

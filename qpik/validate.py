@@ -89,6 +89,18 @@ def number(x: object, name: str, minimum: float | None = 0.0, finite: bool = Tru
     return value
 
 
+def count(x: object, name: str, minimum: int = 0) -> int:
+    """``x`` as an int: an integer (Python or numpy, not a bool, a float or a string) ``>= minimum``.
+
+    Raises :class:`InputError` naming ``name``.
+    """
+    if isinstance(x, bool | np.bool_) or not isinstance(x, int | np.integer):
+        raise InputError(f"{name}: expected an integer, got {x!r}"[:200])
+    if x < minimum:
+        raise InputError(f"{name}: must be >= {minimum}, got {x}")
+    return int(x)
+
+
 def flag(x: object, name: str) -> bool:
     """``x`` if it is a bool (Python or numpy), else :class:`InputError` (``project="no"`` must not project)."""
     if isinstance(x, bool | np.bool_):

@@ -1,8 +1,9 @@
-"""qpik.enclosure: the interval extension contains every value of the function over the box.
+"""qpik.enclosure: the interval extension and the Taylor models contain every value of the function.
 
-Checked against dense samples of the function itself inside random boxes, on random
-expressions of every supported operation and on the closed form of both arms (whose q over an
-arm-angle range the certificate bounds this way).
+Checked against dense samples of the function itself inside random boxes (along random lines
+for the Taylor models), on random expressions of every supported operation and on the closed
+form of both arms (whose q over an arm-angle range the certificate bounds this way, checked
+against the batched numpy closed form).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from conftest import SEEDS
 from hypothesis import given, settings
 
 import qpik
-from qpik.enclosure import interval_function
+from qpik.enclosure import interval_function, taylor_function
 from qpik.errors import InputError
 
 
@@ -70,6 +71,57 @@ def test_closed_form_box_contains_the_self_motion(name):
         lo, hi = (np.asarray(v) for v in box(pose, a, b))
         sols = qpik.ik(robot, np.broadcast_to(pose, (400, 4, 4)), np.linspace(a, b, 400))
         assert np.all(sols.q >= lo - 1e-12) and np.all(sols.q <= hi + 1e-12)
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=SEEDS)
+def test_taylor_models_contain_every_sample_along_the_line(seed):
+    """x(t) = cx + sx·t, y(t) = cy + sy·t for t ∈ [−1, 1]: every output at every t lies within its model
+    ``centre + slope·t ± radius`` and within its bounds."""
+    x, y, p = ca.SX.sym("x"), ca.SX.sym("y"), ca.SX.sym("p")
+    fn = ca.Function("f", [x, y, p], _expressions(x, y, p))
+    tm = taylor_function(fn, [0, 1])  # inputs: x, y, p, then slope, radius, lo, hi of x and of y
+    rng = np.random.default_rng(seed)
+    t = np.linspace(-1.0, 1.0, 301)
+    for _ in range(20):
+        c = rng.uniform(-3, 3, 2)
+        sl = rng.uniform(-0.75, 0.75, 2) * rng.choice([1e-3, 1.0], 2)
+        pv = rng.uniform(-2, 2)
+        args = [c[0], c[1], pv] + [v for k in range(2) for v in (sl[k], 0.0, c[k] - abs(sl[k]), c[k] + abs(sl[k]))]
+        out = np.array([np.asarray(v).ravel() for v in tm(*args)]).reshape(5, -1)
+        centre, slope, radius, lo, hi = out
+        vals = np.array([np.asarray(fn(c[0] + sl[0] * u, c[1] + sl[1] * u, pv)).ravel() for u in t])
+        ok = np.isfinite(vals)
+        tol = 1e-12 * (1 + np.abs(vals))
+        below = np.maximum(lo, centre + slope * t[:, None] - radius)
+        above = np.minimum(hi, centre + slope * t[:, None] + radius)
+        assert np.all((vals >= below - tol) | ~ok) and np.all((vals <= above + tol) | ~ok)
+
+
+@pytest.mark.parametrize("name", ["iiwa14", "nammoto7"])
+def test_closed_form_taylor_model_contains_the_self_motion_and_is_second_order(name):
+    """The Taylor model of q over a ψ range holds the batched numpy closed form at 200 ψ of the range,
+    and its remainder shrinks with the square of the range (100× narrower: a radius over 300× smaller;
+    a first-order bound would give 100×)."""
+    robot = qpik.load_robot(name)
+    solver = qpik.analytic.solver_for(robot)
+    T, psi = ca.SX.sym("T", 4, 4), ca.SX.sym("psi")
+    Q = solver.casadi_function(T, psi)[0]
+    tm = taylor_function(ca.Function("q", [T, psi], [Q]), [1])
+    rng = np.random.default_rng(3)
+    pose = robot.fk(rng.uniform(robot.q_min, robot.q_max))
+    t = np.linspace(-1.0, 1.0, 200)
+    radius = {}
+    for half in (0.05, 5e-4):
+        radius[half] = []
+        for mid in rng.uniform(-np.pi + 0.1, np.pi - 0.1, 5):
+            centre, slope, r, lo, hi = (np.asarray(v) for v in tm(pose, mid, half, 0.0, mid - half, mid + half))
+            sols = qpik.ik(robot, np.broadcast_to(pose, (len(t), 4, 4)), mid + half * t)
+            tol = 1e-12 * (1 + np.abs(sols.q))
+            assert np.all(sols.q >= np.maximum(lo, centre + slope * t[:, None, None] - r) - tol)
+            assert np.all(sols.q <= np.minimum(hi, centre + slope * t[:, None, None] + r) + tol)
+            radius[half].append(np.median(r))
+    assert np.median(radius[5e-4]) <= np.median(radius[0.05]) / 300
 
 
 def test_point_inputs_stay_points_and_bad_functions_are_refused():

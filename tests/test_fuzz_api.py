@@ -22,8 +22,12 @@ from hypothesis import strategies as st
 
 import qpik
 from qpik import control, geometry
+from qpik import objectives as objs
 from qpik.control import clik
 from qpik.control.solvers import get_solver
+from qpik.crosscheck import crosscheck
+from qpik.nlp import solve_full
+from qpik.objectives import JointLimitMargin, Manipulability
 from qpik.problems import load
 from qpik.sim import SimLog, simulate
 
@@ -33,6 +37,8 @@ STATUSES = {"ok", "recovering", "penetrating", "yielding", "failed"}
 FUZZ = settings(
     max_examples=80, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow], database=None
 )
+FEW = settings(FUZZ, max_examples=15)
+"""For the calls that solve several problems each (:data:`SLOW_CASES`)."""
 
 # ---- bad values -------------------------------------------------------------------------
 
@@ -148,6 +154,7 @@ def number_arg(good: float, *bad: float) -> Arg:
     return Arg(st.just(good), st.sampled_from([np.nan, np.inf, -np.inf, 1e300, -1.0, "1", None, 1j, *bad]))
 
 
+INTS = st.sampled_from([0, -1, 1.5, "2", None])
 FLAG = Arg(st.booleans(), st.sampled_from(["no", "yes", 1, None, "True"]))
 ROBOT = Arg(st.sampled_from(list(ROBOTS)), None)  # a Robot whose method is called
 SPHERE = geometry.Sphere((0.5, 0.2, 0.6), 0.1)
@@ -189,6 +196,43 @@ def _serial_chain(post, offset, kind, tool):
     joint = qpik.Joint(post=post, offset=offset, kind=kind)
     chain = qpik.SerialChain([joint, qpik.Joint(post=post)], tool=tool)
     return chain.fk(np.zeros(2)), chain.jacobian(np.zeros((3, 2)))
+
+
+def _solve_best(robot, pose, objective, obstacles, d_safe):
+    from qpik.nlp.best import STATUSES, BestResults
+
+    best = qpik.solve_best(robot, pose, objective, obstacles, d_safe=d_safe, certify=False)
+    results = list(best) if isinstance(best, BestResults) else [best]  # a batch of poses is a batch of answers
+    assert all(r.status in STATUSES for r in results)
+    return results
+
+
+def _solve_full(robot, pose, objective, obstacles, q0, d_safe, starts, seed):
+    res = solve_full(robot, pose, objective, obstacles, q0=q0, d_safe=d_safe, starts=starts, max_starts=2, seed=seed)
+    assert res.status in ("optimal", "unreachable", "solver failed")
+    return res
+
+
+def _objectives(smooth, sharpness, cap, weights, weight, fn):
+    """Every objective's constructor, a weighted sum of them, and its evaluation (f, ∇f, distances)."""
+    terms = [objs.JointLimitMargin(smooth, sharpness), objs.Clearance(cap, smooth, sharpness),
+             objs.ReferenceDistance(weights), objs.Manipulability(smooth), objs.Expression(fn, smooth)]  # fmt: skip
+    total = terms[0] + weight * terms[1] + terms[2] + weight * terms[3] + terms[4]
+    ev = objs.Evaluator(IIWA, total, SHAPES[:1])  # every example has a new expression: CasADi's VM, no compiling
+    out = ev.function()(IIWA.q_home, ev.params, IIWA.q_home + 0.1, ev.obstacles.params)
+    return np.asarray(out).ravel()
+
+
+def _crosscheck(robot, pose, objective, obstacles, q_ref, d_safe, random_starts):
+    check = crosscheck(robot, pose, objective, obstacles, q_ref, d_safe=d_safe, random_starts=random_starts)
+    assert isinstance(check.report(), str)
+    return check
+
+
+def _objective_task(robot, objective, weight, q):
+    task = qpik.control.ObjectiveTask(robot, objective, weight)
+    ctrl = qpik.Controller(robot, [task, qpik.control.DampingTask()], [qpik.control.VelocityLimit()])
+    return ctrl.step(q)
 
 
 def _solve_ik(robot, q0, pose, tol, iters):
@@ -311,6 +355,19 @@ CASES = [
          number_arg(0.002, 0.0, 10.0), q_arg(PANDA))),
     Case("Controller.step target, twist", _steps, (ROBOT, q_arg(PANDA), pose_arg(PANDA),
          Arg(st.just(np.zeros(6)), _poisoned(np.zeros(6))))),
+    Case("solve_best BestResult", _solve_best, (robot_arg((IIWA, NAMMOTO)), pose_arg(IIWA),
+         Arg(st.sampled_from(["margin", "smooth-margin", "manipulability"]),
+             st.sampled_from(["nope", None, 3, ["margin"]])),
+         OBSTACLES, number_arg(0.02))),
+    Case("ObjectiveTask", _objective_task, (robot_arg((IIWA, PANDA)),
+         Arg(st.sampled_from([JointLimitMargin(smooth=True), Manipulability()]), st.sampled_from(["margin", None, 3])),
+         number_arg(1e-2), q_arg(IIWA))),
+    Case("solve_full FullResult", _solve_full, (robot_arg((PANDA, IIWA)), pose_arg(PANDA),
+         Arg(st.sampled_from([None, "smooth-margin"]), st.sampled_from(["nope", 3, ["margin"]])), OBSTACLES,
+         Arg(st.just(None), _poisoned(PANDA.q_home)), number_arg(0.02), Arg(st.just(2), INTS), Arg(st.just(0), INTS))),
+    Case("objectives Evaluator", _objectives, (FLAG, number_arg(20.0, 0.0), number_arg(0.1, 0.0),
+         Arg(st.just(np.ones(7)), _poisoned(np.ones(7))), number_arg(0.5),
+         Arg(st.just(lambda q: q[0] ** 2), st.sampled_from([lambda q: "x", lambda q: q, lambda q: None, 3])))),
     Case("Controller.solve_ik", _solve_ik, (robot_arg((IIWA,)), q_arg(IIWA), pose_arg(IIWA),
          number_arg(1e-6, 0.0), Arg(st.just(20), st.sampled_from([0, -1, 1.5, "20", None])))),
     Case("Controller limits", _limits, (Arg(st.just(PANDA), None), number_arg(0.0),
@@ -345,6 +402,11 @@ CASES = [
          q_arg(IIWA), OBSTACLES, number_arg(0.02), number_arg(0.01, 0.0),
          Arg(st.just(None), _bad_pose(IIWA.fk(IIWA.q_home))))),
 ]  # fmt: skip
+SLOW_CASES = [
+    Case("crosscheck CrossCheck", _crosscheck, (robot_arg((IIWA, NAMMOTO)), pose_arg(IIWA),
+         Arg(st.just("smooth-margin"), st.sampled_from(["margin", "nope", 3, None])), OBSTACLES, q_arg(IIWA),
+         number_arg(0.02), Arg(st.just(0), INTS))),
+]  # fmt: skip
 
 
 # ---- the checks --------------------------------------------------------------------------
@@ -373,10 +435,7 @@ def check_output(out: object) -> None:
             check_output(x)
 
 
-@pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
-@FUZZ
-@given(data=st.data())
-def test_public_call(case: Case, data):
+def _call(case: Case, data) -> None:
     corruptible = [-1] + [i for i, a in enumerate(case.args) if a.bad is not None]
     bad = data.draw(st.sampled_from(corruptible), label="bad argument")
     args = [
@@ -387,6 +446,20 @@ def test_public_call(case: Case, data):
     except qpik.QpikError:
         return
     check_output(out)
+
+
+@pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
+@FUZZ
+@given(data=st.data())
+def test_public_call(case: Case, data):
+    _call(case, data)
+
+
+@pytest.mark.parametrize("case", SLOW_CASES, ids=[c.name for c in SLOW_CASES])
+@FEW
+@given(data=st.data())
+def test_public_call_that_solves_several_problems(case: Case, data):
+    _call(case, data)
 
 
 @FUZZ
@@ -405,12 +478,11 @@ def test_problem_loader(tmp_path_factory, line, new):
 def test_every_public_name_is_fuzzed_or_a_type():
     """Each callable of qpik.__all__, qpik.geometry and qpik.control is in the table or is a plain type
     (errors, records, bases): a new public function has to be added here."""
-    covered = " ".join(c.name for c in CASES)
+    covered = " ".join(c.name for c in CASES + SLOW_CASES)
     plain = {"QpikError", "InputError", "RotationError", "UnknownRobotError", "NoClosedFormError", "ProblemFileError",
              "UnreachableError", "InfeasibleError", "SolverError", "RenderUnavailable", "StepInfo", "LinkCapsule",
              "Robot", "IKSolutions", "FeasibleIntervals", "CATALOG", "Shape", "Distances", "PairDistance", "QP",
-             "Solution", "Solver", "Task", "Limit", "BoxLimit", "RowLimit", "CLIK",
-             "BestResult", "ObjectiveTask", "solve_best", "Plan"}  # fmt: skip
+             "Solution", "Solver", "Task", "Limit", "BoxLimit", "RowLimit", "CLIK", "Plan"}  # fmt: skip
     names = {*qpik.__all__, *geometry.__all__, *control.__all__}
     tasks_and_limits = {"FrameTask", "PostureTask", "ManipulabilityTask", "DampingTask", "ConfigurationLimit",
                         "VelocityLimit", "ObstacleLimit", "PseudoInverseCLIK", "DampedLeastSquares",

@@ -138,7 +138,11 @@ def test_statuses_and_the_least_violating_branch():
     far = np.eye(4)
     far[:3, 3] = (2.0, 0.0, 0.5)
     res = solve_best(robot, far)
-    assert res.status == "unreachable" and np.isnan(res.q).all() and not any(b.feasible for b in res.branches)
+    assert res.status == "unreachable" and res.objective == np.inf and not any(b.feasible for b in res.branches)
+    # q: the closed form's nearest configuration (stretched toward the pose), its pose error the violation
+    reach = np.linalg.norm(robot.fk(res.q)[:3, 3] - far[:3, 3])
+    assert np.isfinite(res.q).all() and res.violation >= reach > 0.5
+    assert all(b.q is None and b.param is None and b.objective == np.inf for b in res.branches)
     # the elbow (q4, which no arm angle changes) beyond its limit: reachable, no branch feasible
     q = np.array([0.3, 0.5, 0.0, 2.5, 0.2, 0.5, 0.0])
     res = solve_best(robot, robot.fk(q))
@@ -205,11 +209,16 @@ def test_branch_table_restriction_and_mirrored_branches():
     assert "skipped" in only.table() and only.objective >= res.objective - 1e-12
 
 
-def test_user_expressions_are_optimised_but_never_certified():
+def test_user_expressions_are_certified_when_every_operation_has_a_taylor_rule():
+    """A user expression made of +, −, ×, sin, ... is certified like a built-in objective; one with an
+    operation without a Taylor-model rule (erf) is optimised but never certified, and the message says why."""
     robot = qpik.load_robot("iiwa14")
-    user = Expression(lambda q: ca.sumsqr(q[:3] - 0.3), name="shoulder")
     T = robot.fk(robot.q_home)
-    res = solve_best(robot, T, user)
-    assert res.status == "optimal" and not res.certified and "lower bound" in res.message
     ((q, ok),) = _dense(robot, T[None], num=3000)
+    user = Expression(lambda q: ca.sumsqr(q[:3] - 0.3), name="shoulder")
+    res = solve_best(robot, T, user)
+    assert res.status == "optimal" and res.certified
     assert res.objective <= (((q[ok][:, :3] - 0.3) ** 2).sum(axis=1)).min() + 1e-8
+    erf = solve_best(robot, T, Expression(lambda q: ca.erf(q[0] - 0.3), name="erf"))
+    assert erf.status == "optimal" and not erf.certified and "lower bound" in erf.message
+    assert erf.objective <= np.asarray(ca.erf(q[ok][:, 0] - 0.3)).min() + 1e-8

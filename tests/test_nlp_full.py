@@ -16,7 +16,7 @@ from qpik.errors import InputError
 from qpik.geometry import Sphere, distances
 from qpik.lie import pose_error
 from qpik.nlp import solve_best, solve_full
-from qpik.nlp.full import REACHED, rotation_error
+from qpik.nlp.full import REACHED
 
 
 @pytest.mark.parametrize("name", ["zheng7", "panda"])
@@ -58,17 +58,32 @@ def test_from_the_closed_form_optimum_it_stays_there():
         assert abs(full.objective - best.objective) <= 1e-8
 
 
-def test_rotation_error_is_the_log_and_smooth_at_zero():
+def test_the_pose_error_is_the_log_and_differentiable_at_zero():
+    """qpik.lie.pose_error_expr (the NLP's equality) has finite derivatives at its solution, equal to finite
+    differences, and its value is scipy's rotation vector."""
     import casadi as ca
     from scipy.spatial.transform import Rotation
 
-    D = ca.SX.sym("D", 3, 3)
-    fn = ca.Function("e", [D], [rotation_error(D), ca.jacobian(rotation_error(D), D)])
+    from qpik.lie import pose_error_expr
+
+    C = ca.SX.sym("C", 3, 4)
+    T = np.eye(4)
+    fn = ca.Function("e", [C], [ca.jacobian(pose_error_expr(ca.SX(T), C), C), pose_error_expr(ca.SX(T), C)])
+    u = np.array([0.6, -0.48, 0.64])
     for angle in (0.0, 1e-9, 1e-4, 0.3, 2.0, 3.1):
-        R = Rotation.from_rotvec(angle * np.array([0.6, -0.48, 0.64])).as_matrix()
-        e, J = fn(R)
-        np.testing.assert_allclose(np.asarray(e).ravel(), angle * np.array([0.6, -0.48, 0.64]), atol=1e-12)
-        assert np.isfinite(np.asarray(J)).all()
+        Ct = np.hstack([Rotation.from_rotvec(-angle * u).as_matrix(), np.zeros((3, 1))])  # R* Rᵀ = exp(angle u)
+        J, e = (np.asarray(x) for x in fn(Ct))
+        np.testing.assert_allclose(e.ravel()[3:], angle * u, atol=1e-12)
+        assert np.isfinite(J).all()
+    # at the solution: d e / d C against central differences along rotations (C = exp(ε k) Rᵀ... of the identity)
+    J = np.asarray(fn(np.hstack([np.eye(3), np.zeros((3, 1))]))[0])
+    for k in np.eye(3):
+        h = 1e-6
+        plus = np.hstack([Rotation.from_rotvec(h * k).as_matrix(), np.zeros((3, 1))])
+        minus = np.hstack([Rotation.from_rotvec(-h * k).as_matrix(), np.zeros((3, 1))])
+        fd = (np.asarray(fn(plus)[1]) - np.asarray(fn(minus)[1])).ravel() / (2 * h)
+        lin = J @ ((plus - minus).ravel(order="F") / (2 * h))
+        np.testing.assert_allclose(lin, fd, atol=1e-8)
 
 
 def test_unreachable_and_bad_input():

@@ -1,10 +1,11 @@
-"""qpik.objectives: values against independent formulas, gradients by finite differences, box bounds by sampling.
+"""qpik.objectives: values against independent formulas, gradients by finite differences, bounds by sampling.
 
 The margin is checked against its definition in numpy, the manipulability against
 ``Robot.manipulability`` (QR of J), the clearance against :func:`qpik.geometry.distances` (the
 numpy path); gradients (including the capsule–obstacle distances' closest-point form) against
-central differences at configurations clear of the obstacles; every lower bound over a box
-against the smallest value of many configurations drawn inside it.
+central differences at configurations clear of the obstacles; the Taylor models of the
+certificate (:class:`qpik.objectives.BoundFunction`) and its lower bound against the values of many
+configurations drawn along the modelled range.
 """
 
 from __future__ import annotations
@@ -19,9 +20,10 @@ import qpik
 from qpik.errors import InputError
 from qpik.geometry import Box as BoxShape
 from qpik.geometry import Sphere, distances
+from qpik.geometry.distance import ObstacleSet
+from qpik.nlp.certificate import lower_bound
 from qpik.objectives import (
     NAMES,
-    Box,
     Clearance,
     Evaluator,
     Expression,
@@ -29,7 +31,7 @@ from qpik.objectives import (
     Manipulability,
     ReferenceDistance,
     Sum,
-    lever_arms,
+    bound_function,
     resolve,
 )
 
@@ -88,22 +90,32 @@ def test_gradients_match_finite_differences(seed):
     np.testing.assert_allclose(grad_d[clear], num_d[clear], atol=2e-6)
 
 
-@pytest.mark.parametrize("objective", [JointLimitMargin(), JointLimitMargin(smooth=True), ReferenceDistance(),
+@pytest.mark.parametrize("objective", [JointLimitMargin(), JointLimitMargin(smooth=True) + ReferenceDistance(),
                                        Clearance(cap=0.25), Clearance(smooth=True)])  # fmt: skip
-def test_lower_bound_is_below_every_value_in_the_box(objective):
+def test_taylor_models_contain_every_value_along_the_range(objective):
+    """Configurations along a random curve q(t) = c + s·t + a·t² (a model with radius |a|), t ∈ [−1, 1]:
+    every value of the split and every distance lies in its model at the same t, and the certificate's
+    lower bound is below the objective at every t."""
     robot = qpik.load_robot("nammoto7")
     rng = np.random.default_rng(5)
-    ev = Evaluator(robot, objective, OBSTACLES)
-    centres = random_q(robot, 30, 2, margin=0.3)
-    half = rng.uniform(0.0, 0.2, centres.shape)
-    lo, hi = centres - half, centres + half
-    _, _, d_mid, _ = ev(centres, robot.q_home)
-    box = Box(robot, lo, hi, centres, d_mid, len(OBSTACLES), robot.q_home, lever_arms(robot))
-    bound = objective.lower_bound(box, objective.params(robot))
-    for k in range(len(centres)):
-        inside = rng.uniform(lo[k], hi[k], (400, robot.dof))
-        values = ev(inside, robot.q_home)[0]
-        assert bound[k] <= values.min() + 1e-12
+    obs = ObstacleSet(OBSTACLES)
+    bounds = bound_function(robot, objective, obs)
+    ev = Evaluator(robot, objective, obs)
+    t = np.linspace(-1.0, 1.0, 201)
+    for k, c in enumerate(random_q(robot, 12, 2, margin=0.3)):
+        s, a = rng.uniform(-1, 1, (2, robot.dof)) * rng.choice([1e-3, 0.05, 0.3])
+        q = c + t[:, None] * s + (t * t)[:, None] * a
+        r = np.abs(a)
+        model = [np.asarray(m).ravel() for m in bounds.function(c, bounds.params, robot.q_home, obs.params, s, r,
+                                                                 c - np.abs(s) - r, c + np.abs(s) + r)]  # fmt: skip
+        values = np.array([np.asarray(bounds.values(x, bounds.params, robot.q_home, obs.params)).ravel() for x in q])
+        centre, slope, radius, lo, hi = model
+        line = centre + t[:, None] * slope
+        tol = 1e-12 * (1.0 + np.abs(values))
+        assert np.all(values >= np.maximum(lo, line - radius) - tol), k
+        assert np.all(values <= np.minimum(hi, line + radius) + tol), k
+        bound = lower_bound([m[None] for m in model], bounds.sizes)[0]
+        assert bound <= ev(q, robot.q_home)[0].min() + 1e-12
 
 
 def test_sums_weights_parameters_and_names():
@@ -111,7 +123,7 @@ def test_sums_weights_parameters_and_names():
     s = 2.0 * JointLimitMargin() + Manipulability() + 0.5 * (Clearance() + ReferenceDistance())
     assert isinstance(s, Sum) and [w for w, _ in s.terms] == [2.0, 1.0, 0.5, 0.5]
     assert s.param_size(robot) == len(s.params(robot)) == 4 + 0 + 0 + 1 + robot.dof
-    assert not s.smooth and not s.bounded  # a maximum inside; the manipulability has no box bound
+    assert not s.smooth and not s.bounded  # a maximum inside; the manipulability is not bounded
     assert JointLimitMargin(smooth=True).smooth and (JointLimitMargin() + Clearance()).bounded
     q = random_q(robot, 20, 3)
     parts = [Evaluator(robot, o, OBSTACLES)(q, robot.q_home)[0] for _, o in s.terms]
@@ -135,9 +147,10 @@ def test_user_expression_and_split_epigraph():
     f, grad, _, _ = Evaluator(robot, user)(q)
     np.testing.assert_allclose(f, (q[:, :3] ** 2).sum(axis=1), rtol=1e-14)
     np.testing.assert_allclose(grad[:, :3], 2 * q[:, :3], rtol=1e-14)
-    assert not user.bounded and user.key() != Expression(lambda q: q[0]).key()
+    assert user.key() != Expression(lambda q: q[0]).key()
+    assert bound_function(robot, user, ObstacleSet([])) is not None  # every operation has a Taylor rule
+    assert bound_function(robot, Expression(lambda q: ca.erf(q[0])), ObstacleSet([])) is None  # erf has none
     # the epigraph form: t >= every piece, cost = t: at the smallest feasible t it equals the value
-    from qpik.geometry.distance import ObstacleSet
     from qpik.objectives import Context
 
     qs = ca.SX.sym("q", 7)

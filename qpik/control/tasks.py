@@ -24,7 +24,8 @@ from qpik.control.state import State, SymState, _unique, evaluate
 from qpik.errors import InputError
 from qpik.geometry.distance import ObstacleSet
 from qpik.lie import pose_error_expr, se3_ljacinv_expr, se3_log_expr
-from qpik.objectives import Context, Objective
+from qpik.objectives import Context, Objective, resolve
+from qpik.robots.robot import as_robot
 from qpik.validate import finite_array, number, single_pose
 
 _EMPTY = np.zeros(0)
@@ -286,20 +287,24 @@ class ObjectiveTask(Task):
 
     Args:
         robot: the arm (fixes the objective's parameters).
-        objective: a smooth objective (an epigraph term has no gradient at its kinks).
-        weight: w, s/rad per unit of f.
+        objective: a smooth objective, or its name (:func:`qpik.objectives.resolve`); an epigraph term
+            has no gradient at its kinks, where one active piece's is used.
+        weight: w ≥ 0, s/rad per unit of f.
         q_ref: (n,) reference configuration of a :class:`~qpik.objectives.ReferenceDistance` term, rad.
         obstacles: shapes for the objective's clearance terms (world frame).
+
+    Raises:
+        InputError: ``robot`` is not a Robot, ``objective`` is neither an objective nor a known name,
+            ``weight`` is not a finite number ≥ 0, or ``q_ref`` has NaN or the wrong shape.
     """
 
     name = "objective"
 
     def __init__(
-        self, robot, objective: Objective, weight: float = 1e-2, q_ref: np.ndarray | None = None, obstacles=()
+        self, robot, objective: Objective | str, weight: float = 1e-2, q_ref: np.ndarray | None = None, obstacles=()
     ):
-        self.robot, self.objective, self.weight = robot, objective, float(weight)
-        if not np.isfinite(self.weight):
-            raise InputError(f"weight: must be finite, got {weight}")
+        self.robot, self.objective = as_robot(robot), resolve(objective)
+        self.weight = number(weight, "weight")
         self.q_ref = np.zeros(robot.dof) if q_ref is None else finite_array(q_ref, "q_ref", (robot.dof,)).copy()
         self.obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
 

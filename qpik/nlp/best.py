@@ -11,14 +11,16 @@ answer is checked for global optimality (:mod:`qpik.nlp.certificate`).
 
 Statuses: ``"optimal"`` (the best point found; :attr:`BestResult.certified` says whether it is
 proved global), ``"unreachable"`` (no branch reaches the pose at any parameter),
-``"no feasible branch"`` (reachable, but not inside the limits and clear of the obstacles:
-:attr:`BestResult.branch` and :attr:`BestResult.q` are then the least-violating branch and
-configuration, :attr:`BestResult.violation` by how much), ``"solver failed"`` (a numerical
-failure, with the reason in :attr:`BestResult.message`).
+``"no feasible branch"`` (reachable, but not inside the limits and clear of the obstacles),
+``"solver failed"`` (a numerical failure, with the reason in :attr:`BestResult.message`).
+Every result's q is a finite configuration: for a status other than ``"optimal"`` it is the
+fallback of :func:`least_violating` (its objective is +inf, :attr:`BestResult.violation` says how
+far it is from a solution). Outputs never hold NaN.
 """
 
 from __future__ import annotations
 
+import operator
 import time
 from dataclasses import dataclass, field
 
@@ -26,14 +28,14 @@ import numpy as np
 
 from qpik.analytic.intervals import wrap
 from qpik.errors import InputError, NoClosedFormError
-from qpik.geometry.distance import ObstacleSet
+from qpik.geometry.distance import ObstacleSet, distances
 from qpik.nlp.certificate import certify as prove
 from qpik.nlp.scene import Points, Scene
 from qpik.nlp.search import SAMPLE_STEP, Pieces, candidates, onto_limits, polish, sample, split
 from qpik.nlp.selfmotion import selfmotion_of
 from qpik.objectives import Objective, ReferenceDistance, resolve
-from qpik.robots.robot import Robot
-from qpik.validate import finite_array
+from qpik.robots.robot import Robot, as_robot
+from qpik.validate import finite_array, flag, number
 from qpik.validate import pose as check_pose
 
 STATUSES = ("optimal", "unreachable", "no feasible branch", "solver failed")
@@ -51,8 +53,8 @@ class BranchOptimum:
         branch: public branch id.
         searched: whether it was searched (``branches`` of :func:`solve_best`).
         feasible: some δ/ψ of it keeps the joints in their limits (and clear of the obstacles).
-        param: its best δ/ψ (rad; nan if not feasible); objective: the value there.
-        q: (n,) its configuration, rad (nan if not feasible).
+        param: its best δ/ψ (rad; None if not feasible); objective: the value there (+inf if not feasible).
+        q: (n,) its configuration, rad (None if not feasible).
         rounds: polish rounds (iterations) of its best local minimum.
         evaluations: objective evaluations spent on the branch.
         time: its share of the pose's solve time (by evaluations), s.
@@ -61,9 +63,9 @@ class BranchOptimum:
     branch: int
     searched: bool
     feasible: bool
-    param: float
+    param: float | None
     objective: float
-    q: np.ndarray
+    q: np.ndarray | None
     rounds: int = 0
     evaluations: int = 0
     time: float = 0.0
@@ -75,14 +77,15 @@ class BestResult:
 
     Attributes:
         status: one of :data:`STATUSES`.
-        branch: the best branch's public id (the least-violating one without a feasible branch;
-            -1 if unreachable).
-        param: its δ/ψ, rad; q: (n,) its configuration, rad; objective: the value at q.
+        branch: the best branch's public id (for another status, the branch of :func:`least_violating`'s
+            configuration; -1 if unreachable).
+        param: its δ/ψ, rad; q: (n,) its configuration, rad (always finite); objective: the value at q
+            (+inf for a status other than ``"optimal"``).
         certified: proved to be the global minimum to ``gap`` (:mod:`qpik.nlp.certificate`).
         gap: the objective minus the certified lower bound (inf when not certified).
         clearance: smallest capsule–obstacle distance at q, m (inf without obstacles).
-        violation: without a feasible branch, how far the least-violating configuration is
-            outside the limits (rad) or inside d_s (m); else 0.
+        violation: 0 for ``"optimal"``; else how far q is from a solution: outside the limits (rad),
+            inside d_s (m), or, when unreachable, the norm of its pose error (m and rad, :func:`least_violating`).
         branches: the per-branch table (:class:`BranchOptimum`).
         param_name: ``"delta"`` or ``"psi"``.
         message: why it is not certified, or what failed ("" otherwise).
@@ -138,8 +141,8 @@ class BestResult:
 class BestResults:
     """Answers for a batch of poses: ``results[i]`` is a :class:`BestResult`; the arrays stack them."""
 
-    def __init__(self, results: list[BestResult]):
-        self.results = results
+    def __init__(self, results: list[BestResult], n: int):
+        self.results, self.n = results, n
 
     def __len__(self) -> int:
         return len(self.results)
@@ -157,7 +160,7 @@ class BestResults:
     @property
     def q(self) -> np.ndarray:
         """(N, n), rad."""
-        return np.array([r.q for r in self.results])
+        return np.array([r.q for r in self.results]).reshape(len(self.results), self.n)
 
     @property
     def objective(self) -> np.ndarray:
@@ -219,6 +222,7 @@ def solve_best(
             or method.
     """
     t0 = time.perf_counter()
+    robot = as_robot(robot)
     if robot.closed_form is None:
         raise NoClosedFormError(
             f"{robot.name} has no closed-form IK, so no δ/ψ to search; use qpik.nlp.solve_full (7 joint variables)"
@@ -234,33 +238,33 @@ def solve_best(
             raise InputError(f"q_ref: expected shape ({n},) or ({len(T)}, {n}), got {ref.shape}")
         ref = np.broadcast_to(ref, (len(T), n)).copy()
     obj = resolve(objective)
+    obj.params(robot)  # checks the parameters against the robot (e.g. a weight per joint)
     if q_ref is None and any(isinstance(o, ReferenceDistance) for _, o in obj.terms):
         raise InputError("q_ref: the distance objective needs a reference configuration q_ref")
     obs = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
-    d_safe = float(finite_array(d_safe, "d_safe", ()))
-    if d_safe < 0:
-        raise InputError(f"d_safe: must be >= 0, got {d_safe}")
-    tol = float(finite_array(tol, "tol", ()))
+    d_safe = number(d_safe, "d_safe")
+    tol = number(tol, "tol")
     if tol <= 0:
         raise InputError(f"tol: must be > 0, got {tol}")
-    if method not in ("search", "ipopt"):
+    certify = flag(certify, "certify")
+    if not isinstance(method, str) or method not in ("search", "ipopt"):
         raise InputError(f"method: expected 'search' or 'ipopt', got {method!r}")
     sm = selfmotion_of(robot)
     rows = _rows(sm, branches)
+    if not len(T):
+        return BestResults([], n)
     scene = Scene(robot, sm, obj, obs, d_safe, T, ref)
     try:
         results = _solve(scene, certify, tol, method, rows)
     except (RuntimeError, FloatingPointError, np.linalg.LinAlgError) as exc:  # a numerical failure: a status
         why = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
-        nan = np.full(n, np.nan)
-        results = [BestResult("solver failed", -1, np.nan, nan.copy(), np.nan, param_name=sm.solver.param_name,
-                              message=why) for _ in range(len(T))]  # fmt: skip
+        results = [least_violating(scene, i, [], "solver failed", why) for i in range(len(T))]
     elapsed = (time.perf_counter() - t0) / len(T)
     for r in results:
         r.time = elapsed
         for b in r.branches:
             b.time *= elapsed
-    return BestResults(results) if batched else results[0]
+    return BestResults(results, n) if batched else results[0]
 
 
 def _rows(sm, branches) -> list[int]:
@@ -268,7 +272,10 @@ def _rows(sm, branches) -> list[int]:
     all_rows = list(range(sm.searched))
     if branches is None:
         return all_rows
-    ids = [int(b) for b in np.atleast_1d(np.asarray(branches))]
+    try:
+        ids = [operator.index(b) for b in np.atleast_1d(np.asarray(branches, dtype=object)).ravel()]
+    except TypeError:
+        raise InputError(f"branches: expected branch ids (integers), got {branches!r}"[:200]) from None
     known = sm.branch_ids.tolist()
     bad = [b for b in ids if b not in known]
     if bad:
@@ -315,7 +322,7 @@ def _solve(scene: Scene, certify: bool, tol: float, method: str, rows: list[int]
         sub = Pieces(*(x[np.isin(pieces.pose, redo)] for x in (pieces.pose, pieces.row, pieces.lo, pieces.hi)))
         best.update_from(*_search(scene, sub, SAMPLE_STEP / 4 ** (attempt + 1), extra=cert.better))
         todo = redo
-    return [_result(scene, fis[i], best, i, cert_ok[i], bound[i], reason[i], rows) for i in range(N)]
+    return [_result(scene, best, i, cert_ok[i], bound[i], reason[i], rows) for i in range(N)]
 
 
 def _search(scene: Scene, pieces: Pieces, step: float, extra: Points | None = None) -> tuple[Points, np.ndarray]:
@@ -387,7 +394,7 @@ class _BestSoFar:
 
 
 def _result(
-    scene: Scene, fi, best: _BestSoFar, i: int, certified: bool, bound: float, reason: str, searched: list[int]
+    scene: Scene, best: _BestSoFar, i: int, certified: bool, bound: float, reason: str, searched: list[int]
 ) -> BestResult:
     sm = scene.selfmotion
     ids = sm.branch_ids
@@ -397,50 +404,72 @@ def _result(
         m = sm.mirror(k)
         r = k if m is None else m[0]
         feasible = bool(np.isfinite(best.f[i, r]))
-        param = sm.shifted(k, best.psi[i, r]) if feasible else np.nan
+        param = sm.shifted(k, best.psi[i, r]) if feasible else None
         evals = int(scene.counts[i, r]) if m is None else 0
         rows.append(
-            BranchOptimum(int(bid), r in searched, feasible, float(param), float(best.f[i, r]), best.q[i, r].copy(),
-                          int(best.rounds[i, r]) if m is None else 0, evals, evals / total)
+            BranchOptimum(int(bid), r in searched, feasible, param, float(best.f[i, r]),
+                          best.q[i, r].copy() if feasible else None, int(best.rounds[i, r]) if m is None else 0,
+                          evals, evals / total)
         )  # fmt: skip
-    name = sm.solver.param_name
-    if best.found()[i]:
-        r = int(np.argmin(best.f[i]))
-        value = float(best.f[i, r])
-        gap = value - bound if certified else np.inf
-        return BestResult(
-            "optimal", int(ids[r]), float(best.psi[i, r]), best.q[i, r].copy(), value, bool(certified), float(gap),
-            float(best.clearance[i, r]), 0.0, rows, name, "" if certified else reason,
-        )  # fmt: skip
-    return _infeasible(scene, fi, i, rows, name)
+    if not best.found()[i]:
+        return least_violating(scene, i, rows)
+    r = int(np.argmin(best.f[i]))
+    value = float(best.f[i, r])
+    gap = value - bound if certified else np.inf
+    return BestResult(
+        "optimal", int(ids[r]), float(best.psi[i, r]), best.q[i, r].copy(), value, bool(certified), float(gap),
+        float(best.clearance[i, r]), 0.0, rows, sm.solver.param_name, "" if certified else reason,
+    )  # fmt: skip
 
 
-def _infeasible(scene: Scene, fi, i: int, rows: list[BranchOptimum], name: str) -> BestResult:
-    """Unreachable, or the least-violating branch (limits, then clearance) on a grid of parameters."""
+def least_violating(
+    scene: Scene, i: int, rows: list[BranchOptimum], status: str | None = None, message: str = ""
+) -> BestResult:
+    """The answer for pose i when the search has none: unreachable, or the least-violating configuration.
+
+    Every branch's closed form (numpy, :meth:`~qpik.analytic.solver.AnalyticSolver.solve_batch`) at
+    :data:`VIOLATION_SAMPLES` parameters. If no branch reaches the pose, the status is
+    ``"unreachable"`` and q is the configuration (the closed form clamps what it cannot reach) whose
+    pose error (:func:`qpik.lie.pose_error`) has the smallest norm, its norm the violation. Otherwise
+    ``"no feasible branch"``: inside the limits but never clear of the obstacles, the configuration
+    with the largest clearance (violation d_s minus it, m); else the one least outside the limits
+    (rad). ``status`` replaces the status (a solver failure keeps this configuration as its q).
+    The objective is +inf.
+    """
     robot, sm = scene.robot, scene.selfmotion
+    name = sm.solver.param_name
     psi = np.linspace(-np.pi, np.pi, VIOLATION_SAMPLES, endpoint=False)
-    sol = sm.solver.solve_batch(np.broadcast_to(scene.poses[i], (len(psi), 4, 4)), psi)
+    T = scene.poses[i]
+    sol = sm.solver.solve_batch(np.broadcast_to(T, (len(psi), 4, 4)), psi)
     if not sol.valid.any():
-        return BestResult("unreachable", -1, np.nan, np.full(robot.dof, np.nan), np.nan, branches=rows, param_name=name,
-                          message="no branch reaches the pose at any parameter")  # fmt: skip
+        Q = sol.q.reshape(-1, robot.dof)
+        err = _pose_error_norm(T, robot.fk(Q))
+        j = int(np.argmin(err))
+        return BestResult(status or "unreachable", -1, float(psi[j // sm.solver.n_branches]), Q[j].copy(), np.inf,
+                          violation=float(err[j]), branches=rows, param_name=name,
+                          message=message or "no branch reaches the pose at any parameter")  # fmt: skip
     beyond = np.maximum(robot.q_min - sol.q, sol.q - robot.q_max).max(axis=2)  # (M, B) rad outside the limits
     within = sol.within_limits
     if within.any() and len(scene.obstacles):
         # inside the limits but never clear: the configuration with the largest clearance
-        from qpik.geometry.distance import distances
-
         k, b = np.nonzero(within)
         Q = sol.q[k, b]
         d = distances(robot.capsule_segments(Q), robot.capsule_radii, scene.obstacles).d  # (M, C, O)
         clear = d.reshape(len(Q), -1).min(axis=1)
         j = int(np.argmax(clear))
-        violation = float(scene.d_safe - clear[j])
+        violation = max(float(scene.d_safe - clear[j]), 0.0)
         at, br, q = psi[k[j]], b[j], Q[j]
     else:
         score = np.where(sol.valid, np.maximum(beyond, 0.0), np.inf)
         k, br = np.unravel_index(int(np.argmin(score)), score.shape)
         violation, at, q = float(score[k, br]), psi[k], sol.q[k, br]
-    return BestResult("no feasible branch", int(sm.branch_ids[br]), float(wrap(at)), q.copy(), np.nan,
-                      violation=violation, branches=rows, param_name=name,
-                      message="no branch keeps the joints in their limits"
-                      + (" and clear of the obstacles" if len(scene.obstacles) else ""))  # fmt: skip
+    why = "no branch keeps the joints in their limits" + (" and clear of the obstacles" if len(scene.obstacles) else "")
+    return BestResult(status or "no feasible branch", int(sm.branch_ids[br]), float(wrap(at)), q.copy(), np.inf,
+                      violation=violation, branches=rows, param_name=name, message=message or why)  # fmt: skip
+
+
+def _pose_error_norm(target: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """(M,): ‖[p* − p; log(R* Rᵀ)]‖ of poses (M, 4, 4) toward ``target`` (4, 4): √(|Δp|² + θ²), θ the angle of R* Rᵀ."""
+    dp = poses[:, :3, 3] - target[:3, 3]
+    cos = 0.5 * (np.einsum("ij,mij->m", target[:3, :3], poses[:, :3, :3]) - 1.0)
+    return np.sqrt((dp * dp).sum(axis=1) + np.arccos(np.clip(cos, -1.0, 1.0)) ** 2)

@@ -1,45 +1,40 @@
 r"""A certificate that the answer of :func:`qpik.solve_best` is the global minimum (to a tolerance).
 
-The claim, for a pose with answer value :math:`f^*`: every ψ of every branch that keeps the
-joints inside their limits and every link capsule at least :math:`d_s` from every obstacle has
-:math:`f(\psi) \ge f^* - \varepsilon` (``tol``). Proof by branch and bound over the exact feasible
-intervals (:func:`qpik.feasible_intervals`, which are exact: their ends are the analytic limit
-crossings):
+The claim, for a pose with answer value :math:`f^*`: every ψ of every searched branch that keeps
+the joints inside their limits and every link capsule at least :math:`d_s` from every obstacle has
+:math:`f(\psi) \ge f^* - \varepsilon`, with :math:`\varepsilon = tol \cdot \max(1, |f^*|)`. Proof by
+branch and bound over the exact feasible intervals (:func:`qpik.feasible_intervals`, whose ends are
+the analytic limit crossings):
 
 1. Cover every interval with cells of width :data:`FIRST_CELL` or less.
-2. For each cell, a box of configurations containing :math:`q_b(\psi)` for every ψ of the cell:
-   the interval extension of the closed form (:meth:`~qpik.nlp.selfmotion.SelfMotion.boxes`,
-   :mod:`qpik.enclosure`). Over that box, the objective's rigorous lower bound
-   (:meth:`qpik.objectives.Objective.lower_bound`: exact for the joint-limit margin and the
-   reference distance, Lipschitz bounds for the clearance) bounds f from below on the cell, and upper
-   bounds of the pair distances
-   (:meth:`qpik.objectives.Box.distance_upper`) show cells where the clearance constraint fails.
-3. A cell whose bound is :math:`\ge f^* - \varepsilon`, or where some pair is surely closer than
-   :math:`d_s`, holds nothing better: it is dropped. The others are cut in :data:`SPLIT` and
-   examined again, down to :data:`SMALLEST_CELL`.
+2. For each cell [a, b], the Taylor model of the branch's closed form over it
+   (:meth:`~qpik.nlp.selfmotion.SelfMotion.models`: with :math:`t = (\psi - \psi_{mid})/h`, every
+   joint lies within :math:`c + s\,t \pm r` and within [lo, hi] for every ψ of the cell), composed
+   with the Taylor models of the objective's split and of the capsule–obstacle distances
+   (:class:`qpik.objectives.BoundFunction`), gives :func:`lower_bound`: a convex piecewise-linear
+   function of t below f on the whole cell, whose minimum over [−1, 1] is the cell's bound. Its
+   error is second order in the cell's width (the slopes carry the correlation that a plain
+   interval extension loses), so kinks (where the epigraph terms switch) and smooth minima are
+   proved with cells of a few milliradians.
+3. A cell whose bound is :math:`\ge f^* - \varepsilon`, or where some pair distance is surely below
+   :math:`d_s` (its upper bound is), holds nothing better: it is dropped. The others are cut in
+   :data:`SPLIT` and examined again, down to :data:`SMALLEST_CELL`.
 
 If every cell is dropped, the answer is certified: its :attr:`~qpik.nlp.best.BestResult.gap`
 (:math:`f^*` minus the smallest bound met) is at most ε. A cell that cannot be dropped at the
 smallest width, or more than :data:`MAX_CELLS` cells, leaves it uncertified (the flag says so;
-the answer is still the best found). A cell's test point (its left end, where the bound's
-inputs are evaluated) that is feasible and better than :math:`f^* - \varepsilon` is returned as a
-new start for the search, which then certifies again.
+the answer is still the best found). The test point (the middle) of a cell that is kept, if it is
+feasible and better than :math:`f^* - \varepsilon`, is returned as a new start for the search,
+which then certifies again.
 
 What the proof assumes: the feasible intervals are exact (up to :data:`qpik.analytic.intervals.SAME`,
-1e-9 rad, below which a gap is not classified); the closed form is continuous on each
-interval (it is, between the analytic breakpoints, where every joint crossing a limit or
-wrapping through ±π is a breakpoint); the interval extension is evaluated in round-to-nearest
-arithmetic (its bounds may be off by a few units in the last place, far below ε); the
-objective's bound is one of the built-in ones (the manipulability and a user
-:class:`~qpik.objectives.Expression` have none, so answers with them are never certified).
-
-The bounds are first order in the cell width (the box of q is a few times wider than the
-range of q on the cell): near a minimum where f is smooth, cells must shrink to about
-:math:`\sqrt{\varepsilon / f''}`, so the tolerance is relative and loose by default
-(``tol = 1e-4``: ε = 1e-4·max(1, |f|)) — tight enough to tell the branches and basins apart,
-while the answer itself is a local minimum to 1e-13 rad. Kinks (where the epigraph terms of the
-margin or the clearance switch) are cheap. With the default, ``qpik bench nlp`` reports how many
-cells a certificate takes and how often it succeeds.
+1e-9 rad, below which a gap is not classified); the closed form is continuous on each interval
+(it is, between the analytic breakpoints, where every joint crossing a limit or wrapping through
+±π is a breakpoint); the Taylor models are evaluated in round-to-nearest arithmetic (their bounds
+may be off by a few units in the last place, far below ε); the objective is
+:attr:`~qpik.objectives.Objective.bounded` and every operation of it has a Taylor-model rule
+(:func:`qpik.enclosure.taylor_function`; otherwise it is never certified, and the reason says so:
+the manipulability, a user expression without rules).
 """
 
 from __future__ import annotations
@@ -50,7 +45,7 @@ import numpy as np
 
 from qpik.nlp.scene import Points, Scene
 from qpik.nlp.search import Pieces
-from qpik.objectives import Box, lever_arms
+from qpik.objectives import BoundFunction, bound_function
 
 FIRST_CELL = 0.4
 """Width (rad) of the first cells."""
@@ -60,6 +55,9 @@ SMALLEST_CELL = 1e-9
 """Cells are not cut below this width (rad): one kept there leaves the answer uncertified."""
 MAX_CELLS = 3_000
 """Most cells examined per pose."""
+BISECTIONS = 20
+"""Bisection steps of :func:`lower_bound` on t ∈ [−1, 1]."""
+NO_BOUND = "the objective has no lower bound (the manipulability, or an operation without a Taylor-model rule)"
 
 
 @dataclass
@@ -75,6 +73,75 @@ class Certificate:
     better: Points | None
 
 
+def lower_bound(models: list[np.ndarray], sizes: tuple[int, ...], decide: np.ndarray | None = None) -> np.ndarray:
+    r"""(M,): a lower bound of :math:`\min_{t \in [-1, 1]} \ell_s(t) + \sum_k w_k \max_i \ell_{k,i}(t)` per row.
+
+    ``models``: ``[centre, slope, radius, lo, hi]`` of the values
+    ``[s, w_1..w_K, h_1 (m_1), ..., h_K (m_K), ...]`` (each (M, L); :class:`~qpik.objectives.BoundFunction`),
+    ``sizes``: (m_1..m_K). Each :math:`\ell(t) = \max(lo, c + s\,t - r)` lies below its value, so the
+    function is below f; it is convex and piecewise linear. Its minimum is bracketed by bisection on
+    the sign of a subgradient, and bounded from below by the crossing of the supporting lines at the
+    two ends of the bracket (sound whatever the number of steps; exact to the bracket's width after
+    :data:`BISECTIONS` steps). ``decide`` (M,): a row stops as soon as its bound is ≥ ``decide`` or a
+    value of the function is below it (then the bound returned is below ``decide``, and the cell is
+    kept whatever its exact value). A row with a non-finite value, or a negative weight, gets −inf.
+    """
+    c, s, r, lo, _ = models
+    K = len(sizes)
+    w = c[:, 1 : 1 + K]
+    ends = np.cumsum((1 + K, *sizes))
+    groups = [(np.ones((len(c), 1)), slice(0, 1))]
+    groups += [(w[:, k : k + 1], slice(ends[k], ends[k + 1])) for k in range(K)]
+    parts = [(weight, c[:, g] - r[:, g], s[:, g], lo[:, g]) for weight, g in groups]
+
+    def value_and_slope(t: np.ndarray, parts: list[tuple[np.ndarray, ...]]) -> tuple[np.ndarray, np.ndarray]:
+        """The function and a subgradient at t (one per row of ``parts``)."""
+        total, slope = np.zeros(len(t)), np.zeros(len(t))
+        rows = np.arange(len(t))
+        for weight, base, sl, floor in parts:
+            line = base + sl * t[:, None]
+            flat = floor > line
+            low = np.where(flat, floor, line)
+            i = low.argmax(axis=1)
+            total += weight[:, 0] * low[rows, i]
+            slope += weight[:, 0] * np.where(flat[rows, i], 0.0, sl[rows, i])
+        return total, slope
+
+    def crossing(a, va, sa, b, vb, sb) -> np.ndarray:
+        """The bound from a bracket [a, b] with sa < 0 < sb: where the supporting lines at a and b cross."""
+        cross = (vb - va + sa * a - sb * b) / (sa - sb)
+        return va + sa * (np.clip(cross, a, b) - a)
+
+    ones = np.ones(len(c))
+    (va, sa), (vb, sb) = value_and_slope(-ones, parts), value_and_slope(ones, parts)
+    out = np.where(sa >= 0, va, vb)  # monotone on the cell: the minimum is at an end
+    at = np.flatnonzero((sa < 0) & (sb > 0))
+    a, b = -ones[at], ones[at]
+    va, sa, vb, sb = va[at], sa[at], vb[at], sb[at]
+    limit = None if decide is None else decide[at]
+    inside = [tuple(x[at] for x in part) for part in parts]
+    for step in range(BISECTIONS + 1):
+        inner = (sa < 0) & (sb > 0)
+        safe_a, safe_b = np.where(inner, sa, -1.0), np.where(inner, sb, 1.0)
+        low = np.where(inner, crossing(a, va, safe_a, b, vb, safe_b), np.where(sa >= 0, va, vb))
+        out[at] = low
+        go = inner if limit is None else inner & (low < limit) & (np.minimum(va, vb) >= limit)
+        if not go.any() or step == BISECTIONS:
+            break
+        if not go.all():
+            k = np.flatnonzero(go)
+            at, a, b, va, sa, vb, sb = at[k], a[k], b[k], va[k], sa[k], vb[k], sb[k]
+            limit = None if limit is None else limit[k]
+            inside = [tuple(x[k] for x in part) for part in inside]
+        m = 0.5 * (a + b)
+        vm, sm = value_and_slope(m, inside)
+        right = sm < 0  # the minimum lies right of m
+        a, va, sa = np.where(right, m, a), np.where(right, vm, va), np.where(right, sm, sa)
+        b, vb, sb = np.where(right, b, m), np.where(right, vb, vm), np.where(right, sb, sm)
+    bad = ~np.isfinite(np.concatenate(models[:4], axis=1)).all(axis=1) | (w < 0).any(axis=1)
+    return np.where(bad | np.isnan(out), -np.inf, out)
+
+
 def certify(scene: Scene, pieces: Pieces, best: np.ndarray, tol: np.ndarray, poses: np.ndarray) -> Certificate:
     """Try to certify ``best`` (N,) to the tolerances ``tol`` (N,) for the poses ``poses`` (indices) over ``pieces``."""
     N = len(scene.poses)
@@ -84,9 +151,10 @@ def certify(scene: Scene, pieces: Pieces, best: np.ndarray, tol: np.ndarray, pos
     reason = [""] * N
     todo = np.zeros(N, bool)
     todo[poses] = True
-    if not scene.objective.bounded:
+    bounds = bound_function(scene.robot, scene.objective, scene.obstacles)
+    if bounds is None:
         for i in poses:
-            reason[i] = "the objective has no lower bound over a box (a user expression)"
+            reason[i] = NO_BOUND
         return Certificate(certified, np.full(N, -np.inf), cells_used, reason, None)
     sel = todo[pieces.pose]
     width = pieces.hi[sel] - pieces.lo[sel]
@@ -98,21 +166,15 @@ def certify(scene: Scene, pieces: Pieces, best: np.ndarray, tol: np.ndarray, pos
     hi = np.minimum(lo + np.repeat(width / count, count), np.repeat(pieces.hi[sel], count))
     failed = np.zeros(N, bool)
     better: list[Points] = []
-    lever = lever_arms(scene.robot)
     while len(lo):
         np.add.at(cells_used, pose, 1)
-        pts = scene.evaluate(pose, row, lo)
-        q_lo, q_hi = np.empty_like(pts.q), np.empty_like(pts.q)
-        for b in np.unique(row):
-            at = np.flatnonzero(row == b)
-            q_lo[at], q_hi[at] = scene.selfmotion.boxes(int(b), scene.poses[pose[at]], lo[at], hi[at])
-        box = Box(scene.robot, q_lo, q_hi, pts.q, pts.d, len(scene.obstacles), scene.q_ref[pose], lever)
-        lb = scene.objective.lower_bound(box, scene.params)
-        blocked = (box.distance_upper() < scene.d_safe).any(axis=1) if len(scene.obstacles) else np.zeros(len(lo), bool)
-        good = (pts.c >= 0) & (pts.f < best[pose] - tol[pose])
+        lb, blocked = cell_bounds(scene, bounds, pose, row, lo, hi, best[pose] - tol[pose])
+        open_ = np.flatnonzero(~blocked & ~(lb >= best[pose] - tol[pose]))  # only these can hold a better point
+        pts = scene.evaluate(pose[open_], row[open_], 0.5 * (lo[open_] + hi[open_]))
+        good = pts.valid & (pts.c >= 0) & (pts.f < best[pts.pose] - tol[pts.pose])
         if good.any():
             better.append(pts.take(good))
-            failed[pose[good]] = True
+            failed[pts.pose[good]] = True
         keep = ~blocked & ~(lb >= best[pose] - tol[pose]) & ~failed[pose]
         dropped = ~blocked & ~keep
         np.minimum.at(bound, pose[dropped], lb[dropped])
@@ -130,8 +192,9 @@ def certify(scene: Scene, pieces: Pieces, best: np.ndarray, tol: np.ndarray, pos
         k = np.flatnonzero(keep)
         step = (hi[k] - lo[k]) / SPLIT
         pose, row = np.repeat(pose[k], SPLIT), np.repeat(row[k], SPLIT)
-        lo = np.repeat(lo[k], SPLIT) + np.tile(np.arange(SPLIT), len(k)) * np.repeat(step, SPLIT)
-        hi = lo + np.repeat(step, SPLIT)
+        part = np.tile(np.arange(SPLIT), len(k))
+        lo, hi = np.repeat(lo[k], SPLIT) + part * np.repeat(step, SPLIT), np.repeat(hi[k], SPLIT)
+        hi = np.where(part == SPLIT - 1, hi, lo + np.repeat(step, SPLIT))  # the last part ends at the cell's end
     for i in np.flatnonzero(todo):
         if not failed[i]:
             certified[i] = True
@@ -139,3 +202,30 @@ def certify(scene: Scene, pieces: Pieces, best: np.ndarray, tol: np.ndarray, pos
             reason[i] = "a feasible point better than the answer was found"
     bound[~certified] = -np.inf
     return Certificate(certified, bound, cells_used, reason, Points.join(better) if better else None)
+
+
+def cell_bounds(
+    scene: Scene,
+    bounds: BoundFunction,
+    pose: np.ndarray,
+    row: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    decide: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """For cells (pose, branch row, [lo, hi]) (M,): the lower bound of f (:func:`lower_bound`, refined until it
+    decides whether it is below ``decide`` (M,)) and whether the clearance constraint surely fails on the whole
+    cell (some distance's upper bound below d_s)."""
+    n, M = scene.robot.dof, len(lo)
+    q = [np.empty((M, n)) for _ in range(5)]
+    for b in np.unique(row):
+        at = np.flatnonzero(row == b)
+        for dst, src in zip(q, scene.selfmotion.models(int(b), scene.poses[pose[at]], lo[at], hi[at])):
+            dst[at] = src
+    c, s, r, q_lo, q_hi = q
+    models = scene.bound_rows(bounds, c, s, r, q_lo, q_hi, pose)
+    lb = lower_bound(models, bounds.sizes, decide)
+    if not bounds.n_pairs:
+        return lb, np.zeros(M, bool)
+    d_hi = models[4][:, -bounds.n_pairs :]
+    return lb, (d_hi < scene.d_safe).any(axis=1)

@@ -7,8 +7,7 @@ r"""The full-joint NLP: minimise an objective over the 7 joints with the pose as
     h_{k,i}(q) \le t_k,\quad d_{c,o}(q) \ge d_s,\quad q_{min} \le q \le q_{max}
 
 (the objective's split in epigraph form, :class:`qpik.objectives.Split`; the world-frame pose
-error of :func:`qpik.lie.pose_error`, its rotation part written by :func:`rotation_error` so that
-its derivatives exist at the solution; the capsule–obstacle distances of
+error :func:`qpik.lie.pose_error_expr`, differentiable at its solution; the capsule–obstacle distances of
 :mod:`qpik.geometry.distance`), solved by IPOPT (``casadi.nlpsol``, exact derivatives). It
 works for every arm, with or without a closed form. ``objective=None`` is a pure IK (the
 feasibility problem).
@@ -32,10 +31,10 @@ import numpy as np
 
 from qpik.errors import InputError
 from qpik.geometry.distance import ObstacleSet
-from qpik.lie import pose_error
+from qpik.lie import pose_error, pose_error_expr
 from qpik.objectives import Context, Objective, ReferenceDistance, resolve
-from qpik.robots.robot import Robot
-from qpik.validate import finite_array, joint_vector
+from qpik.robots.robot import Robot, as_robot
+from qpik.validate import count, finite_array, joint_vector, number
 from qpik.validate import pose as check_pose
 
 REACHED = 1e-9
@@ -59,9 +58,11 @@ class FullResult:
 
     Attributes:
         status: ``"optimal"`` (reached the pose; with an objective, the best start's local
-            minimum), ``"unreachable"`` (no start reached it), ``"solver failed"``.
-        q: (n,) configuration, rad (the start's end point with the smallest pose error if not reached).
-        objective: the objective at q (0 for a pure IK).
+            minimum), ``"unreachable"`` (no start reached it), ``"solver failed"`` (IPOPT failed from
+            every start; the reason in ``message``).
+        q: (n,) configuration, rad (the start's end point with the smallest pose error if not reached;
+            the first start, clipped into the limits, if the solver failed).
+        objective: the objective at q (0 for a pure IK; +inf if the solver failed).
         pose_error: ‖[p* − p; log(R* Rᵀ)]‖ at q, m and rad together.
         kkt: the KKT residual at q (∞-norm of ∇L and of the constraint violation).
         clearance: smallest capsule–obstacle distance at q, m (inf without obstacles).
@@ -79,22 +80,6 @@ class FullResult:
     iterations: int
     time: float = 0.0
     message: str = ""
-
-
-def rotation_error(D: ca.SX) -> ca.SX:
-    r"""The rotation vector :math:`\theta u = \log D` (3,) of an SX rotation D (3, 3), θ < π, differentiable at θ = 0.
-
-    :math:`\log D = f(c)\, w` with :math:`w = \mathrm{vee}(D - D^T)/2 = \sin\theta\, u`,
-    :math:`c = (\mathrm{tr} D - 1)/2 = \cos\theta` and :math:`f(c) = \arccos c / \sqrt{1 - c^2} = \theta/\sin\theta`,
-    written through c (not θ = atan2(|w|, c), whose derivative is 0/0 at w = 0): its Taylor series
-    :math:`1 + x/3 + 2x^2/15 + 2x^3/35` in :math:`x = 1 - c` below x = 1e-4 (error < 1e-17).
-    """
-    w = 0.5 * ca.vertcat(D[2, 1] - D[1, 2], D[0, 2] - D[2, 0], D[1, 0] - D[0, 1])
-    c = 0.5 * (D[0, 0] + D[1, 1] + D[2, 2] - 1.0)
-    x = 1.0 - c
-    series = 1.0 + x * (1.0 / 3.0 + x * (2.0 / 15.0 + x * 2.0 / 35.0))
-    exact = ca.acos(ca.fmax(c, -1.0)) / ca.sqrt(ca.fmax(1.0 - c * c, 1e-300))
-    return ca.if_else(x < 1e-4, series, exact) * w
 
 
 class FullNLP:
@@ -117,8 +102,7 @@ class FullNLP:
             t, cost, g_epi = split.epigraph()
             value = split.value()
         R, pos = ctx.frames[-1]
-        D = ca.mtimes(T[:3, :3], ca.vertcat(*[ca.horzcat(*R[i]) for i in range(3)]).T)  # R* Rᵀ
-        err = ca.vertcat(T[:3, 3] - ca.vertcat(*pos), rotation_error(D))
+        err = pose_error_expr(T, ca.horzcat(ca.vertcat(*[ca.horzcat(*R[i]) for i in range(3)]), ca.vertcat(*pos)))
         x = ca.vertcat(q, t)
         g = ca.vertcat(err, g_epi, d_s - ctx.distances)
         p = ca.vertcat(ca.vec(T), p_obj, q_ref, prm, d_s)
@@ -182,6 +166,7 @@ def solve_full(
         InputError: NaN/inf or wrong shapes (naming the argument).
     """
     t0 = time.perf_counter()
+    robot = as_robot(robot)
     T = check_pose(pose, "pose", project)[0]
     if T.ndim != 2:
         raise InputError(f"pose: solve_full takes one pose (4, 4), got {T.shape}")
@@ -191,21 +176,24 @@ def solve_full(
         raise InputError("q_ref: the distance objective needs a reference configuration q_ref")
     ref = np.zeros(n) if q_ref is None else finite_array(q_ref, "q_ref", (n,))
     obs = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
-    d_safe = float(finite_array(d_safe, "d_safe", ()))
-    if starts < 1 or max_starts < 1:
-        raise InputError(f"starts, max_starts: must be >= 1, got {starts}, {max_starts}")
+    d_safe = number(d_safe, "d_safe")
+    starts, max_starts, seed = count(starts, "starts", 1), count(max_starts, "max_starts", 1), count(seed, "seed")
     first = np.zeros((0, n)) if q0 is None else np.atleast_2d(joint_vector(q0, n, "q0")[0])
     nlp = full_nlp(robot, obj, obs)
     p = np.concatenate([T.T.ravel(), nlp.params if obj is None else obj.params(robot), ref, obs.params, [d_safe]])
     queue = _starts(robot, T, first, seed)
     best, best_err, tried, iters = None, np.inf, 0, 0
     wanted = 1 if obj is None else starts
-    reached = 0
+    reached, failure = 0, ""
     for q_start in queue:
         if tried >= max_starts or (reached and tried >= wanted):
             break
         tried += 1
-        out = _solve_from(nlp, q_start, p)
+        try:
+            out = _solve_from(nlp, q_start, p)
+        except RuntimeError as exc:  # an evaluation error inside IPOPT: the next start
+            failure = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+            continue
         iters += out[3]
         q, value, err, _, kkt, clear = out
         if err < REACHED and clear >= d_safe - 1e-9:
@@ -216,8 +204,9 @@ def solve_full(
             best, best_err = (q, value, kkt, clear), err
     elapsed = time.perf_counter() - t0
     if best is None:
-        return FullResult("solver failed", np.full(n, np.nan), np.nan, np.inf, np.inf, np.inf, tried, iters, elapsed,
-                          "no start produced a configuration")  # fmt: skip
+        q = np.clip(next(iter(_starts(robot, T, first, seed))), robot.q_min, robot.q_max)
+        return FullResult("solver failed", q, np.inf, np.inf, np.inf, np.inf, tried, iters, elapsed,
+                          f"every start failed ({failure})")  # fmt: skip
     q, value, kkt, clear = best
     status = "optimal" if best_err < REACHED else "unreachable"
     msg = (

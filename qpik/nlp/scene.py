@@ -18,7 +18,7 @@ import numpy as np
 
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.selfmotion import SelfMotion
-from qpik.objectives import Evaluator, Objective
+from qpik.objectives import BoundFunction, Evaluator, Objective
 from qpik.robots.robot import Robot
 
 
@@ -113,3 +113,10 @@ class Scene:
             c, dc = np.full(M, np.inf), np.zeros(M)
         self.evaluations += M
         return Points(pose, row, psi, q, dq, valid, f, df, c, dc, d.reshape(M, -1))
+
+    def bound_rows(self, bounds: BoundFunction, *q_model: np.ndarray) -> list[np.ndarray]:
+        """The Taylor models of the values of ``bounds`` (:class:`~qpik.objectives.BoundFunction`) for rows of
+        q's models ``centre, slope, radius, lo, hi`` (M, n each) and their poses (M,): ``[centre, slope,
+        radius, lo, hi]``, each (M, L)."""
+        c, s, r, lo, hi, pose = q_model
+        return bounds.rows(c, self.params, self.q_ref[pose], self.obstacles.params, s, r, lo, hi)

@@ -1,12 +1,14 @@
-r"""The self-motion of a closed-form arm for one pose: q(δ/ψ), dq/dδ and boxes enclosing q over ranges.
+r"""The self-motion of a closed-form arm for one pose: q(δ/ψ), dq/dδ and Taylor models of q over ranges.
 
-For each branch b of :meth:`~qpik.analytic.solver.AnalyticSolver.casadi_function`, three
-compiled row functions (:class:`~qpik.compiled.RowMap`, one row = a pose and a parameter):
+For each branch b of :meth:`~qpik.analytic.solver.AnalyticSolver.casadi_function`, two
+row functions (:class:`~qpik.compiled.RowMap`, one row = a pose and a parameter or a range):
 
 - :meth:`SelfMotion.points`: ``q_b(T, ψ)`` (n,), its exact derivative ``dq_b/dψ`` (CasADi)
-  and whether the branch reaches the pose;
-- :meth:`SelfMotion.boxes`: bounds ``[q_lo, q_hi]`` (n each) containing ``q_b(T, ψ)`` for every ψ
-  of a range, the interval extension of the same closed form (:func:`qpik.enclosure.interval_function`).
+  and whether the branch reaches the pose (:meth:`SelfMotion.point_function`);
+- :meth:`SelfMotion.models`: for a range [lo, hi] of ψ, the Taylor model of ``q_b(T, ψ)`` in
+  :math:`t = (\psi - \psi_{mid})/h` (h the half width): centre, slope, radius and bounds (n each) such
+  that every q over the range lies within them (:meth:`SelfMotion.taylor_function`,
+  :func:`qpik.enclosure.taylor_function` of the same closed form).
 
 Offset-shoulder arms have 16 branches, but branch k + 8 at δ is branch k at δ + π
 (Nammoto & Kosuge 2012, eq. 7: θ1[2] = θ1[1] + π with the rest following), so only the
@@ -23,15 +25,15 @@ import numpy as np
 from qpik.analytic import solver_for
 from qpik.analytic.intervals import wrap
 from qpik.compiled import RowMap
-from qpik.enclosure import interval_function
+from qpik.enclosure import taylor_function
 from qpik.robots.robot import Robot
 
 MIRRORED = {"offset_shoulder": 8}
 """Closed-form families whose branches k + half at a parameter are branch k at the parameter + π: half."""
 CHUNKS = (32, 8)
 """Rows per call of the compiled self-motion functions (:class:`~qpik.compiled.RowMap`)."""
-BOX_CHUNKS = (16, 16)
-"""The same for the boxes: one size, since their interval extensions take seconds to compile."""
+MODEL_CHUNKS = (16, 16)
+"""The same for the Taylor models: one size, since they take seconds to compile."""
 
 
 class SelfMotion:
@@ -49,7 +51,7 @@ class SelfMotion:
         self.branch_ids = np.array(self.solver.branch_ids)
         self.searched = MIRRORED.get(self.solver.kind, self.solver.n_branches)
         self._points: dict[int, RowMap] = {}
-        self._boxes: dict[int, RowMap] = {}
+        self._models: dict[int, RowMap] = {}
 
     @cached_property
     def _symbols(self) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
@@ -57,25 +59,30 @@ class SelfMotion:
         Q, valid, _ = self.solver.casadi_function(T, psi)
         return T, psi, Q, valid
 
+    def point_function(self, b: int) -> ca.Function:
+        """Branch row b: ``(T (4, 4), ψ) -> [q (n); dq/dψ (n); valid]`` (2n + 1,)."""
+        T, psi, Q, valid = self._symbols
+        q = Q[b, :].T
+        return ca.Function(
+            f"selfmotion_{self.solver.kind}_{b}", [T, psi], [ca.densify(ca.vertcat(q, ca.jacobian(q, psi), valid[b]))]
+        )
+
+    def taylor_function(self, b: int) -> ca.Function:
+        """Branch row b: the Taylor model of q over a range of ψ, ``(T, ψ centre, ψ slope, 0, lo, hi) ->
+        (centre, slope, radius, lo, hi)`` of q (n each) (:func:`qpik.enclosure.taylor_function`)."""
+        T, psi, Q, _ = self._symbols
+        fn = ca.Function(f"selfmotion_q_{self.solver.kind}_{b}", [T, psi], [ca.densify(Q[b, :].T)])
+        return taylor_function(fn, [1], name=f"selfmotion_taylor_{self.solver.kind}_{b}")
+
     def _point_map(self, b: int) -> RowMap:
         if b not in self._points:
-            T, psi, Q, valid = self._symbols
-            q = Q[b, :].T
-            fn = ca.Function(
-                f"selfmotion_{self.solver.kind}_{b}",
-                [T, psi],
-                [ca.densify(ca.vertcat(q, ca.jacobian(q, psi), valid[b]))],
-            )
-            self._points[b] = RowMap(fn, chunks=CHUNKS)
+            self._points[b] = RowMap(self.point_function(b), chunks=CHUNKS)
         return self._points[b]
 
-    def _box_map(self, b: int) -> RowMap:
-        if b not in self._boxes:
-            T, psi, Q, _ = self._symbols
-            fn = ca.Function(f"selfmotion_{self.solver.kind}_{b}", [T, psi], [ca.densify(Q[b, :].T)])
-            box = interval_function(fn, [1], name=f"selfmotion_box_{self.solver.kind}_{b}")
-            self._boxes[b] = RowMap(box, chunks=BOX_CHUNKS)
-        return self._boxes[b]
+    def _model_map(self, b: int) -> RowMap:
+        if b not in self._models:
+            self._models[b] = RowMap(self.taylor_function(b), chunks=MODEL_CHUNKS)
+        return self._models[b]
 
     def points(self, b: int, T: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Branch row b at poses T (M, 4, 4) and parameters ψ (M,): q (M, n), dq/dψ (M, n), valid (M,) bool."""
@@ -83,10 +90,10 @@ class SelfMotion:
         (out,) = self._point_map(b)(_columns(T), psi)
         return out[:, :n], out[:, n : 2 * n], out[:, 2 * n] > 0.5
 
-    def boxes(self, b: int, T: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Branch row b: (M, n) bounds of q over ψ ∈ [lo, hi] (M,) at poses T (M, 4, 4)."""
-        q_lo, q_hi = self._box_map(b)(_columns(T), lo, hi)
-        return q_lo, q_hi
+    def models(self, b: int, T: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
+        """Branch row b at poses T (M, 4, 4) over ψ ∈ [lo, hi] (M,): the Taylor models of q in
+        t = (ψ − mid)/half, ``[centre, slope, radius, lo, hi]``, each (M, n)."""
+        return self._model_map(b)(_columns(T), 0.5 * (lo + hi), 0.5 * (hi - lo), np.zeros(len(lo)), lo, hi)
 
     def mirror(self, b: int) -> tuple[int, float] | None:
         """``(row, shift)`` when branch row b is row ``row`` at the parameter + ``shift`` (rad), else None."""

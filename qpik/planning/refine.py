@@ -21,7 +21,7 @@ inside its limits there, the branch reaches the pose), so the bounds on ψ_k kee
 
 Arms without a closed form: the variables are the joints :math:`q_k` themselves (bounded by the
 limits), with the pose as an equality at every waypoint, :math:`[p_k^* - p(q_k);\ \log(R_k^* R(q_k)^T)] = 0`
-(:func:`qpik.nlp.full.rotation_error`), the same objective and constraints.
+(:func:`qpik.lie.log_expr`), the same objective and constraints.
 
 Sparse by construction: the per-waypoint closed form (or pose error), objective and distances are
 one CasADi ``Function`` mapped over the waypoints of each run of one branch row (``Function.map``),
@@ -41,7 +41,7 @@ import numpy as np
 
 from qpik.analytic.intervals import wrap
 from qpik.geometry.distance import ObstacleSet, distances
-from qpik.nlp.full import rotation_error
+from qpik.lie import log_expr
 from qpik.objectives import Context, Objective
 from qpik.planning.dp import Transitions
 from qpik.planning.grid import Grid
@@ -181,7 +181,7 @@ class PathNLP:
         if self.grid is None:
             R, pos = ctx.frames[-1]
             D = ca.mtimes(T[:3, :3], ca.vertcat(*[ca.horzcat(*R[i]) for i in range(3)]).T)  # R* Rᵀ
-            g.append(ca.vertcat(T[:3, 3] - ca.vertcat(*pos), rotation_error(D)))
+            g.append(ca.vertcat(T[:3, 3] - ca.vertcat(*pos), log_expr(D)))
         name = f"plan_point_{robot.name or 'robot'}_{b}" + ("_near" if near else "")
         self._points[key] = ca.Function(name, [cols, z, t, p, q_ref, prm], [q, cost, g_epi, ca.vertcat(*g)])
         return self._points[key]
