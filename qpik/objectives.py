@@ -90,6 +90,11 @@ class Split:
         return t, cost, ca.vertcat(*g)
 
 
+def pair_count(robot: Robot, obstacles: Sequence | ObstacleSet) -> int:
+    """C'·O: the capsule–obstacle pairs of :attr:`Context.distances`, those of the capsules a joint moves."""
+    return int(np.count_nonzero(~robot.fixed_capsules)) * len(obstacles)
+
+
 class Context:
     """The symbols an objective is written against (CasADi SX).
 
@@ -137,7 +142,11 @@ class Context:
 
     @cached_property
     def distances(self) -> ca.SX:
-        r"""Signed distances (C·O,) of every capsule–obstacle pair, pair (c, o) at c·O + o, m.
+        r"""Signed distances (C'·O,) of the pairs of the C' capsules a joint moves (:func:`pair_count`), m.
+
+        Pair (c, o) is at k·O + o with k the rank of capsule c among those that are not
+        :attr:`~qpik.robots.robot.Robot.fixed_capsules`: a fixed capsule's distance is a constant no
+        configuration changes (the base column standing on a table), so it constrains nothing.
 
         With a ``witness`` symbol w, the closest points are found at w and the distance is
         written :math:`n^T(x_s(q) - p_{obs}) - r` with the unit normal n, the obstacle's witness
@@ -152,13 +161,16 @@ class Context:
         if not len(self.obstacles):
             return ca.SX(0, 1)
         prm = [self.obstacle_params[i] for i in range(self.obstacle_params.numel())]
-        radii, kinds = self.robot.capsule_radii, self.obstacles.kinds
+        moving = np.flatnonzero(~self.robot.fixed_capsules)
+        radii, kinds = self.robot.capsule_radii[moving], self.obstacles.kinds
         at = self.frames if self.witness is None else self._frames_of(self.witness)
-        pairs = set_expr(self.robot.capsule_segments_expr(at), radii, kinds, prm, sy.CASADI)
+        segments = self.robot.capsule_segments_expr(at)
+        pairs = set_expr([segments[c] for c in moving], radii, kinds, prm, sy.CASADI)
         if self.witness is None:
             return ca.vertcat(*[d for row in pairs for d, *_ in row])
         out = []
-        for (a, b), r, row in zip(self.robot.capsule_segments_expr(self.frames), radii, pairs):
+        segments = self.robot.capsule_segments_expr(self.frames)
+        for (a, b), r, row in zip([segments[c] for c in moving], radii, pairs):
             for _, _, p_obs, normal, s in row:
                 x = sy.vadd(a, sy.vscale(s, sy.vsub(b, a)))
                 out.append(sy.dot(normal, sy.vsub(x, p_obs)) - r)
@@ -492,7 +504,7 @@ class Evaluator:
     """An objective and the capsule–obstacle distances, compiled for one robot and obstacle families.
 
     Evaluates, per configuration, ``f(q)``, ``∇f(q)`` (n,) (CasADi's exact derivative; at a kink
-    of an epigraph term, the gradient of one active piece) and the pair distances (C·O,), m.
+    of an epigraph term, the gradient of one active piece) and the pair distances (C'·O,), m.
     The objective's parameters, ``q_ref`` and the obstacle geometry are inputs: one compiled
     function serves every value of them (it is cached per robot, objective key and families).
 
@@ -506,7 +518,7 @@ class Evaluator:
     def __init__(self, robot: Robot, objective: Objective, obstacles: Sequence | ObstacleSet = ()):
         self.robot, self.objective = robot, objective
         self.obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
-        self.n_pairs = len(robot.capsules) * len(self.obstacles)
+        self.n_pairs = pair_count(robot, self.obstacles)
         self.params = objective.params(robot)
         key = (id(robot), objective.key(), self.obstacles.kinds, len(self.params))
         entry = _EVALUATORS.get(key)
@@ -515,7 +527,7 @@ class Evaluator:
         self._rows = entry[1]
 
     def function(self) -> ca.Function:
-        """``(q (n,), p, q_ref (n,), obstacle params) -> [f, ∇f (n), d (C·O), ∇ min d (n)]`` in one column."""
+        """``(q (n,), p, q_ref (n,), obstacle params) -> [f, ∇f (n), d (C'·O), ∇ min d (n)]`` in one column."""
         robot, n = self.robot, self.robot.dof
         q, q_ref, w = ca.SX.sym("q", n), ca.SX.sym("q_ref", n), ca.SX.sym("w", n)
         p = ca.SX.sym("p", len(self.params))
@@ -528,7 +540,7 @@ class Evaluator:
         return ca.Function(f"objective_{robot.name or 'robot'}", [q, p, q_ref, prm], [out])
 
     def __call__(self, q: np.ndarray, q_ref: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
-        """``(f (M,), ∇f (M, n), d (M, C·O), ∇ min d (M, n))`` at configurations q (M, n) (or (n,): then
+        """``(f (M,), ∇f (M, n), d (M, C'·O), ∇ min d (M, n))`` at configurations q (M, n) (or (n,): then
         the shapes drop M). ``q_ref``: (n,) or (M, n), rad (zeros if None; only :class:`ReferenceDistance`
         reads it). ``∇ min d`` is the gradient of the smallest pair distance (zeros without obstacles)."""
         n = self.robot.dof
@@ -590,7 +602,7 @@ class BoundFunction:
         split = objective.split(ctx, p)
         self.sizes = tuple(int(h.numel()) for _, h in split.maxima)
         """m_k: the number of pieces of each maximum."""
-        self.n_pairs = len(robot.capsules) * len(obstacles)
+        self.n_pairs = pair_count(robot, obstacles)
         values = ca.vertcat(split.smooth, *[w for w, _ in split.maxima], *[h for _, h in split.maxima], ctx.distances)
         self.values = ca.Function(f"bound_{robot.name or 'robot'}", [q, p, q_ref, prm], [ca.densify(values)])
         """v itself at one configuration: ``(q, p, q_ref, obstacle params) -> v`` (L,)."""

@@ -222,3 +222,23 @@ def test_user_expressions_are_certified_when_every_operation_has_a_taylor_rule()
     erf = solve_best(robot, T, Expression(lambda q: ca.erf(q[0] - 0.3), name="erf"))
     assert erf.status == "optimal" and not erf.certified and "lower bound" in erf.message
     assert erf.objective <= np.asarray(ca.erf(q[ok][:, 0] - 0.3)).min() + 1e-8
+
+
+def test_a_floor_under_the_base_constrains_only_the_moving_links():
+    """A floor at the base plane overlaps iiwa14's first capsule, which no joint moves: the answer is the one
+    without the floor wherever every moving capsule clears it, and its clearance is theirs (z minus radius)."""
+    from qpik.geometry import HalfSpace
+
+    robot = qpik.load_robot("iiwa14")
+    floor = HalfSpace(np.array([0.0, 0.0, 1.0]), 0.0, name="floor")
+    checked = 0
+    for q in random_q(robot, 12, 5, margin=0.1):
+        T = robot.fk(q)
+        res, free = solve_best(robot, T, obstacles=[floor]), solve_best(robot, T)
+        lowest = robot.capsule_segments(res.q)[..., 2].min(axis=1) - robot.capsule_radii  # m, per capsule
+        assert lowest[0] < 0 and res.status == "optimal"
+        assert res.clearance == pytest.approx(lowest[~robot.fixed_capsules].min(), abs=1e-9)
+        if res.clearance > 0.05:  # the floor is not active: the same optimum
+            assert res.objective == pytest.approx(free.objective, abs=1e-8)
+            checked += 1
+    assert checked >= 6

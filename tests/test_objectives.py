@@ -44,7 +44,9 @@ def _normalised(robot, q):
 
 
 def _clearances(robot, q, obstacles):
-    return distances(robot.capsule_segments(q), robot.capsule_radii, obstacles).d.reshape(len(q), -1)
+    """(N, C'·O) distances of the capsules a joint moves (the fixed ones are tested in test_robot.py), m."""
+    moving = ~robot.fixed_capsules
+    return distances(robot.capsule_segments(q)[:, moving], robot.capsule_radii[moving], obstacles).d.reshape(len(q), -1)
 
 
 @pytest.mark.parametrize("name", ["iiwa14", "panda"])

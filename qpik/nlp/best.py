@@ -454,7 +454,8 @@ def least_violating(
         # inside the limits but never clear: the configuration with the largest clearance
         k, b = np.nonzero(within)
         Q = sol.q[k, b]
-        d = distances(robot.capsule_segments(Q), robot.capsule_radii, scene.obstacles).d  # (M, C, O)
+        moving = ~robot.fixed_capsules  # the pairs of fixed capsules constrain nothing
+        d = distances(robot.capsule_segments(Q)[:, moving], robot.capsule_radii[moving], scene.obstacles).d
         clear = d.reshape(len(Q), -1).min(axis=1)
         j = int(np.argmax(clear))
         violation = max(float(scene.d_safe - clear[j]), 0.0)

@@ -31,7 +31,7 @@ class Points:
         q, dq: (M, n) configuration (rad) and dq/dψ; valid: (M,) the branch reaches the pose.
         f, df: (M,) objective and its derivative in ψ.
         c, dc: (M,) clearance margin min d − d_s (m; +inf without obstacles) and its derivative.
-        d: (M, C·O) the pair distances, m.
+        d: (M, C'·O) the pair distances, m.
     """
 
     pose: np.ndarray

@@ -279,7 +279,8 @@ def measure(plan: Plan, mujoco: bool = True) -> None:
     plan.manipulability = np.asarray(robot.manipulability(q), float)
     obs = plan.obstacles
     if len(obs):
-        d = distances(robot.capsule_segments(q), robot.capsule_radii, obs).d
+        moving = ~robot.fixed_capsules  # a capsule no joint moves is left out, as in the planner
+        d = distances(robot.capsule_segments(q)[:, moving], robot.capsule_radii[moving], obs).d
         plan.clearance = d.reshape(K, -1).min(axis=1)
         plan.clearance_mujoco = _mujoco_clearance(robot, obs, q) if mujoco else np.zeros(0)
     else:

@@ -42,7 +42,7 @@ import numpy as np
 from qpik.analytic.intervals import wrap
 from qpik.geometry.distance import ObstacleSet, distances
 from qpik.lie import log_expr
-from qpik.objectives import Context, Objective
+from qpik.objectives import Context, Objective, pair_count
 from qpik.planning.dp import Transitions
 from qpik.planning.grid import Grid
 from qpik.robots.robot import Robot
@@ -201,7 +201,8 @@ class PathNLP:
         """(N,) the smallest capsule–obstacle distance of configurations q (N, n), m (inf without obstacles)."""
         if not len(self.obstacles):
             return np.full(len(q), np.inf)
-        d = distances(self.robot.capsule_segments(q), self.robot.capsule_radii, self.obstacles).d
+        moving = ~self.robot.fixed_capsules
+        d = distances(self.robot.capsule_segments(q)[:, moving], self.robot.capsule_radii[moving], self.obstacles).d
         return d.reshape(len(q), -1).min(axis=1)
 
     def solve(self, z0: np.ndarray) -> Refined:
@@ -262,7 +263,7 @@ class PathNLP:
         z, t, Q, cost_pt, E, others = self._graph(near)
         D = Q[:, 1:] - Q[:, :-1]  # (n, N-1)
         f = self._cost(Q, cost_pt)
-        n_d = len(self.robot.capsules) * len(self.obstacles)
+        n_d = pair_count(self.robot, self.obstacles)
         n_eq = 0 if self.grid is not None else 6
         g_parts, lbg, ubg = [ca.vec(E)], [np.full(E.numel(), -np.inf)], [np.zeros(E.numel())]
         for a, b, g in others:
