@@ -63,7 +63,7 @@ from qpik.robots.loader import load_robot
 from qpik.robots.packaged import packaged_model
 from qpik.sim.run import build_scene
 
-HOT = 10
+HOT = 50
 """Both scenes are timed hot: each sample is a block of this many consecutive steps of one library (the issue's
 "hot" figures), the blocks of the libraries interleaved; the worst and CPU columns are then of such blocks."""
 TITLE = (
