@@ -29,11 +29,11 @@ EXPECTED = {
     ],
     "controller": [
         "no obstacles, hot: mink + osqp (rebuilt each call)",
-        "no obstacles, hot: qpik + osqp (persistent)",
+        "no obstacles, hot: qpik + osqp (persistent, active set reused)",
         "no obstacles, hot: qpik + daqp",
         "mink + osqp (rebuilt each call)",
         "mink + daqp",
-        "qpik + osqp (persistent)",
+        "qpik + osqp (persistent, active set reused)",
         "qpik + daqp",
         "qpik + proxqp",
         "qpik + quadprog",

@@ -12,7 +12,7 @@ from test_limits import D_SAFE, scene
 import qpik
 from qpik.control import Controller, RowLimit, VelocityLimit, get_solver
 from qpik.control.solvers import available
-from qpik.control.solvers.osqp import polish
+from qpik.control.solvers.osqp import REUSED, polish
 from qpik.control.solvers.qpsolvers import QpsolversSolver
 from qpik.errors import SolverError
 from qpik.geometry.shapes import Sphere
@@ -75,6 +75,23 @@ def test_solvers_agree_with_daqp(recorded, name):
             assert got.found, got.status
             worst = max(worst, float(np.abs(got.x - want.x).max()))
     assert worst < 1e-6, worst
+
+
+def test_osqp_reuses_the_active_set_and_stays_exact(recorded):
+    """Most steps of a run are answered from the previous step's active set without ADMM, and the answer is
+    daqp's; fed the QPs of every run back to back and in reverse (each start's active set unrelated to the
+    previous QP's), it is still daqp's, through ADMM where the reused guess fails."""
+    ref = QpsolversSolver("daqp")
+    for qps in ([qp for qp, _ in run] for run in recorded), [[qp for run in recorded for qp, _ in run[::-1]]]:
+        for run in qps:
+            solver = get_solver("osqp")
+            reused = 0
+            for qp in run:
+                want, got = ref.solve(qp), solver.solve(qp)
+                assert got.found, got.status
+                assert np.abs(got.x - want.x).max() < 1e-6
+                reused += got.status == REUSED
+            assert len(run) // 2 <= reused < len(run), (reused, len(run))  # the first step runs ADMM
 
 
 def test_proxqp_reports_an_infeasible_qp_then_solves_the_next(recorded):

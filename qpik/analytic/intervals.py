@@ -217,9 +217,9 @@ class _NativeSets:
         sets = [pieces[a:b] for a, b in pairwise(bounds)]
         found = self._scount.tolist()
         if not any(found):
-            return sets, [[] for _ in range(self.out_rows)]
-        sv = self._sv[: self.out_rows * ns].reshape(self.out_rows, ns)
-        return sets, [sv[r, :c].tolist() for r, c in enumerate(found)]
+            return sets, [[] for _ in found]
+        flat = self._sv[: self.out_rows * ns].tolist()  # row r's values start at r * ns
+        return sets, [flat[r * ns : r * ns + c] for r, c in enumerate(found)]
 
 
 @cache

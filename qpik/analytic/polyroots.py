@@ -82,12 +82,12 @@ def trig_roots(A: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     A, B = np.asarray(A, dtype=float), np.asarray(B, dtype=float)
     if A.ndim != 2 or A.shape != B.shape or A.shape[1] < 1:
         raise InputError(f"trig_roots: A, B must be (K, d + 1), the same shape; got {A.shape}, {B.shape}")
-    cols = np.arange(A.shape[1])
-    degree = max(cols[A.any(axis=0)].max(initial=0), cols[B.any(axis=0)].max(initial=-1) + 1)
-    if degree > MAX_DEGREE:  # both paths (the C one checks it too)
-        raise InputError(f"trig_roots: max(deg A, deg B + 1) above {MAX_DEGREE}")
     lib = _library()
     if lib is None:
+        cols = np.arange(A.shape[1])
+        degree = max(cols[A.any(axis=0)].max(initial=0), cols[B.any(axis=0)].max(initial=-1) + 1)
+        if degree > MAX_DEGREE:  # polyroots.c checks it per row
+            raise InputError(f"trig_roots: max(deg A, deg B + 1) above {MAX_DEGREE}")
         return _eig_roots(A, B)
     a, b, delta, owner, where = _buffers(*A.shape)
     a[...], b[...] = A, B  # copies into fixed buffers, whose addresses are known

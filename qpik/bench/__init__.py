@@ -29,9 +29,10 @@ class Row:
     note: str = ""
 
 
-def time_calls(fn: Callable[[], object], repeat: int, warmup: int = 20) -> np.ndarray:
-    """Wall-clock seconds of ``repeat`` calls of ``fn`` (after ``warmup`` calls)."""
-    return time_interleaved({"": fn}, repeat, warmup)[""]
+def time_calls(fn: Callable[[], object], repeat: int, warmup: int = 20, block: int = 1) -> np.ndarray:
+    """Wall-clock seconds per call of ``fn``: ``repeat`` samples (after ``warmup`` calls), each a block of
+    ``block`` calls divided by ``block``."""
+    return time_interleaved({"": fn}, repeat, warmup, block=block)[""]
 
 
 def time_interleaved(

@@ -3,7 +3,7 @@
 For each arm with a closed form (``nammoto7``: δ, ``iiwa14``: ψ), poses are
 ``fk(q)`` of configurations drawn uniformly inside the joint limits (seed 0)
 and the parameter of each is the one of its configuration. Rows, in seconds
-per pose (median over calls):
+per pose (median; the single-pose rows and ssik's over blocks of :data:`BLOCK` calls, "hot"):
 
 - ``qpik.ik`` on one pose (all 16 / 8 branches; input checks included);
 - ``qpik.ik`` on a batch of ``BATCH`` poses with (N,) parameters, divided by N;
@@ -36,7 +36,10 @@ from qpik.analytic.api import feasible_intervals, ik, redundancy_parameter
 from qpik.bench import Row, time_calls, time_interleaved
 from qpik.robots.catalog import load_robot
 
-TITLE = "Closed-form IK (per pose)"
+BLOCK = 20
+"""The single-pose rows (one pose, feasible intervals, the locked-joint rows): each sample is a block of this many
+calls (poses cycling), divided ("hot")."""
+TITLE = f"Closed-form IK (per pose; single-pose rows hot: blocks of {BLOCK} calls, peers' blocks interleaved)"
 ARMS = ("nammoto7", "iiwa14")
 POSES = 64  # distinct poses cycled through by the single-pose rows
 BATCH = 10_000
@@ -46,8 +49,6 @@ LOCKED = 0.3
 """rad: joint 3 of iiwa14 in the poses of the locked-joint rows (labelled "q3 locked"); the batched rows
 take :data:`BATCH` poses per call."""
 EAIK_THREADS = 2
-BLOCK = 20
-"""The locked-joint single-pose rows: each sample is a block of this many calls (poses cycling), divided."""
 SSIK = "ssik iiwa14_ik.solve (iiwa14)"
 PAPER_NOTE = "(paper: 31.3 µs, compiled, 2012 Core i7 965; quoted, not measured)"
 
@@ -82,9 +83,11 @@ def _arm_rows(name: str, repeat: int, ref: str | None) -> list[Row]:
     T = robot.fk(q)
     par = np.asarray(redundancy_parameter(robot, q)[0])
     cases = list(zip(T[:POSES], par[:POSES].tolist()))
-    t1 = time_calls(_cycle(lambda c: ik(robot, c[0], c[1]), cases), repeat)
+    t1 = time_calls(_cycle(lambda c: ik(robot, c[0], c[1]), cases), max(20, repeat // BLOCK), block=BLOCK)
     tb = time_calls(lambda: ik(robot, T, par), max(BATCH_CALLS, repeat // 100), warmup=1) / BATCH
-    ti = time_calls(_cycle(lambda c: feasible_intervals(robot, c[0]), cases), max(10, repeat // 10), warmup=3)
+    ti = time_calls(
+        _cycle(lambda c: feasible_intervals(robot, c[0]), cases), max(10, repeat // (2 * BLOCK)), warmup=3, block=BLOCK
+    )
     return [
         _row(f"qpik.ik, 1 pose ({name})", t1, ref, PAPER_NOTE if name == "nammoto7" else ""),
         _row(f"qpik.ik, batch of {BATCH} ({name}), per pose", tb, ref),
@@ -105,7 +108,7 @@ def _ssik_row(repeat: int) -> Row | None:
     robot = load_robot("iiwa14")
     q = np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (POSES, robot.dof))
     T = list(robot.fk(q))
-    t = time_calls(_cycle(iiwa14_ik.solve, T), max(20, repeat // 20), warmup=5)
+    t = time_calls(_cycle(iiwa14_ik.solve, T), max(10, repeat // (10 * BLOCK)), warmup=5, block=BLOCK)
     return _row(SSIK, t, None)
 
 

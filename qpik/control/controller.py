@@ -95,7 +95,8 @@ class StepInfo:
         """Names of the constraints at their bound, built on first access."""
         if self._activity is None:
             return ()
-        v, qp, caps = self._activity
+        v, saved, caps = self._activity
+        qp = saved()
         lb, ub, l, u = qp.lb, qp.ub, qp.l, qp.u
         Av = qp.A @ v
         gap_lo, gap_hi = Av - l, u - Av

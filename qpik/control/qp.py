@@ -22,9 +22,10 @@ are ``−∞ ≤ · ≤ +∞``), so a persistent solver keeps its sparsity patte
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import itertools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import casadi as ca
@@ -175,12 +176,16 @@ class Assembler:
         tag = hashlib.sha256(repr(self._compose(kin, extra, trace=False)[2]).encode()).hexdigest()[:12]
         return ca.Function(f"qp_{kin.robot.name or 'robot'}_{tag}", [q, prm], [out])
 
-    def snapshot(self, qp: QP) -> QP:
-        """A copy of ``qp`` that later builds do not overwrite: for the assembler's own QP one copy of the
-        output buffer (views into it), for any other QP :meth:`QP.copy`."""
+    def snapshot(self, qp: QP) -> Callable[[], QP]:
+        """A function giving ``qp`` as it is now, which later builds do not overwrite: for the assembler's own QP
+        one copy of the output buffer now (the QP's views into it are made on call), for any other QP one
+        :meth:`QP.copy` now (each call copies that copy)."""
         if qp is not self.qp:
-            return qp.copy()
-        flat = self._flat.copy()
+            return qp.copy().copy
+        return functools.partial(self._restore, self._flat.copy())
+
+    def _restore(self, flat: np.ndarray) -> QP:
+        """The QP whose arrays are views into ``flat``, a copy of the output buffer."""
         return QP(*(flat[a:b].reshape(shape) for a, b, shape in self._layout), self.n, self.qp.row_names)
 
     def build(self, q: np.ndarray) -> QP:
