@@ -103,12 +103,13 @@ class Grid:
         N, B, G = len(self.intervals), self.rows, self.G
         cells = [(k * B + b, lo, hi) for k, fi in enumerate(self.intervals) for b in range(B)
                  for lo, hi in fi.intervals[b]]  # fmt: skip
-        count = np.zeros((N * B, G + 1), np.int64)
+        count = np.zeros(N * B * (G + 1), np.int64)
         if cells:
             row, lo, hi = (np.array(x) for x in zip(*cells))
-            np.add.at(count, (row, np.searchsorted(self.values, lo, "left")), 1)
-            np.add.at(count, (row, np.searchsorted(self.values, hi, "right")), -1)
-        return (np.cumsum(count[:, :G], axis=1) > 0).reshape(N, B, G)
+            start = row * (G + 1) + np.searchsorted(self.values, lo, "left")
+            stop = row * (G + 1) + np.searchsorted(self.values, hi, "right")
+            count += np.bincount(start, minlength=count.size) - np.bincount(stop, minlength=count.size)
+        return (np.cumsum(count.reshape(N * B, G + 1)[:, :G], axis=1) > 0).reshape(N, B, G)
 
     @property
     def spacing(self) -> float:
