@@ -16,15 +16,19 @@ Kosuge 2012, eq. 7), so only the first 8 are gridded (over the whole circle); wi
 grid maps onto itself under δ → δ + π. :meth:`Grid.branch_of` gives the public branch id of
 a state.
 
-Per feasible state the compiled row function (:func:`qpik.compiled.RowMap`, one row = a
-waypoint and a parameter value, every branch at once) gives q (n,), the point objective
-f(q) (:mod:`qpik.objectives`) and the smallest capsule–obstacle distance (m).
+Per feasible state the compiled row function (one row = a waypoint and a parameter value, every
+branch at once) gives q (n,), the point objective f(q) (:mod:`qpik.objectives`) and the smallest
+capsule–obstacle distance (m). With a C compiler one loop in C (``grid.c``) calls its generated C for
+the rows where some branch is inside its feasible set and writes the states in place; without one,
+:class:`qpik.compiled.RowMap` evaluates every row and numpy sorts them.
 """
 
 from __future__ import annotations
 
+import ctypes
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cache, cached_property
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -32,7 +36,8 @@ import numpy as np
 from qpik import symbolic as sy
 from qpik.analytic import feasible_intervals, solver_for
 from qpik.analytic.intervals import FeasibleIntervals, wrap
-from qpik.compiled import RowMap
+from qpik.compiled import Compiled, RowMap, shared_library
+from qpik.errors import SolverError
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.selfmotion import MIRRORED
 from qpik.objectives import Context, Objective
@@ -47,16 +52,14 @@ class Layers:
     """The states of waypoints k0 .. k0 + K - 1 (:meth:`Grid.layers`).
 
     Attributes:
-        q: (K, B, G, n) configurations, rad (zeros where not feasible).
+        q: (K, B, G, n) configurations, rad (meaningful where ``ok``).
         ok: (K, B, G) feasible.
         f: (K, B, G) the point objective (0 without one; inf where not feasible).
-        clearance: (K, B, G) smallest capsule–obstacle distance, m (inf without obstacles).
     """
 
     q: np.ndarray
     ok: np.ndarray
     f: np.ndarray
-    clearance: np.ndarray
 
 
 class Grid:
@@ -145,8 +148,17 @@ class Grid:
         return k - self.rows, float(wrap(param + np.pi))
 
     @cached_property
+    def _function(self) -> ca.Function:
+        return self.function()
+
+    @cached_property
+    def _compiled(self) -> Compiled:
+        """The row function, one row per call (machine code when a compiler works)."""
+        return Compiled(self._function)
+
+    @cached_property
     def _rows(self) -> RowMap:
-        return RowMap(self.function(), shared=(2, 3, 4), chunks=ROW_CHUNKS)
+        return RowMap(self._function, shared=(2, 3, 4), chunks=ROW_CHUNKS)
 
     def function(self) -> ca.Function:
         """``(T (4x4), ψ, objective params, q_ref (n), obstacle params) -> (B·(n + 3),)``: per gridded branch,
@@ -208,20 +220,85 @@ class Grid:
 
     def configurations(self, ks: np.ndarray, rows: np.ndarray, index: np.ndarray) -> np.ndarray:
         """(M, n) the configurations of the states (waypoint ks, grid row, grid index) (M,) each."""
-        n = self.robot.dof
-        cols = np.ascontiguousarray(np.swapaxes(self.poses[ks], 1, 2)).reshape(len(ks), 16)
-        (out,) = self._rows(cols, self.values[index], self.objective_params, self.q_ref, self.obstacles.params)
-        return out.reshape(len(ks), self.rows, n + 3)[np.arange(len(ks)), rows, :n]
+        n, call = self.robot.dof, self._compiled
+        cols = np.swapaxes(self.poses[ks], 1, 2).reshape(len(ks), 16)
+        out = np.empty((len(ks), n))
+        for m, (T, value, b) in enumerate(zip(cols, self.values[index], rows)):
+            (row,) = call(T, np.array([value]), self.objective_params, self.q_ref, self.obstacles.params)
+            out[m] = row[b * (n + 3) : b * (n + 3) + n]
+        return out
+
+    @cached_property
+    def _native(self) -> _NativeLayers | None:
+        return _NativeLayers.for_grid(self, self._compiled)
 
     def layers(self, k0: int, k1: int) -> Layers:
-        """The states of waypoints k0 .. k1 - 1 (see :class:`Layers`); every grid value is evaluated (all but a
-        few are inside some branch's feasible set) and only those inside count."""
+        """The states of waypoints k0 .. k1 - 1 (see :class:`Layers`): only the grid values inside a branch's
+        exact feasible set count (in C only the rows with one are evaluated; in numpy every row is)."""
         K, B, G, n = k1 - k0, self.rows, self.G, self.robot.dof
         cols = np.ascontiguousarray(np.swapaxes(self.poses[k0:k1], 1, 2)).reshape(K, 16)
+        if self._native is not None:
+            return self._native(cols, self.inside[k0:k1])
         (out,) = self._rows(np.repeat(cols, G, axis=0), np.tile(self.values, K), self.objective_params, self.q_ref,
                             self.obstacles.params)  # fmt: skip
         out = out.reshape(K, G, B, n + 3).transpose(0, 2, 1, 3)
         q = np.ascontiguousarray(out[..., :n])
-        clear = out[..., n + 2].copy()
-        ok = (out[..., n] > 0.5) & self.inside[k0:k1] & (clear >= self.d_safe) & np.isfinite(out[..., n + 1])
-        return Layers(q, ok, np.where(ok, out[..., n + 1], np.inf), clear)
+        ok = (out[..., n] > 0.5) & self.inside[k0:k1] & (out[..., n + 2] >= self.d_safe) & np.isfinite(out[..., n + 1])
+        return Layers(q, ok, np.where(ok, out[..., n + 1], np.inf))
+
+
+class _NativeLayers:
+    """:meth:`Grid.layers`' C path: ``qpik_plan_layers`` (``grid.c``) calling the row function's generated C."""
+
+    def __init__(self, dll: ctypes.CDLL, rows: ctypes.CDLL, fn: ca.Function, grid: Grid):
+        self._dll, self._rows = dll, rows  # the entry point lives as long as its library
+        self.B, self.G, self.n, self.d_safe = grid.rows, grid.G, grid.robot.dof, grid.d_safe
+        self.values = np.ascontiguousarray(grid.values, float)
+        self._args = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
+        self._args[2][:], self._args[3][:], self._args[4][:] = grid.objective_params, grid.q_ref, grid.obstacles.params
+        self._row = np.zeros(fn.nnz_out(0))
+        argv = (ctypes.c_void_p * max(fn.sz_arg(), fn.n_in()))(*[a.ctypes.data for a in self._args])
+        resv = (ctypes.c_void_p * max(fn.sz_res(), fn.n_out()))(self._row.ctypes.data)
+        self._work = (argv, resv, np.zeros(max(fn.sz_iw(), 1), np.int64), np.zeros(max(fn.sz_w(), 1)))
+        entry = ctypes.cast(getattr(rows, fn.name()), ctypes.c_void_p).value
+        self._head = (entry, ctypes.addressof(argv), ctypes.addressof(resv), self._work[2].ctypes.data,
+                      self._work[3].ctypes.data, self._args[0].ctypes.data, self._args[1].ctypes.data,
+                      self._row.ctypes.data)  # fmt: skip
+
+    @classmethod
+    def for_grid(cls, grid: Grid, compiled: Compiled) -> _NativeLayers | None:
+        """The C path for ``grid`` with its row function ``compiled``, or None when that or ``grid.c`` is not
+        native code."""
+        dll = _library()
+        if dll is None or compiled.library is None:
+            return None
+        rows = ctypes.CDLL(str(compiled.library))
+        if getattr(rows, f"{compiled.fn.name()}_casadi_int_size")() != 8:  # grid.c passes 64-bit casadi_int
+            return None
+        return cls(dll, rows, compiled.fn, grid)
+
+    def __call__(self, cols: np.ndarray, inside: np.ndarray) -> Layers:
+        """The states of the waypoints of ``cols`` (K, 16) (poses column-major) with ``inside`` (K, B, G)."""
+        K, B, G, n = len(cols), self.B, self.G, self.n
+        q, ok, f = np.empty((K, B, G, n)), np.empty((K, B, G), np.uint8), np.empty((K, B, G))
+        inside = np.ascontiguousarray(inside, np.uint8)
+        status = self._dll.qpik_plan_layers(*self._head, K, B, G, n, cols.ctypes.data, self.values.ctypes.data,
+                                            inside.ctypes.data, self.d_safe, q.ctypes.data, ok.ctypes.data,
+                                            f.ctypes.data)  # fmt: skip
+        if status:
+            raise SolverError("qpik_plan_layers: the compiled state function failed")
+        return Layers(q, ok.view(bool), f)
+
+
+@cache
+def _library() -> ctypes.CDLL | None:
+    """``grid.c`` compiled (cached on disk by :func:`qpik.compiled.shared_library`), or None without a compiler."""
+    lib = shared_library("qpik_plan_layers", Path(__file__).with_name("grid.c").read_bytes())
+    if lib is None:
+        return None
+    dll = ctypes.CDLL(str(lib))
+    fn = dll.qpik_plan_layers
+    fn.argtypes = [ctypes.c_void_p] * 8 + [ctypes.c_longlong] * 4 + [ctypes.c_void_p] * 3 + [ctypes.c_double]
+    fn.argtypes += [ctypes.c_void_p] * 3
+    fn.restype = ctypes.c_int
+    return dll
