@@ -106,13 +106,13 @@ class Grid:
         N, B, G = len(self.intervals), self.rows, self.G
         cells = [(k * B + b, lo, hi) for k, fi in enumerate(self.intervals) for b in range(B)
                  for lo, hi in fi.intervals[b]]  # fmt: skip
-        count = np.zeros(N * B * (G + 1), np.int64)
+        inside = np.zeros((N * B, G), bool)
         if cells:
             row, lo, hi = (np.array(x) for x in zip(*cells))
-            start = row * (G + 1) + np.searchsorted(self.values, lo, "left")
-            stop = row * (G + 1) + np.searchsorted(self.values, hi, "right")
-            count += np.bincount(start, minlength=count.size) - np.bincount(stop, minlength=count.size)
-        return (np.cumsum(count.reshape(N * B, G + 1)[:, :G], axis=1) > 0).reshape(N, B, G)
+            start, stop = np.searchsorted(self.values, lo, "left"), np.searchsorted(self.values, hi, "right")
+            for r, a, b in zip(row.tolist(), start.tolist(), stop.tolist()):
+                inside[r, a:b] = True
+        return inside.reshape(N, B, G)
 
     @property
     def spacing(self) -> float:
