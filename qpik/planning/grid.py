@@ -26,6 +26,7 @@ the rows where some branch is inside its feasible set and writes the states in p
 from __future__ import annotations
 
 import ctypes
+import itertools
 from dataclasses import dataclass
 from functools import cache, cached_property
 from pathlib import Path
@@ -164,7 +165,8 @@ class Grid:
         """``(T (4x4), ψ, objective params, q_ref (n), obstacle params) -> (B·(n + 3),)``: per gridded branch,
         ``[q (n), valid and within the limits, f(q), smallest clearance (m)]``.
 
-        Branches whose link capsules always coincide (:meth:`twins`) share one distance computation."""
+        Only the branches that are their own twin (:meth:`twins`) compute distances; the others' clearance is
+        their twin's at ψ + π or ψ, another row of the grid (:meth:`clearance_sources`), and is inf here."""
         robot, n = self.robot, self.robot.dof
         T, psi = ca.SX.sym("T", 4, 4), ca.SX.sym(self.param_name)
         p = ca.SX.sym("p", self.objective_params.size)
@@ -172,25 +174,35 @@ class Grid:
         prm = ca.SX.sym("obstacles", self.obstacles.params.size)
         Q, valid, _ = self.solver.casadi_function(T, psi)
         contexts = [Context(robot, Q[b, :].T, q_ref, self.obstacles, prm) for b in range(self.rows)]
-        twin = self.twins() if len(self.obstacles) else list(range(self.rows))
+        root, _ = self.clearance_sources
         out = []
         for b, ctx in enumerate(contexts):
             ok = valid[b]
             for j in range(n):
                 ok = ok * (ctx.q[j] >= robot.q_min[j]) * (ctx.q[j] <= robot.q_max[j])
             f = self.objective.expr(ctx, p) if self.objective is not None else ca.SX(0.0)
-            d = ca.mmin(contexts[twin[b]].distances) if len(self.obstacles) else ca.SX(np.inf)
+            d = ca.mmin(ctx.distances) if len(self.obstacles) and root[b] == b else ca.SX(np.inf)
             out.append(ca.vertcat(ctx.q, ok, f, d))
         name = f"plan_states_{self.solver.kind}_{robot.name or 'robot'}"
         return ca.Function(name, [T, psi, p, q_ref, prm], [ca.densify(ca.vertcat(*out))])
 
-    def twins(self, samples: int = 16) -> list[int]:
-        """For each gridded branch, the first branch whose link capsules are at the same place for every pose
-        and parameter (itself if none): found by evaluating the capsule segments of every branch at
-        ``samples`` random poses (FK of random configurations, seeded) and parameters, equal to 1e-9 m at all.
+    @cached_property
+    def clearance_sources(self) -> tuple[np.ndarray, np.ndarray]:
+        """(B,) root and (B,) index shift: the clearance of state (k, b, i) is the root's at grid index
+        (i + shift) mod G (:meth:`twins`; every branch its own root without obstacles)."""
+        pairs = self.twins() if len(self.obstacles) else [(b, False) for b in range(self.rows)]
+        root = np.array([a for a, _ in pairs], np.int64)
+        return root, np.array([self.G // 2 if half else 0 for _, half in pairs], np.int64)
+
+    def twins(self, samples: int = 16) -> list[tuple[int, bool]]:
+        """For each gridded branch b, the first branch a and whether b's link capsules at ψ are a's at ψ + π
+        (else at ψ) for every pose and parameter ((b, False) if none): found by evaluating the capsule segments of
+        every branch at ``samples`` random poses (FK of random configurations, seeded) and parameters, equal to
+        1e-9 m at all. The grid maps onto itself under ψ → ψ + π (G even), so a twin's clearance is another row.
 
         Branches that differ only by a joint turned by π about a capsule's own axis (the S-R-S shoulder
-        (θ1 + π, −θ2, θ3 + π) and wrist (θ5 + π, −θ6, θ7 + π) pairs, with capsules on the joint axes) are twins."""
+        (θ1 + π, −θ2, θ3 + π) and wrist (θ5 + π, −θ6, θ7 + π) pairs, with capsules on the joint axes) are twins
+        at ψ; the S-R-S elbow pairs (θ4 → −θ4) are twins at ψ + π (the elbow on the same circle, half a turn on)."""
         robot = self.robot
         T, psi = ca.SX.sym("T", 4, 4), ca.SX.sym("psi")
         Q, valid, _ = self.solver.casadi_function(T, psi)
@@ -200,17 +212,20 @@ class Grid:
             segs.append(ca.vertcat(*[x for ab in robot.capsule_segments_expr(frames) for p_ in ab for x in p_]))
         probe = ca.Function("capsule_probe", [T, psi], [ca.horzcat(*segs), valid])
         rng = np.random.default_rng(0)
-        X, ok = [], []
+        X, ok = [], []  # per sample, at ψ and at ψ + π
         for _ in range(samples):
-            S, v = probe(robot.fk(rng.uniform(robot.q_min, robot.q_max)), rng.uniform(-np.pi, np.pi))
-            X.append(np.asarray(S)), ok.append(np.asarray(v).ravel()[: self.rows] > 0.5)
-        X, ok = np.array(X), np.array(ok)  # (samples, 6C, B), (samples, B)
-        twin = list(range(self.rows))
+            pose, psi0 = robot.fk(rng.uniform(robot.q_min, robot.q_max)), rng.uniform(-np.pi, np.pi)
+            pair = [probe(pose, x) for x in (psi0, psi0 + np.pi)]
+            X.append([np.asarray(S) for S, _ in pair])
+            ok.append([np.asarray(v).ravel()[: self.rows] > 0.5 for _, v in pair])
+        X, ok = np.array(X), np.array(ok)  # (samples, 2, 6C, B), (samples, 2, B)
+        twin = [(b, False) for b in range(self.rows)]
         for b in range(self.rows):
-            for a in range(b):
-                both = ok[:, a] & ok[:, b]
-                if both.sum() >= samples // 2 and np.abs(X[both, :, a] - X[both, :, b]).max() < 1e-9 and twin[a] == a:
-                    twin[b] = a
+            for a, half in itertools.product(range(b), (False, True)):
+                both = ok[:, int(half), a] & ok[:, 0, b]
+                same = both.sum() >= samples // 2 and np.abs(X[both, int(half), :, a] - X[both, 0, :, b]).max() < 1e-9
+                if same and twin[a] == (a, False):
+                    twin[b] = (a, half)
                     break
         return twin
 
@@ -241,9 +256,12 @@ class Grid:
             return self._native(cols, self.inside[k0:k1])
         (out,) = self._rows(np.repeat(cols, G, axis=0), np.tile(self.values, K), self.objective_params, self.q_ref,
                             self.obstacles.params)  # fmt: skip
-        out = out.reshape(K, G, B, n + 3).transpose(0, 2, 1, 3)
+        out = out.reshape(K, G, B, n + 3)
+        root, shift = self.clearance_sources
+        clear = out[:, (np.arange(G)[None, :] + shift[:, None]) % G, root[:, None], n + 2]  # (K, B, G)
+        out = out.transpose(0, 2, 1, 3)
         q = np.ascontiguousarray(out[..., :n])
-        ok = (out[..., n] > 0.5) & self.inside[k0:k1] & (out[..., n + 2] >= self.d_safe) & np.isfinite(out[..., n + 1])
+        ok = (out[..., n] > 0.5) & self.inside[k0:k1] & (clear >= self.d_safe) & np.isfinite(out[..., n + 1])
         return Layers(q, ok, np.where(ok, out[..., n + 1], np.inf))
 
 
@@ -254,6 +272,8 @@ class _NativeLayers:
         self._dll, self._rows = dll, rows  # the entry point lives as long as its library
         self.B, self.G, self.n, self.d_safe = grid.rows, grid.G, grid.robot.dof, grid.d_safe
         self.values = np.ascontiguousarray(grid.values, float)
+        self.root, self.shift = (np.ascontiguousarray(x, np.int64) for x in grid.clearance_sources)
+        self._clear, self._need = np.zeros((self.B, self.G)), np.zeros(self.G, np.uint8)
         self._args = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
         self._args[2][:], self._args[3][:], self._args[4][:] = grid.objective_params, grid.q_ref, grid.obstacles.params
         self._row = np.zeros(fn.nnz_out(0))
@@ -283,8 +303,9 @@ class _NativeLayers:
         q, ok, f = np.empty((K, B, G, n)), np.empty((K, B, G), np.uint8), np.empty((K, B, G))
         inside = np.ascontiguousarray(inside, np.uint8)
         status = self._dll.qpik_plan_layers(*self._head, K, B, G, n, cols.ctypes.data, self.values.ctypes.data,
-                                            inside.ctypes.data, self.d_safe, q.ctypes.data, ok.ctypes.data,
-                                            f.ctypes.data)  # fmt: skip
+                                            inside.ctypes.data, self.root.ctypes.data, self.shift.ctypes.data,
+                                            self.d_safe, self._clear.ctypes.data, self._need.ctypes.data,
+                                            q.ctypes.data, ok.ctypes.data, f.ctypes.data)  # fmt: skip
         if status:
             raise SolverError("qpik_plan_layers: the compiled state function failed")
         return Layers(q, ok.view(bool), f)
@@ -298,7 +319,7 @@ def _library() -> ctypes.CDLL | None:
         return None
     dll = ctypes.CDLL(str(lib))
     fn = dll.qpik_plan_layers
-    fn.argtypes = [ctypes.c_void_p] * 8 + [ctypes.c_longlong] * 4 + [ctypes.c_void_p] * 3 + [ctypes.c_double]
-    fn.argtypes += [ctypes.c_void_p] * 3
+    fn.argtypes = [ctypes.c_void_p] * 8 + [ctypes.c_longlong] * 4 + [ctypes.c_void_p] * 5 + [ctypes.c_double]
+    fn.argtypes += [ctypes.c_void_p] * 5
     fn.restype = ctypes.c_int
     return dll
