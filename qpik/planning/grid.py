@@ -243,9 +243,22 @@ class Grid:
             out[m] = row[b * (n + 3) : b * (n + 3) + n]
         return out
 
+    def split_function(self) -> tuple[ca.Function, ca.Function]:
+        """:meth:`function` split at its waypoint-only part (CasADi's ``extract_parametric``): ``pre(c) -> s`` once per
+        waypoint and ``row(c, s, ψ)`` per grid value, the same outputs, with c = [T column-major (16), objective
+        params, q_ref (n), obstacle params]."""
+        fn = self._function
+        T, psi = ca.SX.sym("T", 16), ca.SX.sym(self.param_name)
+        rest = [ca.SX.sym(fn.name_in(i), fn.nnz_in(i)) for i in (2, 3, 4)]
+        fixed = ca.vertcat(T, *rest)
+        out, symbols, values = ca.extract_parametric(fn(ca.reshape(T, 4, 4), psi, *rest), fixed)
+        s = ca.vertcat(*symbols)
+        pre = ca.Function(f"{fn.name()}_pre", [fixed], [ca.densify(ca.vertcat(*values))])
+        return pre, ca.Function(f"{fn.name()}_row", [fixed, s, psi], [out])
+
     @cached_property
     def _native(self) -> _NativeLayers | None:
-        return _NativeLayers.for_grid(self, self._compiled)
+        return _NativeLayers.for_grid(self, *(Compiled(f) for f in self.split_function()))
 
     def layers(self, k0: int, k1: int) -> Layers:
         """The states of waypoints k0 .. k1 - 1 (see :class:`Layers`): only the grid values inside a branch's
@@ -268,34 +281,36 @@ class Grid:
 class _NativeLayers:
     """:meth:`Grid.layers`' C path: ``qpik_plan_layers`` (``grid.c``) calling the row function's generated C."""
 
-    def __init__(self, dll: ctypes.CDLL, rows: ctypes.CDLL, fn: ca.Function, grid: Grid):
-        self._dll, self._rows = dll, rows  # the entry point lives as long as its library
+    def __init__(self, dll: ctypes.CDLL, libs: list[ctypes.CDLL], pre: ca.Function, row: ca.Function, grid: Grid):
+        self._dll, self._libs = dll, libs  # the entry points live as long as their libraries
         self.B, self.G, self.n, self.d_safe = grid.rows, grid.G, grid.robot.dof, grid.d_safe
         self.values = np.ascontiguousarray(grid.values, float)
         self.root, self.shift = (np.ascontiguousarray(x, np.int64) for x in grid.clearance_sources)
         self._clear, self._need = np.zeros((self.B, self.G)), np.zeros(self.G, np.uint8)
-        self._args = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
-        self._args[2][:], self._args[3][:], self._args[4][:] = grid.objective_params, grid.q_ref, grid.obstacles.params
-        self._row = np.zeros(fn.nnz_out(0))
-        argv = (ctypes.c_void_p * max(fn.sz_arg(), fn.n_in()))(*[a.ctypes.data for a in self._args])
-        resv = (ctypes.c_void_p * max(fn.sz_res(), fn.n_out()))(self._row.ctypes.data)
-        self._work = (argv, resv, np.zeros(max(fn.sz_iw(), 1), np.int64), np.zeros(max(fn.sz_w(), 1)))
-        entry = ctypes.cast(getattr(rows, fn.name()), ctypes.c_void_p).value
-        self._head = (entry, ctypes.addressof(argv), ctypes.addressof(resv), self._work[2].ctypes.data,
-                      self._work[3].ctypes.data, self._args[0].ctypes.data, self._args[1].ctypes.data,
-                      self._row.ctypes.data)  # fmt: skip
+        self._fixed = np.concatenate([np.zeros(16), grid.objective_params, grid.q_ref, grid.obstacles.params])
+        self._s, self._psi, self._row = np.zeros(pre.nnz_out(0)), np.zeros(1), np.zeros(row.nnz_out(0))
+        self._keep, head = [], []
+        for fn, lib, args, out in ((pre, libs[0], [self._fixed], self._s),
+                                   (row, libs[1], [self._fixed, self._s, self._psi], self._row)):  # fmt: skip
+            argv = (ctypes.c_void_p * max(fn.sz_arg(), fn.n_in()))(*[a.ctypes.data for a in args])
+            resv = (ctypes.c_void_p * max(fn.sz_res(), fn.n_out()))(out.ctypes.data)
+            iw, w = np.zeros(max(fn.sz_iw(), 1), np.int64), np.zeros(max(fn.sz_w(), 1))
+            self._keep += [argv, resv, iw, w]
+            entry = ctypes.cast(getattr(lib, fn.name()), ctypes.c_void_p).value
+            head += [entry, ctypes.addressof(argv), ctypes.addressof(resv), iw.ctypes.data, w.ctypes.data]
+        self._head = (*head, self._fixed.ctypes.data, self._psi.ctypes.data, self._row.ctypes.data)
 
     @classmethod
-    def for_grid(cls, grid: Grid, compiled: Compiled) -> _NativeLayers | None:
-        """The C path for ``grid`` with its row function ``compiled``, or None when that or ``grid.c`` is not
-        native code."""
+    def for_grid(cls, grid: Grid, pre: Compiled, row: Compiled) -> _NativeLayers | None:
+        """The C path for ``grid`` with its split row function (:meth:`Grid.split_function`) compiled, or None
+        when that or ``grid.c`` is not native code."""
         dll = _library()
-        if dll is None or compiled.library is None:
+        if dll is None or pre.library is None or row.library is None:
             return None
-        rows = ctypes.CDLL(str(compiled.library))
-        if getattr(rows, f"{compiled.fn.name()}_casadi_int_size")() != 8:  # grid.c passes 64-bit casadi_int
-            return None
-        return cls(dll, rows, compiled.fn, grid)
+        libs = [ctypes.CDLL(str(c.library)) for c in (pre, row)]
+        if any(getattr(lib, f"{c.fn.name()}_casadi_int_size")() != 8 for lib, c in zip(libs, (pre, row))):
+            return None  # grid.c passes 64-bit casadi_int
+        return cls(dll, libs, pre.fn, row.fn, grid)
 
     def __call__(self, cols: np.ndarray, inside: np.ndarray) -> Layers:
         """The states of the waypoints of ``cols`` (K, 16) (poses column-major) with ``inside`` (K, B, G)."""
@@ -319,7 +334,7 @@ def _library() -> ctypes.CDLL | None:
         return None
     dll = ctypes.CDLL(str(lib))
     fn = dll.qpik_plan_layers
-    fn.argtypes = [ctypes.c_void_p] * 8 + [ctypes.c_longlong] * 4 + [ctypes.c_void_p] * 5 + [ctypes.c_double]
+    fn.argtypes = [ctypes.c_void_p] * 13 + [ctypes.c_longlong] * 4 + [ctypes.c_void_p] * 5 + [ctypes.c_double]
     fn.argtypes += [ctypes.c_void_p] * 5
     fn.restype = ctypes.c_int
     return dll
