@@ -1,7 +1,7 @@
-"""qpik.planning.refine: the Lagrangian's Hessian assembled from the per-waypoint curvature functions equals
-CasADi's Hessian of the same NLP differentiated through its graph (peers), on a path with an obstacle near some
-waypoints, an epigraph objective, acceleration rows and a reconfiguration; and a plan with acceleration limits
-keeps them."""
+"""qpik.planning.refine: the objective's gradient, the constraints' Jacobian and the Lagrangian's Hessian
+assembled from the per-waypoint curvature functions equal CasADi's derivatives of the same NLP through its graph
+(peers), on a path with an obstacle near some waypoints, an epigraph objective, acceleration rows and a
+reconfiguration; and a plan with acceleration limits keeps them."""
 
 from __future__ import annotations
 
@@ -48,14 +48,16 @@ def peers(request):
         mp.setattr(refine, "NATIVE_WAYPOINTS", 0 if compiled else N + 1)
         problem = nlp.problem(near)
     sigma, lam = ca.MX.sym("sigma"), ca.MX.sym("lam", problem.g.numel())
+    x = problem.x
     auto = ca.Function("auto", [problem.z, problem.t, sigma, lam],
-                       [ca.triu(ca.hessian(sigma * problem.f + ca.dot(lam, problem.g), problem.x)[0])])  # fmt: skip
+                       [ca.triu(ca.hessian(sigma * problem.f + ca.dot(lam, problem.g), x)[0]), problem.f,
+                        ca.gradient(problem.f, x), problem.g, ca.jacobian(problem.g, x)])  # fmt: skip
     return problem, auto, nlp.n_t
 
 
 @settings(max_examples=10, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1))
-def test_the_assembled_hessian_equals_casadis(peers, seed):
+def test_the_assembled_derivatives_equal_casadis(peers, seed):
     problem, auto, n_t = peers
     rng = np.random.default_rng(seed)
     z = rng.uniform(-np.pi, np.pi, (1, N))
@@ -63,10 +65,13 @@ def test_the_assembled_hessian_equals_casadis(peers, seed):
     sigma = rng.uniform(0.1, 2.0)
     lam = rng.normal(size=problem.g.numel())
     x = np.concatenate([z.ravel(), t.T.ravel()])
-    mine = np.asarray(ca.densify(problem.hess_lag(x, np.zeros(0), sigma, lam)))
-    theirs = np.asarray(ca.densify(auto(z, t, sigma, lam)))
-    assert np.isfinite(theirs).all() and np.abs(theirs).max() > 0
-    assert np.allclose(mine, theirs, rtol=1e-8, atol=1e-8 * np.abs(theirs).max())
+    hess, f, grad, g, jac = (np.asarray(ca.densify(v)) for v in auto(z, t, sigma, lam))
+    p = np.zeros(0)
+    mine = [problem.hess_lag(x, p, sigma, lam), *problem.grad_f(x, p), *problem.jac_g(x, p)]
+    for a, b in zip(mine, (hess, f, grad, g, jac)):
+        a = np.asarray(ca.densify(a))
+        assert a.shape == b.shape and np.isfinite(b).all() and np.abs(b).max() > 0
+        assert np.allclose(a, b, rtol=1e-8, atol=1e-8 * np.abs(b).max())
 
 
 def test_a_plan_with_acceleration_limits_keeps_them():
