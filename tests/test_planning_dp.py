@@ -12,6 +12,7 @@ from qpik.geometry import Sphere
 from qpik.geometry.distance import ObstacleSet, distances
 from qpik.objectives import JointLimitMargin
 from qpik.planning import dp
+from qpik.planning import grid as grid_module
 from qpik.planning.grid import Grid
 
 IIWA = qpik.load_robot("iiwa14")
@@ -83,6 +84,17 @@ def test_compiled_kernel_equals_its_numpy_twin(monkeypatch):
         monkeypatch.undo()
         assert np.array_equal(native.rows, twin.rows) and np.array_equal(native.index, twin.index)
         assert native.cost == pytest.approx(twin.cost, rel=1e-12)
+
+
+def test_grid_states_in_c_equal_their_numpy_twin(monkeypatch):
+    rng = np.random.default_rng(5)
+    T = IIWA.fk(IIWA.q_home + np.linspace(0, 0.5, 7)[:, None] * rng.uniform(-1, 1, 7))
+    args = (IIWA, T, JointLimitMargin(), ObstacleSet([Sphere((0.45, 0.1, 0.7), 0.12)]), 0.02, 90, np.zeros(7))
+    native = Grid(*args).layers(1, 7)
+    monkeypatch.setattr(grid_module, "_library", lambda: None)
+    twin = Grid(*args).layers(1, 7)
+    assert np.array_equal(native.ok, twin.ok) and 0 < native.ok.sum() < native.ok.size
+    assert np.array_equal(native.f, twin.f) and np.array_equal(native.q[native.ok], twin.q[twin.ok])
 
 
 def test_grid_states_are_the_grid_values_inside_the_exact_intervals_and_clear():

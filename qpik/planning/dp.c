@@ -22,7 +22,9 @@ void qpik_dp_banded(long long B, long long G, long long n, long long O, const lo
             if (okb[d]) {
                 const double *y = qb + d * n;
                 for (long long t = 0; t < O; ++t) {
-                    long long i = ((j - offsets[t]) % G + G) % G, s = b * G + i;
+                    long long i = j - offsets[t]; /* offsets lie in (-G, G): one turn at most */
+                    i += i < 0 ? G : (i >= G ? -G : 0);
+                    long long s = b * G + i;
                     if (!isfinite(V[s]) || (best >= 0 && J[s] > best_J)) continue;
                     const double *x = qa + s * n;
                     double sq = 0.0;

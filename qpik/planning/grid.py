@@ -16,15 +16,20 @@ Kosuge 2012, eq. 7), so only the first 8 are gridded (over the whole circle); wi
 grid maps onto itself under δ → δ + π. :meth:`Grid.branch_of` gives the public branch id of
 a state.
 
-Per feasible state the compiled row function (:func:`qpik.compiled.RowMap`, one row = a
-waypoint and a parameter value, every branch at once) gives q (n,), the point objective
-f(q) (:mod:`qpik.objectives`) and the smallest capsule–obstacle distance (m).
+Per feasible state the compiled row function (one row = a waypoint and a parameter value, every
+branch at once) gives q (n,), the point objective f(q) (:mod:`qpik.objectives`) and the smallest
+capsule–obstacle distance (m). With a C compiler one loop in C (``grid.c``) calls its generated C for
+the rows where some branch is inside its feasible set and writes the states in place; without one,
+:class:`qpik.compiled.RowMap` evaluates every row and numpy sorts them.
 """
 
 from __future__ import annotations
 
+import ctypes
+import itertools
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cache, cached_property
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -32,7 +37,8 @@ import numpy as np
 from qpik import symbolic as sy
 from qpik.analytic import feasible_intervals, solver_for
 from qpik.analytic.intervals import FeasibleIntervals, wrap
-from qpik.compiled import RowMap
+from qpik.compiled import Compiled, RowMap, shared_library
+from qpik.errors import SolverError
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.selfmotion import MIRRORED
 from qpik.objectives import Context, Objective
@@ -47,16 +53,14 @@ class Layers:
     """The states of waypoints k0 .. k0 + K - 1 (:meth:`Grid.layers`).
 
     Attributes:
-        q: (K, B, G, n) configurations, rad (zeros where not feasible).
+        q: (K, B, G, n) configurations, rad (meaningful where ``ok``).
         ok: (K, B, G) feasible.
         f: (K, B, G) the point objective (0 without one; inf where not feasible).
-        clearance: (K, B, G) smallest capsule–obstacle distance, m (inf without obstacles).
     """
 
     q: np.ndarray
     ok: np.ndarray
     f: np.ndarray
-    clearance: np.ndarray
 
 
 class Grid:
@@ -103,12 +107,13 @@ class Grid:
         N, B, G = len(self.intervals), self.rows, self.G
         cells = [(k * B + b, lo, hi) for k, fi in enumerate(self.intervals) for b in range(B)
                  for lo, hi in fi.intervals[b]]  # fmt: skip
-        count = np.zeros((N * B, G + 1), np.int64)
+        inside = np.zeros((N * B, G), bool)
         if cells:
             row, lo, hi = (np.array(x) for x in zip(*cells))
-            np.add.at(count, (row, np.searchsorted(self.values, lo, "left")), 1)
-            np.add.at(count, (row, np.searchsorted(self.values, hi, "right")), -1)
-        return (np.cumsum(count[:, :G], axis=1) > 0).reshape(N, B, G)
+            start, stop = np.searchsorted(self.values, lo, "left"), np.searchsorted(self.values, hi, "right")
+            for r, a, b in zip(row.tolist(), start.tolist(), stop.tolist()):
+                inside[r, a:b] = True
+        return inside.reshape(N, B, G)
 
     @property
     def spacing(self) -> float:
@@ -144,14 +149,24 @@ class Grid:
         return k - self.rows, float(wrap(param + np.pi))
 
     @cached_property
+    def _function(self) -> ca.Function:
+        return self.function()
+
+    @cached_property
+    def _compiled(self) -> Compiled:
+        """The row function, one row per call (machine code when a compiler works)."""
+        return Compiled(self._function)
+
+    @cached_property
     def _rows(self) -> RowMap:
-        return RowMap(self.function(), shared=(2, 3, 4), chunks=ROW_CHUNKS)
+        return RowMap(self._function, shared=(2, 3, 4), chunks=ROW_CHUNKS)
 
     def function(self) -> ca.Function:
         """``(T (4x4), ψ, objective params, q_ref (n), obstacle params) -> (B·(n + 3),)``: per gridded branch,
         ``[q (n), valid and within the limits, f(q), smallest clearance (m)]``.
 
-        Branches whose link capsules always coincide (:meth:`twins`) share one distance computation."""
+        Only the branches that are their own twin (:meth:`twins`) compute distances; the others' clearance is
+        their twin's at ψ + π or ψ, another row of the grid (:meth:`clearance_sources`), and is inf here."""
         robot, n = self.robot, self.robot.dof
         T, psi = ca.SX.sym("T", 4, 4), ca.SX.sym(self.param_name)
         p = ca.SX.sym("p", self.objective_params.size)
@@ -159,25 +174,35 @@ class Grid:
         prm = ca.SX.sym("obstacles", self.obstacles.params.size)
         Q, valid, _ = self.solver.casadi_function(T, psi)
         contexts = [Context(robot, Q[b, :].T, q_ref, self.obstacles, prm) for b in range(self.rows)]
-        twin = self.twins() if len(self.obstacles) else list(range(self.rows))
+        root, _ = self.clearance_sources
         out = []
         for b, ctx in enumerate(contexts):
             ok = valid[b]
             for j in range(n):
                 ok = ok * (ctx.q[j] >= robot.q_min[j]) * (ctx.q[j] <= robot.q_max[j])
             f = self.objective.expr(ctx, p) if self.objective is not None else ca.SX(0.0)
-            d = ca.mmin(contexts[twin[b]].distances) if len(self.obstacles) else ca.SX(np.inf)
+            d = ca.mmin(ctx.distances) if len(self.obstacles) and root[b] == b else ca.SX(np.inf)
             out.append(ca.vertcat(ctx.q, ok, f, d))
         name = f"plan_states_{self.solver.kind}_{robot.name or 'robot'}"
         return ca.Function(name, [T, psi, p, q_ref, prm], [ca.densify(ca.vertcat(*out))])
 
-    def twins(self, samples: int = 16) -> list[int]:
-        """For each gridded branch, the first branch whose link capsules are at the same place for every pose
-        and parameter (itself if none): found by evaluating the capsule segments of every branch at
-        ``samples`` random poses (FK of random configurations, seeded) and parameters, equal to 1e-9 m at all.
+    @cached_property
+    def clearance_sources(self) -> tuple[np.ndarray, np.ndarray]:
+        """(B,) root and (B,) index shift: the clearance of state (k, b, i) is the root's at grid index
+        (i + shift) mod G (:meth:`twins`; every branch its own root without obstacles)."""
+        pairs = self.twins() if len(self.obstacles) else [(b, False) for b in range(self.rows)]
+        root = np.array([a for a, _ in pairs], np.int64)
+        return root, np.array([self.G // 2 if half else 0 for _, half in pairs], np.int64)
+
+    def twins(self, samples: int = 16) -> list[tuple[int, bool]]:
+        """For each gridded branch b, the first branch a and whether b's link capsules at ψ are a's at ψ + π
+        (else at ψ) for every pose and parameter ((b, False) if none): found by evaluating the capsule segments of
+        every branch at ``samples`` random poses (FK of random configurations, seeded) and parameters, equal to
+        1e-9 m at all. The grid maps onto itself under ψ → ψ + π (G even), so a twin's clearance is another row.
 
         Branches that differ only by a joint turned by π about a capsule's own axis (the S-R-S shoulder
-        (θ1 + π, −θ2, θ3 + π) and wrist (θ5 + π, −θ6, θ7 + π) pairs, with capsules on the joint axes) are twins."""
+        (θ1 + π, −θ2, θ3 + π) and wrist (θ5 + π, −θ6, θ7 + π) pairs, with capsules on the joint axes) are twins
+        at ψ; the S-R-S elbow pairs (θ4 → −θ4) are twins at ψ + π (the elbow on the same circle, half a turn on)."""
         robot = self.robot
         T, psi = ca.SX.sym("T", 4, 4), ca.SX.sym("psi")
         Q, valid, _ = self.solver.casadi_function(T, psi)
@@ -187,17 +212,20 @@ class Grid:
             segs.append(ca.vertcat(*[x for ab in robot.capsule_segments_expr(frames) for p_ in ab for x in p_]))
         probe = ca.Function("capsule_probe", [T, psi], [ca.horzcat(*segs), valid])
         rng = np.random.default_rng(0)
-        X, ok = [], []
+        X, ok = [], []  # per sample, at ψ and at ψ + π
         for _ in range(samples):
-            S, v = probe(robot.fk(rng.uniform(robot.q_min, robot.q_max)), rng.uniform(-np.pi, np.pi))
-            X.append(np.asarray(S)), ok.append(np.asarray(v).ravel()[: self.rows] > 0.5)
-        X, ok = np.array(X), np.array(ok)  # (samples, 6C, B), (samples, B)
-        twin = list(range(self.rows))
+            pose, psi0 = robot.fk(rng.uniform(robot.q_min, robot.q_max)), rng.uniform(-np.pi, np.pi)
+            pair = [probe(pose, x) for x in (psi0, psi0 + np.pi)]
+            X.append([np.asarray(S) for S, _ in pair])
+            ok.append([np.asarray(v).ravel()[: self.rows] > 0.5 for _, v in pair])
+        X, ok = np.array(X), np.array(ok)  # (samples, 2, 6C, B), (samples, 2, B)
+        twin = [(b, False) for b in range(self.rows)]
         for b in range(self.rows):
-            for a in range(b):
-                both = ok[:, a] & ok[:, b]
-                if both.sum() >= samples // 2 and np.abs(X[both, :, a] - X[both, :, b]).max() < 1e-9 and twin[a] == a:
-                    twin[b] = a
+            for a, half in itertools.product(range(b), (False, True)):
+                both = ok[:, int(half), a] & ok[:, 0, b]
+                same = both.sum() >= samples // 2 and np.abs(X[both, int(half), :, a] - X[both, 0, :, b]).max() < 1e-9
+                if same and twin[a] == (a, False):
+                    twin[b] = (a, half)
                     break
         return twin
 
@@ -207,20 +235,106 @@ class Grid:
 
     def configurations(self, ks: np.ndarray, rows: np.ndarray, index: np.ndarray) -> np.ndarray:
         """(M, n) the configurations of the states (waypoint ks, grid row, grid index) (M,) each."""
-        n = self.robot.dof
-        cols = np.ascontiguousarray(np.swapaxes(self.poses[ks], 1, 2)).reshape(len(ks), 16)
-        (out,) = self._rows(cols, self.values[index], self.objective_params, self.q_ref, self.obstacles.params)
-        return out.reshape(len(ks), self.rows, n + 3)[np.arange(len(ks)), rows, :n]
+        n, call = self.robot.dof, self._compiled
+        cols = np.swapaxes(self.poses[ks], 1, 2).reshape(len(ks), 16)
+        out = np.empty((len(ks), n))
+        for m, (T, value, b) in enumerate(zip(cols, self.values[index], rows)):
+            (row,) = call(T, np.array([value]), self.objective_params, self.q_ref, self.obstacles.params)
+            out[m] = row[b * (n + 3) : b * (n + 3) + n]
+        return out
+
+    def split_function(self) -> tuple[ca.Function, ca.Function]:
+        """:meth:`function` split at its waypoint-only part (CasADi's ``extract_parametric``): ``pre(c) -> s`` once per
+        waypoint and ``row(c, s, ψ)`` per grid value, the same outputs, with c = [T column-major (16), objective
+        params, q_ref (n), obstacle params]."""
+        fn = self._function
+        T, psi = ca.SX.sym("T", 16), ca.SX.sym(self.param_name)
+        rest = [ca.SX.sym(fn.name_in(i), fn.nnz_in(i)) for i in (2, 3, 4)]
+        fixed = ca.vertcat(T, *rest)
+        out, symbols, values = ca.extract_parametric(fn(ca.reshape(T, 4, 4), psi, *rest), fixed)
+        s = ca.vertcat(*symbols)
+        pre = ca.Function(f"{fn.name()}_pre", [fixed], [ca.densify(ca.vertcat(*values))])
+        return pre, ca.Function(f"{fn.name()}_row", [fixed, s, psi], [out])
+
+    @cached_property
+    def _native(self) -> _NativeLayers | None:
+        return _NativeLayers.for_grid(self, *(Compiled(f) for f in self.split_function()))
 
     def layers(self, k0: int, k1: int) -> Layers:
-        """The states of waypoints k0 .. k1 - 1 (see :class:`Layers`); every grid value is evaluated (all but a
-        few are inside some branch's feasible set) and only those inside count."""
+        """The states of waypoints k0 .. k1 - 1 (see :class:`Layers`): only the grid values inside a branch's
+        exact feasible set count (in C only the rows with one are evaluated; in numpy every row is)."""
         K, B, G, n = k1 - k0, self.rows, self.G, self.robot.dof
         cols = np.ascontiguousarray(np.swapaxes(self.poses[k0:k1], 1, 2)).reshape(K, 16)
+        if self._native is not None:
+            return self._native(cols, self.inside[k0:k1])
         (out,) = self._rows(np.repeat(cols, G, axis=0), np.tile(self.values, K), self.objective_params, self.q_ref,
                             self.obstacles.params)  # fmt: skip
-        out = out.reshape(K, G, B, n + 3).transpose(0, 2, 1, 3)
+        out = out.reshape(K, G, B, n + 3)
+        root, shift = self.clearance_sources
+        clear = out[:, (np.arange(G)[None, :] + shift[:, None]) % G, root[:, None], n + 2]  # (K, B, G)
+        out = out.transpose(0, 2, 1, 3)
         q = np.ascontiguousarray(out[..., :n])
-        clear = out[..., n + 2].copy()
         ok = (out[..., n] > 0.5) & self.inside[k0:k1] & (clear >= self.d_safe) & np.isfinite(out[..., n + 1])
-        return Layers(q, ok, np.where(ok, out[..., n + 1], np.inf), clear)
+        return Layers(q, ok, np.where(ok, out[..., n + 1], np.inf))
+
+
+class _NativeLayers:
+    """:meth:`Grid.layers`' C path: ``qpik_plan_layers`` (``grid.c``) calling the row function's generated C."""
+
+    def __init__(self, dll: ctypes.CDLL, libs: list[ctypes.CDLL], pre: ca.Function, row: ca.Function, grid: Grid):
+        self._dll, self._libs = dll, libs  # the entry points live as long as their libraries
+        self.B, self.G, self.n, self.d_safe = grid.rows, grid.G, grid.robot.dof, grid.d_safe
+        self.values = np.ascontiguousarray(grid.values, float)
+        self.root, self.shift = (np.ascontiguousarray(x, np.int64) for x in grid.clearance_sources)
+        self._clear, self._need = np.zeros((self.B, self.G)), np.zeros(self.G, np.uint8)
+        self._fixed = np.concatenate([np.zeros(16), grid.objective_params, grid.q_ref, grid.obstacles.params])
+        self._s, self._psi, self._row = np.zeros(pre.nnz_out(0)), np.zeros(1), np.zeros(row.nnz_out(0))
+        self._keep, head = [], []
+        for fn, lib, args, out in ((pre, libs[0], [self._fixed], self._s),
+                                   (row, libs[1], [self._fixed, self._s, self._psi], self._row)):  # fmt: skip
+            argv = (ctypes.c_void_p * max(fn.sz_arg(), fn.n_in()))(*[a.ctypes.data for a in args])
+            resv = (ctypes.c_void_p * max(fn.sz_res(), fn.n_out()))(out.ctypes.data)
+            iw, w = np.zeros(max(fn.sz_iw(), 1), np.int64), np.zeros(max(fn.sz_w(), 1))
+            self._keep += [argv, resv, iw, w]
+            entry = ctypes.cast(getattr(lib, fn.name()), ctypes.c_void_p).value
+            head += [entry, ctypes.addressof(argv), ctypes.addressof(resv), iw.ctypes.data, w.ctypes.data]
+        self._head = (*head, self._fixed.ctypes.data, self._psi.ctypes.data, self._row.ctypes.data)
+
+    @classmethod
+    def for_grid(cls, grid: Grid, pre: Compiled, row: Compiled) -> _NativeLayers | None:
+        """The C path for ``grid`` with its split row function (:meth:`Grid.split_function`) compiled, or None
+        when that or ``grid.c`` is not native code."""
+        dll = _library()
+        if dll is None or pre.library is None or row.library is None:
+            return None
+        libs = [ctypes.CDLL(str(c.library)) for c in (pre, row)]
+        if any(getattr(lib, f"{c.fn.name()}_casadi_int_size")() != 8 for lib, c in zip(libs, (pre, row))):
+            return None  # grid.c passes 64-bit casadi_int
+        return cls(dll, libs, pre.fn, row.fn, grid)
+
+    def __call__(self, cols: np.ndarray, inside: np.ndarray) -> Layers:
+        """The states of the waypoints of ``cols`` (K, 16) (poses column-major) with ``inside`` (K, B, G)."""
+        K, B, G, n = len(cols), self.B, self.G, self.n
+        q, ok, f = np.empty((K, B, G, n)), np.empty((K, B, G), np.uint8), np.empty((K, B, G))
+        inside = np.ascontiguousarray(inside, np.uint8)
+        status = self._dll.qpik_plan_layers(*self._head, K, B, G, n, cols.ctypes.data, self.values.ctypes.data,
+                                            inside.ctypes.data, self.root.ctypes.data, self.shift.ctypes.data,
+                                            self.d_safe, self._clear.ctypes.data, self._need.ctypes.data,
+                                            q.ctypes.data, ok.ctypes.data, f.ctypes.data)  # fmt: skip
+        if status:
+            raise SolverError("qpik_plan_layers: the compiled state function failed")
+        return Layers(q, ok.view(bool), f)
+
+
+@cache
+def _library() -> ctypes.CDLL | None:
+    """``grid.c`` compiled (cached on disk by :func:`qpik.compiled.shared_library`), or None without a compiler."""
+    lib = shared_library("qpik_plan_layers", Path(__file__).with_name("grid.c").read_bytes())
+    if lib is None:
+        return None
+    dll = ctypes.CDLL(str(lib))
+    fn = dll.qpik_plan_layers
+    fn.argtypes = [ctypes.c_void_p] * 13 + [ctypes.c_longlong] * 4 + [ctypes.c_void_p] * 5 + [ctypes.c_double]
+    fn.argtypes += [ctypes.c_void_p] * 5
+    fn.restype = ctypes.c_int
+    return dll

@@ -26,8 +26,28 @@ limits), with the pose as an equality at every waypoint, :math:`[p_k^* - p(q_k);
 Sparse by construction: the per-waypoint closed form (or pose error), objective and distances are
 one CasADi ``Function`` mapped over the waypoints of each run of one branch row (``Function.map``),
 so the constraint Jacobian and the Lagrangian's Hessian are block-banded (a waypoint couples only
-with its neighbours). :attr:`Refined.start_cost` is the objective at the start (for a DP start,
-the DP's cost).
+with its neighbours).
+
+The Lagrangian's Hessian of a closed-form arm is assembled rather than differentiated through the
+graph (:meth:`PathNLP._hessian`). With multipliers σ (objective), λ (epigraph pieces and distances of
+waypoint k) and ν_k (n) on :math:`D_k = q_{k+1} - q_k` (the step bounds plus the acceleration rows
+:math:`D_{k+1}/\Delta t_{k+1} - D_k/\Delta t_k` folded onto the D they hold), and
+:math:`\eta_k = \nu_k + 2\sigma m_k D_k` (:math:`m_k` the motion weight of transition k),
+it is tridiagonal in ψ:
+
+.. math::
+
+    H_{kk} = (\eta_{k-1} - \eta_k)^T q_k'' + 2\sigma (m_{k-1} + m_k) \lVert q_k' \rVert^2
+             + \partial^2_{\psi_k}\big(\sigma w_k s + \lambda_k^T [h; d]\big),\qquad
+    H_{k,k+1} = -2\sigma m_k\, q_k'^T q_{k+1}'
+
+(the epigraph variables enter linearly: no second derivatives), with :math:`q_k', q_k''` and the last
+term from one compiled function per waypoint (:meth:`PathNLP._curvature`; machine code for paths of
+at least :data:`NATIVE_WAYPOINTS` waypoints, where compiling it once pays). The objective's gradient
+and the constraints' Jacobian are assembled from the same function's values and first derivatives
+(:meth:`PathNLP._derivatives`); CasADi differentiates the graph only for arms without a closed form.
+
+:attr:`Refined.start_cost` is the objective at the start (for a DP start, the DP's cost).
 """
 
 from __future__ import annotations
@@ -40,6 +60,7 @@ import casadi as ca
 import numpy as np
 
 from qpik.analytic.intervals import wrap
+from qpik.compiled import native
 from qpik.geometry.distance import ObstacleSet, distances
 from qpik.lie import log_expr
 from qpik.objectives import Context, Objective, pair_count
@@ -63,6 +84,9 @@ NEAR = 0.05
 at the start."""
 ROUNDS = 3
 """Solves of the NLP at most, each with the waypoints that came near an obstacle in the one before."""
+NATIVE_WAYPOINTS = 200
+"""Waypoints from which the per-waypoint curvature function runs as machine code (:func:`qpik.compiled.native`,
+compiled once per arm, branch row and objective, cached on disk); shorter paths use CasADi's virtual machine."""
 INSIDE = 1e-8
 """rad and m: the NLP keeps ψ this far inside its feasible interval (whose ends are exact to 1e-9 rad) and the
 clearance this far above d_s, so that its answer, feasible to IPOPT's tolerance, meets every check exactly."""
@@ -85,6 +109,30 @@ class Refined:
     status: str
     iterations: int
     time: float
+
+
+@dataclass
+class Problem:
+    """One NLP of :class:`PathNLP`: ``min f(x) s.t. lbg ≤ g(x) ≤ ubg`` over x = [vec(z); vec(t)] (CasADi MX).
+
+    Attributes:
+        z: (w, N) the variables per waypoint (ψ_k, or q_k without a closed form); t: (n_t, N) epigraph variables.
+        x, f, g: the variables, objective and constraints; lbg, ubg: the constraints' bounds.
+        hess_lag: IPOPT's ``(x, p, σ, λ) -> triu(∇²(σ f + λᵀ g))`` assembled by :meth:`PathNLP._hessian`
+            (closed-form arms), or None (CasADi differentiates the graph).
+        grad_f, jac_g: ``(x, p) -> (f, ∇f)`` and ``(x, p) -> (g, ∂g/∂x)`` assembled likewise, or None.
+    """
+
+    z: ca.MX
+    t: ca.MX
+    x: ca.MX
+    f: ca.MX
+    g: ca.MX
+    lbg: np.ndarray
+    ubg: np.ndarray
+    hess_lag: ca.Function | None = None
+    grad_f: ca.Function | None = None
+    jac_g: ca.Function | None = None
 
 
 def interval_bounds(grid: Grid, rows: np.ndarray, param: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -186,6 +234,131 @@ class PathNLP:
         self._points[key] = ca.Function(name, [cols, z, t, p, q_ref, prm], [q, cost, g_epi, ca.vertcat(*g)])
         return self._points[key]
 
+    def _curvature(self, b: int, near: bool) -> ca.Function:
+        """``(T, ψ, t, p, q_ref, obstacle params, a, λ_E, λ_d) -> (q, q', q'', ∂²/∂ψ² (a·cost + λ_Eᵀ E + λ_dᵀ d),
+        ∂[cost; E; d]/∂ψ, ∂cost/∂t, [cost; E; d])`` of one waypoint on row b of a closed-form arm (λ_d: the distances'
+        multipliers if ``near``, else empty); machine code for long paths (:data:`NATIVE_WAYPOINTS`)."""
+        key = (b, near, "curvature")
+        if key in self._points:
+            return self._points[key]
+        point = self._point(b, near)
+        args = [ca.SX.sym(point.name_in(i), point.sparsity_in(i)) for i in range(point.n_in())]
+        q, cost, epi, g = point(*args)
+        z, t = args[1], args[2]
+        a, lam_e, lam_d = ca.SX.sym("a"), ca.SX.sym("lam_e", epi.numel()), ca.SX.sym("lam_d", g.numel())
+        qp = ca.jacobian(q, z)
+        lag = a * cost + ca.dot(lam_e, epi) + ca.dot(lam_d, g)
+        fn = ca.Function(f"{point.name()}_curvature", [*args, a, lam_e, lam_d],
+                         [q, qp, ca.jacobian(qp, z), ca.hessian(lag, z)[0], ca.jacobian(ca.vertcat(cost, epi, g), z),
+                          ca.jacobian(cost, t).T, ca.vertcat(cost, epi, g)])  # fmt: skip
+        self._points[key] = native(fn) if len(self.rows) >= NATIVE_WAYPOINTS else fn
+        return self._points[key]
+
+    def _hessian(self, z: ca.MX, t: ca.MX, near: np.ndarray, sizes: list[int]) -> ca.Function:
+        """IPOPT's ``hess_lag`` of a closed-form arm (the module docstring): ``(x, p, σ, λ) -> triu(H)``, with the
+        constraints in :meth:`_solve`'s order (epigraph pieces, per run [distances], D, acceleration rows)
+        of ``sizes`` entries each."""
+        tr, N, n = self.tr, len(self.rows), self.n
+        sigma, lam = ca.MX.sym("sigma"), ca.MX.sym("lam", sum(sizes))
+        parts = ca.vertsplit(lam, list(np.cumsum([0, *sizes])))
+        Q, Qp, Qpp, Hp, _, _, _ = self._pieces(z, t, near, sigma, parts)
+        m = ca.DM(self.tr.motion * self.continuous).T  # (1, N-1)
+        nu = ca.reshape(parts[len(sizes) - (2 if self._accelerations else 1)], n, N - 1)
+        if self._accelerations:
+            lam_a = ca.reshape(parts[-1], n, N - 2)
+            inv_dt = ca.repmat(ca.DM(1.0 / tr.dt).T, n, 1)
+            zero = ca.MX(n, 1)
+            nu = nu + ca.horzcat(zero, lam_a * inv_dt[:, 1:]) - ca.horzcat(lam_a * inv_dt[:, :-1], zero)
+        eta = nu + 2 * sigma * (Q[:, 1:] - Q[:, :-1]) * ca.repmat(m, n, 1)
+        c = ca.horzcat(ca.MX(n, 1), eta) - ca.horzcat(eta, ca.MX(n, 1))  # (n, N): η_{k-1} - η_k
+        around = ca.horzcat(0, m) + ca.horzcat(m, 0)
+        diag = Hp + ca.sum1(c * Qpp) + 2 * sigma * around * ca.sum1(Qp * Qp)
+        off = -2 * sigma * m * ca.sum1(Qp[:, :-1] * Qp[:, 1:])
+        above = np.arange(N - 1).tolist()
+        shift = ca.DM(ca.Sparsity.triplet(N, N, above, [k + 1 for k in above]), 1.0)  # ones on the superdiagonal
+        H = ca.diag(diag.T) + ca.mtimes(ca.diag(ca.horzcat(off, 0).T), shift)
+        x = ca.vertcat(ca.vec(z), ca.vec(t))
+        full = ca.diagcat(H, ca.MX(self.n_t * N, self.n_t * N))
+        return ca.Function("plan_hess_lag", [x, ca.MX.sym("p", 0), sigma, lam], [full])
+
+    def _pieces(self, z: ca.MX, t: ca.MX, near: np.ndarray, sigma: ca.MX, parts: list[ca.MX]):
+        """:meth:`_curvature` over the runs: Q, Q', Q'' (n, N), the second derivatives (1, N) at the multipliers
+        σ and ``parts`` (:meth:`_hessian`), the first derivatives ∂[cost; E; d]/∂ψ of each run, ∂cost/∂t (n_t, N)
+        and the values [cost; E; d] of each run."""
+        N = len(self.rows)
+        lam_e = ca.reshape(parts[0], -1, N)
+        cols = np.ascontiguousarray(np.swapaxes(self.poses, 1, 2)).reshape(N, 16).T
+        weight = ca.DM(self.tr.point).T
+        Q, Qp, Qpp, Hp, grads, cost_t, values = [], [], [], [], [], [], []
+        for i, (a, b) in enumerate(self._runs(near)):
+            lam_d = ca.reshape(parts[1 + i], -1, b - a) if near[a] else ca.MX(0, b - a)
+            mapped = self._curvature(int(self.rows[a]), bool(near[a])).map(b - a, "serial")
+            out = mapped(ca.DM(cols[:, a:b]), z[:, a:b], t[:, a:b], self.p_obj, self.q_ref, self.obstacles.params,
+                         sigma * weight[:, a:b], lam_e[:, a:b], lam_d)  # fmt: skip
+            for acc, x in zip((Q, Qp, Qpp, Hp, grads, cost_t, values), out):
+                acc.append(x)
+        return (*(ca.horzcat(*x) for x in (Q, Qp, Qpp, Hp)), grads, ca.horzcat(*cost_t), values)
+
+    def _derivatives(self, nlp: Problem, near: np.ndarray, sizes: list[int]) -> tuple[ca.Function, ca.Function]:
+        """IPOPT's ``grad_f`` ``(x, p) -> (f, ∇f)`` and ``jac_g`` ``(x, p) -> (g, ∂g/∂x)`` of a closed-form arm,
+        assembled from :meth:`_curvature`'s first derivatives: q_k depends on ψ_k alone, so the rows of waypoint
+        k's pieces and distances hold ψ_k, D_k holds ψ_k and ψ_{k+1}, an acceleration row three neighbours."""
+        tr, N, n, n_t = self.tr, len(self.rows), self.n, self.n_t
+        z, t = nlp.z, nlp.t
+        zeros = [ca.MX(size, 1) for size in sizes]
+        Q, Qp, _, _, grads, cost_t, values = self._pieces(z, t, near, ca.MX(0.0), zeros)
+        n_e = sizes[0] // N
+        weight = ca.DM(tr.point).T
+        m = ca.DM(tr.motion * self.continuous).T
+        eta = 2 * (Q[:, 1:] - Q[:, :-1]) * ca.repmat(m, n, 1)
+        c = ca.horzcat(ca.MX(n, 1), eta) - ca.horzcat(eta, ca.MX(n, 1))
+        dcost = ca.horzcat(*[g_[0, :] for g_ in grads])
+        grad = ca.vertcat(ca.vec(ca.sum1(c * Qp) + weight * dcost), ca.vec(cost_t * ca.repmat(weight, n_t, 1)))
+        f = self._cost(Q, ca.horzcat(*[v[0, :] for v in values]))
+        D = Q[:, 1:] - Q[:, :-1]
+        g = [ca.vec(ca.horzcat(*[v[1 : 1 + n_e, :] for v in values]))]
+        g += [ca.vec(v[1 + n_e :, :]) for v, (a, _) in zip(values, self._runs(near)) if near[a]]
+        g.append(ca.vec(D))
+        if self._accelerations:
+            V = D / ca.repmat(ca.DM(tr.dt).T, n, 1)
+            g.append(ca.vec(V[:, 1:] - V[:, :-1]))
+
+        def spread(values: ca.MX, cols: np.ndarray) -> ca.MX:
+            """(R, N): row r holds values[r] in column cols[r]."""
+            R = values.numel()
+            return ca.mtimes(ca.diag(values), ca.DM(ca.Sparsity.triplet(R, N, list(range(R)), cols.tolist()), 1.0))
+
+        k = np.arange(N)
+        blocks = []
+        dE = ca.horzcat(*[g_[1 : 1 + n_e, :] for g_ in grads])
+        owner = np.repeat(np.arange(len(self.sizes)), self.sizes)  # the maximum of each piece
+        rows_t = np.arange(N * n_e)
+        cols_t = (rows_t // max(n_e, 1)) * n_t + owner[rows_t % max(n_e, 1)] if n_e else rows_t
+        Jt = ca.DM(ca.Sparsity.triplet(N * n_e, N * n_t, rows_t.tolist(), cols_t.tolist()), -1.0)
+        blocks.append(ca.horzcat(spread(ca.vec(dE), np.repeat(k, n_e)), Jt))
+        for g_, (a, b) in zip(grads, self._runs(near)):
+            if near[a]:
+                d = g_[1 + n_e :, :]
+                blocks.append(ca.horzcat(spread(ca.vec(d), np.repeat(k[a:b], d.size1())),
+                                         ca.MX(d.numel(), N * n_t)))  # fmt: skip
+        step = np.repeat(k[:-1], n)
+        J_D = spread(ca.vec(Qp[:, 1:]), step + 1) - spread(ca.vec(Qp[:, :-1]), step)
+        blocks.append(ca.horzcat(J_D, ca.MX(n * (N - 1), N * n_t)))
+        if self._accelerations:
+            inv = ca.repmat(ca.DM(1.0 / tr.dt).T, n, 1)  # (n, N-1)
+            step = np.repeat(k[:-2], n)
+            J_A = (spread(ca.vec(Qp[:, 2:] * inv[:, 1:]), step + 2) + spread(ca.vec(Qp[:, :-2] * inv[:, :-1]), step)
+                   - spread(ca.vec(Qp[:, 1:-1] * (inv[:, 1:] + inv[:, :-1])), step + 1))  # fmt: skip
+            blocks.append(ca.horzcat(J_A, ca.MX(n * (N - 2), N * n_t)))
+        p = ca.MX.sym("p", 0)
+        return (ca.Function("plan_grad_f", [nlp.x, p], [f, grad]),
+                ca.Function("plan_jac_g", [nlp.x, p], [ca.vertcat(*g), ca.vertcat(*blocks)]))  # fmt: skip
+
+    @property
+    def _accelerations(self) -> bool:
+        """Whether the NLP has the acceleration rows (times and ``a_max``, at least three waypoints)."""
+        return self.tr.a_max is not None and len(self.rows) > 2
+
     def _runs(self, near: np.ndarray) -> list[tuple[int, int]]:
         """(start, stop) of the runs of equal rows and equal ``near``."""
         cut = np.flatnonzero((np.diff(self.rows) != 0) | (np.diff(near.astype(int)) != 0)) + 1
@@ -258,8 +431,9 @@ class PathNLP:
         motion = ca.sum2(ca.sum1(D * D) * ca.DM(self.tr.motion * self.continuous).T)
         return motion + ca.sum2(cost_pt * ca.DM(self.tr.point).T)
 
-    def _solve(self, z0: np.ndarray, lo: np.ndarray, hi: np.ndarray, near: np.ndarray):
-        tr, N = self.tr, len(self.rows)
+    def problem(self, near: np.ndarray) -> Problem:
+        """The NLP with the clearance constraints of the waypoints ``near`` (N,) (see :class:`Problem`)."""
+        tr = self.tr
         z, t, Q, cost_pt, E, others = self._graph(near)
         D = Q[:, 1:] - Q[:, :-1]  # (n, N-1)
         f = self._cost(Q, cost_pt)
@@ -273,19 +447,32 @@ class PathNLP:
             ubg.append(np.tile(np.r_[np.full(d, np.inf), np.zeros(n_eq)], b - a))
         step = np.where(self.continuous[:, None], tr.step, np.inf)  # (N-1, n)
         g_parts.append(ca.vec(D)), lbg.append(-step.ravel()), ubg.append(step.ravel())
-        if tr.a_max is not None and N > 2:
-            V = D / ca.DM(tr.dt).T
+        if self._accelerations:
+            V = D / ca.repmat(ca.DM(tr.dt).T, self.n, 1)
             both = self.continuous[1:] & self.continuous[:-1]
             bound = np.where(both[:, None], np.outer(0.5 * (tr.dt[1:] + tr.dt[:-1]), tr.a_max), np.inf)
             g_parts.append(ca.vec(V[:, 1:] - V[:, :-1])), lbg.append(-bound.ravel()), ubg.append(bound.ravel())
-        x = ca.vertcat(ca.vec(z), ca.vec(t))
-        solver = ca.nlpsol("plan_nlp", "ipopt", {"x": x, "f": f, "g": ca.vertcat(*g_parts)}, OPTIONS)
+        nlp = Problem(z, t, ca.vertcat(ca.vec(z), ca.vec(t)), f, ca.vertcat(*g_parts), np.concatenate(lbg),
+                      np.concatenate(ubg))  # fmt: skip
+        if self.grid is not None:
+            sizes = [part.numel() for part in g_parts]
+            nlp.hess_lag = self._hessian(z, t, near, sizes)
+            nlp.grad_f, nlp.jac_g = self._derivatives(nlp, near, sizes)
+        return nlp
+
+    def _solve(self, z0: np.ndarray, lo: np.ndarray, hi: np.ndarray, near: np.ndarray):
+        N = len(self.rows)
+        nlp = self.problem(near)
+        options = dict(OPTIONS)
+        if nlp.hess_lag is not None:
+            options.update(hess_lag=nlp.hess_lag, grad_f=nlp.grad_f, jac_g=nlp.jac_g)
+        solver = ca.nlpsol("plan_nlp", "ipopt", {"x": nlp.x, "f": nlp.f, "g": nlp.g}, options)
         t0 = self._least_t(z0)
-        start = float(ca.Function("f", [z, t], [f])(z0, t0))
+        start = float(ca.Function("f", [nlp.z, nlp.t], [nlp.f])(z0, t0))
         x0 = np.concatenate([z0.T.ravel(), t0.T.ravel()])
         lbx = np.concatenate([lo.T.ravel(), np.full(self.n_t * N, -np.inf)])
         ubx = np.concatenate([hi.T.ravel(), np.full(self.n_t * N, np.inf)])
-        sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=np.concatenate(lbg), ubg=np.concatenate(ubg))
+        sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=nlp.lbg, ubg=nlp.ubg)
         stats = solver.stats()
         zs = np.clip(np.asarray(sol["x"]).ravel()[: self.width * N].reshape(N, self.width).T, lo, hi)
         return zs, start, int(stats.get("iter_count", 0)), str(stats.get("return_status", ""))
