@@ -164,7 +164,8 @@ def test_objective_task_is_the_weighted_gradient(name):
     def value(q):
         half = 0.5 * (robot.q_max - robot.q_min)
         g = np.concatenate([(q - robot.q_min) / half, (robot.q_max - q) / half])
-        d = distances(robot.capsule_segments(q), robot.capsule_radii, ball).d.ravel()
+        moving = ~robot.fixed_capsules  # the clearance objectives read the capsules a joint moves
+        d = distances(robot.capsule_segments(q)[moving], robot.capsule_radii[moving], ball).d.ravel()
         soft = np.log(np.exp(-20 * g).sum()) / 20 + 2 * np.log(np.exp(-100 * np.r_[d, 0.5]).sum()) / 100
         return soft + 0.5 * np.sum((q - robot.q_home) ** 2)
 
