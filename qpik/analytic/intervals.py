@@ -23,6 +23,7 @@ import numpy as np
 from qpik import symbolic as sy
 from qpik.compiled import Compiled, shared_library
 from qpik.errors import InputError, SolverError
+from qpik.fastcall import extension
 from qpik.validate import finite_array, number
 
 if TYPE_CHECKING:
@@ -171,6 +172,8 @@ class _NativeSets:
             int(shift),
         )
         self._grow(64, 4)
+        ext = extension()
+        self._lists = None if ext is None else ext.circle_lists  # the lists built in C, else below
 
     @classmethod
     def for_function(
@@ -211,6 +214,8 @@ class _NativeSets:
         m = self._dll.qpik_circle_sets(*self._head, *self._tail)
         if m < 0:
             raise SolverError(f"qpik_circle_sets failed ({m}: -1 no room, -2 the IK failed, -3 no memory)")
+        if self._lists is not None:
+            return self._lists(self._iv, self._count, self._sv, self._scount, ns)
         ends = iter(self._iv[: 2 * m].tolist())
         pieces = list(zip(ends, ends))
         bounds = [0, *accumulate(self._count.tolist())]
