@@ -95,7 +95,9 @@ class Assembler:
     classifies the gap; each branch's set is its runs of feasible gaps (:func:`gaps`,
     :func:`merge`). With ``shift``, the sets moved by π follow as rows ``rows..2 rows``
     (:func:`shift`). With a C compiler this runs in ``intervals.c``, which calls the IK's
-    generated C directly (a gap costs one IK evaluation, no Python); without one,
+    generated C directly (a gap costs one IK evaluation, no Python), and the compiled
+    extension turns its arrays into the result lists (:mod:`qpik.fastcall`, ``circle_lists``;
+    in Python without the extension); without a compiler,
     in numpy over :meth:`~qpik.analytic.solver.AnalyticSolver.flags_many`. Both paths
     are checked against dense sampling in the tests.
 
@@ -139,7 +141,8 @@ class Assembler:
 
 
 class _NativeSets:
-    """:class:`Assembler`'s C path: ``qpik_circle_sets`` (``intervals.c``) calling the IK's generated C."""
+    """:class:`Assembler`'s C path: ``qpik_circle_sets`` (``intervals.c``) calling the IK's generated C; its
+    arrays become lists in the compiled extension (``circle_lists`` of :mod:`qpik.fastcall`) when there is one."""
 
     def __init__(
         self,
