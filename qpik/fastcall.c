@@ -345,7 +345,74 @@ static PyObject *module_vector_ok(PyObject *mod, PyObject *const *args, Py_ssize
     Py_RETURN_TRUE;
 }
 
+/* Array a as a C-contiguous aligned 1-D array of type t with at least n entries, or NULL (TypeError set). */
+static void *vector_of(PyObject *a, int t, Py_ssize_t n, const char *what) {
+    PyArrayObject *arr = (PyArrayObject *)a;
+    if (!PyArray_CheckExact(a) || PyArray_TYPE(arr) != t || !PyArray_IS_C_CONTIGUOUS(arr) || !PyArray_ISALIGNED(arr) ||
+        PyArray_NDIM(arr) != 1 || PyArray_DIMS(arr)[0] < n) {
+        PyErr_Format(PyExc_TypeError, "circle_lists: %s is not a 1-D array of the expected type and size", what);
+        return NULL;
+    }
+    return PyArray_DATA(arr);
+}
+
+/* circle_lists(iv, count, sv, scount, ns): the output of qpik_circle_sets (qpik/analytic/intervals.c) as Python
+ * lists, per row r: its count[r] pieces (lo, hi) (pairs one row after the other in iv, float64) and its
+ * scount[r] singular values (sv[r * ns ...]); count and scount are C ints, one per row. */
+static PyObject *module_circle_lists(PyObject *mod, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 5) {
+        PyErr_SetString(PyExc_TypeError, "circle_lists(iv, count, sv, scount, ns)");
+        return NULL;
+    }
+    Py_ssize_t ns = PyLong_AsSsize_t(args[4]);
+    if (ns == -1 && PyErr_Occurred()) return NULL;
+    Py_ssize_t rows = PyArray_Check(args[1]) ? PyArray_SIZE((PyArrayObject *)args[1]) : 0;
+    const int *count = vector_of(args[1], NPY_INT, rows, "count");
+    const int *scount = count ? vector_of(args[3], NPY_INT, rows, "scount") : NULL;
+    if (!scount) return NULL;
+    Py_ssize_t pieces = 0;
+    for (Py_ssize_t r = 0; r < rows; ++r) {
+        if (count[r] < 0 || scount[r] < 0 || scount[r] > ns) {
+            PyErr_SetString(PyExc_ValueError, "circle_lists: negative count or scount above ns");
+            return NULL;
+        }
+        pieces += count[r];
+    }
+    const double *iv = vector_of(args[0], NPY_DOUBLE, 2 * pieces, "iv");
+    const double *sv = iv ? vector_of(args[2], NPY_DOUBLE, rows * ns, "sv") : NULL;
+    if (!sv) return NULL;
+    PyObject *sets = PyList_New(rows), *found = PyList_New(rows);
+    if (!sets || !found) goto fail;
+    for (Py_ssize_t r = 0; r < rows; ++r) {
+        PyObject *set = PyList_New(count[r]), *vals = PyList_New(scount[r]);
+        if (set) PyList_SET_ITEM(sets, r, set);
+        if (vals) PyList_SET_ITEM(found, r, vals);
+        if (!set || !vals) goto fail;
+        for (int i = 0; i < count[r]; ++i, iv += 2) {
+            PyObject *piece = PyTuple_New(2), *a = PyFloat_FromDouble(iv[0]), *b = PyFloat_FromDouble(iv[1]);
+            if (piece) PyList_SET_ITEM(set, i, piece);
+            if (piece && a) PyTuple_SET_ITEM(piece, 0, a);
+            if (piece && b) PyTuple_SET_ITEM(piece, 1, b);
+            if (!piece || !a || !b) {
+                if (!piece) Py_XDECREF(a), Py_XDECREF(b);
+                goto fail;
+            }
+        }
+        for (int i = 0; i < scount[r]; ++i) {
+            PyObject *x = PyFloat_FromDouble(sv[r * ns + i]);
+            if (!x) goto fail;
+            PyList_SET_ITEM(vals, i, x);
+        }
+    }
+    return Py_BuildValue("(NN)", sets, found);
+fail:
+    Py_XDECREF(sets), Py_XDECREF(found);
+    return NULL;
+}
+
 static PyMethodDef module_methods[] = {
+    {"circle_lists", (PyCFunction)(void (*)(void))module_circle_lists, METH_FASTCALL,
+     "The feasible sets and singular values of qpik_circle_sets as lists, per row."},
     {"vector_ok", (PyCFunction)(void (*)(void))module_vector_ok, METH_FASTCALL,
      "Whether q is a float64 1-D array of n finite entries."},
     {"pose_ok", module_pose_ok, METH_O, "Whether a float64 (4, 4) array is a finite pose with an orthonormal rotation."},

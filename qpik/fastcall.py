@@ -5,7 +5,9 @@ kernel's 0.1 µs, and a ctypes call about as much: argument marshalling and disp
 extension's :class:`Kernel` holds the generated function's entry point (from the shared
 library :mod:`qpik.compiled` built) with its work arrays and numpy buffers, copies the
 arguments in C, checks them there where asked (finite, a pose's rotation orthonormal) and
-returns new arrays or writes into the caller's (see ``fastcall.c``).
+returns new arrays or writes into the caller's (see ``fastcall.c``). Its module functions check
+inputs in C (``pose_ok``, ``vector_ok``: :mod:`qpik.validate`) and turn the arrays of the feasible-set
+C code into Python lists (``circle_lists``: :class:`qpik.analytic.intervals.Assembler`).
 
 The extension is compiled once by the system C compiler against this Python's and numpy's
 headers and cached with the other libraries (:func:`qpik.compiled.shared_library`). Without

@@ -126,3 +126,30 @@ def test_fast_paths_reject_bad_input_with_the_python_errors():
         qpik.ik(robot, T, 0.1)
     sols = qpik.ik(robot, T, 0.1, project=True)  # projection stays on the Python path
     assert sols.q.shape == (8, 7)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=SEEDS)
+def test_circle_lists_reads_the_rows_back(seed):
+    """circle_lists against the layout qpik_circle_sets writes: row r's pieces after the rows before it, its
+    singular values at r * ns."""
+    rng = np.random.default_rng(seed)
+    rows, ns = int(rng.integers(1, 6)), int(rng.integers(0, 4))
+    count, scount = rng.integers(0, 4, rows).astype(np.intc), rng.integers(0, ns + 1, rows).astype(np.intc)
+    iv, sv = rng.normal(size=2 * int(count.sum()) + 3), rng.normal(size=rows * ns + 1)
+    sets, found = extension().circle_lists(iv, count, sv, scount, ns)
+    starts = np.concatenate([[0], np.cumsum(count)])
+    for r in range(rows):
+        assert sets[r] == [(iv[2 * i], iv[2 * i + 1]) for i in range(starts[r], starts[r + 1])]
+        assert found[r] == sv[r * ns : r * ns + scount[r]].tolist()
+
+
+def test_circle_lists_rejects_what_it_does_not_take():
+    circle_lists = extension().circle_lists
+    count = np.ones(2, np.intc)
+    with pytest.raises(TypeError, match="iv"):
+        circle_lists(np.zeros(3), count, np.zeros(2), np.zeros(2, np.intc), 1)  # 2 rows of 1 piece need 4
+    with pytest.raises(TypeError, match="count"):
+        circle_lists(np.zeros(4), count.astype(float), np.zeros(2), np.zeros(2, np.intc), 1)
+    with pytest.raises(ValueError, match="scount"):
+        circle_lists(np.zeros(4), count, np.zeros(2), np.full(2, 2, np.intc), 1)

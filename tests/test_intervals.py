@@ -74,7 +74,8 @@ def test_contains_and_measure():
 
 
 def _assemblers():
-    """nammoto7's solver and its Assembler of rows 1–8 with the sets moved by π: the C path and the numpy path."""
+    """nammoto7's solver and its Assembler of rows 1–8 with the sets moved by π: the C path (result lists built by
+    the compiled extension, or in Python) and the numpy path."""
     import qpik
     from qpik.analytic import intervals
     from qpik.analytic.api import solver_for
@@ -87,9 +88,15 @@ def _assemblers():
     finally:
         intervals._library = real
     assert numpy_path._native is None
+    real_extension, intervals.extension = intervals.extension, lambda: None
+    try:
+        python_lists = intervals.Assembler(solver, rows=8, shift=True)
+    finally:
+        intervals.extension = real_extension
     paths = {"numpy": numpy_path}
     if native._native is not None:  # the C path, where a compiler works (QPIK_NATIVE=0: the numpy path only)
         paths["C"] = native
+        paths["C, lists built in Python"] = python_lists  # as without the compiled extension (no Python headers)
     return solver, paths
 
 

@@ -29,14 +29,15 @@ def solver_for(robot: Robot) -> AnalyticSolver:
         InputError: ``robot`` is not a :class:`~qpik.robots.robot.Robot` (e.g. its name).
         NoClosedFormError: the arm has no closed form.
     """
+    solver = _instances.get(id(robot))
+    if solver is not None and solver.robot is robot:  # the common case: a robot seen before
+        return solver
     robot = as_robot(robot)
     if robot.closed_form not in _SOLVERS:
         why = robot.notes if robot.notes.startswith("no closed form") else "only offset-shoulder and S-R-S arms do"
         raise NoClosedFormError(f"{robot.name} has no closed-form IK ({why}); use qpik.solve_ik instead")
-    solver = _instances.get(id(robot))
-    if solver is None or solver.robot is not robot:
-        module, cls = _SOLVERS[robot.closed_form]
-        solver = _instances[id(robot)] = getattr(importlib.import_module(module), cls)(robot)
+    module, cls = _SOLVERS[robot.closed_form]
+    solver = _instances[id(robot)] = getattr(importlib.import_module(module), cls)(robot)
     return solver
 
 

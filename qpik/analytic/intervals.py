@@ -23,6 +23,7 @@ import numpy as np
 from qpik import symbolic as sy
 from qpik.compiled import Compiled, shared_library
 from qpik.errors import InputError, SolverError
+from qpik.fastcall import extension
 from qpik.validate import finite_array, number
 
 if TYPE_CHECKING:
@@ -94,7 +95,9 @@ class Assembler:
     classifies the gap; each branch's set is its runs of feasible gaps (:func:`gaps`,
     :func:`merge`). With ``shift``, the sets moved by π follow as rows ``rows..2 rows``
     (:func:`shift`). With a C compiler this runs in ``intervals.c``, which calls the IK's
-    generated C directly (a gap costs one IK evaluation, no Python); without one,
+    generated C directly (a gap costs one IK evaluation, no Python), and the compiled
+    extension turns its arrays into the result lists (:mod:`qpik.fastcall`, ``circle_lists``;
+    in Python without the extension); without a compiler,
     in numpy over :meth:`~qpik.analytic.solver.AnalyticSolver.flags_many`. Both paths
     are checked against dense sampling in the tests.
 
@@ -138,7 +141,8 @@ class Assembler:
 
 
 class _NativeSets:
-    """:class:`Assembler`'s C path: ``qpik_circle_sets`` (``intervals.c``) calling the IK's generated C."""
+    """:class:`Assembler`'s C path: ``qpik_circle_sets`` (``intervals.c``) calling the IK's generated C; its
+    arrays become lists in the compiled extension (``circle_lists`` of :mod:`qpik.fastcall`) when there is one."""
 
     def __init__(
         self,
@@ -171,6 +175,8 @@ class _NativeSets:
             int(shift),
         )
         self._grow(64, 4)
+        ext = extension()
+        self._lists = None if ext is None else ext.circle_lists  # the lists built in C, else below
 
     @classmethod
     def for_function(
@@ -211,6 +217,8 @@ class _NativeSets:
         m = self._dll.qpik_circle_sets(*self._head, *self._tail)
         if m < 0:
             raise SolverError(f"qpik_circle_sets failed ({m}: -1 no room, -2 the IK failed, -3 no memory)")
+        if self._lists is not None:
+            return self._lists(self._iv, self._count, self._sv, self._scount, ns)
         ends = iter(self._iv[: 2 * m].tolist())
         pieces = list(zip(ends, ends))
         bounds = [0, *accumulate(self._count.tolist())]

@@ -87,7 +87,8 @@ class DeltaIntervals:
         self.levels = [solver.levels(j) for j in range(solver.robot.dof)]  # in the table's angles
         T = ca.SX.sym("T", 4, 4)
         cand, sing, polys, kinds = self.expressions(T, sy.CASADI)
-        self._kinds = np.array(kinds)
+        # the rows of the θ7 and θ5 equations are consecutive (expressions lists them joint by joint): row ranges
+        self._wrist_rows = np.array([k for j in (7, 5) for k in _row_range(kinds, j)])
         # a breakpoint that does not exist is reported as 0, one that is always there (harmless); a singular
         # value that does not exist as NONE
         out = [
@@ -190,12 +191,11 @@ class DeltaIntervals:
     def breakpoints(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every δ (rad) where a row 1–8 can change feasibility, and those where one can turn singular."""
         cand, sing, FAt, FBt = self._fn(T)  # candidates that do not exist are 0 (always a breakpoint) or NONE
-        FA, FB = FAt.T, FBt.T
         sing = sing[sing != NONE]
-        wrist, owner = trig_roots(FA, FB)
-        kind = self._kinds[owner]
-        # sin θ6 = 0 zeroes every θ5 and θ7 equation: their common roots
-        r5, r7 = wrist[kind == 5], wrist[kind == 7]
+        wrist, owner = trig_roots(FAt.T, FBt.T)
+        # sin θ6 = 0 zeroes every θ5 and θ7 equation: their common roots (owner is ascending)
+        a7, b7, a5, b5 = np.searchsorted(owner, self._wrist_rows).tolist()
+        r5, r7 = wrist[a5:b5], wrist[a7:b7]
         if r5.size and r7.size:  # cos d > 1 − tol²/2 ⇔ |d| < tol on the circle
             close = (np.cos(r5[:, None] - r7[None, :]) > 1.0 - 0.5 * COMMON_TOL**2).any(axis=1)
             sing = np.concatenate([sing, r5[close]])
@@ -205,6 +205,14 @@ class DeltaIntervals:
         brk, sing = self.breakpoints(T)
         intervals, singular = self._assemble(T, brk, sing)  # rows 1–8, then 9–16: row 8 + k at δ is row k at δ + π
         return FeasibleIntervals(self._solver.param_name, self.branch.copy(), intervals, singular)
+
+
+def _row_range(kinds: list[int], joint: int) -> tuple[int, int]:
+    """First and one-past-last row of ``joint``'s equations (consecutive in ``kinds``), (0, 0) when it has none."""
+    rows = [k for k, j in enumerate(kinds) if j == joint]
+    if rows and rows != list(range(rows[0], rows[-1] + 1)):
+        raise QpikError(f"the equations of joint {joint} are not consecutive")
+    return (rows[0], rows[-1] + 1) if rows else (0, 0)
 
 
 def _mod_pi(levels: list[float]) -> list[float]:
