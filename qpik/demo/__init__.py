@@ -19,9 +19,14 @@ def run_all(out: Path, only: list[str] | None = None) -> None:
     Without OpenGL one line says that the pictures of the arms are skipped; the
     tables and the matplotlib plots are made all the same.
     """
+    from qpik.compiled import cache_dir, compiler
     from qpik.render import unavailable_reason
 
     out.mkdir(parents=True, exist_ok=True)
+    cache = cache_dir()
+    if compiler() and not any(cache.glob("*.so")):
+        print(f"first run: qpik compiles its functions with {compiler()} as they are first used (about 5 min on"
+              f" 2 cores), cached in {cache}; later runs take about half a minute")
     reason = unavailable_reason()
     if reason:
         print(f"pictures of the arms skipped: {reason} (tables and plots still follow)")
