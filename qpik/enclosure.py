@@ -40,7 +40,7 @@ the range's size.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import casadi as ca
@@ -402,25 +402,24 @@ def _tm_recip(y: _Model) -> _Model:
     return _choose(zero, _hull_model(box), model)
 
 
-def _tm_sqrt(x: _Model) -> _Model:
-    box = _UNARY[ca.OP_SQRT](x.box)
+def _tm_positive(x: _Model, op: int, f: Callable, df: Callable, curvature: Callable) -> _Model:
+    """A function defined for positive arguments (sqrt, log): its smooth model where the box is inside
+    the domain, with ``curvature(lo)`` bounding |f''| on the box (|f''| decreases in the argument for
+    both), else the hull of its interval bound."""
+    box = _UNARY[op](x.box)
     if x.point:
-        return _Model.of(ca.sqrt(x.c))
-    low = x.box.lo
-    inside = low > 0
-    safe = ca.if_else(inside, low, 1.0)
-    model = _smooth(x, ca.sqrt, lambda v: 0.5 / ca.sqrt(v), 0.25 / (safe * ca.sqrt(safe)), box)
-    return _choose(inside, model, _hull_model(box))
+        return _Model.of(f(x.c))
+    inside = x.box.lo > 0
+    safe = ca.if_else(inside, x.box.lo, 1.0)
+    return _choose(inside, _smooth(x, f, df, curvature(safe), box), _hull_model(box))
+
+
+def _tm_sqrt(x: _Model) -> _Model:
+    return _tm_positive(x, ca.OP_SQRT, ca.sqrt, lambda v: 0.5 / ca.sqrt(v), lambda lo: 0.25 / (lo * ca.sqrt(lo)))
 
 
 def _tm_log(x: _Model) -> _Model:
-    box = _UNARY[ca.OP_LOG](x.box)
-    if x.point:
-        return _Model.of(ca.log(x.c))
-    low = x.box.lo
-    inside = low > 0
-    safe = ca.if_else(inside, low, 1.0)
-    return _choose(inside, _smooth(x, ca.log, lambda v: 1.0 / v, 1.0 / (safe * safe), box), _hull_model(box))
+    return _tm_positive(x, ca.OP_LOG, ca.log, lambda v: 1.0 / v, lambda lo: 1.0 / (lo * lo))
 
 
 def _tm_trig(x: _Model, cosine: bool) -> _Model:
