@@ -48,7 +48,7 @@ from qpik import symbolic as sy
 from qpik.compiled import RowMap
 from qpik.enclosure import taylor_function
 from qpik.errors import InputError
-from qpik.geometry.distance import ObstacleSet, set_expr
+from qpik.geometry.distance import ObstacleSet, distances, set_expr
 from qpik.robots.manipulability import hessian_rows, jacobian_rows, manipulability_gradient_expr
 from qpik.validate import finite_array, flag, number
 
@@ -93,6 +93,16 @@ class Split:
 def pair_count(robot: Robot, obstacles: Sequence | ObstacleSet) -> int:
     """C'·O: the capsule–obstacle pairs of :attr:`Context.distances`, those of the capsules a joint moves."""
     return int(np.count_nonzero(~robot.fixed_capsules)) * len(obstacles)
+
+
+def clearance(robot: Robot, q: np.ndarray, obstacles: Sequence | ObstacleSet) -> np.ndarray:
+    """(M,) the smallest distance of the pairs of :attr:`Context.distances` at configurations q (M, n), m
+    (numpy; inf without pairs)."""
+    moving = ~robot.fixed_capsules
+    if not pair_count(robot, obstacles):
+        return np.full(len(q), np.inf)
+    d = distances(robot.capsule_segments(q)[:, moving], robot.capsule_radii[moving], obstacles).d
+    return d.reshape(len(q), -1).min(axis=1)
 
 
 class Context:

@@ -28,12 +28,12 @@ import numpy as np
 
 from qpik.analytic.intervals import wrap
 from qpik.errors import InputError, NoClosedFormError
-from qpik.geometry.distance import ObstacleSet, distances
+from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.certificate import certify as prove
 from qpik.nlp.scene import Points, Scene
 from qpik.nlp.search import SAMPLE_STEP, Pieces, candidates, onto_limits, polish, sample, split
 from qpik.nlp.selfmotion import selfmotion_of
-from qpik.objectives import Objective, ReferenceDistance, resolve
+from qpik.objectives import Objective, ReferenceDistance, clearance, resolve
 from qpik.robots.robot import Robot, as_robot
 from qpik.validate import finite_array, flag, number
 from qpik.validate import pose as check_pose
@@ -454,9 +454,7 @@ def least_violating(
         # inside the limits but never clear: the configuration with the largest clearance
         k, b = np.nonzero(within)
         Q = sol.q[k, b]
-        moving = ~robot.fixed_capsules  # the pairs of fixed capsules constrain nothing
-        d = distances(robot.capsule_segments(Q)[:, moving], robot.capsule_radii[moving], scene.obstacles).d
-        clear = d.reshape(len(Q), -1).min(axis=1)
+        clear = clearance(robot, Q, scene.obstacles)  # the pairs of fixed capsules constrain nothing
         j = int(np.argmax(clear))
         violation = max(float(scene.d_safe - clear[j]), 0.0)
         at, br, q = psi[k[j]], b[j], Q[j]

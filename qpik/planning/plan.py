@@ -25,7 +25,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from qpik.errors import InputError
-from qpik.geometry.distance import ObstacleSet, distances
+from qpik.geometry.distance import ObstacleSet
+from qpik.objectives import clearance
 from qpik.robots.robot import Robot
 from qpik.sim.log import tracking_errors
 from qpik.validate import finite_array
@@ -279,9 +280,7 @@ def measure(plan: Plan, mujoco: bool = True) -> None:
     plan.manipulability = np.asarray(robot.manipulability(q), float)
     obs = plan.obstacles
     if len(obs):
-        moving = ~robot.fixed_capsules  # a capsule no joint moves is left out, as in the planner
-        d = distances(robot.capsule_segments(q)[:, moving], robot.capsule_radii[moving], obs).d
-        plan.clearance = d.reshape(K, -1).min(axis=1)
+        plan.clearance = clearance(robot, q, obs)  # a capsule no joint moves is left out, as in the planner
         plan.clearance_mujoco = _mujoco_clearance(robot, obs, q) if mujoco else np.zeros(0)
     else:
         plan.clearance = plan.clearance_mujoco = np.full(K, np.inf)

@@ -61,9 +61,9 @@ import numpy as np
 
 from qpik.analytic.intervals import wrap
 from qpik.compiled import native
-from qpik.geometry.distance import ObstacleSet, distances
+from qpik.geometry.distance import ObstacleSet
 from qpik.lie import log_expr
-from qpik.objectives import Context, Objective, pair_count
+from qpik.objectives import Context, Objective, clearance, pair_count
 from qpik.planning.dp import Transitions
 from qpik.planning.grid import Grid
 from qpik.robots.robot import Robot
@@ -370,14 +370,6 @@ class PathNLP:
             return interval_bounds(self.grid, self.rows, z0[0])
         return np.tile(self.robot.q_min[:, None], len(self.rows)), np.tile(self.robot.q_max[:, None], len(self.rows))
 
-    def _clearance(self, q: np.ndarray) -> np.ndarray:
-        """(N,) the smallest capsule–obstacle distance of configurations q (N, n), m (inf without obstacles)."""
-        if not len(self.obstacles):
-            return np.full(len(q), np.inf)
-        moving = ~self.robot.fixed_capsules
-        d = distances(self.robot.capsule_segments(q)[:, moving], self.robot.capsule_radii[moving], self.obstacles).d
-        return d.reshape(len(q), -1).min(axis=1)
-
     def solve(self, z0: np.ndarray) -> Refined:
         """IPOPT from ``z0``: the parameters (N,) (rad; unwrapped here) or the joints (N, n) (rad)."""
         t_start = time.perf_counter()
@@ -386,13 +378,13 @@ class PathNLP:
         inward = INSIDE if self.grid is not None else 0.0
         lo, hi = np.atleast_2d(lo) + inward, np.atleast_2d(hi) - inward
         z = np.clip(z0, lo, hi)
-        near = self._clearance(self._q(z)) < self.d_safe + NEAR
+        near = clearance(self.robot, self._q(z), self.obstacles) < self.d_safe + NEAR
         start_cost, iterations = None, 0
         for _ in range(ROUNDS):
             z, cost0, its, status = self._solve(z, lo, hi, near)
             start_cost = cost0 if start_cost is None else start_cost
             iterations += its
-            grow = (self._clearance(self._q(z)) < self.d_safe + INSIDE) & ~near
+            grow = (clearance(self.robot, self._q(z), self.obstacles) < self.d_safe + INSIDE) & ~near
             if not grow.any():
                 break
             near |= grow
