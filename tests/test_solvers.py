@@ -122,6 +122,16 @@ def _stacked(qp):
     return np.vstack((np.eye(qp.n), qp.A)), np.concatenate((qp.lb, qp.l)), np.concatenate((qp.ub, qp.u))
 
 
+def _guess(qp, want, guess):
+    """The start (x, y) of polish for ``guess``: "none" (x = 0, no row active), or "every bound met" at the
+    solution ``want`` (x = want, y = -1 / +1 on the rows at their lower / upper bound to 1e-9)."""
+    Abar, lo, hi = _stacked(qp)
+    if guess == "none":
+        return np.zeros(qp.n), np.zeros(len(lo))
+    z = Abar @ want
+    return want, np.where(np.abs(z - lo) < 1e-9, -1.0, np.where(np.abs(hi - z) < 1e-9, 1.0, 0.0))
+
+
 @pytest.mark.parametrize("guess", ("none", "every bound met"))
 def test_polish_completes_any_guess_exactly(recorded, guess):
     """polish is exact from any active-set guess, not only ADMM's: from none (every active
@@ -133,11 +143,8 @@ def test_polish_completes_any_guess_exactly(recorded, guess):
         for qp, _ in run:
             want = ref.solve(qp).x
             Abar, lo, hi = _stacked(qp)
-            z = Abar @ want
-            y = np.zeros(len(z))
-            if guess != "none":
-                y = np.where(np.abs(z - lo) < 1e-9, -1.0, np.where(np.abs(hi - z) < 1e-9, 1.0, 0.0))
-            got = polish(qp.P, qp.c, Abar, lo, hi, want if guess != "none" else np.zeros(qp.n), y, max_steps=100)
+            x, y = _guess(qp, want, guess)
+            got = polish(qp.P, qp.c, Abar, lo, hi, x, y, max_steps=100)
             assert got is not None
             np.testing.assert_allclose(got, want, atol=1e-8)
             steps_needed += polish(qp.P, qp.c, Abar, lo, hi, np.zeros(qp.n), y, max_steps=0) is None
@@ -158,11 +165,7 @@ def test_compiled_polish_equals_daqp(recorded, guess):
         for qp, _ in run:
             want = ref.solve(qp).x
             Abar, lo, hi = _stacked(qp)
-            z = Abar @ want
-            y = np.zeros(len(z))
-            if guess != "none":
-                y = np.where(np.abs(z - lo) < 1e-9, -1.0, np.where(np.abs(hi - z) < 1e-9, 1.0, 0.0))
-            x = want if guess != "none" else np.zeros(qp.n)
+            x, y = _guess(qp, want, guess)
             got = compiled(qp.P, qp.c, np.ascontiguousarray(Abar.T), lo, hi, x, y, 1e-9, 100)
             assert got is not None
             np.testing.assert_allclose(got, want, atol=1e-8)
