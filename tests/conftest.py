@@ -23,6 +23,8 @@ the helpers with ``from conftest import ...``):
 - ``q_within_limits(robot)``: a hypothesis strategy of one ``(7,)``
   configuration inside the limits (shrinks joint by joint), for tests that
   need single draws.
+- ``matrix_function(name)``: a small CasADi function with non-symmetric matrix inputs and
+  outputs, for the compiled-call tests (a row/column-major mix-up changes its answer).
 - ``fd(f, q, eps=1e-6)``: central finite differences of any ``f(q) -> array``;
   works on one ``q`` (n,) and on a batch ``(N, n)`` when ``f`` is batched.
   Returns ``(..., n)`` with the derivative index last: for ``f`` returning
@@ -42,6 +44,7 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 import pytest
 from hypothesis import settings
@@ -63,6 +66,13 @@ settings.register_profile("explore", derandomize=False)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "reproducible"))
 
 
+
+
+def matrix_function(name: str = "f") -> ca.Function:
+    """Non-symmetric matrix and vector in; matrix, vector and row out: catches row/column-major mix-ups."""
+    A = ca.SX.sym("A", 2, 3)
+    x = ca.SX.sym("x", 3)
+    return ca.Function(name, [A, x], [ca.mtimes(A, x), ca.sin(A).T @ A, ca.sum1(x) * ca.DM([[1, 2, 3]])])
 
 
 def packaged(key: str) -> Path:

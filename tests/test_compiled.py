@@ -4,17 +4,10 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
-from conftest import SEEDS
+from conftest import SEEDS, matrix_function
 from hypothesis import given, settings
 
 from qpik.compiled import Compiled
-
-
-def matrix_function() -> ca.Function:
-    """Non-symmetric matrix in, matrix and vector out: catches row/column-major mix-ups."""
-    A = ca.SX.sym("A", 2, 3)
-    x = ca.SX.sym("x", 3)
-    return ca.Function("f", [A, x], [ca.mtimes(A, x), ca.sin(A).T @ A, ca.sum1(x) * ca.DM([[1, 2, 3]])])
 
 
 @settings(max_examples=20, deadline=None)

@@ -3,10 +3,9 @@ qpik.validate, caller-owned outputs; and the paths that use it against the gener
 
 from __future__ import annotations
 
-import casadi as ca
 import numpy as np
 import pytest
-from conftest import SEEDS
+from conftest import SEEDS, matrix_function
 from hypothesis import given, settings
 
 import qpik
@@ -17,18 +16,11 @@ from qpik.validate import single_pose
 pytestmark = pytest.mark.skipif(extension() is None, reason="no compiled extension (QPIK_NATIVE=0 or no compiler)")
 
 
-def matrix_function() -> ca.Function:
-    """Non-symmetric matrix and vector in; matrix, vector and row out: catches row/column-major mix-ups."""
-    A = ca.SX.sym("A", 2, 3)
-    x = ca.SX.sym("x", 3)
-    return ca.Function("fastcall_f", [A, x], [ca.mtimes(A, x), ca.sin(A).T @ A, ca.sum1(x) * ca.DM([[1, 2, 3]])])
-
-
 @settings(max_examples=20, deadline=None)
 @given(seed=SEEDS)
 def test_fresh_equals_casadi(seed):
     rng = np.random.default_rng(seed)
-    f = matrix_function()
+    f = matrix_function("fastcall_f")
     kernel = Compiled(f).fast()
     A, x = rng.normal(size=(2, 3)), rng.normal(size=3)
     got = kernel.fresh(A, x)
@@ -41,7 +33,7 @@ def test_fresh_equals_casadi(seed):
 
 
 def test_fresh_returns_none_for_what_it_does_not_take():
-    kernel = Compiled(matrix_function()).fast()
+    kernel = Compiled(matrix_function("fastcall_f")).fast()
     A, x = np.ones((2, 3)), np.ones(3)
     bad = x.copy()
     bad[1] = np.nan
@@ -51,7 +43,7 @@ def test_fresh_returns_none_for_what_it_does_not_take():
 
 
 def test_into_writes_the_callers_arrays():
-    kernel = Compiled(matrix_function()).fast()
+    kernel = Compiled(matrix_function("fastcall_f")).fast()
     A, x = np.arange(6.0).reshape(2, 3), np.array([1.0, -2.0, 0.5])
     outs = (np.empty(2), np.empty((3, 3)), np.empty((1, 3)))
     assert kernel.into(outs, A, x) is outs
