@@ -5,7 +5,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
-from conftest import SEEDS, random_robot
+from conftest import SEEDS, mujoco_poses, random_robot
 from hypothesis import given, settings
 
 from qpik.robots.catalog import CATALOG, load_robot
@@ -13,19 +13,6 @@ from qpik.robots.robot import Robot
 
 ARMS = sorted(CATALOG)
 BATCH = 300
-
-
-def _site_poses(model: mujoco.MjModel, qs: np.ndarray) -> np.ndarray:
-    data = mujoco.MjData(model)
-    sid = model.site("ee").id
-    out = np.zeros((len(qs), 4, 4))
-    for i, q in enumerate(qs):
-        data.qpos[:] = q
-        mujoco.mj_kinematics(model, data)
-        out[i, :3, :3] = data.site_xmat[sid].reshape(3, 3)
-        out[i, :3, 3] = data.site_xpos[sid]
-        out[i, 3, 3] = 1.0
-    return out
 
 
 def _robots(seed: int) -> list[Robot]:
@@ -38,7 +25,7 @@ def test_ee_site_equals_fk(seed: int) -> None:
     rng = np.random.default_rng(seed)
     for robot in _robots(seed):
         qs = rng.uniform(-np.pi, np.pi, (BATCH, robot.dof))
-        got = _site_poses(robot.mj_model(), qs)
+        got = mujoco_poses(robot, qs)
         np.testing.assert_allclose(got, robot.fk(qs), atol=1e-9, err_msg=robot.name)
 
 

@@ -7,7 +7,7 @@ import xml.etree.ElementTree as ET
 import mujoco
 import numpy as np
 import pytest
-from conftest import SEEDS, random_q, random_robot
+from conftest import SEEDS, mujoco_poses, random_q, random_robot
 from hypothesis import given, settings
 
 from qpik.robots.catalog import CATALOG, load_robot
@@ -20,17 +20,7 @@ ARMS = sorted(CATALOG)
 def _mujoco_fk(robot: Robot, qs: np.ndarray) -> np.ndarray:
     """Poses (N, 4, 4) of the link ``ee`` by MuJoCo's URDF compiler (fixed bodies kept apart)."""
     xml = robot.to_urdf().replace(">", '>\n  <mujoco><compiler fusestatic="false"/></mujoco>', 1)
-    model = mujoco.MjModel.from_xml_string(xml)
-    data = mujoco.MjData(model)
-    ee = model.body("ee").id
-    out = np.zeros((len(qs), 4, 4))
-    for i, q in enumerate(qs):
-        data.qpos[:] = q
-        mujoco.mj_kinematics(model, data)
-        out[i, :3, :3] = data.xmat[ee].reshape(3, 3)
-        out[i, :3, 3] = data.xpos[ee]
-        out[i, 3, 3] = 1.0
-    return out
+    return mujoco_poses(robot, qs, mujoco.MjModel.from_xml_string(xml), body="ee")
 
 
 @pytest.mark.parametrize("name", ARMS)
