@@ -7,7 +7,7 @@ and the obstacle rows of both libraries bind in almost every step (counted, see 
 
 - qpik: :meth:`Controller.for_robot` — FrameTask, PostureTask, ManipulabilityTask
   (∇m from the kinematic Hessian), DampingTask; ConfigurationLimit, VelocityLimit and
-  ObstacleLimit (every one of the 7 capsules against every sphere: 28 rows) —
+  ObstacleLimit (every one of the 5 capsules a joint moves against every sphere: 20 rows) —
   with solver ``osqp`` (persistent), ``daqp``, ``proxqp``, ``quadprog``;
 - mink 1.3 on the MJCF twin (same kinematics): ``configuration.update(q)`` +
   ``mink.solve_ik`` with FrameTask, PostureTask, DampingTask and a manipulability task

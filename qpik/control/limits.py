@@ -242,8 +242,9 @@ class ObstacleLimit(RowLimit):
     rows never demand what only a return from a limit could give: each row alone can be met
     inside :math:`B_0`. (Several separating rows at once, or rows against a box that forces a joint
     back from past its limit toward the obstacle, can still conflict: the controller then
-    lets safety win, see :class:`~qpik.control.controller.Controller`.) A row that no joint
-    moves (a zero row, e.g. the base link and a table) is left out.
+    lets safety win, see :class:`~qpik.control.controller.Controller`.) A capsule that no joint
+    moves (the base column, :attr:`~qpik.robots.robot.Robot.fixed_capsules`) has no rows, and a row
+    that no joint moves at this configuration (a zero row) is left out.
 
     Args:
         obstacles: shapes of :mod:`qpik.geometry` (world frame).

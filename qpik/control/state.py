@@ -96,7 +96,8 @@ class Kinematics:
         The obstacle lies behind that plane and the capsule's distance to the plane is
         :math:`\min_e h_e` (an affine function of the axis point is least at an end), so
         :math:`d \ge \min_e h_e` after any motion: keeping both heights above :math:`d_s`
-        keeps the capsule there, whichever feature of the obstacle is nearest next.
+        keeps the capsule there, whichever feature of the obstacle is nearest next. A capsule no joint
+        moves (:attr:`~qpik.robots.robot.Robot.fixed_capsules`) gets no row: its distance is a constant.
         """
         from qpik.geometry.distance import SMOOTH
 
@@ -104,6 +105,8 @@ class Kinematics:
         if layout is None:
             out = []
             for c, cap in enumerate(self.robot.capsules):
+                if self.robot.fixed_capsules[c]:
+                    continue
                 point = not np.any(np.asarray(cap.p0) != np.asarray(cap.p1))
                 for o, kind in enumerate(kinds):
                     out += [(c, o, -1)] if point or kind in SMOOTH else [(c, o, 0), (c, o, 1)]
