@@ -23,9 +23,9 @@ def run_all(out: Path, only: list[str] | None = None) -> None:
     from qpik.render import unavailable_reason
 
     out.mkdir(parents=True, exist_ok=True)
-    cache = cache_dir()
-    if compiler() and not any(cache.glob("*.so")):
-        print(f"first run: qpik compiles its functions with {compiler()} as they are first used (about 5 min on"
+    cache, cc = cache_dir(), compiler()
+    if cc and not any(cache.glob("*.so")):
+        print(f"first run: qpik compiles its functions with {cc} as they are first used (about 5 min on"
               f" 2 cores), cached in {cache}; later runs take about half a minute")
     reason = unavailable_reason()
     if reason:
