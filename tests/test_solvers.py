@@ -7,10 +7,13 @@ import sys
 import casadi as ca
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_limits import D_SAFE, scene
 
 import qpik
 from qpik.control import Controller, RowLimit, VelocityLimit, get_solver
+from qpik.control.qp import QP
 from qpik.control.solvers import available
 from qpik.control.solvers.osqp import REUSED, polish
 from qpik.control.solvers.qpsolvers import QpsolversSolver
@@ -232,3 +235,28 @@ def test_failed_solve_returns_safe_velocity(name):
 def test_unknown_solver():
     with pytest.raises(SolverError, match="available"):
         get_solver("no-such-solver")
+
+
+@given(seed=st.integers(0, 2**32 - 1), rows=st.integers(0, 12))
+@settings(max_examples=60, deadline=None)
+def test_daqp_takes_absent_bounds_as_infinite(seed, rows):
+    """The direct DAQP call hands ±inf (an absent bound) to DAQP as it is: on random strictly convex QPs with
+    absent bounds (each bound absent with probability 0.4) its answer is quadprog's, through qpsolvers."""
+    rng = np.random.default_rng(seed)
+    n = 7
+    M = rng.normal(size=(n, n))
+    lo, hi = rng.uniform(-2.0, 0.0, n + rows), rng.uniform(0.0, 2.0, n + rows)
+    lo[rng.random(n + rows) < 0.4], hi[rng.random(n + rows) < 0.4] = -np.inf, np.inf
+    qp = QP(
+        M @ M.T + 0.1 * np.eye(n),
+        5.0 * rng.normal(size=n),
+        rng.normal(size=(rows, n)),
+        lo[n:],
+        hi[n:],
+        lo[:n],
+        hi[:n],
+        n,
+    )
+    got, ref = get_solver("daqp").solve(qp), QpsolversSolver("quadprog").solve(qp)
+    assert got.found and ref.found  # 0 is feasible: every lower bound ≤ 0 ≤ every upper bound
+    np.testing.assert_allclose(got.x, ref.x, atol=1e-7)

@@ -96,8 +96,8 @@ def ik(robot: Robot, pose: np.ndarray, param: float | np.ndarray, project: bool 
     solver = solver_for(robot)
     fast = solver.fresh_one if project is False and type(param) is float else None
     if fast is not None and (out := fast(pose, param)) is not None:  # a single pose and δ/ψ, checked in C
-        q, (valid, singular, within) = out
-        return IKSolutions(q, valid, within, singular, solver.branch_array.copy(), param, solver.param_name)
+        q, flags = out  # flags (3, B): valid, singular, within limits (indexing beats unpacking the rows)
+        return IKSolutions(q, flags[0], flags[2], flags[1], solver.branch_array.copy(), param, solver.param_name)
     T, batched = check_pose(pose, "pose", project)
     if not batched:
         if type(param) is float and math.isfinite(param):
