@@ -6,6 +6,7 @@ import argparse
 import importlib
 import math
 
+import numpy as np
 import pytest
 
 from qpik.bench import BENCHES, Row, render
@@ -31,6 +32,7 @@ EXPECTED = {
         "no obstacles, hot: mink + osqp (rebuilt each call)",
         "no obstacles, hot: qpik + osqp (persistent, active set reused)",
         "no obstacles, hot: qpik + daqp",
+        "no obstacles, hot: placo (pinocchio + qpmad, QP formed each call)",
         "mink + osqp (rebuilt each call)",
         "mink + daqp",
         "qpik + osqp (persistent, active set reused)",
@@ -79,3 +81,22 @@ def test_bench_prints_every_row(name):
         assert all("binding" in row.note for row in rows if not row.label.startswith("no obstacles"))
     if name == "plan":  # the planned path passes every check, and the quoted peer says it is quoted
         assert "all checks hold" in rows[1].note and "quoted, not measured" in rows[0].note
+
+
+def test_placo_peer_steps_toward_the_target_within_its_limits():
+    """The placo step of the controller bench is a working controller: from the scene's start, 300 closed-loop
+    steps bring the end effector (by qpik's FK) closer to the target, every velocity within the robot's limits."""
+    from qpik.bench.controller import DT, _placo_step, scene
+    from qpik.robots.catalog import load_robot
+
+    robot = load_robot("iiwa14")
+    q, target, _ = scene(robot, robot.q_home)
+    step = _placo_step(robot, target)
+    assert step is not None
+    start = np.linalg.norm(robot.fk(q)[:3, 3] - target[:3, 3])
+    for _ in range(300):
+        v = step(q)
+        assert np.all(np.abs(v) <= robot.v_max + 1e-9)
+        q = q + v * DT
+    assert np.all((q >= robot.q_min - 1e-9) & (q <= robot.q_max + 1e-9))
+    assert np.linalg.norm(robot.fk(q)[:3, 3] - target[:3, 3]) < 0.5 * start

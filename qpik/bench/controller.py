@@ -43,15 +43,22 @@ it). The notes also count the different rows that bind over the run: 8 of qpik's
 them at once; with 7 joints, more than 7 rows are at their bound in one step only when some are
 linearly dependent (a degenerate QP).
 
-placo is not among the peers: the placo that pip resolves beside the newest pin and numpy (0.9.3)
-does not import (it was built against another Boost), and placo 0.10.2 pins ``pin==3.8.0`` and
-``numpy<2.4``, which the rest of the test extra does not resolve with; the bench says so in one line.
+In the scene without obstacles, placo (the test extra) runs too (:func:`_placo_step`): its
+``KinematicsSolver`` on the robot's URDF (:meth:`Robot.to_urdf`, checked against qpik's FK
+first), with the same tasks and weights (frame, joint posture, manipulability, regularization)
+and joint and velocity limits, solved by placo's own QP (pinocchio + qpmad, formed each call).
+Its tasks have no gain (each asks Δq to close the whole error), so its closed loop runs
+differently; the row times the same call, a full step from q. placo has no sphere obstacles to
+express the scene with obstacles, so it is not in those rows. qpik + osqp's ratio in that scene
+is against placo.
 """
 
 from __future__ import annotations
 
 import argparse
+import tempfile
 import warnings
+from pathlib import Path
 
 import mink
 import numpy as np
@@ -90,6 +97,7 @@ RADIUS, GAP, SIDE = 0.05, 0.04, 0.06
 """m: the spheres' radius, their start clearance to the arm, their offset to either side of the arm's plane."""
 QPIK_OSQP = "qpik + osqp (persistent, active set reused)"
 MINK_OSQP = "mink + osqp (rebuilt each call)"
+PLACO = "placo (pinocchio + qpmad, QP formed each call)"
 """The OSQP pair compares a persistent OSQP, which most steps answer from the previous step's active set, with
 OSQP rebuilt each call (mink through qpsolvers); the daqp pair is the like-for-like one."""
 
@@ -145,7 +153,6 @@ def scene(robot, q0: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[Sphere]]:
 
 def run(args: argparse.Namespace) -> list[Row]:
     repeat = max(100, int(getattr(args, "repeat", 2000)))
-    _placo_note()
     iiwa = load_robot("iiwa14")
     home = iiwa.q_home
     rows = _arm_rows(iiwa, home, "no obstacles, hot: ", repeat, obstacles=False) + _arm_rows(iiwa, home, "", repeat)
@@ -155,16 +162,6 @@ def run(args: argparse.Namespace) -> list[Row]:
         print(f"qpik bench controller: {exc}; rows left out")
         return rows
     return rows + _arm_rows(loaded, home, "URDF iiwa: ", repeat)
-
-
-def _placo_note() -> None:
-    """placo is not a peer here: say why (see the module docstring)."""
-    try:
-        import placo  # noqa: F401
-    except ImportError as exc:
-        print(f"qpik bench controller: placo left out: it does not import here ({exc}); see qpik/bench/controller.py")
-        return
-    print("qpik bench controller: placo left out: its pinned dependencies are not in qpik's test extra")
 
 
 def _arm_rows(robot, home: np.ndarray, prefix: str, repeat: int, obstacles: bool = True) -> list[Row]:
@@ -178,11 +175,16 @@ def _arm_rows(robot, home: np.ndarray, prefix: str, repeat: int, obstacles: bool
         if solver not in backends:
             print(f"qpik bench controller: {solver} not installed (pip install -e '.[test]'), row left out")
     peers = [(solver, ref) for solver, ref in peers if solver in backends]
+    placo = None if obstacles else _placo_step(robot, target)
+    if placo is not None:
+        peers = [(solver, PLACO if solver == "osqp" else ref) for solver, ref in peers]
     passes = []
     for _ in range(REPLAYS):  # the same closed loops from the same start, each time with fresh solvers
         steps, refs, ctrls = {}, {}, {}
         for solver, label in (("osqp", MINK_OSQP), ("daqp", "mink + daqp")):
             steps[prefix + label] = _closed_loop(_mink_step(robot, target, spheres, solver)[0], q0)
+        if placo is not None:
+            steps[prefix + PLACO] = _closed_loop(placo, q0)
         for solver, ref in peers:
             label = prefix + (QPIK_OSQP if solver == "osqp" else f"qpik + {solver}")
             ctrls[label] = _controller(robot, target, spheres, solver)
@@ -332,6 +334,57 @@ def _mink_step(robot, target, spheres, solver):
         return mink.solve_ik(conf, tasks, DT, solver=solver, limits=limits)[scene_.kin.dof_adr]
 
     return step, limits[-1], conf
+
+
+def _placo_step(robot, target):
+    """placo's control step ``q -> v`` (rad/s) on the robot's URDF, with qpik's default tasks and weights, joint and
+    velocity limits; None (with a line saying why) when placo does not import or its FK disagrees with qpik's.
+
+    Tasks: the frame task (placo's position and orientation weights: qpik's), a joints task to the posture
+    reference, placo's manipulability task on the end-effector frame and its regularization task, each soft with
+    qpik's weight. The URDF is :meth:`Robot.to_urdf`; placo's end-effector pose is checked against qpik's FK on 20
+    random configurations (1e-9) before anything is timed.
+    """
+    try:
+        with warnings.catch_warnings():  # placo's pinocchio imports hppfcl by its old name, which warns
+            warnings.simplefilter("ignore", DeprecationWarning)
+            import placo
+    except ImportError as exc:
+        print(f"qpik bench controller: placo not installed (pip install -e '.[test]'), rows left out ({exc})")
+        return None
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "robot.urdf"
+        path.write_text(robot.to_urdf())
+        wrapper = placo.RobotWrapper(str(path), placo.Flags.ignore_collisions)
+    q_at = [wrapper.get_joint_offset(name) for name in robot.joint_names]
+    v_at = [wrapper.get_joint_v_offset(name) for name in robot.joint_names]
+    state = wrapper.state.q  # a view of placo's configuration
+    for q in np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (20, robot.dof)):
+        state[q_at] = q
+        wrapper.update_kinematics()
+        gap = float(np.abs(wrapper.get_T_world_frame(robot.site) - robot.fk(q)).max())
+        if gap > 1e-9:
+            print(f"qpik bench controller: placo's FK differs from qpik's by {gap:.1e}, rows left out")
+            return None
+    frame_task, posture, manip, damping = Controller.for_robot(robot).tasks  # only to read the default weights
+    solver = placo.KinematicsSolver(wrapper)
+    solver.mask_fbase(True)
+    solver.dt = DT
+    solver.add_frame_task(robot.site, target).configure("frame", "soft", frame_task.weight[0], frame_task.weight[3])
+    joints = solver.add_joints_task()
+    joints.set_joints(dict(zip(robot.joint_names, posture.q_ref.tolist())))
+    joints.configure("posture", "soft", posture.weight)
+    solver.add_manipulability_task(robot.site, "both", 1.0).configure("manipulability", "soft", manip.weight)
+    solver.add_regularization_task(damping.weight)
+    solver.enable_joint_limits(True)
+    solver.enable_velocity_limits(True)
+
+    def step(q):
+        state[q_at] = q
+        wrapper.update_kinematics()
+        return solver.solve(False)[v_at] / DT
+
+    return step
 
 
 def _links(model, robot) -> dict[int, int]:
