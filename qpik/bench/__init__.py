@@ -8,9 +8,12 @@ reference row of the same bench.
 from __future__ import annotations
 
 import gc
+import importlib
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
+from types import ModuleType
 
 import numpy as np
 
@@ -27,6 +30,14 @@ class Row:
     p99: float | None = None
     worst: float | None = None
     note: str = ""
+
+
+def import_peer(name: str) -> ModuleType:
+    """The peer library ``name``, imported with its DeprecationWarnings silenced (the pinocchio that placo pins
+    imports hppfcl by its old name, which warns); ImportError as ``import`` raises it."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        return importlib.import_module(name)
 
 
 def time_calls(fn: Callable[[], object], repeat: int, warmup: int = 20, block: int = 1) -> np.ndarray:

@@ -64,7 +64,7 @@ import mink
 import numpy as np
 from mink.tasks.task import BaseTask, Objective
 
-from qpik.bench import Row, fmt_time, time_interleaved
+from qpik.bench import Row, fmt_time, import_peer, time_interleaved
 from qpik.control import Controller
 from qpik.control.solvers import available
 from qpik.control.solvers.osqp import REUSED
@@ -346,9 +346,7 @@ def _placo_step(robot, target):
     random configurations (1e-9) before anything is timed.
     """
     try:
-        with warnings.catch_warnings():  # placo's pinocchio imports hppfcl by its old name, which warns
-            warnings.simplefilter("ignore", DeprecationWarning)
-            import placo
+        placo = import_peer("placo")
     except ImportError as exc:
         print(f"qpik bench controller: placo not installed (pip install -e '.[test]'), rows left out ({exc})")
         return None

@@ -35,7 +35,7 @@ import mink
 import mujoco
 import numpy as np
 
-from qpik.bench import Row, time_calls, time_interleaved
+from qpik.bench import Row, import_peer, time_calls, time_interleaved
 from qpik.errors import InputError
 from qpik.robots.loader import load_robot
 from qpik.robots.packaged import packaged_model
@@ -130,7 +130,7 @@ def _pinocchio(robot: Robot, Q: np.ndarray):
     """``(both, only, agreement)``: pinocchio's pose + Jacobian call and its Jacobian-only call of one q on the
     robot's URDF, and their largest difference from qpik over ``Q``; None without pinocchio."""
     try:
-        import pinocchio as pin
+        pin = import_peer("pinocchio")
     except ImportError:
         print("qpik bench kinematics: pinocchio (pin) not installed (pip install -e '.[test]'), rows left out")
         return None
