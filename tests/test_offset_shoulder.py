@@ -235,13 +235,14 @@ def test_feasible_intervals_exact_on_random_poses(seed):
 def test_feasible_intervals_exact_without_a_c_compiler(monkeypatch):
     """With no C compiler (no cc, or QPIK_NATIVE=0) the wrist roots come from eigenvalues and the gaps are
     classified in numpy (:class:`qpik.analytic.intervals.Assembler`): the same sets."""
-    from qpik.analytic import intervals, polyroots
+    from qpik.analytic import intervals, offset_shoulder_intervals, polyroots
     from qpik.analytic.offset_shoulder_intervals import DeltaIntervals
 
     monkeypatch.setattr(polyroots, "_library", lambda: None)
     monkeypatch.setattr(intervals, "_library", lambda: None)
+    monkeypatch.setattr(offset_shoulder_intervals, "_library", lambda: None)
     without = DeltaIntervals(SOLVER)
-    assert without._assemble._native is None
+    assert without._assemble._native is None and without._native is None
     for T in ROBOT.fk(random_q(ROBOT, 20, 7)):
         _sweep_check(T, 2000, without)
 

@@ -78,16 +78,12 @@ static int runs(int G, const double *lo, const unsigned char *ok, double *out) {
     return n;
 }
 
-/* Feasible sets of `rows` branches (2 rows with shift) from nb breakpoints, and their singular values.
- *
- * arg, res, iw, w: the compiled function's argument and result pointers and work arrays (arg[1] = param,
- * res[1] = flags of 3 rows values). Out: count[r] pieces per output row, their (lo, hi) pairs one row after
- * the other in iv (room pairs), and scount[r] singular values of row r in sv[r * ns ...].
- * Returns the number of pieces, -1 when room is too small, -2 when the function fails, -3 without memory. */
-int qpik_circle_sets(void *fn, const double **arg, double **res, casadi_int *iw, double *w, double *param,
-                     int rows, int shift, int nb, const double *breaks, int ns, const double *sing, int room,
-                     double *iv, int *count, double *sv, int *scount) {
-    Call call = {(casadi_fn)fn, arg, res, iw, w, param};
+/* Feasible sets of `rows` branches (2 rows with shift) from nb breakpoints, and their singular values, with
+ * the IK `call`. Out: count[r] pieces per output row, their (lo, hi) pairs one row after the other in iv (room
+ * pairs), and scount[r] singular values of row r in sv[r * ns ...]. Returns the number of pieces, -1 when room is
+ * too small, -2 when the IK fails, -3 without memory. */
+static int circle_sets(const Call *call, int rows, int shift, int nb, const double *breaks, int ns, const double *sing,
+                       int room, double *iv, int *count, double *sv, int *scount) {
     int G = nb > 0 ? nb : 1, out_rows = shift ? 2 * rows : rows, status = 0, used = 0;
     double *lo = malloc(sizeof(double) * (2 * (size_t)G + (size_t)ns + 2 * ((size_t)G + 1)));
     unsigned char *ok = malloc((size_t)G * (size_t)rows * 2);
@@ -110,7 +106,7 @@ int qpik_circle_sets(void *fn, const double **arg, double **res, casadi_int *iw,
     /* classify: ok[r * G + i] */
     for (int i = 0; i < G && !status; ++i) {
         double hi = i + 1 < G ? lo[i + 1] : lo[0] + TWO_PI;
-        const double *f = evaluate(&call, wrap(0.5 * (lo[i] + hi)));
+        const double *f = evaluate(call, wrap(0.5 * (lo[i] + hi)));
         if (!f) status = -2;
         for (int r = 0; r < rows && f; ++r) ok[(size_t)r * G + i] = f[2 * rows + r] > 0.5;
     }
@@ -139,7 +135,7 @@ int qpik_circle_sets(void *fn, const double **arg, double **res, casadi_int *iw,
     for (int r = 0; r < out_rows; ++r) scount[r] = 0;
     for (int i = 0; i < ns && !status; ++i) {
         if (i > 0 && s[i] == s[i - 1]) continue;
-        const double *f = evaluate(&call, s[i]);
+        const double *f = evaluate(call, s[i]);
         if (!f) status = -2;
         for (int r = 0; r < rows && f; ++r) {
             if (f[r] <= 0.5 || f[rows + r] <= 0.5) continue;
@@ -150,4 +146,14 @@ int qpik_circle_sets(void *fn, const double **arg, double **res, casadi_int *iw,
     for (int r = rows; r < out_rows; ++r) qsort(sv + (size_t)r * ns, (size_t)scount[r], sizeof(double), ascending);
     free(lo), free(ok);
     return status ? status : used;
+}
+
+/* circle_sets with the compiled IK fn (CasADi's calling convention): arg, res, iw, w are its argument and result
+ * pointers and work arrays (arg[1] = param, res[1] = flags of 3 rows values: valid, singular, within limits per
+ * branch). */
+int qpik_circle_sets(void *fn, const double **arg, double **res, casadi_int *iw, double *w, double *param,
+                     int rows, int shift, int nb, const double *breaks, int ns, const double *sing, int room,
+                     double *iv, int *count, double *sv, int *scount) {
+    Call call = {(casadi_fn)fn, arg, res, iw, w, param};
+    return circle_sets(&call, rows, shift, nb, breaks, ns, sing, room, iv, count, sv, scount);
 }

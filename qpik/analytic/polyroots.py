@@ -53,9 +53,14 @@ MAX_DEGREE = 16
 """Largest n = max(deg A, deg B + 1) (H has degree 2n ≤ 32)."""
 
 
+def c_source() -> bytes:
+    """``polyroots.c``, for a library of its own or one that includes it."""
+    return Path(__file__).with_name("polyroots.c").read_bytes()
+
+
 @cache
 def _library() -> ctypes.CDLL | None:
-    lib = shared_library("qpik_polyroots", Path(__file__).with_name("polyroots.c").read_bytes())
+    lib = shared_library("qpik_polyroots", c_source())
     if lib is None:
         return None
     dll = ctypes.CDLL(str(lib))
