@@ -17,14 +17,20 @@
  * within 1e-7 rad of delta). */
 #define NEWTON_DONE (4.0 * DBL_EPSILON)
 
+/* p(x) and p'(x) (degree d, lowest first) as E(y) + x O(y) and 2x E'(y) + O(y) + 2y O'(y), y = x^2, E and O the
+ * even and odd parts: two independent Horner chains of half the length (Newton's iterations spend their time
+ * here, waiting on the chain). */
 static double horner(const double *a, int d, double x, double *deriv) {
-    double f = a[d], df = 0.0;
-    for (int i = d - 1; i >= 0; --i) {
-        df = df * x + f;
-        f = f * x + a[i];
+    int m = d / 2; /* E: a[0], a[2], ..., a[2m]; O: a[1], a[3], ..., a[d] for odd d (its top below, 0 for even d) */
+    double y = x * x, e = a[2 * m], de = 0.0, o = (d % 2) ? a[d] : 0.0, dov = 0.0;
+    for (int k = m - 1; k >= 0; --k) {
+        de = de * y + e;
+        e = e * y + a[2 * k];
+        dov = dov * y + o;
+        o = o * y + a[2 * k + 1];
     }
-    *deriv = df;
-    return f;
+    *deriv = 2.0 * x * de + o + 2.0 * y * dov;
+    return e + x * o;
 }
 
 static double value(const double *a, int d, double x) {
@@ -44,8 +50,9 @@ static double bracketed(const double *a, int d, double lo, double hi, double flo
         if (f == 0.0) return x;
         if ((f < 0.0) == (flo < 0.0)) lo = x; else hi = x;
         double next = (df != 0.0) ? x - f / df : 0.5 * (lo + hi);
+        if (fabs(next - x) <= NEWTON_DONE) return fmin(fmax(next, lo), hi); /* before the bracket test: x is an end */
         if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-        if (fabs(next - x) <= NEWTON_DONE || hi - lo <= 4.0 * DBL_EPSILON) return next;
+        if (hi - lo <= 4.0 * DBL_EPSILON) return next;
         x = next;
     }
     return x;
