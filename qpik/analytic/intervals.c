@@ -25,7 +25,23 @@ static int ascending(const void *a, const void *b) {
     return (x > y) - (x < y);
 }
 
-static void sort_pairs(double *iv, int n) { qsort(iv, (size_t)n, 2 * sizeof(double), ascending); }
+/* Up to this many items are sorted by insertion (faster than qsort's calls of `ascending` at these sizes). */
+#define FEW 64
+
+/* Sorts n items of `width` doubles by their first double, ascending. */
+static void sort_items(double *x, int n, int width) {
+    if (n > FEW) {
+        qsort(x, (size_t)n, (size_t)width * sizeof(double), ascending);
+        return;
+    }
+    for (int i = 1; i < n; ++i) {
+        double item[2] = {x[width * i], width > 1 ? x[width * i + 1] : 0.0};
+        int j = i;
+        for (; j > 0 && x[width * (j - 1)] > item[0]; --j)
+            for (int k = 0; k < width; ++k) x[width * j + k] = x[width * (j - 1) + k];
+        for (int k = 0; k < width; ++k) x[width * j + k] = item[k];
+    }
+}
 
 /* The call: fn(arg, res) with the parameter written to *param; flags = res[1] (valid, singular, within
  * per branch). */
@@ -56,13 +72,17 @@ static int runs(int G, const double *lo, const unsigned char *ok, double *out) {
     }
     int n = 0;
     for (int i = 1; i <= G;) { /* gaps bad + 1, ..., bad + G (mod G): every run is whole */
-        int s = (bad + i) % G;
+        int s = bad + i < G ? bad + i : bad + i - G;
         if (!ok[s]) {
             ++i;
             continue;
         }
         int e = s;
-        for (++i; i <= G && ok[(bad + i) % G]; ++i) e = (bad + i) % G;
+        for (++i; i <= G; ++i) {
+            int g = bad + i < G ? bad + i : bad + i - G;
+            if (!ok[g]) break;
+            e = g;
+        }
         double a = lo[s];
         if (e < s) { /* through gap G - 1 into gap 0: split at +-pi */
             out[2 * n] = a, out[2 * n + 1] = PI, ++n;
@@ -74,7 +94,7 @@ static int runs(int G, const double *lo, const unsigned char *ok, double *out) {
             out[2 * n] = a, out[2 * n + 1] = lo[e + 1], ++n;
         }
     }
-    sort_pairs(out, n);
+    sort_items(out, n, 2);
     return n;
 }
 
@@ -97,7 +117,7 @@ static int circle_sets(const Call *call, int rows, int shift, int nb, const doub
     /* the gaps */
     if (nb == 0) lo[0] = 0.0;
     for (int i = 0; i < nb; ++i) lo[i] = wrap(breaks[i]);
-    qsort(lo, (size_t)G, sizeof(double), ascending);
+    sort_items(lo, G, 1);
     int g = 1;
     for (int i = 1; i < G; ++i) /* one breakpoint per cluster within SAME (consecutive differences) */
         if (lo[i] - lo[i - 1] > SAME) lo[g++] = lo[i];
@@ -131,7 +151,7 @@ static int circle_sets(const Call *call, int rows, int shift, int nb, const doub
 
     /* singular values: valid and singular there */
     for (int i = 0; i < ns; ++i) s[i] = wrap(sing[i]);
-    qsort(s, (size_t)ns, sizeof(double), ascending);
+    sort_items(s, ns, 1);
     for (int r = 0; r < out_rows; ++r) scount[r] = 0;
     for (int i = 0; i < ns && !status; ++i) {
         if (i > 0 && s[i] == s[i - 1]) continue;
@@ -143,7 +163,7 @@ static int circle_sets(const Call *call, int rows, int shift, int nb, const doub
             if (shift) sv[(size_t)(rows + r) * ns + scount[rows + r]++] = wrap(s[i] + PI);
         }
     }
-    for (int r = rows; r < out_rows; ++r) qsort(sv + (size_t)r * ns, (size_t)scount[r], sizeof(double), ascending);
+    for (int r = rows; r < out_rows; ++r) sort_items(sv + (size_t)r * ns, scount[r], 1);
     free(lo), free(ok);
     return status ? status : used;
 }
