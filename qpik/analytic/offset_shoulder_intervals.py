@@ -46,6 +46,11 @@ only split a gap in two, and merging the gaps joins it again. Rows 9–16 are ro
 shifted by π, so only rows 1–8 are classified: one evaluation of those 8 branches
 at every gap midpoint (:class:`qpik.analytic.intervals.Assembler`), and
 rows 9–16's sets are rows 1–8's moved by π.
+
+With a C compiler all of it is one C call (``offset_shoulder_intervals.c``, compiled with
+``polyroots.c`` and ``intervals.c``): the breakpoint function, the wrist roots, the common-root
+test and the classification of the gaps, with no numpy in between; without one, the same
+steps run in numpy (:meth:`DeltaIntervals.breakpoints`, then the Assembler).
 """
 
 from __future__ import annotations
