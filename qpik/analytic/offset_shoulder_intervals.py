@@ -309,12 +309,13 @@ class _NativeDelta:
 
 @cache
 def _library() -> ctypes.CDLL | None:
-    """``offset_shoulder_intervals.c`` compiled after ``polyroots.c`` and ``intervals.c`` (whose functions it calls)."""
+    """``offset_shoulder_intervals.c`` compiled after ``polyroots.c`` and ``intervals.c`` (whose functions it calls),
+    loaded as a :class:`ctypes.PyDLL`: its call keeps the GIL, so threads never share its buffers at once."""
     source = polyroots_source() + intervals_source() + Path(__file__).with_suffix(".c").read_bytes()
     lib = shared_library("qpik_delta_intervals", source)
     if lib is None:
         return None
-    dll = ctypes.CDLL(str(lib))
+    dll = ctypes.PyDLL(str(lib))
     dll.qpik_delta_sets.restype = ctypes.c_int
     dll.qpik_delta_sets.argtypes = [ctypes.c_void_p]
     return dll
