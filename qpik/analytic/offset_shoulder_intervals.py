@@ -66,6 +66,7 @@ import numpy as np
 from qpik import symbolic as sy
 from qpik.analytic.intervals import Assembler, FeasibleIntervals, Interval, NativeFunction, check_sets, list_maker
 from qpik.analytic.intervals import c_source as intervals_source
+from qpik.analytic.polyroots import FLAGS as POLYROOTS_FLAGS
 from qpik.analytic.polyroots import ROOM, trig_roots
 from qpik.analytic.polyroots import c_source as polyroots_source
 from qpik.analytic.trig import EPS, acos2
@@ -312,7 +313,7 @@ def _library() -> ctypes.CDLL | None:
     """``offset_shoulder_intervals.c`` compiled after ``polyroots.c`` and ``intervals.c`` (whose functions it calls),
     loaded as a :class:`ctypes.PyDLL`: its call keeps the GIL, so threads never share its buffers at once."""
     source = polyroots_source() + intervals_source() + Path(__file__).with_suffix(".c").read_bytes()
-    lib = shared_library("qpik_delta_intervals", source)
+    lib = shared_library("qpik_delta_intervals", source, POLYROOTS_FLAGS)
     if lib is None:
         return None
     dll = ctypes.PyDLL(str(lib))
