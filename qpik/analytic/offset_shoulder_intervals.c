@@ -49,11 +49,14 @@ int qpik_delta_sets(const DeltaSets *d) {
     for (int i = 0; i < m; ++i) {
         d->breaks[nb++] = d->delta[i];
         if (d->owner[i] < d->a5 || d->owner[i] >= d->b5) continue;
-        for (int j = 0; j < m; ++j) /* a common root with a theta7 equation */
-            if (d->owner[j] >= d->a7 && d->owner[j] < d->b7 && cos(d->delta[i] - d->delta[j]) > d->common) {
+        for (int j = 0; j < m; ++j) { /* a common root with a theta7 equation (cos only for roots within 0.1 rad) */
+            double gap = fabs(d->delta[i] - d->delta[j]);
+            if (d->owner[j] < d->a7 || d->owner[j] >= d->b7 || (gap > 0.1 && gap < TWO_PI - 0.1)) continue;
+            if (cos(d->delta[i] - d->delta[j]) > d->common) {
                 d->sing[ns++] = d->delta[i];
                 break;
             }
+        }
     }
     *d->ns = ns;
     Call call = {(casadi_fn)d->ik.fn, d->ik.arg, d->ik.res, d->ik.iw, d->ik.w, d->param};
