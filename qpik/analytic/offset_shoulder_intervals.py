@@ -81,7 +81,8 @@ PI = np.pi
 ZERO = 1e-13
 """Wrist-centre distance (m) from the base axis below which its azimuth is taken as 0 (as the solver does)."""
 NONE = 10.0
-"""Stands for a singular δ that does not exist in the compiled function's output (any value outside [−π, π])."""
+"""Stands for a breakpoint or singular δ that does not exist in the compiled function's output (any value outside
+[−π, π])."""
 COMMON_TOL = 1e-6
 """θ5 and θ7 roots closer than this (rad) are a common root: a wrist singularity (sin θ6 = 0)."""
 COEFFS = 9
@@ -104,7 +105,7 @@ class DeltaIntervals:
         self._wrist_rows = np.array([k for j in (7, 5) for k in _row_range(kinds, j)])
         # a breakpoint or singular value that does not exist is reported as NONE
         out = [ca.vertcat(*[ca.if_else(ok, sy.CASADI.wrap(x), NONE) for x, ok in pairs]) for pairs in (cand, sing)]
-        # (COEFFS, K) outputs: their transposes are C-contiguous (K, 9) views of the column-major buffers
+        # (COEFFS, K) outputs: their transposes are C-contiguous (K, COEFFS) views of the column-major buffers
         FA, FB = (ca.horzcat(*[ca.vertcat(*_pad(x, COEFFS)) for x in xs]) for xs in zip(*polys))
         self._fn = Compiled(ca.Function("os_breakpoints", [T], [*out, FA, FB]))
         self._assemble = Assembler(solver, rows=8, shift=True)
@@ -206,7 +207,7 @@ class DeltaIntervals:
         # sin θ6 = 0 zeroes every θ5 and θ7 equation: their common roots (owner is ascending)
         a7, b7, a5, b5 = np.searchsorted(owner, self._wrist_rows).tolist()
         r5, r7 = wrist[a5:b5], wrist[a7:b7]
-        if r5.size and r7.size:  # cos d > 1 − tol²/2 ⇔ |d| < tol on the circle
+        if r5.size and r7.size:  # cos d > 1 − tol²/2 ⇔ |d| < tol on the circle (offset_shoulder_intervals.c: same)
             close = (np.cos(r5[:, None] - r7[None, :]) > 1.0 - 0.5 * COMMON_TOL**2).any(axis=1)
             sing = np.concatenate([sing, r5[close]])
         return np.concatenate([cand, wrist]), sing
@@ -245,8 +246,15 @@ class _NativeDelta:
 
     ROWS = 8
 
-    def __init__(self, dll: ctypes.CDLL, breaks: NativeFunction, ik: NativeFunction, limits, wrist_rows: np.ndarray):
-        self._dll, self._breaks, self._ik = dll, breaks, ik
+    def __init__(
+        self,
+        dll: ctypes.CDLL,
+        breaks: NativeFunction,
+        ik: NativeFunction,
+        limits: tuple[np.ndarray, np.ndarray],
+        wrist_rows: np.ndarray,
+    ):
+        self._dll, self._breaks, self._ik = dll, breaks, ik  # the C call uses their buffers: they live as long
         self._pose = breaks.args[0].reshape(4, 4).T  # T column-major, as both generated functions read it
         ik.args[2][:], ik.args[3][:] = limits
         cand, sing, FA, _ = breaks.res
@@ -267,22 +275,22 @@ class _NativeDelta:
         }
         a7, b7, a5, b5 = wrist_rows.tolist()
         self._call = _DeltaSets(
-            _Kernel(*breaks.addresses),
-            cand.size,
-            sing.size,
-            K,
-            COEFFS,
-            a7,
-            b7,
-            a5,
-            b5,
-            NONE,
-            1.0 - 0.5 * COMMON_TOL**2,
-            _Kernel(*ik.addresses),
-            ik.args[1].ctypes.data,
-            self.ROWS,
-            1,
-            room_roots,
+            breakpoints=_Kernel(*breaks.addresses),
+            n_cand=cand.size,
+            n_sing=sing.size,
+            K=K,
+            size=COEFFS,
+            a7=a7,
+            b7=b7,
+            a5=a5,
+            b5=b5,
+            none=NONE,
+            common=1.0 - 0.5 * COMMON_TOL**2,  # cos d > 1 − tol²/2 ⇔ |d| < tol on the circle
+            ik=_Kernel(*ik.addresses),
+            param=ik.args[1].ctypes.data,
+            rows=self.ROWS,
+            shift=1,
+            room_roots=room_roots,
             room=room,
             **{name: x.ctypes.data for name, x in self._arrays.items()},
         )
