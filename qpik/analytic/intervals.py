@@ -228,7 +228,7 @@ class _NativeSets:
 def check_sets(m: int, name: str) -> None:
     """:class:`SolverError` for the negative status ``m`` of the C function ``name`` (``intervals.c``'s codes)."""
     if m < 0:
-        raise SolverError(f"{name} failed ({m}: -1 no room, -2 the IK failed, -3 no memory)")
+        raise SolverError(f"{name} failed ({m}: -1 no room, -2 a compiled function failed, -3 no memory)")
 
 
 def list_maker() -> Callable[..., tuple[list[list[Interval]], list[list[float]]]]:
