@@ -397,6 +397,7 @@ static PyObject *module_circle_lists(PyObject *mod, PyObject *const *args, Py_ss
                 if (!piece) Py_XDECREF(a), Py_XDECREF(b);
                 goto fail;
             }
+            PyObject_GC_UnTrack(piece); /* a pair of floats holds no reference cycle: the collector skips it */
         }
         for (int i = 0; i < scount[r]; ++i) {
             PyObject *x = PyFloat_FromDouble(sv[r * ns + i]);

@@ -232,16 +232,54 @@ def test_feasible_intervals_exact_on_random_poses(seed):
         _sweep_check(T, 10000)
 
 
+def _same_sets(a, b) -> None:
+    """Two results (sets, singular values) per row: the same pieces and values to 1e-12 rad."""
+    assert [len(x) for x in a[0]] == [len(x) for x in b[0]] and [len(x) for x in a[1]] == [len(x) for x in b[1]]
+    for x, y in zip(a[0] + a[1], b[0] + b[1]):
+        assert np.allclose(np.array(x, float).ravel(), np.array(y, float).ravel(), rtol=0, atol=1e-12)
+
+
+def _lists_in_python():
+    """nammoto7's feasible-interval solver built as without the compiled extension: result lists made in Python."""
+    from qpik.analytic import intervals
+    from qpik.analytic.offset_shoulder_intervals import DeltaIntervals
+
+    real, intervals.extension = intervals.extension, lambda: None
+    try:
+        return DeltaIntervals(SOLVER)
+    finally:
+        intervals.extension = real
+
+
+LISTS_IN_PYTHON = _lists_in_python()
+
+
+@settings(max_examples=10, deadline=None)
+@given(SEEDS)
+def test_one_c_call_agrees_with_its_steps(seed):
+    """The C path in one call (qpik_delta_sets; its lists built by the compiled extension or in Python) gives the
+    sets of its steps taken one by one: :meth:`DeltaIntervals.breakpoints`, then the Assembler."""
+    native = SOLVER._intervals
+    if native._native is None:
+        pytest.skip("no C compiler: the numpy path only (test_feasible_intervals_exact_without_a_c_compiler)")
+    for T in ROBOT.fk(random_q(ROBOT, 10, seed)):
+        one = native(T)
+        _same_sets((one.intervals, one.singular), native._assemble(T, *native.breakpoints(T)))
+        again = LISTS_IN_PYTHON(T)
+        assert again.intervals == one.intervals and again.singular == one.singular
+
+
 def test_feasible_intervals_exact_without_a_c_compiler(monkeypatch):
     """With no C compiler (no cc, or QPIK_NATIVE=0) the wrist roots come from eigenvalues and the gaps are
     classified in numpy (:class:`qpik.analytic.intervals.Assembler`): the same sets."""
-    from qpik.analytic import intervals, polyroots
+    from qpik.analytic import intervals, offset_shoulder_intervals, polyroots
     from qpik.analytic.offset_shoulder_intervals import DeltaIntervals
 
     monkeypatch.setattr(polyroots, "_library", lambda: None)
     monkeypatch.setattr(intervals, "_library", lambda: None)
+    monkeypatch.setattr(offset_shoulder_intervals, "_library", lambda: None)
     without = DeltaIntervals(SOLVER)
-    assert without._assemble._native is None
+    assert without._assemble._native is None and without._native is None
     for T in ROBOT.fk(random_q(ROBOT, 20, 7)):
         _sweep_check(T, 2000, without)
 

@@ -25,7 +25,23 @@ static int ascending(const void *a, const void *b) {
     return (x > y) - (x < y);
 }
 
-static void sort_pairs(double *iv, int n) { qsort(iv, (size_t)n, 2 * sizeof(double), ascending); }
+/* Up to this many items are sorted by insertion (faster than qsort's calls of `ascending` at these sizes). */
+#define FEW 64
+
+/* Sorts n items of `width` doubles by their first double, ascending. */
+static void sort_items(double *x, int n, int width) {
+    if (n > FEW) {
+        qsort(x, (size_t)n, (size_t)width * sizeof(double), ascending);
+        return;
+    }
+    for (int i = 1; i < n; ++i) {
+        double item[2] = {x[width * i], width > 1 ? x[width * i + 1] : 0.0};
+        int j = i;
+        for (; j > 0 && x[width * (j - 1)] > item[0]; --j)
+            for (int k = 0; k < width; ++k) x[width * j + k] = x[width * (j - 1) + k];
+        for (int k = 0; k < width; ++k) x[width * j + k] = item[k];
+    }
+}
 
 /* The call: fn(arg, res) with the parameter written to *param; flags = res[1] (valid, singular, within
  * per branch). */
@@ -56,13 +72,17 @@ static int runs(int G, const double *lo, const unsigned char *ok, double *out) {
     }
     int n = 0;
     for (int i = 1; i <= G;) { /* gaps bad + 1, ..., bad + G (mod G): every run is whole */
-        int s = (bad + i) % G;
+        int s = bad + i < G ? bad + i : bad + i - G;
         if (!ok[s]) {
             ++i;
             continue;
         }
         int e = s;
-        for (++i; i <= G && ok[(bad + i) % G]; ++i) e = (bad + i) % G;
+        for (++i; i <= G; ++i) {
+            int g = bad + i < G ? bad + i : bad + i - G;
+            if (!ok[g]) break;
+            e = g;
+        }
         double a = lo[s];
         if (e < s) { /* through gap G - 1 into gap 0: split at +-pi */
             out[2 * n] = a, out[2 * n + 1] = PI, ++n;
@@ -74,20 +94,16 @@ static int runs(int G, const double *lo, const unsigned char *ok, double *out) {
             out[2 * n] = a, out[2 * n + 1] = lo[e + 1], ++n;
         }
     }
-    sort_pairs(out, n);
+    sort_items(out, n, 2);
     return n;
 }
 
-/* Feasible sets of `rows` branches (2 rows with shift) from nb breakpoints, and their singular values.
- *
- * arg, res, iw, w: the compiled function's argument and result pointers and work arrays (arg[1] = param,
- * res[1] = flags of 3 rows values). Out: count[r] pieces per output row, their (lo, hi) pairs one row after
- * the other in iv (room pairs), and scount[r] singular values of row r in sv[r * ns ...].
- * Returns the number of pieces, -1 when room is too small, -2 when the function fails, -3 without memory. */
-int qpik_circle_sets(void *fn, const double **arg, double **res, casadi_int *iw, double *w, double *param,
-                     int rows, int shift, int nb, const double *breaks, int ns, const double *sing, int room,
-                     double *iv, int *count, double *sv, int *scount) {
-    Call call = {(casadi_fn)fn, arg, res, iw, w, param};
+/* Feasible sets of `rows` branches (2 rows with shift) from nb breakpoints, and their singular values, with
+ * the IK `call`. Out: count[r] pieces per output row, their (lo, hi) pairs one row after the other in iv (room
+ * pairs), and scount[r] singular values of row r in sv[r * ns ...]. Returns the number of pieces, -1 when room is
+ * too small, -2 when the IK fails, -3 without memory. */
+static int circle_sets(const Call *call, int rows, int shift, int nb, const double *breaks, int ns, const double *sing,
+                       int room, double *iv, int *count, double *sv, int *scount) {
     int G = nb > 0 ? nb : 1, out_rows = shift ? 2 * rows : rows, status = 0, used = 0;
     double *lo = malloc(sizeof(double) * (2 * (size_t)G + (size_t)ns + 2 * ((size_t)G + 1)));
     unsigned char *ok = malloc((size_t)G * (size_t)rows * 2);
@@ -101,7 +117,7 @@ int qpik_circle_sets(void *fn, const double **arg, double **res, casadi_int *iw,
     /* the gaps */
     if (nb == 0) lo[0] = 0.0;
     for (int i = 0; i < nb; ++i) lo[i] = wrap(breaks[i]);
-    qsort(lo, (size_t)G, sizeof(double), ascending);
+    sort_items(lo, G, 1);
     int g = 1;
     for (int i = 1; i < G; ++i) /* one breakpoint per cluster within SAME (consecutive differences) */
         if (lo[i] - lo[i - 1] > SAME) lo[g++] = lo[i];
@@ -110,7 +126,7 @@ int qpik_circle_sets(void *fn, const double **arg, double **res, casadi_int *iw,
     /* classify: ok[r * G + i] */
     for (int i = 0; i < G && !status; ++i) {
         double hi = i + 1 < G ? lo[i + 1] : lo[0] + TWO_PI;
-        const double *f = evaluate(&call, wrap(0.5 * (lo[i] + hi)));
+        const double *f = evaluate(call, wrap(0.5 * (lo[i] + hi)));
         if (!f) status = -2;
         for (int r = 0; r < rows && f; ++r) ok[(size_t)r * G + i] = f[2 * rows + r] > 0.5;
     }
@@ -135,11 +151,11 @@ int qpik_circle_sets(void *fn, const double **arg, double **res, casadi_int *iw,
 
     /* singular values: valid and singular there */
     for (int i = 0; i < ns; ++i) s[i] = wrap(sing[i]);
-    qsort(s, (size_t)ns, sizeof(double), ascending);
+    sort_items(s, ns, 1);
     for (int r = 0; r < out_rows; ++r) scount[r] = 0;
     for (int i = 0; i < ns && !status; ++i) {
         if (i > 0 && s[i] == s[i - 1]) continue;
-        const double *f = evaluate(&call, s[i]);
+        const double *f = evaluate(call, s[i]);
         if (!f) status = -2;
         for (int r = 0; r < rows && f; ++r) {
             if (f[r] <= 0.5 || f[rows + r] <= 0.5) continue;
@@ -147,7 +163,17 @@ int qpik_circle_sets(void *fn, const double **arg, double **res, casadi_int *iw,
             if (shift) sv[(size_t)(rows + r) * ns + scount[rows + r]++] = wrap(s[i] + PI);
         }
     }
-    for (int r = rows; r < out_rows; ++r) qsort(sv + (size_t)r * ns, (size_t)scount[r], sizeof(double), ascending);
+    for (int r = rows; r < out_rows; ++r) sort_items(sv + (size_t)r * ns, scount[r], 1);
     free(lo), free(ok);
     return status ? status : used;
+}
+
+/* circle_sets with the compiled IK fn (CasADi's calling convention): arg, res, iw, w are its argument and result
+ * pointers and work arrays (arg[1] = param, res[1] = flags of 3 rows values: valid, singular, within limits per
+ * branch). */
+int qpik_circle_sets(void *fn, const double **arg, double **res, casadi_int *iw, double *w, double *param,
+                     int rows, int shift, int nb, const double *breaks, int ns, const double *sing, int room,
+                     double *iv, int *count, double *sv, int *scount) {
+    Call call = {(casadi_fn)fn, arg, res, iw, w, param};
+    return circle_sets(&call, rows, shift, nb, breaks, ns, sing, room, iv, count, sv, scount);
 }

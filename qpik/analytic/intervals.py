@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import ctypes
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cache
 from itertools import accumulate, pairwise
@@ -140,43 +141,56 @@ class Assembler:
         return sets, found
 
 
+class NativeFunction:
+    """A compiled CasADi function's C entry point (``casadi_fn`` in ``intervals.c``) with what C code needs to call
+    it: numpy buffers of its inputs (:attr:`args`, column-major) and of the outputs asked for (:attr:`res`, None for
+    the others, which the function then skips), its argument and result pointer arrays and its work arrays.
+
+    :attr:`addresses` are ``(entry, arg, res, iw, w)``, the function and the four arguments it takes.
+    """
+
+    def __init__(self, compiled: Compiled, library: ctypes.CDLL, outputs: tuple[int, ...], pose: np.ndarray | None):
+        fn = compiled.fn
+        self._library = library  # the entry point lives as long as its library
+        self.args = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
+        if pose is not None:
+            self.args[0] = pose
+        self.res = [np.zeros(fn.nnz_out(i)) if i in outputs else None for i in range(fn.n_out())]
+        argv = (ctypes.c_void_p * max(fn.sz_arg(), fn.n_in()))(*[a.ctypes.data for a in self.args])
+        resv = (ctypes.c_void_p * max(fn.sz_res(), fn.n_out()))(*[r if r is None else r.ctypes.data for r in self.res])
+        self._work = (argv, resv, np.zeros(max(fn.sz_iw(), 1), np.int64), np.zeros(max(fn.sz_w(), 1)))
+        entry = ctypes.cast(getattr(library, fn.name()), ctypes.c_void_p).value
+        iw, w = self._work[2].ctypes.data, self._work[3].ctypes.data
+        self.addresses = (entry, ctypes.addressof(argv), ctypes.addressof(resv), iw, w)
+
+    @classmethod
+    def of(cls, compiled: Compiled, outputs: tuple[int, ...], pose: np.ndarray | None = None) -> NativeFunction | None:
+        """The C call of ``compiled`` computing ``outputs`` (their indices), or None when it is not native code or its
+        integers are not the 64-bit ``casadi_int`` of ``intervals.c``. ``pose``: a buffer (16,) to read the first
+        input (a pose, column-major) from, shared with another function, instead of one of its own."""
+        if compiled.library is None:
+            return None
+        library = ctypes.CDLL(str(compiled.library))
+        if getattr(library, f"{compiled.fn.name()}_casadi_int_size")() != 8:
+            return None
+        return cls(compiled, library, outputs, pose)
+
+
 class _NativeSets:
     """:class:`Assembler`'s C path: ``qpik_circle_sets`` (``intervals.c``) calling the IK's generated C; its
-    arrays become lists in the compiled extension (``circle_lists`` of :mod:`qpik.fastcall`) when there is one."""
+    arrays become lists by :func:`list_maker`'s function."""
 
     def __init__(
-        self,
-        dll: ctypes.CDLL,
-        entry: int,
-        compiled: Compiled,
-        limits: tuple[np.ndarray, np.ndarray],
-        rows: int,
-        shift: bool,
+        self, dll: ctypes.CDLL, ik: NativeFunction, limits: tuple[np.ndarray, np.ndarray], rows: int, shift: bool
     ):
-        fn = compiled.fn
-        self._dll = dll
+        self._dll, self._ik = dll, ik
         self.out_rows = (2 if shift else 1) * rows
         # the IK's inputs (T column-major, param, q_min, q_max) and its flags output; Q is not asked for
-        self._args = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
-        self._args[2][:], self._args[3][:] = limits
-        self._pose = self._args[0].reshape(4, 4).T  # T column-major, as the IK reads it
-        self._flags = np.zeros(fn.nnz_out(1))
-        argv = (ctypes.c_void_p * max(fn.sz_arg(), fn.n_in()))(*[a.ctypes.data for a in self._args])
-        resv = (ctypes.c_void_p * max(fn.sz_res(), fn.n_out()))(None, self._flags.ctypes.data)
-        self._work = (argv, resv, np.zeros(max(fn.sz_iw(), 1), np.int64), np.zeros(max(fn.sz_w(), 1)))
-        self._head = (
-            entry,
-            ctypes.addressof(argv),
-            ctypes.addressof(resv),
-            self._work[2].ctypes.data,
-            self._work[3].ctypes.data,
-            self._args[1].ctypes.data,
-            rows,
-            int(shift),
-        )
+        ik.args[2][:], ik.args[3][:] = limits
+        self._pose = ik.args[0].reshape(4, 4).T  # T column-major, as the IK reads it
+        self._head = (*ik.addresses, ik.args[1].ctypes.data, rows, int(shift))
         self._grow(64, 4)
-        ext = extension()
-        self._lists = None if ext is None else ext.circle_lists  # the lists built in C, else below
+        self._lists = list_maker()
 
     @classmethod
     def for_function(
@@ -184,16 +198,8 @@ class _NativeSets:
     ) -> _NativeSets | None:
         """The C path for the checked IK ``compiled``, or None when it or ``intervals.c`` is not native code."""
         dll = _library()
-        if dll is None or compiled.library is None:
-            return None
-        ik = ctypes.CDLL(str(compiled.library))
-        name = compiled.fn.name()
-        if getattr(ik, f"{name}_casadi_int_size")() != 8:  # qpik_circle_sets takes 64-bit casadi_int
-            return None
-        entry = ctypes.cast(getattr(ik, name), ctypes.c_void_p).value
-        out = cls(dll, entry, compiled, limits, rows, shift)
-        out._ik = ik  # the entry point lives as long as its library
-        return out
+        ik = None if dll is None else NativeFunction.of(compiled, outputs=(1,))
+        return None if ik is None else cls(dll, ik, limits, rows, shift)
 
     def _grow(self, breaks: int, singular: int) -> None:
         """Input and output room for up to ``breaks`` breakpoints and ``singular`` singular candidates."""
@@ -215,25 +221,48 @@ class _NativeSets:
         self._tail[0], self._tail[2] = nb, ns
         self._pose[...] = T
         m = self._dll.qpik_circle_sets(*self._head, *self._tail)
-        if m < 0:
-            raise SolverError(f"qpik_circle_sets failed ({m}: -1 no room, -2 the IK failed, -3 no memory)")
-        if self._lists is not None:
-            return self._lists(self._iv, self._count, self._sv, self._scount, ns)
-        ends = iter(self._iv[: 2 * m].tolist())
-        pieces = list(zip(ends, ends))
-        bounds = [0, *accumulate(self._count.tolist())]
-        sets = [pieces[a:b] for a, b in pairwise(bounds)]
-        found = self._scount.tolist()
-        if not any(found):
-            return sets, [[] for _ in found]
-        flat = self._sv[: self.out_rows * ns].tolist()  # row r's values start at r * ns
-        return sets, [flat[r * ns : r * ns + c] for r, c in enumerate(found)]
+        check_sets(m, "qpik_circle_sets")
+        return self._lists(self._iv, self._count, self._sv, self._scount, ns)
+
+
+def check_sets(m: int, name: str) -> None:
+    """:class:`SolverError` for the negative status ``m`` of the C function ``name`` (``intervals.c``'s codes)."""
+    if m < 0:
+        raise SolverError(f"{name} failed ({m}: -1 no room, -2 a compiled function failed, -3 no memory)")
+
+
+def list_maker() -> Callable[..., tuple[list[list[Interval]], list[list[float]]]]:
+    """What turns the output arrays of ``circle_sets`` (``intervals.c``) into lists: the compiled extension's
+    ``circle_lists`` (:mod:`qpik.fastcall`) when there is one, else :func:`python_lists` (same arguments)."""
+    ext = extension()
+    return python_lists if ext is None else ext.circle_lists
+
+
+def python_lists(
+    iv: np.ndarray, count: np.ndarray, sv: np.ndarray, scount: np.ndarray, ns: int
+) -> tuple[list[list[Interval]], list[list[float]]]:
+    """The output arrays of ``circle_sets`` (``intervals.c``) as lists, per row: its ``count[r]`` pieces (pairs
+    one row after the other in ``iv``) and its ``scount[r]`` singular values (row r's start at ``sv[r * ns]``)."""
+    counts = count.tolist()
+    ends = iter(iv[: 2 * sum(counts)].tolist())
+    pieces = list(zip(ends, ends))
+    bounds = [0, *accumulate(counts)]
+    sets = [pieces[a:b] for a, b in pairwise(bounds)]
+    found = scount.tolist()
+    if not any(found):
+        return sets, [[] for _ in found]
+    flat = sv[: len(found) * ns].tolist()  # row r's values start at r * ns
+    return sets, [flat[r * ns : r * ns + c] for r, c in enumerate(found)]
+
+
+def c_source() -> bytes:
+    """``intervals.c`` with its constants (:data:`SAME`), for a library of its own or one that includes it."""
+    return f"#define SAME {SAME!r}\n".encode() + Path(__file__).with_name("intervals.c").read_bytes()
 
 
 @cache
 def _library() -> ctypes.CDLL | None:
-    source = f"#define SAME {SAME!r}\n".encode() + Path(__file__).with_name("intervals.c").read_bytes()
-    lib = shared_library("qpik_intervals", source)
+    lib = shared_library("qpik_intervals", c_source())
     if lib is None:
         return None
     dll = ctypes.CDLL(str(lib))

@@ -46,20 +46,31 @@ only split a gap in two, and merging the gaps joins it again. Rows 9–16 are ro
 shifted by π, so only rows 1–8 are classified: one evaluation of those 8 branches
 at every gap midpoint (:class:`qpik.analytic.intervals.Assembler`), and
 rows 9–16's sets are rows 1–8's moved by π.
+
+With a C compiler all of it is one C call (``offset_shoulder_intervals.c``, compiled with
+``polyroots.c`` and ``intervals.c``): the breakpoint function, the wrist roots, the common-root
+test and the classification of the gaps, with no numpy in between; without one, the same
+steps run in numpy (:meth:`DeltaIntervals.breakpoints`, then the Assembler).
 """
 
 from __future__ import annotations
 
+import ctypes
+from functools import cache
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
 
 from qpik import symbolic as sy
-from qpik.analytic.intervals import Assembler, FeasibleIntervals
-from qpik.analytic.polyroots import trig_roots
+from qpik.analytic.intervals import Assembler, FeasibleIntervals, Interval, NativeFunction, check_sets, list_maker
+from qpik.analytic.intervals import c_source as intervals_source
+from qpik.analytic.polyroots import FLAGS as POLYROOTS_FLAGS
+from qpik.analytic.polyroots import ROOM, trig_roots
+from qpik.analytic.polyroots import c_source as polyroots_source
 from qpik.analytic.trig import EPS, acos2
-from qpik.compiled import Compiled
+from qpik.compiled import Compiled, shared_library
 from qpik.errors import QpikError
 from qpik.symbolic import Ops, Scalar
 
@@ -70,9 +81,12 @@ PI = np.pi
 ZERO = 1e-13
 """Wrist-centre distance (m) from the base axis below which its azimuth is taken as 0 (as the solver does)."""
 NONE = 10.0
-"""Stands for a singular δ that does not exist in the compiled function's output (any value outside [−π, π])."""
+"""Stands for a breakpoint or singular δ that does not exist in the compiled function's output (any value outside
+[−π, π])."""
 COMMON_TOL = 1e-6
 """θ5 and θ7 roots closer than this (rad) are a common root: a wrist singularity (sin θ6 = 0)."""
+COEFFS = 9
+"""Coefficients of each wrist polynomial A and B in c (degree 8 at most), padded with zeros."""
 
 Poly = list  # coefficients of a polynomial in c = cos δ, lowest first (scalars: floats or CasADi SX)
 CSPoly = tuple[Poly, Poly]  # A(c) + sin δ · B(c)
@@ -89,16 +103,13 @@ class DeltaIntervals:
         cand, sing, polys, kinds = self.expressions(T, sy.CASADI)
         # the rows of the θ7 and θ5 equations are consecutive (expressions lists them joint by joint): row ranges
         self._wrist_rows = np.array([k for j in (7, 5) for k in _row_range(kinds, j)])
-        # a breakpoint that does not exist is reported as 0, one that is always there (harmless); a singular
-        # value that does not exist as NONE
-        out = [
-            ca.vertcat(*[ca.if_else(ok, sy.CASADI.wrap(x), none) for x, ok in pairs])
-            for pairs, none in ((cand, 0.0), (sing, NONE))
-        ]
-        # (9, K) outputs: their transposes are C-contiguous (K, 9) views of the column-major buffers
-        FA, FB = (ca.horzcat(*[ca.vertcat(*_pad(x, 9)) for x in xs]) for xs in zip(*polys))
+        # a breakpoint or singular value that does not exist is reported as NONE
+        out = [ca.vertcat(*[ca.if_else(ok, sy.CASADI.wrap(x), NONE) for x, ok in pairs]) for pairs in (cand, sing)]
+        # (COEFFS, K) outputs: their transposes are C-contiguous (K, COEFFS) views of the column-major buffers
+        FA, FB = (ca.horzcat(*[ca.vertcat(*_pad(x, COEFFS)) for x in xs]) for xs in zip(*polys))
         self._fn = Compiled(ca.Function("os_breakpoints", [T], [*out, FA, FB]))
         self._assemble = Assembler(solver, rows=8, shift=True)
+        self._native = _NativeDelta.build(self._fn, solver, self._wrist_rows)
 
     def expressions(self, T, ops: Ops) -> tuple[list, list, list[Poly], list[int]]:
         """The breakpoint equations of rows 1–8 for the world pose T (4, 4).
@@ -190,21 +201,133 @@ class DeltaIntervals:
 
     def breakpoints(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every δ (rad) where a row 1–8 can change feasibility, and those where one can turn singular."""
-        cand, sing, FAt, FBt = self._fn(T)  # candidates that do not exist are 0 (always a breakpoint) or NONE
-        sing = sing[sing != NONE]
+        cand, sing, FAt, FBt = self._fn(T)  # values that do not exist are NONE
+        cand, sing = cand[cand != NONE], sing[sing != NONE]
         wrist, owner = trig_roots(FAt.T, FBt.T)
         # sin θ6 = 0 zeroes every θ5 and θ7 equation: their common roots (owner is ascending)
         a7, b7, a5, b5 = np.searchsorted(owner, self._wrist_rows).tolist()
         r5, r7 = wrist[a5:b5], wrist[a7:b7]
-        if r5.size and r7.size:  # cos d > 1 − tol²/2 ⇔ |d| < tol on the circle
+        if r5.size and r7.size:  # cos d > 1 − tol²/2 ⇔ |d| < tol on the circle (offset_shoulder_intervals.c: same)
             close = (np.cos(r5[:, None] - r7[None, :]) > 1.0 - 0.5 * COMMON_TOL**2).any(axis=1)
             sing = np.concatenate([sing, r5[close]])
-        return np.concatenate([cand, wrist, [0.0]]), sing
+        return np.concatenate([cand, wrist]), sing
 
     def __call__(self, T: np.ndarray) -> FeasibleIntervals:
-        brk, sing = self.breakpoints(T)
-        intervals, singular = self._assemble(T, brk, sing)  # rows 1–8, then 9–16: row 8 + k at δ is row k at δ + π
+        if self._native is not None:
+            intervals, singular = self._native(T)
+        else:
+            brk, sing = self.breakpoints(T)
+            intervals, singular = self._assemble(T, brk, sing)  # rows 1–8, then 9–16: row 8 + k at δ is row k at δ + π
         return FeasibleIntervals(self._solver.param_name, self.branch.copy(), intervals, singular)
+
+
+class _Kernel(ctypes.Structure):
+    """``Kernel`` of ``offset_shoulder_intervals.c``: a generated function's entry, pointer arrays, work arrays."""
+
+    _fields_ = [(name, ctypes.c_void_p) for name in ("fn", "arg", "res", "iw", "w")]
+
+
+class _DeltaSets(ctypes.Structure):
+    """``DeltaSets`` of ``offset_shoulder_intervals.c`` (same fields, same order)."""
+
+    _fields_ = [("breakpoints", _Kernel)]
+    _fields_ += [(name, ctypes.c_int) for name in ("n_cand", "n_sing", "K", "size", "a7", "b7", "a5", "b5")]
+    _fields_ += [("none", ctypes.c_double), ("common", ctypes.c_double), ("ik", _Kernel), ("param", ctypes.c_void_p)]
+    _fields_ += [("rows", ctypes.c_int), ("shift", ctypes.c_int), ("room_roots", ctypes.c_int)]
+    _fields_ += [(name, ctypes.c_void_p) for name in ("delta", "breaks", "sing", "owner")]
+    _fields_ += [("room", ctypes.c_int)] + [(name, ctypes.c_void_p) for name in ("iv", "sv", "count", "scount", "ns")]
+
+
+class _NativeDelta:
+    """:class:`DeltaIntervals` in one C call (``qpik_delta_sets``, ``offset_shoulder_intervals.c``): the
+    breakpoint function's and the IK's generated C, :func:`~qpik.analytic.polyroots.trig_roots`' root finder and
+    the :class:`~qpik.analytic.intervals.Assembler`'s gap classification, over buffers allocated once; the
+    arrays become lists by :func:`~qpik.analytic.intervals.list_maker`'s function."""
+
+    ROWS = 8
+
+    def __init__(
+        self,
+        dll: ctypes.CDLL,
+        breaks: NativeFunction,
+        ik: NativeFunction,
+        limits: tuple[np.ndarray, np.ndarray],
+        wrist_rows: np.ndarray,
+    ):
+        self._dll, self._breaks, self._ik = dll, breaks, ik  # the C call uses their buffers: they live as long
+        self._pose = breaks.args[0].reshape(4, 4).T  # T column-major, as both generated functions read it
+        ik.args[2][:], ik.args[3][:] = limits
+        cand, sing, FA, _ = breaks.res
+        K = FA.size // COEFFS
+        room_roots = ROOM * K
+        out_rows = 2 * self.ROWS
+        room = out_rows * (cand.size + room_roots + 2)
+        self._arrays = {
+            "delta": np.zeros(room_roots),
+            "owner": np.zeros(room_roots, np.intc),
+            "breaks": np.zeros(cand.size + room_roots),
+            "sing": np.zeros(sing.size + room_roots),
+            "iv": np.zeros(2 * room),
+            "sv": np.zeros(out_rows * (sing.size + room_roots)),
+            "count": np.zeros(out_rows, np.intc),
+            "scount": np.zeros(out_rows, np.intc),
+            "ns": np.zeros(1, np.intc),
+        }
+        a7, b7, a5, b5 = wrist_rows.tolist()
+        self._call = _DeltaSets(
+            breakpoints=_Kernel(*breaks.addresses),
+            n_cand=cand.size,
+            n_sing=sing.size,
+            K=K,
+            size=COEFFS,
+            a7=a7,
+            b7=b7,
+            a5=a5,
+            b5=b5,
+            none=NONE,
+            common=1.0 - 0.5 * COMMON_TOL**2,  # cos d > 1 − tol²/2 ⇔ |d| < tol on the circle
+            ik=_Kernel(*ik.addresses),
+            param=ik.args[1].ctypes.data,
+            rows=self.ROWS,
+            shift=1,
+            room_roots=room_roots,
+            room=room,
+            **{name: x.ctypes.data for name, x in self._arrays.items()},
+        )
+        self._address = ctypes.addressof(self._call)
+        self._lists = list_maker()
+
+    @classmethod
+    def build(cls, breaks: Compiled, solver: OffsetShoulderSolver, wrist_rows: np.ndarray) -> _NativeDelta | None:
+        """The C path over the breakpoint function ``breaks`` and ``solver``'s checked IK, or None when one of them or
+        the C source is not native code."""
+        dll = _library()
+        bp = None if dll is None else NativeFunction.of(breaks, outputs=(0, 1, 2, 3))
+        ik = None if bp is None else NativeFunction.of(solver.checked(cls.ROWS), outputs=(1,), pose=bp.args[0])
+        if ik is None:
+            return None
+        limits = (np.asarray(solver.robot.q_min, float), np.asarray(solver.robot.q_max, float))
+        return cls(dll, bp, ik, limits, wrist_rows)
+
+    def __call__(self, T: np.ndarray) -> tuple[list[list[Interval]], list[list[float]]]:
+        self._pose[...] = T
+        check_sets(self._dll.qpik_delta_sets(self._address), "qpik_delta_sets")
+        a = self._arrays
+        return self._lists(a["iv"], a["count"], a["sv"], a["scount"], int(a["ns"][0]))
+
+
+@cache
+def _library() -> ctypes.CDLL | None:
+    """``offset_shoulder_intervals.c`` compiled after ``polyroots.c`` and ``intervals.c`` (whose functions it calls),
+    loaded as a :class:`ctypes.PyDLL`: its call keeps the GIL, so threads never share its buffers at once."""
+    source = polyroots_source() + intervals_source() + Path(__file__).with_suffix(".c").read_bytes()
+    lib = shared_library("qpik_delta_intervals", source, POLYROOTS_FLAGS)
+    if lib is None:
+        return None
+    dll = ctypes.PyDLL(str(lib))
+    dll.qpik_delta_sets.restype = ctypes.c_int
+    dll.qpik_delta_sets.argtypes = [ctypes.c_void_p]
+    return dll
 
 
 def _row_range(kinds: list[int], joint: int) -> tuple[int, int]:

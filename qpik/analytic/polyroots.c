@@ -17,14 +17,20 @@
  * within 1e-7 rad of delta). */
 #define NEWTON_DONE (4.0 * DBL_EPSILON)
 
+/* p(x) and p'(x) (degree d, lowest first) as E(y) + x O(y) and 2x E'(y) + O(y) + 2y O'(y), y = x^2, E and O the
+ * even and odd parts: two independent Horner chains of half the length (Newton's iterations spend their time
+ * here, waiting on the chain). */
 static double horner(const double *a, int d, double x, double *deriv) {
-    double f = a[d], df = 0.0;
-    for (int i = d - 1; i >= 0; --i) {
-        df = df * x + f;
-        f = f * x + a[i];
+    int m = d / 2; /* E: a[0], a[2], ..., a[2m]; O: a[1], a[3], ..., a[d] for odd d (its top below, 0 for even d) */
+    double y = x * x, e = a[2 * m], de = 0.0, o = (d % 2) ? a[d] : 0.0, dov = 0.0;
+    for (int k = m - 1; k >= 0; --k) {
+        de = de * y + e;
+        e = e * y + a[2 * k];
+        dov = dov * y + o;
+        o = o * y + a[2 * k + 1];
     }
-    *deriv = df;
-    return f;
+    *deriv = 2.0 * x * de + o + 2.0 * y * dov;
+    return e + x * o;
 }
 
 static double value(const double *a, int d, double x) {
@@ -44,8 +50,9 @@ static double bracketed(const double *a, int d, double lo, double hi, double flo
         if (f == 0.0) return x;
         if ((f < 0.0) == (flo < 0.0)) lo = x; else hi = x;
         double next = (df != 0.0) ? x - f / df : 0.5 * (lo + hi);
+        if (fabs(next - x) <= NEWTON_DONE) return fmin(fmax(next, lo), hi); /* before the bracket test: x is an end */
         if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-        if (fabs(next - x) <= NEWTON_DONE || hi - lo <= 4.0 * DBL_EPSILON) return next;
+        if (hi - lo <= 4.0 * DBL_EPSILON) return next;
         x = next;
     }
     return x;
@@ -69,16 +76,29 @@ static int variations(const double *b, int d) {
     return v;
 }
 
-/* Roots of p (degree d <= QPIK_MAXD, lowest first) in [-1, 1], ascending, into roots; returns their number.
+/* The roots of p (degree d <= QPIK_MAXD, lowest first) in [-1, 1], ascending, into out; returns their number.
+ * A root is a point (lo == hi) or, where p changes sign once in [lo, hi] (flo = p(lo), fhi = p(hi) of opposite
+ * signs), that bracket: its caller decides whether it needs the root itself (level below).
  *
  * Isolation by Descartes' rule in the Bernstein basis: on an interval, the number of sign changes V of
  * p's Bernstein coefficients bounds the number of roots (and has its parity). V = 0: none; V = 1: exactly
- * one, a sign change, found by safeguarded Newton; V >= 2: the interval is halved (de Casteljau). An
+ * one, a sign change (a bracket); V >= 2: the interval is halved (de Casteljau). An
  * interval narrower than ISOLATE_WIDTH that still has V >= 2 (a double root, or roots closer than that)
  * is reported by its midpoint. Rounding can make V = 0 next to a near-double root, so real_roots below
  * uses this for p' only. */
+typedef struct {
+    double lo, hi, flo, fhi;
+} Root;
+
+static int add_point(Root *r, int n, double x) {
+    if (n > 0 && r[n - 1].lo == r[n - 1].hi && fabs(x - r[n - 1].hi) <= 4.0 * DBL_EPSILON) return n;
+    if (n >= QPIK_MAXR) return n;
+    r[n] = (Root){x, x, 0.0, 0.0};
+    return n + 1;
+}
+
 #define ISOLATE_WIDTH 1e-10
-static int bernstein_roots(const double *p, int d, double *roots) {
+static int bernstein_roots(const double *p, int d, Root *roots) {
     double q[QPIK_MAXD + 1], b[QPIK_MAXD + 1];
     while (d > 0 && p[d] == 0.0) --d;
     if (d == 0) return 0;
@@ -107,18 +127,18 @@ static int bernstein_roots(const double *p, int d, double *roots) {
     while (top > 0) {
         --top;
         double *c = stack_b[top], x0 = stack_x[top][0], x1 = stack_x[top][1];
-        if (c[0] == 0.0) n = push(roots, n, x0);
+        if (c[0] == 0.0) n = add_point(roots, n, x0);
         int v = variations(c, d);
         if (v == 0) continue;
         if (v == 1) { /* one root inside: a sign change of p, unless rounding or a root at an end hides it */
             double f0 = value(p, d, x0), f1 = value(p, d, x1);
             if (f0 != 0.0 && f1 != 0.0 && (f0 < 0.0) != (f1 < 0.0)) {
-                n = push(roots, n, bracketed(p, d, x0, x1, f0, f1));
+                if (n < QPIK_MAXR) roots[n++] = (Root){x0, x1, f0, f1};
                 continue;
             }
         }
         if (x1 - x0 <= ISOLATE_WIDTH || top >= 62) {
-            n = push(roots, n, 0.5 * (x0 + x1));
+            n = add_point(roots, n, 0.5 * (x0 + x1));
             continue;
         }
         /* de Casteljau at the midpoint: left half into slot top + 1, right half into slot top */
@@ -136,43 +156,76 @@ static int bernstein_roots(const double *p, int d, double *roots) {
         stack_x[top + 1][1] = xm;
         top += 2;
     }
-    if (b[d] == 0.0) n = push(roots, n, 1.0);
+    if (b[d] == 0.0) n = add_point(roots, n, 1.0);
     return n;
 }
 
-/* Roots in [-1, 1] of p (degree d) given the sorted roots crit[0..nc) of p' in [-1, 1]; returns their
- * number. Between consecutive critical points (and the ends) p is monotone: a sign change there is one
- * root. A critical point where |p| <= TOL sum|p_i| is reported too: a double root, or two roots closer
- * than rounding separates (an extra candidate is harmless). */
+/* Roots in [-1, 1] of p (degree d) given the sorted critical points crit[0..nc) (roots of p', whose
+ * coefficients are dp, as bernstein_roots gives them: points or brackets); returns their number. Between
+ * consecutive critical points (and the ends) p is monotone: a sign change there is one root. A critical
+ * point where |p| <= TOL sum|p_i| is reported too: a double root, or two roots closer than rounding separates
+ * (an extra candidate is harmless).
+ *
+ * A bracket [lo, hi] of a critical point holds one extremum of p, no other: where |p(lo)| and |p(hi)| exceed
+ * TOL sum|p_i| and either p changes sign in it (one root, found in [lo, hi]) or the extremum lies on the far
+ * side of zero (p' has the sign of p at lo: p moves away from zero, no root), |p| at the extremum exceeds
+ * TOL sum|p_i| as well, so the critical point itself is not needed: lo and hi take its place. Otherwise it is
+ * found by safeguarded Newton on p'. */
 #define TOL 1e-12
-static int level(const double *a, int d, const double *crit, int nc, double *out) {
+typedef struct {
+    const double *a;
+    int d;
+    double bound; /* TOL sum|p_i| */
+    double x, fx; /* the last point */
+    double *out;
+    int n;
+} Scan;
+
+/* The scan moves on to y, where p = fy: the root of a sign change since the last point, y itself where p = 0 or
+ * where y is a critical point with |p| <= bound. */
+static void advance(Scan *s, double y, double fy, int critical) {
+    if (s->fx != 0.0 && fy != 0.0 && (s->fx < 0.0) != (fy < 0.0))
+        s->n = push(s->out, s->n, bracketed(s->a, s->d, s->x, y, s->fx, fy));
+    if (fy == 0.0 || (critical && fabs(fy) <= s->bound)) s->n = push(s->out, s->n, y);
+    s->x = y;
+    s->fx = fy;
+}
+
+static int level(const double *a, int d, const double *dp, const Root *crit, int nc, double *out) {
     double scale = 0.0;
     for (int i = 0; i <= d; ++i) scale += fabs(a[i]);
     if (scale == 0.0) return 0; /* p == 0: no information, no roots */
-    int n = 0;
-    double lo = -1.0, flo = value(a, d, lo);
-    if (flo == 0.0) n = push(out, n, lo);
-    for (int k = 0; k <= nc; ++k) {
-        double hi = (k < nc) ? crit[k] : 1.0;
-        double fhi = value(a, d, hi);
-        if (flo != 0.0 && fhi != 0.0 && (flo < 0.0) != (fhi < 0.0))
-            n = push(out, n, bracketed(a, d, lo, hi, flo, fhi));
-        if (fhi == 0.0 || (k < nc && fabs(fhi) <= TOL * scale)) n = push(out, n, hi);
-        lo = hi;
-        flo = fhi;
+    Scan s = {a, d, TOL * scale, -1.0, value(a, d, -1.0), out, 0};
+    if (s.fx == 0.0) s.n = push(out, s.n, -1.0);
+    for (int k = 0; k < nc; ++k) {
+        const Root *r = &crit[k];
+        double c = r->lo;
+        if (r->lo < r->hi) {
+            double f0 = value(a, d, r->lo), f1 = value(a, d, r->hi);
+            int away = (f0 < 0.0) != (f1 < 0.0) || (f0 > 0.0) == (r->flo > 0.0);
+            if (fabs(f0) > s.bound && fabs(f1) > s.bound && away) {
+                advance(&s, r->lo, f0, 0);
+                advance(&s, r->hi, f1, 0);
+                continue;
+            }
+            c = bracketed(dp, d - 1, r->lo, r->hi, r->flo, r->fhi);
+        }
+        advance(&s, c, value(a, d, c), 1);
     }
-    return n;
+    advance(&s, 1.0, value(a, d, 1.0), 0);
+    return s.n;
 }
 
 /* Roots of p (degree d <= QPIK_MAXD, lowest first) in [-1, 1], ascending: the critical points (roots of p')
  * by Bernstein isolation, then one root per sign change of p between them (level). */
 static int real_roots(const double *p, int d, double *roots) {
-    double dp[QPIK_MAXD + 1], crit[QPIK_MAXR];
+    double dp[QPIK_MAXD + 1];
+    Root crit[QPIK_MAXR];
     while (d > 0 && p[d] == 0.0) --d;
     if (d == 0) return 0;
     for (int i = 0; i < d; ++i) dp[i] = (i + 1) * p[i + 1];
     int nc = d >= 2 ? bernstein_roots(dp, d - 1, crit) : 0;
-    return level(p, d, crit, nc, roots);
+    return level(p, d, dp, crit, nc, roots);
 }
 
 /* sum_{i=0..m} c_i (1 - t^2)^i (1 + t^2)^(m-i) into out (degree 2m, lowest first), by Horner in

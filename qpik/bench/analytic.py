@@ -21,8 +21,8 @@ rotation convention converted before timing), and the batched calls (EAIK's ``IK
 how many of a peer's solutions reach the pose to 1e-9. A peer that is not installed (the test
 extra) is left out with a note.
 
-Targets (issue): single ≤ 50 µs and ≥ 8x faster than ssik; batched ≤ 3 µs/pose;
-intervals ≤ 300 µs/pose. Nammoto & Kosuge report 31.3 µs per solution set
+Targets (issue): single ≤ 3 µs and faster than EAIK; batched ≤ 3 µs/pose;
+intervals ≤ 50 µs/pose for both arms. Nammoto & Kosuge report 31.3 µs per solution set
 (compiled code, Core i7 965, 2012): a note, not a measurement.
 """
 
