@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import pytest
 from conftest import SEEDS, random_q
@@ -194,3 +196,29 @@ def test_projection_is_only_for_rounded_rotations(robot) -> None:
     skew[:3, :3] *= 1.01
     with pytest.raises(InputError, match=r"^project"):
         qpik.ik(robot, skew, 0.0, project="no")
+
+
+@pytest.mark.parametrize("name", ["iiwa14", "nammoto7"])
+def test_threads_sharing_an_arm_get_the_answers_of_one_thread(name: str) -> None:
+    """Four threads calling ``feasible_intervals``, ``ik`` (one pose and a batch, the compiled and the general
+    path) and ``redundancy_parameter`` on one robot at once get exactly what one thread gets (the solver's
+    compiled calls share buffers: the public functions hold its lock around them)."""
+    robot = qpik.load_robot(name)
+    rng = np.random.default_rng(3)
+    Q = rng.uniform(robot.q_min, robot.q_max, (48, robot.dof))
+    T = robot.fk(Q)
+
+    def answers(k: int) -> list:
+        out = []
+        for i in range(k, len(T), 4):
+            out.append(qpik.feasible_intervals(robot, T[i]).intervals)
+            out.append(qpik.ik(robot, T[i], 0.3).q.tolist())
+            out.append(qpik.ik(robot, T[i], np.array(0.3)).q.tolist())  # not a float: the general path
+            out.append(qpik.redundancy_parameter(robot, Q[i]))
+        out.append(qpik.ik(robot, T[k::4], 0.3).q.tolist())
+        return out
+
+    serial = [answers(k) for k in range(4)]
+    with ThreadPoolExecutor(4) as pool:
+        for _ in range(5):
+            assert list(pool.map(answers, range(4))) == serial

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,6 +21,7 @@ _SOLVERS = {
     "srs": ("qpik.analytic.srs", "SRSSolver"),
 }
 _instances: dict[int, AnalyticSolver] = {}  # id(robot) -> solver; the solver holds the robot, so the id stays its own
+_creating = threading.Lock()
 
 
 def solver_for(robot: Robot) -> AnalyticSolver:
@@ -30,15 +32,21 @@ def solver_for(robot: Robot) -> AnalyticSolver:
         NoClosedFormError: the arm has no closed form.
     """
     solver = _instances.get(id(robot))
-    if solver is not None and solver.robot is robot:  # the common case: a robot seen before
-        return solver
+    if solver is None or solver.robot is not robot:  # a robot not seen before
+        with _creating:  # one solver per robot, also when threads ask for it at once
+            solver = _instances.get(id(robot))
+            if solver is None or solver.robot is not robot:
+                solver = _instances[id(robot)] = _new_solver(robot)
+    return solver
+
+
+def _new_solver(robot: Robot) -> AnalyticSolver:
     robot = as_robot(robot)
     if robot.closed_form not in _SOLVERS:
         why = robot.notes if robot.notes.startswith("no closed form") else "only offset-shoulder and S-R-S arms do"
         raise NoClosedFormError(f"{robot.name} has no closed-form IK ({why}); use qpik.solve_ik instead")
     module, cls = _SOLVERS[robot.closed_form]
-    solver = _instances[id(robot)] = getattr(importlib.import_module(module), cls)(robot)
-    return solver
+    return getattr(importlib.import_module(module), cls)(robot)
 
 
 @dataclass
@@ -107,11 +115,13 @@ def ik(robot: Robot, pose: np.ndarray, param: float | np.ndarray, project: bool 
             if p.ndim != 0:
                 raise InputError(f"param: expected a float for a single pose, got shape {p.shape}")
             par = float(p)
-        sol = solver.solve_one(T, par)
+        with solver.lock:
+            sol = solver.solve_one(T, par)
     else:
         p = finite_array(param, "param")
         par = np.full(T.shape[0], float(p)) if p.ndim == 0 else finite_array(p, "param", (T.shape[0],))
-        sol = solver.solve_batch(T, par)
+        with solver.lock:
+            sol = solver.solve_batch(T, par)
     return IKSolutions(
         q=sol.q,
         valid=sol.valid,
@@ -130,7 +140,8 @@ def redundancy_parameter(robot: Robot, q: np.ndarray) -> tuple[float | np.ndarra
     """
     solver = solver_for(robot)
     qa, batched = joint_vector(q, robot.dof)
-    param, branch = solver.parameter(wrap(np.atleast_2d(qa)))
+    with solver.lock:
+        param, branch = solver.parameter(wrap(np.atleast_2d(qa)))
     if batched:
         return param, branch
     return float(param[0]), int(branch[0])
@@ -142,4 +153,5 @@ def feasible_intervals(robot: Robot, pose: np.ndarray, project: bool = False) ->
     T, batched = check_pose(pose, "pose", project)
     if batched:
         raise InputError("pose: feasible_intervals takes one pose (4, 4)")
-    return solver.feasible_intervals(T)
+    with solver.lock:
+        return solver.feasible_intervals(T)

@@ -319,7 +319,8 @@ class _NativeDelta:
 @cache
 def _library() -> ctypes.CDLL | None:
     """``offset_shoulder_intervals.c`` compiled after ``polyroots.c`` and ``intervals.c`` (whose functions it calls),
-    loaded as a :class:`ctypes.PyDLL`: its call keeps the GIL, so threads never share its buffers at once."""
+    loaded as a :class:`ctypes.PyDLL` (its call keeps the GIL). Its buffers belong to the solver: like every compiled
+    call of qpik's, one arm's solver is not for several threads at once."""
     source = polyroots_source() + intervals_source() + Path(__file__).with_suffix(".c").read_bytes()
     lib = shared_library("qpik_delta_intervals", source, POLYROOTS_FLAGS)
     if lib is None:

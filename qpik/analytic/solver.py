@@ -24,6 +24,7 @@ all of them agree.
 
 from __future__ import annotations
 
+import threading
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from functools import cached_property
@@ -101,6 +102,9 @@ class AnalyticSolver(ABC):
         self.joint_map = None if canonical is None or canonical.joints.identity else canonical.joints
         lo, hi = np.asarray(robot.q_min, float), np.asarray(robot.q_max, float)
         self._wide = (lo < -np.pi) | (hi > np.pi)  # joints whose representatives are chosen
+        self.lock = threading.RLock()
+        """Held by the public functions (:mod:`qpik.analytic.api`) around the solver's calls: its compiled functions
+        evaluate in buffers of their own, which two threads must not use at once."""
 
     @property
     def n_branches(self) -> int:
