@@ -4,6 +4,7 @@ sampling of the parameter, the Levenberg–Marquardt Jacobian by finite differen
 from __future__ import annotations
 
 import contextlib
+from concurrent.futures import ThreadPoolExecutor
 
 import casadi as ca
 import numpy as np
@@ -202,3 +203,21 @@ def test_bad_input() -> None:
         solve_ik(robot, skew, robot.q_home)
     q_star = solve_ik(robot, skew, robot.q_home + 0.1, project=True)
     assert _errors(robot, q_star[None], T[None])[0] < 1e-9
+
+
+@pytest.mark.parametrize("name", ["iiwa14", "panda"])
+def test_threads_sharing_an_arm_get_the_answers_of_one_thread(name: str) -> None:
+    """Four threads calling ``solve_ik`` on one robot at once (the closed form on iiwa14, Levenberg–Marquardt on
+    panda) get exactly what one thread gets: the solvers hold their locks around their compiled calls."""
+    robot = qpik.load_robot(name)
+    rng = np.random.default_rng(5)
+    T = robot.fk(rng.uniform(robot.q_min, robot.q_max, (16, robot.dof)))
+    Q0 = rng.uniform(robot.q_min, robot.q_max, (16, robot.dof))
+
+    def answers(k: int) -> list:
+        return [qpik.solve_ik(robot, T[i], Q0[i]).tolist() for i in range(k, len(T), 4)]
+
+    serial = [answers(k) for k in range(4)]
+    with ThreadPoolExecutor(4) as pool:
+        for _ in range(3):
+            assert list(pool.map(answers, range(4))) == serial

@@ -43,6 +43,7 @@ answer. Otherwise, one of two ways:
 from __future__ import annotations
 
 import math
+import threading
 import time
 from dataclasses import dataclass
 from functools import cached_property
@@ -181,6 +182,8 @@ class IKSolver:
 
     def __init__(self, robot: Robot):
         self.robot = robot
+        self.lock = threading.RLock()
+        """Held around the solver's compiled calls, which evaluate in buffers of their own: threads may share it."""
 
     @cached_property
     def _chunk(self) -> Compiled:
@@ -210,7 +213,8 @@ class IKSolver:
 
     def residual(self, q: np.ndarray, pose: np.ndarray) -> float:
         """‖e(q)‖ of ``q`` (n,) toward ``pose`` (4, 4) (m and rad together)."""
-        return float(self._error(q, pose)[0][0])
+        with self.lock:
+            return float(self._error(q, pose)[0][0])
 
     def solve(
         self,
@@ -245,27 +249,28 @@ class IKSolver:
             raise InputError(f"method: 'closed form', 'levenberg-marquardt' or None, got {method!r}")
         if method == "closed form" and not robot.closed_form:
             raise NoClosedFormError(f"method: {robot.name} has no closed form; use 'levenberg-marquardt'")
-        deadline = math.inf if max_time is None else time.perf_counter() + max_time
-        start = np.clip(q, robot.q_min, robot.q_max)
-        if (start == q).all():  # q0 inside the limits already at the pose: it is the answer
-            residual = self.residual(q, T)
-            if residual <= tol:
-                return IKResult(q.copy(), "ok", residual, method)
-        if method == "levenberg-marquardt":
-            return self._levenberg_marquardt(T, start, tol, int(max_iters), deadline, seed)
-        found, feasible = self._closed_form(T, q)
-        if found is not None and found.residual <= tol:
-            return found
-        if found is not None:  # a singular case of the closed form, or tol below its accuracy: polish
-            return self._levenberg_marquardt(T, found.q, tol, int(max_iters), deadline, seed)
-        if feasible:  # a feasible set whose candidates all failed the limit test: iterate instead
-            return self._levenberg_marquardt(T, start, tol, int(max_iters), deadline, seed)
-        # no branch is feasible: nothing inside the limits reaches the pose (up to the sets' resolution);
-        # one attempt from q0 gives the smallest error to report
-        res = self._levenberg_marquardt(T, start, tol, min(int(max_iters), ATTEMPT_ITERS), deadline, seed)
-        if res.status != "ok":
-            res.status = "unreachable"
-        return res
+        with self.lock:  # the compiled calls' buffers are the solver's
+            deadline = math.inf if max_time is None else time.perf_counter() + max_time
+            start = np.clip(q, robot.q_min, robot.q_max)
+            if (start == q).all():  # q0 inside the limits already at the pose: it is the answer
+                residual = self.residual(q, T)
+                if residual <= tol:
+                    return IKResult(q.copy(), "ok", residual, method)
+            if method == "levenberg-marquardt":
+                return self._levenberg_marquardt(T, start, tol, int(max_iters), deadline, seed)
+            found, feasible = self._closed_form(T, q)
+            if found is not None and found.residual <= tol:
+                return found
+            if found is not None:  # a singular case of the closed form, or tol below its accuracy: polish
+                return self._levenberg_marquardt(T, found.q, tol, int(max_iters), deadline, seed)
+            if feasible:  # a feasible set whose candidates all failed the limit test: iterate instead
+                return self._levenberg_marquardt(T, start, tol, int(max_iters), deadline, seed)
+            # no branch is feasible: nothing inside the limits reaches the pose (up to the sets' resolution);
+            # one attempt from q0 gives the smallest error to report
+            res = self._levenberg_marquardt(T, start, tol, min(int(max_iters), ATTEMPT_ITERS), deadline, seed)
+            if res.status != "ok":
+                res.status = "unreachable"
+            return res
 
     # ---- closed form ------------------------------------------------------------
 
@@ -274,6 +279,11 @@ class IKSolver:
         any branch has a feasible set. ``T`` (4, 4) is a checked pose (not checked again here)."""
         robot = self.robot
         solver = closed_form_solver(robot)
+        with solver.lock:  # shared with the public closed-form functions
+            return self._closed_form_with(solver, T, q0)
+
+    def _closed_form_with(self, solver, T: np.ndarray, q0: np.ndarray) -> tuple[IKResult | None, bool]:
+        robot = self.robot
         sets = solver.feasible_intervals(T)
         param0, branch0 = (x[0] for x in solver.parameter(q0[None]))
         k0 = sets.index(branch0)
