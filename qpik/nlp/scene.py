@@ -101,10 +101,7 @@ class Scene:
             e = np.zeros(0)
             return Points(pose, row, psi, np.zeros((0, n)), np.zeros((0, n)), np.zeros(0, bool), e, e, e, e,
                           np.zeros((0, self.evaluator.n_pairs)))  # fmt: skip
-        q, dq, valid = np.empty((M, n)), np.empty((M, n)), np.empty(M, bool)
-        for b in np.unique(row):
-            at = np.flatnonzero(row == b)
-            q[at], dq[at], valid[at] = self.selfmotion.points(int(b), self.poses[pose[at]], psi[at])
+        q, dq, valid = self.selfmotion.points(row, self.poses[pose], psi)
         f, grad, d, grad_d = self.evaluator.rows(q, self.q_ref[pose])
         df = np.einsum("ij,ij->i", grad, dq)
         if d.shape[1]:

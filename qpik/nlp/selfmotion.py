@@ -4,7 +4,8 @@ For each branch b of :meth:`~qpik.analytic.solver.AnalyticSolver.casadi_function
 row functions (:class:`~qpik.compiled.RowMap`, one row = a pose and a parameter or a range):
 
 - :meth:`SelfMotion.points`: ``q_b(T, ψ)`` (n,), its exact derivative ``dq_b/dψ`` (CasADi)
-  and whether the branch reaches the pose (:meth:`SelfMotion.point_function`);
+  and whether the branch reaches the pose (:meth:`SelfMotion.point_function`); the branch is
+  an input of each row (a CasADi switch over the branches), so rows of every branch share one call;
 - :meth:`SelfMotion.models`: for a range [lo, hi] of ψ, the Taylor model of ``q_b(T, ψ)`` in
   :math:`t = (\psi - \psi_{mid})/h` (h the half width): centre, slope, radius and bounds (n each) such
   that every q over the range lies within them (:meth:`SelfMotion.taylor_function`,
@@ -30,7 +31,7 @@ from qpik.robots.robot import Robot
 
 MIRRORED = {"offset_shoulder": 8}
 """Closed-form families whose branches k + half at a parameter are branch k at the parameter + π: half."""
-CHUNKS = (32, 8)
+CHUNKS = (128, 8)
 """Rows per call of the compiled self-motion functions (:class:`~qpik.compiled.RowMap`)."""
 MODEL_CHUNKS = (16, 16)
 """The same for the Taylor models: one size, since they take seconds to compile."""
@@ -50,7 +51,6 @@ class SelfMotion:
         self.solver = solver_for(robot)
         self.branch_ids = np.array(self.solver.branch_ids)
         self.searched = MIRRORED.get(self.solver.kind, self.solver.n_branches)
-        self._points: dict[int, RowMap] = {}
         self._models: dict[int, RowMap] = {}
 
     @cached_property
@@ -67,6 +67,12 @@ class SelfMotion:
             f"selfmotion_{self.solver.kind}_{b}", [T, psi], [ca.densify(ca.vertcat(q, ca.jacobian(q, psi), valid[b]))]
         )
 
+    def switch_function(self) -> ca.Function:
+        """``(b, T (4, 4), ψ) -> [q (n); dq/dψ (n); valid]`` of branch row b (:meth:`point_function`; a b outside
+        0..searched-2 selects the last searched row)."""
+        rows = [self.point_function(b) for b in range(self.searched)]
+        return ca.Function.conditional(f"selfmotion_{self.solver.kind}", rows[:-1], rows[-1])
+
     def taylor_function(self, b: int) -> ca.Function:
         """Branch row b: the Taylor model of q over a range of ψ, ``(T, ψ centre, ψ slope, 0, lo, hi) ->
         (centre, slope, radius, lo, hi)`` of q (n each) (:func:`qpik.enclosure.taylor_function`)."""
@@ -74,20 +80,19 @@ class SelfMotion:
         fn = ca.Function(f"selfmotion_q_{self.solver.kind}_{b}", [T, psi], [ca.densify(Q[b, :].T)])
         return taylor_function(fn, [1], name=f"selfmotion_taylor_{self.solver.kind}_{b}")
 
-    def _point_map(self, b: int) -> RowMap:
-        if b not in self._points:
-            self._points[b] = RowMap(self.point_function(b), chunks=CHUNKS)
-        return self._points[b]
+    @cached_property
+    def _point_map(self) -> RowMap:
+        return RowMap(self.switch_function(), chunks=CHUNKS)
 
     def _model_map(self, b: int) -> RowMap:
         if b not in self._models:
             self._models[b] = RowMap(self.taylor_function(b), chunks=MODEL_CHUNKS)
         return self._models[b]
 
-    def points(self, b: int, T: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Branch row b at poses T (M, 4, 4) and parameters ψ (M,): q (M, n), dq/dψ (M, n), valid (M,) bool."""
+    def points(self, b: np.ndarray, T: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Branch rows b (M,) at poses T (M, 4, 4) and parameters ψ (M,): q (M, n), dq/dψ (M, n), valid (M,) bool."""
         n = self.robot.dof
-        (out,) = self._point_map(b)(_columns(T), psi)
+        (out,) = self._point_map(np.asarray(b, float), _columns(T), psi)
         return out[:, :n], out[:, n : 2 * n], out[:, 2 * n] > 0.5
 
     def models(self, b: int, T: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
