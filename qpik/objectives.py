@@ -506,8 +506,9 @@ class Expression(Objective):
         return Split(out)
 
 
-CHUNK = 16
-"""Rows per call of an :class:`Evaluator`'s compiled map (:class:`~qpik.compiled.RowMap`, one size: one compile)."""
+CHUNKS = (128, 16)
+"""Rows per call of an :class:`Evaluator`'s compiled maps (:class:`~qpik.compiled.RowMap`: large calls for the
+search's samples of every branch at once, small ones for its polish rounds)."""
 
 
 class Evaluator:
@@ -533,7 +534,7 @@ class Evaluator:
         key = (id(robot), objective.key(), self.obstacles.kinds, len(self.params))
         entry = _EVALUATORS.get(key)
         if entry is None or entry[0] is not robot:
-            entry = _EVALUATORS[key] = (robot, RowMap(self.function(), shared=(1, 3), chunks=(CHUNK, CHUNK)))
+            entry = _EVALUATORS[key] = (robot, RowMap(self.function(), shared=(1, 3), chunks=CHUNKS))
         self._rows = entry[1]
 
     def function(self) -> ca.Function:
