@@ -216,13 +216,8 @@ def cell_bounds(
     """For cells (pose, branch row, [lo, hi]) (M,): the lower bound of f (:func:`lower_bound`, refined until it
     decides whether it is below ``decide`` (M,)) and whether the clearance constraint surely fails on the whole
     cell (some distance's upper bound below d_s)."""
-    n, M = scene.robot.dof, len(lo)
-    q = [np.empty((M, n)) for _ in range(5)]
-    for b in np.unique(row):
-        at = np.flatnonzero(row == b)
-        for dst, src in zip(q, scene.selfmotion.models(int(b), scene.poses[pose[at]], lo[at], hi[at])):
-            dst[at] = src
-    c, s, r, q_lo, q_hi = q
+    M = len(lo)
+    c, s, r, q_lo, q_hi = scene.selfmotion.models(row, scene.poses[pose], lo, hi)
     models = scene.bound_rows(bounds, c, s, r, q_lo, q_hi, pose)
     lb = lower_bound(models, bounds.sizes, decide)
     if not bounds.n_pairs:

@@ -9,7 +9,7 @@ row functions (:class:`~qpik.compiled.RowMap`, one row = a pose and a parameter 
 - :meth:`SelfMotion.models`: for a range [lo, hi] of ψ, the Taylor model of ``q_b(T, ψ)`` in
   :math:`t = (\psi - \psi_{mid})/h` (h the half width): centre, slope, radius and bounds (n each) such
   that every q over the range lies within them (:meth:`SelfMotion.taylor_function`,
-  :func:`qpik.enclosure.taylor_function` of the same closed form).
+  :func:`qpik.enclosure.taylor_function` of the same closed form); a switch over the branches too.
 
 Offset-shoulder arms have 16 branches, but branch k + 8 at δ is branch k at δ + π
 (Nammoto & Kosuge 2012, eq. 7: θ1[2] = θ1[1] + π with the rest following), so only the
@@ -51,7 +51,6 @@ class SelfMotion:
         self.solver = solver_for(robot)
         self.branch_ids = np.array(self.solver.branch_ids)
         self.searched = MIRRORED.get(self.solver.kind, self.solver.n_branches)
-        self._models: dict[int, RowMap] = {}
 
     @cached_property
     def _symbols(self) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
@@ -67,12 +66,6 @@ class SelfMotion:
             f"selfmotion_{self.solver.kind}_{b}", [T, psi], [ca.densify(ca.vertcat(q, ca.jacobian(q, psi), valid[b]))]
         )
 
-    def switch_function(self) -> ca.Function:
-        """``(b, T (4, 4), ψ) -> [q (n); dq/dψ (n); valid]`` of branch row b (:meth:`point_function`; a b outside
-        0..searched-2 selects the last searched row)."""
-        rows = [self.point_function(b) for b in range(self.searched)]
-        return ca.Function.conditional(f"selfmotion_{self.solver.kind}", rows[:-1], rows[-1])
-
     def taylor_function(self, b: int) -> ca.Function:
         """Branch row b: the Taylor model of q over a range of ψ, ``(T, ψ centre, ψ slope, 0, lo, hi) ->
         (centre, slope, radius, lo, hi)`` of q (n each) (:func:`qpik.enclosure.taylor_function`)."""
@@ -82,12 +75,13 @@ class SelfMotion:
 
     @cached_property
     def _point_map(self) -> RowMap:
-        return RowMap(self.switch_function(), chunks=CHUNKS)
+        rows = [self.point_function(b) for b in range(self.searched)]
+        return RowMap(_switch(f"selfmotion_{self.solver.kind}", rows), chunks=CHUNKS)
 
-    def _model_map(self, b: int) -> RowMap:
-        if b not in self._models:
-            self._models[b] = RowMap(self.taylor_function(b), chunks=MODEL_CHUNKS)
-        return self._models[b]
+    @cached_property
+    def _model_map(self) -> RowMap:
+        rows = [self.taylor_function(b) for b in range(self.searched)]
+        return RowMap(_switch(f"selfmotion_taylor_{self.solver.kind}", rows), chunks=MODEL_CHUNKS)
 
     def points(self, b: np.ndarray, T: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Branch rows b (M,) at poses T (M, 4, 4) and parameters ψ (M,): q (M, n), dq/dψ (M, n), valid (M,) bool."""
@@ -95,10 +89,11 @@ class SelfMotion:
         (out,) = self._point_map(np.asarray(b, float), _columns(T), psi)
         return out[:, :n], out[:, n : 2 * n], out[:, 2 * n] > 0.5
 
-    def models(self, b: int, T: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
-        """Branch row b at poses T (M, 4, 4) over ψ ∈ [lo, hi] (M,): the Taylor models of q in
+    def models(self, b: np.ndarray, T: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
+        """Branch rows b (M,) at poses T (M, 4, 4) over ψ ∈ [lo, hi] (M,): the Taylor models of q in
         t = (ψ − mid)/half, ``[centre, slope, radius, lo, hi]``, each (M, n)."""
-        return self._model_map(b)(_columns(T), 0.5 * (lo + hi), 0.5 * (hi - lo), np.zeros(len(lo)), lo, hi)
+        mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+        return self._model_map(np.asarray(b, float), _columns(T), mid, half, np.zeros(len(lo)), lo, hi)
 
     def mirror(self, b: int) -> tuple[int, float] | None:
         """``(row, shift)`` when branch row b is row ``row`` at the parameter + ``shift`` (rad), else None."""
@@ -110,6 +105,12 @@ class SelfMotion:
         """The parameter (rad) of branch row b's configuration found on its searched row at ``psi``."""
         m = self.mirror(b)
         return psi if m is None else float(wrap(psi - m[1]))
+
+
+def _switch(name: str, rows: list[ca.Function]) -> ca.Function:
+    """``(b, *inputs) -> rows[b](*inputs)``: a CasADi switch, so that one mapped call serves rows of every branch
+    (a b outside 0..len(rows) - 2 selects the last)."""
+    return ca.Function.conditional(name, rows[:-1], rows[-1])
 
 
 def _columns(T: np.ndarray) -> np.ndarray:
