@@ -326,7 +326,11 @@ def _solve(scene: Scene, certify: bool, tol: float, method: str, rows: list[int]
 
 
 def _search(scene: Scene, pieces: Pieces, step: float, extra: Points | None = None) -> tuple[Points, np.ndarray]:
-    """Sample, split and polish: the polished local minima and every feasible sample, and their polish rounds."""
+    """Sample, split and polish: the polished local minima and their polish rounds.
+
+    Every (pose, branch row) with a feasible sample has its best discrete local minimum polished
+    (:data:`~qpik.nlp.search.POLISHED_PER_BRANCH`), and polishing never raises f: the polished
+    points hold each branch's best point found."""
     if not len(pieces):
         return scene.evaluate(np.zeros(0, int), np.zeros(0, int), np.zeros(0)), np.zeros(0, int)
     pts, piece = sample(scene, pieces, step)
@@ -348,7 +352,7 @@ def _search(scene: Scene, pieces: Pieces, step: float, extra: Points | None = No
     pol = polish(scene, a, m, b)
     share = (scene.evaluations - before) / max(len(m), 1)
     np.add.at(scene.counts, (m.pose, m.row), np.round(share).astype(int))
-    return Points.join([onto_limits(scene, pol.point), runs]), np.concatenate([pol.rounds, np.zeros(len(runs), int)])
+    return onto_limits(scene, pol.point), pol.rounds
 
 
 def _count(scene: Scene, pts: Points) -> None:
@@ -366,25 +370,26 @@ class _BestSoFar:
         self.clearance = np.full((N, B), np.inf)
 
     def update(self, pose, row, psi, q, f, rounds, clearance) -> None:
-        for i, b, p, qq, v, k, c in zip(pose, row, psi, q, f, rounds, clearance):
-            if np.isfinite(v) and v < self.f[i, b]:
-                self.f[i, b], self.psi[i, b], self.q[i, b], self.clearance[i, b] = v, p, qq, c
-            self.rounds[i, b] = max(self.rounds[i, b], k)
+        """Points (M,) with their rounds: the best feasible one of each (pose, branch row) replaces a worse best."""
+        pose, row, f = np.asarray(pose, int), np.asarray(row, int), np.asarray(f, float)
+        if not len(f):
+            return
+        np.maximum.at(self.rounds, (pose, row), np.asarray(rounds, int))
+        ok = np.flatnonzero(np.isfinite(f))
+        order = ok[np.lexsort((f[ok], row[ok], pose[ok]))]
+        first = np.ones(len(order), bool)
+        first[1:] = (pose[order][1:] != pose[order][:-1]) | (row[order][1:] != row[order][:-1])
+        top = order[first]
+        top = top[f[top] < self.f[pose[top], row[top]]]
+        i, b = pose[top], row[top]
+        self.f[i, b], self.psi[i, b], self.q[i, b] = f[top], np.asarray(psi)[top], np.asarray(q)[top]
+        self.clearance[i, b] = np.asarray(clearance)[top]
 
     def update_from(self, pts: Points, rounds: np.ndarray) -> None:
-        if not len(pts):
-            return
-        ok = np.flatnonzero(pts.valid & np.isfinite(pts.f))
+        """:meth:`update` with evaluated points (the invalid ones skipped)."""
+        f = np.where(pts.valid, pts.f, np.inf)
         clear = pts.d.min(axis=1) if pts.d.shape[1] else np.full(len(pts), np.inf)
-        order = ok[np.lexsort((pts.f[ok], pts.row[ok], pts.pose[ok]))]
-        first = np.ones(len(order), bool)
-        key = pts.pose[order] * 10_000 + pts.row[order]
-        first[1:] = key[1:] != key[:-1]
-        top = order[first]
-        self.update(
-            pts.pose[top], pts.row[top], pts.psi[top], pts.q[top], pts.f[top], np.zeros(len(top), int), clear[top]
-        )
-        np.maximum.at(self.rounds, (pts.pose, pts.row), rounds)
+        self.update(pts.pose, pts.row, pts.psi, pts.q, f, rounds, clear)
 
     def found(self) -> np.ndarray:
         return np.isfinite(self.f).any(axis=1)
