@@ -18,7 +18,10 @@ import qpik
 from qpik.analytic import solver_for
 from qpik.errors import InputError, NoClosedFormError
 from qpik.geometry import Sphere, distances
+from qpik.geometry.distance import ObstacleSet
 from qpik.nlp import BestResults, solve_best
+from qpik.nlp.scene import Scene
+from qpik.nlp.selfmotion import selfmotion_of
 from qpik.objectives import Evaluator, Expression, resolve
 
 POSES = 500
@@ -119,6 +122,31 @@ def test_other_objectives_against_dense_samples(name, objective):
             continue
         _check_answer(robot, T[k], res, obstacles)
         assert res.objective <= f[clear].min() + 1e-8, (k, res.objective, f[clear].min())
+
+
+@pytest.mark.parametrize("name", ARMS)
+def test_sample_rows_equal_full_rows_and_derivatives_match_differences(name):
+    """The search's cheap sample rows (Scene.values) give the same q, f, clearance and distances as its full
+    rows (Scene.evaluate; the split and the polish compare values of both), and the full rows' dq/dψ and f'
+    match central differences of the cheap rows."""
+    robot = qpik.load_robot(name)
+    sm = selfmotion_of(robot)
+    T = _poses(robot, 20, 31)
+    objective = resolve("smooth-margin") + 0.1 * resolve("smooth-clearance")
+    scene = Scene(robot, sm, objective, ObstacleSet(OBSTACLES), D_SAFE, T, np.zeros((len(T), robot.dof)))
+    rng = np.random.default_rng(3)
+    pose = np.repeat(np.arange(len(T)), 50)
+    row, psi = rng.integers(0, sm.searched, len(pose)), rng.uniform(-np.pi, np.pi, len(pose))
+    full, cheap = scene.evaluate(pose, row, psi), scene.values(pose, row, psi)
+    for key in ("q", "valid", "f", "c", "d"):
+        np.testing.assert_array_equal(getattr(cheap, key), getattr(full, key), err_msg=key)
+    h = 1e-6
+    up, down = scene.values(pose, row, psi + h), scene.values(pose, row, psi - h)
+    dq = (up.q - down.q) / (2 * h)
+    ok = full.valid & up.valid & down.valid & (np.abs(full.dq).max(axis=1) < 1e3) & (np.abs(dq).max(axis=1) < 1e3)
+    assert ok.mean() > 0.5
+    np.testing.assert_allclose(full.dq[ok], dq[ok], atol=1e-5, rtol=1e-5)
+    np.testing.assert_allclose(full.df[ok], ((up.f - down.f) / (2 * h))[ok], atol=1e-5, rtol=1e-5)
 
 
 @pytest.mark.parametrize("name", ARMS)

@@ -347,7 +347,7 @@ def _search(scene: Scene, pieces: Pieces, step: float, extra: Points | None = No
     runs, run = split(scene, pts, piece)
     if not len(runs):
         return runs, np.zeros(0, int)
-    a, m, b = candidates(runs, run)
+    a, m, b = candidates(scene, runs, run)
     before = scene.evaluations
     pol = polish(scene, a, m, b)
     share = (scene.evaluations - before) / max(len(m), 1)

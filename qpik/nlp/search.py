@@ -72,7 +72,8 @@ def sample(scene: Scene, pieces: Pieces, step: float = SAMPLE_STEP) -> tuple[Poi
     each end: (points, piece (M,)).
 
     Points of one piece are consecutive and in increasing ψ. Only points where the branch reaches
-    the pose with a finite objective are kept.
+    the pose with a finite objective are kept. They carry values only (:meth:`~qpik.nlp.scene.Scene.values`:
+    the derivatives are NaN); :func:`split` and :func:`candidates` evaluate the derivatives where they are used.
     """
     shrink = np.minimum(END, 0.5 * (pieces.hi - pieces.lo))
     pieces = Pieces(pieces.pose, pieces.row, pieces.lo + shrink, pieces.hi - shrink)
@@ -95,7 +96,7 @@ def sample(scene: Scene, pieces: Pieces, step: float = SAMPLE_STEP) -> tuple[Poi
     piece, psi = np.concatenate([piece, extra_piece]), np.concatenate([psi, extra])
     order = np.lexsort((psi, piece))
     piece, psi = piece[order], psi[order]
-    pts = scene.evaluate(pieces.pose[piece], pieces.row[piece], psi)
+    pts = scene.values(pieces.pose[piece], pieces.row[piece], psi)
     keep = pts.valid & np.isfinite(pts.f)
     return pts.take(keep), piece[keep]
 
@@ -234,7 +235,9 @@ def split(scene: Scene, pts: Points, piece: np.ndarray) -> tuple[Points, np.ndar
         return pts, piece
     ok = pts.c >= 0
     change = np.flatnonzero((piece[1:] == piece[:-1]) & (ok[1:] != ok[:-1]))
-    found = roots(scene, pts.take(change), pts.take(change + 1)) if len(change) else None
+    found = None
+    if len(change):  # the roots' brackets, with the derivatives the samples leave out
+        found = roots(scene, *_derivatives(scene, pts, [change, change + 1]))
     key = np.arange(len(pts), dtype=float)
     all_pts, all_piece = pts, piece
     if found is not None:
@@ -252,8 +255,9 @@ def split(scene: Scene, pts: Points, piece: np.ndarray) -> tuple[Points, np.ndar
     return all_pts, np.cumsum(start) - 1
 
 
-def candidates(pts: Points, run: np.ndarray) -> tuple[Points, Points, Points]:
-    """Brackets ``(a, m, b)`` of the discrete local minima of f along each run, the ones to polish.
+def candidates(scene: Scene, pts: Points, run: np.ndarray) -> tuple[Points, Points, Points]:
+    """Brackets ``(a, m, b)`` of the discrete local minima of f along each run, the ones to polish, evaluated
+    with their derivatives.
 
     Per (pose, branch row) its :data:`POLISHED_PER_BRANCH` best, then per pose the
     :data:`POLISHED_PER_POSE` best of the rest.
@@ -276,7 +280,15 @@ def candidates(pts: Points, run: np.ndarray) -> tuple[Points, Points, Points]:
     chosen = np.concatenate([chosen, rest[prank < POLISHED_PER_POSE]])
     a = np.where(first[chosen], chosen, chosen - 1)
     b = np.where(last[chosen], chosen, chosen + 1)
-    return pts.take(a), pts.take(chosen), pts.take(b)
+    return tuple(_derivatives(scene, pts, [a, chosen, b]))
+
+
+def _derivatives(scene: Scene, pts: Points, parts: list[np.ndarray]) -> list[Points]:
+    """The rows ``parts`` (index arrays) of samples, evaluated with the derivatives in one call."""
+    k = np.concatenate(parts)
+    full = scene.evaluate(pts.pose[k], pts.row[k], pts.psi[k])
+    ends = np.cumsum([0, *(len(p) for p in parts)])
+    return [full.take(np.arange(ends[j], ends[j + 1])) for j in range(len(parts))]
 
 
 AT_LIMIT = 1e-7

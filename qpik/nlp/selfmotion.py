@@ -5,7 +5,8 @@ row functions (:class:`~qpik.compiled.RowMap`, one row = a pose and a parameter 
 
 - :meth:`SelfMotion.points`: ``q_b(T, ψ)`` (n,), its exact derivative ``dq_b/dψ`` (CasADi)
   and whether the branch reaches the pose (:meth:`SelfMotion.point_function`); the branch is
-  an input of each row (a CasADi switch over the branches), so rows of every branch share one call;
+  an input of each row (a CasADi switch over the branches), so rows of every branch share one call
+  (:meth:`SelfMotion.values`: the same without dq/dψ, for the search's samples);
 - :meth:`SelfMotion.models`: for a range [lo, hi] of ψ, the Taylor model of ``q_b(T, ψ)`` in
   :math:`t = (\psi - \psi_{mid})/h` (h the half width): centre, slope, radius and bounds (n each) such
   that every q over the range lies within them (:meth:`SelfMotion.taylor_function`,
@@ -66,6 +67,12 @@ class SelfMotion:
             f"selfmotion_{self.solver.kind}_{b}", [T, psi], [ca.densify(ca.vertcat(q, ca.jacobian(q, psi), valid[b]))]
         )
 
+    def value_function(self, b: int) -> ca.Function:
+        """Branch row b: ``(T (4, 4), ψ) -> [q (n); valid]`` (n + 1,): :meth:`point_function` without dq/dψ."""
+        T, psi, Q, valid = self._symbols
+        out = ca.densify(ca.vertcat(Q[b, :].T, valid[b]))
+        return ca.Function(f"selfmotion_value_{self.solver.kind}_{b}", [T, psi], [out])
+
     def taylor_function(self, b: int) -> ca.Function:
         """Branch row b: the Taylor model of q over a range of ψ, ``(T, ψ centre, ψ slope, 0, lo, hi) ->
         (centre, slope, radius, lo, hi)`` of q (n each) (:func:`qpik.enclosure.taylor_function`)."""
@@ -79,6 +86,11 @@ class SelfMotion:
         return RowMap(_switch(f"selfmotion_{self.solver.kind}", rows), chunks=CHUNKS)
 
     @cached_property
+    def _value_map(self) -> RowMap:
+        rows = [self.value_function(b) for b in range(self.searched)]
+        return RowMap(_switch(f"selfmotion_value_{self.solver.kind}", rows), chunks=CHUNKS)
+
+    @cached_property
     def _model_map(self) -> RowMap:
         rows = [self.taylor_function(b) for b in range(self.searched)]
         return RowMap(_switch(f"selfmotion_taylor_{self.solver.kind}", rows), chunks=MODEL_CHUNKS)
@@ -88,6 +100,11 @@ class SelfMotion:
         n = self.robot.dof
         (out,) = self._point_map(np.asarray(b, float), _columns(T), psi)
         return out[:, :n], out[:, n : 2 * n], out[:, 2 * n] > 0.5
+
+    def values(self, b: np.ndarray, T: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`points` without dq/dψ: q (M, n), valid (M,) bool."""
+        (out,) = self._value_map(np.asarray(b, float), _columns(T), psi)
+        return out[:, :-1], out[:, -1] > 0.5
 
     def models(self, b: np.ndarray, T: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
         """Branch rows b (M,) at poses T (M, 4, 4) over ψ ∈ [lo, hi] (M,): the Taylor models of q in
