@@ -21,6 +21,7 @@ from qpik.geometry import Sphere, distances
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp import BestResults, solve_best
 from qpik.nlp.scene import Scene
+from qpik.nlp.search import Pieces, singular_ends
 from qpik.nlp.selfmotion import selfmotion_of
 from qpik.objectives import Evaluator, Expression, resolve
 
@@ -147,6 +148,28 @@ def test_sample_rows_equal_full_rows_and_derivatives_match_differences(name):
     assert ok.mean() > 0.5
     np.testing.assert_allclose(full.dq[ok], dq[ok], atol=1e-5, rtol=1e-5)
     np.testing.assert_allclose(full.df[ok], ((up.f - down.f) / (2 * h))[ok], atol=1e-5, rtol=1e-5)
+
+
+def test_singular_ends_are_the_ends_at_a_singular_parameter_of_the_same_pose_and_branch():
+    """Ends at a singular parameter (to 1e-9) are flagged; the same parameter of another pose or branch, or
+    1e-6 rad away, is not."""
+    rng = np.random.default_rng(7)
+    P = 300
+    pose, row = rng.integers(0, 40, P), rng.integers(0, 8, P)
+    lo = rng.uniform(-np.pi, 0.0, P)
+    hi = lo + rng.uniform(0.0, np.pi, P)
+    expected = rng.random((P, 2)) < 0.3
+    ends = np.stack([lo, hi], axis=1)
+    value = ends[expected] + rng.uniform(-1e-9, 1e-9, expected.sum())
+    s_pose, s_row = np.repeat(pose, 2)[expected.ravel()], np.repeat(row, 2)[expected.ravel()]
+    decoys = ~expected & (rng.random((P, 2)) < 0.5)  # another pose, another row, or off by 1e-6 rad
+    kind = rng.integers(0, 3, decoys.sum())
+    d_pose = np.repeat(pose, 2)[decoys.ravel()] + (kind == 0) * 41
+    d_row = np.repeat(row, 2)[decoys.ravel()] + (kind == 1) * 9
+    d_value = ends[decoys] + (kind == 2) * 1e-6
+    pieces = Pieces(pose, row, lo, hi)
+    found = singular_ends(pieces, np.r_[s_pose, d_pose], np.r_[s_row, d_row], np.r_[value, d_value])
+    np.testing.assert_array_equal(found, expected)
 
 
 @pytest.mark.parametrize("name", ARMS)

@@ -31,7 +31,7 @@ from qpik.errors import InputError, NoClosedFormError
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.certificate import certify as prove
 from qpik.nlp.scene import Points, Scene
-from qpik.nlp.search import SAMPLE_STEP, Pieces, candidates, onto_limits, polish, sample, split
+from qpik.nlp.search import SAMPLE_STEP, Pieces, candidates, onto_limits, polish, sample, singular_ends, split
 from qpik.nlp.selfmotion import selfmotion_of
 from qpik.objectives import Objective, ReferenceDistance, clearance, resolve
 from qpik.robots.robot import Robot, as_robot
@@ -293,11 +293,17 @@ def _solve(scene: Scene, certify: bool, tol: float, method: str, rows: list[int]
     N, B = len(scene.poses), sm.searched
     fis = [sm.solver.feasible_intervals(T) for T in scene.poses]
     pose, row, lo, hi = [], [], [], []
+    s_pose, s_row, s_value = [], [], []
     for i, fi in enumerate(fis):
         for b in rows:
             for a, c in fi.intervals[b]:
                 pose.append(i), row.append(b), lo.append(a), hi.append(c)
+            if fi.singular and fi.singular[b]:
+                s_value += fi.singular[b]
+                s_pose += [i] * len(fi.singular[b])
+                s_row += [b] * len(fi.singular[b])
     pieces = Pieces(np.array(pose, int), np.array(row, int), np.array(lo, float), np.array(hi, float))
+    pieces.singular = singular_ends(pieces, np.array(s_pose, int), np.array(s_row, int), np.array(s_value, float))
     best = _BestSoFar(N, B, scene.robot.dof)
     if method == "ipopt":
         from qpik.nlp.ipopt import solve_pieces
@@ -319,7 +325,7 @@ def _solve(scene: Scene, certify: bool, tol: float, method: str, rows: list[int]
         if cert.better is None or attempt == RETRIES:
             break
         redo = np.unique(cert.better.pose)
-        sub = Pieces(*(x[np.isin(pieces.pose, redo)] for x in (pieces.pose, pieces.row, pieces.lo, pieces.hi)))
+        sub = pieces.take(np.isin(pieces.pose, redo))
         best.update_from(*_search(scene, sub, SAMPLE_STEP / 4 ** (attempt + 1), extra=cert.better))
         todo = redo
     return [_result(scene, best, i, cert_ok[i], bound[i], reason[i], rows) for i in range(N)]

@@ -217,7 +217,7 @@ def cell_bounds(
     decides whether it is below ``decide`` (M,)) and whether the clearance constraint surely fails on the whole
     cell (some distance's upper bound below d_s)."""
     M = len(lo)
-    c, s, r, q_lo, q_hi = scene.selfmotion.models(row, scene.poses[pose], lo, hi)
+    c, s, r, q_lo, q_hi = scene.selfmotion.models(row, scene.columns[pose], lo, hi)
     models = scene.bound_rows(bounds, c, s, r, q_lo, q_hi, pose)
     lb = lower_bound(models, bounds.sizes, decide)
     if not bounds.n_pairs:

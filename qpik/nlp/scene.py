@@ -17,7 +17,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from qpik.geometry.distance import ObstacleSet
-from qpik.nlp.selfmotion import SelfMotion
+from qpik.nlp.selfmotion import SelfMotion, columns
 from qpik.objectives import BoundFunction, Evaluator, Objective
 from qpik.robots.robot import Robot
 
@@ -62,6 +62,7 @@ class Scene:
     """The data of one solve and the evaluation of rows (see the module docstring).
 
     Attributes:
+        columns: (N, 16) the poses' entries in CasADi's column-major order (:func:`~qpik.nlp.selfmotion.columns`).
         evaluations: rows evaluated so far; counts: (N, searched branches) of them per pose and branch,
             as attributed by the search (:mod:`qpik.nlp.best`).
 
@@ -88,6 +89,7 @@ class Scene:
         self.robot, self.selfmotion, self.objective = robot, selfmotion, objective
         self.obstacles, self.d_safe = obstacles, float(d_safe)
         self.poses, self.q_ref = poses, q_ref
+        self.columns = columns(poses)
         self.evaluator = Evaluator(robot, objective, obstacles)
         self.params = self.evaluator.params
         self.evaluations = 0
@@ -101,7 +103,7 @@ class Scene:
             e = np.zeros(0)
             return Points(pose, row, psi, np.zeros((0, n)), np.zeros((0, n)), np.zeros(0, bool), e, e, e, e,
                           np.zeros((0, self.evaluator.n_pairs)))  # fmt: skip
-        q, dq, valid = self.selfmotion.points(row, self.poses[pose], psi)
+        q, dq, valid = self.selfmotion.points(row, self.columns[pose], psi)
         f, grad, d, grad_d = self.evaluator.rows(q, self.q_ref[pose])
         df = np.einsum("ij,ij->i", grad, dq)
         if d.shape[1]:
@@ -119,7 +121,7 @@ class Scene:
         if not len(psi):
             return self.evaluate(pose, row, psi)
         M = len(psi)
-        q, valid = self.selfmotion.values(row, self.poses[pose], psi)
+        q, valid = self.selfmotion.values(row, self.columns[pose], psi)
         f, d = self.evaluator.value_rows(q, self.q_ref[pose])
         c = d.min(axis=1) - self.d_safe if d.shape[1] else np.full(M, np.inf)
         nan = np.full(M, np.nan)

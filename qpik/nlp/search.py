@@ -38,10 +38,12 @@ from qpik.nlp.scene import Points, Scene
 SAMPLE_STEP = 0.1
 """Largest spacing (rad) of the samples of a feasible interval."""
 END = 2e-9
-ENDS = (1e-3, 4e-3, 1.6e-2)
-"""Extra samples (rad) inside each end of a feasible interval (see :func:`sample`)."""
 """The first and last samples lie this far (rad) inside a feasible interval: its ends are exact to
 :data:`qpik.analytic.intervals.SAME` (1e-9), and the branch may stop reaching the pose just beyond."""
+ENDS = (1e-3, 4e-3, 1.6e-2)
+"""Extra samples (rad) inside each singular end of a feasible interval (see :func:`sample`)."""
+SINGULAR_END = 1e-7
+"""An end of a feasible interval this close (rad) to a singular parameter of its branch is singular."""
 PSI_TOL = 1e-13
 """A bracket narrower than this (rad, relative to 1 + |ψ|) has converged."""
 NOISE = 1e-15
@@ -56,26 +58,53 @@ POLISHED_PER_POSE = 4
 
 @dataclass
 class Pieces:
-    """Feasible pieces: row i is the interval [lo[i], hi[i]] of branch row ``row[i]`` of pose ``pose[i]``."""
+    """Feasible pieces: row i is the interval [lo[i], hi[i]] of branch row ``row[i]`` of pose ``pose[i]``;
+    ``singular`` (P, 2) bool: whether its lower and upper ends are singular parameters of the branch (where
+    dq/dψ is unbounded, :attr:`qpik.analytic.intervals.FeasibleIntervals.singular`); None: every end may be."""
 
     pose: np.ndarray
     row: np.ndarray
     lo: np.ndarray
     hi: np.ndarray
+    singular: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.lo)
 
+    def take(self, idx: np.ndarray) -> Pieces:
+        """The pieces ``idx`` (an index array or a boolean mask)."""
+        sing = None if self.singular is None else self.singular[idx]
+        return Pieces(self.pose[idx], self.row[idx], self.lo[idx], self.hi[idx], sing)
+
+
+def singular_ends(pieces: Pieces, pose: np.ndarray, row: np.ndarray, value: np.ndarray) -> np.ndarray:
+    """(P, 2) bool: whether each end (lo, hi) of the pieces lies within :data:`SINGULAR_END` of a singular
+    parameter ``value`` (K,) rad of the same pose (K,) and branch row (K,)."""
+    out = np.zeros((len(pieces), 2), bool)
+    if not len(value):
+        return out
+    rows = int(max(pieces.row.max(initial=0), row.max())) + 1
+    # one sorted line: each (pose, row) owns [8k, 8k + 2π] (2π < 8), its parameters ψ + π inside
+    line = np.sort((pose * rows + row) * 8.0 + (value + np.pi))
+    base = (pieces.pose * rows + pieces.row) * 8.0 + np.pi
+    for side, end in enumerate((pieces.lo, pieces.hi)):
+        x = base + end
+        j = np.searchsorted(line, x)
+        below, above = line[np.maximum(j - 1, 0)], line[np.minimum(j, len(line) - 1)]
+        out[:, side] = np.minimum(np.abs(x - below), np.abs(x - above)) < SINGULAR_END
+    return out
+
 
 def sample(scene: Scene, pieces: Pieces, step: float = SAMPLE_STEP) -> tuple[Points, np.ndarray]:
     """Samples of every piece, at most ``step`` apart, from :data:`END` inside each end, and at :data:`ENDS` from
-    each end: (points, piece (M,)).
+    each singular end: (points, piece (M,)).
 
     Points of one piece are consecutive and in increasing ψ. Only points where the branch reaches
     the pose with a finite objective are kept. They carry values only (:meth:`~qpik.nlp.scene.Scene.values`:
     the derivatives are NaN); :func:`split` and :func:`candidates` evaluate the derivatives where they are used.
     """
     shrink = np.minimum(END, 0.5 * (pieces.hi - pieces.lo))
+    sharp = np.ones((len(pieces), 2), bool) if pieces.singular is None else pieces.singular
     pieces = Pieces(pieces.pose, pieces.row, pieces.lo + shrink, pieces.hi - shrink)
     width = pieces.hi - pieces.lo
     k = np.where(width > 0.0, np.maximum(2, np.ceil(width / step).astype(int) + 1), 1)
@@ -85,20 +114,20 @@ def sample(scene: Scene, pieces: Pieces, step: float = SAMPLE_STEP) -> tuple[Poi
     t = np.where(k[piece] > 1, j / np.maximum(k[piece] - 1, 1), 0.0)
     psi = pieces.lo[piece] + width[piece] * t
     psi[j == k[piece] - 1] = pieces.hi[piece][j == k[piece] - 1]  # the end exactly
-    # near each end, more samples at geometric spacing: at a singular end (where dq/dψ is unbounded) the
+    # near each singular end, more samples at geometric spacing: there dq/dψ is unbounded, and the
     # objective can turn within a fraction of a step
-    near = np.array([*ENDS, *(-e for e in ENDS)])
-    wide = np.flatnonzero(width > 4 * ENDS[-1])
-    extra_piece = np.repeat(wide, len(near))
-    extra = np.where(np.tile(near, len(wide)) > 0, pieces.lo[extra_piece], pieces.hi[extra_piece]) + np.tile(
-        near, len(wide)
-    )
-    piece, psi = np.concatenate([piece, extra_piece]), np.concatenate([psi, extra])
-    order = np.lexsort((psi, piece))
-    piece, psi = piece[order], psi[order]
+    wide = width > 4 * ENDS[-1]
+    at_lo, at_hi = np.flatnonzero(wide & sharp[:, 0]), np.flatnonzero(wide & sharp[:, 1])
+    extra_piece = np.concatenate([np.repeat(at_lo, len(ENDS)), np.repeat(at_hi, len(ENDS))])
+    offsets = np.concatenate([np.tile(ENDS, len(at_lo)), -np.tile(ENDS, len(at_hi))])
+    extra = np.where(offsets > 0, pieces.lo[extra_piece], pieces.hi[extra_piece]) + offsets
+    if len(extra):
+        piece, psi = np.concatenate([piece, extra_piece]), np.concatenate([psi, extra])
+        order = np.lexsort((psi, piece))
+        piece, psi = piece[order], psi[order]
     pts = scene.values(pieces.pose[piece], pieces.row[piece], psi)
     keep = pts.valid & np.isfinite(pts.f)
-    return pts.take(keep), piece[keep]
+    return (pts, piece) if keep.all() else (pts.take(keep), piece[keep])
 
 
 def roots(scene: Scene, left: Points, right: Points) -> Points:

@@ -96,21 +96,22 @@ class SelfMotion:
         return RowMap(_switch(f"selfmotion_taylor_{self.solver.kind}", rows), chunks=MODEL_CHUNKS)
 
     def points(self, b: np.ndarray, T: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Branch rows b (M,) at poses T (M, 4, 4) and parameters ψ (M,): q (M, n), dq/dψ (M, n), valid (M,) bool."""
+        """Branch rows b (M,) at poses T (M, 16) (:func:`columns`) and parameters ψ (M,): q (M, n), dq/dψ (M, n),
+        valid (M,) bool."""
         n = self.robot.dof
-        (out,) = self._point_map(np.asarray(b, float), _columns(T), psi)
+        (out,) = self._point_map(np.asarray(b, float), T, psi)
         return out[:, :n], out[:, n : 2 * n], out[:, 2 * n] > 0.5
 
     def values(self, b: np.ndarray, T: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`points` without dq/dψ: q (M, n), valid (M,) bool."""
-        (out,) = self._value_map(np.asarray(b, float), _columns(T), psi)
+        (out,) = self._value_map(np.asarray(b, float), T, psi)
         return out[:, :-1], out[:, -1] > 0.5
 
     def models(self, b: np.ndarray, T: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
-        """Branch rows b (M,) at poses T (M, 4, 4) over ψ ∈ [lo, hi] (M,): the Taylor models of q in
+        """Branch rows b (M,) at poses T (M, 16) (:func:`columns`) over ψ ∈ [lo, hi] (M,): the Taylor models of q in
         t = (ψ − mid)/half, ``[centre, slope, radius, lo, hi]``, each (M, n)."""
         mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
-        return self._model_map(np.asarray(b, float), _columns(T), mid, half, np.zeros(len(lo)), lo, hi)
+        return self._model_map(np.asarray(b, float), T, mid, half, np.zeros(len(lo)), lo, hi)
 
     def mirror(self, b: int) -> tuple[int, float] | None:
         """``(row, shift)`` when branch row b is row ``row`` at the parameter + ``shift`` (rad), else None."""
@@ -130,7 +131,7 @@ def _switch(name: str, rows: list[ca.Function]) -> ca.Function:
     return ca.Function.conditional(name, rows[:-1], rows[-1])
 
 
-def _columns(T: np.ndarray) -> np.ndarray:
+def columns(T: np.ndarray) -> np.ndarray:
     """Poses (M, 4, 4) as rows of their 16 entries in column-major order (CasADi's)."""
     return np.ascontiguousarray(np.swapaxes(T, 1, 2)).reshape(len(T), 16)
 
