@@ -328,7 +328,8 @@ def _solve(scene: Scene, certify: bool, tol: float, method: str, rows: list[int]
         sub = pieces.take(np.isin(pieces.pose, redo))
         best.update_from(*_search(scene, sub, SAMPLE_STEP / 4 ** (attempt + 1), extra=cert.better))
         todo = redo
-    return [_result(scene, best, i, cert_ok[i], bound[i], reason[i], rows) for i in range(N)]
+    tables = _tables(scene, best, rows)
+    return [_result(scene, best, i, tables[i], cert_ok[i], bound[i], reason[i]) for i in range(N)]
 
 
 def _search(scene: Scene, pieces: Pieces, step: float, extra: Points | None = None) -> tuple[Points, np.ndarray]:
@@ -404,32 +405,40 @@ class _BestSoFar:
         return self.f.min(axis=1)
 
 
-def _result(
-    scene: Scene, best: _BestSoFar, i: int, certified: bool, bound: float, reason: str, searched: list[int]
-) -> BestResult:
+def _tables(scene: Scene, best: _BestSoFar, searched: list[int]) -> list[list[BranchOptimum]]:
+    """Per pose, the per-branch table: every branch, a mirrored one from its searched row."""
     sm = scene.selfmotion
-    ids = sm.branch_ids
-    total = max(int(scene.counts[i].sum()), 1)
-    rows = []
-    for k, bid in enumerate(ids):
+    N = len(scene.poses)
+    total = np.maximum(scene.counts.sum(axis=1), 1)
+    none = np.zeros(N, int)
+    columns = []
+    for k, bid in enumerate(sm.branch_ids.tolist()):
         m = sm.mirror(k)
         r = k if m is None else m[0]
-        feasible = bool(np.isfinite(best.f[i, r]))
-        param = sm.shifted(k, best.psi[i, r]) if feasible else None
-        evals = int(scene.counts[i, r]) if m is None else 0
-        rows.append(
-            BranchOptimum(int(bid), r in searched, feasible, param, float(best.f[i, r]),
-                          best.q[i, r].copy() if feasible else None, int(best.rounds[i, r]) if m is None else 0,
-                          evals, evals / total)
-        )  # fmt: skip
-    if not best.found()[i]:
+        evals, rounds = (scene.counts[:, r], best.rounds[:, r]) if m is None else (none, none)
+        feasible = np.isfinite(best.f[:, r])
+        param = sm.shifted(k, np.where(feasible, best.psi[:, r], 0.0))
+        columns.append((bid, r, r in searched, feasible.tolist(), param.tolist(), best.f[:, r].tolist(),
+                        rounds.tolist(), evals.tolist(), (evals / total).tolist()))  # fmt: skip
+    return [
+        [BranchOptimum(bid, done, ok[i], p[i] if ok[i] else None, f[i], best.q[i, r].copy() if ok[i] else None,
+                       rnd[i], ev[i], share[i]) for bid, r, done, ok, p, f, rnd, ev, share in columns]
+        for i in range(N)
+    ]  # fmt: skip
+
+
+def _result(
+    scene: Scene, best: _BestSoFar, i: int, rows: list[BranchOptimum], certified: bool, bound: float, reason: str
+) -> BestResult:
+    if not np.isfinite(best.f[i]).any():
         return least_violating(scene, i, rows)
     r = int(np.argmin(best.f[i]))
     value = float(best.f[i, r])
     gap = value - bound if certified else np.inf
     return BestResult(
-        "optimal", int(ids[r]), float(best.psi[i, r]), best.q[i, r].copy(), value, bool(certified), float(gap),
-        float(best.clearance[i, r]), 0.0, rows, sm.solver.param_name, "" if certified else reason,
+        "optimal", int(scene.selfmotion.branch_ids[r]), float(best.psi[i, r]), best.q[i, r].copy(), value,
+        bool(certified), float(gap), float(best.clearance[i, r]), 0.0, rows, scene.selfmotion.solver.param_name,
+        "" if certified else reason,
     )  # fmt: skip
 
 

@@ -119,10 +119,10 @@ class SelfMotion:
             return None
         return b - self.searched, np.pi
 
-    def shifted(self, b: int, psi: float) -> float:
-        """The parameter (rad) of branch row b's configuration found on its searched row at ``psi``."""
+    def shifted(self, b: int, psi: np.ndarray) -> np.ndarray:
+        """The parameters (rad, any shape) of branch row b's configurations found on its searched row at ``psi``."""
         m = self.mirror(b)
-        return psi if m is None else float(wrap(psi - m[1]))
+        return np.asarray(psi, float) if m is None else wrap(psi - m[1])
 
 
 def _switch(name: str, rows: list[ca.Function]) -> ca.Function:
