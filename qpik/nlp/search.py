@@ -189,12 +189,9 @@ def polish(scene: Scene, a: Points, m: Points, b: Points) -> Polished:
     Returns the final middle points.
     """
     pose, row = m.pose, m.row
-    # rows 0, 1, 2: a, m, b; each with ψ, f, f', and c, c' for m
-    P = np.stack([a.psi, m.psi, b.psi])
-    F = np.stack([a.f, m.f, b.f])
-    D = np.stack([a.df, m.df, b.df])
-    C = np.stack([a.c, m.c, b.c])
-    DC = np.stack([a.dc, m.dc, b.dc])
+    # X[field, position, candidate]: fields ψ, f, f', c, c'; positions a, m, b
+    X = np.array([[getattr(p, name) for p in (a, m, b)] for name in ("psi", "f", "df", "c", "dc")])
+    P, F, D, C, DC = X  # views
     rounds = np.zeros(len(m), int)
     done = np.zeros(len(m), bool)
     cols = np.arange(len(m))
@@ -203,15 +200,14 @@ def polish(scene: Scene, a: Points, m: Points, b: Points) -> Polished:
         # interval, where dq/dψ is unbounded) toward the side that is not empty, or the lower end
         known = np.isfinite(D[1])
         right = np.where(known, D[1] < 0, (P[0] == P[1]) | ((P[2] != P[1]) & (F[2] < F[0])))
-        side = np.where(right, 2, 0)
-        vp, vf, vd = P[side, cols], F[side, cols], D[side, cols]
+        vp, vf, vd = X[:3, np.where(right, 2, 0), cols]
         width = np.abs(vp - P[1])
         tiny = PSI_TOL * (1.0 + np.abs(P[1]))
         done |= (width <= tiny) | (known & (D[1] == 0))
         if done.all():
             break
         i = np.flatnonzero(~done)
-        up, uf, ud, wp, wf, wd = P[1, i], F[1, i], D[1, i], vp[i], vf[i], vd[i]
+        (up, uf, ud), wp, wf, wd = X[:3, 1, i], vp[i], vf[i], vd[i]
         secant = up - ud * (wp - up) / np.where(wd != ud, wd - ud, np.nan)
         tangent = (wf - uf + ud * up - wd * wp) / np.where(ud != wd, ud - wd, np.nan)
         probe = up + np.sign(wp - up) * np.minimum(tiny[i], 0.5 * width[i])
@@ -221,31 +217,28 @@ def polish(scene: Scene, a: Points, m: Points, b: Points) -> Polished:
         if not np.isfinite(ud).all():
             steps.append(up + 1e-3 * (wp - up))  # off a singular end, where f' is not finite
         if np.isfinite(C[1, i]).any():
-            edge = P[1, i] - C[1, i] / np.where(DC[1, i] != 0, DC[1, i], np.nan)  # Newton on c toward its boundary
+            edge = up - C[1, i] / np.where(DC[1, i] != 0, DC[1, i], np.nan)  # Newton on c toward its boundary
             steps.append(_inside(edge - 1e-12 * (edge - up), up, wp))
         trials = np.stack([*steps, probe], axis=1)
         k = trials.shape[1]
         pts = scene.evaluate(np.repeat(pose[i], k), np.repeat(row[i], k), trials.ravel())
         # every point known: a, m, b and the trials; the best becomes m, the nearest on each side a and b
-        allP = np.concatenate([P[:, i].T, trials], axis=1)
-        allF = np.concatenate([F[:, i].T, np.where(pts.c >= 0, pts.f, np.inf).reshape(-1, k)], axis=1)
-        allD = np.concatenate([D[:, i].T, pts.df.reshape(-1, k)], axis=1)
-        allC = np.concatenate([C[:, i].T, pts.c.reshape(-1, k)], axis=1)
-        allDC = np.concatenate([DC[:, i].T, pts.dc.reshape(-1, k)], axis=1)
-        allF = np.where(np.isnan(allF), np.inf, allF)
+        new = np.stack([pts.psi, np.where(pts.c >= 0, pts.f, np.inf), pts.df, pts.c, pts.dc]).reshape(5, len(i), k)
+        every = np.concatenate([X[:, :, i].transpose(0, 2, 1), new], axis=2)  # (5, len(i), 3 + k)
+        allP, allF, allD = every[:3]
+        allF[np.isnan(allF)] = np.inf
         # f's rounding hides the last digits of ψ at a smooth minimum: among the points whose f is
         # within rounding of the least, the one with the smallest |f'| is the best estimate of the root
         low = allF.min(axis=1, keepdims=True)
         ties = allF <= low + NOISE * (1.0 + np.abs(low))
         best = np.argmin(np.where(ties, np.abs(np.where(np.isnan(allD), np.inf, allD)), np.inf), axis=1)
         cols_i = np.arange(len(i))
-        pm = allP[cols_i, best]
-        left = np.where(allP < pm[:, None], allP, -np.inf)
-        right = np.where(allP > pm[:, None], allP, np.inf)
+        pm = allP[cols_i, best][:, None]
+        left = np.where(allP < pm, allP, -np.inf)
+        right = np.where(allP > pm, allP, np.inf)
         ia = np.where(np.isfinite(left.max(axis=1)), left.argmax(axis=1), best)
         ib = np.where(np.isfinite(right.min(axis=1)), right.argmin(axis=1), best)
-        for arr, src in ((P, allP), (F, allF), (D, allD), (C, allC), (DC, allDC)):
-            arr[0, i], arr[1, i], arr[2, i] = src[cols_i, ia], src[cols_i, best], src[cols_i, ib]
+        X[:, :, i] = every[:, cols_i, np.stack([ia, best, ib])]
         improved = F[1, i] < uf
         across = np.sign(pts.df[k - 1 :: k]) == -np.sign(ud)  # the probe's slope has turned: a kink within tiny
         blocked = pts.c[k - 1 :: k] < 0  # the probe fails the constraint: m is on its boundary
