@@ -152,8 +152,8 @@ def roots(scene: Scene, left: Points, right: Points) -> Points:
         pts = scene.evaluate(np.repeat(pose[i], 3), np.repeat(row[i], 3), trials.ravel())
         for t in range(3):
             x, cx, dx = pts.psi[t::3], pts.c[t::3], pts.dc[t::3]
-            side = (cx >= 0) == feasible_a  # replaces the end on its own side of the root
-            for k, sel in ((0, side), (1, ~side)):
+            side = (cx >= 0) == feasible_a  # replaces the end on its own side of the root, if it is closer
+            for k, sel in ((0, side & (x > ps[0, i])), (1, ~side & (x < ps[1, i]))):
                 ps[k, i] = np.where(sel, x, ps[k, i])
                 cs[k, i] = np.where(sel, cx, cs[k, i])
                 ds[k, i] = np.where(sel, dx, ds[k, i])
