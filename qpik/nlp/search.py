@@ -3,11 +3,13 @@ r"""The 1-D search of :func:`qpik.solve_best`: sample, split at the clearance co
 For each pose, every branch's exact feasible set (:func:`qpik.feasible_intervals`) is a union
 of closed intervals of δ/ψ. On each:
 
-1. **Sample** ``f``, ``f'``, ``c``, ``c'`` (:class:`~qpik.nlp.scene.Scene`) every
-   :data:`SAMPLE_STEP` rad or closer, both ends included.
+1. **Sample** ``f`` and ``c`` (:meth:`~qpik.nlp.scene.Scene.values`: no derivatives) every
+   :data:`SAMPLE_STEP` rad or closer, both ends included, and more closely next to a singular end.
+   All rows of a step, of every pose and branch, go through one compiled call.
 2. **Split** at the clearance constraint ``c ≥ 0``: a sign change of ``c`` between two samples
    is refined to its root (:func:`roots`: secant, Newton and bisection steps in a bracket),
-   giving the feasible *pieces*.
+   giving the feasible *pieces*. The brackets here and in the polish are evaluated with
+   ``f'`` and ``c'`` (:meth:`~qpik.nlp.scene.Scene.evaluate`).
 3. **Polish** the discrete local minima of the samples of each piece (:func:`polish`): a
    bracket ``a ≤ m ≤ b`` with ``f(m) ≤ f(a), f(b)`` shrinks around a local minimum. Each round
    tries, on the side where ``f'(m)`` descends, the root of the secant of ``f'`` (exact for a
