@@ -135,8 +135,9 @@ def sample(scene: Scene, pieces: Pieces, step: float = SAMPLE_STEP) -> tuple[Poi
 def roots(scene: Scene, left: Points, right: Points) -> Points:
     """The root of c between each pair (left[i], right[i]) whose c differ in sign: its point on the feasible side.
 
-    Bracketed iteration: the secant, a Newton step from the feasible end and the midpoint are
-    tried together each round; the tightest bracket with a sign change is kept.
+    Bracketed iteration: the secant, a Newton step from the feasible end, a point just past it (across
+    the root once Newton is close, so that both ends close in) and the midpoint are tried together each
+    round; the tightest bracket with a sign change is kept.
     """
     pose, row = left.pose, left.row
     ps, cs, ds = np.stack([left.psi, right.psi]), np.stack([left.c, right.c]), np.stack([left.dc, right.dc])
@@ -149,11 +150,14 @@ def roots(scene: Scene, left: Points, right: Points) -> Points:
         secant = a - ca_ * (b - a) / np.where(cb != ca_, cb - ca_, np.nan)
         feasible_a = ca_ >= 0
         start, c0, d0 = np.where(feasible_a, a, b), np.where(feasible_a, ca_, cb), np.where(feasible_a, da, db)
-        newton = start - c0 / np.where(d0 != 0, d0, np.nan)
-        trials = np.stack([_inside(secant, a, b), _inside(newton, a, b), 0.5 * (a + b)], axis=1)
-        pts = scene.evaluate(np.repeat(pose[i], 3), np.repeat(row[i], 3), trials.ravel())
-        for t in range(3):
-            x, cx, dx = pts.psi[t::3], pts.c[t::3], pts.dc[t::3]
+        newton = _inside(start - c0 / np.where(d0 != 0, d0, np.nan), a, b)
+        # just past the Newton point: across the root when Newton is close, so that the far end moves in too
+        past = _inside(newton + (newton - start) * 1e-3 + np.sign(newton - start) * PSI_TOL * (1.0 + np.abs(a)), a, b)
+        trials = np.stack([_inside(secant, a, b), newton, past, 0.5 * (a + b)], axis=1)
+        n = trials.shape[1]
+        pts = scene.evaluate(np.repeat(pose[i], n), np.repeat(row[i], n), trials.ravel())
+        for t in range(n):
+            x, cx, dx = pts.psi[t::n], pts.c[t::n], pts.dc[t::n]
             side = (cx >= 0) == feasible_a  # replaces the end on its own side of the root, if it is closer
             for k, sel in ((0, side & (x > ps[0, i])), (1, ~side & (x < ps[1, i]))):
                 ps[k, i] = np.where(sel, x, ps[k, i])
