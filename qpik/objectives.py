@@ -578,8 +578,8 @@ class Evaluator:
         """:meth:`__call__` for configurations Q (M, n) and references R (M, n) that the caller built
         (float arrays of the right shapes, no check): the search's inner loop."""
         (out,) = self._maps.rows(Q, self.params, R, self.obstacles.params)
-        parts = np.split(out, np.cumsum([1, self.robot.dof, self.n_pairs]), axis=1)
-        return parts[0][:, 0], parts[1], parts[2], parts[3]
+        n, k = self.robot.dof, 1 + self.robot.dof + self.n_pairs
+        return out[:, 0], out[:, 1 : 1 + n], out[:, 1 + n : k], out[:, k:]
 
     def value_rows(self, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`rows` without the derivatives (:meth:`value_function`): ``(f (M,), d (M, C'·O))``."""

@@ -105,13 +105,13 @@ class Scene:
                           np.zeros((0, self.evaluator.n_pairs)))  # fmt: skip
         q, dq, valid = self.selfmotion.points(row, self.columns[pose], psi)
         f, grad, d, grad_d = self.evaluator.rows(q, self.q_ref[pose])
-        df = np.einsum("ij,ij->i", grad, dq)
+        df = (grad * dq).sum(axis=1)
         if d.shape[1]:
-            c, dc = d.min(axis=1) - self.d_safe, np.einsum("ij,ij->i", grad_d, dq)
+            c, dc = d.min(axis=1) - self.d_safe, (grad_d * dq).sum(axis=1)
         else:
             c, dc = np.full(M, np.inf), np.zeros(M)
         self.evaluations += M
-        return Points(pose, row, psi, q, dq, valid, f, df, c, dc, d.reshape(M, -1))
+        return Points(pose, row, psi, q, dq, valid, f, df, c, dc, d)
 
     def values(self, pose: np.ndarray, row: np.ndarray, psi: np.ndarray) -> Points:
         """:meth:`evaluate` without the derivatives (``dq``, ``df`` and ``dc`` are NaN): about half the work of a
