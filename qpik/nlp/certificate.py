@@ -64,7 +64,7 @@ NO_BOUND = "the objective has no lower bound (the manipulability, or an operatio
 class Certificate:
     """Per pose: ``certified`` (bool), ``bound`` (the smallest lower bound met; -inf if none), ``cells``
     examined, ``reason`` (why not certified, "" if certified) and the feasible test points better than
-    the answer (``better``, rows of :class:`Points`)."""
+    the answer (``better``, rows of :class:`Points` with values only: :meth:`Scene.values`)."""
 
     certified: np.ndarray
     bound: np.ndarray
@@ -170,7 +170,7 @@ def certify(scene: Scene, pieces: Pieces, best: np.ndarray, tol: np.ndarray, pos
         np.add.at(cells_used, pose, 1)
         lb, blocked = cell_bounds(scene, bounds, pose, row, lo, hi, best[pose] - tol[pose])
         open_ = np.flatnonzero(~blocked & ~(lb >= best[pose] - tol[pose]))  # only these can hold a better point
-        pts = scene.evaluate(pose[open_], row[open_], 0.5 * (lo[open_] + hi[open_]))
+        pts = scene.values(pose[open_], row[open_], 0.5 * (lo[open_] + hi[open_]))
         good = pts.valid & (pts.c >= 0) & (pts.f < best[pts.pose] - tol[pts.pose])
         if good.any():
             better.append(pts.take(good))
