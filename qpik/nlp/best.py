@@ -319,7 +319,9 @@ def _solve(scene: Scene, certify: bool, tol: float, method: str, rows: list[int]
         if not len(todo):
             break
         value = best.pose_value()
-        cert = prove(scene, pieces, value, tol * np.maximum(1.0, np.abs(value)), todo)
+        top = np.argmin(best.f, axis=1)
+        focus = top, best.psi[np.arange(len(top)), top]
+        cert = prove(scene, pieces, value, tol * np.maximum(1.0, np.abs(value)), todo, focus)
         for i in todo:
             cert_ok[i], bound[i], reason[i] = cert.certified[i], cert.bound[i], cert.reason[i]
         if cert.better is None or attempt == RETRIES:
