@@ -114,7 +114,7 @@ class Scene:
         return Points(pose, row, psi, q, dq, valid, f, df, c, dc, d)
 
     def values(self, pose: np.ndarray, row: np.ndarray, psi: np.ndarray) -> Points:
-        """:meth:`evaluate` without the derivatives (``dq``, ``df`` and ``dc`` are NaN): about half the work of a
+        """:meth:`evaluate` without the derivatives (``dq``, ``df`` and ``dc`` are NaN): less work per
         row (:meth:`~qpik.nlp.selfmotion.SelfMotion.values`, :meth:`~qpik.objectives.Evaluator.value_rows`), for
         the samples of the search; f, c and d are the same numbers as :meth:`evaluate`'s (the same expressions)."""
         pose, row, psi = np.asarray(pose, int), np.asarray(row, int), np.asarray(psi, float)
