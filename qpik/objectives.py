@@ -506,8 +506,9 @@ class Expression(Objective):
         return Split(out)
 
 
-CHUNK = 16
-"""Rows per call of an :class:`Evaluator`'s compiled map (:class:`~qpik.compiled.RowMap`, one size: one compile)."""
+CHUNKS = (128, 16)
+"""Rows per call of an :class:`Evaluator`'s compiled maps (:class:`~qpik.compiled.RowMap`: large calls for the
+search's samples of every branch at once, small ones for its polish rounds)."""
 
 
 class Evaluator:
@@ -533,8 +534,8 @@ class Evaluator:
         key = (id(robot), objective.key(), self.obstacles.kinds, len(self.params))
         entry = _EVALUATORS.get(key)
         if entry is None or entry[0] is not robot:
-            entry = _EVALUATORS[key] = (robot, RowMap(self.function(), shared=(1, 3), chunks=(CHUNK, CHUNK)))
-        self._rows = entry[1]
+            entry = _EVALUATORS[key] = (robot, _Maps(self))
+        self._maps = entry[1]
 
     def function(self) -> ca.Function:
         """``(q (n,), p, q_ref (n,), obstacle params) -> [f, ∇f (n), d (C'·O), ∇ min d (n)]`` in one column."""
@@ -548,6 +549,17 @@ class Evaluator:
         nearest = ca.gradient(ca.mmin(d), q) if self.n_pairs else ca.SX.zeros(n)
         out = ca.densify(ca.substitute(ca.vertcat(f, ca.gradient(f, q), d, nearest), w, q))
         return ca.Function(f"objective_{robot.name or 'robot'}", [q, p, q_ref, prm], [out])
+
+    def value_function(self) -> ca.Function:
+        """``(q (n,), p, q_ref (n,), obstacle params) -> [f, d (C'·O)]`` in one column: :meth:`function`
+        without the derivatives."""
+        robot, n = self.robot, self.robot.dof
+        q, q_ref, w = ca.SX.sym("q", n), ca.SX.sym("q_ref", n), ca.SX.sym("w", n)
+        p = ca.SX.sym("p", len(self.params))
+        prm = ca.SX.sym("obstacles", len(self.obstacles.params))
+        ctx = Context(robot, q, q_ref, self.obstacles, prm, witness=w)  # the same expressions as :meth:`function`
+        out = ca.densify(ca.substitute(ca.vertcat(self.objective.expr(ctx, p), ctx.distances), w, q))
+        return ca.Function(f"objective_value_{robot.name or 'robot'}", [q, p, q_ref, prm], [out])
 
     def __call__(self, q: np.ndarray, q_ref: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
         """``(f (M,), ∇f (M, n), d (M, C'·O), ∇ min d (M, n))`` at configurations q (M, n) (or (n,): then
@@ -565,9 +577,27 @@ class Evaluator:
     def rows(self, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, ...]:
         """:meth:`__call__` for configurations Q (M, n) and references R (M, n) that the caller built
         (float arrays of the right shapes, no check): the search's inner loop."""
-        (out,) = self._rows(Q, self.params, R, self.obstacles.params)
-        parts = np.split(out, np.cumsum([1, self.robot.dof, self.n_pairs]), axis=1)
-        return parts[0][:, 0], parts[1], parts[2], parts[3]
+        (out,) = self._maps.rows(Q, self.params, R, self.obstacles.params)
+        n, k = self.robot.dof, 1 + self.robot.dof + self.n_pairs
+        return out[:, 0], out[:, 1 : 1 + n], out[:, 1 + n : k], out[:, k:]
+
+    def value_rows(self, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`rows` without the derivatives (:meth:`value_function`): ``(f (M,), d (M, C'·O))``."""
+        (out,) = self._maps.values(Q, self.params, R, self.obstacles.params)
+        return out[:, 0], out[:, 1:]
+
+
+class _Maps:
+    """An :class:`Evaluator`'s compiled row maps: :meth:`~Evaluator.function` (traced at once, so that a bad
+    expression raises when the evaluator is made) and :meth:`~Evaluator.value_function` (on first use)."""
+
+    def __init__(self, evaluator: Evaluator):
+        self.rows = RowMap(evaluator.function(), shared=(1, 3), chunks=CHUNKS)
+        self._value_function = evaluator.value_function
+
+    @cached_property
+    def values(self) -> RowMap:
+        return RowMap(self._value_function(), shared=(1, 3), chunks=CHUNKS)
 
 
 _EVALUATORS: dict[tuple, tuple] = {}

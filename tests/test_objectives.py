@@ -51,7 +51,8 @@ def _clearances(robot, q, obstacles):
 
 @pytest.mark.parametrize("name", ["iiwa14", "panda"])
 def test_values_equal_their_definitions(name):
-    """Every named objective on iiwa14; the margin and the clearance on panda (modified DH, its own limits)."""
+    """Every named objective on iiwa14; the margin and the clearance on panda (modified DH, its own limits);
+    the values alone (Evaluator.value_rows) equal the values beside the gradients."""
     robot = qpik.load_robot(name)
     q = random_q(robot, 200, 1)
     ref = robot.q_home
@@ -67,9 +68,13 @@ def test_values_equal_their_definitions(name):
         "distance": 0.5 * ((q - ref) ** 2).sum(axis=1),
     }
     for key in NAMES if name == "iiwa14" else ("margin", "clearance"):
-        f, _, dist, _ = Evaluator(robot, resolve(key), OBSTACLES)(q, ref)
+        ev = Evaluator(robot, resolve(key), OBSTACLES)
+        f, _, dist, _ = ev(q, ref)
         np.testing.assert_allclose(f, expected[key], rtol=1e-10, atol=1e-12, err_msg=key)
         np.testing.assert_allclose(dist, d, atol=1e-12)
+        value, value_dist = ev.value_rows(q, np.broadcast_to(ref, q.shape))  # the same numbers, without ∇f
+        np.testing.assert_array_equal(value, f, err_msg=key)
+        np.testing.assert_array_equal(value_dist, dist, err_msg=key)
 
 
 @settings(max_examples=4, deadline=None)

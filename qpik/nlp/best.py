@@ -31,7 +31,7 @@ from qpik.errors import InputError, NoClosedFormError
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.certificate import certify as prove
 from qpik.nlp.scene import Points, Scene
-from qpik.nlp.search import SAMPLE_STEP, Pieces, candidates, onto_limits, polish, sample, split
+from qpik.nlp.search import SAMPLE_STEP, Pieces, candidates, onto_limits, polish, sample, singular_ends, split
 from qpik.nlp.selfmotion import selfmotion_of
 from qpik.objectives import Objective, ReferenceDistance, clearance, resolve
 from qpik.robots.robot import Robot, as_robot
@@ -293,11 +293,17 @@ def _solve(scene: Scene, certify: bool, tol: float, method: str, rows: list[int]
     N, B = len(scene.poses), sm.searched
     fis = [sm.solver.feasible_intervals(T) for T in scene.poses]
     pose, row, lo, hi = [], [], [], []
+    s_pose, s_row, s_value = [], [], []
     for i, fi in enumerate(fis):
         for b in rows:
             for a, c in fi.intervals[b]:
                 pose.append(i), row.append(b), lo.append(a), hi.append(c)
+            if fi.singular and fi.singular[b]:
+                s_value += fi.singular[b]
+                s_pose += [i] * len(fi.singular[b])
+                s_row += [b] * len(fi.singular[b])
     pieces = Pieces(np.array(pose, int), np.array(row, int), np.array(lo, float), np.array(hi, float))
+    pieces.singular = singular_ends(pieces, np.array(s_pose, int), np.array(s_row, int), np.array(s_value, float))
     best = _BestSoFar(N, B, scene.robot.dof)
     if method == "ipopt":
         from qpik.nlp.ipopt import solve_pieces
@@ -313,20 +319,27 @@ def _solve(scene: Scene, certify: bool, tol: float, method: str, rows: list[int]
         if not len(todo):
             break
         value = best.pose_value()
-        cert = prove(scene, pieces, value, tol * np.maximum(1.0, np.abs(value)), todo)
+        top = np.argmin(best.f, axis=1)
+        focus = top, best.psi[np.arange(len(top)), top]
+        cert = prove(scene, pieces, value, tol * np.maximum(1.0, np.abs(value)), todo, focus)
         for i in todo:
             cert_ok[i], bound[i], reason[i] = cert.certified[i], cert.bound[i], cert.reason[i]
         if cert.better is None or attempt == RETRIES:
             break
         redo = np.unique(cert.better.pose)
-        sub = Pieces(*(x[np.isin(pieces.pose, redo)] for x in (pieces.pose, pieces.row, pieces.lo, pieces.hi)))
+        sub = pieces.take(np.isin(pieces.pose, redo))
         best.update_from(*_search(scene, sub, SAMPLE_STEP / 4 ** (attempt + 1), extra=cert.better))
         todo = redo
-    return [_result(scene, best, i, cert_ok[i], bound[i], reason[i], rows) for i in range(N)]
+    tables = _tables(scene, best, rows)
+    return [_result(scene, best, i, tables[i], cert_ok[i], bound[i], reason[i]) for i in range(N)]
 
 
 def _search(scene: Scene, pieces: Pieces, step: float, extra: Points | None = None) -> tuple[Points, np.ndarray]:
-    """Sample, split and polish: the polished local minima and every feasible sample, and their polish rounds."""
+    """Sample, split and polish: the polished local minima and their polish rounds.
+
+    Every (pose, branch row) with a feasible sample has its best discrete local minimum polished
+    (:data:`~qpik.nlp.search.POLISHED_PER_BRANCH`), and polishing never raises f: the polished
+    points hold each branch's best point found."""
     if not len(pieces):
         return scene.evaluate(np.zeros(0, int), np.zeros(0, int), np.zeros(0)), np.zeros(0, int)
     pts, piece = sample(scene, pieces, step)
@@ -343,12 +356,12 @@ def _search(scene: Scene, pieces: Pieces, step: float, extra: Points | None = No
     runs, run = split(scene, pts, piece)
     if not len(runs):
         return runs, np.zeros(0, int)
-    a, m, b = candidates(runs, run)
+    a, m, b = candidates(scene, runs, run)
     before = scene.evaluations
     pol = polish(scene, a, m, b)
     share = (scene.evaluations - before) / max(len(m), 1)
     np.add.at(scene.counts, (m.pose, m.row), np.round(share).astype(int))
-    return Points.join([onto_limits(scene, pol.point), runs]), np.concatenate([pol.rounds, np.zeros(len(runs), int)])
+    return onto_limits(scene, pol.point), pol.rounds
 
 
 def _count(scene: Scene, pts: Points) -> None:
@@ -366,25 +379,26 @@ class _BestSoFar:
         self.clearance = np.full((N, B), np.inf)
 
     def update(self, pose, row, psi, q, f, rounds, clearance) -> None:
-        for i, b, p, qq, v, k, c in zip(pose, row, psi, q, f, rounds, clearance):
-            if np.isfinite(v) and v < self.f[i, b]:
-                self.f[i, b], self.psi[i, b], self.q[i, b], self.clearance[i, b] = v, p, qq, c
-            self.rounds[i, b] = max(self.rounds[i, b], k)
+        """Points (M,) with their rounds: the best feasible one of each (pose, branch row) replaces a worse best."""
+        pose, row, f = np.asarray(pose, int), np.asarray(row, int), np.asarray(f, float)
+        if not len(f):
+            return
+        np.maximum.at(self.rounds, (pose, row), np.asarray(rounds, int))
+        ok = np.flatnonzero(np.isfinite(f))
+        order = ok[np.lexsort((f[ok], row[ok], pose[ok]))]
+        first = np.ones(len(order), bool)
+        first[1:] = (pose[order][1:] != pose[order][:-1]) | (row[order][1:] != row[order][:-1])
+        top = order[first]
+        top = top[f[top] < self.f[pose[top], row[top]]]
+        i, b = pose[top], row[top]
+        self.f[i, b], self.psi[i, b], self.q[i, b] = f[top], np.asarray(psi)[top], np.asarray(q)[top]
+        self.clearance[i, b] = np.asarray(clearance)[top]
 
     def update_from(self, pts: Points, rounds: np.ndarray) -> None:
-        if not len(pts):
-            return
-        ok = np.flatnonzero(pts.valid & np.isfinite(pts.f))
+        """:meth:`update` with evaluated points (the invalid ones skipped)."""
+        f = np.where(pts.valid, pts.f, np.inf)
         clear = pts.d.min(axis=1) if pts.d.shape[1] else np.full(len(pts), np.inf)
-        order = ok[np.lexsort((pts.f[ok], pts.row[ok], pts.pose[ok]))]
-        first = np.ones(len(order), bool)
-        key = pts.pose[order] * 10_000 + pts.row[order]
-        first[1:] = key[1:] != key[:-1]
-        top = order[first]
-        self.update(
-            pts.pose[top], pts.row[top], pts.psi[top], pts.q[top], pts.f[top], np.zeros(len(top), int), clear[top]
-        )
-        np.maximum.at(self.rounds, (pts.pose, pts.row), rounds)
+        self.update(pts.pose, pts.row, pts.psi, pts.q, f, rounds, clear)
 
     def found(self) -> np.ndarray:
         return np.isfinite(self.f).any(axis=1)
@@ -393,32 +407,40 @@ class _BestSoFar:
         return self.f.min(axis=1)
 
 
-def _result(
-    scene: Scene, best: _BestSoFar, i: int, certified: bool, bound: float, reason: str, searched: list[int]
-) -> BestResult:
+def _tables(scene: Scene, best: _BestSoFar, searched: list[int]) -> list[list[BranchOptimum]]:
+    """Per pose, the per-branch table: every branch, a mirrored one from its searched row."""
     sm = scene.selfmotion
-    ids = sm.branch_ids
-    total = max(int(scene.counts[i].sum()), 1)
-    rows = []
-    for k, bid in enumerate(ids):
+    N = len(scene.poses)
+    total = np.maximum(scene.counts.sum(axis=1), 1)
+    none = np.zeros(N, int)
+    columns = []
+    for k, bid in enumerate(sm.branch_ids.tolist()):
         m = sm.mirror(k)
         r = k if m is None else m[0]
-        feasible = bool(np.isfinite(best.f[i, r]))
-        param = sm.shifted(k, best.psi[i, r]) if feasible else None
-        evals = int(scene.counts[i, r]) if m is None else 0
-        rows.append(
-            BranchOptimum(int(bid), r in searched, feasible, param, float(best.f[i, r]),
-                          best.q[i, r].copy() if feasible else None, int(best.rounds[i, r]) if m is None else 0,
-                          evals, evals / total)
-        )  # fmt: skip
-    if not best.found()[i]:
+        evals, rounds = (scene.counts[:, r], best.rounds[:, r]) if m is None else (none, none)
+        feasible = np.isfinite(best.f[:, r])
+        param = sm.shifted(k, np.where(feasible, best.psi[:, r], 0.0))
+        columns.append((bid, r, r in searched, feasible.tolist(), param.tolist(), best.f[:, r].tolist(),
+                        rounds.tolist(), evals.tolist(), (evals / total).tolist()))  # fmt: skip
+    return [
+        [BranchOptimum(bid, done, ok[i], p[i] if ok[i] else None, f[i], best.q[i, r].copy() if ok[i] else None,
+                       rnd[i], ev[i], share[i]) for bid, r, done, ok, p, f, rnd, ev, share in columns]
+        for i in range(N)
+    ]  # fmt: skip
+
+
+def _result(
+    scene: Scene, best: _BestSoFar, i: int, rows: list[BranchOptimum], certified: bool, bound: float, reason: str
+) -> BestResult:
+    if not np.isfinite(best.f[i]).any():
         return least_violating(scene, i, rows)
     r = int(np.argmin(best.f[i]))
     value = float(best.f[i, r])
     gap = value - bound if certified else np.inf
     return BestResult(
-        "optimal", int(ids[r]), float(best.psi[i, r]), best.q[i, r].copy(), value, bool(certified), float(gap),
-        float(best.clearance[i, r]), 0.0, rows, sm.solver.param_name, "" if certified else reason,
+        "optimal", int(scene.selfmotion.branch_ids[r]), float(best.psi[i, r]), best.q[i, r].copy(), value,
+        bool(certified), float(gap), float(best.clearance[i, r]), 0.0, rows, scene.selfmotion.solver.param_name,
+        "" if certified else reason,
     )  # fmt: skip
 
 

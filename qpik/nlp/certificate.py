@@ -51,6 +51,8 @@ FIRST_CELL = 0.4
 """Width (rad) of the first cells."""
 SPLIT = 4
 """A cell that is kept is cut in this many."""
+FOCUS_LEVELS = 2
+"""The first cell holding the answer is cut into ``SPLIT ** FOCUS_LEVELS`` at once (:func:`certify`)."""
 SMALLEST_CELL = 1e-9
 """Cells are not cut below this width (rad): one kept there leaves the answer uncertified."""
 MAX_CELLS = 3_000
@@ -64,7 +66,7 @@ NO_BOUND = "the objective has no lower bound (the manipulability, or an operatio
 class Certificate:
     """Per pose: ``certified`` (bool), ``bound`` (the smallest lower bound met; -inf if none), ``cells``
     examined, ``reason`` (why not certified, "" if certified) and the feasible test points better than
-    the answer (``better``, rows of :class:`Points`)."""
+    the answer (``better``, rows of :class:`Points` with values only: :meth:`Scene.values`)."""
 
     certified: np.ndarray
     bound: np.ndarray
@@ -142,8 +144,19 @@ def lower_bound(models: list[np.ndarray], sizes: tuple[int, ...], decide: np.nda
     return np.where(bad | np.isnan(out), -np.inf, out)
 
 
-def certify(scene: Scene, pieces: Pieces, best: np.ndarray, tol: np.ndarray, poses: np.ndarray) -> Certificate:
-    """Try to certify ``best`` (N,) to the tolerances ``tol`` (N,) for the poses ``poses`` (indices) over ``pieces``."""
+def certify(
+    scene: Scene,
+    pieces: Pieces,
+    best: np.ndarray,
+    tol: np.ndarray,
+    poses: np.ndarray,
+    focus: tuple[np.ndarray, np.ndarray] | None = None,
+) -> Certificate:
+    """Try to certify ``best`` (N,) to the tolerances ``tol`` (N,) for the poses ``poses`` (indices) over ``pieces``.
+
+    ``focus``: (branch row (N,), ψ (N,)) of each pose's answer; the first cell holding it is cut
+    :data:`FOCUS_LEVELS` times at once (a cell holding the answer is kept until its bound reaches
+    the answer − tol, so it would be cut as many times anyway, one round each)."""
     N = len(scene.poses)
     certified = np.zeros(N, bool)
     bound = np.full(N, np.inf)
@@ -164,13 +177,21 @@ def certify(scene: Scene, pieces: Pieces, best: np.ndarray, tol: np.ndarray, pos
     j = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
     lo = np.repeat(pieces.lo[sel], count) + j * np.repeat(width / count, count)
     hi = np.minimum(lo + np.repeat(width / count, count), np.repeat(pieces.hi[sel], count))
+    if focus is not None:
+        at = (row == focus[0][pose]) & (lo <= focus[1][pose]) & (focus[1][pose] <= hi)
+        parts = np.where(at, SPLIT**FOCUS_LEVELS, 1)
+        k = np.arange(parts.sum()) - np.repeat(np.cumsum(parts) - parts, parts)
+        step = np.repeat((hi - lo) / parts, parts)
+        pose, row, end = np.repeat(pose, parts), np.repeat(row, parts), np.repeat(hi, parts)
+        lo = np.repeat(lo, parts) + k * step
+        hi = np.where(k == np.repeat(parts, parts) - 1, end, lo + step)  # the last part ends at the cell's end
     failed = np.zeros(N, bool)
     better: list[Points] = []
     while len(lo):
         np.add.at(cells_used, pose, 1)
         lb, blocked = cell_bounds(scene, bounds, pose, row, lo, hi, best[pose] - tol[pose])
         open_ = np.flatnonzero(~blocked & ~(lb >= best[pose] - tol[pose]))  # only these can hold a better point
-        pts = scene.evaluate(pose[open_], row[open_], 0.5 * (lo[open_] + hi[open_]))
+        pts = scene.values(pose[open_], row[open_], 0.5 * (lo[open_] + hi[open_]))
         good = pts.valid & (pts.c >= 0) & (pts.f < best[pts.pose] - tol[pts.pose])
         if good.any():
             better.append(pts.take(good))
@@ -216,13 +237,8 @@ def cell_bounds(
     """For cells (pose, branch row, [lo, hi]) (M,): the lower bound of f (:func:`lower_bound`, refined until it
     decides whether it is below ``decide`` (M,)) and whether the clearance constraint surely fails on the whole
     cell (some distance's upper bound below d_s)."""
-    n, M = scene.robot.dof, len(lo)
-    q = [np.empty((M, n)) for _ in range(5)]
-    for b in np.unique(row):
-        at = np.flatnonzero(row == b)
-        for dst, src in zip(q, scene.selfmotion.models(int(b), scene.poses[pose[at]], lo[at], hi[at])):
-            dst[at] = src
-    c, s, r, q_lo, q_hi = q
+    M = len(lo)
+    c, s, r, q_lo, q_hi = scene.selfmotion.models(row, scene.columns[pose], lo, hi)
     models = scene.bound_rows(bounds, c, s, r, q_lo, q_hi, pose)
     lb = lower_bound(models, bounds.sizes, decide)
     if not bounds.n_pairs:

@@ -17,7 +17,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from qpik.geometry.distance import ObstacleSet
-from qpik.nlp.selfmotion import SelfMotion
+from qpik.nlp.selfmotion import SelfMotion, columns
 from qpik.objectives import BoundFunction, Evaluator, Objective
 from qpik.robots.robot import Robot
 
@@ -62,6 +62,7 @@ class Scene:
     """The data of one solve and the evaluation of rows (see the module docstring).
 
     Attributes:
+        columns: (N, 16) the poses' entries in CasADi's column-major order (:func:`~qpik.nlp.selfmotion.columns`).
         evaluations: rows evaluated so far; counts: (N, searched branches) of them per pose and branch,
             as attributed by the search (:mod:`qpik.nlp.best`).
 
@@ -88,6 +89,7 @@ class Scene:
         self.robot, self.selfmotion, self.objective = robot, selfmotion, objective
         self.obstacles, self.d_safe = obstacles, float(d_safe)
         self.poses, self.q_ref = poses, q_ref
+        self.columns = columns(poses)
         self.evaluator = Evaluator(robot, objective, obstacles)
         self.params = self.evaluator.params
         self.evaluations = 0
@@ -101,18 +103,30 @@ class Scene:
             e = np.zeros(0)
             return Points(pose, row, psi, np.zeros((0, n)), np.zeros((0, n)), np.zeros(0, bool), e, e, e, e,
                           np.zeros((0, self.evaluator.n_pairs)))  # fmt: skip
-        q, dq, valid = np.empty((M, n)), np.empty((M, n)), np.empty(M, bool)
-        for b in np.unique(row):
-            at = np.flatnonzero(row == b)
-            q[at], dq[at], valid[at] = self.selfmotion.points(int(b), self.poses[pose[at]], psi[at])
+        q, dq, valid = self.selfmotion.points(row, self.columns[pose], psi)
         f, grad, d, grad_d = self.evaluator.rows(q, self.q_ref[pose])
-        df = np.einsum("ij,ij->i", grad, dq)
+        df = (grad * dq).sum(axis=1)
         if d.shape[1]:
-            c, dc = d.min(axis=1) - self.d_safe, np.einsum("ij,ij->i", grad_d, dq)
+            c, dc = d.min(axis=1) - self.d_safe, (grad_d * dq).sum(axis=1)
         else:
             c, dc = np.full(M, np.inf), np.zeros(M)
         self.evaluations += M
-        return Points(pose, row, psi, q, dq, valid, f, df, c, dc, d.reshape(M, -1))
+        return Points(pose, row, psi, q, dq, valid, f, df, c, dc, d)
+
+    def values(self, pose: np.ndarray, row: np.ndarray, psi: np.ndarray) -> Points:
+        """:meth:`evaluate` without the derivatives (``dq``, ``df`` and ``dc`` are NaN): less work per
+        row (:meth:`~qpik.nlp.selfmotion.SelfMotion.values`, :meth:`~qpik.objectives.Evaluator.value_rows`), for
+        the samples of the search; f, c and d are the same numbers as :meth:`evaluate`'s (the same expressions)."""
+        pose, row, psi = np.asarray(pose, int), np.asarray(row, int), np.asarray(psi, float)
+        if not len(psi):
+            return self.evaluate(pose, row, psi)
+        M = len(psi)
+        q, valid = self.selfmotion.values(row, self.columns[pose], psi)
+        f, d = self.evaluator.value_rows(q, self.q_ref[pose])
+        c = d.min(axis=1) - self.d_safe if d.shape[1] else np.full(M, np.inf)
+        nan = np.full(M, np.nan)
+        self.evaluations += M
+        return Points(pose, row, psi, q, np.full(q.shape, np.nan), valid, f, nan, c, nan, d)
 
     def bound_rows(self, bounds: BoundFunction, *q_model: np.ndarray) -> list[np.ndarray]:
         """The Taylor models of the values of ``bounds`` (:class:`~qpik.objectives.BoundFunction`) for rows of

@@ -3,11 +3,13 @@ r"""The 1-D search of :func:`qpik.solve_best`: sample, split at the clearance co
 For each pose, every branch's exact feasible set (:func:`qpik.feasible_intervals`) is a union
 of closed intervals of δ/ψ. On each:
 
-1. **Sample** ``f``, ``f'``, ``c``, ``c'`` (:class:`~qpik.nlp.scene.Scene`) every
-   :data:`SAMPLE_STEP` rad or closer, both ends included.
+1. **Sample** ``f`` and ``c`` (:meth:`~qpik.nlp.scene.Scene.values`: no derivatives) every
+   :data:`SAMPLE_STEP` rad or closer, both ends included, and more closely next to a singular end.
+   All rows of a step, of every pose and branch, go through one compiled call.
 2. **Split** at the clearance constraint ``c ≥ 0``: a sign change of ``c`` between two samples
    is refined to its root (:func:`roots`: secant, Newton and bisection steps in a bracket),
-   giving the feasible *pieces*.
+   giving the feasible *pieces*. The brackets here and in the polish are evaluated with
+   ``f'`` and ``c'`` (:meth:`~qpik.nlp.scene.Scene.evaluate`).
 3. **Polish** the discrete local minima of the samples of each piece (:func:`polish`): a
    bracket ``a ≤ m ≤ b`` with ``f(m) ≤ f(a), f(b)`` shrinks around a local minimum. Each round
    tries, on the side where ``f'(m)`` descends, the root of the secant of ``f'`` (exact for a
@@ -38,10 +40,12 @@ from qpik.nlp.scene import Points, Scene
 SAMPLE_STEP = 0.1
 """Largest spacing (rad) of the samples of a feasible interval."""
 END = 2e-9
-ENDS = (1e-3, 4e-3, 1.6e-2)
-"""Extra samples (rad) inside each end of a feasible interval (see :func:`sample`)."""
 """The first and last samples lie this far (rad) inside a feasible interval: its ends are exact to
 :data:`qpik.analytic.intervals.SAME` (1e-9), and the branch may stop reaching the pose just beyond."""
+ENDS = (1e-3, 4e-3, 1.6e-2)
+"""Extra samples (rad) inside each singular end of a feasible interval (see :func:`sample`)."""
+SINGULAR_END = 1e-7
+"""An end of a feasible interval this close (rad) to a singular parameter of its branch is singular."""
 PSI_TOL = 1e-13
 """A bracket narrower than this (rad, relative to 1 + |ψ|) has converged."""
 NOISE = 1e-15
@@ -56,25 +60,53 @@ POLISHED_PER_POSE = 4
 
 @dataclass
 class Pieces:
-    """Feasible pieces: row i is the interval [lo[i], hi[i]] of branch row ``row[i]`` of pose ``pose[i]``."""
+    """Feasible pieces: row i is the interval [lo[i], hi[i]] of branch row ``row[i]`` of pose ``pose[i]``;
+    ``singular`` (P, 2) bool: whether its lower and upper ends are singular parameters of the branch (where
+    dq/dψ is unbounded, :attr:`qpik.analytic.intervals.FeasibleIntervals.singular`); None: every end may be."""
 
     pose: np.ndarray
     row: np.ndarray
     lo: np.ndarray
     hi: np.ndarray
+    singular: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.lo)
 
+    def take(self, idx: np.ndarray) -> Pieces:
+        """The pieces ``idx`` (an index array or a boolean mask)."""
+        sing = None if self.singular is None else self.singular[idx]
+        return Pieces(self.pose[idx], self.row[idx], self.lo[idx], self.hi[idx], sing)
+
+
+def singular_ends(pieces: Pieces, pose: np.ndarray, row: np.ndarray, value: np.ndarray) -> np.ndarray:
+    """(P, 2) bool: whether each end (lo, hi) of the pieces lies within :data:`SINGULAR_END` of a singular
+    parameter ``value`` (K,) rad of the same pose (K,) and branch row (K,)."""
+    out = np.zeros((len(pieces), 2), bool)
+    if not len(value):
+        return out
+    rows = int(max(pieces.row.max(initial=0), row.max())) + 1
+    # one sorted line: each (pose, row) owns [8k, 8k + 2π] (2π < 8), its parameters ψ + π inside
+    line = np.sort((pose * rows + row) * 8.0 + (value + np.pi))
+    base = (pieces.pose * rows + pieces.row) * 8.0 + np.pi
+    for side, end in enumerate((pieces.lo, pieces.hi)):
+        x = base + end
+        j = np.searchsorted(line, x)
+        below, above = line[np.maximum(j - 1, 0)], line[np.minimum(j, len(line) - 1)]
+        out[:, side] = np.minimum(np.abs(x - below), np.abs(x - above)) < SINGULAR_END
+    return out
+
 
 def sample(scene: Scene, pieces: Pieces, step: float = SAMPLE_STEP) -> tuple[Points, np.ndarray]:
     """Samples of every piece, at most ``step`` apart, from :data:`END` inside each end, and at :data:`ENDS` from
-    each end: (points, piece (M,)).
+    each singular end: (points, piece (M,)).
 
     Points of one piece are consecutive and in increasing ψ. Only points where the branch reaches
-    the pose with a finite objective are kept.
+    the pose with a finite objective are kept. They carry values only (:meth:`~qpik.nlp.scene.Scene.values`:
+    the derivatives are NaN); :func:`split` and :func:`candidates` evaluate the derivatives where they are used.
     """
     shrink = np.minimum(END, 0.5 * (pieces.hi - pieces.lo))
+    sharp = np.ones((len(pieces), 2), bool) if pieces.singular is None else pieces.singular
     pieces = Pieces(pieces.pose, pieces.row, pieces.lo + shrink, pieces.hi - shrink)
     width = pieces.hi - pieces.lo
     k = np.where(width > 0.0, np.maximum(2, np.ceil(width / step).astype(int) + 1), 1)
@@ -84,27 +116,28 @@ def sample(scene: Scene, pieces: Pieces, step: float = SAMPLE_STEP) -> tuple[Poi
     t = np.where(k[piece] > 1, j / np.maximum(k[piece] - 1, 1), 0.0)
     psi = pieces.lo[piece] + width[piece] * t
     psi[j == k[piece] - 1] = pieces.hi[piece][j == k[piece] - 1]  # the end exactly
-    # near each end, more samples at geometric spacing: at a singular end (where dq/dψ is unbounded) the
+    # near each singular end, more samples at geometric spacing: there dq/dψ is unbounded, and the
     # objective can turn within a fraction of a step
-    near = np.array([*ENDS, *(-e for e in ENDS)])
-    wide = np.flatnonzero(width > 4 * ENDS[-1])
-    extra_piece = np.repeat(wide, len(near))
-    extra = np.where(np.tile(near, len(wide)) > 0, pieces.lo[extra_piece], pieces.hi[extra_piece]) + np.tile(
-        near, len(wide)
-    )
-    piece, psi = np.concatenate([piece, extra_piece]), np.concatenate([psi, extra])
-    order = np.lexsort((psi, piece))
-    piece, psi = piece[order], psi[order]
-    pts = scene.evaluate(pieces.pose[piece], pieces.row[piece], psi)
+    wide = width > 4 * ENDS[-1]
+    at_lo, at_hi = np.flatnonzero(wide & sharp[:, 0]), np.flatnonzero(wide & sharp[:, 1])
+    extra_piece = np.concatenate([np.repeat(at_lo, len(ENDS)), np.repeat(at_hi, len(ENDS))])
+    offsets = np.concatenate([np.tile(ENDS, len(at_lo)), -np.tile(ENDS, len(at_hi))])
+    extra = np.where(offsets > 0, pieces.lo[extra_piece], pieces.hi[extra_piece]) + offsets
+    if len(extra):
+        piece, psi = np.concatenate([piece, extra_piece]), np.concatenate([psi, extra])
+        order = np.lexsort((psi, piece))
+        piece, psi = piece[order], psi[order]
+    pts = scene.values(pieces.pose[piece], pieces.row[piece], psi)
     keep = pts.valid & np.isfinite(pts.f)
-    return pts.take(keep), piece[keep]
+    return (pts, piece) if keep.all() else (pts.take(keep), piece[keep])
 
 
 def roots(scene: Scene, left: Points, right: Points) -> Points:
     """The root of c between each pair (left[i], right[i]) whose c differ in sign: its point on the feasible side.
 
-    Bracketed iteration: the secant, a Newton step from the feasible end and the midpoint are
-    tried together each round; the tightest bracket with a sign change is kept.
+    Bracketed iteration: the secant, a Newton step from the feasible end, a point just past it (across
+    the root once Newton is close, so that both ends close in) and the midpoint are tried together each
+    round; the tightest bracket with a sign change is kept.
     """
     pose, row = left.pose, left.row
     ps, cs, ds = np.stack([left.psi, right.psi]), np.stack([left.c, right.c]), np.stack([left.dc, right.dc])
@@ -117,13 +150,16 @@ def roots(scene: Scene, left: Points, right: Points) -> Points:
         secant = a - ca_ * (b - a) / np.where(cb != ca_, cb - ca_, np.nan)
         feasible_a = ca_ >= 0
         start, c0, d0 = np.where(feasible_a, a, b), np.where(feasible_a, ca_, cb), np.where(feasible_a, da, db)
-        newton = start - c0 / np.where(d0 != 0, d0, np.nan)
-        trials = np.stack([_inside(secant, a, b), _inside(newton, a, b), 0.5 * (a + b)], axis=1)
-        pts = scene.evaluate(np.repeat(pose[i], 3), np.repeat(row[i], 3), trials.ravel())
-        for t in range(3):
-            x, cx, dx = pts.psi[t::3], pts.c[t::3], pts.dc[t::3]
-            side = (cx >= 0) == feasible_a  # replaces the end on its own side of the root
-            for k, sel in ((0, side), (1, ~side)):
+        newton = _inside(start - c0 / np.where(d0 != 0, d0, np.nan), a, b)
+        # just past the Newton point: across the root when Newton is close, so that the far end moves in too
+        past = _inside(newton + (newton - start) * 1e-3 + np.sign(newton - start) * PSI_TOL * (1.0 + np.abs(a)), a, b)
+        trials = np.stack([_inside(secant, a, b), newton, past, 0.5 * (a + b)], axis=1)
+        n = trials.shape[1]
+        pts = scene.evaluate(np.repeat(pose[i], n), np.repeat(row[i], n), trials.ravel())
+        for t in range(n):
+            x, cx, dx = pts.psi[t::n], pts.c[t::n], pts.dc[t::n]
+            side = (cx >= 0) == feasible_a  # replaces the end on its own side of the root, if it is closer
+            for k, sel in ((0, side & (x > ps[0, i])), (1, ~side & (x < ps[1, i]))):
                 ps[k, i] = np.where(sel, x, ps[k, i])
                 cs[k, i] = np.where(sel, cx, cs[k, i])
                 ds[k, i] = np.where(sel, dx, ds[k, i])
@@ -159,12 +195,9 @@ def polish(scene: Scene, a: Points, m: Points, b: Points) -> Polished:
     Returns the final middle points.
     """
     pose, row = m.pose, m.row
-    # rows 0, 1, 2: a, m, b; each with ψ, f, f', and c, c' for m
-    P = np.stack([a.psi, m.psi, b.psi])
-    F = np.stack([a.f, m.f, b.f])
-    D = np.stack([a.df, m.df, b.df])
-    C = np.stack([a.c, m.c, b.c])
-    DC = np.stack([a.dc, m.dc, b.dc])
+    # X[field, position, candidate]: fields ψ, f, f', c, c'; positions a, m, b
+    X = np.array([[getattr(p, name) for p in (a, m, b)] for name in ("psi", "f", "df", "c", "dc")])
+    P, F, D, C, DC = X  # views
     rounds = np.zeros(len(m), int)
     done = np.zeros(len(m), bool)
     cols = np.arange(len(m))
@@ -173,15 +206,14 @@ def polish(scene: Scene, a: Points, m: Points, b: Points) -> Polished:
         # interval, where dq/dψ is unbounded) toward the side that is not empty, or the lower end
         known = np.isfinite(D[1])
         right = np.where(known, D[1] < 0, (P[0] == P[1]) | ((P[2] != P[1]) & (F[2] < F[0])))
-        side = np.where(right, 2, 0)
-        vp, vf, vd = P[side, cols], F[side, cols], D[side, cols]
+        vp, vf, vd = X[:3, np.where(right, 2, 0), cols]
         width = np.abs(vp - P[1])
         tiny = PSI_TOL * (1.0 + np.abs(P[1]))
         done |= (width <= tiny) | (known & (D[1] == 0))
         if done.all():
             break
         i = np.flatnonzero(~done)
-        up, uf, ud, wp, wf, wd = P[1, i], F[1, i], D[1, i], vp[i], vf[i], vd[i]
+        (up, uf, ud), wp, wf, wd = X[:3, 1, i], vp[i], vf[i], vd[i]
         secant = up - ud * (wp - up) / np.where(wd != ud, wd - ud, np.nan)
         tangent = (wf - uf + ud * up - wd * wp) / np.where(ud != wd, ud - wd, np.nan)
         probe = up + np.sign(wp - up) * np.minimum(tiny[i], 0.5 * width[i])
@@ -191,31 +223,28 @@ def polish(scene: Scene, a: Points, m: Points, b: Points) -> Polished:
         if not np.isfinite(ud).all():
             steps.append(up + 1e-3 * (wp - up))  # off a singular end, where f' is not finite
         if np.isfinite(C[1, i]).any():
-            edge = P[1, i] - C[1, i] / np.where(DC[1, i] != 0, DC[1, i], np.nan)  # Newton on c toward its boundary
+            edge = up - C[1, i] / np.where(DC[1, i] != 0, DC[1, i], np.nan)  # Newton on c toward its boundary
             steps.append(_inside(edge - 1e-12 * (edge - up), up, wp))
         trials = np.stack([*steps, probe], axis=1)
         k = trials.shape[1]
         pts = scene.evaluate(np.repeat(pose[i], k), np.repeat(row[i], k), trials.ravel())
         # every point known: a, m, b and the trials; the best becomes m, the nearest on each side a and b
-        allP = np.concatenate([P[:, i].T, trials], axis=1)
-        allF = np.concatenate([F[:, i].T, np.where(pts.c >= 0, pts.f, np.inf).reshape(-1, k)], axis=1)
-        allD = np.concatenate([D[:, i].T, pts.df.reshape(-1, k)], axis=1)
-        allC = np.concatenate([C[:, i].T, pts.c.reshape(-1, k)], axis=1)
-        allDC = np.concatenate([DC[:, i].T, pts.dc.reshape(-1, k)], axis=1)
-        allF = np.where(np.isnan(allF), np.inf, allF)
+        new = np.stack([pts.psi, np.where(pts.c >= 0, pts.f, np.inf), pts.df, pts.c, pts.dc]).reshape(5, len(i), k)
+        every = np.concatenate([X[:, :, i].transpose(0, 2, 1), new], axis=2)  # (5, len(i), 3 + k)
+        allP, allF, allD = every[:3]
+        allF[np.isnan(allF)] = np.inf
         # f's rounding hides the last digits of ψ at a smooth minimum: among the points whose f is
         # within rounding of the least, the one with the smallest |f'| is the best estimate of the root
         low = allF.min(axis=1, keepdims=True)
         ties = allF <= low + NOISE * (1.0 + np.abs(low))
         best = np.argmin(np.where(ties, np.abs(np.where(np.isnan(allD), np.inf, allD)), np.inf), axis=1)
         cols_i = np.arange(len(i))
-        pm = allP[cols_i, best]
-        left = np.where(allP < pm[:, None], allP, -np.inf)
-        right = np.where(allP > pm[:, None], allP, np.inf)
+        pm = allP[cols_i, best][:, None]
+        left = np.where(allP < pm, allP, -np.inf)
+        right = np.where(allP > pm, allP, np.inf)
         ia = np.where(np.isfinite(left.max(axis=1)), left.argmax(axis=1), best)
         ib = np.where(np.isfinite(right.min(axis=1)), right.argmin(axis=1), best)
-        for arr, src in ((P, allP), (F, allF), (D, allD), (C, allC), (DC, allDC)):
-            arr[0, i], arr[1, i], arr[2, i] = src[cols_i, ia], src[cols_i, best], src[cols_i, ib]
+        X[:, :, i] = every[:, cols_i, np.stack([ia, best, ib])]
         improved = F[1, i] < uf
         across = np.sign(pts.df[k - 1 :: k]) == -np.sign(ud)  # the probe's slope has turned: a kink within tiny
         blocked = pts.c[k - 1 :: k] < 0  # the probe fails the constraint: m is on its boundary
@@ -234,7 +263,9 @@ def split(scene: Scene, pts: Points, piece: np.ndarray) -> tuple[Points, np.ndar
         return pts, piece
     ok = pts.c >= 0
     change = np.flatnonzero((piece[1:] == piece[:-1]) & (ok[1:] != ok[:-1]))
-    found = roots(scene, pts.take(change), pts.take(change + 1)) if len(change) else None
+    found = None
+    if len(change):  # the roots' brackets, with the derivatives the samples leave out
+        found = roots(scene, *_derivatives(scene, pts, [change, change + 1]))
     key = np.arange(len(pts), dtype=float)
     all_pts, all_piece = pts, piece
     if found is not None:
@@ -252,8 +283,9 @@ def split(scene: Scene, pts: Points, piece: np.ndarray) -> tuple[Points, np.ndar
     return all_pts, np.cumsum(start) - 1
 
 
-def candidates(pts: Points, run: np.ndarray) -> tuple[Points, Points, Points]:
-    """Brackets ``(a, m, b)`` of the discrete local minima of f along each run, the ones to polish.
+def candidates(scene: Scene, pts: Points, run: np.ndarray) -> tuple[Points, Points, Points]:
+    """Brackets ``(a, m, b)`` of the discrete local minima of f along each run, the ones to polish, evaluated
+    with their derivatives.
 
     Per (pose, branch row) its :data:`POLISHED_PER_BRANCH` best, then per pose the
     :data:`POLISHED_PER_POSE` best of the rest.
@@ -276,7 +308,15 @@ def candidates(pts: Points, run: np.ndarray) -> tuple[Points, Points, Points]:
     chosen = np.concatenate([chosen, rest[prank < POLISHED_PER_POSE]])
     a = np.where(first[chosen], chosen, chosen - 1)
     b = np.where(last[chosen], chosen, chosen + 1)
-    return pts.take(a), pts.take(chosen), pts.take(b)
+    return tuple(_derivatives(scene, pts, [a, chosen, b]))
+
+
+def _derivatives(scene: Scene, pts: Points, parts: list[np.ndarray]) -> list[Points]:
+    """The rows ``parts`` (index arrays) of samples, evaluated with the derivatives in one call."""
+    k = np.concatenate(parts)
+    full = scene.evaluate(pts.pose[k], pts.row[k], pts.psi[k])
+    ends = np.cumsum([0, *(len(p) for p in parts)])
+    return [full.take(np.arange(ends[j], ends[j + 1])) for j in range(len(parts))]
 
 
 AT_LIMIT = 1e-7

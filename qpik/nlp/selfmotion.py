@@ -4,11 +4,13 @@ For each branch b of :meth:`~qpik.analytic.solver.AnalyticSolver.casadi_function
 row functions (:class:`~qpik.compiled.RowMap`, one row = a pose and a parameter or a range):
 
 - :meth:`SelfMotion.points`: ``q_b(T, ψ)`` (n,), its exact derivative ``dq_b/dψ`` (CasADi)
-  and whether the branch reaches the pose (:meth:`SelfMotion.point_function`);
+  and whether the branch reaches the pose (:meth:`SelfMotion.point_function`); the branch is
+  an input of each row (a CasADi switch over the branches), so rows of every branch share one call
+  (:meth:`SelfMotion.values`: the same without dq/dψ, for the search's samples);
 - :meth:`SelfMotion.models`: for a range [lo, hi] of ψ, the Taylor model of ``q_b(T, ψ)`` in
   :math:`t = (\psi - \psi_{mid})/h` (h the half width): centre, slope, radius and bounds (n each) such
   that every q over the range lies within them (:meth:`SelfMotion.taylor_function`,
-  :func:`qpik.enclosure.taylor_function` of the same closed form).
+  :func:`qpik.enclosure.taylor_function` of the same closed form); a switch over the branches too.
 
 Offset-shoulder arms have 16 branches, but branch k + 8 at δ is branch k at δ + π
 (Nammoto & Kosuge 2012, eq. 7: θ1[2] = θ1[1] + π with the rest following), so only the
@@ -30,7 +32,7 @@ from qpik.robots.robot import Robot
 
 MIRRORED = {"offset_shoulder": 8}
 """Closed-form families whose branches k + half at a parameter are branch k at the parameter + π: half."""
-CHUNKS = (32, 8)
+CHUNKS = (128, 8)
 """Rows per call of the compiled self-motion functions (:class:`~qpik.compiled.RowMap`)."""
 MODEL_CHUNKS = (16, 16)
 """The same for the Taylor models: one size, since they take seconds to compile."""
@@ -50,8 +52,6 @@ class SelfMotion:
         self.solver = solver_for(robot)
         self.branch_ids = np.array(self.solver.branch_ids)
         self.searched = MIRRORED.get(self.solver.kind, self.solver.n_branches)
-        self._points: dict[int, RowMap] = {}
-        self._models: dict[int, RowMap] = {}
 
     @cached_property
     def _symbols(self) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
@@ -67,6 +67,12 @@ class SelfMotion:
             f"selfmotion_{self.solver.kind}_{b}", [T, psi], [ca.densify(ca.vertcat(q, ca.jacobian(q, psi), valid[b]))]
         )
 
+    def value_function(self, b: int) -> ca.Function:
+        """Branch row b: ``(T (4, 4), ψ) -> [q (n); valid]`` (n + 1,): :meth:`point_function` without dq/dψ."""
+        T, psi, Q, valid = self._symbols
+        out = ca.densify(ca.vertcat(Q[b, :].T, valid[b]))
+        return ca.Function(f"selfmotion_value_{self.solver.kind}_{b}", [T, psi], [out])
+
     def taylor_function(self, b: int) -> ca.Function:
         """Branch row b: the Taylor model of q over a range of ψ, ``(T, ψ centre, ψ slope, 0, lo, hi) ->
         (centre, slope, radius, lo, hi)`` of q (n each) (:func:`qpik.enclosure.taylor_function`)."""
@@ -74,26 +80,38 @@ class SelfMotion:
         fn = ca.Function(f"selfmotion_q_{self.solver.kind}_{b}", [T, psi], [ca.densify(Q[b, :].T)])
         return taylor_function(fn, [1], name=f"selfmotion_taylor_{self.solver.kind}_{b}")
 
-    def _point_map(self, b: int) -> RowMap:
-        if b not in self._points:
-            self._points[b] = RowMap(self.point_function(b), chunks=CHUNKS)
-        return self._points[b]
+    @cached_property
+    def _point_map(self) -> RowMap:
+        rows = [self.point_function(b) for b in range(self.searched)]
+        return RowMap(_switch(f"selfmotion_{self.solver.kind}", rows), chunks=CHUNKS)
 
-    def _model_map(self, b: int) -> RowMap:
-        if b not in self._models:
-            self._models[b] = RowMap(self.taylor_function(b), chunks=MODEL_CHUNKS)
-        return self._models[b]
+    @cached_property
+    def _value_map(self) -> RowMap:
+        rows = [self.value_function(b) for b in range(self.searched)]
+        return RowMap(_switch(f"selfmotion_value_{self.solver.kind}", rows), chunks=CHUNKS)
 
-    def points(self, b: int, T: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Branch row b at poses T (M, 4, 4) and parameters ψ (M,): q (M, n), dq/dψ (M, n), valid (M,) bool."""
+    @cached_property
+    def _model_map(self) -> RowMap:
+        rows = [self.taylor_function(b) for b in range(self.searched)]
+        return RowMap(_switch(f"selfmotion_taylor_{self.solver.kind}", rows), chunks=MODEL_CHUNKS)
+
+    def points(self, b: np.ndarray, T: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Branch rows b (M,) at poses T (M, 16) (:func:`columns`) and parameters ψ (M,): q (M, n), dq/dψ (M, n),
+        valid (M,) bool."""
         n = self.robot.dof
-        (out,) = self._point_map(b)(_columns(T), psi)
+        (out,) = self._point_map(np.asarray(b, float), T, psi)
         return out[:, :n], out[:, n : 2 * n], out[:, 2 * n] > 0.5
 
-    def models(self, b: int, T: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
-        """Branch row b at poses T (M, 4, 4) over ψ ∈ [lo, hi] (M,): the Taylor models of q in
+    def values(self, b: np.ndarray, T: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`points` without dq/dψ: q (M, n), valid (M,) bool."""
+        (out,) = self._value_map(np.asarray(b, float), T, psi)
+        return out[:, :-1], out[:, -1] > 0.5
+
+    def models(self, b: np.ndarray, T: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
+        """Branch rows b (M,) at poses T (M, 16) (:func:`columns`) over ψ ∈ [lo, hi] (M,): the Taylor models of q in
         t = (ψ − mid)/half, ``[centre, slope, radius, lo, hi]``, each (M, n)."""
-        return self._model_map(b)(_columns(T), 0.5 * (lo + hi), 0.5 * (hi - lo), np.zeros(len(lo)), lo, hi)
+        mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+        return self._model_map(np.asarray(b, float), T, mid, half, np.zeros(len(lo)), lo, hi)
 
     def mirror(self, b: int) -> tuple[int, float] | None:
         """``(row, shift)`` when branch row b is row ``row`` at the parameter + ``shift`` (rad), else None."""
@@ -101,13 +119,19 @@ class SelfMotion:
             return None
         return b - self.searched, np.pi
 
-    def shifted(self, b: int, psi: float) -> float:
-        """The parameter (rad) of branch row b's configuration found on its searched row at ``psi``."""
+    def shifted(self, b: int, psi: np.ndarray) -> np.ndarray:
+        """The parameters (rad, any shape) of branch row b's configurations found on its searched row at ``psi``."""
         m = self.mirror(b)
-        return psi if m is None else float(wrap(psi - m[1]))
+        return np.asarray(psi, float) if m is None else wrap(psi - m[1])
 
 
-def _columns(T: np.ndarray) -> np.ndarray:
+def _switch(name: str, rows: list[ca.Function]) -> ca.Function:
+    """``(b, *inputs) -> rows[b](*inputs)``: a CasADi switch, so that one mapped call serves rows of every branch
+    (a b outside 0..len(rows) - 2 selects the last)."""
+    return ca.Function.conditional(name, rows[:-1], rows[-1])
+
+
+def columns(T: np.ndarray) -> np.ndarray:
     """Poses (M, 4, 4) as rows of their 16 entries in column-major order (CasADi's)."""
     return np.ascontiguousarray(np.swapaxes(T, 1, 2)).reshape(len(T), 16)
 
