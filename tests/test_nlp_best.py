@@ -9,6 +9,8 @@ at least as good as every sample (to 1e-8).
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -317,3 +319,23 @@ def test_a_floor_under_the_base_constrains_only_the_moving_links():
             assert res.objective == pytest.approx(free.objective, abs=1e-8)
             checked += 1
     assert checked >= 6
+
+
+def test_threads_sharing_an_arm_get_the_answers_of_one_thread() -> None:
+    """Four threads calling ``solve_best`` on one robot at once (margin, and manipulability with an obstacle) get
+    exactly what one thread gets: it holds the arm's lock around its compiled calls."""
+    robot = qpik.load_robot("iiwa14")
+    T = robot.fk(np.random.default_rng(8).uniform(robot.q_min, robot.q_max, (8, robot.dof)))
+    obstacles = [Sphere((0.45, 0.3, 0.6), 0.08)]
+
+    def answers(k: int) -> list:
+        out = []
+        for i in range(k, len(T), 4):
+            out.append(solve_best(robot, T[i]).q.tolist())
+            out.append(solve_best(robot, T[i], objective="manipulability", obstacles=obstacles).q.tolist())
+        return out
+
+    serial = [answers(k) for k in range(4)]
+    with ThreadPoolExecutor(4) as pool:
+        for _ in range(2):
+            assert list(pool.map(answers, range(4))) == serial

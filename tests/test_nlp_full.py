@@ -7,6 +7,8 @@ answer's KKT residual is recomputed and compared with a dense-sampled closed-for
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import pytest
 from conftest import random_q
@@ -101,3 +103,17 @@ def test_unreachable_and_bad_input():
         solve_full(robot, far, q0=np.zeros(5))
     with pytest.raises(InputError, match="q_ref"):
         solve_full(robot, far, "distance")
+
+
+def test_threads_sharing_an_nlp_get_the_answers_of_one_thread() -> None:
+    """Four threads calling ``solve_full`` on one robot at once get exactly what one thread gets (IPOPT's memory
+    is the cached NLP's: each solve holds its lock; without it, concurrent solves crash inside CasADi)."""
+    robot = qpik.load_robot("zheng7")
+    T = robot.fk(np.random.default_rng(9).uniform(robot.q_min, robot.q_max, (8, robot.dof)))
+
+    def answers(k: int) -> list:
+        return [solve_full(robot, T[i]).q.tolist() for i in range(k, len(T), 4)]
+
+    serial = [answers(k) for k in range(4)]
+    with ThreadPoolExecutor(4) as pool:
+        assert list(pool.map(answers, range(4))) == serial

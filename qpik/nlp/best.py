@@ -253,12 +253,13 @@ def solve_best(
     rows = _rows(sm, branches)
     if not len(T):
         return BestResults([], n)
-    scene = Scene(robot, sm, obj, obs, d_safe, T, ref)
-    try:
-        results = _solve(scene, certify, tol, method, rows)
-    except (RuntimeError, FloatingPointError, np.linalg.LinAlgError) as exc:  # a numerical failure: a status
-        why = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
-        results = [least_violating(scene, i, [], "solver failed", why) for i in range(len(T))]
+    with sm.solver.lock:  # the arm's compiled functions evaluate in buffers of their own: one thread at a time
+        scene = Scene(robot, sm, obj, obs, d_safe, T, ref)
+        try:
+            results = _solve(scene, certify, tol, method, rows)
+        except (RuntimeError, FloatingPointError, np.linalg.LinAlgError) as exc:  # a numerical failure: a status
+            why = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+            results = [least_violating(scene, i, [], "solver failed", why) for i in range(len(T))]
     elapsed = (time.perf_counter() - t0) / len(T)
     for r in results:
         r.time = elapsed

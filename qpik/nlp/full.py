@@ -23,6 +23,7 @@ violation at the answer, with IPOPT's multipliers.
 
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass
 
@@ -87,6 +88,8 @@ class FullNLP:
 
     def __init__(self, robot: Robot, objective: Objective | None, obstacles: ObstacleSet):
         self.robot, self.objective, self.obstacles = robot, objective, obstacles
+        self.lock = threading.Lock()
+        """Held around each solve (:func:`solve_full`): threads may share the NLP, one solve at a time."""
         n = robot.dof
         self.params = np.zeros(0) if objective is None else objective.params(robot)
         T = ca.SX.sym("T", 4, 4)
@@ -120,6 +123,7 @@ class FullNLP:
 
 
 _NLPS: dict[tuple, FullNLP] = {}
+_BUILDING = threading.Lock()
 
 
 def full_nlp(robot: Robot, objective: Objective | None, obstacles: ObstacleSet) -> FullNLP:
@@ -127,7 +131,10 @@ def full_nlp(robot: Robot, objective: Objective | None, obstacles: ObstacleSet) 
     key = (id(robot), None if objective is None else (objective.key(), len(objective.params(robot))), obstacles.kinds)
     nlp = _NLPS.get(key)
     if nlp is None or nlp.robot is not robot:
-        nlp = _NLPS[key] = FullNLP(robot, objective, obstacles)
+        with _BUILDING:  # one NLP per key, also when threads ask for it at once
+            nlp = _NLPS.get(key)
+            if nlp is None or nlp.robot is not robot:
+                nlp = _NLPS[key] = FullNLP(robot, objective, obstacles)
     return nlp
 
 
@@ -236,25 +243,26 @@ def _starts(robot: Robot, T: np.ndarray, first: np.ndarray, seed: int):
 
 def _solve_from(nlp: FullNLP, q_start: np.ndarray, p: np.ndarray) -> tuple:
     """``(q, objective, pose error, iterations, kkt, clearance)`` of IPOPT started at ``q_start``."""
-    robot = nlp.robot
-    t0 = np.asarray(nlp.start_t(q_start, p)).ravel() + 1e-3 if nlp.start_t is not None else np.zeros(0)
-    x0 = np.concatenate([q_start, t0])
-    lbx = np.concatenate([robot.q_min, np.full(nlp.n_t, -np.inf)])
-    ubx = np.concatenate([robot.q_max, np.full(nlp.n_t, np.inf)])
-    n_g = nlp.solver.size1_out("g")
-    lbg = np.concatenate([np.zeros(nlp.n_eq), np.full(n_g - nlp.n_eq, -np.inf)])
-    ubg = np.zeros(n_g)
-    sol = nlp.solver(x0=x0, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
-    iters = int(nlp.solver.stats().get("iter_count", 0))
-    x = np.asarray(sol["x"]).ravel()
-    q = np.clip(x[: robot.dof], robot.q_min, robot.q_max)
-    T = np.asarray(p[:16]).reshape(4, 4).T
-    err = float(np.linalg.norm(pose_error(T, robot.fk(q))))
-    value, clear = (float(v) for v in nlp.value(q, p))
-    kkt = kkt_residual(
-        nlp, x, p, np.asarray(sol["lam_g"]).ravel(), np.asarray(sol["lam_x"]).ravel(), lbx, ubx, lbg, ubg
-    )
-    return q, value, err, iters, kkt, clear
+    with nlp.lock:  # one IPOPT solve of this NLP at a time (its memory and stats are the solver's)
+        robot = nlp.robot
+        t0 = np.asarray(nlp.start_t(q_start, p)).ravel() + 1e-3 if nlp.start_t is not None else np.zeros(0)
+        x0 = np.concatenate([q_start, t0])
+        lbx = np.concatenate([robot.q_min, np.full(nlp.n_t, -np.inf)])
+        ubx = np.concatenate([robot.q_max, np.full(nlp.n_t, np.inf)])
+        n_g = nlp.solver.size1_out("g")
+        lbg = np.concatenate([np.zeros(nlp.n_eq), np.full(n_g - nlp.n_eq, -np.inf)])
+        ubg = np.zeros(n_g)
+        sol = nlp.solver(x0=x0, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        iters = int(nlp.solver.stats().get("iter_count", 0))
+        x = np.asarray(sol["x"]).ravel()
+        q = np.clip(x[: robot.dof], robot.q_min, robot.q_max)
+        T = np.asarray(p[:16]).reshape(4, 4).T
+        err = float(np.linalg.norm(pose_error(T, robot.fk(q))))
+        value, clear = (float(v) for v in nlp.value(q, p))
+        kkt = kkt_residual(
+            nlp, x, p, np.asarray(sol["lam_g"]).ravel(), np.asarray(sol["lam_x"]).ravel(), lbx, ubx, lbg, ubg
+        )
+        return q, value, err, iters, kkt, clear
 
 
 def kkt_residual(nlp: FullNLP, x, p, lam_g, lam_x, lbx, ubx, lbg, ubg) -> float:
