@@ -23,6 +23,7 @@ import os
 import shutil
 import subprocess
 import tempfile
+import threading
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -169,6 +170,7 @@ class Compiled:
         self.library = lib if self.fn is not fn else None
         fn = self.fn
         self._buf, self._eval = fn.buffer()
+        self._lock = threading.Lock()
         self._args = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
         self._res = [np.zeros(fn.nnz_out(i)) for i in range(fn.n_out())]
         for i, a in enumerate(self._args):
@@ -200,6 +202,12 @@ class Compiled:
     def outputs(self) -> Sequence[np.ndarray]:
         """The output buffers (views, shaped like the CasADi outputs) that every call overwrites."""
         return self._views
+
+    def copies(self, *args: np.ndarray) -> list[np.ndarray]:
+        """Call it and return copies of the outputs, which no later call overwrites: the call and the copies are
+        made under the function's lock, so threads may share it."""
+        with self._lock:
+            return [np.array(out) for out in self(*args)]
 
     def __call__(self, *args: np.ndarray) -> Sequence[np.ndarray]:
         if self.kernel is not None:

@@ -6,11 +6,14 @@ batch, the point Jacobian against finite differences of a point carried by a lin
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import pytest
 from conftest import SEEDS, fd, fd_geometric_jacobian
 from hypothesis import given, settings
 
+import qpik
 from qpik.errors import InputError
 from qpik.robots.chain import Joint, SerialChain
 
@@ -99,3 +102,23 @@ def test_bad_chains_are_rejected():
         Joint(pre=np.eye(3))
     with pytest.raises(InputError, match=r"SerialChain\.base"):
         SerialChain([Joint()], base=np.full((4, 4), np.nan))
+
+
+def test_threads_sharing_an_arm_get_the_answers_of_one_thread() -> None:
+    """Four threads evaluating one arm at once get exactly what one thread gets, on the compiled single-q path
+    (lists take the general path: the compiled function's call and copies under its lock) and the fast one."""
+    robot = qpik.load_robot("iiwa14")
+    Q = np.random.default_rng(11).uniform(robot.q_min, robot.q_max, (40, robot.dof))
+
+    def answers(k: int) -> list:
+        out = []
+        for q in Q[k::4]:
+            T, J = robot.fk_jacobian(q.tolist())
+            out += [robot.fk(q.tolist()), T, J, robot.hessian(q), robot.chain.frames(q), robot.fk(q)]
+            out += [robot.manipulability_gradient(q.tolist()), robot.jacobian(q.tolist())]
+        return [x.tolist() for x in out]
+
+    serial = [answers(k) for k in range(4)]
+    with ThreadPoolExecutor(4) as pool:
+        for _ in range(3):
+            assert list(pool.map(answers, range(4))) == serial

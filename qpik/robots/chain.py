@@ -258,14 +258,14 @@ class SerialChain:
             return out[0]
         q, batched = joint_vector(q, self.dof)
         if not batched:
-            return self._compiled["fk"](q)[0].copy()
+            return self._compiled["fk"].copies(q)[0]
         return _frame_to_np(self._batch(q)[-1], len(q))
 
     def frames(self, q: np.ndarray) -> np.ndarray:
         """World poses of ``[base, frame_1..frame_n, ee]``: (n+2, 4, 4) or (N, n+2, 4, 4)."""
         q, batched = joint_vector(q, self.dof)
         if not batched:
-            F = self._compiled["frames"](q)[0]
+            F = self._compiled["frames"].copies(q)[0]
             return F.reshape(4, self.dof + 2, 4).transpose(1, 0, 2).copy()
         fr = self._batch(q)
         return np.stack([_frame_to_np(f, len(q)) for f in fr], axis=1)
@@ -286,7 +286,7 @@ class SerialChain:
             return out[0]
         q, batched = joint_vector(q, self.dof)
         if not batched:
-            return self._compiled["jacobian"](q)[0].copy()
+            return self._compiled["jacobian"].copies(q)[0]
         return self._jac_np(self._batch(q), len(q))
 
     def fk_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -296,8 +296,8 @@ class SerialChain:
             return out
         q, batched = joint_vector(q, self.dof)
         if not batched:
-            T, J = self._compiled["fk_jacobian"](q)
-            return T.copy(), J.copy()
+            T, J = self._compiled["fk_jacobian"].copies(q)
+            return T, J
         fr = self._batch(q)
         return _frame_to_np(fr[-1], len(q)), self._jac_np(fr, len(q))
 
@@ -311,7 +311,7 @@ class SerialChain:
         q, batched = joint_vector(q, self.dof)
         n = self.dof
         if not batched:
-            return self._compiled["hessian"](q)[0].reshape(n, 6, n).copy()
+            return self._compiled["hessian"].copies(q)[0].reshape(n, 6, n)
         H = self.hessian_expr(self._batch(q))
         return np.stack(
             [np.stack([sy.stack([*hv, *hw], sy.NUMPY, (len(q),)) for hv, hw in row], axis=-1) for row in H],
@@ -346,7 +346,7 @@ class SerialChain:
             return out[which]
         q, batched = joint_vector(q, self.dof)
         if not batched:
-            return self._compiled["manipulability_gradient"](q)[which].copy()
+            return self._compiled["manipulability_gradient"].copies(q)[which]
         return manipulability_gradient_from(self.jacobian(q), self.hessian(q), translational)
 
 
