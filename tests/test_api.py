@@ -222,3 +222,12 @@ def test_threads_sharing_an_arm_get_the_answers_of_one_thread(name: str) -> None
     with ThreadPoolExecutor(4) as pool:
         for _ in range(5):
             assert list(pool.map(answers, range(4))) == serial
+
+
+def test_branch_ids_are_read_only(robot) -> None:
+    """The branch ids of a result are shared by every result of the arm, so they cannot be written to."""
+    T = robot.fk(np.zeros(robot.dof) + 0.2)
+    for sol in (qpik.ik(robot, T, 0.3), qpik.ik(robot, T[None], 0.3)):
+        with pytest.raises(ValueError, match="read-only"):
+            sol.branch[0] = -1
+    assert qpik.ik(robot, T, 0.3).branch.tolist() == list(qpik.feasible_intervals(robot, T).branch)

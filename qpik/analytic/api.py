@@ -49,7 +49,7 @@ def _new_solver(robot: Robot) -> AnalyticSolver:
     return getattr(importlib.import_module(module), cls)(robot)
 
 
-@dataclass
+@dataclass(slots=True)
 class IKSolutions:
     """Every closed-form branch for one pose (or a batch of poses).
 
@@ -59,7 +59,8 @@ class IKSolutions:
         valid: (B,) or (N, B) bool, the branch reaches the pose.
         within_limits: (B,) or (N, B) bool, valid and inside the joint limits.
         singular: (B,) or (N, B) bool, a singular case (defined, documented result).
-        branch: (B,) public branch ids (Nammoto & Kosuge 2012 Table 2 numbers 1-16, or S-R-S 0-7).
+        branch: (B,) public branch ids (Nammoto & Kosuge 2012 Table 2 numbers 1-16, or S-R-S 0-7); read-only,
+            shared by every result of the arm.
         param: the redundancy parameter (rad): float or (N,).
         param_name: ``"delta"`` or ``"psi"``.
     """
@@ -105,7 +106,7 @@ def ik(robot: Robot, pose: np.ndarray, param: float | np.ndarray, project: bool 
     fast = solver.fresh_one if project is False and type(param) is float else None
     if fast is not None and (out := fast(pose, param)) is not None:  # a single pose and δ/ψ, checked in C
         q, flags = out  # flags (3, B): valid, singular, within limits (indexing beats unpacking the rows)
-        return IKSolutions(q, flags[0], flags[2], flags[1], solver.branch_array.copy(), param, solver.param_name)
+        return IKSolutions(q, flags[0], flags[2], flags[1], solver.branch_array, param, solver.param_name)
     T, batched = check_pose(pose, "pose", project)
     if not batched:
         if type(param) is float and math.isfinite(param):
@@ -127,7 +128,7 @@ def ik(robot: Robot, pose: np.ndarray, param: float | np.ndarray, project: bool 
         valid=sol.valid,
         within_limits=sol.within_limits,
         singular=sol.singular,
-        branch=solver.branch_array.copy(),
+        branch=solver.branch_array,
         param=par,
         param_name=solver.param_name,
     )

@@ -112,7 +112,7 @@ class AnalyticSolver(ABC):
 
     @cached_property
     def branch_array(self) -> np.ndarray:
-        """``branch_ids`` as an int array (B,); read-only, copy before handing it out."""
+        """``branch_ids`` as an int array (B,), read-only (the results of :func:`qpik.ik` share it)."""
         out = np.array(self.branch_ids)
         out.flags.writeable = False
         return out
