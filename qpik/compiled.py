@@ -18,6 +18,7 @@ capsule/obstacle pairs, mapped sweeps). Where no compiler works, or with
 
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import os
 import shutil
@@ -26,6 +27,7 @@ import tempfile
 import threading
 import warnings
 from collections.abc import Sequence
+from functools import cache
 from pathlib import Path
 
 import casadi as ca
@@ -221,6 +223,49 @@ class Compiled:
                 dst[:] = np.asarray(src, dtype=float).reshape(-1, order="F")
         self._eval()
         return self._views
+
+
+@cache
+def entry_point(library: Path, name: str) -> tuple[int, ctypes.CDLL] | None:
+    """The address of the generated function ``name`` in the shared library ``library`` and the loaded library
+    (the address is valid while it lives), or None when the function's integers are not the 64-bit
+    ``casadi_int`` that qpik's C callers (:mod:`qpik.fastcall`, ``intervals.c``, ``grid.c``) pass."""
+    dll = ctypes.CDLL(str(library))
+    if getattr(dll, f"{name}_casadi_int_size")() != 8:
+        return None
+    return ctypes.cast(getattr(dll, name), ctypes.c_void_p).value, dll
+
+
+class NativeFunction:
+    """A compiled function's C entry point (CasADi's calling convention: ``casadi_fn`` in ``intervals.c``) with what
+    C code needs to call it: numpy buffers of its inputs (:attr:`args`, column-major) and of the outputs asked for
+    (:attr:`res`, None for the others, which the function then skips), its argument and result pointer arrays and
+    its work arrays.
+
+    :attr:`addresses` are ``(entry, arg, res, iw, w)``, the function and the four arguments it takes.
+    """
+
+    def __init__(
+        self, fn: ca.Function, entry: tuple[int, ctypes.CDLL], outputs: tuple[int, ...], inputs: dict[int, np.ndarray]
+    ):
+        address, self._library = entry  # the entry point lives as long as its library
+        self.args = [inputs[i] if i in inputs else np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
+        self.res = [np.zeros(fn.nnz_out(i)) if i in outputs else None for i in range(fn.n_out())]
+        argv = (ctypes.c_void_p * max(fn.sz_arg(), fn.n_in()))(*[a.ctypes.data for a in self.args])
+        resv = (ctypes.c_void_p * max(fn.sz_res(), fn.n_out()))(*[r if r is None else r.ctypes.data for r in self.res])
+        self._work = (argv, resv, np.zeros(max(fn.sz_iw(), 1), np.int64), np.zeros(max(fn.sz_w(), 1)))
+        iw, w = self._work[2].ctypes.data, self._work[3].ctypes.data
+        self.addresses = (address, ctypes.addressof(argv), ctypes.addressof(resv), iw, w)
+
+    @classmethod
+    def of(
+        cls, compiled: Compiled, outputs: tuple[int, ...], inputs: dict[int, np.ndarray] | None = None
+    ) -> NativeFunction | None:
+        """The C call of ``compiled`` computing ``outputs`` (their indices), or None when it is not native code or its
+        integers are not 64-bit (:func:`entry_point`). ``inputs``: buffers (float64, of the inputs' sizes) to read
+        some inputs from, shared with other functions, instead of buffers of its own."""
+        entry = None if compiled.library is None else entry_point(compiled.library, compiled.fn.name())
+        return None if entry is None else cls(compiled.fn, entry, outputs, inputs or {})
 
 
 class RowMap:

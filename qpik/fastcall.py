@@ -17,7 +17,6 @@ and every caller keeps its general path (CasADi's buffer interface or virtual ma
 
 from __future__ import annotations
 
-import ctypes
 import importlib.util
 import platform
 import sysconfig
@@ -30,6 +29,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from qpik.compiled import compiler, entry_point, shared_library
 from qpik.errors import InputError
 
 if TYPE_CHECKING:
@@ -57,8 +57,6 @@ def build(name: str, path: Path) -> ModuleType | None:
     """The CPython extension module ``name`` (its ``PyInit_<name>``) compiled from the C file ``path`` against
     this Python's and numpy's headers, cached (:func:`qpik.compiled.shared_library`), or None when there is no
     compiler, no Python headers, or ``QPIK_NATIVE=0`` (a warning says why it does not build or load)."""
-    from qpik.compiled import compiler, shared_library
-
     if compiler() is None:
         return None
     include = sysconfig.get_paths()["include"]
@@ -77,16 +75,6 @@ def build(name: str, path: Path) -> ModuleType | None:
         warnings.warn(f"qpik: {name} does not load ({exc})", stacklevel=2)
         return None
     return module
-
-
-@cache
-def _entry(library: Path, name: str) -> tuple[int, ctypes.CDLL] | None:
-    """The address of the generated function ``name`` in ``library`` and the loaded library, or None when
-    its integers are not 64-bit (the extension's calling convention)."""
-    dll = ctypes.CDLL(str(library))
-    if getattr(dll, f"{name}_casadi_int_size")() != 8:
-        return None
-    return ctypes.cast(getattr(dll, name), ctypes.c_void_p).value, dll
 
 
 def kernel(
@@ -110,7 +98,7 @@ def kernel(
             output as a row-major matrix, squeezed to 1-D for a column).
     """
     mod = extension()
-    entry = None if mod is None else _entry(library, fn.name())
+    entry = None if mod is None else entry_point(library, fn.name())
     if entry is None:
         return None
     address, dll = entry

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from qpik import symbolic as sy
-from qpik.compiled import Compiled, shared_library
+from qpik.compiled import Compiled, NativeFunction, shared_library
 from qpik.errors import InputError, SolverError
 from qpik.fastcall import extension
 from qpik.validate import finite_array, number
@@ -139,41 +139,6 @@ class Assembler:
             sets += [shift(s, np.pi) for s in sets]
             found += [np.sort(wrap(np.array(x) + np.pi)).tolist() for x in found]
         return sets, found
-
-
-class NativeFunction:
-    """A compiled CasADi function's C entry point (``casadi_fn`` in ``intervals.c``) with what C code needs to call
-    it: numpy buffers of its inputs (:attr:`args`, column-major) and of the outputs asked for (:attr:`res`, None for
-    the others, which the function then skips), its argument and result pointer arrays and its work arrays.
-
-    :attr:`addresses` are ``(entry, arg, res, iw, w)``, the function and the four arguments it takes.
-    """
-
-    def __init__(self, compiled: Compiled, library: ctypes.CDLL, outputs: tuple[int, ...], pose: np.ndarray | None):
-        fn = compiled.fn
-        self._library = library  # the entry point lives as long as its library
-        self.args = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
-        if pose is not None:
-            self.args[0] = pose
-        self.res = [np.zeros(fn.nnz_out(i)) if i in outputs else None for i in range(fn.n_out())]
-        argv = (ctypes.c_void_p * max(fn.sz_arg(), fn.n_in()))(*[a.ctypes.data for a in self.args])
-        resv = (ctypes.c_void_p * max(fn.sz_res(), fn.n_out()))(*[r if r is None else r.ctypes.data for r in self.res])
-        self._work = (argv, resv, np.zeros(max(fn.sz_iw(), 1), np.int64), np.zeros(max(fn.sz_w(), 1)))
-        entry = ctypes.cast(getattr(library, fn.name()), ctypes.c_void_p).value
-        iw, w = self._work[2].ctypes.data, self._work[3].ctypes.data
-        self.addresses = (entry, ctypes.addressof(argv), ctypes.addressof(resv), iw, w)
-
-    @classmethod
-    def of(cls, compiled: Compiled, outputs: tuple[int, ...], pose: np.ndarray | None = None) -> NativeFunction | None:
-        """The C call of ``compiled`` computing ``outputs`` (their indices), or None when it is not native code or its
-        integers are not the 64-bit ``casadi_int`` of ``intervals.c``. ``pose``: a buffer (16,) to read the first
-        input (a pose, column-major) from, shared with another function, instead of one of its own."""
-        if compiled.library is None:
-            return None
-        library = ctypes.CDLL(str(compiled.library))
-        if getattr(library, f"{compiled.fn.name()}_casadi_int_size")() != 8:
-            return None
-        return cls(compiled, library, outputs, pose)
 
 
 class _NativeSets:

@@ -64,13 +64,13 @@ import casadi as ca
 import numpy as np
 
 from qpik import symbolic as sy
-from qpik.analytic.intervals import Assembler, FeasibleIntervals, Interval, NativeFunction, check_sets, list_maker
+from qpik.analytic.intervals import Assembler, FeasibleIntervals, Interval, check_sets, list_maker
 from qpik.analytic.intervals import c_source as intervals_source
 from qpik.analytic.polyroots import FLAGS as POLYROOTS_FLAGS
 from qpik.analytic.polyroots import ROOM, trig_roots
 from qpik.analytic.polyroots import c_source as polyroots_source
 from qpik.analytic.trig import EPS, acos2
-from qpik.compiled import Compiled, shared_library
+from qpik.compiled import Compiled, NativeFunction, shared_library
 from qpik.errors import QpikError
 from qpik.symbolic import Ops, Scalar
 
@@ -303,7 +303,7 @@ class _NativeDelta:
         the C source is not native code."""
         dll = _library()
         bp = None if dll is None else NativeFunction.of(breaks, outputs=(0, 1, 2, 3))
-        ik = None if bp is None else NativeFunction.of(solver.checked(cls.ROWS), outputs=(1,), pose=bp.args[0])
+        ik = None if bp is None else NativeFunction.of(solver.checked(cls.ROWS), outputs=(1,), inputs={0: bp.args[0]})
         if ik is None:
             return None
         limits = (np.asarray(solver.robot.q_min, float), np.asarray(solver.robot.q_max, float))

@@ -37,7 +37,7 @@ import numpy as np
 from qpik import symbolic as sy
 from qpik.analytic import feasible_intervals, solver_for
 from qpik.analytic.intervals import FeasibleIntervals, wrap
-from qpik.compiled import Compiled, RowMap, shared_library
+from qpik.compiled import Compiled, NativeFunction, RowMap, shared_library
 from qpik.errors import SolverError
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.selfmotion import MIRRORED
@@ -281,36 +281,27 @@ class Grid:
 class _NativeLayers:
     """:meth:`Grid.layers`' C path: ``qpik_plan_layers`` (``grid.c``) calling the row function's generated C."""
 
-    def __init__(self, dll: ctypes.CDLL, libs: list[ctypes.CDLL], pre: ca.Function, row: ca.Function, grid: Grid):
-        self._dll, self._libs = dll, libs  # the entry points live as long as their libraries
+    def __init__(self, dll: ctypes.CDLL, pre: NativeFunction, row: NativeFunction, grid: Grid):
+        self._dll, self._pre, self._row = dll, pre, row  # the C call uses their buffers: they live as long
         self.B, self.G, self.n, self.d_safe = grid.rows, grid.G, grid.robot.dof, grid.d_safe
         self.values = np.ascontiguousarray(grid.values, float)
         self.root, self.shift = (np.ascontiguousarray(x, np.int64) for x in grid.clearance_sources)
         self._clear, self._need = np.zeros((self.B, self.G)), np.zeros(self.G, np.uint8)
-        self._fixed = np.concatenate([np.zeros(16), grid.objective_params, grid.q_ref, grid.obstacles.params])
-        self._s, self._psi, self._row = np.zeros(pre.nnz_out(0)), np.zeros(1), np.zeros(row.nnz_out(0))
-        self._keep, head = [], []
-        for fn, lib, args, out in ((pre, libs[0], [self._fixed], self._s),
-                                   (row, libs[1], [self._fixed, self._s, self._psi], self._row)):  # fmt: skip
-            argv = (ctypes.c_void_p * max(fn.sz_arg(), fn.n_in()))(*[a.ctypes.data for a in args])
-            resv = (ctypes.c_void_p * max(fn.sz_res(), fn.n_out()))(out.ctypes.data)
-            iw, w = np.zeros(max(fn.sz_iw(), 1), np.int64), np.zeros(max(fn.sz_w(), 1))
-            self._keep += [argv, resv, iw, w]
-            entry = ctypes.cast(getattr(lib, fn.name()), ctypes.c_void_p).value
-            head += [entry, ctypes.addressof(argv), ctypes.addressof(resv), iw.ctypes.data, w.ctypes.data]
-        self._head = (*head, self._fixed.ctypes.data, self._psi.ctypes.data, self._row.ctypes.data)
+        fixed, psi, out = pre.args[0], row.args[2], row.res[0]  # fixed = [pose (16, set per waypoint), parameters]
+        fixed[16:] = np.concatenate([grid.objective_params, grid.q_ref, grid.obstacles.params])
+        self._head = (*pre.addresses, *row.addresses, fixed.ctypes.data, psi.ctypes.data, out.ctypes.data)
 
     @classmethod
     def for_grid(cls, grid: Grid, pre: Compiled, row: Compiled) -> _NativeLayers | None:
         """The C path for ``grid`` with its split row function (:meth:`Grid.split_function`) compiled, or None
         when that or ``grid.c`` is not native code."""
         dll = _library()
-        if dll is None or pre.library is None or row.library is None:
+        first = None if dll is None else NativeFunction.of(pre, outputs=(0,))
+        if first is None:
             return None
-        libs = [ctypes.CDLL(str(c.library)) for c in (pre, row)]
-        if any(getattr(lib, f"{c.fn.name()}_casadi_int_size")() != 8 for lib, c in zip(libs, (pre, row))):
-            return None  # grid.c passes 64-bit casadi_int
-        return cls(dll, libs, pre.fn, row.fn, grid)
+        # the row function reads the fixed inputs and the waypoint's part (the first one's output) from their buffers
+        second = NativeFunction.of(row, outputs=(0,), inputs={0: first.args[0], 1: first.res[0]})
+        return None if second is None else cls(dll, first, second, grid)
 
     def __call__(self, cols: np.ndarray, inside: np.ndarray) -> Layers:
         """The states of the waypoints of ``cols`` (K, 16) (poses column-major) with ``inside`` (K, B, G)."""
