@@ -57,15 +57,20 @@ def test_bounds_contain_every_sample(seed):
             assert np.all(v[ok] <= out[n + k] + tol), (k, v[ok].max(), out[n + k])
 
 
+def _self_motion(name: str):
+    """The arm ``name``, its closed form ``q(T, ψ)`` as one SX function (all branches), a random reachable pose and
+    the generator that drew it (seed 3)."""
+    robot = qpik.load_robot(name)
+    T, psi = ca.SX.sym("T", 4, 4), ca.SX.sym("psi")
+    Q = qpik.analytic.solver_for(robot).casadi_function(T, psi)[0]
+    rng = np.random.default_rng(3)
+    return robot, ca.Function("q", [T, psi], [Q]), robot.fk(rng.uniform(robot.q_min, robot.q_max)), rng
+
+
 @pytest.mark.parametrize("name", ["iiwa14", "nammoto7"])
 def test_closed_form_box_contains_the_self_motion(name):
-    robot = qpik.load_robot(name)
-    solver = qpik.analytic.solver_for(robot)
-    T, psi = ca.SX.sym("T", 4, 4), ca.SX.sym("psi")
-    Q = solver.casadi_function(T, psi)[0]
-    box = interval_function(ca.Function("q", [T, psi], [Q]), [1])
-    rng = np.random.default_rng(3)
-    pose = robot.fk(rng.uniform(robot.q_min, robot.q_max))
+    robot, self_motion, pose, rng = _self_motion(name)
+    box = interval_function(self_motion, [1])
     for a in rng.uniform(-np.pi, np.pi - 0.05, 6):
         b = a + 0.05
         lo, hi = (np.asarray(v) for v in box(pose, a, b))
@@ -103,13 +108,8 @@ def test_closed_form_taylor_model_contains_the_self_motion_and_is_second_order(n
     """The Taylor model of q over a ψ range holds the batched numpy closed form at 200 ψ of the range,
     and its remainder shrinks with the square of the range (100× narrower: a radius over 300× smaller;
     a first-order bound would give 100×)."""
-    robot = qpik.load_robot(name)
-    solver = qpik.analytic.solver_for(robot)
-    T, psi = ca.SX.sym("T", 4, 4), ca.SX.sym("psi")
-    Q = solver.casadi_function(T, psi)[0]
-    tm = taylor_function(ca.Function("q", [T, psi], [Q]), [1])
-    rng = np.random.default_rng(3)
-    pose = robot.fk(rng.uniform(robot.q_min, robot.q_max))
+    robot, self_motion, pose, rng = _self_motion(name)
+    tm = taylor_function(self_motion, [1])
     t = np.linspace(-1.0, 1.0, 200)
     radius = {}
     for half in (0.05, 5e-4):
