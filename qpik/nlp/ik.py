@@ -279,20 +279,17 @@ class IKSolver:
         any branch has a feasible set. ``T`` (4, 4) is a checked pose (not checked again here)."""
         robot = self.robot
         solver = closed_form_solver(robot)
-        with solver.lock:  # shared with the public closed-form functions
-            return self._closed_form_with(solver, T, q0)
-
-    def _closed_form_with(self, solver, T: np.ndarray, q0: np.ndarray) -> tuple[IKResult | None, bool]:
-        robot = self.robot
-        sets = solver.feasible_intervals(T)
-        param0, branch0 = (x[0] for x in solver.parameter(q0[None]))
+        with solver.lock:  # its compiled calls' buffers, shared with the public closed-form functions
+            sets = solver.feasible_intervals(T)
+            param0, branch0 = (x[0] for x in solver.parameter(q0[None]))
         k0 = sets.index(branch0)
         rows = [k0] if sets.intervals[k0] else [k for k, iv in enumerate(sets.intervals) if iv]
         cands = [(k, param, iv) for k in rows for param, iv in _candidates(sets.intervals[k], param0)]
         if not cands:
             return None, False
         params = np.array([param for _, param, _ in cands])
-        sol = solver.solve_many(T, params)  # every branch at each candidate parameter, one call
+        with solver.lock:
+            sol = solver.solve_many(T, params)  # every branch at each candidate parameter, one call
         best: tuple[float, int, float, np.ndarray] | None = None
         for i, (k, param, (lo, hi)) in enumerate(cands):
             q = sol.q[i, k]
