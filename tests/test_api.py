@@ -39,6 +39,9 @@ def test_nan_and_shapes_name_the_argument(robot) -> None:
         qpik.redundancy_parameter(robot, np.zeros(6))
     with pytest.raises(InputError, match=r"^pose"):
         qpik.feasible_intervals(robot, np.stack([T, T]))
+    for margin in (np.nan, np.inf, -0.1, "a", None, True):
+        with pytest.raises(InputError, match=r"^margin"):
+            qpik.feasible_intervals(robot, T, margin=margin)
 
 
 def test_non_orthonormal_rotation_needs_project(robot) -> None:

@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from qpik.analytic.intervals import SAME, FeasibleIntervals, gaps, merge, shift, wrap
+from qpik.analytic.intervals import SAME, FeasibleIntervals, gaps, merge, shift, shrunk_limits, wrap
 
 PROBE = np.linspace(-np.pi, np.pi, 20_001)
 
@@ -103,22 +103,31 @@ def _assemblers():
 SOLVER, ASSEMBLERS = _assemblers()
 
 
-@settings(max_examples=60, deadline=None)
-@given(st.integers(0, 2**32 - 1), st.integers(0, 60), st.sampled_from(sorted(ASSEMBLERS)))
-def test_assembler_sets_are_the_runs_of_feasible_gaps(seed, n, path):
+@settings(max_examples=80, deadline=None)
+@given(
+    st.integers(0, 2**32 - 1),
+    st.integers(0, 60),
+    st.sampled_from(sorted(ASSEMBLERS)),
+    st.one_of(st.none(), st.floats(0.0, 1.2)),
+)
+def test_assembler_sets_are_the_runs_of_feasible_gaps(seed, n, path, margin):
     """Arbitrary breakpoints (any branch of 2π): each row's set holds a probe inside a gap iff the branch is
-    feasible at that gap's midpoint; row 8 + k at δ is row k at δ − π; singular values are kept where the
-    branch is valid and singular."""
+    feasible at that gap's midpoint (valid, every joint inside the robot's limits or, with ``margin``, the shrunk
+    ones); row 8 + k at δ is row k at δ − π; singular values are kept where the branch is valid and singular.
+    Calls with and without limits alternate over the examples: each call's limits are its own."""
     rng = np.random.default_rng(seed)
     robot = SOLVER.robot
     T = robot.fk(rng.uniform(robot.q_min, robot.q_max))
     breaks = rng.uniform(-3 * np.pi, 3 * np.pi, n)
     candidates = rng.uniform(-np.pi, np.pi, 3)
-    sets, singular = ASSEMBLERS[path](T, breaks, candidates)
+    limits = None if margin is None else shrunk_limits(robot.q_min, robot.q_max, margin)
+    sets, singular = ASSEMBLERS[path](T, breaks, candidates, limits)
     assert len(sets) == len(singular) == 16
     b = np.sort(np.mod(breaks + np.pi, 2 * np.pi) - np.pi) if n else np.zeros(1)
     ends = np.append(b[1:], b[0] + 2 * np.pi)
-    feasible = SOLVER.solve_many(T, 0.5 * (b + ends), rows=8).within_limits  # (G, 8)
+    q, valid, _, _ = SOLVER.solve_many(T, 0.5 * (b + ends), rows=8)  # (G, 8, n), (G, 8)
+    lo, hi = (robot.q_min, robot.q_max) if limits is None else limits
+    feasible = valid & np.all((q >= lo) & (q <= hi), axis=2)
     u = rng.uniform(1e-6, 1 - 1e-6, (b.size, 4))
     probes = wrap((b[:, None] + u * (ends - b)[:, None]).ravel())
     gap = np.repeat(np.arange(b.size), 4)
@@ -133,3 +142,21 @@ def test_assembler_sets_are_the_runs_of_feasible_gaps(seed, n, path):
         assert np.allclose(singular[k], expect, atol=0) and np.allclose(
             singular[k + 8], np.sort(wrap(expect + np.pi)), atol=1e-15
         )
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(0.0, 2.0))
+def test_shrunk_limits_bound_the_joint_limit_margin(seed, margin):
+    """q inside the shrunk limits iff its joint-limit margin (:class:`qpik.objectives.JointLimitMargin`'s
+    min_j min(q_j − l_j, u_j − q_j) / ρ_j) is at least ``margin``; empty above 1."""
+    rng = np.random.default_rng(seed)
+    l = rng.uniform(-3.0, 0.0, 7)
+    u = l + rng.uniform(0.1, 6.0, 7)
+    lo, hi = shrunk_limits(l, u, margin)
+    q = rng.uniform(l, u, (2000, 7))
+    mu = np.minimum((q - l) / ((u - l) / 2), (u - q) / ((u - l) / 2)).min(axis=1)
+    inside = np.all((q >= lo) & (q <= hi), axis=1)
+    clear = np.abs(mu - margin) > 1e-12
+    assert np.array_equal(inside[clear], mu[clear] >= margin)
+    if abs(margin - 1.0) > 1e-9:
+        assert np.all(lo <= hi) if margin < 1.0 else np.all(lo > hi)

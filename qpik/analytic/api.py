@@ -13,7 +13,7 @@ from qpik.analytic.intervals import FeasibleIntervals, wrap
 from qpik.analytic.solver import AnalyticSolver
 from qpik.errors import InputError, NoClosedFormError
 from qpik.robots.robot import Robot, as_robot
-from qpik.validate import finite_array, joint_vector
+from qpik.validate import finite_array, joint_vector, number
 from qpik.validate import pose as check_pose
 
 _SOLVERS = {
@@ -148,11 +148,17 @@ def redundancy_parameter(robot: Robot, q: np.ndarray) -> tuple[float | np.ndarra
     return float(param[0]), int(branch[0])
 
 
-def feasible_intervals(robot: Robot, pose: np.ndarray, project: bool = False) -> FeasibleIntervals:
-    """Per branch, the exact set of δ/ψ (rad) keeping all joints in limits; see :class:`FeasibleIntervals`."""
+def feasible_intervals(robot: Robot, pose: np.ndarray, project: bool = False, margin: float = 0.0) -> FeasibleIntervals:
+    r"""Per branch, the exact set of δ/ψ (rad) keeping all joints in limits; see :class:`FeasibleIntervals`.
+
+    ``margin`` m >= 0: keeping every joint j in the shrunk limits :math:`[l_j + m\rho_j,\ u_j - m\rho_j]`,
+    :math:`\rho_j = (u_j - l_j)/2` instead: the set where the joint-limit margin
+    (:class:`qpik.objectives.JointLimitMargin`) is at least m (empty for m > 1).
+    """
     solver = solver_for(robot)
     T, batched = check_pose(pose, "pose", project)
     if batched:
         raise InputError("pose: feasible_intervals takes one pose (4, 4)")
+    m = number(margin, "margin")
     with solver.lock:
-        return solver.feasible_intervals(T)
+        return solver.feasible_intervals(T, m)

@@ -83,6 +83,19 @@ class FeasibleIntervals:
         return float(sum(hi - lo for lo, hi in self[b]))
 
 
+def shrunk_limits(q_min: np.ndarray, q_max: np.ndarray, margin: float) -> tuple[np.ndarray, np.ndarray]:
+    r"""The joint limits shrunk by ``margin`` (rad, (n,) each): :math:`(l + m\rho,\ u - m\rho)`,
+    :math:`\rho = (u - l)/2`.
+
+    A configuration q has the joint-limit margin (:class:`qpik.objectives.JointLimitMargin`)
+    :math:`\mu(q) = \min_j \min(q_j - l_j, u_j - q_j)/\rho_j \ge m` iff every joint lies in these limits;
+    for m > 1 they are empty (lo > hi).
+    """
+    lo, hi = np.asarray(q_min, dtype=float), np.asarray(q_max, dtype=float)
+    half = margin * 0.5 * (hi - lo)
+    return lo + half, hi - half
+
+
 def wrap(x: np.ndarray | float) -> np.ndarray:
     """Wrap angles (rad, any shape) to (-pi, pi]: :meth:`qpik.symbolic.Ops.wrap` on a float array."""
     return sy.NUMPY.wrap(np.asarray(x, dtype=float))
@@ -114,7 +127,11 @@ class Assembler:
         self._native = _NativeSets.for_function(solver.checked(rows), limits, rows, shift)
 
     def __call__(
-        self, T: np.ndarray, breaks: np.ndarray, singular: np.ndarray
+        self,
+        T: np.ndarray,
+        breaks: np.ndarray,
+        singular: np.ndarray,
+        limits: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> tuple[list[list[Interval]], list[list[float]]]:
         """For the pose T (4, 4): per output row, the feasible set and the values of ``singular`` where the
         branch is valid and singular (sorted).
@@ -123,15 +140,18 @@ class Assembler:
             breaks: (M,) parameter values (rad, any branch of 2π) where some branch's feasibility
                 may change.
             singular: (S,) candidate singular values (rad).
+            limits: ``(q_min, q_max)`` ((n,) rad each) of the gaps' limit test instead of the robot's, such as
+                :func:`shrunk_limits`; ``breaks`` must then hold their crossings.
         """
         if self._native is not None:
-            return self._native(T, breaks, singular)
-        return self._numpy(T, breaks, singular)
+            return self._native(T, breaks, singular, limits)
+        return self._numpy(T, breaks, singular, limits)
 
-    def _numpy(self, T: np.ndarray, breaks: np.ndarray, singular: np.ndarray):
+    def _numpy(self, T: np.ndarray, breaks: np.ndarray, singular: np.ndarray, limits):
         lo, hi = gaps(breaks if breaks.size else np.zeros(1))
         sing = np.unique(wrap(singular))
-        flags = self._solver.flags_many(T, np.concatenate([wrap(0.5 * (lo + hi)), sing]), rows=self.rows)
+        params = np.concatenate([wrap(0.5 * (lo + hi)), sing])
+        flags = self._solver.flags_many(T, params, rows=self.rows, limits=limits)
         ok, hit = flags[: lo.size, 2], flags[lo.size :, 0] & flags[lo.size :, 1]
         sets = merge(lo, hi, ok)
         found: list[list[float]] = [sing[hit[:, r]].tolist() for r in range(self.rows)]
@@ -151,7 +171,8 @@ class _NativeSets:
         self._dll, self._ik = dll, ik
         self.out_rows = (2 if shift else 1) * rows
         # the IK's inputs (T column-major, param, q_min, q_max) and its flags output; Q is not asked for
-        ik.args[2][:], ik.args[3][:] = limits
+        ik.args[2][:], ik.args[3][:] = self._limits = limits
+        self._other = False  # the IK's limit buffers hold limits other than self._limits
         self._pose = ik.args[0].reshape(4, 4).T  # T column-major, as the IK reads it
         self._head = (*ik.addresses, ik.args[1].ctypes.data, rows, int(shift))
         self._grow(64, 4)
@@ -178,7 +199,12 @@ class _NativeSets:
         self._tail = [0, self._breaks.ctypes.data, 0, self._sing.ctypes.data, self.out_rows * (breaks + 2)]
         self._tail += [x.ctypes.data for x in (self._iv, self._count, self._sv, self._scount)]
 
-    def __call__(self, T: np.ndarray, breaks: np.ndarray, singular: np.ndarray):
+    def __call__(
+        self, T: np.ndarray, breaks: np.ndarray, singular: np.ndarray, limits: tuple[np.ndarray, np.ndarray] | None
+    ):
+        if limits is not None or self._other:
+            self._ik.args[2][:], self._ik.args[3][:] = self._limits if limits is None else limits
+            self._other = limits is not None
         nb, ns = breaks.size, singular.size
         if nb > self._nb or ns > self._ns:
             self._grow(max(nb, self._nb), max(ns, self._ns))

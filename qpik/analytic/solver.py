@@ -174,8 +174,12 @@ class AnalyticSolver(ABC):
         return out
 
     @abstractmethod
-    def feasible_intervals(self, T: np.ndarray) -> FeasibleIntervals:
-        """Per branch, the exact parameter set where every joint is within limits."""
+    def feasible_intervals(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
+        r"""Per branch, the exact parameter set where every joint j lies in the limits shrunk by ``margin``,
+        :math:`[l_j + m\rho_j,\ u_j - m\rho_j]`, :math:`\rho_j = (u_j - l_j)/2`
+        (:func:`qpik.analytic.intervals.shrunk_limits`): the parameters whose joint-limit margin
+        (:class:`qpik.objectives.JointLimitMargin`) is at least ``margin``. ``T``: (4, 4) pose, world frame;
+        ``margin`` >= 0 (0: the joint limits themselves; above 1 every set is empty)."""
 
     # ---- evaluations -----------------------------------------------------------
 
@@ -276,16 +280,20 @@ class AnalyticSolver(ABC):
         valid, singular, within = (flags > 0.5).reshape(M, 3, B).transpose(1, 0, 2)
         return Solved(Q, valid, singular, within)
 
-    def flags_many(self, T: np.ndarray, params: np.ndarray, rows: int) -> np.ndarray:
+    def flags_many(
+        self, T: np.ndarray, params: np.ndarray, rows: int, limits: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> np.ndarray:
         """:meth:`solve_many` without the joint values: flags (M, 3, rows) bool, ``[:, 0]`` valid,
-        ``[:, 1]`` singular, ``[:, 2]`` within limits (the feasible intervals need only these)."""
-        parts = [fl.T[:m] > 0.5 for _, m, _, fl in self._chunks(T, params, rows)]
+        ``[:, 1]`` singular, ``[:, 2]`` within limits (the feasible intervals need only these).
+        ``limits``: ``(q_min, q_max)`` (n,) rad of the limit test instead of the robot's."""
+        parts = [fl.T[:m] > 0.5 for _, m, _, fl in self._chunks(T, params, rows, limits)]
         return (parts[0] if len(parts) == 1 else np.concatenate(parts)).reshape(-1, 3, rows)
 
-    def _chunks(self, T: np.ndarray, params: np.ndarray, B: int):
+    def _chunks(self, T: np.ndarray, params: np.ndarray, B: int, limits: tuple[np.ndarray, np.ndarray] | None = None):
         """The compiled sweep over params (M,) in chunks: yields ``(i, m, q (n, size·B), flags (3B, size))``
-        for params[i : i + m] (views of the output buffers, valid until the next chunk)."""
-        lo, hi = self.robot.q_min, self.robot.q_max
+        for params[i : i + m] (views of the output buffers, valid until the next chunk); the limit test
+        against ``limits`` ``(q_min, q_max)``, by default the robot's."""
+        lo, hi = (self.robot.q_min, self.robot.q_max) if limits is None else limits
         Tf = np.asarray(T, dtype=float).reshape(-1, order="F")  # 1-D: the compiled call's fast path
         big, small = SWEEP_CHUNKS
         M, i = params.size, 0
