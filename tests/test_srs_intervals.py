@@ -117,3 +117,114 @@ def test_joint_limits_shape_the_set():
     fi = qpik.feasible_intervals(robot, robot.fk(q))
     assert all(fi[k] == [] for k in range(8) if k & 2)
     assert any(fi.measure(k) > 0 for k in range(8) if not k & 2)
+
+
+# ---- with a margin: the super-level sets of the joint-limit margin ------------------------------------------
+
+MARGIN_SAMPLES = 20_000
+ASYMMETRIC = dataclasses.replace(
+    ROBOT,
+    q_min=np.array([-2.5, -1.9, -2.9, -2.0, -2.2, -2.1, -3.0]),
+    q_max=np.array([2.9, 1.4, 2.0, 2.1, 2.9, 1.7, 3.5]),  # joint 7 past π, over a whole turn: q7 + 2π may be inside
+)
+
+
+def joint_limit_margin(robot: qpik.Robot, q: np.ndarray) -> np.ndarray:
+    """μ(q) = min_j min(q_j − l_j, u_j − q_j) / ρ_j, ρ_j = (u_j − l_j)/2, of configurations q (..., n)."""
+    rho = 0.5 * (robot.q_max - robot.q_min)
+    return np.min(np.minimum(q - robot.q_min, robot.q_max - q) / rho, axis=-1)
+
+
+def check_margin(robot: qpik.Robot, fi, T: np.ndarray, margin: float, psi: np.ndarray) -> None:
+    """The sets of T at ``margin`` against the closed form at the arm angles ``psi``: a sample inside a set (off its
+    ends) is valid with μ >= margin; a valid sample with μ > margin lies in the set."""
+    solver = solver_for(robot)
+    Q, valid, _, _ = solver.solve_batch(np.broadcast_to(T, (psi.size, 4, 4)), psi)  # (M, 8, 7), (M, 8)
+    mu = joint_limit_margin(robot, Q)  # (M, 8)
+    for k in range(8):
+        ivs = fi[k]
+        assert all(-np.pi <= lo <= hi <= np.pi for lo, hi in ivs)
+        assert all(a[1] < b[0] for a, b in itertools.pairwise(ivs))
+        ends = np.array([x for iv in ivs for x in iv])
+        near = np.abs(psi[:, None] - ends[None, :]).min(axis=1, initial=np.inf) < EDGE
+        inside = fi.contains(k, psi) & ~near
+        assert np.all(valid[inside, k]) and np.all(mu[inside, k] >= margin - 1e-9), (k, margin, ivs)
+        better = valid[:, k] & (mu[:, k] > margin + 1e-6)
+        assert np.all(fi.contains(k, psi[better])), (k, margin, ivs)
+
+
+def poses_for(robot: qpik.Robot, seed: int, n: int) -> np.ndarray:
+    """Poses of configurations inside the limits: half uniform, half near a limit (off the limits' middle)."""
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(robot.q_min, robot.q_max, (n, 7))
+    edge = rng.uniform(0.0, 0.1, (n // 2, 7))
+    q[: n // 2] = np.where(rng.random((n // 2, 7)) < 0.5, robot.q_min + edge, robot.q_max - edge)
+    return robot.fk(q)
+
+
+@pytest.fixture(scope="module")
+def without_compiler():
+    """PsiIntervals of iiwa14 and of the asymmetric arm, gaps classified in numpy (no C compiler)."""
+    from qpik.analytic import intervals
+    from qpik.analytic.srs_intervals import PsiIntervals
+
+    real, intervals._library = intervals._library, lambda: None
+    try:
+        out = {robot.name + str(i): PsiIntervals(solver_for(robot)) for i, robot in enumerate((ROBOT, ASYMMETRIC))}
+    finally:
+        intervals._library = real
+    assert all(x._assemble._native is None for x in out.values())
+    return list(out.values())
+
+
+@settings(max_examples=4, deadline=None)
+@given(seed=SEEDS)
+def test_sets_with_a_margin_match_dense_sampling(seed, without_compiler):
+    """Random margins in (0, 0.8) (half of them below 0.05, where joint 7 of the asymmetric arm still spans a whole
+    turn), both arms, the default path (C where a compiler works) and the numpy path: each against 20,000 sampled
+    ψ, and the same."""
+    rng = np.random.default_rng(seed)
+    for robot, numpy_path in zip((ROBOT, ASYMMETRIC), without_compiler):
+        for T in poses_for(robot, seed, 6):
+            margin = float(rng.uniform(0.0, rng.choice([0.05, 0.8])))
+            fi = solver_for(robot).feasible_intervals(T, margin)
+            psi = rng.uniform(-np.pi, np.pi, MARGIN_SAMPLES)
+            check_margin(robot, fi, T, margin, psi)
+            other = numpy_path(T, margin)
+            for k in range(8):
+                assert len(other[k]) == len(fi[k]) and np.allclose(other[k], fi[k], atol=1e-12, rtol=0), k
+
+
+@settings(max_examples=3, deadline=None)
+@given(seed=SEEDS)
+def test_sets_shrink_as_the_margin_grows(seed):
+    """Monotone: each set at a larger margin lies inside the set at a smaller one; above 1 all are empty."""
+    rng = np.random.default_rng(seed)
+    for robot in (ROBOT, ASYMMETRIC):
+        for T in poses_for(robot, seed, 4):
+            margins = np.sort(rng.uniform(0.0, 1.0, 4))
+            sets = [qpik.feasible_intervals(robot, T, margin=float(m)) for m in (0.0, *margins)]
+            for small, large in itertools.pairwise(sets):
+                for k in range(8):
+                    for lo, hi in large[k]:
+                        assert any(a - 1e-9 <= lo and hi <= b + 1e-9 for a, b in small[k]), (k, large[k], small[k])
+            assert all(s == [] for s in qpik.feasible_intervals(robot, T, margin=1.0 + 1e-9).intervals)
+
+
+def test_a_tiny_margin_gives_the_sets_without_one():
+    """margin 1e-12 (the second compiled function, limits as inputs) against margin 0 (the limits as constants)."""
+    for T in poses_for(ROBOT, 5, 20):
+        exact, tiny = qpik.feasible_intervals(ROBOT, T), qpik.feasible_intervals(ROBOT, T, margin=1e-12)
+        for k in range(8):
+            assert len(exact[k]) == len(tiny[k]) and np.allclose(exact[k], tiny[k], atol=1e-6, rtol=0), k
+
+
+def test_the_best_margin_is_where_the_sets_vanish():
+    """A configuration q of margin μ(q) lies in its branch's set at every margin below μ(q); the set at μ(q) + 1e-3
+    misses ψ(q) (the sets bound the margin from above as well)."""
+    for q in random_q(ROBOT, 10, 8, margin=0.1):
+        psi, branch = qpik.redundancy_parameter(ROBOT, q)
+        mu = float(joint_limit_margin(ROBOT, q))
+        T = ROBOT.fk(q)
+        assert qpik.feasible_intervals(ROBOT, T, margin=mu - 1e-6).contains(branch, psi)
+        assert not qpik.feasible_intervals(ROBOT, T, margin=mu + 1e-3).contains(branch, psi)

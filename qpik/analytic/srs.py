@@ -398,9 +398,7 @@ class SRSSolver(AnalyticSolver):
     def feasible_intervals(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
         """Per branch, the exact ψ set (union of closed intervals) keeping every joint within limits.
 
-        See :class:`qpik.analytic.srs_intervals.PsiIntervals`. ``T``: (4, 4) pose, world frame.
-        ``margin``: 0 only.
+        See :class:`qpik.analytic.srs_intervals.PsiIntervals`. ``T``: (4, 4) pose, world frame. ``margin`` >= 0:
+        every joint within its limits shrunk by it (:func:`qpik.analytic.intervals.shrunk_limits`) instead.
         """
-        if margin != 0.0:
-            raise NotImplementedError("margin: the S-R-S arm's feasible sets take margin 0 only")
-        return self._intervals(T)
+        return self._intervals(T, margin)

@@ -26,6 +26,15 @@ compiled IK itself with its in-limits test); the breakpoints of all branches are
 that changes nothing only splits a gap. The equations are formed and solved, and the singular values
 below found, in one compiled CasADi function of the pose (:meth:`PsiIntervals.expressions`).
 
+**With a margin** m > 0 the limits are the shrunk ones, :math:`[l_j + m\rho_j,\ u_j - m\rho_j]`,
+:math:`\rho_j = (u_j - l_j)/2` (:func:`qpik.analytic.intervals.shrunk_limits`): the sets are then the ψ where the
+joint-limit margin :math:`\mu = \min_j \min(q_j - l_j, u_j - q_j)/\rho_j` (:class:`qpik.objectives.JointLimitMargin`)
+is at least m. The equations above are the same with L the shrunk limits: a second compiled function takes them
+as inputs (``q_min``, ``q_max``) and forms cos L and sin L symbolically (:meth:`PsiIntervals.shrunk_levels`), so
+one compilation serves every margin; the gaps are classified by the IK's limit test with the same shrunk limits.
+Its cos-type equations are not merged numerically (the levels are symbols), only where the two limits' cos L
+agree at every margin (symmetric limits). Above m = 1 the shrunk limits are empty and so is every set.
+
 The singular values listed per branch are the ψ where :math:`|M_{22}| = 1` for
 the shoulder or the wrist (θ2 or θ6 = 0 or π): the maximum :math:`c + \sqrt{a^2+b^2}`
 of :math:`M_{22}` is at ψ = atan2(a, b), the minimum at atan2(−a, −b) (Shimizu et al. 2008,
@@ -36,22 +45,26 @@ with the tool along the forearm) is flagged by ``ik`` and not listed here.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from functools import cached_property
+from typing import TYPE_CHECKING, NamedTuple
 
 import casadi as ca
 import numpy as np
 
 from qpik import symbolic as sy
 from qpik.analytic import trig
-from qpik.analytic.intervals import Assembler, FeasibleIntervals
+from qpik.analytic.intervals import Assembler, FeasibleIntervals, shrunk_limits, wrap
 from qpik.analytic.srs import arm_setup, branch_signs
 from qpik.compiled import Compiled
+from qpik.symbolic import Scalar
 
 if TYPE_CHECKING:
     from qpik.analytic.srs import SRSSolver
 
 TOUCH_TOL = 1e-12
 """|1 − |M22|| at the extremum below which a shoulder/wrist singular ψ is reported."""
+MIRRORED = 1e-14
+"""|s(l + u) + 2c| (wrapped, rad) below which a joint's two limit levels have the same cosine at every margin."""
 NONE = 10.0
 """Stands for a singular ψ that does not exist in the compiled function's output (outside [−π, π])."""
 
@@ -59,25 +72,75 @@ _NO = (np.zeros(0), np.zeros(0))  # no singular ψ for either elbow sign
 _ANGLE_JOINTS = ((0, 1, 2), (4, 5, 6))  # joints of the (shoulder, wrist) ZYZ triples (a, b, c)
 
 
+def _pairs(levels: list[float]) -> list[tuple[float, float]]:
+    """``(cos L, sin L)`` of the constant levels L (rad), as Python floats (a numpy float would take an SX operand)."""
+    return [(float(np.cos(L)), float(np.sin(L))) for L in levels]
+
+
+class JointLevels(NamedTuple):
+    """The levels L (table angles) of one joint: ``(cos L, sin L)`` of each, for the tan-type equations, and the
+    distinct values of cos L, for the cos-type one; floats, or CasADi SX of the shrunk limits."""
+
+    pairs: list[tuple[Scalar, Scalar]]
+    cosines: list[Scalar]
+
+
 class PsiIntervals:
-    """Feasible ψ intervals of every branch of one S-R-S solver; call with a (4, 4) pose."""
+    """Feasible ψ intervals of every branch of one S-R-S solver; call with a (4, 4) pose and a margin."""
 
     def __init__(self, solver: SRSSolver):
         self._solver = solver
         self.branch = np.array(solver.branch_ids)
         self.levels = [solver.levels(j) for j in range(solver.robot.dof)]  # in the table's angles
+        fixed = [JointLevels(_pairs(x), np.unique(np.cos(x)).tolist()) for x in self.levels]
         T = ca.SX.sym("T", 4, 4)
-        breaks, singular, valid = self.expressions(T)
+        breaks, singular, valid = self.expressions(T, fixed)
         out = [ca.vertcat(*breaks), ca.vertcat(*singular), valid]
         self._fn = Compiled(ca.Function("srs_breakpoints", [T], out))
         signs = np.array([branch_signs(k) for k in solver.branch_ids])
         self._i_elbow = signs[:, 1]
         self._assemble = Assembler(solver, rows=len(self.branch))
 
-    def expressions(self, T: ca.SX) -> tuple[list, list, ca.SX]:
-        """For the pose T (4, 4): the breakpoints (two per equation and elbow sign, 0 where there is
-        none: a breakpoint that is always there, harmless), the singular ψ (per elbow sign, two per joint
-        group, ``NONE`` where there is none) and ``valid`` (the pose is reachable), as CasADi SX."""
+    @cached_property
+    def _margin_fn(self) -> Compiled:
+        """``(T, q_min (n,), q_max (n,)) -> (breaks, singular, valid)``: :meth:`expressions` with the levels of the
+        limits given as inputs (:meth:`shrunk_levels`), compiled once for every margin."""
+        n = self._solver.robot.dof
+        T, lo, hi = ca.SX.sym("T", 4, 4), ca.SX.sym("q_min", n), ca.SX.sym("q_max", n)
+        breaks, singular, valid = self.expressions(T, [self.shrunk_levels(j, lo[j], hi[j]) for j in range(n)])
+        out = [ca.vertcat(*breaks), ca.vertcat(*singular), valid]
+        return Compiled(ca.Function("srs_breakpoints_margin", [T, lo, hi], out))
+
+    def shrunk_levels(self, j: int, lo: ca.SX, hi: ca.SX) -> JointLevels:
+        r"""The levels of joint j for its limits shrunk to ``[lo, hi]`` (rad, symbols; ``margin`` > 0).
+
+        The limits mapped to the table's angles, :math:`L = s x + c`, as
+        :meth:`~qpik.analytic.solver.AnalyticSolver.levels` maps constants (only cos L and sin L enter: no
+        wrap). The wrap at π is no level: with a margin the shrunk limits of a joint within ±π stay off ±π,
+        so the joint is outside them on both sides of the wrap. A joint whose limits reach past ±π also has the
+        levels of its limits l, u themselves and of π (its representative :math:`q + 2\pi k` switches there, see
+        :class:`~qpik.analytic.solver.AnalyticSolver`: with a range of 2π or more, from outside the shrunk limits
+        to inside).
+        The cos-type equation of the two limits is one when :math:`\cos L` of both is the same for every
+        margin: :math:`s(l + u) + 2c \equiv 0` (mod 2π), as for symmetric limits.
+        """
+        robot, joint_map = self._solver.robot, self._solver.joint_map
+        s, c = (1.0, 0.0) if joint_map is None else (float(joint_map.sign[j]), float(joint_map.shift[j]))
+        angles = [s * x + c for x in (lo, hi)]
+        pairs = [(ca.cos(L), ca.sin(L)) for L in angles]
+        l, u = float(robot.q_min[j]), float(robot.q_max[j])
+        mirrored = abs(float(wrap(s * (l + u) + 2.0 * c))) < MIRRORED
+        cosines = [pairs[0][0]] if mirrored else [x for x, _ in pairs]
+        if l < -np.pi or u > np.pi:
+            fixed = [s * x + c for x in (l, u, np.pi)]
+            pairs += _pairs(fixed)
+            cosines += np.unique(np.cos(fixed)).tolist()
+        return JointLevels(pairs, cosines)
+
+    def expressions(self, T: ca.SX, levels: list[JointLevels]) -> tuple[list, list, ca.SX]:
+        """For the pose T (4, 4) and the levels of every joint: the breakpoints (two per equation and elbow sign,
+        0 where there is none: a breakpoint that is always there, harmless), the singular ψ (per elbow sign,
+        two per joint group, ``NONE`` where there is none) and ``valid`` (the pose is reachable), as CasADi SX."""
         ops = sy.CASADI
         R, p = sy.frame_of_batch(T)
         setup = arm_setup(R, p, self._solver.geometry, ops)
@@ -89,13 +152,13 @@ class PsiIntervals:
                 # tan-type: n cos L − d sin L = 0 for the levels L (limits, and π where a limit reaches it)
                 eqs = []
                 for j, (ni, nj), (di, dj), sign in ((ja, (1, 2), (0, 2), 1.0), (jc, (2, 1), (2, 0), -1.0)):
-                    for L in self.levels[j]:
-                        cl, sl = float(np.cos(L)), float(-sign * np.sin(L))
+                    for cos_l, sin_l in levels[j].pairs:
+                        cl, sl = cos_l, sy.mul(-sign, sin_l)
                         a, b, c = (sy.lin((cl, X[ni][nj]), (sl, X[di][dj])) for X in (A, B, C))
                         eqs.append((a, b, c, 0.0))
                 # cos-type: M22 = cos L
-                for cos_l in np.unique(np.cos(self.levels[jb])):
-                    eqs.append((A[2][2], B[2][2], C[2][2], float(cos_l)))
+                for cos_l in levels[jb].cosines:
+                    eqs.append((A[2][2], B[2][2], C[2][2], cos_l))
                 for a, b, c, rhs in eqs:  # a sin ψ + b cos ψ = rhs − c
                     plus, minus, ok = trig.solve_cos_sin(b, a, rhs - c, ops)
                     breaks += [ops.where(ok, ops.wrap(plus), 0.0), ops.where(ok, ops.wrap(minus), 0.0)]
@@ -107,12 +170,20 @@ class PsiIntervals:
                 singular += [ops.where(top, ops.atan2(a, b), NONE), ops.where(bottom, ops.atan2(-a, -b), NONE)]
         return breaks, singular, setup.valid
 
-    def __call__(self, T: np.ndarray) -> FeasibleIntervals:
-        breaks, singular, valid = self._fn(T)
+    def __call__(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
+        """The sets of the pose T (4, 4, world frame) with every joint in its limits shrunk by ``margin`` >= 0
+        (:func:`~qpik.analytic.intervals.shrunk_limits`; 0: the limits themselves, above 1: every set empty)."""
+        if margin == 0.0:
+            limits = None
+            breaks, singular, valid = self._fn(T)
+        else:
+            robot = self._solver.robot
+            limits = shrunk_limits(robot.q_min, robot.q_max, margin)
+            breaks, singular, valid = self._margin_fn(T, *limits)
         n = len(self.branch)
         if valid[0] < 0.5:
             return FeasibleIntervals("psi", self.branch.copy(), [[] for _ in range(n)], [[] for _ in range(n)])
         found = singular != NONE  # rare: only at singular poses
         sing = [np.unique(x[f]) for x, f in zip(singular.reshape(2, -1), found.reshape(2, -1))] if found.any() else _NO
-        intervals, _ = self._assemble(T, np.concatenate([breaks, *sing]), _NO[0])
+        intervals, _ = self._assemble(T, np.concatenate([breaks, *sing]), _NO[0], limits)
         return FeasibleIntervals("psi", self.branch.copy(), intervals, [sing[e].tolist() for e in self._i_elbow])
