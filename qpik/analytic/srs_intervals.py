@@ -120,8 +120,7 @@ class PsiIntervals:
         so the joint is outside them on both sides of the wrap. A joint whose limits reach past ±π also has the
         levels of its limits l, u themselves and of π (its representative :math:`q + 2\pi k` switches there, see
         :class:`~qpik.analytic.solver.AnalyticSolver`: with a range of 2π or more, from outside the shrunk limits
-        to inside).
-        The cos-type equation of the two limits is one when :math:`\cos L` of both is the same for every
+        to inside). The cos-type equation of the two limits is one when :math:`\cos L` of both is the same for every
         margin: :math:`s(l + u) + 2c \equiv 0` (mod 2π), as for symmetric limits.
         """
         robot, joint_map = self._solver.robot, self._solver.joint_map
