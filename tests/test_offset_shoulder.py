@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 import qpik
 from qpik.analytic.api import solver_for
-from qpik.analytic.intervals import wrap
+from qpik.analytic.intervals import shrunk_limits, wrap
 from qpik.problems import load as load_problem
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -259,15 +259,18 @@ LISTS_IN_PYTHON = _lists_in_python()
 @given(SEEDS)
 def test_one_c_call_agrees_with_its_steps(seed):
     """The C path in one call (qpik_delta_sets; its lists built by the compiled extension or in Python) gives the
-    sets of its steps taken one by one: :meth:`DeltaIntervals.breakpoints`, then the Assembler."""
+    sets of its steps taken one by one: :meth:`DeltaIntervals.breakpoints`, then the Assembler; with a margin too."""
     native = SOLVER._intervals
     if native._fixed.native is None:
         pytest.skip("no C compiler: the numpy path only (test_feasible_intervals_exact_without_a_c_compiler)")
+    limits = shrunk_limits(ROBOT.q_min, ROBOT.q_max, 0.3)
     for T in ROBOT.fk(random_q(ROBOT, 10, seed)):
         one = native(T)
         _same_sets((one.intervals, one.singular), native._assemble(T, *native.breakpoints(T)))
         again = LISTS_IN_PYTHON(T)
         assert again.intervals == one.intervals and again.singular == one.singular
+        one = native(T, 0.3)  # the shrunk limits' function, its limits shared by the IK
+        _same_sets((one.intervals, one.singular), native._assemble(T, *native.breakpoints(T, limits), limits=limits))
 
 
 def test_feasible_intervals_exact_without_a_c_compiler(monkeypatch):

@@ -41,6 +41,20 @@ All the coefficients (the quadratics, A and B) and the candidates of the quadrat
 come from one compiled CasADi function of the pose, traced from the CasADi
 expressions in :meth:`DeltaIntervals.expressions`.
 
+A margin m > 0 asks for the δ where every joint lies in the shrunk limits
+:math:`[l_j + m\rho_j,\ u_j - m\rho_j]`, :math:`\rho_j = (u_j - l_j)/2`
+(:func:`qpik.analytic.intervals.shrunk_limits`): the joint-limit margin is at least m there.
+A level L enters the equations above only as :math:`L - \mathrm{atan2}(w_y, w_x)` (θ1) and
+through sin L and cos L, so the same expressions with L a symbol give a second compiled
+function, of the pose and the shrunk limits ``(T, q_min, q_max)`` (the robot's angles, mapped to
+the table's by the joint map's sign and shift inside it), built once on first use and called
+for every margin. Each shrunk limit has its own equations (with the robot's limits, the θ5 and
+θ7 equations of levels equal mod π and the θ6 equations of equal cos L are written once), and
+the wrap level π stays for the joints whose limits reach ±π (an extra breakpoint only splits
+a gap). The gaps are classified by the IK's limit test against the shrunk limits, and rows
+9–16 are still rows 1–8 moved by π (the same configurations, under the same shrunk limits).
+Margin 0 is the robot's limits' function.
+
 Squaring (θ3 and the σ product) and the ±acos of c add spurious candidates; they
 only split a gap in two, and merging the gaps joins it again. Rows 9–16 are rows 1–8
 shifted by π, so only rows 1–8 are classified: one evaluation of those 8 branches
