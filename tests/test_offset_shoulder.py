@@ -5,7 +5,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 import pytest
-from conftest import SEEDS, random_q
+from conftest import SEEDS, model_robot, random_q
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -303,9 +303,9 @@ def test_feasible_intervals_table4_and_singular_points():
 # ---- feasible δ intervals with a margin -------------------------------------------------
 
 
-def _joint_margin(q: np.ndarray) -> np.ndarray:
+def _joint_margin(q: np.ndarray, robot: qpik.Robot = ROBOT) -> np.ndarray:
     """The joint-limit margin min_j min(q_j − l_j, u_j − q_j) / ρ_j, ρ_j = (u_j − l_j)/2, of q (..., n): (...)."""
-    lo, hi = ROBOT.q_min, ROBOT.q_max
+    lo, hi = robot.q_min, robot.q_max
     return (np.minimum(q - lo, hi - q) / (0.5 * (hi - lo))).min(axis=-1)
 
 
@@ -316,12 +316,12 @@ def _far_from_ends(ivs, d: np.ndarray, tol: float = 1e-6) -> np.ndarray:
     return np.abs(d[:, None] - ends[None]).min(axis=1) > tol if ends.size else np.ones(d.size, bool)
 
 
-def _margin_sweep_check(T: np.ndarray, margin: float, fi, n_delta: int = 20000) -> None:
+def _margin_sweep_check(T: np.ndarray, margin: float, fi, n_delta: int = 20000, robot: qpik.Robot = ROBOT) -> None:
     """Dense sampling of δ: samples inside a set are valid with a margin of at least ``margin`` (to 1e-9); valid
     samples with a margin above ``margin`` + 1e-6 are inside the set (both away from its ends)."""
     d = np.linspace(-np.pi, np.pi, n_delta)
-    q, valid, _, _ = SOLVER.solve_batch(np.broadcast_to(T, (n_delta, 4, 4)), d)
-    mu = _joint_margin(q)  # (n_delta, 16)
+    q, valid, _, _ = solver_for(robot).solve_batch(np.broadcast_to(T, (n_delta, 4, 4)), d)
+    mu = _joint_margin(q, robot)  # (n_delta, 16)
     for k in range(16):
         inside, far = fi.contains(k + 1, d), _far_from_ends(fi.intervals[k], d)
         assert np.all(valid[inside & far, k]), f"branch {k + 1}: an invalid δ in the set"
@@ -369,7 +369,7 @@ def _numpy_path():
 NUMPY_PATH = _numpy_path()
 
 
-@settings(max_examples=6, deadline=None)
+@settings(max_examples=5, deadline=None)
 @given(SEEDS, st.floats(0.01, 0.8))
 def test_feasible_intervals_with_a_margin_exact_on_random_poses(seed, margin):
     """Dense sampling of each branch at 20,000 values of δ on both paths (C and numpy), which agree."""
@@ -399,6 +399,17 @@ def test_a_tiny_margin_gives_the_sets_of_margin_zero(seed):
     """The shrunk limits' function at margin 1e-12 against the robot's limits' (nammoto7's limits are inside ±π)."""
     for T in _poses(seed, 4):
         _close_sets(SOLVER.feasible_intervals(T, 1e-12), SOLVER.feasible_intervals(T), 1e-6)
+
+
+@settings(max_examples=3, deadline=None)
+@given(SEEDS, st.floats(0.01, 0.8))
+def test_feasible_intervals_with_a_margin_through_a_joint_map(seed, margin):
+    """gymnasium's pusher: nammoto7's table with joints turned the other way and shifted (its levels map by the
+    joint map's sign and shift), one limit at 0."""
+    robot = model_robot("pusher")
+    assert robot.canonical.kind == "offset_shoulder" and not robot.canonical.joints.identity
+    for T in robot.fk(random_q(robot, 2, seed)):
+        _margin_sweep_check(T, margin, qpik.feasible_intervals(robot, T, margin=margin), robot=robot)
 
 
 def test_margin_above_one_empties_every_set():
