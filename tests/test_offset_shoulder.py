@@ -1,5 +1,6 @@
 """Closed-form IK of the offset-shoulder arm (nammoto7): checked by FK, finite differences and dense δ sweeps."""
 
+import dataclasses
 from pathlib import Path
 
 import casadi as ca
@@ -412,6 +413,22 @@ def test_feasible_intervals_with_a_margin_through_a_joint_map(seed, margin):
         _margin_sweep_check(T, margin, qpik.feasible_intervals(robot, T, margin=margin), robot=robot)
 
 
+def _wide(robot: qpik.Robot) -> qpik.Robot:
+    """``robot`` with joint 1 over [-1, 6.5] rad and joint 7 over ±2π: limits past ±π (representatives q + 2πk)."""
+    q_min, q_max = robot.q_min.copy(), robot.q_max.copy()
+    q_min[[0, 6]], q_max[[0, 6]] = (-1.0, -2 * np.pi), (6.5, 2 * np.pi)
+    return dataclasses.replace(robot, q_min=q_min, q_max=q_max)
+
+
+@settings(max_examples=3, deadline=None)
+@given(SEEDS, st.floats(0.01, 0.8))
+def test_feasible_intervals_with_a_margin_for_limits_past_pi(seed, margin):
+    """Joint 1's representative jumps at its limits -1 and 6.5 − 2π, in or out of the shrunk limits."""
+    robot = _wide(ROBOT)
+    for T in robot.fk(random_q(robot, 2, seed)):
+        _margin_sweep_check(T, margin, qpik.feasible_intervals(robot, T, margin=margin), robot=robot)
+
+
 def test_margin_above_one_empties_every_set():
     T = ROBOT.fk(np.zeros((1, 7)))[0]
     assert any(qpik.feasible_intervals(ROBOT, T).intervals)
@@ -439,8 +456,6 @@ def test_unreachable_pose_is_invalid_not_an_error():
 
 
 def test_chain_structure_is_checked():
-    import dataclasses
-
     from qpik.analytic.offset_shoulder import OffsetShoulderSolver
 
     other = dataclasses.replace(ROBOT, chain=qpik.load_robot("iiwa14").chain)

@@ -49,11 +49,12 @@ through sin L and cos L, so the same expressions with L a symbol give a second c
 function, of the pose and the shrunk limits ``(T, q_min, q_max)`` (the robot's angles, mapped to
 the table's by the joint map's sign and shift inside it), built once on first use and called
 for every margin. Each shrunk limit has its own equations (with the robot's limits, the θ5 and
-θ7 equations of levels equal mod π and the θ6 equations of equal cos L are written once), and
-the wrap level π stays for the joints whose limits reach ±π (an extra breakpoint only splits
-a gap). The gaps are classified by the IK's limit test against the shrunk limits, and rows
-9–16 are still rows 1–8 moved by π (the same configurations, under the same shrunk limits).
-Margin 0 is the robot's limits' function.
+θ7 equations of levels equal mod π and the θ6 equations of equal cos L are written once); a
+joint whose limits reach past ±π keeps the levels of its limits and π too, where its
+representative q + 2πk jumps (an extra breakpoint only splits a gap). The gaps are
+classified by the IK's limit test against the shrunk limits, and rows 9–16 are still rows
+1–8 moved by π (the same configurations, under the same shrunk limits). Margin 0 is the
+robot's limits' function.
 
 Squaring (θ3 and the σ product) and the ±acos of c add spurious candidates; they
 only split a gap in two, and merging the gaps joins it again. Rows 9–16 are rows 1–8
@@ -128,12 +129,16 @@ class DeltaIntervals:
         return self._compile("os_breakpoints_shrunk", [lo, hi], levels)
 
     def _shrunk_levels(self, j: int, lo: Scalar, hi: Scalar) -> list[Scalar]:
-        r"""The levels of joint j's limits ``lo``, ``hi`` (rad, the robot's angles, symbolic) in the table's angles,
-        :math:`s x + c` (:attr:`~qpik.analytic.solver.AnalyticSolver.joint_map`: a level enters only through its
-        sine and cosine and through θ1 = L, which is wrapped), and the wrap π where the robot's limits reach ±π."""
-        out = [lo, hi]
-        if self._limits[0][j] <= -PI or self._limits[1][j] >= PI:
-            out.append(PI)
+        r"""The levels of joint j's shrunk limits ``lo``, ``hi`` (rad, the robot's angles, symbolic) in the table's
+        angles, :math:`s x + c` (:attr:`~qpik.analytic.solver.AnalyticSolver.joint_map`: a level enters only
+        through its sine and cosine and through θ1 = L, which is wrapped).
+
+        A joint whose limits l, u reach past ±π also has the levels l, u and π: its representative
+        :math:`q + 2\pi k` (:class:`~qpik.analytic.solver.AnalyticSolver`) jumps there, into or out of the shrunk
+        limits. A joint within ±π needs no wrap level: the shrunk limits stay off ±π, so it is outside them on
+        both sides of the wrap."""
+        l, u = float(self._limits[0][j]), float(self._limits[1][j])
+        out = [lo, hi, l, u, PI] if l < -PI or u > PI else [lo, hi]
         joints = self._solver.joint_map
         if joints is None:
             return out
