@@ -1,16 +1,18 @@
 """Closed-form IK of the offset-shoulder arm (nammoto7): checked by FK, finite differences and dense δ sweeps."""
 
+import dataclasses
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 import pytest
-from conftest import SEEDS, random_q
+from conftest import SEEDS, model_robot, random_q
 from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import qpik
 from qpik.analytic.api import solver_for
-from qpik.analytic.intervals import wrap
+from qpik.analytic.intervals import shrunk_limits, wrap
 from qpik.problems import load as load_problem
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -258,15 +260,18 @@ LISTS_IN_PYTHON = _lists_in_python()
 @given(SEEDS)
 def test_one_c_call_agrees_with_its_steps(seed):
     """The C path in one call (qpik_delta_sets; its lists built by the compiled extension or in Python) gives the
-    sets of its steps taken one by one: :meth:`DeltaIntervals.breakpoints`, then the Assembler."""
+    sets of its steps taken one by one: :meth:`DeltaIntervals.breakpoints`, then the Assembler; with a margin too."""
     native = SOLVER._intervals
-    if native._native is None:
+    if native._fixed.native is None:
         pytest.skip("no C compiler: the numpy path only (test_feasible_intervals_exact_without_a_c_compiler)")
+    limits = shrunk_limits(ROBOT.q_min, ROBOT.q_max, 0.3)
     for T in ROBOT.fk(random_q(ROBOT, 10, seed)):
         one = native(T)
         _same_sets((one.intervals, one.singular), native._assemble(T, *native.breakpoints(T)))
         again = LISTS_IN_PYTHON(T)
         assert again.intervals == one.intervals and again.singular == one.singular
+        one = native(T, 0.3)  # the shrunk limits' function, its limits shared by the IK
+        _same_sets((one.intervals, one.singular), native._assemble(T, *native.breakpoints(T, limits), limits=limits))
 
 
 def test_feasible_intervals_exact_without_a_c_compiler(monkeypatch):
@@ -279,7 +284,7 @@ def test_feasible_intervals_exact_without_a_c_compiler(monkeypatch):
     monkeypatch.setattr(intervals, "_library", lambda: None)
     monkeypatch.setattr(offset_shoulder_intervals, "_library", lambda: None)
     without = DeltaIntervals(SOLVER)
-    assert without._assemble._native is None and without._native is None
+    assert without._assemble._native is None and without._fixed.native is None
     for T in ROBOT.fk(random_q(ROBOT, 20, 7)):
         _sweep_check(T, 2000, without)
 
@@ -294,6 +299,146 @@ def test_feasible_intervals_table4_and_singular_points():
         if fi.singular[k]:
             _, v, s, _ = SOLVER.solve_many(T, np.array(fi.singular[k]))
             assert np.all(v[:, k] & s[:, k])
+
+
+# ---- feasible δ intervals with a margin -------------------------------------------------
+
+
+def _joint_margin(q: np.ndarray, robot: qpik.Robot = ROBOT) -> np.ndarray:
+    """The joint-limit margin min_j min(q_j − l_j, u_j − q_j) / ρ_j, ρ_j = (u_j − l_j)/2, of q (..., n): (...)."""
+    lo, hi = robot.q_min, robot.q_max
+    return (np.minimum(q - lo, hi - q) / (0.5 * (hi - lo))).min(axis=-1)
+
+
+def _far_from_ends(ivs, d: np.ndarray, tol: float = 1e-6) -> np.ndarray:
+    """Which of the values d (M,) lie farther than ``tol`` from every end of the pieces ``ivs`` (the split at ±π
+    is not an end)."""
+    ends = np.array([x for iv in ivs for x in iv if abs(abs(x) - np.pi) > 1e-12])
+    return np.abs(d[:, None] - ends[None]).min(axis=1) > tol if ends.size else np.ones(d.size, bool)
+
+
+def _margin_sweep_check(T: np.ndarray, margin: float, fi, n_delta: int = 20000, robot: qpik.Robot = ROBOT) -> None:
+    """Dense sampling of δ: samples inside a set are valid with a margin of at least ``margin`` (to 1e-9); valid
+    samples with a margin above ``margin`` + 1e-6 are inside the set (both away from its ends)."""
+    d = np.linspace(-np.pi, np.pi, n_delta)
+    q, valid, _, _ = solver_for(robot).solve_batch(np.broadcast_to(T, (n_delta, 4, 4)), d)
+    mu = _joint_margin(q, robot)  # (n_delta, 16)
+    for k in range(16):
+        inside, far = fi.contains(k + 1, d), _far_from_ends(fi.intervals[k], d)
+        assert np.all(valid[inside & far, k]), f"branch {k + 1}: an invalid δ in the set"
+        assert np.all(mu[inside & far, k] >= margin - 1e-9), f"branch {k + 1}: a δ of a smaller margin in the set"
+        assert np.all(inside[far & valid[:, k] & (mu[:, k] > margin + 1e-6)]), f"branch {k + 1}: a δ missing"
+
+
+def _contained(small, big, tol: float = 1e-9) -> bool:
+    """Every piece of the set ``small`` lies within a piece of the set ``big`` (to ``tol``)."""
+    return all(any(c - tol <= a and b <= d + tol for c, d in big) for a, b in small)
+
+
+def _close_sets(a, b, tol: float) -> None:
+    """Two results per branch: the same number of pieces, their ends within ``tol``."""
+    assert [len(x) for x in a.intervals] == [len(x) for x in b.intervals]
+    for x, y in zip(a.intervals, b.intervals):
+        assert np.allclose(np.array(x, float).ravel(), np.array(y, float).ravel(), rtol=0, atol=tol)
+
+
+def _poses(seed: int, n: int) -> np.ndarray:
+    """n poses (n, 4, 4): fk of configurations inside the limits, the second half with some joints near a limit."""
+    rng = np.random.default_rng(seed)
+    q = random_q(ROBOT, n, seed)
+    lo, hi = ROBOT.q_min, ROBOT.q_max
+    edge = rng.uniform(0.0, 0.15, q.shape) * (hi - lo)  # up to 15 % of the range from a limit
+    near = np.where(rng.random(q.shape) < 0.5, lo + edge, hi - edge)
+    q[n // 2 :] = np.where(rng.random(q.shape) < 0.4, near, q)[n // 2 :]
+    return ROBOT.fk(q)
+
+
+def _numpy_path():
+    """nammoto7's feasible-interval solver without a C compiler, as ``QPIK_NATIVE=0`` builds it (gaps classified in
+    numpy), its shrunk limits' function built too."""
+    from qpik.analytic import intervals, offset_shoulder_intervals, polyroots
+    from qpik.analytic.offset_shoulder_intervals import DeltaIntervals
+
+    with pytest.MonkeyPatch.context() as mp:
+        for module in (polyroots, intervals, offset_shoulder_intervals):
+            mp.setattr(module, "_library", lambda: None)
+        without = DeltaIntervals(SOLVER)
+        assert without._shrunk.native is None and without._assemble._native is None
+    return without
+
+
+NUMPY_PATH = _numpy_path()
+
+
+@settings(max_examples=5, deadline=None)
+@given(SEEDS, st.floats(0.01, 0.8))
+def test_feasible_intervals_with_a_margin_exact_on_random_poses(seed, margin):
+    """Dense sampling of each branch at 20,000 values of δ on both paths (C and numpy), which agree."""
+    from qpik.analytic import polyroots
+
+    for T in _poses(seed, 4):
+        fi = qpik.feasible_intervals(ROBOT, T, margin=margin)
+        _margin_sweep_check(T, margin, fi)
+        with pytest.MonkeyPatch.context() as mp:  # the wrist roots from eigenvalues, as without a C compiler
+            mp.setattr(polyroots, "_library", lambda: None)
+            without = NUMPY_PATH(T, margin)
+        _margin_sweep_check(T, margin, without)
+        _close_sets(fi, without, 1e-7)
+
+
+@settings(max_examples=10, deadline=None)
+@given(SEEDS, st.floats(0.0, 0.7), st.floats(0.001, 0.3))
+def test_feasible_intervals_shrink_as_the_margin_grows(seed, margin, more):
+    for T in _poses(seed, 4):
+        small, big = SOLVER.feasible_intervals(T, margin + more), SOLVER.feasible_intervals(T, margin)
+        assert all(_contained(x, y) for x, y in zip(small.intervals, big.intervals))
+
+
+@settings(max_examples=10, deadline=None)
+@given(SEEDS)
+def test_a_tiny_margin_gives_the_sets_of_margin_zero(seed):
+    """The shrunk limits' function at margin 1e-12 against the robot's limits' (nammoto7's limits are inside ±π)."""
+    for T in _poses(seed, 4):
+        _close_sets(SOLVER.feasible_intervals(T, 1e-12), SOLVER.feasible_intervals(T), 1e-6)
+
+
+@settings(max_examples=3, deadline=None)
+@given(SEEDS, st.floats(0.01, 0.8))
+def test_feasible_intervals_with_a_margin_through_a_joint_map(seed, margin):
+    """gymnasium's pusher: nammoto7's table with joints turned the other way and shifted (its levels map by the
+    joint map's sign and shift), one limit at 0."""
+    robot = model_robot("pusher")
+    assert robot.canonical.kind == "offset_shoulder" and not robot.canonical.joints.identity
+    for T in robot.fk(random_q(robot, 2, seed)):
+        _margin_sweep_check(T, margin, qpik.feasible_intervals(robot, T, margin=margin), robot=robot)
+
+
+def _wide(robot: qpik.Robot) -> qpik.Robot:
+    """``robot`` with joint 1 over [-1, 6.5] rad and joint 7 over ±2π: limits past ±π (representatives q + 2πk)."""
+    q_min, q_max = robot.q_min.copy(), robot.q_max.copy()
+    q_min[[0, 6]], q_max[[0, 6]] = (-1.0, -2 * np.pi), (6.5, 2 * np.pi)
+    return dataclasses.replace(robot, q_min=q_min, q_max=q_max)
+
+
+@settings(max_examples=3, deadline=None)
+@given(SEEDS, st.floats(0.01, 0.8))
+def test_feasible_intervals_with_a_margin_for_limits_past_pi(seed, margin):
+    """Joint 1's representative jumps at its limits -1 and 6.5 − 2π, in or out of the shrunk limits."""
+    robot = _wide(ROBOT)
+    for T in robot.fk(random_q(robot, 2, seed)):
+        _margin_sweep_check(T, margin, qpik.feasible_intervals(robot, T, margin=margin), robot=robot)
+
+
+def test_margin_above_one_empties_every_set():
+    T = ROBOT.fk(np.zeros((1, 7)))[0]
+    assert any(qpik.feasible_intervals(ROBOT, T).intervals)
+    assert not any(qpik.feasible_intervals(ROBOT, T, margin=1.01).intervals)
+
+
+@pytest.mark.parametrize("margin", [np.nan, -0.1, "a"])
+def test_bad_margin_is_an_input_error(margin):
+    with pytest.raises(qpik.InputError, match="margin"):
+        qpik.feasible_intervals(ROBOT, ROBOT.fk(np.zeros((1, 7)))[0], margin=margin)
 
 
 # ---- bad input ---------------------------------------------------------------
@@ -311,8 +456,6 @@ def test_unreachable_pose_is_invalid_not_an_error():
 
 
 def test_chain_structure_is_checked():
-    import dataclasses
-
     from qpik.analytic.offset_shoulder import OffsetShoulderSolver
 
     other = dataclasses.replace(ROBOT, chain=qpik.load_robot("iiwa14").chain)

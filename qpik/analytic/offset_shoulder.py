@@ -262,11 +262,9 @@ class OffsetShoulderSolver(AnalyticSolver):
         return DeltaIntervals(self)
 
     def feasible_intervals(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
-        """Per branch, the exact δ set (rad) where the branch is valid and within limits.
+        """Per branch, the exact δ set (rad) where the branch is valid and every joint within the limits shrunk by
+        ``margin`` (>= 0; 0: the robot's limits; :func:`~qpik.analytic.intervals.shrunk_limits`).
 
         See :mod:`qpik.analytic.offset_shoulder_intervals` for the breakpoint equations. ``T``: (4, 4), world frame.
-        ``margin``: 0 only (the shrunk limits' breakpoints of this arm are not written).
         """
-        if margin != 0.0:
-            raise NotImplementedError("margin: the offset-shoulder arm's feasible sets take margin 0 only")
-        return self._intervals(T)
+        return self._intervals(T, margin)

@@ -17,7 +17,8 @@ typedef struct {
 } Kernel;
 
 typedef struct {
-    Kernel breakpoints; /* pose (arg[0]) -> candidates, singular candidates, A (K, size), B (K, size) */
+    Kernel breakpoints; /* pose (arg[0]) -> candidates, singular candidates, A (K, size), B (K, size); the shrunk
+                           limits' function reads q_min, q_max too (arg[1], arg[2]: the IK's arg[2], arg[3]) */
     int n_cand, n_sing, K, size;
     int a7, b7, a5, b5; /* the theta7 equations are rows [a7, b7), the theta5 ones [a5, b5) */
     double none;        /* a value that stands for "does not exist" */

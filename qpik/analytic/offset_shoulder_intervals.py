@@ -41,6 +41,21 @@ All the coefficients (the quadratics, A and B) and the candidates of the quadrat
 come from one compiled CasADi function of the pose, traced from the CasADi
 expressions in :meth:`DeltaIntervals.expressions`.
 
+A margin m > 0 asks for the δ where every joint lies in the shrunk limits
+:math:`[l_j + m\rho_j,\ u_j - m\rho_j]`, :math:`\rho_j = (u_j - l_j)/2`
+(:func:`qpik.analytic.intervals.shrunk_limits`): the joint-limit margin is at least m there.
+A level L enters the equations above only as :math:`L - \mathrm{atan2}(w_y, w_x)` (θ1) and
+through sin L and cos L, so the same expressions with L a symbol give a second compiled
+function, of the pose and the shrunk limits ``(T, q_min, q_max)`` (the robot's angles, mapped to
+the table's by the joint map's sign and shift inside it), built once on first use and called
+for every margin. Each shrunk limit has its own equations (with the robot's limits, the θ5 and
+θ7 equations of levels equal mod π and the θ6 equations of equal cos L are written once); a
+joint whose limits reach past ±π keeps the levels of its limits and π too, where its
+representative q + 2πk jumps (an extra breakpoint only splits a gap). The gaps are
+classified by the IK's limit test against the shrunk limits, and rows 9–16 are still rows
+1–8 moved by π (the same configurations, under the same shrunk limits). Margin 0 is the
+robot's limits' function.
+
 Squaring (θ3 and the σ product) and the ±acos of c add spurious candidates; they
 only split a gap in two, and merging the gaps joins it again. Rows 9–16 are rows 1–8
 shifted by π, so only rows 1–8 are classified: one evaluation of those 8 branches
@@ -56,7 +71,8 @@ steps run in numpy (:meth:`DeltaIntervals.breakpoints`, then the Assembler).
 from __future__ import annotations
 
 import ctypes
-from functools import cache
+from dataclasses import dataclass
+from functools import cache, cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -64,7 +80,7 @@ import casadi as ca
 import numpy as np
 
 from qpik import symbolic as sy
-from qpik.analytic.intervals import Assembler, FeasibleIntervals, Interval, check_sets, list_maker
+from qpik.analytic.intervals import Assembler, FeasibleIntervals, Interval, check_sets, list_maker, shrunk_limits
 from qpik.analytic.intervals import c_source as intervals_source
 from qpik.analytic.polyroots import FLAGS as POLYROOTS_FLAGS
 from qpik.analytic.polyroots import ROOM, trig_roots
@@ -93,26 +109,60 @@ CSPoly = tuple[Poly, Poly]  # A(c) + sin δ · B(c)
 
 
 class DeltaIntervals:
-    """Feasible δ intervals of every branch of one offset-shoulder solver; call with a (4, 4) pose."""
+    """Feasible δ intervals of every branch of one offset-shoulder solver; call with a (4, 4) pose and a margin."""
 
     def __init__(self, solver: OffsetShoulderSolver):
         self._solver = solver
         self.branch = np.array(solver.branch_ids)
         self.levels = [solver.levels(j) for j in range(solver.robot.dof)]  # in the table's angles
+        self._limits = (np.asarray(solver.robot.q_min, float), np.asarray(solver.robot.q_max, float))
+        self._fixed = self._compile("os_breakpoints", [], self.levels)
+        self._assemble = Assembler(solver, rows=8, shift=True)
+
+    @cached_property
+    def _shrunk(self) -> _Breakpoints:
+        """The breakpoint function of shrunk limits, ``(T, q_min (n,), q_max (n,))`` (rad, the robot's angles):
+        compiled on first use, once for every margin."""
+        n = self._solver.robot.dof
+        lo, hi = ca.SX.sym("q_min", n), ca.SX.sym("q_max", n)
+        levels = [self._shrunk_levels(j, lo[j], hi[j]) for j in range(n)]
+        return self._compile("os_breakpoints_shrunk", [lo, hi], levels)
+
+    def _shrunk_levels(self, j: int, lo: Scalar, hi: Scalar) -> list[Scalar]:
+        r"""The levels of joint j's shrunk limits ``lo``, ``hi`` (rad, the robot's angles, symbolic) in the table's
+        angles, :math:`s x + c` (:attr:`~qpik.analytic.solver.AnalyticSolver.joint_map`: a level enters only
+        through its sine and cosine and through θ1 = L, which is wrapped).
+
+        A joint whose limits l, u reach past ±π also has the levels l, u and π: its representative
+        :math:`q + 2\pi k` (:class:`~qpik.analytic.solver.AnalyticSolver`) jumps there, into or out of the shrunk
+        limits. A joint within ±π needs no wrap level: the shrunk limits stay off ±π, so it is outside them on
+        both sides of the wrap."""
+        l, u = float(self._limits[0][j]), float(self._limits[1][j])
+        out = [lo, hi, l, u, PI] if l < -PI or u > PI else [lo, hi]
+        joints = self._solver.joint_map
+        if joints is None:
+            return out
+        s, c = float(joints.sign[j]), float(joints.shift[j])
+        return [sy.add(sy.mul(s, x), c) for x in out]
+
+    def _compile(self, name: str, inputs: list, levels: list[list[Scalar]]) -> _Breakpoints:
+        """The breakpoint function ``name`` of the pose T (4, 4) and ``inputs`` (the symbols of ``levels``, per
+        joint): candidates and singular candidates (δ, :data:`NONE` where one does not exist), the wrist
+        equations' A and B (COEFFS, K)."""
         T = ca.SX.sym("T", 4, 4)
-        cand, sing, polys, kinds = self.expressions(T, sy.CASADI)
-        # the rows of the θ7 and θ5 equations are consecutive (expressions lists them joint by joint): row ranges
-        self._wrist_rows = np.array([k for j in (7, 5) for k in _row_range(kinds, j)])
-        # a breakpoint or singular value that does not exist is reported as NONE
+        cand, sing, polys, kinds = self.expressions(T, sy.CASADI, levels)
         out = [ca.vertcat(*[ca.if_else(ok, sy.CASADI.wrap(x), NONE) for x, ok in pairs]) for pairs in (cand, sing)]
         # (COEFFS, K) outputs: their transposes are C-contiguous (K, COEFFS) views of the column-major buffers
         FA, FB = (ca.horzcat(*[ca.vertcat(*_pad(x, COEFFS)) for x in xs]) for xs in zip(*polys))
-        self._fn = Compiled(ca.Function("os_breakpoints", [T], [*out, FA, FB]))
-        self._assemble = Assembler(solver, rows=8, shift=True)
-        self._native = _NativeDelta.build(self._fn, solver, self._wrist_rows)
+        # the rows of the θ7 and θ5 equations are consecutive (expressions lists them joint by joint): row ranges
+        wrist_rows = np.array([k for j in (7, 5) for k in _row_range(kinds, j)])
+        fn = Compiled(ca.Function(name, [T, *inputs], [*out, FA, FB]))
+        return _Breakpoints(fn, wrist_rows, _NativeDelta.build(fn, self._solver, wrist_rows))
 
-    def expressions(self, T, ops: Ops) -> tuple[list, list, list[Poly], list[int]]:
-        """The breakpoint equations of rows 1–8 for the world pose T (4, 4).
+    def expressions(self, T, ops: Ops, levels: list[list[Scalar]]) -> tuple[list, list, list[Poly], list[int]]:
+        """The breakpoint equations of rows 1–8 for the world pose T (4, 4) and the levels (rad, the table's angles)
+        of each joint: floats (:attr:`levels`; the θ5, θ6 and θ7 equations of equal levels mod π or equal cos L
+        are written once) or symbols (every level has its equations).
 
         Returns ``(candidates, singular, polys, kinds)``: (δ, exists) pairs found in closed form
         (limit crossings of θ1–θ4 and the validity boundaries), the (δ, ok) pairs where a
@@ -141,17 +191,18 @@ class DeltaIntervals:
         # near a tangency these lie up to ~1e-9 rad from the exact roots above
         rows += [(0.0, k2, k1 - 1.0 - EPS), (0.0, k2, k1 + 1.0 + EPS), (dA, dB, dC + EPS)]
         rows.append((dA + EPS * r * r, dB - 2 * EPS * g.a1 * r, dC + EPS * (g.a1**2 + h * h)))
-        for L in self.levels[1]:  # θ2
-            sL, cL = np.sin(L), np.cos(L)
+        for L in levels[1]:  # θ2
+            sL, cL = _sin_cos(L, ops)
             rows.append((0.0, r * (g.a1 / g.d3 - sL), sL * g.a1 + cL * h - z0))
-        for L in self.levels[2]:  # θ3 (squared)
-            s2, c2 = np.sin(L) ** 2, np.cos(L) ** 2
+        for L in levels[2]:  # θ3 (squared)
+            sL, cL = _sin_cos(L, ops)
+            s2, c2 = sL * sL, cL * cL
             rows.append((s2 * dA + c2 * r * r, s2 * dB, s2 * dC - c2 * r * r))
-        for L in self.levels[3]:  # θ4
-            rows.append((0.0, k2, k1 - np.sin(L)))
+        for L in levels[3]:  # θ4
+            rows.append((0.0, k2, k1 - _sin_cos(L, ops)[0]))
         roots = [_quadratic_roots(*row, ops) for row in rows]
         cand = [pair for rr in roots for pair in _acos_pairs(rr, ops)]
-        cand += [(L - phi, 1.0) for L in self.levels[0]]
+        cand += [(L - phi, 1.0) for L in levels[0]]
         sing = [pair for rr in roots[:3] for pair in _acos_pairs(rr, ops)]
 
         # ---- θ5, θ6, θ7: F = P² − D Q² = A(c) + s B(c)
@@ -178,13 +229,13 @@ class DeltaIntervals:
 
         polys, kinds = [], []
         Pb, Qb = z4_dot(b)
-        for cL in sorted({round(float(np.cos(L)), 15) for L in self.levels[5]}):  # θ6
+        for cL in _distinct_cos(levels[5], ops):  # θ6
             polys.append(_clear(_cs_lin((1.0, Pb), (-g.d5 * cL, E)), Qb, D))
             kinds.append(6)
         Pn, Qn = z4_dot(n)
         Pt, Qt = z4_dot(t)
-        for L in _mod_pi(self.levels[6]):  # θ7
-            sL, cL = np.sin(L), np.cos(L)
+        for L in _mod_pi(levels[6]):  # θ7
+            sL, cL = _sin_cos(L, ops)
             polys.append(_clear(_cs_lin((sL, Pn), (cL, Pt)), _cs_lin((sL, Qn), (cL, Qt)), D))
             kinds.append(7)
         _, bz, wb, wpb, gb = frame1(b)
@@ -193,32 +244,59 @@ class DeltaIntervals:
         XQ = _cs_mul(f, wpb)
         YP = _cs_lin((-1.0, _cs_mul(_cs_mul(Z, wz), wpb)))
         YQ = _cs_lin((1.0, _cs_mul(wz, wb)), (-1.0, _cs_mul(E, bz)))
-        for L in _mod_pi(self.levels[4]):  # θ5
-            sL, cL = np.sin(L), np.cos(L)
+        for L in _mod_pi(levels[4]):  # θ5
+            sL, cL = _sin_cos(L, ops)
             polys.append(_clear(_cs_lin((sL, XP), (-cL, YP)), _cs_lin((sL, XQ), (-cL, YQ)), D))
             kinds.append(5)
         return cand, sing, polys, kinds
 
-    def breakpoints(self, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Every δ (rad) where a row 1–8 can change feasibility, and those where one can turn singular."""
-        cand, sing, FAt, FBt = self._fn(T)  # values that do not exist are NONE
+    def breakpoints(
+        self, T: np.ndarray, limits: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Every δ (rad) where a row 1–8 can change feasibility, and those where one can turn singular, under the
+        robot's limits or ``limits`` ``(q_min, q_max)`` ((n,) rad each, such as
+        :func:`~qpik.analytic.intervals.shrunk_limits`)."""
+        if limits is None:
+            return self._fixed.breakpoints(T)
+        return self._shrunk.breakpoints(T, *limits)
+
+    def __call__(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
+        """The feasible sets of the pose T (4, 4) with every joint in the limits shrunk by ``margin`` (>= 0; 0: the
+        robot's limits; see :func:`~qpik.analytic.intervals.shrunk_limits`)."""
+        if margin == 0.0:
+            fn, limits = self._fixed, None
+        else:
+            fn, limits = self._shrunk, shrunk_limits(*self._limits, margin)
+        if fn.native is not None:
+            intervals, singular = fn.native(T, limits)
+        else:  # rows 1–8, then 9–16: row 8 + k at δ is row k at δ + π
+            args = () if limits is None else limits
+            intervals, singular = self._assemble(T, *fn.breakpoints(T, *args), limits=limits)
+        return FeasibleIntervals(self._solver.param_name, self.branch.copy(), intervals, singular)
+
+
+@dataclass(frozen=True)
+class _Breakpoints:
+    """A compiled breakpoint function of rows 1–8 (of the pose, and of the limits for the shrunk limits'), the row
+    ranges ``(a7, b7, a5, b5)`` of its θ7 and θ5 wrist equations and its one-C-call path (None without a compiler)."""
+
+    fn: Compiled
+    wrist_rows: np.ndarray
+    native: _NativeDelta | None
+
+    def breakpoints(self, T: np.ndarray, *limits: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The breakpoints and singular candidates (δ, rad) of the pose T (4, 4) (and the limits, as the function's
+        inputs): the closed-form ones, the wrist roots and the θ5 roots common with a θ7 root."""
+        cand, sing, FAt, FBt = self.fn(T, *limits)  # values that do not exist are NONE
         cand, sing = cand[cand != NONE], sing[sing != NONE]
         wrist, owner = trig_roots(FAt.T, FBt.T)
         # sin θ6 = 0 zeroes every θ5 and θ7 equation: their common roots (owner is ascending)
-        a7, b7, a5, b5 = np.searchsorted(owner, self._wrist_rows).tolist()
+        a7, b7, a5, b5 = np.searchsorted(owner, self.wrist_rows).tolist()
         r5, r7 = wrist[a5:b5], wrist[a7:b7]
         if r5.size and r7.size:  # cos d > 1 − tol²/2 ⇔ |d| < tol on the circle (offset_shoulder_intervals.c: same)
             close = (np.cos(r5[:, None] - r7[None, :]) > 1.0 - 0.5 * COMMON_TOL**2).any(axis=1)
             sing = np.concatenate([sing, r5[close]])
         return np.concatenate([cand, wrist]), sing
-
-    def __call__(self, T: np.ndarray) -> FeasibleIntervals:
-        if self._native is not None:
-            intervals, singular = self._native(T)
-        else:
-            brk, sing = self.breakpoints(T)
-            intervals, singular = self._assemble(T, brk, sing)  # rows 1–8, then 9–16: row 8 + k at δ is row k at δ + π
-        return FeasibleIntervals(self._solver.param_name, self.branch.copy(), intervals, singular)
 
 
 class _Kernel(ctypes.Structure):
@@ -246,17 +324,10 @@ class _NativeDelta:
 
     ROWS = 8
 
-    def __init__(
-        self,
-        dll: ctypes.CDLL,
-        breaks: NativeFunction,
-        ik: NativeFunction,
-        limits: tuple[np.ndarray, np.ndarray],
-        wrist_rows: np.ndarray,
-    ):
+    def __init__(self, dll: ctypes.CDLL, breaks: NativeFunction, ik: NativeFunction, wrist_rows: np.ndarray):
         self._dll, self._breaks, self._ik = dll, breaks, ik  # the C call uses their buffers: they live as long
         self._pose = breaks.args[0].reshape(4, 4).T  # T column-major, as both generated functions read it
-        ik.args[2][:], ik.args[3][:] = limits
+        self._limits = ik.args[2:4]  # the IK's limit buffers, shared with the breakpoint function's when it takes them
         cand, sing, FA, _ = breaks.res
         K = FA.size // COEFFS
         room_roots = ROOM * K
@@ -299,18 +370,29 @@ class _NativeDelta:
 
     @classmethod
     def build(cls, breaks: Compiled, solver: OffsetShoulderSolver, wrist_rows: np.ndarray) -> _NativeDelta | None:
-        """The C path over the breakpoint function ``breaks`` and ``solver``'s checked IK, or None when one of them or
-        the C source is not native code."""
+        """The C path over the breakpoint function ``breaks`` (of T, or of T, q_min and q_max) and ``solver``'s checked
+        IK (of T, δ, q_min and q_max), or None when one of them or the C source is not native code. Both read T from
+        one buffer, and q_min and q_max too when ``breaks`` takes them; else the IK's hold the robot's limits."""
         dll = _library()
         bp = None if dll is None else NativeFunction.of(breaks, outputs=(0, 1, 2, 3))
-        ik = None if bp is None else NativeFunction.of(solver.checked(cls.ROWS), outputs=(1,), inputs={0: bp.args[0]})
+        if bp is None:
+            return None
+        shared = {0: bp.args[0]} | ({2: bp.args[1], 3: bp.args[2]} if len(bp.args) == 3 else {})
+        ik = NativeFunction.of(solver.checked(cls.ROWS), outputs=(1,), inputs=shared)
         if ik is None:
             return None
-        limits = (np.asarray(solver.robot.q_min, float), np.asarray(solver.robot.q_max, float))
-        return cls(dll, bp, ik, limits, wrist_rows)
+        if len(bp.args) == 1:
+            ik.args[2][:], ik.args[3][:] = solver.robot.q_min, solver.robot.q_max
+        return cls(dll, bp, ik, wrist_rows)
 
-    def __call__(self, T: np.ndarray) -> tuple[list[list[Interval]], list[list[float]]]:
+    def __call__(
+        self, T: np.ndarray, limits: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> tuple[list[list[Interval]], list[list[float]]]:
+        """The sets and singular values of rows 1–16 for the pose T (4, 4); ``limits`` ``(q_min, q_max)`` ((n,) rad)
+        for a breakpoint function that takes them."""
         self._pose[...] = T
+        if limits is not None:
+            self._limits[0][:], self._limits[1][:] = limits
         check_sets(self._dll.qpik_delta_sets(self._address), "qpik_delta_sets")
         a = self._arrays
         return self._lists(a["iv"], a["count"], a["sv"], a["scount"], int(a["ns"][0]))
@@ -339,9 +421,23 @@ def _row_range(kinds: list[int], joint: int) -> tuple[int, int]:
     return (rows[0], rows[-1] + 1) if rows else (0, 0)
 
 
-def _mod_pi(levels: list[float]) -> list[float]:
-    """Levels up to π (an equation 'θ = L (mod π)' serves L and L ± π)."""
+def _mod_pi(levels: list[Scalar]) -> list[Scalar]:
+    """Float levels up to π (an equation 'θ = L (mod π)' serves L and L ± π); symbolic levels as they are."""
+    if not all(isinstance(L, float) for L in levels):
+        return levels
     return sorted({round(float(np.mod(L, PI)), 15) for L in levels})
+
+
+def _distinct_cos(levels: list[Scalar], ops: Ops) -> list[Scalar]:
+    """cos L of float levels, each value once (an equation 'cos θ = cos L' serves ±L); of symbolic levels, each."""
+    if not all(isinstance(L, float) for L in levels):
+        return [ops.cos(L) for L in levels]
+    return sorted({round(float(np.cos(L)), 15) for L in levels})
+
+
+def _sin_cos(L: Scalar, ops: Ops) -> tuple[Scalar, Scalar]:
+    """sin L and cos L: floats for a float level (folded into the equations' constants), else ``ops``'."""
+    return (np.sin(L), np.cos(L)) if isinstance(L, float) else (ops.sin(L), ops.cos(L))
 
 
 def _quadratic_roots(A: Scalar, B: Scalar, C: Scalar, ops: Ops) -> list[tuple[Scalar, Scalar]]:
