@@ -51,7 +51,8 @@ EXPECTED = {
     ],
     "nlp": [
         "ssik iiwa14_ik.solve (16 ψ × 8 branches)",
-        "solve_best margin, certified (iiwa14)",
+        "solve_best margin (level sets), certified (iiwa14)",
+        "solve_best margin, method=search, certified (nammoto7)",
         "solve_best manipulability + 2 obstacles (nammoto7)",
         "solve_best margin, batched, per pose (iiwa14)",
         "solve_full, IPOPT (panda)",

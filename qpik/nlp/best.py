@@ -7,7 +7,11 @@ The variable is the one parameter; q is the branch's closed form, traced in CasA
 derivatives (:mod:`qpik.nlp.selfmotion`). Every feasible interval of every branch is searched
 (:mod:`qpik.nlp.search`: sampling, then a bracketed polish of the local minima; or, with
 ``method="ipopt"``, IPOPT from the middle of each interval, :mod:`qpik.nlp.ipopt`), and the
-answer is checked for global optimality (:mod:`qpik.nlp.certificate`).
+answer is checked for global optimality (:mod:`qpik.nlp.certificate`). The plain joint-limit
+margin without obstacles has a faster exact method, which finds and proves its maximum with the
+feasible intervals under shrunk limits (:mod:`qpik.nlp.levelset`); a pose it leaves unproved goes
+through the search and the certificate. In its per-branch table a branch's row holds the best point
+evaluated on that branch, which is the branch's own optimum only for the best branch.
 
 Statuses: ``"optimal"`` (the best point found; :attr:`BestResult.certified` says whether it is
 proved global), ``"unreachable"`` (no branch reaches the pose at any parameter),
@@ -30,6 +34,7 @@ from qpik.analytic.intervals import wrap
 from qpik.errors import InputError, NoClosedFormError
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.certificate import certify as prove
+from qpik.nlp.levelset import margin_weight, maximise
 from qpik.nlp.scene import Points, Scene
 from qpik.nlp.search import SAMPLE_STEP, Pieces, candidates, onto_limits, polish, sample, singular_ends, split
 from qpik.nlp.selfmotion import selfmotion_of
@@ -39,6 +44,7 @@ from qpik.validate import finite_array, flag, number
 from qpik.validate import pose as check_pose
 
 STATUSES = ("optimal", "unreachable", "no feasible branch", "solver failed")
+METHODS = ("auto", "levelset", "search", "ipopt")
 VIOLATION_SAMPLES = 720
 """Parameter samples per branch when looking for the least-violating branch."""
 RETRIES = 2
@@ -89,6 +95,8 @@ class BestResult:
         branches: the per-branch table (:class:`BranchOptimum`).
         param_name: ``"delta"`` or ``"psi"``.
         message: why it is not certified, or what failed ("" otherwise).
+        method: what found the answer: ``"levelset"`` (then a row of :attr:`branches` other than the best
+            holds the best point evaluated on its branch, not the branch's optimum), ``"search"`` or ``"ipopt"``.
         time: seconds (a batch: the call's time divided by the number of poses).
     """
 
@@ -105,6 +113,7 @@ class BestResult:
     param_name: str = "psi"
     message: str = ""
     time: float = 0.0
+    method: str = "search"
 
     def table(self) -> str:
         """The per-branch table as text (rad)."""
@@ -120,6 +129,8 @@ class BestResult:
             lines.append(
                 f"{r.branch:>6} {feasible:>8} {val} {r.rounds:>6} {r.evaluations:>6} {r.time * 1e6:9.1f}{mark}"
             )
+        if self.method == "levelset":
+            lines.append("(level sets: a row other than the best holds the best point evaluated on its branch)")
         return "\n".join(lines)
 
     def summary(self) -> str:
@@ -190,7 +201,7 @@ def solve_best(
     d_safe: float = 0.02,
     certify: bool = True,
     tol: float = 1e-4,
-    method: str = "search",
+    method: str = "auto",
     branches=None,
 ) -> BestResult | BestResults:
     """The best branch and δ/ψ for ``pose`` under ``objective``; see the module docstring.
@@ -208,7 +219,9 @@ def solve_best(
         certify: prove global optimality (:mod:`qpik.nlp.certificate`).
         tol: the certificate's tolerance, relative: it proves that no feasible point is better than the
             answer by more than ``tol · max(1, |f|)``.
-        method: ``"search"`` (sampling and polish) or ``"ipopt"`` (IPOPT from every interval).
+        method: ``"levelset"`` (the exact super-level sets of the margin, :mod:`qpik.nlp.levelset`: the plain
+            margin objective without obstacles only), ``"search"`` (sampling and polish), ``"ipopt"`` (IPOPT
+            from every interval), or ``"auto"``: ``"levelset"`` where it applies, else ``"search"``.
         branches: public ids of the branches to search (None: all), e.g. the branch of the
             current configuration (:func:`qpik.redundancy_parameter`), which a continuous motion
             keeps unless it passes a singular configuration.
@@ -247,8 +260,13 @@ def solve_best(
     if tol <= 0:
         raise InputError(f"tol: must be > 0, got {tol}")
     certify = flag(certify, "certify")
-    if not isinstance(method, str) or method not in ("search", "ipopt"):
-        raise InputError(f"method: expected 'search' or 'ipopt', got {method!r}")
+    if not isinstance(method, str) or method not in METHODS:
+        raise InputError(f"method: expected one of {list(METHODS)}, got {method!r}")
+    weight = margin_weight(obj, obs, robot)
+    if method == "levelset" and weight is None:
+        raise InputError("method: 'levelset' solves the margin objective alone, without obstacles")
+    if method == "auto":
+        method = "search" if weight is None else "levelset"
     sm = selfmotion_of(robot)
     rows = _rows(sm, branches)
     if not len(T):
@@ -256,7 +274,7 @@ def solve_best(
     with sm.solver.lock:  # the arm's compiled functions evaluate in buffers of their own: one thread at a time
         scene = Scene(robot, sm, obj, obs, d_safe, T, ref)
         try:
-            results = _solve(scene, certify, tol, method, rows)
+            results = _solve(scene, certify, tol, method, rows, weight)
         except (RuntimeError, FloatingPointError, np.linalg.LinAlgError) as exc:  # a numerical failure: a status
             why = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
             results = [least_violating(scene, i, [], "solver failed", why) for i in range(len(T))]
@@ -289,33 +307,32 @@ def _rows(sm, branches) -> list[int]:
     return sorted(rows)
 
 
-def _solve(scene: Scene, certify: bool, tol: float, method: str, rows: list[int]) -> list[BestResult]:
+def _solve(
+    scene: Scene, certify: bool, tol: float, method: str, rows: list[int], weight: float | None
+) -> list[BestResult]:
     sm = scene.selfmotion
     N, B = len(scene.poses), sm.searched
     fis = [sm.solver.feasible_intervals(T) for T in scene.poses]
-    pose, row, lo, hi = [], [], [], []
-    s_pose, s_row, s_value = [], [], []
-    for i, fi in enumerate(fis):
-        for b in rows:
-            for a, c in fi.intervals[b]:
-                pose.append(i), row.append(b), lo.append(a), hi.append(c)
-            if fi.singular and fi.singular[b]:
-                s_value += fi.singular[b]
-                s_pose += [i] * len(fi.singular[b])
-                s_row += [b] * len(fi.singular[b])
-    pieces = Pieces(np.array(pose, int), np.array(row, int), np.array(lo, float), np.array(hi, float))
-    pieces.singular = singular_ends(pieces, np.array(s_pose, int), np.array(s_row, int), np.array(s_value, float))
     best = _BestSoFar(N, B, scene.robot.dof)
+    cert_ok = np.zeros(N, bool)
+    bound = np.full(N, -np.inf)
+    reason = ["certify=False"] * N
+    by_levels = np.zeros(N, bool)
+    if method == "levelset":  # the poses it leaves uncertified go to the search and the certificate
+        sets = maximise(scene, fis, rows, weight)
+        by_levels = sets.certified
+        _count(scene, sets.points)
+        best.update_from(sets.points, sets.rounds)
+        cert_ok, bound = sets.certified.copy(), sets.bound.copy()
+        method = "search"
+    pieces = _feasible_pieces(fis, rows, np.flatnonzero(~by_levels))
     if method == "ipopt":
         from qpik.nlp.ipopt import solve_pieces
 
         best.update(*solve_pieces(scene, pieces))
-    else:
+    elif len(pieces):
         best.update_from(*_search(scene, pieces, SAMPLE_STEP))
-    cert_ok = np.zeros(N, bool)
-    bound = np.full(N, -np.inf)
-    reason = ["certify=False"] * N
-    todo = np.flatnonzero(best.found() & certify)
+    todo = np.flatnonzero(best.found() & certify & ~cert_ok)
     for attempt in range(RETRIES + 1):
         if not len(todo):
             break
@@ -332,7 +349,29 @@ def _solve(scene: Scene, certify: bool, tol: float, method: str, rows: list[int]
         best.update_from(*_search(scene, sub, SAMPLE_STEP / 4 ** (attempt + 1), extra=cert.better))
         todo = redo
     tables = _tables(scene, best, rows)
-    return [_result(scene, best, i, tables[i], cert_ok[i], bound[i], reason[i]) for i in range(N)]
+    out = [_result(scene, best, i, tables[i], cert_ok[i], bound[i], reason[i]) for i in range(N)]
+    for i, r in enumerate(out):
+        r.method = "levelset" if by_levels[i] else method
+    return out
+
+
+def _feasible_pieces(fis: list, rows: list[int], poses: np.ndarray) -> Pieces:
+    """The feasible intervals ``fis`` (per pose) of the branch rows ``rows`` of the poses ``poses`` as pieces, with
+    their singular ends."""
+    pose, row, lo, hi = [], [], [], []
+    s_pose, s_row, s_value = [], [], []
+    for i in poses.tolist():
+        fi = fis[i]
+        for b in rows:
+            for a, c in fi.intervals[b]:
+                pose.append(i), row.append(b), lo.append(a), hi.append(c)
+            if fi.singular and fi.singular[b]:
+                s_value += fi.singular[b]
+                s_pose += [i] * len(fi.singular[b])
+                s_row += [b] * len(fi.singular[b])
+    pieces = Pieces(np.array(pose, int), np.array(row, int), np.array(lo, float), np.array(hi, float))
+    pieces.singular = singular_ends(pieces, np.array(s_pose, int), np.array(s_row, int), np.array(s_value, float))
+    return pieces
 
 
 def _search(scene: Scene, pieces: Pieces, step: float, extra: Points | None = None) -> tuple[Points, np.ndarray]:
@@ -411,22 +450,22 @@ class _BestSoFar:
 def _tables(scene: Scene, best: _BestSoFar, searched: list[int]) -> list[list[BranchOptimum]]:
     """Per pose, the per-branch table: every branch, a mirrored one from its searched row."""
     sm = scene.selfmotion
-    N = len(scene.poses)
-    total = np.maximum(scene.counts.sum(axis=1), 1)
-    none = np.zeros(N, int)
-    columns = []
-    for k, bid in enumerate(sm.branch_ids.tolist()):
-        m = sm.mirror(k)
-        r = k if m is None else m[0]
-        evals, rounds = (scene.counts[:, r], best.rounds[:, r]) if m is None else (none, none)
-        feasible = np.isfinite(best.f[:, r])
-        param = sm.shifted(k, np.where(feasible, best.psi[:, r], 0.0))
-        columns.append((bid, r, r in searched, feasible.tolist(), param.tolist(), best.f[:, r].tolist(),
-                        rounds.tolist(), evals.tolist(), (evals / total).tolist()))  # fmt: skip
+    ids = sm.branch_ids.tolist()
+    mirrors = [sm.mirror(k) for k in range(len(ids))]
+    r = np.array([k if m is None else m[0] for k, m in enumerate(mirrors)])
+    own = np.array([m is None for m in mirrors])
+    shift = np.array([0.0 if m is None else m[1] for m in mirrors])
+    evals = np.where(own, scene.counts[:, r], 0)  # (N, branches)
+    share = evals / np.maximum(scene.counts.sum(axis=1), 1)[:, None]
+    f, psi = best.f[:, r], best.psi[:, r]
+    feasible = np.isfinite(f)
+    param = np.where(feasible, np.where(own, psi, wrap(psi - shift)), 0.0)
+    done = np.isin(r, searched).tolist()
+    columns = zip(*(x.tolist() for x in (feasible, param, f, np.where(own, best.rounds[:, r], 0), evals, share)))
     return [
-        [BranchOptimum(bid, done, ok[i], p[i] if ok[i] else None, f[i], best.q[i, r].copy() if ok[i] else None,
-                       rnd[i], ev[i], share[i]) for bid, r, done, ok, p, f, rnd, ev, share in columns]
-        for i in range(N)
+        [BranchOptimum(ids[k], done[k], ok[k], p[k] if ok[k] else None, fv[k],
+                       best.q[i, r[k]].copy() if ok[k] else None, rn[k], ev[k], sh[k]) for k in range(len(ids))]
+        for i, (ok, p, fv, rn, ev, sh) in enumerate(columns)
     ]  # fmt: skip
 
 
