@@ -216,6 +216,28 @@ class _NativeSets:
         return self._lists(self._iv, self._count, self._sv, self._scount, ns)
 
 
+@dataclass
+class NativeSets:
+    """An arm's feasible sets under limits given at run time, as one C call, for C code that calls it in a loop
+    (:mod:`qpik.nlp.levelset`).
+
+    ``function`` is the address of ``int f(const void *context)``: it reads the pose T from :attr:`pose` (16,
+    column-major) and the limits from :attr:`lo` and :attr:`hi` ((n,) rad, the robot's angles), and writes
+    ``count[r]`` pieces of output row r, their ``(lo, hi)`` pairs one row after the other in :attr:`iv` (rad,
+    in [−π, π], sorted per row); it returns the number of pieces, or a negative status (:func:`check_sets`). An
+    unreachable pose gives no pieces. ``owner`` keeps the buffers and the library alive.
+    """
+
+    function: int
+    context: int
+    pose: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    iv: np.ndarray
+    count: np.ndarray
+    owner: object
+
+
 def check_sets(m: int, name: str) -> None:
     """:class:`SolverError` for the negative status ``m`` of the C function ``name`` (``intervals.c``'s codes)."""
     if m < 0:

@@ -68,7 +68,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from qpik import symbolic as sy
-from qpik.analytic.intervals import FeasibleIntervals
+from qpik.analytic.intervals import FeasibleIntervals, NativeSets
 from qpik.analytic.solver import AnalyticSolver, Branches
 from qpik.analytic.trig import EPS, angle, flip, solve_cos_sin_cs
 from qpik.errors import NoClosedFormError
@@ -268,3 +268,7 @@ class OffsetShoulderSolver(AnalyticSolver):
         See :mod:`qpik.analytic.offset_shoulder_intervals` for the breakpoint equations. ``T``: (4, 4), world frame.
         """
         return self._intervals(T, margin)
+
+    def native_sets(self) -> NativeSets | None:
+        """:meth:`feasible_intervals` under limits given at run time as one C call; None without a compiler."""
+        return self._intervals.native_sets()

@@ -80,7 +80,15 @@ import casadi as ca
 import numpy as np
 
 from qpik import symbolic as sy
-from qpik.analytic.intervals import Assembler, FeasibleIntervals, Interval, check_sets, list_maker, shrunk_limits
+from qpik.analytic.intervals import (
+    Assembler,
+    FeasibleIntervals,
+    Interval,
+    NativeSets,
+    check_sets,
+    list_maker,
+    shrunk_limits,
+)
 from qpik.analytic.intervals import c_source as intervals_source
 from qpik.analytic.polyroots import FLAGS as POLYROOTS_FLAGS
 from qpik.analytic.polyroots import ROOM, trig_roots
@@ -158,6 +166,11 @@ class DeltaIntervals:
         wrist_rows = np.array([k for j in (7, 5) for k in _row_range(kinds, j)])
         fn = Compiled(ca.Function(name, [T, *inputs], [*out, FA, FB]))
         return _Breakpoints(fn, wrist_rows, _NativeDelta.build(fn, self._solver, wrist_rows))
+
+    def native_sets(self) -> NativeSets | None:
+        """The sets under limits given at run time as one C call (the shrunk limits' path), None without a compiler."""
+        native = self._shrunk.native
+        return None if native is None else native.sets()
 
     def expressions(self, T, ops: Ops, levels: list[list[Scalar]]) -> tuple[list, list, list[Poly], list[int]]:
         """The breakpoint equations of rows 1–8 for the world pose T (4, 4) and the levels (rad, the table's angles)
@@ -384,6 +397,13 @@ class _NativeDelta:
         if len(bp.args) == 1:
             ik.args[2][:], ik.args[3][:] = solver.robot.q_min, solver.robot.q_max
         return cls(dll, bp, ik, wrist_rows)
+
+    def sets(self) -> NativeSets:
+        """This call as :class:`~qpik.analytic.intervals.NativeSets` (for a breakpoint function of the limits)."""
+        a = self._arrays
+        address = ctypes.cast(self._dll.qpik_delta_sets, ctypes.c_void_p).value
+        pose = self._breaks.args[0]
+        return NativeSets(address, self._address, pose, *self._limits, a["iv"], a["count"], self)
 
     def __call__(
         self, T: np.ndarray, limits: tuple[np.ndarray, np.ndarray] | None = None

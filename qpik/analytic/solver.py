@@ -42,7 +42,7 @@ SWEEP_CHUNKS = (32, 8)
 more than 3/4 of it would be used, then the small one (so that 38 parameters cost 40 evaluations, not 64)."""
 
 if TYPE_CHECKING:
-    from qpik.analytic.intervals import FeasibleIntervals
+    from qpik.analytic.intervals import FeasibleIntervals, NativeSets
     from qpik.robots.robot import Robot
 
 
@@ -180,6 +180,12 @@ class AnalyticSolver(ABC):
         (:func:`qpik.analytic.intervals.shrunk_limits`): the parameters whose joint-limit margin
         (:class:`qpik.objectives.JointLimitMargin`) is at least ``margin``. ``T``: (4, 4) pose, world frame;
         ``margin`` >= 0 (0: the joint limits themselves; above 1 every set is empty)."""
+
+    def native_sets(self) -> NativeSets | None:
+        """:meth:`feasible_intervals` under limits given at run time as one C call
+        (:class:`~qpik.analytic.intervals.NativeSets`), for C code that calls it in a loop; None where there is no
+        such call (no compiler)."""
+        return None
 
     # ---- evaluations -----------------------------------------------------------
 
