@@ -15,6 +15,7 @@ from qpik.analytic import solver_for
 from qpik.errors import InputError
 from qpik.geometry import Sphere
 from qpik.nlp import levelset, solve_best
+from qpik.nlp.selfmotion import selfmotion_of
 from qpik.objectives import JointLimitMargin
 
 ARMS = ("iiwa14", "nammoto7")
@@ -99,3 +100,22 @@ def test_weight_and_methods():
         solve_best(robot, T, method="bisection")
     assert one.method == "levelset"
     assert solve_best(robot, T, obstacles=[Sphere((2.0, 2.0, 2.0), 0.05)]).method == "search"
+
+
+@pytest.mark.parametrize("name", ARMS)
+def test_the_c_rounds_give_the_python_rounds_answers(name, monkeypatch):
+    """Where the arm's rounds run in C (levelset.c), they give the answers, parameters, branches and proofs of the
+    rounds in Python (to rounding: the C rounds take their level-0 sets from the shrunk limits' call)."""
+    robot = qpik.load_robot(name)
+    if levelset._native(selfmotion_of(robot)) is None:
+        pytest.skip(f"no C rounds for {name} here (no compiler, or no native feasible sets)")
+    T = _poses(robot, 40, 9)
+    fast = solve_best(robot, T)
+    monkeypatch.setattr(levelset, "_native", lambda selfmotion: None)
+    slow = solve_best(robot, T)
+    np.testing.assert_allclose(fast.objective, slow.objective, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(fast.certified, slow.certified)
+    np.testing.assert_array_equal(fast.branch, slow.branch)
+    np.testing.assert_allclose(fast.q, slow.q, atol=1e-9)
+    rounds = [[b.rounds for b in r.branches] for r in fast], [[b.rounds for b in r.branches] for r in slow]
+    assert rounds[0] == rounds[1]

@@ -312,20 +312,21 @@ def _solve(
 ) -> list[BestResult]:
     sm = scene.selfmotion
     N, B = len(scene.poses), sm.searched
-    fis = [sm.solver.feasible_intervals(T) for T in scene.poses]
     best = _BestSoFar(N, B, scene.robot.dof)
     cert_ok = np.zeros(N, bool)
     bound = np.full(N, -np.inf)
     reason = ["certify=False"] * N
     by_levels = np.zeros(N, bool)
     if method == "levelset":  # the poses it leaves uncertified go to the search and the certificate
-        sets = maximise(scene, fis, rows, weight)
+        sets = maximise(scene, rows, weight)
         by_levels = sets.certified
-        _count(scene, sets.points)
+        scene.counts += sets.evaluations
         best.update_from(sets.points, sets.rounds)
         cert_ok, bound = sets.certified.copy(), sets.bound.copy()
         method = "search"
-    pieces = _feasible_pieces(fis, rows, np.flatnonzero(~by_levels))
+    left = np.flatnonzero(~by_levels)
+    fis = dict(zip(left.tolist(), (sm.solver.feasible_intervals(scene.poses[i]) for i in left)))
+    pieces = _feasible_pieces(fis, rows, left)
     if method == "ipopt":
         from qpik.nlp.ipopt import solve_pieces
 
@@ -355,9 +356,9 @@ def _solve(
     return out
 
 
-def _feasible_pieces(fis: list, rows: list[int], poses: np.ndarray) -> Pieces:
-    """The feasible intervals ``fis`` (per pose) of the branch rows ``rows`` of the poses ``poses`` as pieces, with
-    their singular ends."""
+def _feasible_pieces(fis: dict, rows: list[int], poses: np.ndarray) -> Pieces:
+    """The feasible intervals ``fis`` (by pose index) of the branch rows ``rows`` of the poses ``poses`` as pieces,
+    with their singular ends."""
     pose, row, lo, hi = [], [], [], []
     s_pose, s_row, s_value = [], [], []
     for i in poses.tolist():

@@ -10,40 +10,47 @@ set :math:`S(m) = \{(b, \psi) : \mu(q_b(\psi)) \ge m\}` of every branch b is its
 the shrunk limits, :meth:`~qpik.analytic.solver.AnalyticSolver.feasible_intervals` with ``margin=m``:
 computed from the breakpoint equations, not sampled. Per pose, from :math:`S(0)` (the feasible intervals):
 
-1. On every piece [a, b] of :math:`S(m_k)` (a piece through ±π joined into one), evaluate μ and
-   dμ/dψ at both ends and the middle, then μ at the trial points: the crossing of the tangents at the two
-   ends (exact at a kink, where two joints' margins cross), the root of the secant of dμ/dψ between them
-   (exact at a quadratic top), both again on the half of the piece toward which dμ/dψ points at the
-   middle, and samples at most :data:`STEP` apart. All pieces of all poses share each compiled call.
-2. :math:`\mu_{k+1}` is the best value found, :math:`m_{k+1} = \mu_{k+1} + \varepsilon`
-   (:data:`EPS`).
+1. On every piece [a, b] of :math:`S(m_k)` (a piece through ±π joined into one), evaluate μ and dμ/dψ at three
+   trial points (:func:`_trials`): in the first round the middle and both ends; then the middle, the
+   crossing of the tangents at the two ends (exact at a kink, where two joints' margins cross) and the root of
+   the secant of dμ/dψ between the points those slopes come from (exact at a quadratic top). The slope at an
+   end comes from the previous round's best point on that side of the top (its value and slope, with the end's
+   own value, the level: exact for a quadratic).
+2. :math:`\mu_{k+1}` is the best value found, :math:`m_{k+1} = \mu_{k+1} + \varepsilon` (:data:`EPS`).
 3. An empty :math:`S(m_{k+1})` proves that no branch and δ/ψ reaches :math:`\mu_{k+1} + \varepsilon`:
-   the answer is certified to ε. Otherwise every point of :math:`S(m_{k+1})` beats it: back to 1.
+   the answer is certified to ε (to the sets' accuracy: their ends are exact to
+   :data:`qpik.analytic.intervals.SAME`). Otherwise every point of :math:`S(m_{k+1})` beats it: back to 1.
 
-Every point of :math:`S(m_{k+1})` is better than the best so far by ε, so each round gains at least ε;
-near a top the pieces close in on it from both sides, and the trial points land on it (a kink: the
-tangents; a smooth top: the secant), so the gap closes about quadratically, in a few rounds. A pose
-whose round finds nothing inside its own super-level set (the sets' boundaries are exact to
-:data:`qpik.analytic.intervals.SAME` only), or that needs more than :data:`MAX_ROUNDS`, is left
-uncertified: :func:`qpik.solve_best` searches it by sampling and proves it with the Taylor models
+Every point of :math:`S(m_{k+1})` is better than the best so far by ε, so each round gains at least ε, and
+near a top the pieces close in on it from both sides: 1–7 rounds on random poses (one when the margin is
+bound by a joint that the parameter does not move, such as the S-R-S elbow). A pose whose round finds nothing
+inside its own super-level set, or that needs more than :data:`MAX_ROUNDS`, is left uncertified:
+:func:`qpik.solve_best` searches it by sampling and proves it with the Taylor models
 (:mod:`qpik.nlp.certificate`) instead.
 
-The certificate costs one feasible-interval call (tens of µs) where the Taylor models of the
-certificate need ~150 cells of a compiled bound function; it covers only the plain margin (a weighted
-sum with other terms has no such level sets).
+The certificate costs one feasible-set call (tens of µs) where the Taylor models need ~150 cells of a
+compiled bound function; it covers only the plain margin (a weighted sum with other terms has no such level
+sets). Where the arm's feasible sets are one C call (:meth:`~qpik.analytic.solver.AnalyticSolver.native_sets`),
+the rounds of a pose run in C (``levelset.c``, one call per pose, the self-motion through its generated C);
+otherwise in Python and numpy, all poses of a batch together. The two give the same answers (tested).
 """
 
 from __future__ import annotations
 
+import ctypes
 import math
 from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
 
 import numpy as np
 
-from qpik.analytic.intervals import FeasibleIntervals, wrap
+from qpik.analytic.intervals import FeasibleIntervals, NativeSets, wrap
+from qpik.compiled import NativeFunction, shared_library
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.scene import Points, Scene
 from qpik.nlp.search import END
+from qpik.nlp.selfmotion import SelfMotion
 from qpik.objectives import JointLimitMargin, Objective
 
 EPS = 1e-9
@@ -78,8 +85,9 @@ class LevelSets:
     """What :func:`maximise` found.
 
     Attributes:
-        points: every evaluated point.
+        points: the best point evaluated on each (pose, branch row) (the Python rounds: every evaluated point).
         rounds: (M,) the round of each point (1 for the first).
+        evaluations: (N, searched rows) the points evaluated per pose and branch row.
         certified: (N,) the best point of the pose is proved to be within ε of the maximum.
         bound: (N,) for a certified pose, a lower bound of the objective over every feasible point
             (−w (μ + ε)); -inf otherwise.
@@ -87,28 +95,35 @@ class LevelSets:
 
     points: Points
     rounds: np.ndarray
+    evaluations: np.ndarray
     certified: np.ndarray
     bound: np.ndarray
 
 
-def maximise(scene: Scene, sets: list[FeasibleIntervals], rows: list[int], weight: float) -> LevelSets:
-    """The rounds of the module docstring for every pose of ``scene`` from its feasible sets ``sets`` (the
-    level-0 super-level sets), over the branch rows ``rows``; f = −``weight`` · μ."""
-    solver = scene.selfmotion.solver
+def maximise(scene: Scene, rows: list[int], weight: float) -> LevelSets:
+    """The rounds of the module docstring for every pose of ``scene`` over the branch rows ``rows``; f = −``weight``
+    · μ. In C (``levelset.c``: the arm's feasible sets and its self-motion as C calls, one call per pose) where the
+    arm has :meth:`~qpik.analytic.solver.AnalyticSolver.native_sets` and every row is searched; else in Python
+    and numpy, all poses together (the same rounds: the tests compare the two)."""
+    sm = scene.selfmotion
+    native = _native(sm) if list(rows) == list(range(sm.searched)) else None
+    if native is not None:
+        return native(scene, weight)
+    solver = sm.solver
     N = len(scene.poses)
     best = np.full(N, -np.inf)
     level = np.zeros(N)
     certified = np.zeros(N, bool)
     parts, rounds = [], []
-    current = dict(enumerate(sets))
+    current = {i: solver.feasible_intervals(T) for i, T in enumerate(scene.poses)}
     parent = None
-    for k in range(MAX_ROUNDS):
+    for k in range(MAX_ROUNDS + 1):
         pieces = _pieces(current, rows, level)
         found = np.zeros(N, bool)
         found[pieces.pose] = True
         if k:
             certified[[i for i in current if not found[i]]] = True
-        if not len(pieces):
+        if not len(pieces) or k == MAX_ROUNDS:
             break
         psi = _trials(pieces, parent)  # (3, P)
         pts = scene.evaluate(np.tile(pieces.pose, len(psi)), np.tile(pieces.row, len(psi)), wrap(psi.ravel()))
@@ -128,8 +143,10 @@ def maximise(scene: Scene, sets: list[FeasibleIntervals], rows: list[int], weigh
         current = {i: solver.feasible_intervals(scene.poses[i], margin=float(level[i])) for i in np.flatnonzero(moved)}
         parent = pieces
     points = Points.join(parts) if parts else scene.values(np.zeros(0, int), np.zeros(0, int), np.zeros(0))
+    evaluations = np.zeros((N, sm.searched), int)
+    np.add.at(evaluations, (points.pose, points.row), 1)
     bound = np.where(certified, -weight * level, -np.inf)
-    return LevelSets(points, np.concatenate(rounds) if rounds else np.zeros(0, int), certified, bound)
+    return LevelSets(points, np.concatenate(rounds) if rounds else np.zeros(0, int), evaluations, certified, bound)
 
 
 @dataclass
@@ -220,3 +237,94 @@ def _trials(pieces: _Pieces, parent: _Pieces | None) -> np.ndarray:
             root = b - e if left is not None else a + e
         out.append((mid, min(max(cross, a), b), min(max(root, a), b) if math.isfinite(root) else mid))
     return np.array(out).T
+
+
+ROOM = 1024
+"""Pieces per round the C rounds hold; a pose with more is left unproved (to the search)."""
+
+
+class _Kernel(ctypes.Structure):
+    """``Kernel`` of ``levelset.c``: a generated function's entry, pointer arrays, work arrays."""
+
+    _fields_ = [(name, ctypes.c_void_p) for name in ("fn", "arg", "res", "iw", "w")]
+
+
+class _LevelSet(ctypes.Structure):
+    """``LevelSet`` of ``levelset.c`` (same fields, same order)."""
+
+    _fields_ = [(name, ctypes.c_void_p) for name in ("sets", "context", "sets_pose", "sets_lo", "sets_hi", "iv")]
+    _fields_ += [("count", ctypes.c_void_p), ("rows", ctypes.c_int), ("motion", _Kernel)]
+    _fields_ += [(name, ctypes.c_void_p) for name in ("motion_row", "motion_pose", "motion_psi", "motion_out")]
+    _fields_ += [("n", ctypes.c_int), ("q_min", ctypes.c_void_p), ("q_max", ctypes.c_void_p)]
+    _fields_ += [(name, ctypes.c_double) for name in ("eps", "end", "near", "slack")]
+    _fields_ += [("max_rounds", ctypes.c_int), ("room", ctypes.c_int), ("work", ctypes.c_void_p)]
+
+
+class _Native:
+    """The rounds in C (``qpik_levelset``, ``levelset.c``) for one arm: its feasible sets under run-time limits
+    (:class:`~qpik.analytic.intervals.NativeSets`) and its self-motion's one-row call, over buffers allocated once."""
+
+    def __init__(self, dll: ctypes.CDLL, sets: NativeSets, motion: NativeFunction, selfmotion: SelfMotion):
+        robot = selfmotion.robot
+        self._dll, self._sets, self._motion = dll, sets, motion  # the C call uses their buffers: they live as long
+        self._rows = selfmotion.searched
+        self._limits = (np.array(robot.q_min, float), np.array(robot.q_max, float))
+        self._work = np.zeros(24 * ROOM)
+        row, pose, psi = (a.ctypes.data for a in motion.args)
+        self._call = _LevelSet(
+            sets=sets.function, context=sets.context, sets_pose=sets.pose.ctypes.data, sets_lo=sets.lo.ctypes.data,
+            sets_hi=sets.hi.ctypes.data, iv=sets.iv.ctypes.data, count=sets.count.ctypes.data, rows=self._rows,
+            motion=_Kernel(*motion.addresses), motion_row=row, motion_pose=pose, motion_psi=psi,
+            motion_out=motion.res[0].ctypes.data, n=robot.dof, q_min=self._limits[0].ctypes.data,
+            q_max=self._limits[1].ctypes.data, eps=EPS, end=END, near=NEAR, slack=SLACK, max_rounds=MAX_ROUNDS,
+            room=ROOM, work=self._work.ctypes.data,
+        )  # fmt: skip
+        self._address = ctypes.addressof(self._call)
+
+    def __call__(self, scene: Scene, weight: float) -> LevelSets:
+        N, R = len(scene.poses), self._rows
+        mu, psi = np.full((N, R), -np.inf), np.zeros((N, R))
+        rounds, evals = np.zeros((N, R), np.intc), np.zeros((N, R), np.intc)
+        level, status = np.zeros(N), np.zeros(N, int)
+        poses = np.ascontiguousarray(scene.columns)
+        step = 8 * R
+        call, address = self._dll.qpik_levelset, self._address
+        at = [a.ctypes.data for a in (poses, mu, psi, rounds, evals, level)]
+        for i in range(N):
+            status[i] = call(address, at[0] + 128 * i, at[1] + step * i, at[2] + step * i, at[3] + 4 * R * i,
+                             at[4] + 4 * R * i, at[5] + 8 * i)  # fmt: skip
+        pose, row = np.nonzero(np.isfinite(mu))
+        points = scene.evaluate(pose, row, psi[pose, row])
+        certified = status == 1
+        bound = np.where(certified, -weight * level, -np.inf)
+        return LevelSets(points, rounds[pose, row].astype(int), evals.astype(int), certified, bound)
+
+
+_NATIVE: dict[int, tuple[SelfMotion, _Native | None]] = {}
+
+
+def _native(selfmotion: SelfMotion) -> _Native | None:
+    """The C rounds of ``selfmotion``'s arm (built once), None without a compiler or the arm's native sets."""
+    entry = _NATIVE.get(id(selfmotion))
+    if entry is None or entry[0] is not selfmotion:
+        built = None
+        sets = selfmotion.solver.native_sets()
+        dll = None if sets is None else _library()
+        motion = None if dll is None else NativeFunction.of(selfmotion.point_call, outputs=(0,))
+        if motion is not None:
+            built = _Native(dll, sets, motion, selfmotion)
+        entry = _NATIVE[id(selfmotion)] = (selfmotion, built)
+    return entry[1]
+
+
+@cache
+def _library() -> ctypes.CDLL | None:
+    """``levelset.c`` compiled, loaded as a :class:`ctypes.PyDLL` (its call keeps the GIL: the arm's buffers are one
+    thread's at a time, under the solver's lock)."""
+    lib = shared_library("qpik_levelset", Path(__file__).with_suffix(".c").read_bytes())
+    if lib is None:
+        return None
+    dll = ctypes.PyDLL(str(lib))
+    dll.qpik_levelset.restype = ctypes.c_int
+    dll.qpik_levelset.argtypes = [ctypes.c_void_p] * 7
+    return dll

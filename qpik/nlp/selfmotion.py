@@ -26,7 +26,7 @@ import numpy as np
 
 from qpik.analytic import solver_for
 from qpik.analytic.intervals import wrap
-from qpik.compiled import RowMap
+from qpik.compiled import Compiled, RowMap
 from qpik.enclosure import taylor_function
 from qpik.robots.robot import Robot
 
@@ -94,6 +94,12 @@ class SelfMotion:
     def _model_map(self) -> RowMap:
         rows = [self.taylor_function(b) for b in range(self.searched)]
         return RowMap(_switch(f"selfmotion_taylor_{self.solver.kind}", rows), chunks=MODEL_CHUNKS)
+
+    @cached_property
+    def point_call(self) -> Compiled:
+        """:meth:`points`' function of one row, ``(b, T (4, 4), ψ) -> [q (n); dq/dψ (n); valid]``, compiled: for C code
+        that evaluates rows one at a time (:mod:`qpik.nlp.levelset`)."""
+        return Compiled(self._point_map.fn)
 
     def points(self, b: np.ndarray, T: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Branch rows b (M,) at poses T (M, 16) (:func:`columns`) and parameters ψ (M,): q (M, n), dq/dψ (M, n),

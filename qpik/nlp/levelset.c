@@ -1,0 +1,198 @@
+/* The joint-limit margin's maximum over its super-level sets, one pose per call (qpik.nlp.levelset).
+ *
+ * The rounds of qpik.nlp.levelset.maximise with its two compiled parts called from here: the arm's feasible sets
+ * under limits written into their buffers (NativeSets: the breakpoint function, the root finder and the gap
+ * classification, one C call) and the self-motion of a branch row, q and dq/dpsi at one parameter (CasADi's
+ * generated C). The trial points are those of qpik.nlp.levelset._trials, the margin and its slope those of
+ * qpik.objectives.JointLimitMargin (the active term of the minimum). The tests compare this path with the
+ * Python one.
+ */
+#include <math.h>
+#include <string.h>
+
+typedef long long casadi_int;
+typedef int (*casadi_fn)(const double **arg, double **res, casadi_int *iw, double *w, int mem);
+typedef int (*sets_fn)(const void *context);
+
+#define PI 3.141592653589793
+#define TWO_PI 6.283185307179586
+#define TRIALS 3
+
+/* A CasADi-generated function and its argument and result pointer arrays and work arrays. */
+typedef struct {
+    void *fn;
+    const double **arg;
+    double **res;
+    casadi_int *iw;
+    double *w;
+} Kernel;
+
+typedef struct {
+    void *sets;          /* int sets(const void *context): the feasible sets of the pose and limits in its buffers */
+    const void *context;
+    double *sets_pose;   /* its pose buffer (16, column-major) */
+    double *sets_lo;     /* its limit buffers (n) */
+    double *sets_hi;
+    const double *iv;    /* its output: count[r] pieces of row r, (lo, hi) pairs one row after the other */
+    const int *count;
+    int rows;            /* the searched rows: the first rows of its output */
+    Kernel motion;       /* (branch row, pose (16), psi) -> [q (n); dq/dpsi (n); valid] */
+    double *motion_row, *motion_pose, *motion_psi;
+    const double *motion_out;
+    int n;
+    const double *q_min, *q_max; /* (n) */
+    double eps, end, near, slack;
+    int max_rounds;
+    int room;            /* pieces per round at most */
+    double *work;        /* 24 * room doubles */
+} LevelSet;
+
+/* As qpik.symbolic.Ops.wrap: x + 2 pi floor((pi - x) / 2 pi), in (-pi, pi]. */
+static double wrap(double x) { return x + TWO_PI * floor((PI - x) / TWO_PI); }
+
+/* Pieces of one round: [lo, hi] of branch row `row`, and its trial points x with mu and dmu/dpsi there. */
+typedef struct {
+    double *lo, *hi, *row, *x, *mu, *slope; /* x, mu, slope: TRIALS per piece */
+    int count;
+} Pieces;
+
+static Pieces pieces_at(double *work, int room) {
+    Pieces p = {work, work + room, work + 2 * room, work + 3 * room, work + 6 * room, work + 9 * room, 0};
+    return p;
+}
+
+/* The margin mu and dmu/dpsi of branch row `row` at psi; mu = -inf where the branch does not reach the pose. */
+static int margin_at(const LevelSet *L, int row, double psi, double *mu, double *slope) {
+    const Kernel *k = &L->motion;
+    *L->motion_row = row;
+    *L->motion_psi = wrap(psi);
+    if (((casadi_fn)k->fn)(k->arg, k->res, k->iw, k->w, 0)) return -2;
+    const double *q = L->motion_out, *dq = q + L->n;
+    *mu = -INFINITY, *slope = NAN;
+    if (!(q[2 * L->n] > 0.5)) return 0;
+    double best = INFINITY, rate = NAN;
+    for (int j = 0; j < L->n; ++j) {
+        double half = 0.5 * (L->q_max[j] - L->q_min[j]);
+        double below = (q[j] - L->q_min[j]) / half, above = (L->q_max[j] - q[j]) / half;
+        if (below < best) best = below, rate = dq[j] / half;
+        if (above < best) best = above, rate = -dq[j] / half;
+    }
+    if (isfinite(best)) *mu = best, *slope = rate;
+    return 0;
+}
+
+/* The three trial points of piece i of `now` (qpik.nlp.levelset._trials), from its parent in `before` (NULL in the
+ * first round). */
+static void trials(const LevelSet *L, const Pieces *now, int i, double level, const Pieces *before,
+                   double before_level, double *t) {
+    double a = now->lo[i], b = now->hi[i], mid = 0.5 * (a + b);
+    double e = fmin(L->end, 0.25 * (b - a));
+    t[0] = mid;
+    if (!before) {
+        t[1] = a + e, t[2] = b - e;
+        return;
+    }
+    int k = -1;
+    for (int j = 0; j < before->count && k < 0; ++j)
+        if (before->row[j] == now->row[i] && before->lo[j] <= a + L->slack && b <= before->hi[j] + L->slack) k = j;
+    if (k < 0) {
+        t[1] = t[2] = mid;
+        return;
+    }
+    double slope_at[2], px[2], ps[2];
+    int has[2];
+    for (int side = 0; side < 2; ++side) {
+        double end = side ? b : a, p_end = side ? before->hi[k] : before->lo[k], sign = side ? -1.0 : 1.0;
+        int top = -1;
+        for (int j = 0; j < TRIALS; ++j) {
+            double d = before->slope[TRIALS * k + j], f = before->mu[TRIALS * k + j];
+            if (sign * d > 0 && (top < 0 || f > before->mu[TRIALS * k + top])) top = j;
+        }
+        has[side] = top >= 0;
+        if (top >= 0) {
+            double x = before->x[TRIALS * k + top];
+            x += TWO_PI * round((mid - x) / TWO_PI); /* beside this piece (one may pass pi) */
+            double f = before->mu[TRIALS * k + top], d = before->slope[TRIALS * k + top];
+            px[side] = x, ps[side] = d;
+            slope_at[side] = fabs(end - x) <= L->near ? d : 2.0 * (level - f) / (end - x) - d;
+        } else {
+            slope_at[side] = end != p_end ? (level - before_level) / (end - p_end) : sign * INFINITY;
+        }
+    }
+    double sl = slope_at[0], sr = slope_at[1];
+    double cross = sl > 0 && sr < 0 && isfinite(sl - sr) ? (sl * a - sr * b) / (sl - sr) : mid;
+    double root;
+    if (has[0] && has[1] && ps[0] != ps[1])
+        root = px[0] - ps[0] * (px[1] - px[0]) / (ps[1] - ps[0]);
+    else
+        root = has[0] ? b - e : a + e;
+    t[1] = fmin(fmax(cross, a), b);
+    t[2] = isfinite(root) ? fmin(fmax(root, a), b) : mid;
+}
+
+/* The rounds for the pose (16, column-major). Per searched row r: best_mu[r], best_psi[r] the best point evaluated
+ * (-inf, 0 when none), rounds[r] the last round that evaluated it, evals[r] its evaluations; *level the last level.
+ * Returns 1 when the maximum is proved (the sets at the last level are empty), 0 when not (a round found nothing
+ * inside its own level set, or max_rounds rounds), 2 when the sets at level 0 are empty, -1 when the sets failed
+ * or more than room pieces came, -2 when the self-motion failed. */
+int qpik_levelset(const LevelSet *L, const double *pose, double *best_mu, double *best_psi, int *rounds, int *evals,
+                  double *level_out) {
+    int R = L->rows, n = L->n, status = 0;
+    memcpy(L->sets_pose, pose, 16 * sizeof(double));
+    memcpy(L->motion_pose, pose, 16 * sizeof(double));
+    for (int r = 0; r < R; ++r) best_mu[r] = -INFINITY, best_psi[r] = 0.0, rounds[r] = 0, evals[r] = 0;
+    Pieces buf[2] = {pieces_at(L->work, L->room), pieces_at(L->work + 12 * L->room, L->room)};
+    Pieces *now = &buf[0], *before = NULL;
+    double level = 0.0, before_level = 0.0, best = -INFINITY;
+    for (int k = 0; k <= L->max_rounds; ++k) {
+        for (int j = 0; j < n; ++j) {
+            double half = level * 0.5 * (L->q_max[j] - L->q_min[j]);
+            L->sets_lo[j] = L->q_min[j] + half, L->sets_hi[j] = L->q_max[j] - half;
+        }
+        if (((sets_fn)L->sets)(L->context) < 0) return -1;
+        now->count = 0;
+        for (int r = 0, off = 0; r < R; off += L->count[r], ++r) {
+            int c = L->count[r];
+            const double *v = L->iv + 2 * off;
+            int first = 0, last = c;
+            if (c > 1 && v[0] == -PI && v[2 * c - 1] == PI) { /* through +-pi: one piece */
+                if (now->count >= L->room) return -1;
+                now->lo[now->count] = v[2 * c - 2], now->hi[now->count] = v[1] + TWO_PI, now->row[now->count++] = r;
+                first = 1, last = c - 1;
+            }
+            for (int i = first; i < last; ++i) {
+                if (now->count >= L->room) return -1;
+                now->lo[now->count] = v[2 * i], now->hi[now->count] = v[2 * i + 1], now->row[now->count++] = r;
+            }
+        }
+        if (now->count == 0) {
+            status = k ? 1 : 2;
+            break;
+        }
+        if (k == L->max_rounds) break;
+        double top = -INFINITY;
+        for (int i = 0; i < now->count; ++i) {
+            double t[TRIALS];
+            trials(L, now, i, level, before, before_level, t);
+            int row = (int)now->row[i];
+            for (int j = 0; j < TRIALS; ++j) {
+                double mu, slope;
+                if (margin_at(L, row, t[j], &mu, &slope)) return -2;
+                now->x[TRIALS * i + j] = t[j], now->mu[TRIALS * i + j] = mu, now->slope[TRIALS * i + j] = slope;
+                ++evals[row], rounds[row] = k + 1;
+                if (mu > best_mu[row]) best_mu[row] = mu, best_psi[row] = wrap(t[j]);
+                if (mu > top) top = mu;
+            }
+        }
+        /* inside its level set every point has mu >= level: a round that found nothing there stops, unproved */
+        if (k && !(top > level - 0.5 * L->eps)) break;
+        if (top > best) best = top;
+        if (!isfinite(best)) break;
+        before_level = level;
+        level = fmax(best, 0.0) + L->eps;
+        before = now;
+        now = now == &buf[0] ? &buf[1] : &buf[0];
+    }
+    *level_out = level;
+    return status;
+}
