@@ -24,6 +24,7 @@ far it is from a solution). Outputs never hold NaN.
 
 from __future__ import annotations
 
+import math
 import operator
 import time
 from dataclasses import dataclass, field
@@ -45,6 +46,7 @@ from qpik.validate import pose as check_pose
 
 STATUSES = ("optimal", "unreachable", "no feasible branch", "solver failed")
 METHODS = ("auto", "levelset", "search", "ipopt")
+TWO_PI = 2.0 * math.pi
 VIOLATION_SAMPLES = 720
 """Parameter samples per branch when looking for the least-violating branch."""
 RETRIES = 2
@@ -321,7 +323,7 @@ def _solve(
         sets = maximise(scene, rows, weight)
         by_levels = sets.certified
         scene.counts += sets.evaluations
-        best.update_from(sets.points, sets.rounds)
+        best.take(-weight * sets.mu, sets.psi, sets.q, sets.rounds)
         cert_ok, bound = sets.certified.copy(), sets.bound.copy()
         method = "search"
     left = np.flatnonzero(~by_levels)
@@ -435,6 +437,15 @@ class _BestSoFar:
         self.f[i, b], self.psi[i, b], self.q[i, b] = f[top], np.asarray(psi)[top], np.asarray(q)[top]
         self.clearance[i, b] = np.asarray(clearance)[top]
 
+    def take(self, f: np.ndarray, psi: np.ndarray, q: np.ndarray, rounds: np.ndarray) -> None:
+        """Each (pose, branch row)'s best point already found: f (N, B) (+inf where none), ψ (N, B), q (N, B, n),
+        rounds (N, B); a point replaces a worse best."""
+        better = f < self.f
+        self.f = np.where(better, f, self.f)
+        self.psi = np.where(better, psi, self.psi)
+        self.q = np.where(better[..., None], q, self.q)
+        self.rounds = np.maximum(self.rounds, rounds)
+
     def update_from(self, pts: Points, rounds: np.ndarray) -> None:
         """:meth:`update` with evaluated points (the invalid ones skipped)."""
         f = np.where(pts.valid, pts.f, np.inf)
@@ -449,25 +460,32 @@ class _BestSoFar:
 
 
 def _tables(scene: Scene, best: _BestSoFar, searched: list[int]) -> list[list[BranchOptimum]]:
-    """Per pose, the per-branch table: every branch, a mirrored one from its searched row."""
+    """Per pose, the per-branch table: every branch, a mirrored one from its searched row (plain floats: a few
+    poses' tables cost less so than through numpy's calls)."""
     sm = scene.selfmotion
-    ids = sm.branch_ids.tolist()
-    mirrors = [sm.mirror(k) for k in range(len(ids))]
-    r = np.array([k if m is None else m[0] for k, m in enumerate(mirrors)])
-    own = np.array([m is None for m in mirrors])
-    shift = np.array([0.0 if m is None else m[1] for m in mirrors])
-    evals = np.where(own, scene.counts[:, r], 0)  # (N, branches)
-    share = evals / np.maximum(scene.counts.sum(axis=1), 1)[:, None]
-    f, psi = best.f[:, r], best.psi[:, r]
-    feasible = np.isfinite(f)
-    param = np.where(feasible, np.where(own, psi, wrap(psi - shift)), 0.0)
-    done = np.isin(r, searched).tolist()
-    columns = zip(*(x.tolist() for x in (feasible, param, f, np.where(own, best.rounds[:, r], 0), evals, share)))
-    return [
-        [BranchOptimum(ids[k], done[k], ok[k], p[k] if ok[k] else None, fv[k],
-                       best.q[i, r[k]].copy() if ok[k] else None, rn[k], ev[k], sh[k]) for k in range(len(ids))]
-        for i, (ok, p, fv, rn, ev, sh) in enumerate(columns)
-    ]  # fmt: skip
+    mirrors = [sm.mirror(k) for k in range(len(sm.branch_ids))]
+    # per branch: (id, its searched row, its shift (None: its own row), searched)
+    columns = [(int(bid), k if m is None else m[0], None if m is None else m[1], (k if m is None else m[0]) in searched)
+               for k, (bid, m) in enumerate(zip(sm.branch_ids.tolist(), mirrors))]  # fmt: skip
+    out = []
+    for f, psi, rounds, counts, q in zip(best.f.tolist(), best.psi.tolist(), best.rounds.tolist(),
+                                         scene.counts.tolist(), best.q):  # fmt: skip
+        total = max(sum(counts), 1)
+        table = []
+        for bid, r, shift, done in columns:
+            ok = f[r] < math.inf
+            param = (psi[r] if shift is None else _wrap(psi[r] - shift)) if ok else None
+            own = shift is None
+            evals = counts[r] if own else 0
+            table.append(BranchOptimum(bid, done, ok, param, f[r], q[r].copy() if ok else None,
+                                       rounds[r] if own else 0, evals, evals / total))  # fmt: skip
+        out.append(table)
+    return out
+
+
+def _wrap(x: float) -> float:
+    """:func:`qpik.analytic.intervals.wrap` of one float."""
+    return x + TWO_PI * math.floor((math.pi - x) / TWO_PI)
 
 
 def _result(

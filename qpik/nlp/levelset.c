@@ -130,13 +130,14 @@ static void trials(const LevelSet *L, const Pieces *now, int i, double level, co
     t[2] = isfinite(root) ? fmin(fmax(root, a), b) : mid;
 }
 
-/* The rounds for the pose (16, column-major). Per searched row r: best_mu[r], best_psi[r] the best point evaluated
- * (-inf, 0 when none), rounds[r] the last round that evaluated it, evals[r] its evaluations; *level the last level.
+/* The rounds for the pose (16, column-major). Per searched row r: best_mu[r], best_psi[r] and best_q[r n ...] (n) the
+ * best point evaluated (-inf, 0 and untouched when none), rounds[r] the last round that evaluated the row, evals[r]
+ * its evaluations; *level the last level.
  * Returns 1 when the maximum is proved (the sets at the last level are empty), 0 when not (a round found nothing
  * inside its own level set, or max_rounds rounds), 2 when the sets at level 0 are empty, -1 when the sets failed
  * or more than room pieces came, -2 when the self-motion failed. */
-int qpik_levelset(const LevelSet *L, const double *pose, double *best_mu, double *best_psi, int *rounds, int *evals,
-                  double *level_out) {
+int qpik_levelset(const LevelSet *L, const double *pose, double *best_mu, double *best_psi, double *best_q,
+                  int *rounds, int *evals, double *level_out) {
     int R = L->rows, n = L->n, status = 0;
     memcpy(L->sets_pose, pose, 16 * sizeof(double));
     memcpy(L->motion_pose, pose, 16 * sizeof(double));
@@ -180,7 +181,10 @@ int qpik_levelset(const LevelSet *L, const double *pose, double *best_mu, double
                 if (margin_at(L, row, t[j], &mu, &slope)) return -2;
                 now->x[TRIALS * i + j] = t[j], now->mu[TRIALS * i + j] = mu, now->slope[TRIALS * i + j] = slope;
                 ++evals[row], rounds[row] = k + 1;
-                if (mu > best_mu[row]) best_mu[row] = mu, best_psi[row] = wrap(t[j]);
+                if (mu > best_mu[row]) {
+                    best_mu[row] = mu, best_psi[row] = wrap(t[j]);
+                    memcpy(best_q + (size_t)row * n, L->motion_out, (size_t)n * sizeof(double));
+                }
                 if (mu > top) top = mu;
             }
         }

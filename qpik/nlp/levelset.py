@@ -82,18 +82,21 @@ def margin_weight(objective: Objective, obstacles: ObstacleSet, robot) -> float 
 
 @dataclass
 class LevelSets:
-    """What :func:`maximise` found.
+    """What :func:`maximise` found: per pose and searched branch row, the best point the rounds evaluated.
 
     Attributes:
-        points: the best point evaluated on each (pose, branch row) (the Python rounds: every evaluated point).
-        rounds: (M,) the round of each point (1 for the first).
-        evaluations: (N, searched rows) the points evaluated per pose and branch row.
+        mu: (N, R) its margin (−inf where the rounds evaluated none); psi: (N, R) its parameter, rad;
+            q: (N, R, n) its configuration, rad.
+        rounds: (N, R) the last round that evaluated the row (1 for the first); evaluations: (N, R) the points it
+            evaluated.
         certified: (N,) the best point of the pose is proved to be within ε of the maximum.
         bound: (N,) for a certified pose, a lower bound of the objective over every feasible point
             (−w (μ + ε)); -inf otherwise.
     """
 
-    points: Points
+    mu: np.ndarray
+    psi: np.ndarray
+    q: np.ndarray
     rounds: np.ndarray
     evaluations: np.ndarray
     certified: np.ndarray
@@ -110,11 +113,11 @@ def maximise(scene: Scene, rows: list[int], weight: float) -> LevelSets:
     if native is not None:
         return native(scene, weight)
     solver = sm.solver
-    N = len(scene.poses)
+    N, R, n = len(scene.poses), sm.searched, scene.robot.dof
+    out = LevelSets(np.full((N, R), -np.inf), np.zeros((N, R)), np.zeros((N, R, n)), np.zeros((N, R), int),
+                    np.zeros((N, R), int), np.zeros(N, bool), np.full(N, -np.inf))  # fmt: skip
     best = np.full(N, -np.inf)
     level = np.zeros(N)
-    certified = np.zeros(N, bool)
-    parts, rounds = [], []
     current = {i: solver.feasible_intervals(T) for i, T in enumerate(scene.poses)}
     parent = None
     for k in range(MAX_ROUNDS + 1):
@@ -122,15 +125,14 @@ def maximise(scene: Scene, rows: list[int], weight: float) -> LevelSets:
         found = np.zeros(N, bool)
         found[pieces.pose] = True
         if k:
-            certified[[i for i in current if not found[i]]] = True
+            out.certified[[i for i in current if not found[i]]] = True
         if not len(pieces) or k == MAX_ROUNDS:
             break
         psi = _trials(pieces, parent)  # (3, P)
         pts = scene.evaluate(np.tile(pieces.pose, len(psi)), np.tile(pieces.row, len(psi)), wrap(psi.ravel()))
-        parts.append(pts)
-        rounds.append(np.full(len(pts), k + 1))
         ok = pts.valid & np.isfinite(pts.f)
         mu = np.where(ok, -pts.f / weight, -np.inf)
+        _keep_best(out, pts, mu, k + 1)
         top = np.full(N, -np.inf)
         np.maximum.at(top, pts.pose, mu)
         pieces.x, pieces.mu = psi, mu.reshape(len(psi), -1)
@@ -142,11 +144,21 @@ def maximise(scene: Scene, rows: list[int], weight: float) -> LevelSets:
         level = np.maximum(best, 0.0) + EPS
         current = {i: solver.feasible_intervals(scene.poses[i], margin=float(level[i])) for i in np.flatnonzero(moved)}
         parent = pieces
-    points = Points.join(parts) if parts else scene.values(np.zeros(0, int), np.zeros(0, int), np.zeros(0))
-    evaluations = np.zeros((N, sm.searched), int)
-    np.add.at(evaluations, (points.pose, points.row), 1)
-    bound = np.where(certified, -weight * level, -np.inf)
-    return LevelSets(points, np.concatenate(rounds) if rounds else np.zeros(0, int), evaluations, certified, bound)
+    out.bound = np.where(out.certified, -weight * level, -np.inf)
+    return out
+
+
+def _keep_best(out: LevelSets, pts: Points, mu: np.ndarray, round_: int) -> None:
+    """The points of round ``round_`` (their margins ``mu``) into ``out``: each row's best, its rounds and counts."""
+    np.add.at(out.evaluations, (pts.pose, pts.row), 1)
+    out.rounds[pts.pose, pts.row] = round_
+    order = np.lexsort((-mu, pts.row, pts.pose))
+    first = np.ones(len(order), bool)
+    first[1:] = (pts.pose[order][1:] != pts.pose[order][:-1]) | (pts.row[order][1:] != pts.row[order][:-1])
+    top = order[first]
+    top = top[mu[top] > out.mu[pts.pose[top], pts.row[top]]]
+    i, r = pts.pose[top], pts.row[top]
+    out.mu[i, r], out.psi[i, r], out.q[i, r] = mu[top], pts.psi[top], pts.q[top]
 
 
 @dataclass
@@ -282,22 +294,19 @@ class _Native:
         self._address = ctypes.addressof(self._call)
 
     def __call__(self, scene: Scene, weight: float) -> LevelSets:
-        N, R = len(scene.poses), self._rows
-        mu, psi = np.full((N, R), -np.inf), np.zeros((N, R))
-        rounds, evals = np.zeros((N, R), np.intc), np.zeros((N, R), np.intc)
-        level, status = np.zeros(N), np.zeros(N, int)
+        N, R, n = len(scene.poses), self._rows, scene.robot.dof
+        out = LevelSets(np.full((N, R), -np.inf), np.zeros((N, R)), np.zeros((N, R, n)), np.zeros((N, R), np.intc),
+                        np.zeros((N, R), np.intc), np.zeros(N, bool), np.zeros(N))  # fmt: skip
         poses = np.ascontiguousarray(scene.columns)
-        step = 8 * R
+        status = np.zeros(N, int)
         call, address = self._dll.qpik_levelset, self._address
-        at = [a.ctypes.data for a in (poses, mu, psi, rounds, evals, level)]
+        at = [a.ctypes.data for a in (poses, out.mu, out.psi, out.q, out.rounds, out.evaluations, out.bound)]
         for i in range(N):
-            status[i] = call(address, at[0] + 128 * i, at[1] + step * i, at[2] + step * i, at[3] + 4 * R * i,
-                             at[4] + 4 * R * i, at[5] + 8 * i)  # fmt: skip
-        pose, row = np.nonzero(np.isfinite(mu))
-        points = scene.evaluate(pose, row, psi[pose, row])
-        certified = status == 1
-        bound = np.where(certified, -weight * level, -np.inf)
-        return LevelSets(points, rounds[pose, row].astype(int), evals.astype(int), certified, bound)
+            status[i] = call(address, at[0] + 128 * i, at[1] + 8 * R * i, at[2] + 8 * R * i, at[3] + 8 * R * n * i,
+                             at[4] + 4 * R * i, at[5] + 4 * R * i, at[6] + 8 * i)  # fmt: skip
+        out.certified = status == 1
+        out.bound = np.where(out.certified, -weight * out.bound, -np.inf)  # the C call wrote the last level there
+        return out
 
 
 _NATIVE: dict[int, tuple[SelfMotion, _Native | None]] = {}
@@ -326,5 +335,5 @@ def _library() -> ctypes.CDLL | None:
         return None
     dll = ctypes.PyDLL(str(lib))
     dll.qpik_levelset.restype = ctypes.c_int
-    dll.qpik_levelset.argtypes = [ctypes.c_void_p] * 7
+    dll.qpik_levelset.argtypes = [ctypes.c_void_p] * 8
     return dll
