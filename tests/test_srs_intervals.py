@@ -77,12 +77,13 @@ def test_intervals_match_dense_sampling(seed):
 
 def test_intervals_exact_without_a_c_compiler(monkeypatch):
     """With no C compiler the gaps are classified in numpy (:class:`qpik.analytic.intervals.Assembler`): same sets."""
-    from qpik.analytic import intervals
+    from qpik.analytic import intervals, srs_intervals
     from qpik.analytic.srs_intervals import PsiIntervals
 
     monkeypatch.setattr(intervals, "_library", lambda: None)
+    monkeypatch.setattr(srs_intervals, "_library", lambda: None)
     without = PsiIntervals(SOLVER)
-    assert without._assemble._native is None
+    assert without._fixed.native is None and without._assemble._native is None
     rng = np.random.default_rng(3)
     assert sum(check_pose(T, rng, without) for T in ROBOT.fk(random_q(ROBOT, 50, 3))) > 0
 
@@ -165,15 +166,14 @@ def poses_for(robot: qpik.Robot, seed: int, n: int) -> np.ndarray:
 @pytest.fixture(scope="module")
 def without_compiler():
     """PsiIntervals of iiwa14 and of the asymmetric arm, gaps classified in numpy (no C compiler)."""
-    from qpik.analytic import intervals
+    from qpik.analytic import intervals, srs_intervals
     from qpik.analytic.srs_intervals import PsiIntervals
 
-    real, intervals._library = intervals._library, lambda: None
-    try:
+    with pytest.MonkeyPatch.context() as mp:
+        for module in (intervals, srs_intervals):
+            mp.setattr(module, "_library", lambda: None)
         out = [PsiIntervals(solver_for(robot)) for robot in (ROBOT, ASYMMETRIC)]
-    finally:
-        intervals._library = real
-    assert all(x._assemble._native is None for x in out)
+        assert all(x._fixed.native is None and x._shrunk.native is None and x._assemble._native is None for x in out)
     return out
 
 
@@ -228,3 +228,80 @@ def test_the_best_margin_is_where_the_sets_vanish():
         T = ROBOT.fk(q)
         assert qpik.feasible_intervals(ROBOT, T, margin=mu - 1e-6).contains(branch, psi)
         assert not qpik.feasible_intervals(ROBOT, T, margin=mu + 1e-3).contains(branch, psi)
+
+
+# ---- the one C call (qpik_psi_sets) and its NativeSets ------------------------------------------------------------
+
+
+def singular_poses(robot: qpik.Robot, seed: int, n: int) -> np.ndarray:
+    """Poses with θ2 or θ6 = 0 (a shoulder or wrist singular ψ, a breakpoint of its own), inside the limits."""
+    q = random_q(robot, n, seed, margin=0.2)
+    q[np.arange(n), np.where(np.arange(n) % 2, 1, 5)] = 0.0
+    return robot.fk(q)
+
+
+def unreachable(T: np.ndarray) -> np.ndarray:
+    """T moved 10 m away from the base: out of every arm's reach."""
+    out = T.copy()
+    out[:3, 3] += 10.0
+    return out
+
+
+def same_sets(a, b) -> None:
+    """Two FeasibleIntervals with the same branches, pieces (to 1e-12 rad) and singular values (exactly)."""
+    assert np.array_equal(a.branch, b.branch) and a.singular == b.singular
+    for k, (x, y) in enumerate(zip(a.intervals, b.intervals)):
+        assert len(x) == len(y) and np.allclose(x, y, atol=1e-12, rtol=0), (k, x, y)
+
+
+def test_one_c_call_agrees_with_the_numpy_path(without_compiler):
+    """qpik_psi_sets against the breakpoint function and the numpy Assembler: both arms, 150 poses each (uniform,
+    near a limit, singular, unreachable), margin 0 and a random margin in (0, 1.1) (above 1 every set is empty)."""
+    rng = np.random.default_rng(11)
+    for robot, numpy_path in zip((ROBOT, ASYMMETRIC), without_compiler):
+        c_path = solver_for(robot)._intervals
+        if c_path._fixed.native is None:
+            pytest.skip("no C compiler: the numpy path only (test_intervals_exact_without_a_c_compiler)")
+        poses = np.concatenate([poses_for(robot, 12, 120), singular_poses(robot, 13, 20)])
+        poses = np.concatenate([poses, [unreachable(T) for T in poses[:10]]])
+        for T in poses:
+            for margin in (0.0, float(rng.uniform(0.0, 1.1))):
+                same_sets(c_path(T, margin), numpy_path(T, margin))
+
+
+def native_lists(sets, rows: int) -> list[list[tuple[float, float]]]:
+    """Rows 0..rows-1 of a NativeSets' output: count[r] pieces each, one row after the other in iv."""
+    bounds = np.concatenate([[0], np.cumsum(sets.count[:rows])])
+    pieces = sets.iv[: 2 * bounds[-1]].reshape(-1, 2)
+    return [[tuple(x) for x in pieces[a:b].tolist()] for a, b in itertools.pairwise(bounds)]
+
+
+@pytest.mark.parametrize("robot", [ROBOT, ASYMMETRIC], ids=["iiwa14", "asymmetric"])
+def test_native_sets_called_through_ctypes(robot, without_compiler):
+    """SRSSolver.native_sets() called as C code calls it: the pose (column-major) and shrunk limits written into its
+    buffers give the sets of feasible_intervals(T, margin) and of the numpy path; an unreachable pose gives none."""
+    import ctypes
+
+    from qpik.analytic.intervals import shrunk_limits
+
+    solver = solver_for(robot)
+    sets = solver.native_sets()
+    if sets is None:
+        pytest.skip("no C compiler")
+    call = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p)(sets.function)
+    numpy_path = without_compiler[0 if robot is ROBOT else 1]
+    rng = np.random.default_rng(17)
+    for T in np.concatenate([poses_for(robot, 18, 20), singular_poses(robot, 19, 4)]):
+        for margin in (0.0, float(rng.uniform(0.0, 0.8))):
+            sets.pose[:] = T.reshape(-1, order="F")
+            sets.lo[:], sets.hi[:] = shrunk_limits(robot.q_min, robot.q_max, margin)
+            m = call(sets.context)
+            assert m == sets.count[:8].sum()
+            got = native_lists(sets, 8)
+            assert got == solver.feasible_intervals(T, margin).intervals
+            expected = numpy_path(T, margin)
+            for k in range(8):
+                assert len(got[k]) == len(expected[k]) and np.allclose(got[k], expected[k], atol=1e-12, rtol=0), k
+        sets.pose[:] = unreachable(T).reshape(-1, order="F")
+        assert call(sets.context) == 0 and not sets.count[:8].any()
+        assert solver.feasible_intervals(unreachable(T), margin).intervals == [[]] * 8

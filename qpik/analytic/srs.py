@@ -97,7 +97,7 @@ import numpy as np
 
 from qpik import symbolic as sy
 from qpik.analytic import trig
-from qpik.analytic.intervals import FeasibleIntervals
+from qpik.analytic.intervals import FeasibleIntervals, NativeSets
 from qpik.analytic.solver import AnalyticSolver, Branches
 from qpik.analytic.trig import EPS
 from qpik.errors import NoClosedFormError
@@ -402,3 +402,8 @@ class SRSSolver(AnalyticSolver):
         every joint within its limits shrunk by it (:func:`qpik.analytic.intervals.shrunk_limits`) instead.
         """
         return self._intervals(T, margin)
+
+    def native_sets(self) -> NativeSets | None:
+        """:meth:`feasible_intervals` under limits given at run time as one C call (``qpik_psi_sets``,
+        :class:`~qpik.analytic.intervals.NativeSets`: rows 0–7, the branches); None without a compiler."""
+        return self._intervals.native_sets()

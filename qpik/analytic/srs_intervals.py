@@ -35,6 +35,12 @@ one compilation serves every margin; the gaps are classified by the IK's limit t
 Its cos-type equations are not merged numerically (the levels are symbols), only where the two limits' cos L
 agree at every margin (symmetric limits). Above m = 1 the shrunk limits are empty and so is every set.
 
+With a C compiler the sets are one C call (``srs_intervals.c``, compiled with ``intervals.c``): the breakpoint
+function and the classification of the gaps by the IK, which reads the same pose and limit buffers, with no numpy in
+between (:meth:`PsiIntervals.native_sets` hands it to C code that calls it in a loop); the singular values are
+then read from the breakpoint function's output. Without one, the same steps run in numpy (the compiled breakpoint
+function, then the Assembler).
+
 The singular values listed per branch are the ψ where :math:`|M_{22}| = 1` for
 the shoulder or the wrist (θ2 or θ6 = 0 or π): the maximum :math:`c + \sqrt{a^2+b^2}`
 of :math:`M_{22}` is at ψ = atan2(a, b), the minimum at atan2(−a, −b) (Shimizu et al. 2008,
@@ -45,7 +51,11 @@ with the tool along the forearm) is flagged by ``ik`` and not listed here.
 
 from __future__ import annotations
 
-from functools import cached_property
+import ctypes
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import cache, cached_property
+from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple
 
 import casadi as ca
@@ -53,9 +63,19 @@ import numpy as np
 
 from qpik import symbolic as sy
 from qpik.analytic import trig
-from qpik.analytic.intervals import Assembler, FeasibleIntervals, shrunk_limits, wrap
+from qpik.analytic.intervals import (
+    Assembler,
+    FeasibleIntervals,
+    Interval,
+    NativeSets,
+    check_sets,
+    list_maker,
+    shrunk_limits,
+    wrap,
+)
+from qpik.analytic.intervals import c_source as intervals_source
 from qpik.analytic.srs import arm_setup, branch_signs
-from qpik.compiled import Compiled
+from qpik.compiled import Compiled, NativeFunction, shared_library
 from qpik.symbolic import Scalar
 
 if TYPE_CHECKING:
@@ -93,23 +113,38 @@ class PsiIntervals:
         self.branch = np.array(solver.branch_ids)
         self.levels = [solver.levels(j) for j in range(solver.robot.dof)]  # in the table's angles
         fixed = [JointLevels(_pairs(x), np.unique(np.cos(x)).tolist()) for x in self.levels]
-        T = ca.SX.sym("T", 4, 4)
-        breaks, singular, valid = self.expressions(T, fixed)
-        out = [ca.vertcat(*breaks), ca.vertcat(*singular), valid]
-        self._fn = Compiled(ca.Function("srs_breakpoints", [T], out))
+        self._fixed = self._compile("srs_breakpoints", [], fixed)
         signs = np.array([branch_signs(k) for k in solver.branch_ids])
         self._i_elbow = signs[:, 1]
-        self._assemble = Assembler(solver, rows=len(self.branch))
 
     @cached_property
-    def _margin_fn(self) -> Compiled:
-        """``(T, q_min (n,), q_max (n,)) -> (breaks, singular, valid)``: :meth:`expressions` with the levels of the
-        limits given as inputs (:meth:`shrunk_levels`), compiled once for every margin."""
+    def _shrunk(self) -> _Breakpoints:
+        """The breakpoint function of shrunk limits, ``(T, q_min (n,), q_max (n,))`` (rad, the robot's angles), its
+        levels symbols (:meth:`shrunk_levels`): compiled on first use, once for every margin."""
         n = self._solver.robot.dof
-        T, lo, hi = ca.SX.sym("T", 4, 4), ca.SX.sym("q_min", n), ca.SX.sym("q_max", n)
-        breaks, singular, valid = self.expressions(T, [self.shrunk_levels(j, lo[j], hi[j]) for j in range(n)])
+        lo, hi = ca.SX.sym("q_min", n), ca.SX.sym("q_max", n)
+        levels = [self.shrunk_levels(j, lo[j], hi[j]) for j in range(n)]
+        return self._compile("srs_breakpoints_margin", [lo, hi], levels)
+
+    @cached_property
+    def _assemble(self) -> Assembler:
+        """The gaps' classification of the path without the one C call."""
+        return Assembler(self._solver, rows=len(self.branch))
+
+    def _compile(self, name: str, inputs: list[ca.SX], levels: list[JointLevels]) -> _Breakpoints:
+        """The breakpoint function ``name`` of the pose T (4, 4) and ``inputs`` (the symbols of ``levels``):
+        ``(breaks, singular, valid)`` of :meth:`expressions`, and its one C call."""
+        T = ca.SX.sym("T", 4, 4)
+        breaks, singular, valid = self.expressions(T, levels)
         out = [ca.vertcat(*breaks), ca.vertcat(*singular), valid]
-        return Compiled(ca.Function("srs_breakpoints_margin", [T, lo, hi], out))
+        fn = Compiled(ca.Function(name, [T, *inputs], out))
+        return _Breakpoints(fn, _NativePsi.build(fn, self._solver, len(self.branch)))
+
+    def native_sets(self) -> NativeSets | None:
+        """The sets under limits given at run time as one C call (the shrunk limits' function), None without a
+        compiler."""
+        native = self._shrunk.native
+        return None if native is None else native.sets()
 
     def shrunk_levels(self, j: int, lo: ca.SX, hi: ca.SX) -> JointLevels:
         r"""The levels of joint j for its limits shrunk to ``[lo, hi]`` (rad, symbols; ``margin`` > 0).
@@ -173,16 +208,137 @@ class PsiIntervals:
         """The sets of the pose T (4, 4, world frame) with every joint in its limits shrunk by ``margin`` >= 0
         (:func:`~qpik.analytic.intervals.shrunk_limits`; 0: the limits themselves, above 1: every set empty)."""
         if margin == 0.0:
-            limits = None
-            breaks, singular, valid = self._fn(T)
+            fn, limits = self._fixed, None
         else:
             robot = self._solver.robot
-            limits = shrunk_limits(robot.q_min, robot.q_max, margin)
-            breaks, singular, valid = self._margin_fn(T, *limits)
+            fn, limits = self._shrunk, shrunk_limits(robot.q_min, robot.q_max, margin)
+        if fn.native is not None:
+            intervals, singular, valid = fn.native(T, limits)
+        else:
+            breaks, singular, valid = fn.fn(T, *(() if limits is None else limits))
         n = len(self.branch)
         if valid[0] < 0.5:
             return FeasibleIntervals("psi", self.branch.copy(), [[] for _ in range(n)], [[] for _ in range(n)])
-        found = singular != NONE  # rare: only at singular poses
-        sing = [np.unique(x[f]) for x, f in zip(singular.reshape(2, -1), found.reshape(2, -1))] if found.any() else _NO
-        intervals, _ = self._assemble(T, np.concatenate([breaks, *sing]), _NO[0], limits)
+        sing = _singular(singular)
+        if fn.native is None:  # the singular ψ are breakpoints too
+            intervals, _ = self._assemble(T, np.concatenate([breaks, *sing]), _NO[0], limits)
         return FeasibleIntervals("psi", self.branch.copy(), intervals, [sing[e].tolist() for e in self._i_elbow])
+
+
+def _singular(singular: np.ndarray) -> Sequence[np.ndarray]:
+    """The singular ψ (rad, sorted, distinct) per elbow sign from the breakpoint function's output (8,) (``NONE``
+    where one does not exist)."""
+    found = singular != NONE  # rare: only at singular poses
+    if not found.any():
+        return _NO
+    return [np.unique(x[f]) for x, f in zip(singular.reshape(2, -1), found.reshape(2, -1))]
+
+
+@dataclass(frozen=True)
+class _Breakpoints:
+    """A compiled breakpoint function (of the pose, and of the limits for the shrunk limits') and its one C call
+    (None without a compiler)."""
+
+    fn: Compiled
+    native: _NativePsi | None
+
+
+class _Kernel(ctypes.Structure):
+    """``Kernel`` of ``srs_intervals.c``: a generated function's entry, pointer arrays, work arrays."""
+
+    _fields_ = [(name, ctypes.c_void_p) for name in ("fn", "arg", "res", "iw", "w")]
+
+
+class _PsiSets(ctypes.Structure):
+    """``PsiSets`` of ``srs_intervals.c`` (same fields, same order)."""
+
+    _fields_ = [("breakpoints", _Kernel), ("n_breaks", ctypes.c_int), ("n_sing", ctypes.c_int)]
+    _fields_ += [("none", ctypes.c_double), ("ik", _Kernel), ("param", ctypes.c_void_p), ("rows", ctypes.c_int)]
+    _fields_ += [("breaks", ctypes.c_void_p), ("room", ctypes.c_int)]
+    _fields_ += [(name, ctypes.c_void_p) for name in ("iv", "sv", "count", "scount")]
+
+
+class _NativePsi:
+    """:class:`PsiIntervals` in one C call (``qpik_psi_sets``, ``srs_intervals.c``): the breakpoint function's and
+    the IK's generated C and the :class:`~qpik.analytic.intervals.Assembler`'s gap classification, over buffers
+    allocated once; the arrays become lists by :func:`~qpik.analytic.intervals.list_maker`'s function."""
+
+    def __init__(self, dll: ctypes.CDLL, breaks: NativeFunction, ik: NativeFunction, rows: int):
+        self._dll, self._breaks, self._ik = dll, breaks, ik  # the C call uses their buffers: they live as long
+        self._pose = breaks.args[0].reshape(4, 4).T  # T column-major, as both generated functions read it
+        self._limits = ik.args[2:4]  # the IK's limit buffers, shared with the breakpoint function's when it takes them
+        n_breaks, n_sing = breaks.res[0].size, breaks.res[1].size
+        room = rows * (n_breaks + n_sing + 2)  # at most one piece more than gaps per row
+        self._arrays = {
+            "breaks": np.zeros(n_breaks + n_sing),
+            "iv": np.zeros(2 * room),
+            "sv": np.zeros(1),
+            "count": np.zeros(rows, np.intc),
+            "scount": np.zeros(rows, np.intc),
+        }
+        self._call = _PsiSets(
+            breakpoints=_Kernel(*breaks.addresses),
+            n_breaks=n_breaks,
+            n_sing=n_sing,
+            none=NONE,
+            ik=_Kernel(*ik.addresses),
+            param=ik.args[1].ctypes.data,
+            rows=rows,
+            room=room,
+            **{name: x.ctypes.data for name, x in self._arrays.items()},
+        )
+        self._address = ctypes.addressof(self._call)
+        self._lists = list_maker()
+
+    @classmethod
+    def build(cls, breaks: Compiled, solver: SRSSolver, rows: int) -> _NativePsi | None:
+        """The C path over the breakpoint function ``breaks`` (of T, or of T, q_min and q_max) and ``solver``'s checked
+        IK of its first ``rows`` branches (of T, ψ, q_min and q_max), or None when one of them or the C source is not
+        native code. Both read T from one buffer, and q_min and q_max too when ``breaks`` takes them; else the IK's
+        hold the robot's limits."""
+        dll = _library()
+        bp = None if dll is None else NativeFunction.of(breaks, outputs=(0, 1, 2))
+        if bp is None:
+            return None
+        shared = {0: bp.args[0]} | ({2: bp.args[1], 3: bp.args[2]} if len(bp.args) == 3 else {})
+        ik = NativeFunction.of(solver.checked(rows), outputs=(1,), inputs=shared)
+        if ik is None:
+            return None
+        if len(bp.args) == 1:
+            ik.args[2][:], ik.args[3][:] = solver.robot.q_min, solver.robot.q_max
+        return cls(dll, bp, ik, rows)
+
+    def sets(self) -> NativeSets:
+        """This call as :class:`~qpik.analytic.intervals.NativeSets` (for a breakpoint function of the limits)."""
+        a = self._arrays
+        address = ctypes.cast(self._dll.qpik_psi_sets, ctypes.c_void_p).value
+        return NativeSets(address, self._address, self._breaks.args[0], *self._limits, a["iv"], a["count"], self)
+
+    def __call__(
+        self, T: np.ndarray, limits: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> tuple[list[list[Interval]], np.ndarray, np.ndarray]:
+        """For the pose T (4, 4): the sets of the rows (empty for an unreachable pose), and the breakpoint function's
+        singular ψ (8,) and ``valid`` (1,) outputs (views its next call overwrites); ``limits`` ``(q_min, q_max)``
+        ((n,) rad) for a breakpoint function that takes them."""
+        self._pose[...] = T
+        if limits is not None:
+            self._limits[0][:], self._limits[1][:] = limits
+        check_sets(self._dll.qpik_psi_sets(self._address), "qpik_psi_sets")
+        a = self._arrays
+        intervals, _ = self._lists(a["iv"], a["count"], a["sv"], a["scount"], 0)
+        _, singular, valid = self._breaks.res
+        return intervals, singular, valid
+
+
+@cache
+def _library() -> ctypes.CDLL | None:
+    """``srs_intervals.c`` compiled after ``intervals.c`` (whose ``circle_sets`` it calls), loaded as a
+    :class:`ctypes.PyDLL` (its call keeps the GIL). Its buffers belong to the solver: like every compiled call of
+    qpik's, one arm's solver is not for several threads at once."""
+    lib = shared_library("qpik_psi_intervals", intervals_source() + Path(__file__).with_suffix(".c").read_bytes())
+    if lib is None:
+        return None
+    dll = ctypes.PyDLL(str(lib))
+    dll.qpik_psi_sets.restype = ctypes.c_int
+    dll.qpik_psi_sets.argtypes = [ctypes.c_void_p]
+    return dll
