@@ -236,6 +236,19 @@ def entry_point(library: Path, name: str) -> tuple[int, ctypes.CDLL] | None:
     return ctypes.cast(getattr(dll, name), ctypes.c_void_p).value, dll
 
 
+def call_header() -> bytes:
+    """``casadi_call.h``: the types qpik's C code uses to call CasADi-generated C (``casadi_fn``, ``Kernel``), for the
+    start of its sources."""
+    return Path(__file__).with_name("casadi_call.h").read_bytes()
+
+
+class Kernel(ctypes.Structure):
+    """``Kernel`` of ``casadi_call.h``: a generated function's entry, argument and result pointer arrays, work arrays
+    (:attr:`NativeFunction.addresses`)."""
+
+    _fields_ = [(name, ctypes.c_void_p) for name in ("fn", "arg", "res", "iw", "w")]
+
+
 class NativeFunction:
     """A compiled function's C entry point (CasADi's calling convention: ``casadi_fn`` in ``intervals.c``) with what
     C code needs to call it: numpy buffers of its inputs (:attr:`args`, column-major) and of the outputs asked for
@@ -256,6 +269,11 @@ class NativeFunction:
         self._work = (argv, resv, np.zeros(max(fn.sz_iw(), 1), np.int64), np.zeros(max(fn.sz_w(), 1)))
         iw, w = self._work[2].ctypes.data, self._work[3].ctypes.data
         self.addresses = (address, ctypes.addressof(argv), ctypes.addressof(resv), iw, w)
+
+    @property
+    def kernel(self) -> Kernel:
+        """:attr:`addresses` as the C struct ``Kernel``."""
+        return Kernel(*self.addresses)
 
     @classmethod
     def of(

@@ -11,9 +11,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-typedef long long casadi_int;
-typedef int (*casadi_fn)(const double **arg, double **res, casadi_int *iw, double *w, int mem);
-
 #define PI 3.141592653589793
 #define TWO_PI 6.283185307179586
 

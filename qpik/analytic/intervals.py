@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from qpik import symbolic as sy
-from qpik.compiled import Compiled, NativeFunction, shared_library
+from qpik.compiled import Compiled, NativeFunction, call_header, shared_library
 from qpik.errors import InputError, SolverError
 from qpik.fastcall import extension
 from qpik.validate import finite_array, number
@@ -270,7 +270,7 @@ def python_lists(
 
 def c_source() -> bytes:
     """``intervals.c`` with its constants (:data:`SAME`), for a library of its own or one that includes it."""
-    return f"#define SAME {SAME!r}\n".encode() + Path(__file__).with_name("intervals.c").read_bytes()
+    return call_header() + f"#define SAME {SAME!r}\n".encode() + Path(__file__).with_name("intervals.c").read_bytes()
 
 
 @cache

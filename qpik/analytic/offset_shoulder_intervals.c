@@ -7,15 +7,6 @@
  * The same steps as DeltaIntervals.breakpoints and Assembler in numpy.
  */
 
-/* A CasADi-generated function and its argument and result pointer arrays and work arrays. */
-typedef struct {
-    void *fn;
-    const double **arg;
-    double **res;
-    casadi_int *iw;
-    double *w;
-} Kernel;
-
 typedef struct {
     Kernel breakpoints; /* pose (arg[0]) -> candidates, singular candidates, A (K, size), B (K, size); the shrunk
                            limits' function reads q_min, q_max too (arg[1], arg[2]: the IK's arg[2], arg[3]) */

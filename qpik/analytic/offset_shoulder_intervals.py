@@ -94,7 +94,7 @@ from qpik.analytic.polyroots import FLAGS as POLYROOTS_FLAGS
 from qpik.analytic.polyroots import ROOM, trig_roots
 from qpik.analytic.polyroots import c_source as polyroots_source
 from qpik.analytic.trig import EPS, acos2
-from qpik.compiled import Compiled, NativeFunction, shared_library
+from qpik.compiled import Compiled, Kernel, NativeFunction, shared_library
 from qpik.errors import QpikError
 from qpik.symbolic import Ops, Scalar
 
@@ -312,18 +312,12 @@ class _Breakpoints:
         return np.concatenate([cand, wrist]), sing
 
 
-class _Kernel(ctypes.Structure):
-    """``Kernel`` of ``offset_shoulder_intervals.c``: a generated function's entry, pointer arrays, work arrays."""
-
-    _fields_ = [(name, ctypes.c_void_p) for name in ("fn", "arg", "res", "iw", "w")]
-
-
 class _DeltaSets(ctypes.Structure):
     """``DeltaSets`` of ``offset_shoulder_intervals.c`` (same fields, same order)."""
 
-    _fields_ = [("breakpoints", _Kernel)]
+    _fields_ = [("breakpoints", Kernel)]
     _fields_ += [(name, ctypes.c_int) for name in ("n_cand", "n_sing", "K", "size", "a7", "b7", "a5", "b5")]
-    _fields_ += [("none", ctypes.c_double), ("common", ctypes.c_double), ("ik", _Kernel), ("param", ctypes.c_void_p)]
+    _fields_ += [("none", ctypes.c_double), ("common", ctypes.c_double), ("ik", Kernel), ("param", ctypes.c_void_p)]
     _fields_ += [("rows", ctypes.c_int), ("shift", ctypes.c_int), ("room_roots", ctypes.c_int)]
     _fields_ += [(name, ctypes.c_void_p) for name in ("delta", "breaks", "sing", "owner")]
     _fields_ += [("room", ctypes.c_int)] + [(name, ctypes.c_void_p) for name in ("iv", "sv", "count", "scount", "ns")]
@@ -359,7 +353,7 @@ class _NativeDelta:
         }
         a7, b7, a5, b5 = wrist_rows.tolist()
         self._call = _DeltaSets(
-            breakpoints=_Kernel(*breaks.addresses),
+            breakpoints=breaks.kernel,
             n_cand=cand.size,
             n_sing=sing.size,
             K=K,
@@ -370,7 +364,7 @@ class _NativeDelta:
             b5=b5,
             none=NONE,
             common=1.0 - 0.5 * COMMON_TOL**2,  # cos d > 1 − tol²/2 ⇔ |d| < tol on the circle
-            ik=_Kernel(*ik.addresses),
+            ik=ik.kernel,
             param=ik.args[1].ctypes.data,
             rows=self.ROWS,
             shift=1,

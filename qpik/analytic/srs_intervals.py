@@ -75,7 +75,7 @@ from qpik.analytic.intervals import (
 )
 from qpik.analytic.intervals import c_source as intervals_source
 from qpik.analytic.srs import arm_setup, branch_signs
-from qpik.compiled import Compiled, NativeFunction, shared_library
+from qpik.compiled import Compiled, Kernel, NativeFunction, shared_library
 from qpik.symbolic import Scalar
 
 if TYPE_CHECKING:
@@ -243,17 +243,11 @@ class _Breakpoints:
     native: _NativePsi | None
 
 
-class _Kernel(ctypes.Structure):
-    """``Kernel`` of ``srs_intervals.c``: a generated function's entry, pointer arrays, work arrays."""
-
-    _fields_ = [(name, ctypes.c_void_p) for name in ("fn", "arg", "res", "iw", "w")]
-
-
 class _PsiSets(ctypes.Structure):
     """``PsiSets`` of ``srs_intervals.c`` (same fields, same order)."""
 
-    _fields_ = [("breakpoints", _Kernel), ("n_breaks", ctypes.c_int), ("n_sing", ctypes.c_int)]
-    _fields_ += [("none", ctypes.c_double), ("ik", _Kernel), ("param", ctypes.c_void_p), ("rows", ctypes.c_int)]
+    _fields_ = [("breakpoints", Kernel), ("n_breaks", ctypes.c_int), ("n_sing", ctypes.c_int)]
+    _fields_ += [("none", ctypes.c_double), ("ik", Kernel), ("param", ctypes.c_void_p), ("rows", ctypes.c_int)]
     _fields_ += [("breaks", ctypes.c_void_p), ("room", ctypes.c_int)]
     _fields_ += [(name, ctypes.c_void_p) for name in ("iv", "sv", "count", "scount")]
 
@@ -277,11 +271,11 @@ class _NativePsi:
             "scount": np.zeros(rows, np.intc),
         }
         self._call = _PsiSets(
-            breakpoints=_Kernel(*breaks.addresses),
+            breakpoints=breaks.kernel,
             n_breaks=n_breaks,
             n_sing=n_sing,
             none=NONE,
-            ik=_Kernel(*ik.addresses),
+            ik=ik.kernel,
             param=ik.args[1].ctypes.data,
             rows=rows,
             room=room,

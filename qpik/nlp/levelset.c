@@ -10,22 +10,11 @@
 #include <math.h>
 #include <string.h>
 
-typedef long long casadi_int;
-typedef int (*casadi_fn)(const double **arg, double **res, casadi_int *iw, double *w, int mem);
 typedef int (*sets_fn)(const void *context);
 
 #define PI 3.141592653589793
 #define TWO_PI 6.283185307179586
 #define TRIALS 3
-
-/* A CasADi-generated function and its argument and result pointer arrays and work arrays. */
-typedef struct {
-    void *fn;
-    const double **arg;
-    double **res;
-    casadi_int *iw;
-    double *w;
-} Kernel;
 
 typedef struct {
     void *sets;          /* int sets(const void *context): the feasible sets of the pose and limits in its buffers */

@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from qpik.analytic.intervals import FeasibleIntervals, NativeSets, wrap
-from qpik.compiled import NativeFunction, shared_library
+from qpik.compiled import Kernel, NativeFunction, call_header, shared_library
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.scene import Points, Scene
 from qpik.nlp.search import END
@@ -255,17 +255,11 @@ ROOM = 1024
 """Pieces per round the C rounds hold; a pose with more is left unproved (to the search)."""
 
 
-class _Kernel(ctypes.Structure):
-    """``Kernel`` of ``levelset.c``: a generated function's entry, pointer arrays, work arrays."""
-
-    _fields_ = [(name, ctypes.c_void_p) for name in ("fn", "arg", "res", "iw", "w")]
-
-
 class _LevelSet(ctypes.Structure):
     """``LevelSet`` of ``levelset.c`` (same fields, same order)."""
 
     _fields_ = [(name, ctypes.c_void_p) for name in ("sets", "context", "sets_pose", "sets_lo", "sets_hi", "iv")]
-    _fields_ += [("count", ctypes.c_void_p), ("rows", ctypes.c_int), ("motion", _Kernel)]
+    _fields_ += [("count", ctypes.c_void_p), ("rows", ctypes.c_int), ("motion", Kernel)]
     _fields_ += [(name, ctypes.c_void_p) for name in ("motion_row", "motion_pose", "motion_psi", "motion_out")]
     _fields_ += [("n", ctypes.c_int), ("q_min", ctypes.c_void_p), ("q_max", ctypes.c_void_p)]
     _fields_ += [(name, ctypes.c_double) for name in ("eps", "end", "near", "slack")]
@@ -286,7 +280,7 @@ class _Native:
         self._call = _LevelSet(
             sets=sets.function, context=sets.context, sets_pose=sets.pose.ctypes.data, sets_lo=sets.lo.ctypes.data,
             sets_hi=sets.hi.ctypes.data, iv=sets.iv.ctypes.data, count=sets.count.ctypes.data, rows=self._rows,
-            motion=_Kernel(*motion.addresses), motion_row=row, motion_pose=pose, motion_psi=psi,
+            motion=motion.kernel, motion_row=row, motion_pose=pose, motion_psi=psi,
             motion_out=motion.res[0].ctypes.data, n=robot.dof, q_min=self._limits[0].ctypes.data,
             q_max=self._limits[1].ctypes.data, eps=EPS, end=END, near=NEAR, slack=SLACK, max_rounds=MAX_ROUNDS,
             room=ROOM, work=self._work.ctypes.data,
@@ -330,7 +324,7 @@ def _native(selfmotion: SelfMotion) -> _Native | None:
 def _library() -> ctypes.CDLL | None:
     """``levelset.c`` compiled, loaded as a :class:`ctypes.PyDLL` (its call keeps the GIL: the arm's buffers are one
     thread's at a time, under the solver's lock)."""
-    lib = shared_library("qpik_levelset", Path(__file__).with_suffix(".c").read_bytes())
+    lib = shared_library("qpik_levelset", call_header() + Path(__file__).with_suffix(".c").read_bytes())
     if lib is None:
         return None
     dll = ctypes.PyDLL(str(lib))
