@@ -50,3 +50,19 @@ def test_best_errors_are_one_line_with_exit_2(capsys):
 def test_unreachable_pose_is_a_status_not_an_error(capsys):
     assert main(["best", "-r", "iiwa14", "--position", "3 0 0"]) == 0
     assert "unreachable" in capsys.readouterr().out
+
+
+def test_method_levelset_prints_its_table_and_refuses_obstacles(capsys):
+    """``--method levelset`` (the default for the margin alone) says what its table holds; with an obstacle it is a
+    one-line error."""
+    robot = qpik.load_robot("iiwa14")
+    T = robot.fk(np.random.default_rng(5).uniform(0.7 * robot.q_min, 0.7 * robot.q_max))
+    pose = ["--position", " ".join(repr(float(v)) for v in T[:3, 3]),
+            "--rotation", " ".join(repr(float(v)) for v in T[:3, :3].ravel())]  # fmt: skip
+    assert main(["best", "-r", "iiwa14", *pose, "--method", "levelset"]) == 0
+    out = capsys.readouterr().out
+    assert "(level sets:" in out and "certified" in out
+    assert np.abs(robot.fk(_q_star(out)) - T).max() < 1e-5
+    assert main(["best", "-r", "iiwa14", *pose, "--method", "levelset", "--sphere", "0.5,0.5,1.5,0.05"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "method" in err[0]

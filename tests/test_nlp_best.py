@@ -231,8 +231,11 @@ def test_statuses_and_the_least_violating_branch():
     assert res.status == "no feasible branch" and res.violation > 0.01
 
 
-def test_a_numerical_failure_is_a_status(monkeypatch):
+@pytest.mark.parametrize("method", ["levelset", "search"])
+def test_a_numerical_failure_is_a_status(monkeypatch, method):
+    """A compiled evaluation that fails (the level sets' rounds in Python, or the search) gives a status."""
     import qpik.nlp.scene
+    from qpik.nlp import levelset
 
     robot = qpik.load_robot("iiwa14")
 
@@ -240,7 +243,8 @@ def test_a_numerical_failure_is_a_status(monkeypatch):
         raise RuntimeError("CasADi: evaluation failed")
 
     monkeypatch.setattr(qpik.nlp.scene.Scene, "evaluate", broken)
-    res = solve_best(robot, robot.fk(robot.q_home))
+    monkeypatch.setattr(levelset, "_native", lambda selfmotion: None)
+    res = solve_best(robot, robot.fk(robot.q_home), method=method)
     assert res.status == "solver failed" and "evaluation failed" in res.message
 
 

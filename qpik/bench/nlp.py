@@ -5,7 +5,8 @@ Poses are ``fk(q)`` of configurations drawn uniformly inside the joint limits (s
 Part 1, per ``solve_best`` call (both closed-form arms), median and p95 over the poses:
 
 - ``ssik iiwa14_ik.solve``: ssik's full solve on the same iiwa poses — a sweep of 16 arm
-  angles × 8 branches (every solution it enumerates), the reference of the ratios;
+  angles × 8 branches (every solution it enumerates), by its compiled path (the default), the reference of
+  the ratios; and the same by its Python path (``native=False``, fewer poses);
 - ``solve_best margin``: the joint-limit margin by the default method, the exact super-level sets
   (:mod:`qpik.nlp.levelset`: the search and its proof in one; "certified" counts the poses proved);
 - ``solve_best margin, method=search``: the same problem by sampling and polish, with its Taylor-model
@@ -46,6 +47,7 @@ from qpik.robots.catalog import load_robot
 
 TITLE = "NLP: best branch and δ/ψ (solve_best) and the full-joint NLP"
 SSIK = "ssik iiwa14_ik.solve (16 ψ × 8 branches)"
+SSIK_PYTHON = "ssik iiwa14_ik.solve(native=False), its Python path"
 BATCH = 200
 """Most poses of the batched row (fewer with a small ``--repeat``)."""
 BATCH_CALLS = 3
@@ -60,9 +62,9 @@ def run(args: argparse.Namespace) -> list[Row]:
     repeat = max(5, int(getattr(args, "repeat", 2000)) // 20)
     batch = min(BATCH, 10 * repeat)
     rows: list[Row] = []
-    ref = _ssik_row(repeat)
-    if ref is not None:
-        rows.append(ref)
+    ssik = _ssik_rows(repeat)
+    rows += ssik
+    ref = ssik[0] if ssik else None
     obstacles = [Sphere((0.45, 0.3, 0.6), 0.08), Sphere((0.3, -0.4, 0.4), 0.08)]
     for name in ("iiwa14", "nammoto7"):
         robot = load_robot(name)
@@ -107,23 +109,28 @@ def _ms(s: float) -> str:
     return f"{s * 1e3:.3g} ms"
 
 
-def _ssik_row(repeat: int) -> Row | None:
+def _ssik_rows(repeat: int) -> list[Row]:
+    """ssik's sweep on the same iiwa poses: its default (compiled) path, the reference, and its Python path
+    (``native=False``, on fewer poses)."""
     import time
 
     try:
         from ssik.prebuilt.kuka import iiwa14_ik
     except ImportError:
-        return None
+        return []
     robot = load_robot("iiwa14")
     T = robot.fk(np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (repeat, robot.dof)))
-    iiwa14_ik.solve(T[0])
-    times = []
-    for k in range(repeat):
-        t0 = time.perf_counter()
-        iiwa14_ik.solve(T[k])
-        times.append(time.perf_counter() - t0)
-    t = np.array(times)
-    return Row(SSIK, float(np.median(t)), note=f"p95 {_ms(np.percentile(t, 95))}")
+    rows = []
+    for label, native, n in ((SSIK, True, repeat), (SSIK_PYTHON, False, max(3, repeat // 10))):
+        iiwa14_ik.solve(T[0], native=native)
+        times = []
+        for k in range(n):
+            t0 = time.perf_counter()
+            iiwa14_ik.solve(T[k], native=native)
+            times.append(time.perf_counter() - t0)
+        t = np.array(times)
+        rows.append(Row(label, float(np.median(t)), None if native else SSIK, note=f"p95 {_ms(np.percentile(t, 95))}"))
+    return rows
 
 
 def _full_rows(name: str, n: int) -> list[Row]:

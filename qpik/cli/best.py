@@ -27,6 +27,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--d-safe", type=float, default=0.02, help="smallest capsule–obstacle distance allowed (m)")
     p.add_argument("--tol", type=float, default=1e-4, help="the certificate's relative tolerance")
     p.add_argument("--no-certify", action="store_true", help="skip the certificate of global optimality")
+    p.add_argument(
+        "--method",
+        default="auto",
+        choices=("auto", "levelset", "search", "ipopt"),
+        help="auto: the margin's level sets for the margin alone, else the search (default: auto)",
+    )
     p.add_argument("--plot", type=Path, help="also write the objective against δ/ψ (PNG)")
     p.set_defaults(func=_run)
 
@@ -51,7 +57,7 @@ def _run(args: argparse.Namespace) -> int:
             raise InputError(f"--sphere: expected x,y,z,radius (4 numbers), got {s.size}")
         obstacles.append(Sphere(s[:3], s[3]))
     best = solve_best(robot, T, args.objective, obstacles, args.q_ref, d_safe=args.d_safe, certify=not args.no_certify,
-                      tol=args.tol)  # fmt: skip
+                      tol=args.tol, method=args.method)  # fmt: skip
     p = np.array2string(T[:3, 3], precision=4)
     extra = f", {len(obstacles)} obstacle(s), d_s = {args.d_safe:g} m" if obstacles else ""
     print(f"{robot.name}: objective {args.objective} at p = {p} m{extra}")

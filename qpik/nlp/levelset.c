@@ -123,8 +123,8 @@ static void trials(const LevelSet *L, const Pieces *now, int i, double level, co
  * best point evaluated (-inf, 0 and untouched when none), rounds[r] the last round that evaluated the row, evals[r]
  * its evaluations; *level the last level.
  * Returns 1 when the maximum is proved (the sets at the last level are empty), 0 when not (a round found nothing
- * inside its own level set, or max_rounds rounds), 2 when the sets at level 0 are empty, -1 when the sets failed
- * or more than room pieces came, -2 when the self-motion failed. */
+ * inside its own level set, or max_rounds rounds), 2 when the sets at level 0 are empty, -1 when more pieces came
+ * than the sets or these rounds hold, -2 when a compiled function failed, -3 without memory (the sets' codes). */
 int qpik_levelset(const LevelSet *L, const double *pose, double *best_mu, double *best_psi, double *best_q,
                   int *rounds, int *evals, double *level_out) {
     int R = L->rows, n = L->n, status = 0;
@@ -139,7 +139,8 @@ int qpik_levelset(const LevelSet *L, const double *pose, double *best_mu, double
             double half = level * 0.5 * (L->q_max[j] - L->q_min[j]);
             L->sets_lo[j] = L->q_min[j] + half, L->sets_hi[j] = L->q_max[j] - half;
         }
-        if (((sets_fn)L->sets)(L->context) < 0) return -1;
+        int m = ((sets_fn)L->sets)(L->context);
+        if (m < 0) return m;
         now->count = 0;
         for (int r = 0, off = 0; r < R; off += L->count[r], ++r) {
             int c = L->count[r];

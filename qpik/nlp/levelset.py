@@ -298,6 +298,8 @@ class _Native:
         for i in range(N):
             status[i] = call(address, at[0] + 128 * i, at[1] + 8 * R * i, at[2] + 8 * R * i, at[3] + 8 * R * n * i,
                              at[4] + 4 * R * i, at[5] + 4 * R * i, at[6] + 8 * i)  # fmt: skip
+        if (status < -1).any():  # -1: more pieces than the buffers hold, left to the search; else a failure
+            raise RuntimeError(f"qpik_levelset failed ({status.min()}: -2 a compiled function failed, -3 no memory)")
         out.certified = status == 1
         out.bound = np.where(out.certified, -weight * out.bound, -np.inf)  # the C call wrote the last level there
         return out
