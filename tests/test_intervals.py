@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import ctypes
 import itertools
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import qpik
+from qpik.analytic import solver_for
 from qpik.analytic.intervals import SAME, FeasibleIntervals, gaps, merge, shift, shrunk_limits, wrap
 
 PROBE = np.linspace(-np.pi, np.pi, 20_001)
@@ -160,3 +164,41 @@ def test_shrunk_limits_bound_the_joint_limit_margin(seed, margin):
     assert np.array_equal(inside[clear], mu[clear] >= margin)
     if abs(margin - 1.0) > 1e-9:
         assert np.all(lo <= hi) if margin < 1.0 else np.all(lo > hi)
+
+
+@pytest.mark.parametrize("name", ["iiwa14", "nammoto7"])
+def test_native_sets_with_a_region_are_the_sets_without_it(name):
+    """NativeSets through ctypes: at a margin m2, the sets computed with the region of the sets at a smaller margin
+    m1 (which hold them) equal the sets computed without a region, on every row; a region that misses the sets
+    empties them (the gaps outside it are not evaluated, so the region is the caller's promise)."""
+    robot = qpik.load_robot(name)
+    sets = solver_for(robot).native_sets()
+    if sets is None:
+        pytest.skip("no native feasible sets here (no compiler)")
+    call = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p)(sets.function)
+    rng = np.random.default_rng(12)
+
+    def run(T, margin, region=None):
+        sets.pose[:] = T.T.ravel()
+        sets.lo[:], sets.hi[:] = shrunk_limits(robot.q_min, robot.q_max, margin)
+        sets.n_region[0] = -1 if region is None else len(region)
+        if region is not None and len(region):
+            sets.region[: 2 * len(region)] = np.ravel(region)
+        assert call(sets.context) >= 0
+        sets.n_region[0] = -1
+        ends = np.cumsum(np.r_[0, sets.count[:8]])
+        return [sets.iv[2 * a : 2 * b].reshape(-1, 2).copy() for a, b in itertools.pairwise(ends)]
+
+    checked = 0
+    for T in robot.fk(rng.uniform(robot.q_min, robot.q_max, (60, robot.dof))):
+        m1 = rng.uniform(0.0, 0.3)
+        m2 = m1 + rng.uniform(0.0, 0.2)
+        outer = run(T, m1)
+        region = np.concatenate(outer) if any(len(x) for x in outer) else np.zeros((0, 2))
+        free, held = run(T, m2), run(T, m2, region)
+        for a, b in zip(free, held):
+            np.testing.assert_array_equal(a, b)
+        checked += sum(len(x) for x in free)
+        if len(region):
+            assert not any(len(x) for x in run(T, m2, np.zeros((0, 2))))
+    assert checked > 50

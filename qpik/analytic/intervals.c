@@ -41,7 +41,9 @@ static void sort_items(double *x, int n, int width) {
 }
 
 /* The call: fn(arg, res) with the parameter written to *param; flags = res[1] (valid, singular, within
- * per branch). */
+ * per branch). A region (region[0..2 n), n = *n_region >= 0 pairs (lo, hi) in [-pi, pi]), when there is one,
+ * holds every feasible gap: a gap whose middle lies outside it is infeasible on every row, with no evaluation (the
+ * caller knows the sets are inside an earlier, larger one: qpik.nlp.levelset's rounds). */
 typedef struct {
     casadi_fn fn;
     const double **arg;
@@ -49,7 +51,17 @@ typedef struct {
     casadi_int *iw;
     double *w;
     double *param;
+    const double *region;
+    const int *n_region;
 } Call;
+
+/* Whether x lies outside the call's region (to SAME); never without a region. */
+static int outside(const Call *c, double x) {
+    if (!c->n_region || *c->n_region < 0) return 0;
+    for (int i = 0; i < *c->n_region; ++i)
+        if (x >= c->region[2 * i] - SAME && x <= c->region[2 * i + 1] + SAME) return 0;
+    return 1;
+}
 
 static const double *evaluate(const Call *c, double x) {
     *c->param = x;
@@ -122,8 +134,12 @@ static int circle_sets(const Call *call, int rows, int shift, int nb, const doub
 
     /* classify: ok[r * G + i] */
     for (int i = 0; i < G && !status; ++i) {
-        double hi = i + 1 < G ? lo[i + 1] : lo[0] + TWO_PI;
-        const double *f = evaluate(call, wrap(0.5 * (lo[i] + hi)));
+        double hi = i + 1 < G ? lo[i + 1] : lo[0] + TWO_PI, mid = wrap(0.5 * (lo[i] + hi));
+        if (outside(call, mid)) {
+            for (int r = 0; r < rows; ++r) ok[(size_t)r * G + i] = 0;
+            continue;
+        }
+        const double *f = evaluate(call, mid);
         if (!f) status = -2;
         for (int r = 0; r < rows && f; ++r) ok[(size_t)r * G + i] = f[2 * rows + r] > 0.5;
     }
@@ -171,6 +187,6 @@ static int circle_sets(const Call *call, int rows, int shift, int nb, const doub
 int qpik_circle_sets(void *fn, const double **arg, double **res, casadi_int *iw, double *w, double *param,
                      int rows, int shift, int nb, const double *breaks, int ns, const double *sing, int room,
                      double *iv, int *count, double *sv, int *scount) {
-    Call call = {(casadi_fn)fn, arg, res, iw, w, param};
+    Call call = {(casadi_fn)fn, arg, res, iw, w, param, NULL, NULL};
     return circle_sets(&call, rows, shift, nb, breaks, ns, sing, room, iv, count, sv, scount);
 }

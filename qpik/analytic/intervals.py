@@ -225,7 +225,9 @@ class NativeSets:
     column-major) and the limits from :attr:`lo` and :attr:`hi` ((n,) rad, the robot's angles), and writes
     ``count[r]`` pieces of output row r, their ``(lo, hi)`` pairs one row after the other in :attr:`iv` (rad,
     in [−π, π], sorted per row); it returns the number of pieces, or a negative status (:func:`check_sets`). An
-    unreachable pose gives no pieces. ``owner`` keeps the buffers and the library alive.
+    unreachable pose gives no pieces. With ``n_region[0] = k >= 0`` (−1: none, as the call leaves it), the caller
+    knows every feasible parameter to lie in the k pairs ``(lo, hi)`` of :attr:`region` (rad, in [−π, π]; room for
+    :data:`REGION`): gaps outside them are not evaluated. ``owner`` keeps the buffers and the library alive.
     """
 
     function: int
@@ -235,7 +237,19 @@ class NativeSets:
     hi: np.ndarray
     iv: np.ndarray
     count: np.ndarray
+    region: np.ndarray
+    n_region: np.ndarray
     owner: object
+
+
+REGION = 256
+"""Pairs of a :class:`NativeSets` region."""
+
+
+def region_buffers() -> dict[str, np.ndarray]:
+    """A :class:`NativeSets` call's region buffers, ``region`` (room for :data:`REGION` pairs) and ``n_region`` (−1:
+    no region), by the names of the C structs' fields."""
+    return {"region": np.zeros(2 * REGION), "n_region": np.full(1, -1, np.intc)}
 
 
 def check_sets(m: int, name: str) -> None:

@@ -24,6 +24,8 @@ typedef struct {
     double *iv, *sv;
     int *count, *scount;
     int *ns; /* out: the singular candidates' number, the row stride of sv */
+    const double *region; /* the classification's region (Call in intervals.c): n_region[0] pairs, none when < 0 */
+    const int *n_region;
 } DeltaSets;
 
 /* Returns circle_sets' number of pieces or status (-1 no room, -2 a compiled function failed, -3 no memory). */
@@ -51,7 +53,7 @@ int qpik_delta_sets(const DeltaSets *d) {
         }
     }
     *d->ns = ns;
-    Call call = {(casadi_fn)d->ik.fn, d->ik.arg, d->ik.res, d->ik.iw, d->ik.w, d->param};
+    Call call = {(casadi_fn)d->ik.fn, d->ik.arg, d->ik.res, d->ik.iw, d->ik.w, d->param, d->region, d->n_region};
     return circle_sets(&call, d->rows, d->shift, nb, d->breaks, ns, d->sing, d->room, d->iv, d->count, d->sv,
                        d->scount);
 }

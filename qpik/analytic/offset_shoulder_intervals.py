@@ -87,6 +87,7 @@ from qpik.analytic.intervals import (
     NativeSets,
     check_sets,
     list_maker,
+    region_buffers,
     shrunk_limits,
 )
 from qpik.analytic.intervals import c_source as intervals_source
@@ -321,6 +322,7 @@ class _DeltaSets(ctypes.Structure):
     _fields_ += [("rows", ctypes.c_int), ("shift", ctypes.c_int), ("room_roots", ctypes.c_int)]
     _fields_ += [(name, ctypes.c_void_p) for name in ("delta", "breaks", "sing", "owner")]
     _fields_ += [("room", ctypes.c_int)] + [(name, ctypes.c_void_p) for name in ("iv", "sv", "count", "scount", "ns")]
+    _fields_ += [("region", ctypes.c_void_p), ("n_region", ctypes.c_void_p)]
 
 
 class _NativeDelta:
@@ -350,6 +352,7 @@ class _NativeDelta:
             "count": np.zeros(out_rows, np.intc),
             "scount": np.zeros(out_rows, np.intc),
             "ns": np.zeros(1, np.intc),
+            **region_buffers(),
         }
         a7, b7, a5, b5 = wrist_rows.tolist()
         self._call = _DeltaSets(
@@ -397,7 +400,8 @@ class _NativeDelta:
         a = self._arrays
         address = ctypes.cast(self._dll.qpik_delta_sets, ctypes.c_void_p).value
         pose = self._breaks.args[0]
-        return NativeSets(address, self._address, pose, *self._limits, a["iv"], a["count"], self)
+        return NativeSets(address, self._address, pose, *self._limits, a["iv"], a["count"], a["region"], a["n_region"],
+                          self)  # fmt: skip
 
     def __call__(
         self, T: np.ndarray, limits: tuple[np.ndarray, np.ndarray] | None = None

@@ -18,6 +18,8 @@ typedef struct {
     int room;       /* output room of circle_sets (pairs) */
     double *iv, *sv;
     int *count, *scount; /* sv and scount: circle_sets' singular values, none asked for (scount all 0) */
+    const double *region; /* the classification's region (Call in intervals.c): n_region[0] pairs, none when < 0 */
+    const int *n_region;
 } PsiSets;
 
 /* Returns circle_sets' number of pieces (0 for every row of an unreachable pose) or status (-1 no room, -2 a
@@ -34,6 +36,6 @@ int qpik_psi_sets(const PsiSets *p) {
     for (int i = 0; i < p->n_breaks; ++i) p->breaks[nb++] = breaks[i];
     for (int i = 0; i < p->n_sing; ++i)
         if (sing[i] != p->none) p->breaks[nb++] = sing[i];
-    Call call = {(casadi_fn)p->ik.fn, p->ik.arg, p->ik.res, p->ik.iw, p->ik.w, p->param};
+    Call call = {(casadi_fn)p->ik.fn, p->ik.arg, p->ik.res, p->ik.iw, p->ik.w, p->param, p->region, p->n_region};
     return circle_sets(&call, p->rows, 0, nb, p->breaks, 0, sing, p->room, p->iv, p->count, p->sv, p->scount);
 }

@@ -70,6 +70,7 @@ from qpik.analytic.intervals import (
     NativeSets,
     check_sets,
     list_maker,
+    region_buffers,
     shrunk_limits,
     wrap,
 )
@@ -250,6 +251,7 @@ class _PsiSets(ctypes.Structure):
     _fields_ += [("none", ctypes.c_double), ("ik", Kernel), ("param", ctypes.c_void_p), ("rows", ctypes.c_int)]
     _fields_ += [("breaks", ctypes.c_void_p), ("room", ctypes.c_int)]
     _fields_ += [(name, ctypes.c_void_p) for name in ("iv", "sv", "count", "scount")]
+    _fields_ += [("region", ctypes.c_void_p), ("n_region", ctypes.c_void_p)]
 
 
 class _NativePsi:
@@ -269,6 +271,7 @@ class _NativePsi:
             "sv": np.zeros(1),
             "count": np.zeros(rows, np.intc),
             "scount": np.zeros(rows, np.intc),
+            **region_buffers(),
         }
         self._call = _PsiSets(
             breakpoints=breaks.kernel,
@@ -306,7 +309,9 @@ class _NativePsi:
         """This call as :class:`~qpik.analytic.intervals.NativeSets` (for a breakpoint function of the limits)."""
         a = self._arrays
         address = ctypes.cast(self._dll.qpik_psi_sets, ctypes.c_void_p).value
-        return NativeSets(address, self._address, self._breaks.args[0], *self._limits, a["iv"], a["count"], self)
+        pose = self._breaks.args[0]
+        return NativeSets(address, self._address, pose, *self._limits, a["iv"], a["count"], a["region"], a["n_region"],
+                          self)  # fmt: skip
 
     def __call__(
         self, T: np.ndarray, limits: tuple[np.ndarray, np.ndarray] | None = None

@@ -24,6 +24,9 @@ typedef struct {
     double *sets_hi;
     const double *iv;    /* its output: count[r] pieces of row r, (lo, hi) pairs one row after the other */
     const int *count;
+    double *region;      /* its region: where the sets can be (region_room pairs), in n_region[0] pairs, -1: none */
+    int *n_region;
+    int region_room;
     int rows;            /* the searched rows: the first rows of its output */
     Kernel motion;       /* (branch row, pose (16), psi) -> [q (n); dq/dpsi (n); valid] */
     double *motion_row, *motion_pose, *motion_psi;
@@ -125,8 +128,33 @@ static void trials(const LevelSet *L, const Pieces *now, int i, double level, co
  * Returns 1 when the maximum is proved (the sets at the last level are empty), 0 when not (a round found nothing
  * inside its own level set, or max_rounds rounds), 2 when the sets at level 0 are empty, -1 when more pieces came
  * than the sets or these rounds hold, -2 when a compiled function failed, -3 without memory (the sets' codes). */
+/* The region of the next sets: the pieces of this round, split at +-pi (-1: more than its room). */
+static int region_of(const LevelSet *L, const Pieces *p) {
+    int m = 0;
+    for (int i = 0; i < p->count; ++i) {
+        double a = p->lo[i], b = p->hi[i];
+        if (m + 2 > L->region_room) return -1;
+        if (b > PI) { /* a piece through +-pi */
+            L->region[2 * m] = a, L->region[2 * m + 1] = PI, ++m;
+            a = -PI, b -= TWO_PI;
+        }
+        L->region[2 * m] = a, L->region[2 * m + 1] = b, ++m;
+    }
+    return m;
+}
+
+static int rounds_of(const LevelSet *L, const double *pose, double *best_mu, double *best_psi, double *best_q,
+                     int *rounds, int *evals, double *level_out);
+
 int qpik_levelset(const LevelSet *L, const double *pose, double *best_mu, double *best_psi, double *best_q,
                   int *rounds, int *evals, double *level_out) {
+    int status = rounds_of(L, pose, best_mu, best_psi, best_q, rounds, evals, level_out);
+    *L->n_region = -1; /* the sets' other callers have none */
+    return status;
+}
+
+static int rounds_of(const LevelSet *L, const double *pose, double *best_mu, double *best_psi, double *best_q,
+                     int *rounds, int *evals, double *level_out) {
     int R = L->rows, n = L->n, status = 0;
     memcpy(L->sets_pose, pose, 16 * sizeof(double));
     memcpy(L->motion_pose, pose, 16 * sizeof(double));
@@ -139,6 +167,7 @@ int qpik_levelset(const LevelSet *L, const double *pose, double *best_mu, double
             double half = level * 0.5 * (L->q_max[j] - L->q_min[j]);
             L->sets_lo[j] = L->q_min[j] + half, L->sets_hi[j] = L->q_max[j] - half;
         }
+        *L->n_region = before ? region_of(L, before) : -1; /* the sets at a higher level lie inside these */
         int m = ((sets_fn)L->sets)(L->context);
         if (m < 0) return m;
         now->count = 0;

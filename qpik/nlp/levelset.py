@@ -31,7 +31,8 @@ inside its own super-level set, or that needs more than :data:`MAX_ROUNDS`, is l
 The certificate costs one feasible-set call (tens of µs) where the Taylor models need ~150 cells of a
 compiled bound function; it covers only the plain margin (a weighted sum with other terms has no such level
 sets). Where the arm's feasible sets are one C call (:meth:`~qpik.analytic.solver.AnalyticSolver.native_sets`),
-the rounds of a pose run in C (``levelset.c``, one call per pose, the self-motion through its generated C);
+the rounds of a pose run in C (``levelset.c``, one call per pose, the self-motion through its generated C; the
+sets of a round classify only the gaps inside the previous round's sets, which hold them);
 otherwise in Python and numpy, all poses of a batch together. The two give the same answers (tested).
 """
 
@@ -259,7 +260,8 @@ class _LevelSet(ctypes.Structure):
     """``LevelSet`` of ``levelset.c`` (same fields, same order)."""
 
     _fields_ = [(name, ctypes.c_void_p) for name in ("sets", "context", "sets_pose", "sets_lo", "sets_hi", "iv")]
-    _fields_ += [("count", ctypes.c_void_p), ("rows", ctypes.c_int), ("motion", Kernel)]
+    _fields_ += [("count", ctypes.c_void_p), ("region", ctypes.c_void_p), ("n_region", ctypes.c_void_p)]
+    _fields_ += [("region_room", ctypes.c_int), ("rows", ctypes.c_int), ("motion", Kernel)]
     _fields_ += [(name, ctypes.c_void_p) for name in ("motion_row", "motion_pose", "motion_psi", "motion_out")]
     _fields_ += [("n", ctypes.c_int), ("q_min", ctypes.c_void_p), ("q_max", ctypes.c_void_p)]
     _fields_ += [(name, ctypes.c_double) for name in ("eps", "end", "near", "slack")]
@@ -279,7 +281,9 @@ class _Native:
         row, pose, psi = (a.ctypes.data for a in motion.args)
         self._call = _LevelSet(
             sets=sets.function, context=sets.context, sets_pose=sets.pose.ctypes.data, sets_lo=sets.lo.ctypes.data,
-            sets_hi=sets.hi.ctypes.data, iv=sets.iv.ctypes.data, count=sets.count.ctypes.data, rows=self._rows,
+            sets_hi=sets.hi.ctypes.data, iv=sets.iv.ctypes.data, count=sets.count.ctypes.data,
+            region=sets.region.ctypes.data, n_region=sets.n_region.ctypes.data, region_room=len(sets.region) // 2,
+            rows=self._rows,
             motion=motion.kernel, motion_row=row, motion_pose=pose, motion_psi=psi,
             motion_out=motion.res[0].ctypes.data, n=robot.dof, q_min=self._limits[0].ctypes.data,
             q_max=self._limits[1].ctypes.data, eps=EPS, end=END, near=NEAR, slack=SLACK, max_rounds=MAX_ROUNDS,
