@@ -64,6 +64,7 @@ static int margin_at(const LevelSet *L, int row, double psi, double *mu, double 
     if (!(q[2 * L->n] > 0.5)) return 0;
     double best = INFINITY, rate = NAN;
     for (int j = 0; j < L->n; ++j) {
+        if (!isfinite(q[j])) return 0; /* as a non-finite objective in Python: no point */
         double half = 0.5 * (L->q_max[j] - L->q_min[j]);
         double below = (q[j] - L->q_min[j]) / half, above = (L->q_max[j] - q[j]) / half;
         if (below < best) best = below, rate = dq[j] / half;
