@@ -361,6 +361,9 @@ def _solve(
 def _feasible_pieces(fis: dict, rows: list[int], poses: np.ndarray) -> Pieces:
     """The feasible intervals ``fis`` (by pose index) of the branch rows ``rows`` of the poses ``poses`` as pieces,
     with their singular ends."""
+    if not len(poses):
+        none = np.zeros(0)
+        return Pieces(none.astype(int), none.astype(int), none, none, np.zeros((0, 2), bool))
     pose, row, lo, hi = [], [], [], []
     s_pose, s_row, s_value = [], [], []
     for i in poses.tolist():
