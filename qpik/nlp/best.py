@@ -218,7 +218,8 @@ def solve_best(
         q_ref: (n,) or (N, n) reference configuration, rad (the ``"distance"`` objective's).
         project: project a non-orthonormal rotation onto SO(3) instead of raising.
         d_safe: the clearance constraint's distance, m (≥ 0).
-        certify: prove global optimality (:mod:`qpik.nlp.certificate`).
+        certify: prove global optimality (:mod:`qpik.nlp.certificate`); the level sets prove their answers either
+            way (their last call is the proof).
         tol: the certificate's tolerance, relative: it proves that no feasible point is better than the
             answer by more than ``tol · max(1, |f|)``.
         method: ``"levelset"`` (the exact super-level sets of the margin, :mod:`qpik.nlp.levelset`: the plain
