@@ -246,10 +246,68 @@ REGION = 256
 """Pairs of a :class:`NativeSets` region."""
 
 
-def region_buffers() -> dict[str, np.ndarray]:
-    """A :class:`NativeSets` call's region buffers, ``region`` (room for :data:`REGION` pairs) and ``n_region`` (−1:
-    no region), by the names of the C structs' fields."""
-    return {"region": np.zeros(2 * REGION), "n_region": np.full(1, -1, np.intc)}
+class ArmSetsCall:
+    """An arm's feasible sets as one C call ``int name(const Struct *)`` (``offset_shoulder_intervals.c``,
+    ``srs_intervals.c``) over its breakpoint function's and its checked IK's generated C (:meth:`functions`) and
+    buffers allocated once.
+
+    The struct gets ``breakpoints``, ``ik`` (their :class:`~qpik.compiled.Kernel`), ``param`` (the IK's parameter
+    buffer), the addresses of ``arrays`` (its buffer fields by name, with the region's of :class:`NativeSets` added)
+    and ``fields`` (its other fields). The arrays become lists by :func:`list_maker`'s function (:attr:`lists`).
+    """
+
+    def __init__(
+        self,
+        dll: ctypes.CDLL,
+        name: str,
+        breaks: NativeFunction,
+        ik: NativeFunction,
+        struct: type[ctypes.Structure],
+        arrays: dict[str, np.ndarray],
+        **fields,
+    ):
+        self._name, self._function = name, getattr(dll, name)
+        self._breaks, self._ik = breaks, ik  # the C call uses their buffers: they live as long
+        self._pose = breaks.args[0].reshape(4, 4).T  # T column-major, as both generated functions read it
+        self._limits = ik.args[2:4]  # the IK's limit buffers, shared with the breakpoint function's when it takes them
+        self.arrays = {**arrays, "region": np.zeros(2 * REGION), "n_region": np.full(1, -1, np.intc)}
+        buffers = {key: x.ctypes.data for key, x in self.arrays.items()}
+        self._call = struct(breakpoints=breaks.kernel, ik=ik.kernel, param=ik.args[1].ctypes.data, **fields, **buffers)
+        self._address = ctypes.addressof(self._call)
+        self.lists = list_maker()
+
+    @staticmethod
+    def functions(
+        breaks: Compiled, outputs: tuple[int, ...], checked: Compiled, limits: tuple[np.ndarray, np.ndarray]
+    ) -> tuple[NativeFunction, NativeFunction] | None:
+        """The C calls of the breakpoint function ``breaks`` (of T, or of T, q_min and q_max; its ``outputs``) and of
+        the checked IK ``checked`` (of T, the parameter, q_min and q_max): both read T from one buffer, and q_min and
+        q_max too when ``breaks`` takes them; else the IK's hold ``limits``. None when either is not native code."""
+        bp = NativeFunction.of(breaks, outputs=outputs)
+        if bp is None:
+            return None
+        shared = {0: bp.args[0]} | ({2: bp.args[1], 3: bp.args[2]} if len(bp.args) == 3 else {})
+        ik = NativeFunction.of(checked, outputs=(1,), inputs=shared)
+        if ik is None:
+            return None
+        if len(bp.args) == 1:
+            ik.args[2][:], ik.args[3][:] = limits
+        return bp, ik
+
+    def run(self, T: np.ndarray, limits: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        """The call for the pose T (4, 4) and, for a breakpoint function that takes them, ``limits`` ``(q_min,
+        q_max)`` ((n,) rad): its outputs are in :attr:`arrays`."""
+        self._pose[...] = T
+        if limits is not None:
+            self._limits[0][:], self._limits[1][:] = limits
+        check_sets(self._function(self._address), self._name)
+
+    def sets(self) -> NativeSets:
+        """This call as :class:`NativeSets` (for a breakpoint function of the limits)."""
+        a = self.arrays
+        address = ctypes.cast(self._function, ctypes.c_void_p).value
+        return NativeSets(address, self._address, self._breaks.args[0], *self._limits, a["iv"], a["count"],
+                          a["region"], a["n_region"], self)  # fmt: skip
 
 
 def check_sets(m: int, name: str) -> None:

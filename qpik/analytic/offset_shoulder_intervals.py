@@ -80,16 +80,7 @@ import casadi as ca
 import numpy as np
 
 from qpik import symbolic as sy
-from qpik.analytic.intervals import (
-    Assembler,
-    FeasibleIntervals,
-    Interval,
-    NativeSets,
-    check_sets,
-    list_maker,
-    region_buffers,
-    shrunk_limits,
-)
+from qpik.analytic.intervals import ArmSetsCall, Assembler, FeasibleIntervals, Interval, NativeSets, shrunk_limits
 from qpik.analytic.intervals import c_source as intervals_source
 from qpik.analytic.polyroots import FLAGS as POLYROOTS_FLAGS
 from qpik.analytic.polyroots import ROOM, trig_roots
@@ -325,24 +316,20 @@ class _DeltaSets(ctypes.Structure):
     _fields_ += [("region", ctypes.c_void_p), ("n_region", ctypes.c_void_p)]
 
 
-class _NativeDelta:
+class _NativeDelta(ArmSetsCall):
     """:class:`DeltaIntervals` in one C call (``qpik_delta_sets``, ``offset_shoulder_intervals.c``): the
     breakpoint function's and the IK's generated C, :func:`~qpik.analytic.polyroots.trig_roots`' root finder and
-    the :class:`~qpik.analytic.intervals.Assembler`'s gap classification, over buffers allocated once; the
-    arrays become lists by :func:`~qpik.analytic.intervals.list_maker`'s function."""
+    the :class:`~qpik.analytic.intervals.Assembler`'s gap classification."""
 
     ROWS = 8
 
     def __init__(self, dll: ctypes.CDLL, breaks: NativeFunction, ik: NativeFunction, wrist_rows: np.ndarray):
-        self._dll, self._breaks, self._ik = dll, breaks, ik  # the C call uses their buffers: they live as long
-        self._pose = breaks.args[0].reshape(4, 4).T  # T column-major, as both generated functions read it
-        self._limits = ik.args[2:4]  # the IK's limit buffers, shared with the breakpoint function's when it takes them
         cand, sing, FA, _ = breaks.res
         K = FA.size // COEFFS
         room_roots = ROOM * K
         out_rows = 2 * self.ROWS
         room = out_rows * (cand.size + room_roots + 2)
-        self._arrays = {
+        arrays = {
             "delta": np.zeros(room_roots),
             "owner": np.zeros(room_roots, np.intc),
             "breaks": np.zeros(cand.size + room_roots),
@@ -352,68 +339,33 @@ class _NativeDelta:
             "count": np.zeros(out_rows, np.intc),
             "scount": np.zeros(out_rows, np.intc),
             "ns": np.zeros(1, np.intc),
-            **region_buffers(),
         }
         a7, b7, a5, b5 = wrist_rows.tolist()
-        self._call = _DeltaSets(
-            breakpoints=breaks.kernel,
-            n_cand=cand.size,
-            n_sing=sing.size,
-            K=K,
-            size=COEFFS,
-            a7=a7,
-            b7=b7,
-            a5=a5,
-            b5=b5,
-            none=NONE,
+        super().__init__(
+            dll, "qpik_delta_sets", breaks, ik, _DeltaSets, arrays,
+            n_cand=cand.size, n_sing=sing.size, K=K, size=COEFFS, a7=a7, b7=b7, a5=a5, b5=b5, none=NONE,
             common=1.0 - 0.5 * COMMON_TOL**2,  # cos d > 1 − tol²/2 ⇔ |d| < tol on the circle
-            ik=ik.kernel,
-            param=ik.args[1].ctypes.data,
-            rows=self.ROWS,
-            shift=1,
-            room_roots=room_roots,
-            room=room,
-            **{name: x.ctypes.data for name, x in self._arrays.items()},
-        )
-        self._address = ctypes.addressof(self._call)
-        self._lists = list_maker()
+            rows=self.ROWS, shift=1, room_roots=room_roots, room=room,
+        )  # fmt: skip
 
     @classmethod
     def build(cls, breaks: Compiled, solver: OffsetShoulderSolver, wrist_rows: np.ndarray) -> _NativeDelta | None:
         """The C path over the breakpoint function ``breaks`` (of T, or of T, q_min and q_max) and ``solver``'s checked
-        IK (of T, δ, q_min and q_max), or None when one of them or the C source is not native code. Both read T from
-        one buffer, and q_min and q_max too when ``breaks`` takes them; else the IK's hold the robot's limits."""
+        IK (:meth:`~qpik.analytic.intervals.ArmSetsCall.functions`), or None when one of them or the C source is not
+        native code."""
         dll = _library()
-        bp = None if dll is None else NativeFunction.of(breaks, outputs=(0, 1, 2, 3))
-        if bp is None:
-            return None
-        shared = {0: bp.args[0]} | ({2: bp.args[1], 3: bp.args[2]} if len(bp.args) == 3 else {})
-        ik = NativeFunction.of(solver.checked(cls.ROWS), outputs=(1,), inputs=shared)
-        if ik is None:
-            return None
-        if len(bp.args) == 1:
-            ik.args[2][:], ik.args[3][:] = solver.robot.q_min, solver.robot.q_max
-        return cls(dll, bp, ik, wrist_rows)
-
-    def sets(self) -> NativeSets:
-        """This call as :class:`~qpik.analytic.intervals.NativeSets` (for a breakpoint function of the limits)."""
-        a = self._arrays
-        address = ctypes.cast(self._dll.qpik_delta_sets, ctypes.c_void_p).value
-        pose = self._breaks.args[0]
-        return NativeSets(address, self._address, pose, *self._limits, a["iv"], a["count"], a["region"], a["n_region"],
-                          self)  # fmt: skip
+        limits = (solver.robot.q_min, solver.robot.q_max)
+        pair = None if dll is None else cls.functions(breaks, (0, 1, 2, 3), solver.checked(cls.ROWS), limits)
+        return None if pair is None else cls(dll, *pair, wrist_rows)
 
     def __call__(
         self, T: np.ndarray, limits: tuple[np.ndarray, np.ndarray] | None = None
     ) -> tuple[list[list[Interval]], list[list[float]]]:
         """The sets and singular values of rows 1–16 for the pose T (4, 4); ``limits`` ``(q_min, q_max)`` ((n,) rad)
         for a breakpoint function that takes them."""
-        self._pose[...] = T
-        if limits is not None:
-            self._limits[0][:], self._limits[1][:] = limits
-        check_sets(self._dll.qpik_delta_sets(self._address), "qpik_delta_sets")
-        a = self._arrays
-        return self._lists(a["iv"], a["count"], a["sv"], a["scount"], int(a["ns"][0]))
+        self.run(T, limits)
+        a = self.arrays
+        return self.lists(a["iv"], a["count"], a["sv"], a["scount"], int(a["ns"][0]))
 
 
 @cache

@@ -63,17 +63,7 @@ import numpy as np
 
 from qpik import symbolic as sy
 from qpik.analytic import trig
-from qpik.analytic.intervals import (
-    Assembler,
-    FeasibleIntervals,
-    Interval,
-    NativeSets,
-    check_sets,
-    list_maker,
-    region_buffers,
-    shrunk_limits,
-    wrap,
-)
+from qpik.analytic.intervals import ArmSetsCall, Assembler, FeasibleIntervals, Interval, NativeSets, shrunk_limits, wrap
 from qpik.analytic.intervals import c_source as intervals_source
 from qpik.analytic.srs import arm_setup, branch_signs
 from qpik.compiled import Compiled, Kernel, NativeFunction, shared_library
@@ -254,64 +244,34 @@ class _PsiSets(ctypes.Structure):
     _fields_ += [("region", ctypes.c_void_p), ("n_region", ctypes.c_void_p)]
 
 
-class _NativePsi:
+class _NativePsi(ArmSetsCall):
     """:class:`PsiIntervals` in one C call (``qpik_psi_sets``, ``srs_intervals.c``): the breakpoint function's and
-    the IK's generated C and the :class:`~qpik.analytic.intervals.Assembler`'s gap classification, over buffers
-    allocated once; the arrays become lists by :func:`~qpik.analytic.intervals.list_maker`'s function."""
+    the IK's generated C and the :class:`~qpik.analytic.intervals.Assembler`'s gap classification."""
 
     def __init__(self, dll: ctypes.CDLL, breaks: NativeFunction, ik: NativeFunction, rows: int):
-        self._dll, self._breaks, self._ik = dll, breaks, ik  # the C call uses their buffers: they live as long
-        self._pose = breaks.args[0].reshape(4, 4).T  # T column-major, as both generated functions read it
-        self._limits = ik.args[2:4]  # the IK's limit buffers, shared with the breakpoint function's when it takes them
         n_breaks, n_sing = breaks.res[0].size, breaks.res[1].size
         room = rows * (n_breaks + n_sing + 2)  # at most one piece more than gaps per row
-        self._arrays = {
+        arrays = {
             "breaks": np.zeros(n_breaks + n_sing),
             "iv": np.zeros(2 * room),
             "sv": np.zeros(1),
             "count": np.zeros(rows, np.intc),
             "scount": np.zeros(rows, np.intc),
-            **region_buffers(),
         }
-        self._call = _PsiSets(
-            breakpoints=breaks.kernel,
-            n_breaks=n_breaks,
-            n_sing=n_sing,
-            none=NONE,
-            ik=ik.kernel,
-            param=ik.args[1].ctypes.data,
-            rows=rows,
-            room=room,
-            **{name: x.ctypes.data for name, x in self._arrays.items()},
-        )
-        self._address = ctypes.addressof(self._call)
-        self._lists = list_maker()
+        super().__init__(
+            dll, "qpik_psi_sets", breaks, ik, _PsiSets, arrays,
+            n_breaks=n_breaks, n_sing=n_sing, none=NONE, rows=rows, room=room,
+        )  # fmt: skip
 
     @classmethod
     def build(cls, breaks: Compiled, solver: SRSSolver, rows: int) -> _NativePsi | None:
         """The C path over the breakpoint function ``breaks`` (of T, or of T, q_min and q_max) and ``solver``'s checked
-        IK of its first ``rows`` branches (of T, ψ, q_min and q_max), or None when one of them or the C source is not
-        native code. Both read T from one buffer, and q_min and q_max too when ``breaks`` takes them; else the IK's
-        hold the robot's limits."""
+        IK of its first ``rows`` branches (:meth:`~qpik.analytic.intervals.ArmSetsCall.functions`), or None when one
+        of them or the C source is not native code."""
         dll = _library()
-        bp = None if dll is None else NativeFunction.of(breaks, outputs=(0, 1, 2))
-        if bp is None:
-            return None
-        shared = {0: bp.args[0]} | ({2: bp.args[1], 3: bp.args[2]} if len(bp.args) == 3 else {})
-        ik = NativeFunction.of(solver.checked(rows), outputs=(1,), inputs=shared)
-        if ik is None:
-            return None
-        if len(bp.args) == 1:
-            ik.args[2][:], ik.args[3][:] = solver.robot.q_min, solver.robot.q_max
-        return cls(dll, bp, ik, rows)
-
-    def sets(self) -> NativeSets:
-        """This call as :class:`~qpik.analytic.intervals.NativeSets` (for a breakpoint function of the limits)."""
-        a = self._arrays
-        address = ctypes.cast(self._dll.qpik_psi_sets, ctypes.c_void_p).value
-        pose = self._breaks.args[0]
-        return NativeSets(address, self._address, pose, *self._limits, a["iv"], a["count"], a["region"], a["n_region"],
-                          self)  # fmt: skip
+        limits = (solver.robot.q_min, solver.robot.q_max)
+        pair = None if dll is None else cls.functions(breaks, (0, 1, 2), solver.checked(rows), limits)
+        return None if pair is None else cls(dll, *pair, rows)
 
     def __call__(
         self, T: np.ndarray, limits: tuple[np.ndarray, np.ndarray] | None = None
@@ -319,12 +279,9 @@ class _NativePsi:
         """For the pose T (4, 4): the sets of the rows (empty for an unreachable pose), and the breakpoint function's
         singular ψ (8,) and ``valid`` (1,) outputs (views its next call overwrites); ``limits`` ``(q_min, q_max)``
         ((n,) rad) for a breakpoint function that takes them."""
-        self._pose[...] = T
-        if limits is not None:
-            self._limits[0][:], self._limits[1][:] = limits
-        check_sets(self._dll.qpik_psi_sets(self._address), "qpik_psi_sets")
-        a = self._arrays
-        intervals, _ = self._lists(a["iv"], a["count"], a["sv"], a["scount"], 0)
+        self.run(T, limits)
+        a = self.arrays
+        intervals, _ = self.lists(a["iv"], a["count"], a["sv"], a["scount"], 0)
         _, singular, valid = self._breaks.res
         return intervals, singular, valid
 
