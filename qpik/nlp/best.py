@@ -36,7 +36,7 @@ from qpik.errors import InputError, NoClosedFormError
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.certificate import certify as prove
 from qpik.nlp.levelset import margin_weight, maximise
-from qpik.nlp.scene import Points, Scene
+from qpik.nlp.scene import Points, Scene, least_per_row
 from qpik.nlp.search import SAMPLE_STEP, Pieces, candidates, onto_limits, polish, sample, singular_ends, split
 from qpik.nlp.selfmotion import selfmotion_of
 from qpik.objectives import Objective, ReferenceDistance, clearance, resolve
@@ -432,10 +432,7 @@ class _BestSoFar:
             return
         np.maximum.at(self.rounds, (pose, row), np.asarray(rounds, int))
         ok = np.flatnonzero(np.isfinite(f))
-        order = ok[np.lexsort((f[ok], row[ok], pose[ok]))]
-        first = np.ones(len(order), bool)
-        first[1:] = (pose[order][1:] != pose[order][:-1]) | (row[order][1:] != row[order][:-1])
-        top = order[first]
+        top = ok[least_per_row(pose[ok], row[ok], f[ok])]
         top = top[f[top] < self.f[pose[top], row[top]]]
         i, b = pose[top], row[top]
         self.f[i, b], self.psi[i, b], self.q[i, b] = f[top], np.asarray(psi)[top], np.asarray(q)[top]

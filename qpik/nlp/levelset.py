@@ -49,7 +49,7 @@ import numpy as np
 from qpik.analytic.intervals import FeasibleIntervals, NativeSets, wrap
 from qpik.compiled import Kernel, NativeFunction, call_header, shared_library
 from qpik.geometry.distance import ObstacleSet
-from qpik.nlp.scene import Points, Scene
+from qpik.nlp.scene import Points, Scene, least_per_row
 from qpik.nlp.search import END
 from qpik.nlp.selfmotion import SelfMotion
 from qpik.objectives import JointLimitMargin, Objective
@@ -153,10 +153,7 @@ def _keep_best(out: LevelSets, pts: Points, mu: np.ndarray, round_: int) -> None
     """The points of round ``round_`` (their margins ``mu``) into ``out``: each row's best, its rounds and counts."""
     np.add.at(out.evaluations, (pts.pose, pts.row), 1)
     out.rounds[pts.pose, pts.row] = round_
-    order = np.lexsort((-mu, pts.row, pts.pose))
-    first = np.ones(len(order), bool)
-    first[1:] = (pts.pose[order][1:] != pts.pose[order][:-1]) | (pts.row[order][1:] != pts.row[order][:-1])
-    top = order[first]
+    top = least_per_row(pts.pose, pts.row, -mu)
     top = top[mu[top] > out.mu[pts.pose[top], pts.row[top]]]
     i, r = pts.pose[top], pts.row[top]
     out.mu[i, r], out.psi[i, r], out.q[i, r] = mu[top], pts.psi[top], pts.q[top]

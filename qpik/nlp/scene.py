@@ -58,6 +58,15 @@ class Points:
         return Points(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(Points)))
 
 
+def least_per_row(pose: np.ndarray, row: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Indices of the point with the smallest ``f`` of each (pose, branch row) among points (M,) (the first of equal
+    ones), ordered by pose and row."""
+    order = np.lexsort((f, row, pose))
+    first = np.ones(len(order), bool)
+    first[1:] = (pose[order][1:] != pose[order][:-1]) | (row[order][1:] != row[order][:-1])
+    return order[first]
+
+
 class Scene:
     """The data of one solve and the evaluation of rows (see the module docstring).
 
