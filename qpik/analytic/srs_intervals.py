@@ -126,8 +126,10 @@ class PsiIntervals:
         """The breakpoint function ``name`` of the pose T (4, 4) and ``inputs`` (the symbols of ``levels``):
         ``(breaks, singular, valid)`` of :meth:`expressions`, and its one C call."""
         T = ca.SX.sym("T", 4, 4)
+        robot = self._solver.robot
+        limits = inputs or [ca.DM(robot.q_min), ca.DM(robot.q_max)]
         breaks, singular, valid = self.expressions(T, levels)
-        out = [ca.vertcat(*breaks), ca.vertcat(*singular), valid]
+        out = [ca.vertcat(*breaks), ca.vertcat(*singular), valid * self.fixed_joints_within(T, *limits)]
         fn = Compiled(ca.Function(name, [T, *inputs], out))
         return _Breakpoints(fn, _NativePsi.build(fn, self._solver, len(self.branch)))
 
@@ -161,6 +163,21 @@ class PsiIntervals:
             pairs += _pairs(fixed)
             cosines += np.unique(np.cos(fixed)).tolist()
         return JointLevels(pairs, cosines)
+
+    def fixed_joints_within(self, T: ca.SX, lo: ca.SX | ca.DM, hi: ca.SX | ca.DM) -> ca.SX:
+        """1 where some branch has its joints that do not depend on ψ (θ4) inside ``[lo, hi]`` ((n,) rad), else 0:
+        then no ψ puts any branch inside the limits and every set is empty, with no gap to classify (a margin above
+        the elbow's, the common last call of :mod:`qpik.nlp.levelset`). The same expressions and test as the IK's."""
+        psi = ca.SX.sym("psi")
+        Q = self._solver.casadi_function(T, psi)[0][: len(self.branch), :]
+        fixed = [j for j in range(Q.shape[1]) if not ca.depends_on(Q[:, j], psi)]
+        alive = ca.SX(0.0)
+        for r in range(Q.shape[0]):
+            inside = ca.SX(1.0)
+            for j in fixed:
+                inside = inside * (Q[r, j] >= lo[j]) * (Q[r, j] <= hi[j])
+            alive = ca.fmax(alive, inside)
+        return alive if fixed else ca.SX(1.0)
 
     def expressions(self, T: ca.SX, levels: list[JointLevels]) -> tuple[list, list, ca.SX]:
         """For the pose T (4, 4) and the levels of every joint: the breakpoints (two per equation and elbow sign,

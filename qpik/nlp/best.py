@@ -315,16 +315,21 @@ def _solve(
 ) -> list[BestResult]:
     sm = scene.selfmotion
     N, B = len(scene.poses), sm.searched
-    best = _BestSoFar(N, B, scene.robot.dof)
+    if method == "levelset":
+        sets = maximise(scene, rows, weight)
+        scene.counts += sets.evaluations
+        f = -weight * sets.mu  # +inf where a row has no point
+        if sets.certified.all():  # the common case: every answer comes straight from the rounds
+            found = _BestSoFar(f, sets.psi, sets.q, sets.rounds, np.full(f.shape, np.inf))
+            return _answers(scene, found, rows, sets.certified, sets.bound, [""] * N, ["levelset"] * N)
+    best = _BestSoFar.empty(N, B, scene.robot.dof)
     cert_ok = np.zeros(N, bool)
     bound = np.full(N, -np.inf)
     reason = ["certify=False"] * N
     by_levels = np.zeros(N, bool)
     if method == "levelset":  # the poses it leaves uncertified go to the search and the certificate
-        sets = maximise(scene, rows, weight)
         by_levels = sets.certified
-        scene.counts += sets.evaluations
-        best.take(-weight * sets.mu, sets.psi, sets.q, sets.rounds)
+        best.take(f, sets.psi, sets.q, sets.rounds)
         cert_ok, bound = sets.certified.copy(), sets.bound.copy()
         method = "search"
     left = np.flatnonzero(~by_levels)
@@ -352,11 +357,8 @@ def _solve(
         sub = pieces.take(np.isin(pieces.pose, redo))
         best.update_from(*_search(scene, sub, SAMPLE_STEP / 4 ** (attempt + 1), extra=cert.better))
         todo = redo
-    tables = _tables(scene, best, rows)
-    out = [_result(scene, best, i, tables[i], cert_ok[i], bound[i], reason[i]) for i in range(N)]
-    for i, r in enumerate(out):
-        r.method = "levelset" if by_levels[i] else method
-    return out
+    methods = ["levelset" if done else method for done in by_levels.tolist()]
+    return _answers(scene, best, rows, cert_ok, bound, reason, methods)
 
 
 def _feasible_pieces(fis: dict, rows: list[int], poses: np.ndarray) -> Pieces:
@@ -415,15 +417,21 @@ def _count(scene: Scene, pts: Points) -> None:
     np.add.at(scene.counts, (pts.pose, pts.row), 1)
 
 
+@dataclass
 class _BestSoFar:
-    """Per (pose, branch row): the best feasible point found so far."""
+    """Per (pose, branch row): the best feasible point found so far, f (N, B) (+inf where none), ψ (N, B), q (N, B,
+    n), the polish rounds (N, B) and the clearance (N, B)."""
 
-    def __init__(self, N: int, B: int, n: int):
-        self.f = np.full((N, B), np.inf)
-        self.psi = np.full((N, B), np.nan)
-        self.q = np.full((N, B, n), np.nan)
-        self.rounds = np.zeros((N, B), int)
-        self.clearance = np.full((N, B), np.inf)
+    f: np.ndarray
+    psi: np.ndarray
+    q: np.ndarray
+    rounds: np.ndarray
+    clearance: np.ndarray
+
+    @classmethod
+    def empty(cls, N: int, B: int, n: int) -> _BestSoFar:
+        none = np.full((N, B), np.inf)
+        return cls(none, np.full((N, B), np.nan), np.full((N, B, n), np.nan), np.zeros((N, B), int), none.copy())
 
     def update(self, pose, row, psi, q, f, rounds, clearance) -> None:
         """Points (M,) with their rounds: the best feasible one of each (pose, branch row) replaces a worse best."""
@@ -460,17 +468,22 @@ class _BestSoFar:
         return self.f.min(axis=1)
 
 
-def _tables(scene: Scene, best: _BestSoFar, searched: list[int]) -> list[list[BranchOptimum]]:
-    """Per pose, the per-branch table: every branch, a mirrored one from its searched row (plain floats: a few
-    poses' tables cost less so than through numpy's calls)."""
+def _answers(
+    scene: Scene, best: _BestSoFar, searched: list[int], certified: np.ndarray, bound: np.ndarray, reason: list[str],
+    method: list[str],
+) -> list[BestResult]:
+    """Per pose, the result from the best points, with its per-branch table: every branch, a mirrored one from its
+    searched row (plain floats: a few poses' tables cost less so than through numpy's calls)."""
     sm = scene.selfmotion
     mirrors = [sm.mirror(k) for k in range(len(sm.branch_ids))]
+    ids = sm.branch_ids.tolist()
     # per branch: (id, its searched row, its shift (None: its own row), searched)
-    columns = [(int(bid), k if m is None else m[0], None if m is None else m[1], (k if m is None else m[0]) in searched)
-               for k, (bid, m) in enumerate(zip(sm.branch_ids.tolist(), mirrors))]  # fmt: skip
+    columns = [(bid, k if m is None else m[0], None if m is None else m[1], (k if m is None else m[0]) in searched)
+               for k, (bid, m) in enumerate(zip(ids, mirrors))]  # fmt: skip
     out = []
-    for f, psi, rounds, counts, q in zip(best.f.tolist(), best.psi.tolist(), best.rounds.tolist(),
-                                         scene.counts.tolist(), best.q):  # fmt: skip
+    rows = zip(best.f.tolist(), best.psi.tolist(), best.rounds.tolist(), scene.counts.tolist(), best.q,
+               best.clearance.tolist(), certified.tolist(), bound.tolist(), reason, method)  # fmt: skip
+    for i, (f, psi, rounds, counts, q, clear, proved, low, why, how) in enumerate(rows):
         total = max(sum(counts), 1)
         table = []
         for bid, r, shift, done in columns:
@@ -480,28 +493,22 @@ def _tables(scene: Scene, best: _BestSoFar, searched: list[int]) -> list[list[Br
             evals = counts[r] if own else 0
             table.append(BranchOptimum(bid, done, ok, param, f[r], q[r].copy() if ok else None,
                                        rounds[r] if own else 0, evals, evals / total))  # fmt: skip
-        out.append(table)
+        value = min(f)
+        if value == math.inf:
+            result = least_violating(scene, i, table)
+        else:
+            r = f.index(value)
+            result = BestResult("optimal", ids[r], psi[r], q[r].copy(), value, proved,
+                                value - low if proved else math.inf, clear[r], 0.0, table, sm.solver.param_name,
+                                "" if proved else why)  # fmt: skip
+        result.method = how
+        out.append(result)
     return out
 
 
 def _wrap(x: float) -> float:
     """:func:`qpik.analytic.intervals.wrap` of one float."""
     return x + TWO_PI * math.floor((math.pi - x) / TWO_PI)
-
-
-def _result(
-    scene: Scene, best: _BestSoFar, i: int, rows: list[BranchOptimum], certified: bool, bound: float, reason: str
-) -> BestResult:
-    if not np.isfinite(best.f[i]).any():
-        return least_violating(scene, i, rows)
-    r = int(np.argmin(best.f[i]))
-    value = float(best.f[i, r])
-    gap = value - bound if certified else np.inf
-    return BestResult(
-        "optimal", int(scene.selfmotion.branch_ids[r]), float(best.psi[i, r]), best.q[i, r].copy(), value,
-        bool(certified), float(gap), float(best.clearance[i, r]), 0.0, rows, scene.selfmotion.solver.param_name,
-        "" if certified else reason,
-    )  # fmt: skip
 
 
 def least_violating(

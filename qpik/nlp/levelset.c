@@ -80,18 +80,12 @@ static void trials(const LevelSet *L, const Pieces *now, int i, double level, co
                    double before_level, double *t) {
     double a = now->lo[i], b = now->hi[i], mid = 0.5 * (a + b);
     double e = fmin(L->end, 0.25 * (b - a));
-    t[0] = mid;
-    if (!before) {
-        t[1] = a + e, t[2] = b - e;
-        return;
-    }
+    t[0] = t[1] = t[2] = mid;
+    if (!before) return;
     int k = -1;
     for (int j = 0; j < before->count && k < 0; ++j)
         if (before->row[j] == now->row[i] && before->lo[j] <= a + L->slack && b <= before->hi[j] + L->slack) k = j;
-    if (k < 0) {
-        t[1] = t[2] = mid;
-        return;
-    }
+    if (k < 0) return;
     double slope_at[2], px[2], ps[2];
     int has[2];
     for (int side = 0; side < 2; ++side) {
@@ -123,12 +117,6 @@ static void trials(const LevelSet *L, const Pieces *now, int i, double level, co
     t[2] = isfinite(root) ? fmin(fmax(root, a), b) : mid;
 }
 
-/* The rounds for the pose (16, column-major). Per searched row r: best_mu[r], best_psi[r] and best_q[r n ...] (n) the
- * best point evaluated (-inf, 0 and untouched when none), rounds[r] the last round that evaluated the row, evals[r]
- * its evaluations; *level the last level.
- * Returns 1 when the maximum is proved (the sets at the last level are empty), 0 when not (a round found nothing
- * inside its own level set, or max_rounds rounds), 2 when the sets at level 0 are empty, -1 when more pieces came
- * than the sets or these rounds hold, -2 when a compiled function failed, -3 without memory (the sets' codes). */
 /* The region of the next sets: the pieces of this round, split at +-pi (-1: more than its room). */
 static int region_of(const LevelSet *L, const Pieces *p) {
     int m = 0;
@@ -144,14 +132,28 @@ static int region_of(const LevelSet *L, const Pieces *p) {
     return m;
 }
 
+/* The rounds for one pose (16, column-major). Per searched row r: best_mu[r], best_psi[r] and best_q[r n ...] (n) the
+ * best point evaluated (-inf, 0 and untouched when none), rounds[r] the last round that evaluated the row, evals[r]
+ * its evaluations; *level the last level.
+ * Returns 1 when the maximum is proved (the sets at the last level are empty), 0 when not (a round found nothing
+ * inside its own level set, or max_rounds rounds), 2 when the sets at level 0 are empty, -1 when more pieces came
+ * than the sets or these rounds hold, -2 when a compiled function failed, -3 without memory (the sets' codes). */
 static int rounds_of(const LevelSet *L, const double *pose, double *best_mu, double *best_psi, double *best_q,
                      int *rounds, int *evals, double *level_out);
 
-int qpik_levelset(const LevelSet *L, const double *pose, double *best_mu, double *best_psi, double *best_q,
-                  int *rounds, int *evals, double *level_out) {
-    int status = rounds_of(L, pose, best_mu, best_psi, best_q, rounds, evals, level_out);
+/* The rounds of rounds_of for N poses (16 doubles each, column-major, one after the other). Per pose, out holds
+ * R (n + 2) + 1 doubles: best_mu (R), best_psi (R), best_q (R n), the level; info holds 2 R + 1 ints: rounds (R),
+ * evals (R), the status. Returns the first status below -1 (a failure), else 0. */
+int qpik_levelset(const LevelSet *L, int N, const double *poses, double *out, int *info) {
+    int R = L->rows, n = L->n, failed = 0;
+    for (int i = 0; i < N; ++i) {
+        double *o = out + (size_t)i * (R * (n + 2) + 1);
+        int *f = info + (size_t)i * (2 * R + 1);
+        f[2 * R] = rounds_of(L, poses + 16 * (size_t)i, o, o + R, o + 2 * R, f, f + R, o + R * (n + 2));
+        if (f[2 * R] < -1 && !failed) failed = f[2 * R];
+    }
     *L->n_region = -1; /* the sets' other callers have none */
-    return status;
+    return failed;
 }
 
 static int rounds_of(const LevelSet *L, const double *pose, double *best_mu, double *best_psi, double *best_q,
@@ -198,6 +200,11 @@ static int rounds_of(const LevelSet *L, const double *pose, double *best_mu, dou
             int row = (int)now->row[i];
             for (int j = 0; j < TRIALS; ++j) {
                 double mu, slope;
+                if (j && t[j] == t[j - 1]) { /* the same point (the first round's middle): the same values */
+                    now->x[TRIALS * i + j] = t[j], now->mu[TRIALS * i + j] = now->mu[TRIALS * i + j - 1];
+                    now->slope[TRIALS * i + j] = now->slope[TRIALS * i + j - 1];
+                    continue;
+                }
                 if (margin_at(L, row, t[j], &mu, &slope)) return -2;
                 now->x[TRIALS * i + j] = t[j], now->mu[TRIALS * i + j] = mu, now->slope[TRIALS * i + j] = slope;
                 ++evals[row], rounds[row] = k + 1;

@@ -76,7 +76,7 @@ def margin_weight(objective: Objective, obstacles: ObstacleSet, robot) -> float 
     ((w, term),) = objective.terms
     if not isinstance(term, JointLimitMargin) or term.smooth or not w > 0:
         return None
-    if np.any(np.asarray(robot.q_max) - np.asarray(robot.q_min) >= TWO_PI):
+    if any(hi - lo >= TWO_PI for lo, hi in zip(robot.q_min.tolist(), robot.q_max.tolist())):
         return None
     return float(w)
 
@@ -211,9 +211,9 @@ def _trials(pieces: _Pieces, parent: _Pieces | None) -> np.ndarray:
 
     After the first round a pose has a few pieces: plain floats, which cost less than numpy's calls here."""
     lo, hi = pieces.lo, pieces.hi
-    inset = np.minimum(END, 0.25 * (hi - lo))
     if parent is None:
-        return np.stack([0.5 * (lo + hi), lo + inset, hi - inset])
+        return 0.5 * (lo + hi)[None]
+    inset = np.minimum(END, 0.25 * (hi - lo))
     holders: dict[int, list[int]] = {}
     for k, key in enumerate(parent.key.tolist()):
         holders.setdefault(key, []).append(k)
@@ -287,23 +287,24 @@ class _Native:
             room=ROOM, work=self._work.ctypes.data,
         )  # fmt: skip
         self._address = ctypes.addressof(self._call)
+        self._width = self._rows * (robot.dof + 2) + 1  # per pose: mu (R), psi (R), q (R, n), the last level
+        self._poses = np.zeros((0, 16))  # the call's buffers (:meth:`__call__`): poses, out (width), info (2 R + 1)
 
     def __call__(self, scene: Scene, weight: float) -> LevelSets:
-        N, R, n = len(scene.poses), self._rows, scene.robot.dof
-        out = LevelSets(np.full((N, R), -np.inf), np.zeros((N, R)), np.zeros((N, R, n)), np.zeros((N, R), np.intc),
-                        np.zeros((N, R), np.intc), np.zeros(N, bool), np.zeros(N))  # fmt: skip
-        poses = np.ascontiguousarray(scene.columns)
-        status = np.zeros(N, int)
-        call, address = self._dll.qpik_levelset, self._address
-        at = [a.ctypes.data for a in (poses, out.mu, out.psi, out.q, out.rounds, out.evaluations, out.bound)]
-        for i in range(N):
-            status[i] = call(address, at[0] + 128 * i, at[1] + 8 * R * i, at[2] + 8 * R * i, at[3] + 8 * R * n * i,
-                             at[4] + 4 * R * i, at[5] + 4 * R * i, at[6] + 8 * i)  # fmt: skip
-        if (status < -1).any():  # -1: more pieces than the buffers hold, left to the search; else a failure
-            raise RuntimeError(f"qpik_levelset failed ({status.min()}: -2 a compiled function failed, -3 no memory)")
-        out.certified = status == 1
-        out.bound = np.where(out.certified, -weight * out.bound, -np.inf)  # the C call wrote the last level there
-        return out
+        N, R = len(scene.poses), self._rows
+        if N > len(self._poses):  # the call's buffers, grown to the largest batch so far
+            self._poses, self._out, self._info = np.zeros((N, 16)), np.zeros((N, self._width)), np.zeros((N, 2 * R + 1), np.intc)
+            self._at = [a.ctypes.data for a in (self._poses, self._out, self._info)]
+        self._poses[:N] = scene.columns
+        failed = self._dll.qpik_levelset(self._address, N, *self._at)
+        if failed:  # -1 (more pieces than the buffers hold) is a pose left to the search; below it a failure
+            raise RuntimeError(f"qpik_levelset failed ({failed}: -2 a compiled function failed, -3 no memory)")
+        out, info = self._out[:N].copy(), self._info[:N].copy()
+        certified = info[:, 2 * R] == 1
+        return LevelSets(
+            out[:, :R], out[:, R : 2 * R], out[:, 2 * R : -1].reshape(N, R, -1), info[:, :R], info[:, R : 2 * R],
+            certified, np.where(certified, -weight * out[:, -1], -np.inf),
+        )  # fmt: skip
 
 
 _NATIVE: dict[int, tuple[SelfMotion, _Native | None]] = {}
@@ -332,5 +333,5 @@ def _library() -> ctypes.CDLL | None:
         return None
     dll = ctypes.PyDLL(str(lib))
     dll.qpik_levelset.restype = ctypes.c_int
-    dll.qpik_levelset.argtypes = [ctypes.c_void_p] * 8
+    dll.qpik_levelset.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
     return dll

@@ -13,6 +13,7 @@ search and the certificate need, from two compiled functions: the self-motion
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from functools import cached_property
 
 import numpy as np
 
@@ -99,10 +100,18 @@ class Scene:
         self.obstacles, self.d_safe = obstacles, float(d_safe)
         self.poses, self.q_ref = poses, q_ref
         self.columns = columns(poses)
-        self.evaluator = Evaluator(robot, objective, obstacles)
-        self.params = self.evaluator.params
         self.evaluations = 0
         self.counts = np.zeros((len(poses), selfmotion.searched), int)
+
+    @cached_property
+    def evaluator(self) -> Evaluator:
+        """The objective's and the clearances' compiled rows (built on first use: the level sets need none)."""
+        return Evaluator(self.robot, self.objective, self.obstacles)
+
+    @property
+    def params(self) -> np.ndarray:
+        """The objective's parameter values."""
+        return self.evaluator.params
 
     def evaluate(self, pose: np.ndarray, row: np.ndarray, psi: np.ndarray) -> Points:
         """Every quantity of :class:`Points` at the rows (pose (M,), branch row (M,), ψ (M,))."""
