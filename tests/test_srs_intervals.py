@@ -197,6 +197,34 @@ def test_sets_with_a_margin_match_dense_sampling(seed, without_compiler):
 
 @settings(max_examples=3, deadline=None)
 @given(seed=SEEDS)
+def test_no_set_above_the_elbows_margin(seed, without_compiler):
+    """θ4 does not move with ψ: just above the larger of its two elbow signs' margins every set is empty (with no gap
+    classified), just below it the sets still match dense sampling (which finds points of the larger margin), on both paths."""
+    rng = np.random.default_rng(seed)
+    for robot, numpy_path in zip((ROBOT, ASYMMETRIC), without_compiler):
+        solver = solver_for(robot)
+        for T in poses_for(robot, seed, 6):
+            sol = solver.solve_one(T, 0.0)
+            if not sol.valid.any():
+                continue
+            half = 0.5 * (robot.q_max[3] - robot.q_min[3])
+            q4 = sol.q[sol.valid, 3]
+            elbow = float(np.max(np.minimum(q4 - robot.q_min[3], robot.q_max[3] - q4) / half))
+            if not 1e-3 < elbow < 0.999:
+                continue
+            above = elbow + 1e-9
+            for sets in (solver.feasible_intervals(T, above), numpy_path(T, above)):
+                assert all(len(s) == 0 for s in sets.intervals)
+            below = elbow - 1e-3
+            fi = solver.feasible_intervals(T, below)
+            check_margin(robot, fi, T, below, rng.uniform(-np.pi, np.pi, MARGIN_SAMPLES))
+            other = numpy_path(T, below)
+            for k in range(8):
+                assert len(other[k]) == len(fi[k]) and np.allclose(other[k], fi[k], atol=1e-12, rtol=0), k
+
+
+@settings(max_examples=3, deadline=None)
+@given(seed=SEEDS)
 def test_sets_shrink_as_the_margin_grows(seed):
     """Monotone: each set at a larger margin lies inside the set at a smaller one; above 1 all are empty."""
     rng = np.random.default_rng(seed)

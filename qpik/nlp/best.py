@@ -28,6 +28,7 @@ import math
 import operator
 import time
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
@@ -38,7 +39,7 @@ from qpik.nlp.certificate import certify as prove
 from qpik.nlp.levelset import margin_weight, maximise
 from qpik.nlp.scene import Points, Scene, least_per_row
 from qpik.nlp.search import SAMPLE_STEP, Pieces, candidates, onto_limits, polish, sample, singular_ends, split
-from qpik.nlp.selfmotion import selfmotion_of
+from qpik.nlp.selfmotion import SelfMotion, selfmotion_of
 from qpik.objectives import Objective, ReferenceDistance, clearance, resolve
 from qpik.robots.robot import Robot, as_robot
 from qpik.validate import finite_array, flag, number
@@ -265,12 +266,12 @@ def solve_best(
     certify = flag(certify, "certify")
     if not isinstance(method, str) or method not in METHODS:
         raise InputError(f"method: expected one of {list(METHODS)}, got {method!r}")
-    weight = margin_weight(obj, obs, robot)
+    sm = selfmotion_of(robot)
+    weight = margin_weight(obj, obs, sm)
     if method == "levelset" and weight is None:
         raise InputError("method: 'levelset' solves the margin objective alone, without obstacles")
     if method == "auto":
         method = "search" if weight is None else "levelset"
-    sm = selfmotion_of(robot)
     rows = _rows(sm, branches)
     if not len(T):
         return BestResults([], n)
@@ -472,16 +473,12 @@ def _answers(
     scene: Scene, best: _BestSoFar, searched: list[int], certified: np.ndarray, bound: np.ndarray, reason: list[str],
     method: list[str],
 ) -> list[BestResult]:
-    """Per pose, the result from the best points, with its per-branch table: every branch, a mirrored one from its
-    searched row (plain floats: a few poses' tables cost less so than through numpy's calls)."""
+    """Per pose, the result from the best points, with its per-branch table (plain floats: a few poses' tables cost
+    less so than through numpy's calls)."""
     sm = scene.selfmotion
-    mirrors = [sm.mirror(k) for k in range(len(sm.branch_ids))]
-    ids = sm.branch_ids.tolist()
-    # per branch: (id, its searched row, its shift (None: its own row), searched)
-    columns = [(bid, k if m is None else m[0], None if m is None else m[1], (k if m is None else m[0]) in searched)
-               for k, (bid, m) in enumerate(zip(ids, mirrors))]  # fmt: skip
+    columns, ids = _columns(sm, tuple(searched)), sm.branch_ids.tolist()
     out = []
-    rows = zip(best.f.tolist(), best.psi.tolist(), best.rounds.tolist(), scene.counts.tolist(), best.q,
+    rows = zip(best.f.tolist(), best.psi.tolist(), best.rounds.tolist(), scene.counts.tolist(), best.q.copy(),
                best.clearance.tolist(), certified.tolist(), bound.tolist(), reason, method)  # fmt: skip
     for i, (f, psi, rounds, counts, q, clear, proved, low, why, how) in enumerate(rows):
         total = max(sum(counts), 1)
@@ -489,10 +486,9 @@ def _answers(
         for bid, r, shift, done in columns:
             ok = f[r] < math.inf
             param = (psi[r] if shift is None else _wrap(psi[r] - shift)) if ok else None
-            own = shift is None
-            evals = counts[r] if own else 0
-            table.append(BranchOptimum(bid, done, ok, param, f[r], q[r].copy() if ok else None,
-                                       rounds[r] if own else 0, evals, evals / total))  # fmt: skip
+            evals = counts[r] if shift is None else 0
+            table.append(BranchOptimum(bid, done, ok, param, f[r], q[r] if ok else None,
+                                       rounds[r] if shift is None else 0, evals, evals / total))  # fmt: skip
         value = min(f)
         if value == math.inf:
             result = least_violating(scene, i, table)
@@ -503,6 +499,17 @@ def _answers(
                                 "" if proved else why)  # fmt: skip
         result.method = how
         out.append(result)
+    return out
+
+
+@lru_cache(maxsize=64)
+def _columns(sm: SelfMotion, searched: tuple[int, ...]) -> list[tuple[int, int, float | None, bool]]:
+    """The table's branches: per branch (public id, its searched row, its shift (None: its own row), searched)."""
+    out = []
+    for k, bid in enumerate(sm.branch_ids.tolist()):
+        m = sm.mirror(k)
+        row = k if m is None else m[0]
+        out.append((bid, row, None if m is None else m[1], row in searched))
     return out
 
 

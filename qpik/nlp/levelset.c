@@ -3,7 +3,8 @@
  * The rounds of qpik.nlp.levelset.maximise with its two compiled parts called from here: the arm's feasible sets
  * under limits written into their buffers (NativeSets: the breakpoint function, the root finder and the gap
  * classification, one C call) and the self-motion of a branch row, q and dq/dpsi at one parameter (CasADi's
- * generated C). The trial points are those of qpik.nlp.levelset._trials, the margin and its slope those of
+ * generated C). The trial points are those of qpik.nlp.levelset._trials (a point equal to the one before it is not
+ * evaluated again), the climb that of _climb, the margin and its slope those of
  * qpik.objectives.JointLimitMargin (the active term of the minimum). The tests compare this path with the
  * Python one.
  */
@@ -34,6 +35,7 @@ typedef struct {
     int n;
     const double *q_min, *q_max; /* (n) */
     double eps, end, near, slack;
+    int climb;          /* steps of a climb at most */
     int max_rounds;
     int room;            /* pieces per round at most */
     double *work;        /* 24 * room doubles */
@@ -74,8 +76,8 @@ static int margin_at(const LevelSet *L, int row, double psi, double *mu, double 
     return 0;
 }
 
-/* The three trial points of piece i of `now` (qpik.nlp.levelset._trials), from its parent in `before` (NULL in the
- * first round). */
+/* The trial points of piece i of `now` (qpik.nlp.levelset._trials), from its parent in `before` (NULL in the first
+ * round: the middle, in all three slots). */
 static void trials(const LevelSet *L, const Pieces *now, int i, double level, const Pieces *before,
                    double before_level, double *t) {
     double a = now->lo[i], b = now->hi[i], mid = 0.5 * (a + b);
@@ -115,6 +117,53 @@ static void trials(const LevelSet *L, const Pieces *now, int i, double level, co
         root = has[0] ? b - e : a + e;
     t[1] = fmin(fmax(cross, a), b);
     t[2] = isfinite(root) ? fmin(fmax(root, a), b) : mid;
+}
+
+
+/* Evaluates branch row `row` at x (mu and dmu/dpsi out) and keeps it as the row's best point when it is better. */
+static int visit(const LevelSet *L, int row, double x, double *mu, double *slope, double *best_mu, double *best_psi,
+                 double *best_q, int *evals) {
+    if (margin_at(L, row, x, mu, slope)) return -2;
+    ++evals[row];
+    if (*mu > best_mu[row]) {
+        best_mu[row] = *mu, best_psi[row] = wrap(x);
+        memcpy(best_q + (size_t)row * L->n, L->motion_out, (size_t)L->n * sizeof(double));
+    }
+    return 0;
+}
+
+/* The climb of qpik.nlp.levelset._climb on piece i of `now` (its trial points evaluated), raising *top. */
+static int climb(const LevelSet *L, const Pieces *now, int i, double level, double *top, double *best_mu,
+                 double *best_psi, double *best_q, int *evals) {
+    double lx = now->lo[i], lm = level, ls = NAN, rx = now->hi[i], rm = level, rs = NAN;
+    int lk = 0, rk = 0, row = (int)now->row[i];
+    for (int j = 0; j < TRIALS; ++j) {
+        double x = now->x[TRIALS * i + j], m = now->mu[TRIALS * i + j], s = now->slope[TRIALS * i + j];
+        if (s > 0 && (!lk || m > lm)) lx = x, lm = m, ls = s, lk = 1;
+        if (s < 0 && (!rk || m > rm)) rx = x, rm = m, rs = s, rk = 1;
+    }
+    if (!lk && !rk) return 0;
+    for (int it = 0; it < L->climb && rx - lx > L->slack; ++it) {
+        double sl = lk ? ls : 2.0 * (lm - rm) / (lx - rx) - rs;
+        double sr = rk ? rs : 2.0 * (rm - lm) / (rx - lx) - ls;
+        if (!(sl > 0 && sr < 0 && isfinite(sl - sr))) return 0;
+        double cross = (rm - lm + sl * lx - sr * rx) / (sl - sr);
+        if (lm + sl * (cross - lx) - *top < 0.5 * L->eps) return 0;
+        double t[2] = {cross, lk && rk ? lx - ls * (rx - lx) / (rs - ls) : NAN};
+        for (int j = 0; j < 2; ++j) {
+            double x = t[j], m, s;
+            if (!(x > lx && x < rx)) continue;
+            if (visit(L, row, x, &m, &s, best_mu, best_psi, best_q, evals)) return -2;
+            if (m > *top) *top = m;
+            if (s > 0)
+                lx = x, lm = m, ls = s, lk = 1;
+            else if (s < 0)
+                rx = x, rm = m, rs = s, rk = 1;
+            else
+                return 0; /* the top itself, or no point */
+        }
+    }
+    return 0;
 }
 
 /* The region of the next sets: the pieces of this round, split at +-pi (-1: more than its room). */
@@ -199,22 +248,20 @@ static int rounds_of(const LevelSet *L, const double *pose, double *best_mu, dou
             trials(L, now, i, level, before, before_level, t);
             int row = (int)now->row[i];
             for (int j = 0; j < TRIALS; ++j) {
-                double mu, slope;
+                double *x = now->x + TRIALS * i, *mu = now->mu + TRIALS * i, *slope = now->slope + TRIALS * i;
+                x[j] = t[j];
                 if (j && t[j] == t[j - 1]) { /* the same point (the first round's middle): the same values */
-                    now->x[TRIALS * i + j] = t[j], now->mu[TRIALS * i + j] = now->mu[TRIALS * i + j - 1];
-                    now->slope[TRIALS * i + j] = now->slope[TRIALS * i + j - 1];
+                    mu[j] = mu[j - 1], slope[j] = slope[j - 1];
                     continue;
                 }
-                if (margin_at(L, row, t[j], &mu, &slope)) return -2;
-                now->x[TRIALS * i + j] = t[j], now->mu[TRIALS * i + j] = mu, now->slope[TRIALS * i + j] = slope;
-                ++evals[row], rounds[row] = k + 1;
-                if (mu > best_mu[row]) {
-                    best_mu[row] = mu, best_psi[row] = wrap(t[j]);
-                    memcpy(best_q + (size_t)row * n, L->motion_out, (size_t)n * sizeof(double));
-                }
-                if (mu > top) top = mu;
+                if (visit(L, row, t[j], mu + j, slope + j, best_mu, best_psi, best_q, evals)) return -2;
+                rounds[row] = k + 1;
+                if (mu[j] > top) top = mu[j];
             }
         }
+        int at = 0; /* the piece of the first trial point at the top */
+        while (at < TRIALS * now->count - 1 && !(now->mu[at] == top)) ++at;
+        if (climb(L, now, at / TRIALS, level, &top, best_mu, best_psi, best_q, evals)) return -2;
         /* inside its level set every point has mu >= level: a round that found nothing there stops, unproved */
         if (k && !(top > level - 0.5 * L->eps)) break;
         if (top > best) best = top;

@@ -10,20 +10,21 @@ set :math:`S(m) = \{(b, \psi) : \mu(q_b(\psi)) \ge m\}` of every branch b is its
 the shrunk limits, :meth:`~qpik.analytic.solver.AnalyticSolver.feasible_intervals` with ``margin=m``:
 computed from the breakpoint equations, not sampled. Per pose, from :math:`S(0)` (the feasible intervals):
 
-1. On every piece [a, b] of :math:`S(m_k)` (a piece through ±π joined into one), evaluate μ and dμ/dψ at three
-   trial points (:func:`_trials`): in the first round the middle and both ends; then the middle, the
-   crossing of the tangents at the two ends (exact at a kink, where two joints' margins cross) and the root of
-   the secant of dμ/dψ between the points those slopes come from (exact at a quadratic top). The slope at an
-   end comes from the previous round's best point on that side of the top (its value and slope, with the end's
-   own value, the level: exact for a quadratic).
+1. On every piece [a, b] of :math:`S(m_k)` (a piece through ±π joined into one), evaluate μ and dμ/dψ at
+   trial points (:func:`_trials`): in the first round the middle; then the middle, the crossing of the tangents
+   at the two ends (exact at a kink, where two joints' margins cross) and the root of the secant of dμ/dψ between
+   the points those slopes come from (exact at a quadratic top). The slope at an end comes from the previous
+   round's best point on that side of the top (its value and slope, with the end's own value, the level: exact
+   for a quadratic). Then climb the top of the piece that holds the best of them (:func:`_climb`: a few steps of
+   the same two points between the brackets of its top), so that the next level is close to the maximum.
 2. :math:`\mu_{k+1}` is the best value found, :math:`m_{k+1} = \mu_{k+1} + \varepsilon` (:data:`EPS`).
 3. An empty :math:`S(m_{k+1})` proves that no branch and δ/ψ reaches :math:`\mu_{k+1} + \varepsilon`:
    the answer is certified to ε (to the sets' accuracy: their ends are exact to
    :data:`qpik.analytic.intervals.SAME`). Otherwise every point of :math:`S(m_{k+1})` beats it: back to 1.
 
 Every point of :math:`S(m_{k+1})` is better than the best so far by ε, so each round gains at least ε, and
-near a top the pieces close in on it from both sides: 1–7 rounds on random poses (one when the margin is
-bound by a joint that the parameter does not move, such as the S-R-S elbow). A pose whose round finds nothing
+near a top the pieces close in on it from both sides: 1–4 rounds on random poses (one when the climb reached the
+top, or when the margin is bound by a joint that the parameter does not move, such as the S-R-S elbow). A pose whose round finds nothing
 inside its own super-level set, or that needs more than :data:`MAX_ROUNDS`, is left uncertified:
 :func:`qpik.solve_best` searches it by sampling and proves it with the Taylor models
 (:mod:`qpik.nlp.certificate`) instead.
@@ -64,19 +65,20 @@ NEAR = 1e-7
 """A trial point this close (rad) to an end of a piece gives the slope there."""
 SLACK = 1e-12
 """A piece lies in its parent to this (rad): the sets' ends move with the level, and by rounding."""
+CLIMB = 6
+"""Steps of a round's climb (:func:`_climb`) at most."""
 ROWS = 64
 """More than any arm's branch rows (a piece's key: pose · ROWS + row)."""
 
 
-def margin_weight(objective: Objective, obstacles: ObstacleSet, robot) -> float | None:
+def margin_weight(objective: Objective, obstacles: ObstacleSet, selfmotion: SelfMotion) -> float | None:
     """w when the objective is w · the (epigraph) margin with w > 0, there are no obstacles and no joint's
-    range spans a whole turn: the cases this method solves. None otherwise."""
-    if len(obstacles) or len(objective.terms) != 1:
+    range spans a whole turn (``selfmotion.whole_turn``): the cases this method solves. None otherwise."""
+    terms = objective.terms
+    if len(obstacles) or len(terms) != 1 or selfmotion.whole_turn:
         return None
-    ((w, term),) = objective.terms
+    ((w, term),) = terms
     if not isinstance(term, JointLimitMargin) or term.smooth or not w > 0:
-        return None
-    if any(hi - lo >= TWO_PI for lo, hi in zip(robot.q_min.tolist(), robot.q_max.tolist())):
         return None
     return float(w)
 
@@ -129,15 +131,13 @@ def maximise(scene: Scene, rows: list[int], weight: float) -> LevelSets:
             out.certified[[i for i in current if not found[i]]] = True
         if not len(pieces) or k == MAX_ROUNDS:
             break
-        psi = _trials(pieces, parent)  # (3, P)
-        pts = scene.evaluate(np.tile(pieces.pose, len(psi)), np.tile(pieces.row, len(psi)), wrap(psi.ravel()))
-        ok = pts.valid & np.isfinite(pts.f)
-        mu = np.where(ok, -pts.f / weight, -np.inf)
+        psi = _trials(pieces, parent)  # (trials, P)
+        pts, mu, slope = _margins(scene, np.tile(pieces.pose, len(psi)), np.tile(pieces.row, len(psi)), psi.ravel(), weight)
         _keep_best(out, pts, mu, k + 1)
         top = np.full(N, -np.inf)
         np.maximum.at(top, pts.pose, mu)
-        pieces.x, pieces.mu = psi, mu.reshape(len(psi), -1)
-        pieces.slope = np.where(ok, -pts.df / weight, np.nan).reshape(len(psi), -1)
+        pieces.x, pieces.mu, pieces.slope = psi, mu.reshape(len(psi), -1), slope.reshape(len(psi), -1)
+        _climb(scene, pieces, top, weight, out, k + 1)
         # inside S(level) every point has μ ≥ level: a pose whose round found nothing there is left to the search
         moved = found & (top > level - 0.5 * EPS) if k else found
         best = np.where(found, np.maximum(best, top), best)
@@ -147,6 +147,65 @@ def maximise(scene: Scene, rows: list[int], weight: float) -> LevelSets:
         parent = pieces
     out.bound = np.where(out.certified, -weight * level, -np.inf)
     return out
+
+
+def _margins(
+    scene: Scene, pose: np.ndarray, row: np.ndarray, psi: np.ndarray, weight: float
+) -> tuple[Points, np.ndarray, np.ndarray]:
+    """The points (M,) of branch rows ``row`` at ψ (rad, wrapped here) of the poses ``pose``, with μ and dμ/dψ there
+    (−inf and NaN where the branch does not reach the pose)."""
+    pts = scene.evaluate(pose, row, wrap(psi))
+    ok = pts.valid & np.isfinite(pts.f)
+    return pts, np.where(ok, -pts.f / weight, -np.inf), np.where(ok, -pts.df / weight, np.nan)
+
+
+def _climb(scene: Scene, pieces: _Pieces, top: np.ndarray, weight: float, out: LevelSets, round_: int) -> None:
+    r"""Per pose, climbs the top of the piece that holds its round's best trial point (the first), before the level
+    is raised: :data:`CLIMB` steps at most, each evaluating the crossing of the tangents of the two brackets (the
+    best points with dμ/dψ > 0 and < 0; an end of the piece, where μ is the level, stands for a missing one, its
+    slope that of the quadratic through it and the other bracket) and the root of the secant of dμ/dψ between
+    them (exact at a quadratic top; the crossing is exact at a kink). Each point replaces the bracket on its side;
+    the climb stops where the tangents' crossing (their upper bound near a top) is within ε/2 of ``top``.
+
+    A level near the top is what proves it in one more call of the sets; without the climb the rounds close in on a
+    smooth top by the sets alone, one call per round. Raises ``top`` (N,) in place; the points go into ``out``."""
+    hit = np.flatnonzero((pieces.mu.T == top[pieces.pose][:, None]).any(axis=1))
+    at = hit[np.unique(pieces.pose[hit], return_index=True)[1]]  # per pose its first piece at the top
+    pose, row = pieces.pose[at], pieces.row[at]
+    lx, rx, lm = pieces.lo[at], pieces.hi[at], pieces.level[at]
+    rm, ls, rs = lm.copy(), np.full(len(at), np.nan), np.full(len(at), np.nan)
+    lk, rk = np.zeros(len(at), bool), np.zeros(len(at), bool)
+    for x, m, s in zip(pieces.x[:, at], pieces.mu[:, at], pieces.slope[:, at]):
+        take = (s > 0) & (~lk | (m > lm))
+        lx, lm, ls, lk = np.where(take, x, lx), np.where(take, m, lm), np.where(take, s, ls), lk | take
+        take = (s < 0) & (~rk | (m > rm))
+        rx, rm, rs, rk = np.where(take, x, rx), np.where(take, m, rm), np.where(take, s, rs), rk | take
+    active, t = lk | rk, top[pose]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for _ in range(CLIMB):
+            active &= rx - lx > SLACK
+            sl = np.where(lk, ls, 2.0 * (lm - rm) / (lx - rx) - rs)
+            sr = np.where(rk, rs, 2.0 * (rm - lm) / (rx - lx) - ls)
+            active &= (sl > 0) & (sr < 0) & np.isfinite(sl - sr)
+            cross = (rm - lm + sl * lx - sr * rx) / (sl - sr)
+            active &= ~(lm + sl * (cross - lx) - t < 0.5 * EPS)
+            secant = np.where(lk & rk, lx - ls * (rx - lx) / (rs - ls), np.nan)
+            for x in (cross, secant):
+                i = np.flatnonzero(active & (x > lx) & (x < rx))
+                if not len(i):
+                    continue
+                pts, m, s = _margins(scene, pose[i], row[i], x[i], weight)
+                _keep_best(out, pts, m, round_)
+                t[i] = np.maximum(t[i], m)
+                up, down = s > 0, s < 0
+                lx[i], lm[i], ls[i] = np.where(up, x[i], lx[i]), np.where(up, m, lm[i]), np.where(up, s, ls[i])
+                rx[i], rm[i], rs[i] = np.where(down, x[i], rx[i]), np.where(down, m, rm[i]), np.where(down, s, rs[i])
+                lk[i] |= up
+                rk[i] |= down
+                active[i] &= up | down  # the top itself, or no point
+            if not active.any():
+                break
+    top[pose] = t
 
 
 def _keep_best(out: LevelSets, pts: Points, mu: np.ndarray, round_: int) -> None:
@@ -200,14 +259,15 @@ def _pieces(sets: dict[int, FeasibleIntervals], rows: list[int], level: np.ndarr
 
 def _trials(pieces: _Pieces, parent: _Pieces | None) -> np.ndarray:
     """(3, P) trial points of the pieces (rad, in [lo, hi]): the middle, the crossing of the tangents at the two
-    ends, and the root of the secant of dμ/dψ between the points the tangents' slopes come from.
+    ends, and the root of the secant of dμ/dψ between the points the tangents' slopes come from; (1, P), the middle,
+    in the first round (``parent`` None).
 
     The slope at the left end (a level crossing) comes from the best point x with dμ/dψ > 0 of the previous
     round's piece that holds this one (its parent): 2 (level − μ(x))/(lo − x) − μ'(x), exact for a quadratic
     (μ'(x) itself when x is the end, :data:`NEAR`);
     without such a point, the secant through the two level crossings (lo_parent, level_parent) and (lo, level).
     The right end likewise, with dμ/dψ < 0. Where one side has no such point, the end of that side (:data:`END`
-    inside) instead of the root: its slope serves the next round. In the first round: the middle and both ends.
+    inside) instead of the root: its slope serves the next round.
 
     After the first round a pose has a few pieces: plain floats, which cost less than numpy's calls here."""
     lo, hi = pieces.lo, pieces.hi
@@ -262,7 +322,7 @@ class _LevelSet(ctypes.Structure):
     _fields_ += [(name, ctypes.c_void_p) for name in ("motion_row", "motion_pose", "motion_psi", "motion_out")]
     _fields_ += [("n", ctypes.c_int), ("q_min", ctypes.c_void_p), ("q_max", ctypes.c_void_p)]
     _fields_ += [(name, ctypes.c_double) for name in ("eps", "end", "near", "slack")]
-    _fields_ += [("max_rounds", ctypes.c_int), ("room", ctypes.c_int), ("work", ctypes.c_void_p)]
+    _fields_ += [("climb", ctypes.c_int), ("max_rounds", ctypes.c_int), ("room", ctypes.c_int), ("work", ctypes.c_void_p)]
 
 
 class _Native:
@@ -283,7 +343,7 @@ class _Native:
             rows=self._rows,
             motion=motion.kernel, motion_row=row, motion_pose=pose, motion_psi=psi,
             motion_out=motion.res[0].ctypes.data, n=robot.dof, q_min=self._limits[0].ctypes.data,
-            q_max=self._limits[1].ctypes.data, eps=EPS, end=END, near=NEAR, slack=SLACK, max_rounds=MAX_ROUNDS,
+            q_max=self._limits[1].ctypes.data, eps=EPS, end=END, near=NEAR, slack=SLACK, climb=CLIMB, max_rounds=MAX_ROUNDS,
             room=ROOM, work=self._work.ctypes.data,
         )  # fmt: skip
         self._address = ctypes.addressof(self._call)

@@ -52,6 +52,8 @@ class SelfMotion:
         self.solver = solver_for(robot)
         self.branch_ids = np.array(self.solver.branch_ids)
         self.searched = MIRRORED.get(self.solver.kind, self.solver.n_branches)
+        self.whole_turn = bool(np.any(np.asarray(robot.q_max) - np.asarray(robot.q_min) >= 2.0 * np.pi))
+        """Some joint's range spans a whole turn (its configurations are the IK's representatives q + 2πk)."""
 
     @cached_property
     def _symbols(self) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
