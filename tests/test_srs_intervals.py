@@ -199,7 +199,8 @@ def test_sets_with_a_margin_match_dense_sampling(seed, without_compiler):
 @given(seed=SEEDS)
 def test_no_set_above_the_elbows_margin(seed, without_compiler):
     """θ4 does not move with ψ: just above the larger of its two elbow signs' margins every set is empty (with no gap
-    classified), just below it the sets still match dense sampling (which finds points of the larger margin), on both paths."""
+    classified), just below it the sets still match dense sampling (which finds points of the larger margin), on
+    both paths."""
     rng = np.random.default_rng(seed)
     for robot, numpy_path in zip((ROBOT, ASYMMETRIC), without_compiler):
         solver = solver_for(robot)

@@ -470,7 +470,12 @@ class _BestSoFar:
 
 
 def _answers(
-    scene: Scene, best: _BestSoFar, searched: list[int], certified: np.ndarray, bound: np.ndarray, reason: list[str],
+    scene: Scene,
+    best: _BestSoFar,
+    searched: list[int],
+    certified: np.ndarray,
+    bound: np.ndarray,
+    reason: list[str],
     method: list[str],
 ) -> list[BestResult]:
     """Per pose, the result from the best points, with its per-branch table (plain floats: a few poses' tables cost

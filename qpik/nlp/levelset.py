@@ -24,8 +24,9 @@ computed from the breakpoint equations, not sampled. Per pose, from :math:`S(0)`
 
 Every point of :math:`S(m_{k+1})` is better than the best so far by ε, so each round gains at least ε, and
 near a top the pieces close in on it from both sides: 1–4 rounds on random poses (one when the climb reached the
-top, or when the margin is bound by a joint that the parameter does not move, such as the S-R-S elbow). A pose whose round finds nothing
-inside its own super-level set, or that needs more than :data:`MAX_ROUNDS`, is left uncertified:
+top, or when the margin is bound by a joint that the parameter does not move, such as the S-R-S elbow). A pose
+whose round finds nothing inside its own super-level set, or that needs more than :data:`MAX_ROUNDS`, is left
+uncertified:
 :func:`qpik.solve_best` searches it by sampling and proves it with the Taylor models
 (:mod:`qpik.nlp.certificate`) instead.
 
@@ -132,7 +133,8 @@ def maximise(scene: Scene, rows: list[int], weight: float) -> LevelSets:
         if not len(pieces) or k == MAX_ROUNDS:
             break
         psi = _trials(pieces, parent)  # (trials, P)
-        pts, mu, slope = _margins(scene, np.tile(pieces.pose, len(psi)), np.tile(pieces.row, len(psi)), psi.ravel(), weight)
+        reps = len(psi)
+        pts, mu, slope = _margins(scene, np.tile(pieces.pose, reps), np.tile(pieces.row, reps), psi.ravel(), weight)
         _keep_best(out, pts, mu, k + 1)
         top = np.full(N, -np.inf)
         np.maximum.at(top, pts.pose, mu)
@@ -169,7 +171,7 @@ def _climb(scene: Scene, pieces: _Pieces, top: np.ndarray, weight: float, out: L
 
     A level near the top is what proves it in one more call of the sets; without the climb the rounds close in on a
     smooth top by the sets alone, one call per round. Raises ``top`` (N,) in place; the points go into ``out``."""
-    hit = np.flatnonzero((pieces.mu.T == top[pieces.pose][:, None]).any(axis=1))
+    hit = np.flatnonzero((top[pieces.pose][:, None] == pieces.mu.T).any(axis=1))
     at = hit[np.unique(pieces.pose[hit], return_index=True)[1]]  # per pose its first piece at the top
     pose, row = pieces.pose[at], pieces.row[at]
     lx, rx, lm = pieces.lo[at], pieces.hi[at], pieces.level[at]
@@ -322,7 +324,7 @@ class _LevelSet(ctypes.Structure):
     _fields_ += [(name, ctypes.c_void_p) for name in ("motion_row", "motion_pose", "motion_psi", "motion_out")]
     _fields_ += [("n", ctypes.c_int), ("q_min", ctypes.c_void_p), ("q_max", ctypes.c_void_p)]
     _fields_ += [(name, ctypes.c_double) for name in ("eps", "end", "near", "slack")]
-    _fields_ += [("climb", ctypes.c_int), ("max_rounds", ctypes.c_int), ("room", ctypes.c_int), ("work", ctypes.c_void_p)]
+    _fields_ += [(name, ctypes.c_int) for name in ("climb", "max_rounds", "room")] + [("work", ctypes.c_void_p)]
 
 
 class _Native:
@@ -343,8 +345,8 @@ class _Native:
             rows=self._rows,
             motion=motion.kernel, motion_row=row, motion_pose=pose, motion_psi=psi,
             motion_out=motion.res[0].ctypes.data, n=robot.dof, q_min=self._limits[0].ctypes.data,
-            q_max=self._limits[1].ctypes.data, eps=EPS, end=END, near=NEAR, slack=SLACK, climb=CLIMB, max_rounds=MAX_ROUNDS,
-            room=ROOM, work=self._work.ctypes.data,
+            q_max=self._limits[1].ctypes.data, eps=EPS, end=END, near=NEAR, slack=SLACK, climb=CLIMB,
+            max_rounds=MAX_ROUNDS, room=ROOM, work=self._work.ctypes.data,
         )  # fmt: skip
         self._address = ctypes.addressof(self._call)
         self._width = self._rows * (robot.dof + 2) + 1  # per pose: mu (R), psi (R), q (R, n), the last level
@@ -352,8 +354,9 @@ class _Native:
 
     def __call__(self, scene: Scene, weight: float) -> LevelSets:
         N, R = len(scene.poses), self._rows
-        if N > len(self._poses):  # the call's buffers, grown to the largest batch so far
-            self._poses, self._out, self._info = np.zeros((N, 16)), np.zeros((N, self._width)), np.zeros((N, 2 * R + 1), np.intc)
+        if len(self._poses) < N:  # the call's buffers, grown to the largest batch so far
+            self._poses, self._out = np.zeros((N, 16)), np.zeros((N, self._width))
+            self._info = np.zeros((N, 2 * R + 1), np.intc)
             self._at = [a.ctypes.data for a in (self._poses, self._out, self._info)]
         self._poses[:N] = scene.columns
         failed = self._dll.qpik_levelset(self._address, N, *self._at)
