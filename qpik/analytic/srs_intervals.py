@@ -17,7 +17,9 @@ For one pose every joint of a branch is a function of ψ built from
   point (n = d = 0, Shimizu et al. 2008: :math:`a_t^2 + b_t^2 = c_t^2`), where θ jumps by π,
   solves this equation for every L, so it is a root too.
 - cos-type (θ2, θ6): :math:`\cos\theta = M_{22}(\psi)`; θ = ±L iff :math:`M_{22}(\psi) = \cos L`.
-- θ4 does not depend on ψ.
+- θ4 does not depend on ψ. Where it lies outside the limits for both elbow signs, no ψ puts any branch inside
+  them: the breakpoint function's ``valid`` is then 0 and every set empty, with no gap to classify
+  (:meth:`PsiIntervals.fixed_joints_within`; at a margin above the elbow's this is the common case).
 
 θ is continuous in ψ between consecutive roots and crosses no limit there, so
 the roots are all the breakpoints: :class:`qpik.analytic.intervals.Assembler`
@@ -182,7 +184,8 @@ class PsiIntervals:
     def expressions(self, T: ca.SX, levels: list[JointLevels]) -> tuple[list, list, ca.SX]:
         """For the pose T (4, 4) and the levels of every joint: the breakpoints (two per equation and elbow sign,
         0 where there is none: a breakpoint that is always there, harmless), the singular ψ (per elbow sign,
-        two per joint group, ``NONE`` where there is none) and ``valid`` (the pose is reachable), as CasADi SX."""
+        two per joint group, ``NONE`` where there is none) and ``valid`` (the pose is reachable), as CasADi SX.
+        The compiled function's ``valid`` is this times :meth:`fixed_joints_within`."""
         ops = sy.CASADI
         R, p = sy.frame_of_batch(T)
         setup = arm_setup(R, p, self._solver.geometry, ops)
