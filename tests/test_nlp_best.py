@@ -279,6 +279,10 @@ def test_branch_table_restriction_and_mirrored_branches():
     T = robot.fk(q)
     res = solve_best(robot, T, certify=False)
     rows = {b.branch: b for b in res.branches}
+    # the table, built when first read: the best branch's row holds the answer, the times share the pose's
+    assert rows[res.branch].objective == res.objective and rows[res.branch].param == pytest.approx(res.param)
+    assert sum(b.time for b in res.branches) == pytest.approx(res.time, rel=1e-9)
+    assert sum(b.evaluations for b in res.branches) > 0
     for k in range(1, 9):  # branch k + 8 at δ is branch k at δ + π: the same configurations
         if rows[k].feasible:
             np.testing.assert_allclose(rows[k].q, rows[k + 8].q)

@@ -28,7 +28,7 @@ import math
 import operator
 import time
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -80,6 +80,34 @@ class BranchOptimum:
     time: float = 0.0
 
 
+@dataclass(frozen=True, eq=False)
+class BranchRows:
+    """What one pose's per-branch table is built from: the best point found per searched row, f (R,) (+inf where
+    none), ψ (R,), q (R, n), its rounds (R,) and the evaluations per row (R,); ``columns`` the table's branches, per
+    branch (public id, its searched row, its shift (None: its own row), whether it was searched)."""
+
+    columns: list[tuple[int, int, float | None, bool]]
+    f: list[float]
+    psi: list[float]
+    q: np.ndarray
+    rounds: list[int]
+    counts: list[int]
+
+    def table(self, time: float) -> list[BranchOptimum]:
+        """The rows, a branch's time its share (by evaluations) of the pose's ``time`` (s); plain floats, which
+        cost less than numpy's calls for one pose's few rows."""
+        f, psi, q, counts = self.f, self.psi, self.q, self.counts
+        per = time / max(sum(counts), 1)
+        out = []
+        for bid, r, shift, done in self.columns:
+            ok = f[r] < math.inf
+            param = (psi[r] if shift is None else _wrap(psi[r] - shift)) if ok else None
+            evals = counts[r] if shift is None else 0
+            out.append(BranchOptimum(bid, done, ok, param, f[r], q[r] if ok else None,
+                                     self.rounds[r] if shift is None else 0, evals, evals * per))  # fmt: skip
+        return out
+
+
 @dataclass
 class BestResult:
     """The answer for one pose.
@@ -95,12 +123,13 @@ class BestResult:
         clearance: smallest capsule–obstacle distance at q, m (inf without obstacles).
         violation: 0 for ``"optimal"``; else how far q is from a solution: outside the limits (rad),
             inside d_s (m), or, when unreachable, the norm of its pose error (m and rad, :func:`least_violating`).
-        branches: the per-branch table (:class:`BranchOptimum`).
+        branches: the per-branch table (:class:`BranchOptimum`), built when first read (from :attr:`rows`).
         param_name: ``"delta"`` or ``"psi"``.
         message: why it is not certified, or what failed ("" otherwise).
         method: what found the answer: ``"levelset"`` (then a row of :attr:`branches` other than the best
             holds the best point evaluated on its branch, not the branch's optimum), ``"search"`` or ``"ipopt"``.
         time: seconds (a batch: the call's time divided by the number of poses).
+        rows: what :attr:`branches` is built from (None: an empty table).
     """
 
     status: str
@@ -112,11 +141,16 @@ class BestResult:
     gap: float = np.inf
     clearance: float = np.inf
     violation: float = 0.0
-    branches: list[BranchOptimum] = field(default_factory=list)
     param_name: str = "psi"
     message: str = ""
     time: float = 0.0
     method: str = "search"
+    rows: BranchRows | None = field(default=None, repr=False)
+
+    @cached_property
+    def branches(self) -> list[BranchOptimum]:
+        """The per-branch table (:class:`BranchOptimum`; each branch's time its share of :attr:`time`)."""
+        return [] if self.rows is None else self.rows.table(self.time)
 
     def table(self) -> str:
         """The per-branch table as text (rad)."""
@@ -281,12 +315,10 @@ def solve_best(
             results = _solve(scene, certify, tol, method, rows, weight)
         except (RuntimeError, FloatingPointError, np.linalg.LinAlgError) as exc:  # a numerical failure: a status
             why = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
-            results = [least_violating(scene, i, [], "solver failed", why) for i in range(len(T))]
+            results = [least_violating(scene, i, None, "solver failed", why) for i in range(len(T))]
     elapsed = (time.perf_counter() - t0) / len(T)
     for r in results:
         r.time = elapsed
-        for b in r.branches:
-            b.time *= elapsed
     return BestResults(results, n) if batched else results[0]
 
 
@@ -478,30 +510,22 @@ def _answers(
     reason: list[str],
     method: list[str],
 ) -> list[BestResult]:
-    """Per pose, the result from the best points, with its per-branch table (plain floats: a few poses' tables cost
-    less so than through numpy's calls)."""
+    """Per pose, the result from the best points, and what its per-branch table is built from."""
     sm = scene.selfmotion
     columns, ids = _columns(sm, tuple(searched)), sm.branch_ids.tolist()
     out = []
-    rows = zip(best.f.tolist(), best.psi.tolist(), best.rounds.tolist(), scene.counts.tolist(), best.q.copy(),
-               best.clearance.tolist(), certified.tolist(), bound.tolist(), reason, method)  # fmt: skip
-    for i, (f, psi, rounds, counts, q, clear, proved, low, why, how) in enumerate(rows):
-        total = max(sum(counts), 1)
-        table = []
-        for bid, r, shift, done in columns:
-            ok = f[r] < math.inf
-            param = (psi[r] if shift is None else _wrap(psi[r] - shift)) if ok else None
-            evals = counts[r] if shift is None else 0
-            table.append(BranchOptimum(bid, done, ok, param, f[r], q[r] if ok else None,
-                                       rounds[r] if shift is None else 0, evals, evals / total))  # fmt: skip
+    poses = zip(best.f.tolist(), best.psi.tolist(), best.rounds.tolist(), scene.counts.tolist(), best.q.copy(),
+                best.clearance.tolist(), certified.tolist(), bound.tolist(), reason, method)  # fmt: skip
+    for i, (f, psi, rounds, counts, q, clear, proved, low, why, how) in enumerate(poses):
+        rows = BranchRows(columns, f, psi, q, rounds, counts)
         value = min(f)
         if value == math.inf:
-            result = least_violating(scene, i, table)
+            result = least_violating(scene, i, rows)
         else:
             r = f.index(value)
             result = BestResult("optimal", ids[r], psi[r], q[r].copy(), value, proved,
-                                value - low if proved else math.inf, clear[r], 0.0, table, sm.solver.param_name,
-                                "" if proved else why)  # fmt: skip
+                                value - low if proved else math.inf, clear[r], 0.0, sm.solver.param_name,
+                                "" if proved else why, rows=rows)  # fmt: skip
         result.method = how
         out.append(result)
     return out
@@ -524,7 +548,7 @@ def _wrap(x: float) -> float:
 
 
 def least_violating(
-    scene: Scene, i: int, rows: list[BranchOptimum], status: str | None = None, message: str = ""
+    scene: Scene, i: int, rows: BranchRows | None, status: str | None = None, message: str = ""
 ) -> BestResult:
     """The answer for pose i when the search has none: unreachable, or the least-violating configuration.
 
@@ -547,7 +571,7 @@ def least_violating(
         err = _pose_error_norm(T, robot.fk(Q))
         j = int(np.argmin(err))
         return BestResult(status or "unreachable", -1, float(psi[j // sm.solver.n_branches]), Q[j].copy(), np.inf,
-                          violation=float(err[j]), branches=rows, param_name=name,
+                          violation=float(err[j]), rows=rows, param_name=name,
                           message=message or "no branch reaches the pose at any parameter")  # fmt: skip
     beyond = np.maximum(robot.q_min - sol.q, sol.q - robot.q_max).max(axis=2)  # (M, B) rad outside the limits
     within = sol.within_limits
@@ -565,7 +589,7 @@ def least_violating(
         violation, at, q = float(score[k, br]), psi[k], sol.q[k, br]
     why = "no branch keeps the joints in their limits" + (" and clear of the obstacles" if len(scene.obstacles) else "")
     return BestResult(status or "no feasible branch", int(sm.branch_ids[br]), float(wrap(at)), q.copy(), np.inf,
-                      violation=violation, branches=rows, param_name=name, message=message or why)  # fmt: skip
+                      violation=violation, rows=rows, param_name=name, message=message or why)  # fmt: skip
 
 
 def _pose_error_norm(target: np.ndarray, poses: np.ndarray) -> np.ndarray:
