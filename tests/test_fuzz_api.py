@@ -26,7 +26,7 @@ from qpik import objectives as objs
 from qpik.control import clik
 from qpik.control.solvers import get_solver
 from qpik.crosscheck import crosscheck
-from qpik.nlp import solve_full
+from qpik.nlp import BestResult, solve_full
 from qpik.objectives import JointLimitMargin, Manipulability
 from qpik.problems import load
 from qpik.sim import SimLog, simulate
@@ -430,6 +430,8 @@ def check_output(out: object) -> None:
     elif dataclasses.is_dataclass(out) and not isinstance(out, type):
         for f in dataclasses.fields(out):
             check_output(getattr(out, f.name))
+        if isinstance(out, BestResult):
+            check_output(out.branches)  # built when first read, not a field
     elif isinstance(out, tuple | list):
         for x in out:
             check_output(x)

@@ -463,8 +463,9 @@ class _BestSoFar:
 
     @classmethod
     def empty(cls, N: int, B: int, n: int) -> _BestSoFar:
+        """No point yet: f and the clearance +inf, ψ and q 0 (finite: they are never read where f is +inf)."""
         none = np.full((N, B), np.inf)
-        return cls(none, np.full((N, B), np.nan), np.full((N, B, n), np.nan), np.zeros((N, B), int), none.copy())
+        return cls(none, np.zeros((N, B)), np.zeros((N, B, n)), np.zeros((N, B), int), none.copy())
 
     def update(self, pose, row, psi, q, f, rounds, clearance) -> None:
         """Points (M,) with their rounds: the best feasible one of each (pose, branch row) replaces a worse best."""
