@@ -95,6 +95,21 @@ def shared_library(name: str, source: bytes, flags: Sequence[str] = (), fatal: b
         return None
 
 
+def python_library(
+    name: str, source: bytes, signatures: dict[str, Sequence[type]], flags: Sequence[str] = ()
+) -> ctypes.PyDLL | None:
+    """:func:`shared_library` loaded as a :class:`ctypes.PyDLL` (its calls keep the GIL), each function named in
+    ``signatures`` declared with those argument types and an ``int`` result; None where it is not compiled."""
+    lib = shared_library(name, source, flags)
+    if lib is None:
+        return None
+    dll = ctypes.PyDLL(str(lib))
+    for function, argtypes in signatures.items():
+        entry = getattr(dll, function)
+        entry.restype, entry.argtypes = ctypes.c_int, list(argtypes)
+    return dll
+
+
 def native_library(fn: ca.Function) -> Path | None:
     """The shared library holding ``fn`` as machine code (exported under ``fn.name()``), or None.
 

@@ -86,7 +86,7 @@ from qpik.analytic.polyroots import FLAGS as POLYROOTS_FLAGS
 from qpik.analytic.polyroots import ROOM, trig_roots
 from qpik.analytic.polyroots import c_source as polyroots_source
 from qpik.analytic.trig import EPS, acos2
-from qpik.compiled import Compiled, Kernel, NativeFunction, shared_library
+from qpik.compiled import Compiled, Kernel, NativeFunction, python_library
 from qpik.errors import QpikError
 from qpik.symbolic import Ops, Scalar
 
@@ -374,13 +374,7 @@ def _library() -> ctypes.CDLL | None:
     loaded as a :class:`ctypes.PyDLL` (its call keeps the GIL). Its buffers belong to the solver: like every compiled
     call of qpik's, one arm's solver is not for several threads at once."""
     source = polyroots_source() + intervals_source() + Path(__file__).with_suffix(".c").read_bytes()
-    lib = shared_library("qpik_delta_intervals", source, POLYROOTS_FLAGS)
-    if lib is None:
-        return None
-    dll = ctypes.PyDLL(str(lib))
-    dll.qpik_delta_sets.restype = ctypes.c_int
-    dll.qpik_delta_sets.argtypes = [ctypes.c_void_p]
-    return dll
+    return python_library("qpik_delta_intervals", source, {"qpik_delta_sets": [ctypes.c_void_p]}, POLYROOTS_FLAGS)
 
 
 def _row_range(kinds: list[int], joint: int) -> tuple[int, int]:

@@ -68,7 +68,7 @@ from qpik.analytic import trig
 from qpik.analytic.intervals import ArmSetsCall, Assembler, FeasibleIntervals, Interval, NativeSets, shrunk_limits, wrap
 from qpik.analytic.intervals import c_source as intervals_source
 from qpik.analytic.srs import arm_setup, branch_signs
-from qpik.compiled import Compiled, Kernel, NativeFunction, shared_library
+from qpik.compiled import Compiled, Kernel, NativeFunction, python_library
 from qpik.symbolic import Scalar
 
 if TYPE_CHECKING:
@@ -311,10 +311,5 @@ def _library() -> ctypes.CDLL | None:
     """``srs_intervals.c`` compiled after ``intervals.c`` (whose ``circle_sets`` it calls), loaded as a
     :class:`ctypes.PyDLL` (its call keeps the GIL). Its buffers belong to the solver: like every compiled call of
     qpik's, one arm's solver is not for several threads at once."""
-    lib = shared_library("qpik_psi_intervals", intervals_source() + Path(__file__).with_suffix(".c").read_bytes())
-    if lib is None:
-        return None
-    dll = ctypes.PyDLL(str(lib))
-    dll.qpik_psi_sets.restype = ctypes.c_int
-    dll.qpik_psi_sets.argtypes = [ctypes.c_void_p]
-    return dll
+    source = intervals_source() + Path(__file__).with_suffix(".c").read_bytes()
+    return python_library("qpik_psi_intervals", source, {"qpik_psi_sets": [ctypes.c_void_p]})

@@ -47,7 +47,6 @@ from qpik.validate import pose as check_pose
 
 STATUSES = ("optimal", "unreachable", "no feasible branch", "solver failed")
 METHODS = ("auto", "levelset", "search", "ipopt")
-TWO_PI = 2.0 * math.pi
 VIOLATION_SAMPLES = 720
 """Parameter samples per branch when looking for the least-violating branch."""
 RETRIES = 2
@@ -101,7 +100,7 @@ class BranchRows:
         out = []
         for bid, r, shift, done in self.columns:
             ok = f[r] < math.inf
-            param = (psi[r] if shift is None else _wrap(psi[r] - shift)) if ok else None
+            param = (psi[r] if shift is None else float(wrap(psi[r] - shift))) if ok else None
             evals = counts[r] if shift is None else 0
             out.append(BranchOptimum(bid, done, ok, param, f[r], q[r] if ok else None,
                                      self.rounds[r] if shift is None else 0, evals, evals * per))  # fmt: skip
@@ -541,11 +540,6 @@ def _columns(sm: SelfMotion, searched: tuple[int, ...]) -> list[tuple[int, int, 
         row = k if m is None else m[0]
         out.append((bid, row, None if m is None else m[1], row in searched))
     return out
-
-
-def _wrap(x: float) -> float:
-    """:func:`qpik.analytic.intervals.wrap` of one float."""
-    return x + TWO_PI * math.floor((math.pi - x) / TWO_PI)
 
 
 def least_violating(

@@ -49,7 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from qpik.analytic.intervals import FeasibleIntervals, NativeSets, wrap
-from qpik.compiled import Kernel, NativeFunction, call_header, shared_library
+from qpik.compiled import Kernel, NativeFunction, call_header, python_library
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.scene import Points, Scene, least_per_row
 from qpik.nlp.search import END
@@ -391,10 +391,6 @@ def _native(selfmotion: SelfMotion) -> _Native | None:
 def _library() -> ctypes.CDLL | None:
     """``levelset.c`` compiled, loaded as a :class:`ctypes.PyDLL` (its call keeps the GIL: the arm's buffers are one
     thread's at a time, under the solver's lock)."""
-    lib = shared_library("qpik_levelset", call_header() + Path(__file__).with_suffix(".c").read_bytes())
-    if lib is None:
-        return None
-    dll = ctypes.PyDLL(str(lib))
-    dll.qpik_levelset.restype = ctypes.c_int
-    dll.qpik_levelset.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
-    return dll
+    args = [ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
+    source = call_header() + Path(__file__).with_suffix(".c").read_bytes()
+    return python_library("qpik_levelset", source, {"qpik_levelset": args})
