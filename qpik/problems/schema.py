@@ -74,6 +74,7 @@ import dataclasses
 import difflib
 import tomllib
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 from typing import Any, Literal
 
@@ -200,13 +201,8 @@ class Problem:
 
 
 def problems_folder() -> Path:
-    """The problem folder: ``./problems`` if it exists, else the one beside the qpik sources."""
-    here = Path.cwd() / "problems"
-    if here.is_dir():
-        return here
-    import qpik
-
-    return Path(qpik.__file__).resolve().parents[1] / "problems"
+    """The folder of the problem files shipped with qpik (the package ``qpik.problem_files``)."""
+    return Path(str(resources.files("qpik.problem_files")))
 
 
 def problem_files(folder: Path | None = None) -> list[Path]:
@@ -226,14 +222,21 @@ def _path(value: object, what: str) -> Path:
 
 
 def find_problem(name_or_path: str | Path) -> Path:
-    """A file path as given if it exists, else ``<problems folder>/<name>.toml``."""
+    """A problem file: ``name_or_path`` itself if it is a file, else the shipped problem of that name.
+
+    A name (no folder, no ``.toml`` suffix needed) is looked up among the shipped problems
+    (:func:`problems_folder`), never in the working folder.
+    """
     p = _path(name_or_path, "problem")
     if p.is_file():
         return p
-    candidate = problems_folder() / f"{p.name}.toml"
+    if p.parent != Path(".") or (p.suffix and p.suffix != ".toml"):
+        raise ProblemFileError(f"{name_or_path}: no such file")
+    candidate = problems_folder() / f"{p.stem}.toml"
     if candidate.is_file():
         return candidate
-    raise ProblemFileError(f"{name_or_path}: no such file, and no problem of that name in {problems_folder()}")
+    shipped = ", ".join(f.stem for f in problem_files())
+    raise ProblemFileError(f"{name_or_path}: no such file, and no shipped problem of that name (they are: {shipped})")
 
 
 def load(path: str | Path) -> Problem:

@@ -1,0 +1,1 @@
+"""The problem files shipped with qpik (installed as ``qpik.problem_files``; see ``qpik.problems``)."""
