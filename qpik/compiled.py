@@ -18,22 +18,25 @@ capsule/obstacle pairs, mapped sweeps). Where no compiler works, or with
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import hashlib
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 import threading
+import time
 import warnings
 from collections.abc import Sequence
-from functools import cache
+from functools import cache, cached_property
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
-CFLAGS = ("-O2", "-shared", "-fPIC")
+CFLAGS = ("-shared", "-fPIC")
 _native_failed: str | None = None  # why native compilation is off in this process
 
 
@@ -62,28 +65,27 @@ def compiler() -> str | None:
 def shared_library(name: str, source: bytes, flags: Sequence[str] = (), fatal: bool = True) -> Path | None:
     """C ``source`` compiled once into a shared library cached in :func:`cache_dir`, or None.
 
-    The library is keyed by a hash of the source, the flags (:data:`CFLAGS` and ``flags``,
-    e.g. include folders) and CasADi's version. None when :func:`compiler` is None or
-    compilation fails: then a warning says why, once, and with ``fatal`` native code stays
-    off in this process (without it only this library is missing).
+    The library is keyed by a hash of the source, the flags (:func:`optimisation` for the source's size,
+    :data:`CFLAGS` and ``flags``, e.g. include folders) and CasADi's version. Processes that need the same
+    library at once compile it once: the others wait on a lock file beside it. A compilation that takes
+    longer than :data:`QUIET` seconds says so on stderr, and again every :data:`TICK` seconds. None when
+    :func:`compiler` is None or compilation fails: then a warning says why, once, and with ``fatal`` native
+    code stays off in this process (without it only this library is missing).
     """
     global _native_failed
     cc = compiler()
     if cc is None:
         return None
-    cflags = (*CFLAGS, *flags)
+    cflags = (optimisation(len(source)), *CFLAGS, *flags)
     key = hashlib.sha256(source + " ".join(cflags).encode() + ca.__version__.encode()).hexdigest()[:20]
     try:
         folder = cache_dir()
         folder.mkdir(parents=True, exist_ok=True)
         lib = folder / f"{name}_{key}.so"
         if not lib.exists():
-            with tempfile.TemporaryDirectory() as tmp:
-                src = Path(tmp, f"{name}.c")
-                src.write_bytes(source)
-                partial = folder / f"{lib.name}.{os.getpid()}.tmp"
-                subprocess.run([cc, *cflags, str(src), "-o", str(partial), "-lm"], check=True, capture_output=True)
-                os.replace(partial, lib)  # atomic: concurrent processes never see a partial library
+            with _locked(folder / f"{lib.name}.lock"):  # another process compiling it: wait for its library
+                if not lib.exists():
+                    _compile(cc, cflags, name, source, lib)
         return lib
     except (OSError, subprocess.CalledProcessError) as exc:
         why = f"{type(exc).__name__}: {exc}"
@@ -93,6 +95,84 @@ def shared_library(name: str, source: bytes, flags: Sequence[str] = (), fatal: b
         _native_failed = why
         warnings.warn(f"qpik: native compilation off ({_native_failed})", stacklevel=2)
         return None
+
+
+@contextlib.contextmanager
+def _locked(path: Path):
+    """An exclusive lock on the file ``path`` while the block runs (none where ``fcntl`` is missing)."""
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: concurrent processes may compile the same library twice
+        yield
+        return
+    with open(path, "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield
+
+
+QUIET = 2.0
+"""Seconds a compilation runs before it says what it builds."""
+TICK = 8.0
+"""Seconds between its progress lines after that."""
+LARGE = 256_000
+"""Bytes of C above which :func:`optimisation` gives ``-O1``."""
+
+
+def optimisation(size: int) -> str:
+    """The optimisation flag for a C source of ``size`` bytes: ``-O2``, or ``-O1`` for a source over :data:`LARGE`
+    bytes. The large sources are CasADi's straight-line code of big expressions (the Taylor models of a
+    distance kernel), for which gcc's ``-O2`` costs several times the time and memory of ``-O1`` and gives no
+    faster code."""
+    return "-O1" if size > LARGE else "-O2"
+
+
+def _compile(cc: str, cflags: Sequence[str], name: str, source: bytes, lib: Path) -> None:
+    """Compile ``source`` into ``lib`` (atomically: concurrent readers never see a partial library), saying on stderr
+    what it builds when it takes longer than :data:`QUIET` seconds."""
+    with tempfile.TemporaryDirectory() as tmp:
+        src = Path(tmp, f"{name}.c")
+        src.write_bytes(source)
+        partial = lib.with_name(f"{lib.name}.{os.getpid()}.tmp")
+        with subprocess.Popen(
+            [cc, *cflags, str(src), "-o", str(partial), "-lm"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+        ) as job:
+            start, wait = time.monotonic(), QUIET
+            while True:
+                try:
+                    _, err = job.communicate(timeout=wait)
+                    break
+                except subprocess.TimeoutExpired:
+                    elapsed = time.monotonic() - start
+                    if wait == QUIET:
+                        print(f"qpik: compiling {describe(name)} ({name}.c, {len(source) // 1000} kB) with {cc}: "
+                              f"once on this machine, cached in {lib.parent}", file=sys.stderr, flush=True)  # fmt: skip
+                    else:
+                        print(f"qpik: ... still compiling {name} ({elapsed:.0f} s)", file=sys.stderr, flush=True)
+                    wait = TICK
+        if job.returncode:
+            raise subprocess.CalledProcessError(job.returncode, cc, stderr=err)
+        if wait != QUIET:
+            print(f"qpik: compiled {name} in {time.monotonic() - start:.1f} s", file=sys.stderr, flush=True)
+        os.replace(partial, lib)
+
+
+_WHAT = {
+    "pair_": "the Taylor-model bounds of a capsule–obstacle distance (certificate of solve_best)",
+    "axes_": "the Taylor-model bounds of the link capsules (certificate of solve_best)",
+    "bound_": "the Taylor-model bounds of an objective (certificate of solve_best)",
+    "selfmotion_taylor": "the Taylor models of the closed form along δ/ψ (certificate of solve_best)",
+    "selfmotion": "the closed form along δ/ψ (solve_best)",
+    "objective": "an objective and its gradient",
+    "ik_": "the inverse kinematics",
+    "plan_states": "the planner's states",
+    "qp_": "the controller's QP",
+    "qpik_": "qpik's C code",
+}
+
+
+def describe(name: str) -> str:
+    """What the generated function ``name`` is, in words, for the progress lines."""
+    return next((what for prefix, what in _WHAT.items() if name.startswith(prefix)), "a generated function")
 
 
 def python_library(
@@ -110,19 +190,21 @@ def python_library(
     return dll
 
 
-def native_library(fn: ca.Function) -> Path | None:
-    """The shared library holding ``fn`` as machine code (exported under ``fn.name()``), or None.
+def native_library(*fns: ca.Function) -> Path | None:
+    """The shared library holding ``fns`` as machine code (each exported under its ``name()``; the functions
+    they call are emitted once), or None.
 
     None when :func:`compiler` is None or code generation or compilation fails
     (then a warning says why, once, and native code stays off in this process).
     """
     if compiler() is None:
         return None
-    name = fn.name()
+    name = fns[0].name()
     try:
         with tempfile.TemporaryDirectory() as tmp:
             gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
-            gen.add(fn)
+            for fn in fns:
+                gen.add(fn)
             gen.generate(tmp + os.sep)
             return shared_library(name, Path(tmp, f"{name}.c").read_bytes())
     except RuntimeError as exc:  # CasADi's code generation failed
@@ -244,9 +326,10 @@ class Compiled:
 def entry_point(library: Path, name: str) -> tuple[int, ctypes.CDLL] | None:
     """The address of the generated function ``name`` in the shared library ``library`` and the loaded library
     (the address is valid while it lives), or None when the function's integers are not the 64-bit
-    ``casadi_int`` that qpik's C callers (:mod:`qpik.fastcall`, ``intervals.c``, ``grid.c``) pass."""
+    ``casadi_int`` that qpik's C callers (:mod:`qpik.fastcall`, ``intervals.c``, ``grid.c``) pass (the library's
+    size query is named after its first function, :func:`native_library`'s file name)."""
     dll = ctypes.CDLL(str(library))
-    if getattr(dll, f"{name}_casadi_int_size")() != 8:
+    if getattr(dll, f"{library.stem.rsplit('_', 1)[0]}_casadi_int_size")() != 8:
         return None
     return ctypes.cast(getattr(dll, name), ctypes.c_void_p).value, dll
 
@@ -306,8 +389,8 @@ class RowMap:
 
     ``fn.map`` over ``chunks[0]`` rows per call while more than 3/4 of that is left, then
     over ``chunks[1]`` (the last call padded with copies of its first row): one call per
-    chunk, the loop over rows in machine code (:class:`Compiled`). Each size is compiled
-    on first use; equal sizes compile once.
+    chunk, the loop over rows in machine code (:class:`Compiled`). Both sizes are compiled
+    into one library on first use (``fn`` once in it).
 
     Args:
         fn: dense inputs (a matrix input is given per row as its entries in CasADi's
@@ -318,19 +401,21 @@ class RowMap:
 
     def __init__(self, fn: ca.Function, shared: Sequence[int] = (), chunks: tuple[int, int] = (32, 4)):
         self.fn, self.shared, self.chunks = fn, tuple(shared), chunks
-        self._maps: dict[int, Compiled] = {}
+        self._lock = threading.Lock()
 
-    def _map(self, size: int) -> tuple[Compiled, list[np.ndarray], list[np.ndarray]]:
-        """The compiled map of ``size`` rows and views (size, nnz) of its per-row input and output buffers."""
-        entry = self._maps.get(size)
-        if entry is None:
-            name = f"{self.fn.name()}_rows{size}"
-            call = Compiled(self.fn.map(name, "serial", size, list(self.shared), []))
+    @cached_property
+    def _maps(self) -> dict[int, tuple[Compiled, list[np.ndarray | None], list[np.ndarray]]]:
+        """Per size, the compiled map and views (size, nnz) of its per-row input and output buffers."""
+        sizes = sorted(set(self.chunks), reverse=True)
+        fns = [self.fn.map(f"{self.fn.name()}_rows{size}", "serial", size, list(self.shared), []) for size in sizes]
+        lib = native_library(*fns)
+        maps = {}
+        for size, fn in zip(sizes, fns):
+            call = Compiled(fn, compile=False, library=lib)
             # column-major (nnz, size) buffers: one row's entries are contiguous
             ins = [None if k in self.shared else a.reshape(size, -1) for k, a in enumerate(call._args)]
-            outs = [r.reshape(size, -1) for r in call._res]
-            entry = self._maps[size] = (call, ins, outs)
-        return entry
+            maps[size] = (call, ins, [r.reshape(size, -1) for r in call._res])
+        return maps
 
     def __call__(self, *args: np.ndarray) -> list[np.ndarray]:
         """Each output as (M, nnz) for per-row inputs (M, nnz_i) (shared inputs: (nnz_i,))."""
@@ -339,11 +424,13 @@ class RowMap:
         M = len(per_row[0][1]) if per_row else 1
         outs = [np.empty((M, self.fn.nnz_out(k))) for k in range(self.fn.n_out())]
         big, small = self.chunks
+        with self._lock:
+            maps = self._maps
         i = 0
         while i < M:
             size = big if M - i > 3 * big // 4 else small
             m = min(size, M - i)
-            call, ins, res = self._map(size)
+            call, ins, res = maps[size]
             for k in shared:
                 call._args[k][:] = np.ravel(args[k])
             for k, rows in per_row:

@@ -22,6 +22,7 @@ from qpik.geometry import Box as BoxShape
 from qpik.geometry import Sphere, distances
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.certificate import lower_bound
+from qpik.enclosure import taylor_function
 from qpik.objectives import (
     NAMES,
     Clearance,
@@ -109,12 +110,13 @@ def test_taylor_models_contain_every_value_along_the_range(objective):
     bounds = bound_function(robot, objective, obs)
     ev = Evaluator(robot, objective, obs)
     t = np.linspace(-1.0, 1.0, 201)
+    whole = taylor_function(bounds.values, [0])
     for k, c in enumerate(random_q(robot, 12, 2, margin=0.3)):
         s, a = rng.uniform(-1, 1, (2, robot.dof)) * rng.choice([1e-3, 0.05, 0.3])
         q = c + t[:, None] * s + (t * t)[:, None] * a
         r = np.abs(a)
-        model = [np.asarray(m).ravel() for m in bounds.function(c, bounds.params, robot.q_home, obs.params, s, r,
-                                                                 c - np.abs(s) - r, c + np.abs(s) + r)]  # fmt: skip
+        model = [m[0] for m in bounds.rows(c[None], bounds.params, robot.q_home[None], obs.params, s[None],
+                                           r[None], (c - np.abs(s) - r)[None], (c + np.abs(s) + r)[None])]  # fmt: skip
         values = np.array([np.asarray(bounds.values(x, bounds.params, robot.q_home, obs.params)).ravel() for x in q])
         centre, slope, radius, lo, hi = model
         line = centre + t[:, None] * slope
@@ -123,6 +125,13 @@ def test_taylor_models_contain_every_value_along_the_range(objective):
         assert np.all(values <= np.minimum(hi, line + radius) + tol), k
         bound = lower_bound([m[None] for m in model], bounds.sizes)[0]
         assert bound <= ev(q, robot.q_home)[0].min() + 1e-12
+        # the composition (capsule axes, then each pair, then the split) encloses no wider than one Taylor
+        # function of the whole values: the total width of the enclosures along t is at most the latter's
+        direct = [np.asarray(m).ravel() for m in whole(c, bounds.params, robot.q_home, obs.params, s, r,
+                                                       c - np.abs(s) - r, c + np.abs(s) + r)]  # fmt: skip
+        widths = [np.minimum(m[4], m[0] + t[:, None] * m[1] + m[2]) - np.maximum(m[3], m[0] + t[:, None] * m[1]
+                  - m[2]) for m in (model, direct)]  # fmt: skip
+        assert widths[0].sum() <= widths[1].sum() * (1 + 1e-9), k
 
 
 def test_sums_weights_parameters_and_names():

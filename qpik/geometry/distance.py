@@ -113,6 +113,12 @@ def pair_expr(
     return sd - radius, vsub(vadd(a, vscale(s, u)), vscale(radius, n)), p, n, s
 
 
+def axis_distance(a: Vec, u: Vec, radius: Scalar, kind: str, params: Sequence[Scalar], ops: Ops) -> Scalar:
+    """The signed distance (m) of the capsule with axis ``a + s u`` (s ∈ [0, 1]) and ``radius`` to one obstacle of
+    family ``kind`` (:data:`PARAMS`): :func:`pair_expr`'s ``d`` from the axis's start and direction."""
+    return _pair(kind, a, u, params, ops)[1] - radius
+
+
 def set_expr(
     segments: Sequence[tuple[Vec, Vec]],
     radii: Sequence[Scalar],
