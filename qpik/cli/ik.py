@@ -58,7 +58,7 @@ def pose_from_args(args: argparse.Namespace, robot) -> np.ndarray:
 
 def _run(args: argparse.Namespace) -> int:
     from qpik import feasible_intervals, ik, redundancy_parameter
-    from qpik.plots.closed_form import symbol
+    from qpik.analytic.api import symbol
     from qpik.problems.ik import branch_table
     from qpik.validate import pose as check_pose
 

@@ -49,7 +49,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from qpik.errors import InputError, UnknownRobotError
-from qpik.robots.capsule_fit import fit_capsule
 from qpik.robots.catalog import CATALOG
 from qpik.robots.catalog import load_robot as catalog_robot
 from qpik.robots.chain import Joint, SerialChain
@@ -446,6 +445,8 @@ def _home(model: mujoco.MjModel, arm: list[int], q_min: np.ndarray, q_max: np.nd
 
 def _capsules(model: mujoco.MjModel, tree: _Tree, arm: list[int], chain: SerialChain) -> tuple[LinkCapsule, ...]:
     """One capsule per link with geoms: the smallest containing its collision geoms (else all), in link frame k."""
+    from qpik.robots.capsule_fit import fit_capsule  # SciPy's optimisers: only for a model file
+
     owner = {}  # body -> link index (1..n) of the arm joint that moves it last
     joint_body = [int(model.jnt_bodyid[j]) for j in arm]
 
