@@ -20,7 +20,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("ik", help="closed-form IK: all branches at one δ/ψ, checked by forward kinematics")
     add_robot(p)
     add_pose(p)
-    p.add_argument("--param", "-p", type=float, help="redundancy parameter δ (offset shoulder) or ψ (S-R-S), rad")
+    p.add_argument(
+        "--param",
+        "-p",
+        type=float,
+        help="redundancy parameter δ (offset shoulder) or ψ (S-R-S), rad (default with --q: the parameter of q)",
+    )
     p.set_defaults(func=_run)
 
 
