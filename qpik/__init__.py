@@ -6,23 +6,52 @@ from qpik.glbackend import choose_backend as _choose_backend
 
 _choose_backend()  # before any qpik module imports mujoco: see qpik.glbackend
 
-from qpik.analytic import FeasibleIntervals, IKSolutions, feasible_intervals, ik, redundancy_parameter
-from qpik.control import Controller, StepInfo
-from qpik.errors import (
-    InfeasibleError,
-    InputError,
-    NoClosedFormError,
-    ProblemFileError,
-    QpikError,
-    RenderUnavailable,
-    RotationError,
-    SolverError,
-    UnknownRobotError,
-    UnreachableError,
+from typing import TYPE_CHECKING
+
+from qpik.lazy import exports
+
+if TYPE_CHECKING:
+    from qpik.analytic import FeasibleIntervals, IKSolutions, feasible_intervals, ik, redundancy_parameter
+    from qpik.control import Controller, StepInfo
+    from qpik.errors import (
+        InfeasibleError,
+        InputError,
+        NoClosedFormError,
+        ProblemFileError,
+        QpikError,
+        RenderUnavailable,
+        RotationError,
+        SolverError,
+        UnknownRobotError,
+        UnreachableError,
+    )
+    from qpik.nlp import BestResult, solve_best, solve_ik
+    from qpik.planning import Plan, plan_self_motion
+    from qpik.robots import CATALOG, DHChain, Joint, LinkCapsule, Robot, SerialChain, load_robot
+
+# every name is imported on first use (qpik.lazy): `import qpik` loads none of the heavy dependencies
+__getattr__, __dir__ = exports(
+    __name__,
+    {
+        "qpik.analytic": ("FeasibleIntervals", "IKSolutions", "feasible_intervals", "ik", "redundancy_parameter"),
+        "qpik.control": ("Controller", "StepInfo"),
+        "qpik.errors": (
+            "InfeasibleError",
+            "InputError",
+            "NoClosedFormError",
+            "ProblemFileError",
+            "QpikError",
+            "RenderUnavailable",
+            "RotationError",
+            "SolverError",
+            "UnknownRobotError",
+            "UnreachableError",
+        ),
+        "qpik.nlp": ("BestResult", "solve_best", "solve_ik"),
+        "qpik.planning": ("Plan", "plan_self_motion"),
+        "qpik.robots": ("CATALOG", "DHChain", "Joint", "LinkCapsule", "Robot", "SerialChain", "load_robot"),
+    },
 )
-from qpik.nlp import BestResult, solve_best, solve_ik
-from qpik.planning import Plan, plan_self_motion
-from qpik.robots import CATALOG, DHChain, Joint, LinkCapsule, Robot, SerialChain, load_robot
 
 __version__ = "0.1.0"
 

@@ -6,7 +6,8 @@
  * the input buffers and runs the function: no CasADi dispatch, no ctypes marshalling.
  *
  * - kernel(*args): arguments as qpik.compiled.Compiled takes them (float64 vectors of the input's
- *   size, (rows, cols) float64 matrices copied in column-major order, Python floats for scalars);
+ *   size, (rows, cols) float64 matrices copied in column-major order, and for a scalar input any real
+ *   number: a Python float or int, a numpy floating or integer scalar, a 0-d array of one; not a bool);
  *   returns the object given at construction (the Compiled's output views). None when an argument is
  *   of another form, for the caller's general path.
  * - kernel.fresh(*args): the same with every argument checked in C (finite; a pose input is a
@@ -22,6 +23,7 @@
 #include <Python.h>
 #define NPY_NO_DEPRECATED_API NPY_1_7_API_VERSION
 #include <numpy/arrayobject.h>
+#include <numpy/arrayscalars.h>
 #include <math.h>
 #include <stddef.h>
 #include <string.h>
@@ -33,7 +35,7 @@ typedef int (*casadi_fn)(const double **arg, double **res, casadi_int *iw, doubl
 #define ORTHONORMAL_TOL 1e-6 /* qpik.validate.ORTHONORMAL_TOL */
 #define MAX_LENGTH 1e6       /* qpik.validate.MAX_LENGTH, m */
 
-enum { IN_PLAIN = 0, IN_POSE = 1 };
+enum { IN_PLAIN = 0, IN_POSE = 1, IN_SCALAR = 2 };
 enum { OUT_MATRIX = 0, OUT_RAW = 1, OUT_FLAGS = 2, OUT_SKIP = 3 };
 
 static PyObject *input_error; /* qpik.errors.InputError, given by set_input_error */
@@ -74,17 +76,60 @@ static int pose_ok(const double *T) {
     return 1;
 }
 
+/* The value of a real number a in *x: a Python float or int, a numpy floating or integer scalar (float64, float32,
+ * int64, uint8, ...), or a 0-d array of one. Returns 1, or 0 for anything else (a bool, a complex number, an int
+ * beyond float64's range, a 0-d array of another type) and for a conversion that fails (no exception left set). */
+static int scalar_value(PyObject *a, double *x) {
+    if (PyFloat_CheckExact(a)) {
+        *x = PyFloat_AS_DOUBLE(a);
+        return 1;
+    }
+    if (PyArray_IsScalar(a, Double)) {
+        *x = PyArrayScalar_VAL(a, Double);
+        return 1;
+    }
+    if (PyLong_CheckExact(a)) { /* not a bool: its type is a subclass */
+        *x = PyLong_AsDouble(a);
+        if (*x == -1.0 && PyErr_Occurred()) {
+            PyErr_Clear();
+            return 0;
+        }
+        return 1;
+    }
+    if (PyArray_IsScalar(a, Floating) || PyArray_IsScalar(a, Integer)) {
+        PyArray_Descr *to = PyArray_DescrFromType(NPY_DOUBLE);
+        int failed = PyArray_CastScalarToCtype(a, x, to) < 0;
+        Py_DECREF(to);
+        if (failed) PyErr_Clear();
+        return !failed;
+    }
+    if (PyArray_CheckExact(a) && PyArray_NDIM((PyArrayObject *)a) == 0) {
+        PyArrayObject *arr = (PyArrayObject *)a;
+        if (PyArray_TYPE(arr) == NPY_DOUBLE && PyArray_ISALIGNED(arr) && PyArray_ISNOTSWAPPED(arr)) {
+            *x = *(const double *)PyArray_DATA(arr);
+            return 1;
+        }
+        if (!PyTypeNum_ISFLOAT(PyArray_TYPE(arr)) && !PyTypeNum_ISINTEGER(PyArray_TYPE(arr))) return 0;
+        PyObject *item = PyArray_ToScalar(PyArray_DATA(arr), arr); /* a numpy scalar of the array's type */
+        if (!item) {
+            PyErr_Clear();
+            return 0;
+        }
+        int ok = scalar_value(item, x);
+        Py_DECREF(item);
+        return ok;
+    }
+    return 0;
+}
+
 /* Copy argument a into input k. Returns 1 on success, 0 when a is of another form (or fails the
- * checks, with `checked`). */
+ * checks, with `checked`). A scalar input (one entry) takes a real number (scalar_value); an input of kind
+ * IN_SCALAR takes nothing else. */
 static int load_input(Kernel *self, int k, PyObject *a, int checked) {
     double *dst = self->in[k];
     Py_ssize_t rows = self->in_rows[k], cols = self->in_cols[k], size = rows * cols;
-    if (PyFloat_CheckExact(a)) {
-        if (size != 1) return 0;
-        dst[0] = PyFloat_AS_DOUBLE(a);
-        return !checked || isfinite(dst[0]);
-    }
-    if (!PyArray_CheckExact(a)) return 0;
+    if (size == 1 && scalar_value(a, dst)) return !checked || isfinite(dst[0]);
+    if (self->in_kind[k] == IN_SCALAR || !PyArray_CheckExact(a)) return 0;
     PyArrayObject *arr = (PyArrayObject *)a;
     if (PyArray_TYPE(arr) != NPY_DOUBLE || !PyArray_IS_C_CONTIGUOUS(arr) || !PyArray_ISALIGNED(arr)) return 0;
     const double *src = (const double *)PyArray_DATA(arr);

@@ -35,9 +35,11 @@ from qpik.errors import InputError
 if TYPE_CHECKING:
     import casadi as ca
 
-INPUTS = {"plain": 0, "pose": 1}
+INPUTS = {"plain": 0, "pose": 1, "scalar": 2}
 """Input checks of :meth:`Kernel.fresh`: ``plain`` (finite), ``pose`` (a (4, 4) homogeneous transform
-that :func:`qpik.validate.single_pose` accepts without projection)."""
+that :func:`qpik.validate.single_pose` accepts without projection), ``scalar`` (one finite real number: a
+Python float or int, a numpy floating or integer scalar, a 0-d array; never an array of one entry). An input
+of one entry takes all of these real numbers whatever its check."""
 OUTPUTS = {"matrix": 0, "raw": 1, "flags": 2, "skip": 3}
 """How :meth:`Kernel.fresh` hands an output out: ``matrix`` (CasADi's column-major (rows, cols) as a
 row-major array), ``raw`` (the entries in CasADi's order, in the given shape), ``flags`` (entries

@@ -20,7 +20,6 @@ from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
 
 from qpik.errors import InputError
 from qpik.validate import finite_array
@@ -91,6 +90,8 @@ class WaypointPath:
     """
 
     def __init__(self, poses: np.ndarray, times: np.ndarray | None = None):
+        from scipy.spatial.transform import Rotation, Slerp  # SciPy's spatial package: only for this class
+
         T, batched = check_pose(poses, "poses")
         if not batched or len(T) < 2:
             raise InputError(f"poses: a waypoint path needs (N, 4, 4) poses with N >= 2, got {np.shape(poses)}")

@@ -172,8 +172,8 @@ def _renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Renderer
             _unavailable = " ".join(str(exc).split()) or type(exc).__name__
     backend = os.environ.get("MUJOCO_GL", "unset")
     raise RenderUnavailable(
-        f"offscreen rendering unavailable (MUJOCO_GL={backend}: {_unavailable}); "
-        "set MUJOCO_GL=osmesa or egl before mujoco is first imported"
+        f"offscreen rendering unavailable (MUJOCO_GL={backend}: {_unavailable}); install OSMesa (Debian: "
+        "libosmesa6) or EGL (libegl1), or set MUJOCO_GL=osmesa or egl before mujoco is first imported"
     )
 
 

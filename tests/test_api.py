@@ -11,7 +11,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import qpik
+from qpik.analytic.api import solver_for
 from qpik.errors import InputError, NoClosedFormError, QpikError, RotationError
+from qpik.fastcall import extension
 
 CLOSED_FORM = ("nammoto7", "iiwa14")
 
@@ -216,7 +218,7 @@ def test_threads_sharing_an_arm_get_the_answers_of_one_thread(name: str) -> None
         for i in range(k, len(T), 4):
             out.append(qpik.feasible_intervals(robot, T[i]).intervals)
             out.append(qpik.ik(robot, T[i], 0.3).q.tolist())
-            out.append(qpik.ik(robot, T[i], np.array(0.3)).q.tolist())  # not a float: the general path
+            out.append(qpik.ik(robot, T[i], 0.3, project=True).q.tolist())  # projection: the general path
             out.append(qpik.redundancy_parameter(robot, Q[i]))
         out.append(qpik.ik(robot, T[k::4], 0.3).q.tolist())
         return out
@@ -234,3 +236,78 @@ def test_branch_ids_are_read_only(robot) -> None:
         with pytest.raises(ValueError, match="read-only"):
             sol.branch[0] = -1
     assert qpik.ik(robot, T, 0.3).branch.tolist() == list(qpik.feasible_intervals(robot, T).branch)
+
+
+# Every real number a user may pass as δ/ψ, made from a float v: numpy floating and integer scalars, 0-d arrays,
+# Python ints (the integer kinds take round(v), an unsigned one |round(v)|).
+SCALAR_KINDS = {
+    "float64": np.float64,
+    "float32": np.float32,
+    "float16": np.float16,
+    "longdouble": np.longdouble,
+    "0-d float64": np.array,
+    "0-d float32": lambda v: np.array(v, dtype=np.float32),
+    "int": lambda v: round(v),
+    "int64": lambda v: np.int64(round(v)),
+    "int32": lambda v: np.int32(round(v)),
+    "uint8": lambda v: np.uint8(abs(round(v))),
+    "0-d int64": lambda v: np.array(round(v)),
+}
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=SEEDS,
+    name=st.sampled_from(CLOSED_FORM),
+    kind=st.sampled_from(sorted(SCALAR_KINDS)),
+    v=st.floats(-3.1, 3.1),
+)
+def test_every_scalar_type_gives_the_float_answer_through_one_path(seed: int, name: str, kind: str, v: float) -> None:
+    """A numpy scalar, a 0-d array or an int as δ/ψ gives exactly the answer of the same value as a float, through
+    the same compiled call (the extension's ``fresh``: counted, and the general path made to fail); with the
+    extension left out, the general path gives the same answer."""
+    robot = qpik.load_robot(name)
+    q = random_q(robot, 1, seed)[0]
+    T = robot.fk(q)
+    x = SCALAR_KINDS[kind](v)
+    want = qpik.ik(robot, T, float(x))
+    assert np.abs(robot.fk(want.q[want.valid]) - T).max(initial=0.0) < 1e-9  # the reference reaches the pose
+    solver = solver_for(robot)
+    fresh = solver.fresh_one
+    calls = []
+
+    def counted(*args):
+        out = fresh(*args)
+        calls.append(out is not None)
+        return out
+
+    def general(*args):
+        raise AssertionError("the general path was taken")
+
+    answers = []
+    with pytest.MonkeyPatch.context() as mp:
+        if fresh is not None:
+            mp.setitem(solver.__dict__, "fresh_one", counted)
+            mp.setattr(solver, "solve_one", general)
+        answers.append(qpik.ik(robot, T, x))
+    assert calls == ([True] if fresh is not None else [])
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setitem(solver.__dict__, "fresh_one", None)  # as without the extension: the general path
+        answers.append(qpik.ik(robot, T, x))
+    for got in answers:
+        for field in ("q", "valid", "within_limits", "singular", "branch"):
+            np.testing.assert_array_equal(getattr(got, field), getattr(want, field))
+        assert type(got.param) is float and got.param == want.param == float(x)
+
+
+@pytest.mark.skipif(extension() is None, reason="no compiled extension (QPIK_NATIVE=0 or no compiler)")
+def test_what_the_compiled_call_does_not_take_gets_the_general_error(robot) -> None:
+    """Bools, complex numbers, text, None, arrays of one entry, non-finite and out-of-range numbers fall through to
+    the general path and its InputError naming ``param``."""
+    T = robot.fk(robot.q_home)
+    bad = (np.nan, np.float32("inf"), np.array(np.inf), 1 + 2j, np.complex64(1), "0.1", None, np.ones(1), 10**400)
+    for x in (*bad, True, np.True_, np.array(False)):
+        with pytest.raises(InputError, match="param"):
+            qpik.ik(robot, T, x)
+    with pytest.raises(InputError, match="param"):
+        qpik.ik(robot, T[None], np.array([True]))

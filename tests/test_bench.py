@@ -22,6 +22,8 @@ EXPECTED = {
     "analytic": [
         "ssik iiwa14_ik.solve (iiwa14)",
         "qpik.ik, 1 pose (nammoto7)",
+        "qpik.ik, 1 pose, numpy.float64 δ (nammoto7)",
+        "qpik.ik, 1 pose, numpy.float64 ψ (iiwa14)",
         "qpik.feasible_intervals (nammoto7)",
         "qpik.feasible_intervals (iiwa14)",
         "iiwa14 q3 locked: qpik.ik, 8 branches",
@@ -80,6 +82,8 @@ def test_bench_prints_every_row(name):
         assert all("best of 3 replays" in row.note for row in rows)
         # with obstacles, every row says how often its library's obstacle rows bind
         assert all("binding" in row.note for row in rows if not row.label.startswith("no obstacles"))
+    if name == "analytic":  # the numpy scalar rows give their ratio to the float call of the same run
+        assert all("numpy scalar / float: " in row.note for row in rows if "numpy.float64" in row.label)
     if name == "plan":  # the planned path passes every check, and the quoted peer says it is quoted
         assert "all checks hold" in rows[1].note and "quoted, not measured" in rows[0].note
 

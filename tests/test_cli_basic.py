@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+import argparse
+import os
 import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
+from conftest import MODEL_DIR
 
 import qpik
-from qpik.cli import main
+from qpik.cli import build_parser, main
 from qpik.cli.fk import roll_pitch_yaw
 from qpik.problems import problems_folder
 from qpik.problems import runners as runners_module
@@ -117,3 +122,59 @@ def test_run_without_a_runner_fails_cleanly(tmp_path, monkeypatch, capsys):
     assert "no runner for kind 'ik' yet" in capsys.readouterr().err
     assert main(["run", "no_such_problem"]) == 2
     assert "no such file" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["problems"],
+        ["fk", "-r", "iiwa14", "--q", "0 0.5 0 -1 0 1 0"],
+        ["--help"],
+        ["bench", "-h"],
+        ["fk", "-r", "ur5", "--q", "0 0 0 0 0 0 0"],
+    ],
+)
+def test_a_closed_output_ends_quietly(argv):
+    """Standard output is a pipe whose reader has gone (``qpik problems | head -1``): no message, exit code 141 as a
+    program ended by SIGPIPE gives (help: argparse drops what it cannot write, exit 0); an error still prints its
+    one line on stderr."""
+    read, write = os.pipe()
+    os.close(read)
+    code = f"import sys; from qpik.cli import main; sys.exit(main({argv!r}))"
+    try:
+        out = subprocess.run([sys.executable, "-c", code], stdout=write, stderr=subprocess.PIPE, text=True, timeout=300)
+    finally:
+        os.close(write)
+    if "ur5" in argv:  # nothing written to stdout: the error's line, as always
+        assert out.returncode == 2 and out.stderr.startswith("qpik fk: unknown robot 'ur5'")
+        assert out.stderr.count("\n") == 1
+    else:
+        assert out.stderr == "" and out.returncode in ((0, 141) if "-h" in argv or "--help" in argv else (141,))
+
+
+def test_every_default_is_stated_as_it_is():
+    """The help of every option with a default says ``default: X``, and X is the value the parser uses."""
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    seen = 0
+    for name, parser in sub.choices.items():
+        for action in parser._actions:
+            if action.default in (None, False, [], argparse.SUPPRESS) or action.help is None:
+                continue
+            stated = re.search(r"default: ([^);]+)", action.help)
+            assert stated, (name, action.dest, action.help)
+            value = stated.group(1)
+            assert (
+                float(value) == action.default
+                if isinstance(action.default, float | int)
+                else value == str(action.default)
+            ), (name, action.dest, value, action.default)
+            seen += 1
+    assert seen >= 8  # --repeat, --objective, --d-safe, --tol, --method and three output paths
+
+
+def test_best_reads_the_model_file_options(capsys):
+    """``qpik best -r FILE`` takes the model file options as the other commands do (an unknown --tip is named)."""
+    iiwa = str(MODEL_DIR / "robosuite_iiwa/robot.xml")
+    assert main(["best", "-r", iiwa, "--collision-only", "--tip", "no_such_body", "--q", "0 0.5 0 -1 0 1 0"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("qpik best: ") and "no_such_body" in err and err.count("\n") == 1

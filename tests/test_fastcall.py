@@ -3,6 +3,7 @@ qpik.validate, caller-owned outputs; and the paths that use it against the gener
 
 from __future__ import annotations
 
+import casadi as ca
 import numpy as np
 import pytest
 from conftest import SEEDS, matrix_function
@@ -40,6 +41,23 @@ def test_fresh_returns_none_for_what_it_does_not_take():
     for args in ((A, bad), (A, np.ones(4)), (A, [1.0, 2.0, 3.0]), (A, np.ones(3, dtype=int)), (A.T, x), (A, x[::-1])):
         assert kernel.fresh(*args) is None
     assert kernel.fresh(A, np.inf * x) is None
+
+
+def test_a_scalar_input_takes_every_real_number():
+    """A one-entry input takes Python and numpy reals and 0-d arrays in C (not bools or complex numbers); the
+    ``scalar`` check takes nothing else, ``plain`` also a float64 array of one entry."""
+    x, y = ca.SX.sym("x"), ca.SX.sym("y", 2)
+    f = Compiled(ca.Function("fastcall_scalar", [x, y], [x * y]))
+    plain, scalar = f.fast(), f.fast(("scalar", "plain"))
+    y0 = np.array([1.5, -2.0])
+    for value in (3, 3.0, np.float64(3), np.float32(3), np.int8(3), np.uint64(3), np.array(3.0), np.array(3)):
+        assert f.kernel(value, y0) is not None  # the compiled call, not CasADi's buffers
+        np.testing.assert_array_equal(plain.fresh(value, y0)[0], 3.0 * y0)
+        np.testing.assert_array_equal(scalar.fresh(value, y0)[0], 3.0 * y0)
+    assert scalar.fresh(np.ones(1), y0) is None and plain.fresh(np.ones(1), y0) is not None
+    for value in (True, np.True_, 1j, np.complex128(1), np.array([3.0, 1.0]), "3", None, 10**400, np.float32("nan")):
+        assert plain.fresh(value, y0) is None and scalar.fresh(value, y0) is None
+    assert f.kernel(np.inf, y0) is not None  # unchecked: only fresh and into check finiteness
 
 
 def test_into_writes_the_callers_arrays():

@@ -213,7 +213,7 @@ def test_bad_models_raise_clear_errors(tmp_path, text, options, match):
 def test_missing_meshes_and_unknown_names():
     with pytest.raises(InputError, match=r"mesh 'meshes/link_0_vis.stl' not found.*collision_only=True"):
         qpik.load_robot(MODEL_DIR / "robosuite_iiwa/robot.xml")
-    with pytest.raises(UnknownRobotError, match=r"known: .*, or an MJCF/URDF file \(none there\)"):
+    with pytest.raises(UnknownRobotError, match=r"unknown robot 'ur5'; known: .*, or the path of an MJCF or URDF file"):
         qpik.load_robot("ur5")
     with pytest.raises(InputError, match="catalog arm"):
         qpik.load_robot("iiwa14", tip="x")

@@ -20,8 +20,15 @@ _SOLVERS = {
     "offset_shoulder": ("qpik.analytic.offset_shoulder", "OffsetShoulderSolver"),
     "srs": ("qpik.analytic.srs", "SRSSolver"),
 }
+SYMBOL = {"delta": "δ", "psi": "ψ"}
+"""The Greek letter of each redundancy parameter name (:attr:`IKSolutions.param_name`)."""
 _instances: dict[int, AnalyticSolver] = {}  # id(robot) -> solver; the solver holds the robot, so the id stays its own
 _creating = threading.Lock()
+
+
+def symbol(param_name: str) -> str:
+    """The Greek letter of a redundancy parameter name (``"delta"`` -> ``"δ"``)."""
+    return SYMBOL.get(param_name, param_name)
 
 
 def solver_for(robot: Robot) -> AnalyticSolver:
@@ -95,19 +102,22 @@ def ik(robot: Robot, pose: np.ndarray, param: float | np.ndarray, project: bool 
     Args:
         robot: an arm with a closed form (``nammoto7``: δ, ``iiwa14``: ψ).
         pose: end-effector pose in the base frame, (4, 4) or (N, 4, 4).
-        param: δ or ψ in rad; a float, or (N,) for a batch (a float is
-            broadcast over the batch).
+        param: δ or ψ in rad: a real number (a float or an int, a numpy scalar, a 0-d array: one compiled
+            path for all), or (N,) for a batch (a number is broadcast over the batch).
         project: project a non-orthonormal rotation onto SO(3) instead of
             raising :class:`qpik.RotationError`.
 
     An unreachable pose gives ``valid = False`` rows, never an exception.
     """
     solver = solver_for(robot)
-    fast = solver.fresh_one if project is False and type(param) is float else None
-    if fast is not None and (out := fast(pose, param)) is not None:  # a single pose and δ/ψ, checked in C
+    if project is False and (fast := solver.fresh_one) is not None and (out := fast(pose, param)) is not None:
+        # a single pose and one real δ/ψ (a float, an int, a numpy scalar or a 0-d array), checked in C
         q, flags = out  # flags (3, B): valid, singular, within limits (indexing beats unpacking the rows)
-        return IKSolutions(q, flags[0], flags[2], flags[1], solver.branch_array, param, solver.param_name)
+        par = param if type(param) is float else float(param)
+        return IKSolutions(q, flags[0], flags[2], flags[1], solver.branch_array, par, solver.param_name)
     T, batched = check_pose(pose, "pose", project)
+    if type(param) is not float and np.asarray(param).dtype.kind == "b":
+        raise InputError(f"param: expected δ/ψ in rad, got {param!r}"[:200])
     if not batched:
         if type(param) is float and math.isfinite(param):
             par: float | np.ndarray = param  # the common case, without conversions

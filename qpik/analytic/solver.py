@@ -240,11 +240,11 @@ class AnalyticSolver(ABC):
     @cached_property
     def fresh_one(self):
         """``fresh(T, param) -> (q (B, n), flags (3, B) bool)`` of all branches through the compiled extension
-        (:meth:`qpik.fastcall.Kernel.fresh`: T (4, 4) checked as a pose and param as a finite float in C,
+        (:meth:`qpik.fastcall.Kernel.fresh`: T (4, 4) checked as a pose and param as one finite real number in C,
         flags ``valid, singular, within_limits``), None for arguments it does not take; None without the
         extension."""
         one, B, n = self._one, self.n_branches, self.robot.dof
-        kernel = one.fast(("pose", "plain"), (("raw", (B, n)), ("flags", (3, B))))
+        kernel = one.fast(("pose", "scalar"), (("raw", (B, n)), ("flags", (3, B))))
         if kernel is None:
             return None
         one(np.eye(4), 0.0, self.robot.q_min, self.robot.q_max)  # the limits stay in the buffers

@@ -5,7 +5,9 @@ For each arm with a closed form (``nammoto7``: δ, ``iiwa14``: ψ), poses are
 and the parameter of each is the one of its configuration. Rows, in seconds
 per pose (median; the single-pose rows and ssik's over blocks of :data:`BLOCK` calls, "hot"):
 
-- ``qpik.ik`` on one pose (all 16 / 8 branches; input checks included);
+- ``qpik.ik`` on one pose (all 16 / 8 branches; input checks included), the parameter a Python float;
+- the same with the parameter a ``numpy.float64`` (an element of a numpy array), interleaved with the float
+  calls; its note gives the ratio of the two medians;
 - ``qpik.ik`` on a batch of ``BATCH`` poses with (N,) parameters, divided by N;
 - ``qpik.feasible_intervals`` on one pose (every branch's exact δ/ψ set);
 - ``ssik.prebuilt.kuka.iiwa14_ik.solve(T)`` on the same iiwa poses (the
@@ -21,8 +23,8 @@ rotation convention converted before timing), and the batched calls (EAIK's ``IK
 how many of a peer's solutions reach the pose to 1e-9. A peer that is not installed (the test
 extra) is left out with a note.
 
-Targets (issue): single ≤ 3 µs and faster than EAIK; batched ≤ 3 µs/pose;
-intervals ≤ 50 µs/pose for both arms. Nammoto & Kosuge report 31.3 µs per solution set
+Targets (issue): single ≤ 3 µs and faster than EAIK, with a numpy scalar parameter within 10 % of a float;
+batched ≤ 3 µs/pose; intervals ≤ 50 µs/pose for both arms. Nammoto & Kosuge report 31.3 µs per solution set
 (compiled code, Core i7 965, 2012): a note, not a measurement.
 """
 
@@ -32,7 +34,7 @@ import argparse
 
 import numpy as np
 
-from qpik.analytic.api import feasible_intervals, ik, redundancy_parameter
+from qpik.analytic.api import feasible_intervals, ik, redundancy_parameter, solver_for, symbol
 from qpik.bench import Row, time_calls, time_interleaved
 from qpik.robots.catalog import load_robot
 
@@ -83,13 +85,30 @@ def _arm_rows(name: str, repeat: int, ref: str | None) -> list[Row]:
     T = robot.fk(q)
     par = np.asarray(redundancy_parameter(robot, q)[0])
     cases = list(zip(T[:POSES], par[:POSES].tolist()))
-    t1 = time_calls(_cycle(lambda c: ik(robot, c[0], c[1]), cases), max(20, repeat // BLOCK), block=BLOCK)
+    scalars = list(zip(T[:POSES], par[:POSES]))  # the same parameters as numpy.float64
+    single = time_interleaved(
+        {
+            "float": _cycle(lambda c: ik(robot, c[0], c[1]), cases),
+            "numpy": _cycle(lambda c: ik(robot, c[0], c[1]), scalars),
+        },
+        max(20, repeat // BLOCK),
+        block=BLOCK,
+    )
+    t1 = single["float"]
     tb = time_calls(lambda: ik(robot, T, par), max(BATCH_CALLS, repeat // 100), warmup=1) / BATCH
     ti = time_calls(
         _cycle(lambda c: feasible_intervals(robot, c[0]), cases), max(10, repeat // (2 * BLOCK)), warmup=3, block=BLOCK
     )
+    sym = symbol(solver_for(robot).param_name)
+    ratio = float(np.median(single["numpy"]) / np.median(t1))
     return [
         _row(f"qpik.ik, 1 pose ({name})", t1, ref, PAPER_NOTE if name == "nammoto7" else ""),
+        _row(
+            f"qpik.ik, 1 pose, numpy.float64 {sym} ({name})",
+            single["numpy"],
+            None,
+            f"(numpy scalar / float: {ratio:.2f}, same run)",
+        ),
         _row(f"qpik.ik, batch of {BATCH} ({name}), per pose", tb, ref),
         _row(f"qpik.feasible_intervals ({name})", ti, ref),
     ]

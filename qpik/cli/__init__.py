@@ -8,7 +8,9 @@ subcommand; ``register`` calls ``subparsers.add_parser(...)`` and sets
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import os
 import pkgutil
 import sys
 
@@ -29,6 +31,11 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+PIPE_CLOSED = 141
+"""The exit code when the reader of the output goes away (``qpik problems | head -1``): a program ended by
+SIGPIPE exits with 128 + 13, as ``yes | head -1`` does."""
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``qpik`` console script.
 
@@ -36,11 +43,26 @@ def main(argv: list[str] | None = None) -> int:
     code 2: qpik's own errors (bad input, problem files, solvers) and the operating
     system's (files that cannot be read or written) as they are; anything else, a bug,
     as ``internal error: <type>: <message>``. Argument syntax errors are argparse's (usage
-    and message, exit code 2).
+    and message, exit code 2). A standard output closed by its reader ends the command
+    quietly with :data:`PIPE_CLOSED`.
     """
+    try:
+        try:
+            return _command(argv)
+        finally:
+            sys.stdout.flush()  # a closed pipe shows here, not as a message when the interpreter exits
+    except BrokenPipeError:
+        with contextlib.suppress(OSError, ValueError):  # the interpreter's last flush then writes nowhere
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return PIPE_CLOSED
+
+
+def _command(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args) or 0)
+    except BrokenPipeError:
+        raise
     except (QpikError, OSError) as exc:
         message = str(exc)
     except Exception as exc:  # a bug: still one line, never a traceback

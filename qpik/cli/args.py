@@ -3,16 +3,31 @@
 from __future__ import annotations
 
 import argparse
+import re
 
 import numpy as np
 
 
+def fields(text: str) -> list[str]:
+    """The fields of a list separated by commas or spaces (``"a,b,c"``, ``"a b c"``, ``"a, b, c"``); an empty field
+    (``"a,,c"``, a comma at either end) or no field at all is an ``ArgumentTypeError`` that names it."""
+    parts = re.split(r"\s*,\s*|\s+", text.strip())
+    if parts == [""]:
+        raise argparse.ArgumentTypeError(f"expected values separated by commas or spaces, got {text!r}")
+    if "" in parts:
+        raise argparse.ArgumentTypeError(f"field {parts.index('') + 1} of {text!r} is empty")
+    return parts
+
+
 def floats(text: str) -> np.ndarray:
-    """Comma- or space-separated floats: ``"0,0.5,0"`` or ``"0 0.5 0"``."""
-    try:
-        return np.array([float(t) for t in text.replace(",", " ").split()])
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected numbers separated by commas, got {text!r}") from None
+    """Comma- or space-separated floats: ``"0,0.5,0"`` or ``"0 0.5 0"`` (see :func:`fields`)."""
+    parts = fields(text)
+    for i, t in enumerate(parts):
+        try:
+            float(t)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"field {i + 1} of {text!r} is not a number: {t!r}") from None
+    return np.array([float(t) for t in parts])
 
 
 def add_robot(parser: argparse.ArgumentParser, required: bool = True) -> None:
@@ -24,12 +39,12 @@ def add_robot(parser: argparse.ArgumentParser, required: bool = True) -> None:
         "-r",
         required=required,
         metavar="NAME|FILE",
-        help=f"arm of the catalog ({', '.join(sorted(CATALOG))}) or an MJCF (.xml) or URDF (.urdf) file",
+        help=f"arm of the catalog ({', '.join(sorted(CATALOG))}) or an MJCF (.xml, .mjcf) or URDF (.urdf) file",
     )
     g = parser.add_argument_group("model file options (with --robot FILE)")
     g.add_argument("--base", help="body or site the arm starts from (default: the world)")
     g.add_argument("--tip", help="body or site at the end effector (default: the end of the chain)")
-    g.add_argument("--joints", type=lambda t: t.replace(",", " ").split(), help='the arm\'s joints, "j1,j2,..."')
+    g.add_argument("--joints", type=fields, help='the arm\'s joints, "j1,j2,..."')
     g.add_argument(
         "--package",
         action="append",
@@ -54,7 +69,6 @@ def robot_from_args(args: argparse.Namespace):
     if args.collision_only:
         options["collision_only"] = True
     return load_robot(args.robot, **options)
-
 
 
 def whole(values: np.ndarray, option: str) -> list[int]:

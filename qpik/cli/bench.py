@@ -11,7 +11,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     p = sub.add_parser("bench", help="time qpik next to mink, ssik and other solvers")
     p.add_argument("which", nargs="*", metavar="BENCH", help=f"benches to run: {', '.join(BENCHES)} (default: all)")
-    p.add_argument("--repeat", type=int, default=2000, help="timed calls per row")
+    p.add_argument(
+        "--repeat",
+        type=int,
+        default=2000,
+        help="the benches' size: timed calls of the fast rows, fewer of the slow ones (default: 2000)",
+    )
     p.set_defaults(func=_run)
 
 

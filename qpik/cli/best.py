@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from qpik.cli.args import add_robot, floats
+from qpik.cli.args import add_robot, floats, robot_from_args
 from qpik.cli.ik import add_pose, pose_from_args
 
 
@@ -20,12 +20,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("best", help="the globally best branch and δ/ψ for a pose (certified NLP over every branch)")
     add_robot(p)
     add_pose(p)
-    p.add_argument("--objective", default="margin", choices=NAMES, help="what to minimise (default: margin)")
+    p.add_argument(
+        "--objective",
+        default="margin",
+        choices=NAMES,
+        help="the joint-limit margin, manipulability or clearance (maximised), or the distance to --q-ref "
+        "(minimised); default: margin",
+    )
     p.add_argument("--q-ref", type=floats, help="7 joint angles (rad): the reference of --objective distance")
-    p.add_argument("--sphere", type=floats, action="append", default=[], help="an obstacle: x,y,z,radius (m)")
-    p.add_argument("--problem", help="take the obstacles of this problem file (or name in problems/)")
-    p.add_argument("--d-safe", type=float, default=0.02, help="smallest capsule–obstacle distance allowed (m)")
-    p.add_argument("--tol", type=float, default=1e-4, help="the certificate's relative tolerance")
+    p.add_argument(
+        "--sphere", type=floats, action="append", default=[], help="an obstacle: x,y,z,radius (m; repeatable)"
+    )
+    p.add_argument("--problem", help="take the obstacles of this problem file (or shipped problem name)")
+    p.add_argument(
+        "--d-safe", type=float, default=0.02, help="smallest capsule–obstacle distance allowed (m; default: 0.02)"
+    )
+    p.add_argument("--tol", type=float, default=1e-4, help="the certificate's relative tolerance (default: 1e-4)")
     p.add_argument("--no-certify", action="store_true", help="skip the certificate of global optimality")
     p.add_argument(
         "--method",
@@ -40,12 +50,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from qpik import load_robot, solve_best
+    from qpik import solve_best
     from qpik.errors import InputError
     from qpik.geometry import Sphere
     from qpik.validate import pose as check_pose
 
-    robot = load_robot(args.robot)
+    robot = robot_from_args(args)
     T, _ = check_pose(pose_from_args(args, robot), "pose", args.project)
     obstacles = []
     if args.problem:

@@ -10,7 +10,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     from qpik.demo import ORDER
 
     p = sub.add_parser("demo", help="show what qpik does (tables and PNGs)")
-    p.add_argument("-o", "--out", type=Path, default=Path("qpik-out/demo"), help="folder for the pictures")
+    p.add_argument(
+        "-o", "--out", type=Path, default=Path("qpik-out/demo"), help="folder for the pictures (default: qpik-out/demo)"
+    )
     p.add_argument("--only", nargs="*", choices=ORDER, help="run only these sections")
     p.set_defaults(func=_run)
 

@@ -20,7 +20,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("ik", help="closed-form IK: all branches at one δ/ψ, checked by forward kinematics")
     add_robot(p)
     add_pose(p)
-    p.add_argument("--param", "-p", type=float, help="redundancy parameter δ (offset shoulder) or ψ (S-R-S), rad")
+    p.add_argument(
+        "--param",
+        "-p",
+        type=float,
+        help="redundancy parameter δ (offset shoulder) or ψ (S-R-S), rad (default with --q: the parameter of q)",
+    )
     p.set_defaults(func=_run)
 
 
@@ -58,7 +63,7 @@ def pose_from_args(args: argparse.Namespace, robot) -> np.ndarray:
 
 def _run(args: argparse.Namespace) -> int:
     from qpik import feasible_intervals, ik, redundancy_parameter
-    from qpik.plots.closed_form import symbol
+    from qpik.analytic.api import symbol
     from qpik.problems.ik import branch_table
     from qpik.validate import pose as check_pose
 

@@ -17,7 +17,9 @@ from pathlib import Path
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("plan", help="plan the joint motion along a path (problem files of kind plan)")
     p.add_argument("files", nargs="+", metavar="FILE|DIR", help="problem files or folders of them (or problem names)")
-    p.add_argument("-o", "--out", type=Path, default=Path("qpik-out/plan"), help="output folder (qpik-out/plan)")
+    p.add_argument(
+        "-o", "--out", type=Path, default=Path("qpik-out/plan"), help="output folder (default: qpik-out/plan)"
+    )
     p.add_argument("--workers", type=int, help="local processes for several files (default: one per CPU; 0: none)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="a Dask scheduler (tcp://host:8786): plan the files there")
     p.set_defaults(func=_run)

@@ -22,7 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("what", choices=("selfmotion", "branches"), help="which picture")
     add_robot(p, required=False)
     g = add_pose(p)
-    g.add_argument("--problem", help="problem file (or name in problems/): its robot, first pose and parameter")
+    g.add_argument("--problem", help="problem file (or shipped problem name): its robot, first pose and parameter")
     p.add_argument("--param", "-p", type=float, help="δ/ψ (rad) for 'branches'")
     p.add_argument("--branches", type=floats, help="branch ids to draw in 'selfmotion' (default: all)")
     p.add_argument("--shade", type=int, help="branch whose infeasible δ/ψ ranges are shaded (default: first drawn)")

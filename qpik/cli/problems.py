@@ -8,7 +8,9 @@ from pathlib import Path
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("problems", help="list the problem files (default: the ones shipped with qpik)")
-    p.add_argument("folder", nargs="?", type=Path, help="folder of *.toml files (default: the problems shipped with qpik)")
+    p.add_argument(
+        "folder", nargs="?", type=Path, help="folder of *.toml files (default: the problems shipped with qpik)"
+    )
     p.set_defaults(func=_run)
 
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from qpik.cli.args import add_robot, at_least_one, floats, robot_from_args, whole
@@ -19,9 +18,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="Q",
         help='joint angles in rad, "q1,...,q7" (repeat for more; default: home)',
     )
-    p.add_argument("-o", "--out", type=Path, default=Path("pose.png"), help="PNG file to write")
+    p.add_argument("-o", "--out", type=Path, default=Path("pose.png"), help="PNG file to write (default: pose.png)")
     p.add_argument("--overlay", action="store_true", help="draw every configuration in one picture")
-    p.add_argument("--cols", type=int, default=None, help="tiles per row")
+    p.add_argument("--cols", type=int, default=None, help="tiles per row (default: about the square root of the count)")
     p.add_argument("--size", type=floats, default=None, metavar="W,H", help="tile size in pixels (default 480,400)")
     p.set_defaults(func=_run)
 
@@ -31,6 +30,7 @@ def _run(args: argparse.Namespace) -> int:
 
     from qpik.errors import InputError
     from qpik.render import RenderUnavailable, render_configurations
+
     robot = robot_from_args(args)
     bad = [q.shape[0] for q in args.q or () if q.shape != (robot.dof,)]
     if bad:
@@ -43,8 +43,7 @@ def _run(args: argparse.Namespace) -> int:
         at_least_one(args.cols, "--cols")
     try:
         render_configurations(robot, qs, args.out, cols=args.cols, size=size, overlay=args.overlay)
-    except RenderUnavailable as exc:
-        print(f"qpik render: nothing drawn: {exc}", file=sys.stderr)
-        return 0
+    except RenderUnavailable as exc:  # the one line of qpik.cli.main, exit code 2
+        raise RenderUnavailable(f"nothing drawn, no OpenGL: {exc}") from None
     print(f"wrote {args.out} ({len(qs)} configuration{'s' if len(qs) > 1 else ''} of {robot.name})")
     return 0

@@ -1,7 +1,7 @@
 """``qpik run``: solve a problem file with the runner of its kind and print the report.
 
 The report is also written to ``OUT/report.md``; the runner may write pictures
-and data beside it. ``FILE`` may be a path or the name of a file in ``./problems``.
+and data beside it. ``FILE`` may be a path or the name of a problem shipped with qpik (``qpik problems``).
 """
 
 from __future__ import annotations
@@ -11,8 +11,11 @@ from pathlib import Path
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("run", help="solve a problem file (problems/*.toml) and write its report")
-    p.add_argument("file", help="problem file, or the name of one in ./problems (e.g. nammoto2012_table4)")
+    p = sub.add_parser("run", help="solve a problem file (*.toml) and write its report")
+    p.add_argument(
+        "file",
+        help="problem file, or the name of one shipped with qpik (qpik problems lists them; e.g. nammoto2012_table4)",
+    )
     p.add_argument("-o", "--out", type=Path, help="output folder (default: qpik-out/<problem name>)")
     p.set_defaults(func=_run)
 

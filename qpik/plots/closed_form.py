@@ -27,20 +27,14 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from qpik.analytic.api import IKSolutions, feasible_intervals, ik
+from qpik.analytic.api import IKSolutions, feasible_intervals, ik, symbol
 from qpik.analytic.intervals import FeasibleIntervals, Interval
 from qpik.plots.files import save
 from qpik.robots.robot import Robot
 
 PI = np.pi
-SYMBOL = {"delta": "δ", "psi": "ψ"}
 INFEASIBLE_GID = "infeasible"  # gid of the shaded spans (for readers of the figure)
 SINGULAR_GID = "singular"
-
-
-def symbol(param_name: str) -> str:
-    """The Greek letter of a redundancy parameter name (``"delta"`` -> ``"δ"``)."""
-    return SYMBOL.get(param_name, param_name)
 
 
 def branch_colors(branches: Sequence[int]) -> dict[int, tuple]:

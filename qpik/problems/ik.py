@@ -29,17 +29,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from qpik.analytic.api import IKSolutions, ik, redundancy_parameter
+from qpik.analytic.api import IKSolutions, ik, redundancy_parameter, symbol
 from qpik.analytic.intervals import wrap
 from qpik.errors import ProblemFileError
-from qpik.plots import save
-from qpik.plots.closed_form import (
-    branch_pictures,
-    selfmotion_map,
-    stick_overlay,
-    sweep_figure,
-    symbol,
-)
 from qpik.problems.runners import runner
 from qpik.robots.robot import Robot
 
@@ -234,6 +226,9 @@ def _sweep_section(
     problem: Problem, grid: _Grid, poses: np.ndarray, out: Path, lines: list[str]
 ) -> list[tuple[str, str]]:
     """Compact table(s) and figures; returns (file name, what it shows)."""
+    from qpik.plots import save  # Matplotlib: not for qpik ik's branch_table
+    from qpik.plots.closed_form import branch_pictures, selfmotion_map, stick_overlay, sweep_figure
+
     robot, name = problem.robot, problem.name
     N, M = grid.q.shape[:2]
     sym = symbol(grid.param_name)

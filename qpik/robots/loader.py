@@ -49,7 +49,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from qpik.errors import InputError, UnknownRobotError
-from qpik.robots.capsule_fit import fit_capsule
 from qpik.robots.catalog import CATALOG
 from qpik.robots.catalog import load_robot as catalog_robot
 from qpik.robots.chain import Joint, SerialChain
@@ -155,6 +154,18 @@ def _stage(spec: mujoco.MjSpec) -> None:
     light.type = mujoco.mjtLightType.mjLIGHT_DIRECTIONAL
 
 
+MODEL_SUFFIXES = (".urdf", ".xml", ".mjcf")
+"""A robot given by a name with one of these suffixes (any case) is a model file's path."""
+
+
+def looks_like_a_file(path_or_name: str | os.PathLike) -> bool:
+    """Whether :func:`load_robot` reads ``path_or_name`` as a file path, never as a catalog name: a path object, or a
+    name with a folder separator or a suffix of :data:`MODEL_SUFFIXES`."""
+    if not isinstance(path_or_name, str):
+        return True
+    return "/" in path_or_name or os.sep in path_or_name or Path(path_or_name).suffix.lower() in MODEL_SUFFIXES
+
+
 def load_robot(
     path_or_name: str | os.PathLike,
     *,
@@ -185,7 +196,8 @@ def load_robot(
         name: the robot's name (default the model's name).
 
     Raises:
-        UnknownRobotError: neither a catalog name nor an existing file.
+        UnknownRobotError: neither a catalog name nor an existing file; a name that looks like a file
+            (:func:`looks_like_a_file`) and is none says "no such file".
         InputError: a bad model: MuJoCo cannot read it, a mesh is missing, the chain from base
             to tip branches or has no joint, a joint on it is a ball or free joint, unknown names.
     """
@@ -202,7 +214,10 @@ def load_robot(
     path = Path(text)
     if not path.is_file():
         known = ", ".join(CATALOG)
-        raise UnknownRobotError(f"unknown robot {text!r}; known: {known}, or an MJCF/URDF file (none there)")
+        if not looks_like_a_file(path_or_name):
+            raise UnknownRobotError(f"unknown robot {text!r}; known: {known}, or the path of an MJCF or URDF file")
+        what = "is a folder, not a model file" if path.is_dir() else "no such file"
+        raise UnknownRobotError(f"{text!r}: {what} (the catalog's arms: {known})")
     pmap = {k: os.fspath(v) for k, v in (package_map or {}).items()}
     spec = read_spec(path, pmap, collision_only)
     try:
@@ -446,6 +461,8 @@ def _home(model: mujoco.MjModel, arm: list[int], q_min: np.ndarray, q_max: np.nd
 
 def _capsules(model: mujoco.MjModel, tree: _Tree, arm: list[int], chain: SerialChain) -> tuple[LinkCapsule, ...]:
     """One capsule per link with geoms: the smallest containing its collision geoms (else all), in link frame k."""
+    from qpik.robots.capsule_fit import fit_capsule  # SciPy's optimisers: only for a model file
+
     owner = {}  # body -> link index (1..n) of the arm joint that moves it last
     joint_body = [int(model.jnt_bodyid[j]) for j in arm]
 

@@ -1,7 +1,21 @@
 """Closed-loop runs in MuJoCo: :func:`simulate` a policy on an arm among obstacles, log it, plot it."""
 
-from qpik.paths import TimedPath
-from qpik.sim.log import SimLog, Summary, tracking_errors
-from qpik.sim.run import Scene, build_scene, follow, simulate
+from typing import TYPE_CHECKING
+
+from qpik.lazy import exports
+
+if TYPE_CHECKING:
+    from qpik.paths import TimedPath
+    from qpik.sim.log import SimLog, Summary, tracking_errors
+    from qpik.sim.run import Scene, build_scene, follow, simulate
+
+__getattr__, __dir__ = exports(
+    __name__,
+    {
+        "qpik.paths": ("TimedPath",),
+        "qpik.sim.log": ("SimLog", "Summary", "tracking_errors"),
+        "qpik.sim.run": ("Scene", "build_scene", "follow", "simulate"),
+    },
+)
 
 __all__ = ["Scene", "SimLog", "Summary", "TimedPath", "build_scene", "follow", "simulate", "tracking_errors"]
