@@ -17,12 +17,12 @@ from conftest import SEEDS, fd, random_q
 from hypothesis import given, settings
 
 import qpik
+from qpik.enclosure import taylor_function
 from qpik.errors import InputError
 from qpik.geometry import Box as BoxShape
 from qpik.geometry import Sphere, distances
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.certificate import lower_bound
-from qpik.enclosure import taylor_function
 from qpik.objectives import (
     NAMES,
     Clearance,
