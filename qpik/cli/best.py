@@ -20,7 +20,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("best", help="the globally best branch and δ/ψ for a pose (certified NLP over every branch)")
     add_robot(p)
     add_pose(p)
-    p.add_argument("--objective", default="margin", choices=NAMES, help="what to minimise (default: margin)")
+    p.add_argument("--objective", default="margin", choices=NAMES,
+                   help="what to optimise (default: margin, the joint-limit margin, maximised)")  # fmt: skip
     p.add_argument("--q-ref", type=floats, help="7 joint angles (rad): the reference of --objective distance")
     p.add_argument("--sphere", type=floats, action="append", default=[], help="an obstacle: x,y,z,radius (m)")
     p.add_argument("--problem", help="take the obstacles of this problem file (or name in problems/)")
@@ -60,7 +61,7 @@ def _run(args: argparse.Namespace) -> int:
                       tol=args.tol, method=args.method)  # fmt: skip
     p = np.array2string(T[:3, 3], precision=4)
     extra = f", {len(obstacles)} obstacle(s), d_s = {args.d_safe:g} m" if obstacles else ""
-    print(f"{robot.name}: objective {args.objective} at p = {p} m{extra}")
+    print(f"{robot.name}: {best.quantity.goal} at p = {p} m{extra}")
     print(best.table())
     print(best.summary())
     if best.status == "optimal":
@@ -70,5 +71,5 @@ def _run(args: argparse.Namespace) -> int:
         from qpik.plots.objective import objective_map
 
         save(objective_map(robot, T, args.objective, obstacles, args.q_ref, best, args.d_safe), args.plot)
-        print(f"objective against the redundancy parameter written to {args.plot}")
+        print(f"{best.quantity.name} against the redundancy parameter written to {args.plot}")
     return 0 if best.status in ("optimal", "no feasible branch", "unreachable") else 2

@@ -28,6 +28,7 @@ from qpik.analytic import solver_for
 from qpik.analytic.intervals import wrap
 from qpik.compiled import Compiled, RowMap
 from qpik.enclosure import taylor_function
+from qpik.objectives import build_rows
 from qpik.robots.robot import Robot
 
 MIRRORED = {"offset_shoulder": 8}
@@ -102,6 +103,16 @@ class SelfMotion:
         """:meth:`points`' function of one row, ``(b, T (4, 4), ψ) -> [q (n); dq/dψ (n); valid]``, compiled: for C code
         that evaluates rows one at a time (:mod:`qpik.nlp.levelset`)."""
         return Compiled(self._point_map.fn)
+
+    def build(self, models: bool = True, point_call: bool = False) -> None:
+        """Trace and compile now what :meth:`points` and :meth:`values` (and with ``models`` :meth:`models`, with
+        ``point_call`` :attr:`point_call`) call, at every call size: later calls only evaluate."""
+        build_rows(self._point_map)
+        build_rows(self._value_map)
+        if models:
+            build_rows(self._model_map)
+        if point_call:
+            _ = self.point_call
 
     def points(self, b: np.ndarray, T: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Branch rows b (M,) at poses T (M, 16) (:func:`columns`) and parameters ψ (M,): q (M, n), dq/dψ (M, n),

@@ -41,7 +41,7 @@ from qpik.compiled import Compiled, NativeFunction, RowMap, shared_library
 from qpik.errors import SolverError
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.selfmotion import MIRRORED
-from qpik.objectives import Context, Objective
+from qpik.objectives import Context, Objective, build_rows
 from qpik.robots.robot import Robot
 
 ROW_CHUNKS = (64, 16)
@@ -259,6 +259,13 @@ class Grid:
     @cached_property
     def _native(self) -> _NativeLayers | None:
         return _NativeLayers.for_grid(self, *(Compiled(f) for f in self.split_function()))
+
+    def build(self) -> None:
+        """Trace and compile now what :meth:`layers` and :meth:`configurations` call (the C layers, or the row map at
+        every call size), so that the DP's clock counts evaluations, never a compile."""
+        _ = self._compiled
+        if self._native is None:
+            build_rows(self._rows)
 
     def layers(self, k0: int, k1: int) -> Layers:
         """The states of waypoints k0 .. k1 - 1 (see :class:`Layers`): only the grid values inside a branch's
