@@ -7,7 +7,7 @@ Run:  python examples/best_branch.py [OUTPUT_FOLDER]
    and proves that no other arm angle of any branch does better (the certificate).
 2. The full-joint NLP (IPOPT over all 7 joints, pose as a constraint) started at that answer
    stays there; the QP controller started there does not move (qpik.crosscheck).
-3. A plot of the objective against the arm angle for every branch goes to OUTPUT_FOLDER
+3. A plot of the margin (maximised: qpik minimises −margin) against the arm angle for every branch goes to OUTPUT_FOLDER
    (default: qpik-out/examples).
 """
 

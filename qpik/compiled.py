@@ -417,6 +417,12 @@ class RowMap:
             maps[size] = (call, ins, [r.reshape(size, -1) for r in call._res])
         return maps
 
+    def build(self) -> None:
+        """Compile the maps now (else on the first call): a solve that starts its clock after this times
+        evaluations, never a compile."""
+        with self._lock:
+            self._maps  # noqa: B018 (the cached property is the build)
+
     def __call__(self, *args: np.ndarray) -> list[np.ndarray]:
         """Each output as (M, nnz) for per-row inputs (M, nnz_i) (shared inputs: (nnz_i,))."""
         shared = self.shared

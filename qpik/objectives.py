@@ -30,6 +30,12 @@ The objectives (units: the margin is unitless, distances in m, angles in rad):
   obstacle o) pair, capped at ``cap`` = c (m); epigraph form or the soft minimum;
 - :class:`ReferenceDistance`: :math:`\tfrac12 \sum_j w_j (q_j - q_{ref,j})^2`;
 - :class:`Expression`: a user's CasADi expression of q.
+
+What a person reads is the measured quantity, not the cost: each objective's
+:attr:`Objective.quantity` (:class:`Quantity`) turns the minimised value f into it — the margin
+:math:`-f` (maximised), the clearance :math:`-f` in m (maximised), the manipulability
+:math:`e^{-f}` (maximised), the distance to q_ref f itself (minimised); a weighted sum of several
+terms or a user's expression is shown as the objective f, minimised.
 """
 
 from __future__ import annotations
@@ -88,6 +94,82 @@ class Split:
             cost = cost + w * t[k]
             g.append(h - t[k])
         return t, cost, ca.vertcat(*g)
+
+
+def _same(f: np.ndarray) -> np.ndarray:
+    return f
+
+
+def _negated(f: np.ndarray) -> np.ndarray:
+    return -f
+
+
+def _exp_negated(f: np.ndarray) -> np.ndarray:
+    return np.exp(-f)
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """How an objective's value is shown to a person: the quantity it measures, in its own sense.
+
+    The solvers minimise f; :meth:`value` is the measured quantity (the margin for f = −margin, the
+    manipulability m for f = −log m, f itself for a quantity that is minimised).
+
+    Attributes:
+        name: what the number is (``"margin"``, ``"clearance"``, ``"objective"``, ...).
+        unit: its unit (``""``: unitless).
+        maximised: whether the best value is the largest.
+        minimised: what qpik minimises to maximise it (``"−margin"``), ``""`` when it minimises the quantity itself.
+        meaning: what it measures, in words (``""`` when the name says it).
+        of: the quantity from the minimised value f (numpy, elementwise).
+    """
+
+    name: str
+    unit: str = ""
+    maximised: bool = False
+    minimised: str = ""
+    meaning: str = ""
+    of: Callable[[np.ndarray], np.ndarray] = _same
+
+    def value(self, f: float | np.ndarray) -> float | np.ndarray:
+        """The quantity at the minimised value(s) f (a float for a number, an array for an array)."""
+        out = self.of(np.asarray(f, dtype=float))
+        return float(out) if np.ndim(out) == 0 else out
+
+    @property
+    def header(self) -> str:
+        """A table column's title: the name and unit (``"clearance [m]"``)."""
+        return self.name + (f" [{self.unit}]" if self.unit else "")
+
+    @property
+    def sense(self) -> str:
+        """``"maximised (qpik minimises −margin)"`` or ``"minimised"``."""
+        if not self.maximised:
+            return "minimised"
+        return "maximised" + (f" (qpik minimises {self.minimised})" if self.minimised else "")
+
+    @property
+    def label(self) -> str:
+        """An axis label: the header and the sense (``"margin, maximised (qpik minimises −margin)"``)."""
+        return f"{self.header}, {self.sense}"
+
+    @property
+    def goal(self) -> str:
+        """What a solve asks for, in words: ``"maximise the margin (the smallest ...; qpik minimises −margin)"``."""
+        verb = "maximise" if self.maximised else "minimise"
+        notes = [x for x in (self.meaning, f"qpik minimises {self.minimised}" if self.minimised else "") if x]
+        return f"{verb} the {self.name}" + (f" ({'; '.join(notes)})" if notes else "")
+
+    def text(self, f: float, spec: str = ".6g") -> str:
+        """``"margin 0.377787"``, ``"clearance 0.0421 m"``: the quantity at the minimised value f, with its unit."""
+        return f"{self.name} {format(self.value(f), spec)}" + (f" {self.unit}" if self.unit else "")
+
+    def scaled(self, weight: float) -> Quantity:
+        """The quantity of ``weight`` × the objective (weight > 0): the same quantity, read from f / weight."""
+        inner, w = self.of, float(weight)
+        what = self.minimised or self.name
+        return Quantity(self.name, self.unit, self.maximised, f"{w:g} × ({what})" if w != 1.0 else self.minimised,
+                        self.meaning, lambda f: inner(f / w))  # fmt: skip
 
 
 def pair_count(robot: Robot, obstacles: Sequence | ObstacleSet) -> int:
@@ -242,6 +324,11 @@ class Objective(ABC):
         """``((weight, objective), ...)`` whose weighted sum this is (itself with weight 1)."""
         return ((1.0, self),)
 
+    @property
+    def quantity(self) -> Quantity:
+        """How a value of it is shown (:class:`Quantity`); by default the objective itself, minimised."""
+        return Quantity(self.name if self.name != Objective.name else "objective")
+
     def __mul__(self, weight: float) -> Sum:
         weight = number(weight, "weight")
         return Sum([(w * weight, o) for w, o in self.terms])
@@ -294,6 +381,21 @@ class Sum(Objective):
 
     def structure(self) -> tuple:
         return tuple(o.key() for _, o in self._terms)
+
+    @property
+    def quantity(self) -> Quantity:
+        """One term of weight w > 0: its quantity, read from f / w. Several terms that each measure the negative of
+        a maximised quantity (margin, clearance): their weighted sum, maximised, −f. Otherwise the objective f,
+        minimised."""
+        if len(self._terms) == 1 and self.weights[0] > 0:
+            return self._terms[0][1].quantity.scaled(self.weights[0])
+        quantities = [o.quantity for _, o in self._terms]
+        if all(q.maximised and q.of is _negated for q in quantities):
+            name = " + ".join(("" if w == 1.0 else f"{w:g} × ") + q.name for w, q in zip(self.weights, quantities))
+            units = {q.unit for q in quantities}
+            return Quantity(name, units.pop() if len(units) == 1 else "", True, f"−({name})", of=_negated)
+        parts = [f"{w:g} × ({q.minimised or q.name})" for w, q in zip(self.weights, quantities)]
+        return Quantity("objective", meaning=" + ".join(parts))
 
     def _slices(self, robot: Robot) -> list[slice]:
         start, out = len(self._terms), []
@@ -368,6 +470,17 @@ class JointLimitMargin(Objective):
     def smooth(self) -> bool:
         return self._smooth
 
+    @property
+    def quantity(self) -> Quantity:
+        r"""The margin :math:`-f` (unitless: a fraction of the half range), maximised; with ``smooth=True`` the soft
+        minimum, at most :math:`\log(2n)/\beta` below the margin."""
+        if self._smooth:
+            return Quantity("smooth margin", "", True, "−smooth margin",
+                            f"soft minimum (β = {self.sharpness:g}) of the distances to the joint limits over the"
+                            " half ranges, a little below the margin", _negated)  # fmt: skip
+        return Quantity("margin", "", True, "−margin",
+                        "the smallest distance to a joint limit over the joint's half range", _negated)  # fmt: skip
+
     def split(self, ctx: Context, p: ca.SX) -> Split:
         g = _normalised(ctx.robot, ctx.q)
         if self._smooth:
@@ -394,6 +507,13 @@ class Manipulability(Objective):
 
     def structure(self) -> tuple:
         return (self.translational,)
+
+    @property
+    def quantity(self) -> Quantity:
+        """Yoshikawa's m itself, :math:`e^{-f}` (m³), maximised."""
+        name = "translational manipulability" if self.translational else "manipulability"
+        meaning = "√det(J_v J_vᵀ)" if self.translational else "√det(J Jᵀ)"
+        return Quantity(name, "m³", True, f"−log {name}", meaning, _exp_negated)
 
     def split(self, ctx: Context, p: ca.SX) -> Split:
         return Split(-ca.log(ctx.manipulability(self.translational)))
@@ -427,6 +547,16 @@ class Clearance(Objective):
     @property
     def smooth(self) -> bool:
         return self._smooth
+
+    @property
+    def quantity(self) -> Quantity:
+        """The capped clearance :math:`-f` (m), maximised; with ``smooth=True`` the soft minimum."""
+        name = "smooth clearance" if self._smooth else "clearance"
+        meaning = f"the smallest link-capsule/obstacle distance, capped at {self.cap:g} m"
+        if self._smooth:
+            meaning = (f"soft minimum (β = {self.sharpness:g} 1/m) of the link-capsule/obstacle distances and the cap"
+                       f" {self.cap:g} m, a little below the smallest")  # fmt: skip
+        return Quantity(name, "m", True, f"−{name}", meaning, _negated)
 
     def split(self, ctx: Context, p: ca.SX) -> Split:
         h = -ca.vertcat(ctx.distances, p[0])
@@ -466,6 +596,11 @@ class ReferenceDistance(Objective):
 
     def params(self, robot: Robot) -> np.ndarray:
         return self._w(robot)
+
+    @property
+    def quantity(self) -> Quantity:
+        """f itself (rad²), minimised."""
+        return Quantity("distance to q_ref", "rad²", meaning="½ Σ w_j (q_j − q_ref,j)²")
 
     def split(self, ctx: Context, p: ca.SX) -> Split:
         e = ctx.q - ctx.q_ref
@@ -586,6 +721,11 @@ class Evaluator:
         (out,) = self._maps.rows(Q, self.params, R, self.obstacles.params)
         n, k = self.robot.dof, 1 + self.robot.dof + self.n_pairs
         return out[:, 0], out[:, 1 : 1 + n], out[:, 1 + n : k], out[:, k:]
+
+    def build(self) -> None:
+        """Compile both maps (:meth:`rows`, :meth:`value_rows`) now (:meth:`~qpik.compiled.RowMap.build`)."""
+        self._maps.rows.build()
+        self._maps.values.build()
 
     def value_rows(self, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`rows` without the derivatives (:meth:`value_function`): ``(f (M,), d (M, C'·O))``."""
@@ -739,6 +879,14 @@ def _pair_models(kind: str) -> RowMap:
     a, u = tuple(axis[i] for i in range(3)), tuple(axis[i] for i in range(3, 6))
     d = axis_distance(a, u, radius, kind, [prm[i] for i in range(PARAMS[kind])], sy.CASADI)
     return RowMap(taylor_function(ca.Function(f"pair_{kind}", [axis, radius, prm], [d]), [0]), chunks=(64, 16))
+
+    def build(self) -> None:
+        """Compile every function :meth:`rows` calls now (:meth:`~qpik.compiled.RowMap.build`)."""
+        self._split.build()
+        if self._segments is not None:
+            self._segments.build()
+        for kind, _ in _by_kind(self._pairs):
+            _pair_models(kind).build()
 
 
 _BOUNDS: dict[tuple, tuple] = {}

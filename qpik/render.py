@@ -231,11 +231,18 @@ def _free_camera(kin: MjKinematics, qs: np.ndarray, view: Camera, aspect: float)
 
 
 def _draw_labels(image: np.ndarray, labels: Sequence[str], cols: int, size: tuple[int, int]) -> None:
-    from PIL import Image, ImageDraw
+    """Each tile's label in its top-left corner, in matplotlib's DejaVu Sans (Greek letters included) at a size that
+    reads at the tile's scale (a twentieth of its height, at least 14 px), on a pale band."""
+    from matplotlib import font_manager
+    from PIL import Image, ImageDraw, ImageFont
 
     pic = Image.fromarray(image)
     draw = ImageDraw.Draw(pic)
+    font = ImageFont.truetype(font_manager.findfont("DejaVu Sans"), max(14, size[1] // 20))
     for t, text in enumerate(labels):
         r, c = divmod(t, cols)
-        draw.text((c * size[0] + 8, r * size[1] + 6), str(text), fill=(20, 20, 20))
+        at = (c * size[0] + 8, r * size[1] + 6)
+        box = draw.textbbox(at, str(text), font=font)
+        draw.rectangle((box[0] - 4, box[1] - 3, box[2] + 4, box[3] + 3), fill=(245, 245, 245))
+        draw.text(at, str(text), fill=(20, 20, 20), font=font)
     image[:] = np.asarray(pic)

@@ -66,3 +66,23 @@ def test_method_levelset_prints_its_table_and_refuses_obstacles(capsys):
     assert main(["best", "-r", "iiwa14", *pose, "--method", "levelset", "--sphere", "0.5,0.5,1.5,0.05"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "method" in err[0]
+
+
+def test_best_prints_the_margin_itself_and_says_what_is_minimised(capsys):
+    """The margin objective's table and summary show the margin (positive, the smallest distance to a limit over the
+    half range of the printed q, computed here), and the header says that qpik minimises −margin."""
+    robot = qpik.load_robot("iiwa14")
+    T = robot.fk(np.random.default_rng(6).uniform(0.7 * robot.q_min, 0.7 * robot.q_max))
+    pose = ["--position", " ".join(repr(float(v)) for v in T[:3, 3]),
+            "--rotation", " ".join(repr(float(v)) for v in T[:3, :3].ravel())]  # fmt: skip
+    assert main(["best", "-r", "iiwa14", *pose]) == 0
+    out = capsys.readouterr().out
+    assert "maximise the margin" in out.splitlines()[0] and "qpik minimises −margin" in out.splitlines()[0]
+    q = _q_star(out)
+    half = 0.5 * (robot.q_max - robot.q_min)
+    margin = np.minimum((q - robot.q_min) / half, (robot.q_max - q) / half).min()
+    summary = next(ln for ln in out.splitlines() if ln.startswith("best: branch"))
+    printed = float(summary.split("margin ")[1].split(",")[0])
+    assert printed > 0 and printed == pytest.approx(margin, abs=1e-6)  # q printed to 6 decimals
+    rows = [ln.split() for ln in out.splitlines() if ln.split() and ln.split()[0].isdigit() and ln.split()[1] == "yes"]
+    assert all(float(r[3]) > 0 for r in rows) and max(float(r[3]) for r in rows) == pytest.approx(printed, rel=1e-7)

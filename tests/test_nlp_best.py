@@ -347,3 +347,73 @@ def test_threads_sharing_an_arm_get_the_answers_of_one_thread() -> None:
     with ThreadPoolExecutor(4) as pool:
         for _ in range(2):
             assert list(pool.map(answers, range(4))) == serial
+
+
+def test_the_margin_is_reported_as_itself_and_the_table_shows_it():
+    """The margin objective minimises −margin; the result and its table report the margin: positive, and equal to
+    the smallest distance to a limit over the half range, computed here from q."""
+    for name in ARMS:
+        robot = qpik.load_robot(name)
+        T = _poses(robot, 3, 31)
+        for method in ("levelset", "search"):
+            results = solve_best(robot, T, "margin", method=method)
+            for res in results:
+                margin = -_margin(robot, res.q)
+                assert res.reported > 0 and res.reported == pytest.approx(margin, abs=1e-12)
+                assert res.objective == pytest.approx(-margin, abs=1e-12)
+                assert f"margin {res.reported:.10g}, maximised" in res.summary()
+                for row in res.branches:
+                    if row.feasible:
+                        assert res.quantity.value(row.objective) == pytest.approx(-_margin(robot, row.q), abs=1e-12)
+                head, *rows = res.table().splitlines()
+                assert head.split()[4] == "margin"  # branch, feasible, ψ* [rad], margin, ...
+                shown = [float(r.split()[3]) for r in rows if r.split()[0].isdigit() and r.split()[1] == "yes"]
+                assert shown and min(shown) > 0 and max(shown) == pytest.approx(res.reported, rel=1e-7)
+            np.testing.assert_allclose(results.reported, -_margin(robot, results.q), atol=1e-12)
+
+
+@pytest.mark.parametrize("method, objective, obstacles", [("levelset", "margin", ()), ("search", "margin", OBSTACLES),
+                                                           ("ipopt", "smooth-margin", ())])  # fmt: skip
+def test_the_time_is_the_solve_not_the_building_of_its_functions(monkeypatch, method, objective, obstacles):
+    """On a fresh arm every function is built (traced, compiled or loaded) within the call; the reported time counts
+    none of it: no compiled function or IPOPT solver is made while a solve's clock runs, the reported time is at most
+    the call's wall time less the time spent making compiled functions, and the branch times add up to it."""
+    import time
+
+    import casadi
+
+    from qpik.compiled import Compiled
+    from qpik.robots.catalog import CATALOG
+    from qpik.stopwatch import Stopwatch
+
+    watches, built = [], []
+    make_watch, make_compiled, make_nlp = Stopwatch.__init__, Compiled.__init__, casadi.nlpsol
+
+    def watch(self):
+        make_watch(self)
+        watches.append(self)
+
+    def compiled(self, *args, **kwargs):
+        start = time.perf_counter()
+        make_compiled(self, *args, **kwargs)
+        built.append((any(w.running for w in watches), time.perf_counter() - start))
+
+    def nlpsol(*args, **kwargs):
+        built.append((any(w.running for w in watches), 0.0))
+        return make_nlp(*args, **kwargs)
+
+    monkeypatch.setattr(Stopwatch, "__init__", watch)
+    monkeypatch.setattr(Compiled, "__init__", compiled)
+    monkeypatch.setattr(casadi, "nlpsol", nlpsol)
+    robot = CATALOG["iiwa14"]()  # a new object: none of its functions is built yet
+    T = _poses(robot, 2, 41)
+    start = time.perf_counter()
+    results = solve_best(robot, T, objective, obstacles, method=method, certify=method != "ipopt")
+    wall = time.perf_counter() - start
+    assert built and watches  # the call built functions, and timed its solve
+    assert not [b for b in built if b[0]], "a function was built while the clock ran"
+    making = sum(seconds for _, seconds in built)
+    for res in results:
+        assert res.status == "optimal"
+        assert 0 < res.time * len(T) <= wall - making
+        assert sum(b.time for b in res.branches) == pytest.approx(res.time, rel=1e-9)

@@ -179,3 +179,45 @@ def test_user_expression_and_split_epigraph():
     assert float(c) == value and float(np.max(np.asarray(gg))) == pytest.approx(0.0, abs=1e-15)
     with pytest.raises(InputError, match="scalar"):
         Evaluator(robot, Expression(lambda q: q[:2]))
+
+
+def test_each_objective_reports_the_quantity_it_measures():
+    """Quantity.value turns the minimised f into the measured quantity, checked against definitions written here: the
+    margin (min of the normalised distances, > 0 inside the limits), the capped clearance (m), Yoshikawa's
+    √det(J Jᵀ) from the Jacobian (not −log of it), the distance to q_ref; a weighted term reads the same quantity,
+    a sum of maximised quantities their weighted sum, any other sum the objective itself."""
+    robot = qpik.load_robot("iiwa14")
+    q = random_q(robot, 100, 7, margin=0.05)
+    ref = robot.q_home
+    g = _normalised(robot, q)
+    d = _clearances(robot, q, OBSTACLES)
+    J = robot.jacobian(q)
+    measured = {
+        "margin": g.min(axis=1),
+        "manipulability": np.sqrt(np.linalg.det(J @ np.swapaxes(J, 1, 2))),
+        "clearance": np.minimum(d.min(axis=1), 0.1),
+        "distance": 0.5 * ((q - ref) ** 2).sum(axis=1),
+    }
+    for key, value in measured.items():
+        objective = resolve(key)
+        f = Evaluator(robot, objective, OBSTACLES)(q, ref)[0]
+        quantity = objective.quantity
+        np.testing.assert_allclose(quantity.value(f), value, rtol=1e-9, atol=1e-12, err_msg=key)
+        assert quantity.maximised == (key != "distance") and (quantity.sense == "minimised") == (key == "distance")
+        assert isinstance(quantity.value(float(f[0])), float)
+        weighted = (2.5 * objective).quantity
+        f2 = Evaluator(robot, 2.5 * objective, OBSTACLES)(q, ref)[0]
+        np.testing.assert_allclose(weighted.value(f2), value, rtol=1e-9, atol=1e-12, err_msg=key)
+        assert weighted.name == quantity.name
+    assert measured["margin"].min() > 0
+    both = Clearance() + 0.1 * JointLimitMargin()
+    f = Evaluator(robot, both, OBSTACLES)(q, ref)[0]
+    np.testing.assert_allclose(both.quantity.value(f), measured["clearance"] + 0.1 * measured["margin"], atol=1e-12)
+    assert both.quantity.name == "clearance + 0.1 × margin" and both.quantity.maximised
+    mixed = Manipulability() + ReferenceDistance()
+    f = Evaluator(robot, mixed, OBSTACLES)(q, ref)[0]
+    np.testing.assert_array_equal(mixed.quantity.value(f), f)
+    assert mixed.quantity.name == "objective" and mixed.quantity.sense == "minimised"
+    assert JointLimitMargin().quantity.text(-0.25) == "margin 0.25"
+    assert Clearance().quantity.text(-0.042, ".3g") == "clearance 0.042 m"
+    assert "qpik minimises −margin" in JointLimitMargin().quantity.goal

@@ -120,3 +120,36 @@ def test_an_arm_without_a_closed_form_reaches_every_waypoint_after_the_nlp():
     tracked = plan.dp_plan  # the QP controller's run: it lags behind the path
     assert tracked.label == "QP controller (online)" and max(tracked.fk_error) > 1e-6
     assert plan.cost <= tracked.cost
+
+
+def test_the_stage_times_count_no_building_of_functions(monkeypatch):
+    """A fresh arm builds the grid's, the DP's and the NLP's functions within the call; the plan's stage times count
+    none of it (no compiled function is made while a stage's clock runs) and add up to less than the call."""
+    import time
+
+    from qpik.compiled import Compiled
+    from qpik.robots.catalog import CATALOG
+    from qpik.stopwatch import Stopwatch
+
+    watches, built = [], []
+    make_watch, make_compiled = Stopwatch.__init__, Compiled.__init__
+
+    def watch(self):
+        make_watch(self)
+        watches.append(self)
+
+    def compiled(self, *args, **kwargs):
+        built.append(any(w.running for w in watches))
+        make_compiled(self, *args, **kwargs)
+
+    monkeypatch.setattr(Stopwatch, "__init__", watch)
+    monkeypatch.setattr(Compiled, "__init__", compiled)
+    robot = CATALOG["iiwa14"]()  # a new object: none of its functions is built yet
+    T = _line(robot, robot.q_home, np.full(7, 0.15), 8)
+    start = time.perf_counter()
+    plan = qpik.plan_self_motion(robot, T, "margin", [Sphere((0.5, 0.4, 0.9), 0.05)], max_joint_step=0.2,
+                                 mujoco=False)  # fmt: skip
+    wall = time.perf_counter() - start
+    assert plan.status in ("optimal", "dp") and {"dp", "nlp"} <= set(plan.timings)
+    assert built and watches and not any(built), "a function was built while a stage's clock ran"
+    assert 0 < sum(plan.timings.values()) < wall

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
+from legends import missing_labels, unexplained
 from matplotlib.axes import Axes
 from matplotlib.patches import Rectangle
 from PIL import Image
@@ -139,3 +142,83 @@ def test_infeasible_spans_of_empty_and_full_sets() -> None:
     assert plots.infeasible_spans([]) == [(-np.pi, np.pi)]
     assert plots.infeasible_spans([(-np.pi, np.pi)]) == []
     assert plots.infeasible_spans([(-1.0, 0.0), (1.0, np.pi)]) == [(-np.pi, -1.0), (0.0, 1.0)]
+
+
+@pytest.mark.parametrize("name, seed", [("nammoto7", 3), ("iiwa14", 5)])
+def test_selfmotion_legend_names_every_line_span_and_tick(name: str, seed: int) -> None:
+    """The legends name the branches, the limits (dashed), the singular values (dotted), the shaded spans and the
+    feasible panel's singular ticks: no drawn style is left unexplained."""
+    robot = qpik.load_robot(name)
+    fig = plots.selfmotion_map(robot, _pose(robot, seed), num=181)
+    assert not missing_labels(fig) and not unexplained(fig)
+    labels = {t.get_text() for t in fig.legends[0].get_texts()}
+    assert "joint limits" in labels and any(label.startswith("branch ") for label in labels)
+
+
+def test_sweep_figure_legend_names_the_crosses_and_the_limits_it_draws() -> None:
+    """A joint that leaves its limits gets its limits drawn (dashed, at the robot's limits) and crosses, all named."""
+    robot = qpik.load_robot("nammoto7")
+    x = np.linspace(0.0, 1.0, 5)
+    q = np.zeros((5, 7))
+    q[1:3, 5] = robot.q_max[5] + 0.1
+    curves = [("a", q, np.ones(5, bool)), ("b", np.zeros((5, 7)), np.ones(5, bool))]
+    fig = plots.sweep_figure(robot, x, curves, "x", "t")
+    assert not missing_labels(fig) and not unexplained(fig)
+    dashed = [ln for ax in fig.axes for ln in ax.get_lines() if ln.get_linestyle() == "--"]
+    assert sorted({float(ln.get_ydata()[0]) for ln in dashed}) == [robot.q_min[5], robot.q_max[5]]
+    assert "θ6 limits" in {t.get_text() for t in fig.legends[0].get_texts()}
+
+
+def _origins(robot: qpik.Robot, q: np.ndarray) -> np.ndarray:
+    return robot.frames(q)[..., :3, 3]
+
+
+@pytest.mark.parametrize("name, seed", [("nammoto7", 6), ("iiwa14", 7)])
+def test_branches_drawn_as_one_picture_put_every_link_at_the_same_place(name: str, seed: int) -> None:
+    """same_links groups the branches whose DH frame origins coincide (checked here with Robot.frames, not with the
+    capsules it compares) and keeps apart those that differ; the wrist flip (θ5 + π, −θ6, θ7 + π), applied here to a
+    configuration, reaches the same pose, joins its group and is named."""
+    robot = qpik.load_robot(name)
+    T = _pose(robot, seed)
+    sols = qpik.ik(robot, T, 0.2)
+    qs = sols.q[sols.valid]
+    groups = plots.same_links(robot, qs)
+    assert sorted(k for g in groups for k in g) == list(range(len(qs)))
+    o = _origins(robot, qs)
+    for g in groups:
+        assert np.abs(o[g] - o[g[0]]).max() < 1e-9
+    for a, b in itertools.combinations(groups, 2):
+        assert np.abs(o[a[0]] - o[b[0]]).max() > 1e-6
+    flipped = qs[0].copy()
+    flipped[4], flipped[5], flipped[6] = flipped[4] + np.pi, -flipped[5], flipped[6] + np.pi
+    np.testing.assert_allclose(robot.fk(flipped), T, atol=1e-9)
+    assert plots.same_links(robot, np.array([qs[0], flipped])) == [[0, 1]]
+    assert plots.flip(qs[0], flipped) == "θ5+π, −θ6, θ7+π (wrist flip)"
+    lines = plots.flip_lines(sols.branch[sols.valid].tolist(), qs, groups)
+    assert any(line.startswith("θ5+π, −θ6, θ7+π (wrist flip): ") for line in lines)
+
+
+def test_branch_picture_titles_and_caption_say_which_branches_share_a_picture(monkeypatch) -> None:
+    """Without GL: one stick figure per group of same_links, its title the group's branch ids (large type), the
+    caption the flips, and a legend for the base, the sticks and the hand."""
+    import qpik.render
+
+    def no_gl(*args, **kwargs):
+        raise qpik.render.RenderUnavailable("no GL in this test")
+
+    figures = []
+    monkeypatch.setattr(qpik.render, "render_configurations", no_gl)
+    monkeypatch.setattr(plots, "save", lambda fig, path: figures.append(fig))
+    robot = qpik.load_robot("nammoto7")
+    sols = qpik.ik(robot, _pose(robot, 2), 0.3)
+    assert plots.branch_pictures(robot, sols, "unused.png") == "sticks"
+    (fig,) = figures
+    groups = plots.same_links(robot, sols.q[sols.valid])
+    ids = sols.branch[sols.valid]
+    titles = [ax.get_title() for ax in fig.axes]
+    assert len(titles) == len(groups)
+    for title, g in zip(titles, groups):
+        assert title.splitlines()[0].split(" ", 1)[1] == ", ".join(str(ids[k]) for k in g)
+    assert min(ax.title.get_fontsize() for ax in fig.axes) >= 12
+    assert "wrist flip" in fig._supxlabel.get_text()
+    assert not missing_labels(fig) and not unexplained(fig)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from legends import missing_labels, unexplained
 from matplotlib.colors import to_rgba
 
 import qpik
@@ -60,3 +61,20 @@ def test_render_plan_draws_the_arm_or_says_none(plan, tmp_path):
 
         img = np.asarray(Image.open(out).convert("L"), dtype=float)
         assert img.shape[1] == 3 * 360 and img.std() > 5
+
+
+def test_the_map_draws_the_baselines_and_every_figure_names_its_marks(plan):
+    """A constant-ψ baseline is drawn (dashed) at its ψ on its branch's panel; the map's and the joint plot's legends
+    name every line, marker and shading."""
+    b = int(plan.branch[0])
+    base = constant_parameter(plan, 0.3, b, mujoco=False)
+    fig = selfmotion_map(plan, others=[base])
+    panel = [ax for ax in fig.axes if ax.images][b]
+    (line,) = [ln for ln in panel.get_lines() if ln.get_label() == base.label]
+    assert line.get_linestyle() == "--" and np.allclose(np.asarray(line.get_ydata(), float), 0.3)
+    assert not missing_labels(fig) and not unexplained(fig)
+    labels = {t.get_text() for t in fig.legends[0].get_texts()}
+    assert {base.label, plan.label, "DP"} <= labels and any(t.startswith("infeasible") for t in labels)
+    joints = joint_trajectories(plan, [base])
+    assert not missing_labels(joints) and not unexplained(joints)
+    assert "beyond the joint limits" in {t.get_text() for t in joints.legends[0].get_texts()}

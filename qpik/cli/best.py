@@ -70,7 +70,7 @@ def _run(args: argparse.Namespace) -> int:
                       tol=args.tol, method=args.method)  # fmt: skip
     p = np.array2string(T[:3, 3], precision=4)
     extra = f", {len(obstacles)} obstacle(s), d_s = {args.d_safe:g} m" if obstacles else ""
-    print(f"{robot.name}: objective {args.objective} at p = {p} m{extra}")
+    print(f"{robot.name}: {best.quantity.goal} at p = {p} m{extra}")
     print(best.table())
     print(best.summary())
     if best.status == "optimal":
@@ -80,5 +80,5 @@ def _run(args: argparse.Namespace) -> int:
         from qpik.plots.objective import objective_map
 
         save(objective_map(robot, T, args.objective, obstacles, args.q_ref, best, args.d_safe), args.plot)
-        print(f"objective against the redundancy parameter written to {args.plot}")
+        print(f"{best.quantity.name} against the redundancy parameter written to {args.plot}")
     return 0 if best.status in ("optimal", "no feasible branch", "unreachable") else 2

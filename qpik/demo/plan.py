@@ -30,11 +30,15 @@ def run(out: Path) -> None:
     plan = plan_problem(sweep)
     length = lambda q: float(np.linalg.norm(np.diff(q, axis=0), axis=1).sum())  # noqa: E731
     print(f"{sweep.robot.name}, hand down, p_z 0.9 → 0.3 m (Nammoto & Kosuge 2012, Figs. 15-16): {plan.summary()}")
-    print(f"  {'plan':28} {'outside the limits':>18} {'joint path [rad]':>17}")
-    for p in (plan, *(constant_parameter(plan, d, 1, mujoco=False) for d in (0.0, 0.70))):
-        print(f"  {p.label:28} {int(np.sum(p.margin < 0)):>18} {length(p.q):>17.3f}")
-    save(selfmotion_map(plan), folder / "nammoto_sweep_map.png")
-    save(joint_trajectories(plan), folder / "nammoto_sweep_joints.png")
+    robot = sweep.robot
+    print(f"  limits of this problem: θ6 within ±{robot.q_max[5]:.4f} rad ({np.degrees(robot.q_max[5]):.0f}°)")
+    print(f"  {'plan':28} {'waypoints outside the limits':>28} {'joint path [rad]':>17}")
+    baselines = [constant_parameter(plan, d, sweep.solver["baseline_branch"], mujoco=False) for d in sweep.params]
+    for p in (plan, *baselines):
+        print(f"  {p.label:28} {int(np.sum(p.margin < 0)):>28} {length(p.q):>17.3f}")
+    save(selfmotion_map(plan, others=baselines), folder / "nammoto_sweep_map.png")
+    save(joint_trajectories(plan, baselines), folder / "nammoto_sweep_joints.png")
+    print(f"  nammoto_sweep_joints.png, nammoto_sweep_map.png: the plan and the {len(baselines)} constant-δ baselines")
 
     problem = load(find_problem("iiwa_reconfiguration_plan"))
     poses, times = waypoints(problem)

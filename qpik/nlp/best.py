@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import math
 import operator
-import time
 from dataclasses import dataclass, field
 from functools import cached_property, lru_cache
 
@@ -40,7 +39,7 @@ from qpik.nlp.levelset import margin_weight, maximise
 from qpik.nlp.scene import Points, Scene, least_per_row
 from qpik.nlp.search import SAMPLE_STEP, Pieces, candidates, onto_limits, polish, sample, singular_ends, split
 from qpik.nlp.selfmotion import SelfMotion, selfmotion_of
-from qpik.objectives import Objective, ReferenceDistance, clearance, resolve
+from qpik.objectives import Objective, Quantity, ReferenceDistance, clearance, resolve
 from qpik.robots.robot import Robot, as_robot
 from qpik.validate import finite_array, flag, number
 from qpik.validate import pose as check_pose
@@ -115,8 +114,9 @@ class BestResult:
         status: one of :data:`STATUSES`.
         branch: the best branch's public id (for another status, the branch of :func:`least_violating`'s
             configuration; -1 if unreachable).
-        param: its δ/ψ, rad; q: (n,) its configuration, rad (always finite); objective: the value at q
-            (+inf for a status other than ``"optimal"``).
+        param: its δ/ψ, rad; q: (n,) its configuration, rad (always finite); objective: the minimised value at q
+            (+inf for a status other than ``"optimal"``); :attr:`reported` is the quantity it measures (the margin
+            itself for the margin objective, whose ``objective`` is −margin).
         certified: proved to be the global minimum to ``gap`` (:mod:`qpik.nlp.certificate`).
         gap: the objective minus the certified lower bound (inf when not certified).
         clearance: smallest capsule–obstacle distance at q, m (inf without obstacles).
@@ -127,8 +127,10 @@ class BestResult:
         message: why it is not certified, or what failed ("" otherwise).
         method: what found the answer: ``"levelset"`` (then a row of :attr:`branches` other than the best
             holds the best point evaluated on its branch, not the branch's optimum), ``"search"`` or ``"ipopt"``.
-        time: seconds (a batch: the call's time divided by the number of poses).
+        time: seconds of the solve, without building or compiling its functions (done before the clock starts;
+            a batch: the solve's time divided by the number of poses).
         rows: what :attr:`branches` is built from (None: an empty table).
+        quantity: how the objective is shown (:attr:`qpik.objectives.Objective.quantity`).
     """
 
     status: str
@@ -145,6 +147,13 @@ class BestResult:
     time: float = 0.0
     method: str = "search"
     rows: BranchRows | None = field(default=None, repr=False)
+    quantity: Quantity = field(default_factory=lambda: Quantity("objective"), repr=False)
+
+    @property
+    def reported(self) -> float:
+        """The objective as the quantity it measures (:attr:`quantity`): the margin (not −margin), the clearance (m),
+        the manipulability (not −log m), or the minimised value itself."""
+        return self.quantity.value(self.objective)
 
     @cached_property
     def branches(self) -> list[BranchOptimum]:
@@ -152,15 +161,19 @@ class BestResult:
         return [] if self.rows is None else self.rows.table(self.time)
 
     def table(self) -> str:
-        """The per-branch table as text (rad)."""
+        """The per-branch table as text: the parameter (rad), the objective as its :attr:`quantity` (the margin
+        itself, ...), polish rounds, evaluations and each branch's share of the solve's time (µs)."""
         sym = {"delta": "δ", "psi": "ψ"}.get(self.param_name, self.param_name)
+        head = self.quantity.header
+        w = max(13, len(head))
         lines = [
-            f"{'branch':>6} {'feasible':>8} {sym + '* [rad]':>11} {'objective':>13}"
+            f"{'branch':>6} {'feasible':>8} {sym + '* [rad]':>11} {head:>{w}}"
             f" {'rounds':>6} {'evals':>6} {'time [µs]':>9}"
         ]
         for r in self.branches:
             mark = " *" if r.branch == self.branch and self.status == "optimal" else ""
-            val = f"{r.param:11.6f} {r.objective:13.8g}" if r.feasible else f"{'—':>11} {'—':>13}"
+            shown = self.quantity.value(r.objective)
+            val = f"{r.param:11.6f} {shown:{w}.8g}" if r.feasible else f"{'—':>11} {'—':>{w}}"
             feasible = ("yes" if r.feasible else "no") if r.searched else "skipped"
             lines.append(
                 f"{r.branch:>6} {feasible:>8} {val} {r.rounds:>6} {r.evaluations:>6} {r.time * 1e6:9.1f}{mark}"
@@ -182,7 +195,8 @@ class BestResult:
         if self.status != "optimal":
             return f"{self.status}: {self.message}"
         cert = f"certified (gap {self.gap:.2g})" if self.certified else f"not certified ({self.message})"
-        return f"best: branch {self.branch}, {sym} = {self.param:.6f} rad, objective {self.objective:.10g}, {cert}"
+        value = self.quantity.text(self.objective, ".10g")
+        return f"best: branch {self.branch}, {sym} = {self.param:.6f} rad, {value}, {self.quantity.sense}, {cert}"
 
 
 class BestResults:
@@ -211,7 +225,13 @@ class BestResults:
 
     @property
     def objective(self) -> np.ndarray:
+        """(N,) the minimised values."""
         return np.array([r.objective for r in self.results])
+
+    @property
+    def reported(self) -> np.ndarray:
+        """(N,) the objectives as the quantities they measure (:attr:`BestResult.reported`)."""
+        return np.array([r.reported for r in self.results])
 
     @property
     def param(self) -> np.ndarray:
@@ -271,7 +291,6 @@ def solve_best(
         InputError: NaN/inf or wrong shapes (the message names the argument), unknown objective
             or method.
     """
-    t0 = time.perf_counter()
     robot = as_robot(robot)
     if robot.closed_form is None:
         raise NoClosedFormError(
@@ -315,9 +334,10 @@ def solve_best(
         except (RuntimeError, FloatingPointError, np.linalg.LinAlgError) as exc:  # a numerical failure: a status
             why = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
             results = [least_violating(scene, i, None, "solver failed", why) for i in range(len(T))]
-    elapsed = (time.perf_counter() - t0) / len(T)
+    elapsed = scene.watch.stop() / len(T)  # the clock stops while functions are built (Scene.build_search)
+    quantity = obj.quantity
     for r in results:
-        r.time = elapsed
+        r.time, r.quantity = elapsed, quantity
     return BestResults(results, n) if batched else results[0]
 
 
@@ -365,6 +385,7 @@ def _solve(
         cert_ok, bound = sets.certified.copy(), sets.bound.copy()
         method = "search"
     left = np.flatnonzero(~by_levels)
+    scene.build_search()
     fis = dict(zip(left.tolist(), (sm.solver.feasible_intervals(scene.poses[i]) for i in left)))
     pieces = _feasible_pieces(fis, rows, left)
     if method == "ipopt":

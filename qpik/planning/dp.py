@@ -114,6 +114,13 @@ class _Layers:
         return self.data.q[j], self.data.ok[j], self.data.f[j]
 
 
+def build(grid: Grid) -> None:
+    """Trace and compile what :func:`solve` calls on ``grid`` (:meth:`Grid.build` and ``dp.c``), so that a clock
+    started after it counts the DP's work only."""
+    grid.build()
+    _library()
+
+
 def solve(grid: Grid, tr: Transitions, window: int, fewest: bool) -> DPResult:
     """The DP of the module docstring on ``grid``; ``window``: grid indices searched each way (≥ 1)."""
     N, B, G = len(grid.poses), grid.rows, grid.G

@@ -260,6 +260,13 @@ class Grid:
     def _native(self) -> _NativeLayers | None:
         return _NativeLayers.for_grid(self, *(Compiled(f) for f in self.split_function()))
 
+    def build(self) -> None:
+        """Trace and compile now what :meth:`layers` and :meth:`configurations` call (the C layers, or the row map at
+        every call size), so that the DP's clock counts evaluations, never a compile."""
+        _ = self._compiled
+        if self._native is None:
+            self._rows.build()
+
     def layers(self, k0: int, k1: int) -> Layers:
         """The states of waypoints k0 .. k1 - 1 (see :class:`Layers`): only the grid values inside a branch's
         exact feasible set count (in C only the rows with one are evaluated; in numpy every row is)."""

@@ -103,15 +103,17 @@ class Plan:
         failure: the first waypoint that cannot be planned and why, or "".
         least_violating: at that waypoint, the best the arm can do (a :class:`qpik.BestResult`'s summary), or "".
         reconfigurations: the waypoints k whose transition to k + 1 is a reconfiguration.
-        cost: the objective J of the plan (of its planned waypoints); dp_cost: J of the plan the NLP started
-            from (the DP's; without a closed form the QP controller's run).
+        cost: the objective J of the plan (of its planned waypoints), minimised (the joint motion plus the weighted
+            point objective, whatever that measures); dp_cost: J of the plan the NLP started from (the DP's; without a
+            closed form the QP controller's run).
         margin: (K,) the smallest distance to a joint limit, rad; clearance: (K,) the smallest capsule–obstacle
             distance, m (inf without obstacles); clearance_mujoco: (K,) the same measured by MuJoCo (empty when
             not measured);
             manipulability: (K,) Yoshikawa's.
         step_bound: (N-1, n) the largest move of each joint allowed between waypoints, rad.
         d_safe: m. checks: the :class:`Check` list. profile: the DP's :class:`Profile` (closed form only).
-        timings: seconds per stage (``"dp"``, ``"nlp"``, ``"tracking"``).
+        timings: seconds per stage (``"dp"``, ``"nlp"``, ``"tracking"``), each without building and compiling its
+            functions (:class:`qpik.stopwatch.Stopwatch`).
         label: what made it (``"NLP"``, ``"DP"``, a baseline's name).
         dp_plan: the DP's own plan, when the NLP replaced it. setup: the checked inputs (waypoints, weights,
             bounds) the plan was made for.
@@ -165,13 +167,13 @@ class Plan:
         return float(d[keep].sum())
 
     def summary(self) -> str:
-        """One line: status, waypoints, reconfigurations, objective."""
+        """One line: status, waypoints, reconfigurations, the objective J (minimised)."""
         if self.status == "failed":
             return f"failed at waypoint {self.failure_waypoint}: {self.failure}"
         rec = f"{len(self.reconfigurations)} reconfiguration(s)" + (
             f" (after waypoints {', '.join(map(str, self.reconfigurations))})" if self.reconfigurations else ""
         )
-        return f"{self.status}: {len(self.q)} waypoints, {rec}, objective {self.cost:.8g}"
+        return f"{self.status}: {len(self.q)} waypoints, {rec}, objective J = {self.cost:.8g} (minimised)"
 
     def to_csv(self, path: str | os.PathLike | None = None) -> str:
         """The plan as CSV text (one row per planned waypoint; written to ``path`` if given): progress, q (rad),

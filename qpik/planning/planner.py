@@ -25,11 +25,11 @@ capsules and with MuJoCo, joint steps.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Sequence
 
 import numpy as np
 
+from qpik.analytic import feasible_intervals
 from qpik.errors import InputError
 from qpik.geometry.distance import ObstacleSet
 from qpik.objectives import Evaluator, Objective, ReferenceDistance, resolve
@@ -39,6 +39,7 @@ from qpik.planning.grid import Grid
 from qpik.planning.plan import Plan, Profile, measure
 from qpik.planning.refine import PathNLP
 from qpik.robots.robot import Robot, as_robot
+from qpik.stopwatch import Stopwatch
 from qpik.validate import finite_array, flag, number
 from qpik.validate import pose as check_pose
 
@@ -198,8 +199,12 @@ def plan_self_motion(
 
 def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fewest: bool, refine: bool,
                       mujoco: bool) -> Plan:  # fmt: skip
-    t0 = time.perf_counter()
+    watch = Stopwatch()  # the DP's time: its functions are built with the clock paused
+    with watch.paused():
+        feasible_intervals(setup.robot, setup.poses[0])  # the exact sets' functions, built on their first call
     grid = Grid(setup.robot, setup.poses, setup.objective, setup.obstacles, setup.d_safe, resolution, setup.q_ref)
+    with watch.paused():
+        dp.build(grid)
     if branches is not None:
         ids = [int(b) for b in np.atleast_1d(finite_array(branches, "branches"))]
         known = list(grid.solver.branch_ids)
@@ -210,7 +215,7 @@ def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fe
         keep[[known.index(b) % grid.rows for b in ids]] = True
         grid.inside &= keep[None, :, None]
     result = dp.solve(grid, setup.tr, int(np.ceil(window / grid.spacing)), fewest)
-    t_dp = time.perf_counter() - t0
+    t_dp = watch.stop()
     sym = grid.param_name
     if result.failure is not None:
         k = result.failure.waypoint
@@ -267,23 +272,25 @@ def _least_violating(setup: Setup, k: int) -> str:
     return best.summary()
 
 
-def track(setup: Setup, q0: np.ndarray):
+def track(setup: Setup, q0: np.ndarray, watch: Stopwatch | None = None):
     """The QP controller tracking the waypoints on the MuJoCo model from ``q0``: its configuration at each
-    waypoint (N, n) and the :class:`~qpik.sim.SimLog`.
+    waypoint (N, n) and the :class:`~qpik.sim.SimLog`. ``watch``: paused while the controller and the MuJoCo
+    model are built, so that it times the run.
 
     The path is :class:`qpik.paths.WaypointPath` through the waypoints at their ``times`` (without times:
     at the speeds of :data:`TRACK_SPEED`), the controller :meth:`qpik.Controller.for_robot` with the
     obstacles and ``d_safe``, its posture reference ``q0``, at :data:`TRACK_DT`.
     """
     from qpik.control.controller import Controller
-    from qpik.sim import simulate
+    from qpik.sim import build_scene, simulate
 
     times = setup.times if setup.times is not None else _nominal_times(setup.poses)
     path = WaypointPath(setup.poses, times)
-    ctrl = Controller.for_robot(setup.robot, obstacles=setup.obstacles, dt=TRACK_DT, q_ref=q0, d_safe=setup.d_safe,
-                                manipulability_weight=0.0)  # fmt: skip
-    log = simulate(setup.robot, ctrl, q0, path.duration, TRACK_DT, obstacles=setup.obstacles.shapes, target=path,
-                   label="QP controller (online)")  # fmt: skip
+    with (watch or Stopwatch()).paused():
+        ctrl = Controller.for_robot(setup.robot, obstacles=setup.obstacles, dt=TRACK_DT, q_ref=q0,
+                                    d_safe=setup.d_safe, manipulability_weight=0.0)  # fmt: skip
+        scene = build_scene(setup.robot, setup.obstacles.shapes)
+    log = simulate(scene, ctrl, q0, path.duration, TRACK_DT, target=path, label="QP controller (online)")
     at = np.clip(np.round((times - times[0]) / TRACK_DT).astype(int), 0, len(log.q) - 1)
     return log.q[at], log
 
@@ -301,10 +308,10 @@ def _plan_joints(setup: Setup, refine: bool, mujoco: bool) -> Plan:
     """An arm without a closed form: the QP controller's tracking run, refined by the NLP over the joints."""
     from qpik.nlp import solve_ik
 
-    t0 = time.perf_counter()
     q0 = solve_ik(setup.robot, setup.poses[0], setup.robot.q_home)
-    q_track, _ = track(setup, q0)
-    timings = {"tracking": time.perf_counter() - t0}
+    watch = Stopwatch()
+    q_track, _ = track(setup, q0, watch)
+    timings = {"tracking": watch.stop()}
     continuous = np.ones(len(setup.poses) - 1, bool)
     plan = setup.plan(q_track, "tracking", cost=setup.cost(q_track, continuous), timings=timings,
                       label="QP controller (online)")

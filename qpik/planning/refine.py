@@ -53,7 +53,6 @@ and the constraints' Jacobian are assembled from the same function's values and 
 from __future__ import annotations
 
 import itertools
-import time
 from dataclasses import dataclass
 
 import casadi as ca
@@ -67,6 +66,7 @@ from qpik.objectives import Context, Objective, clearance, pair_count
 from qpik.planning.dp import Transitions
 from qpik.planning.grid import Grid
 from qpik.robots.robot import Robot
+from qpik.stopwatch import Stopwatch
 
 OPTIONS = {
     "ipopt.print_level": 0,
@@ -99,7 +99,8 @@ class Refined:
     Attributes:
         param: (N,) parameters, rad (unwrapped; empty without a closed form); q: (N, n) configurations, rad.
         cost: the objective at the answer; start_cost: at the DP's plan.
-        status: IPOPT's return status; iterations; time (s).
+        status: IPOPT's return status; iterations; time: the solve's seconds, without building the NLPs and their
+            compiled functions.
     """
 
     param: np.ndarray
@@ -372,7 +373,9 @@ class PathNLP:
 
     def solve(self, z0: np.ndarray) -> Refined:
         """IPOPT from ``z0``: the parameters (N,) (rad; unwrapped here) or the joints (N, n) (rad)."""
-        t_start = time.perf_counter()
+        watch = Stopwatch()
+        with watch.paused():
+            self._value()  # built once, with the clock paused
         z0 = np.unwrap(np.asarray(z0, float))[None] if self.grid is not None else np.asarray(z0, float).T
         lo, hi = self._bounds(z0)
         inward = INSIDE if self.grid is not None else 0.0
@@ -381,7 +384,7 @@ class PathNLP:
         near = clearance(self.robot, self._q(z), self.obstacles) < self.d_safe + NEAR
         start_cost, iterations = None, 0
         for _ in range(ROUNDS):
-            z, cost0, its, status = self._solve(z, lo, hi, near)
+            z, cost0, its, status = self._solve(z, lo, hi, near, watch)
             start_cost = cost0 if start_cost is None else start_cost
             iterations += its
             grow = (clearance(self.robot, self._q(z), self.obstacles) < self.d_safe + INSIDE) & ~near
@@ -390,7 +393,7 @@ class PathNLP:
             near |= grow
         cost, _, q = self._value()(z, self._least_t(z))
         return Refined(z[0] if self.grid is not None else np.zeros(0), np.asarray(q), float(cost), float(start_cost),
-                       status, iterations, time.perf_counter() - t_start)  # fmt: skip
+                       status, iterations, watch.stop())  # fmt: skip
 
     def _q(self, z: np.ndarray) -> np.ndarray:
         """(N, n) the configurations at the variables z (w, N)."""
@@ -452,15 +455,19 @@ class PathNLP:
             nlp.grad_f, nlp.jac_g = self._derivatives(nlp, near, sizes)
         return nlp
 
-    def _solve(self, z0: np.ndarray, lo: np.ndarray, hi: np.ndarray, near: np.ndarray):
+    def _solve(self, z0: np.ndarray, lo: np.ndarray, hi: np.ndarray, near: np.ndarray, watch: Stopwatch):
+        """One IPOPT solve from z0 with the clearance constraints of ``near``; the NLP is built with ``watch``
+        paused."""
         N = len(self.rows)
-        nlp = self.problem(near)
-        options = dict(OPTIONS)
-        if nlp.hess_lag is not None:
-            options.update(hess_lag=nlp.hess_lag, grad_f=nlp.grad_f, jac_g=nlp.jac_g)
-        solver = ca.nlpsol("plan_nlp", "ipopt", {"x": nlp.x, "f": nlp.f, "g": nlp.g}, options)
+        with watch.paused():
+            nlp = self.problem(near)
+            options = dict(OPTIONS)
+            if nlp.hess_lag is not None:
+                options.update(hess_lag=nlp.hess_lag, grad_f=nlp.grad_f, jac_g=nlp.jac_g)
+            solver = ca.nlpsol("plan_nlp", "ipopt", {"x": nlp.x, "f": nlp.f, "g": nlp.g}, options)
+            cost = ca.Function("f", [nlp.z, nlp.t], [nlp.f])
         t0 = self._least_t(z0)
-        start = float(ca.Function("f", [nlp.z, nlp.t], [nlp.f])(z0, t0))
+        start = float(cost(z0, t0))
         x0 = np.concatenate([z0.T.ravel(), t0.T.ravel()])
         lbx = np.concatenate([lo.T.ravel(), np.full(self.n_t * N, -np.inf)])
         ubx = np.concatenate([hi.T.ravel(), np.full(self.n_t * N, np.inf)])

@@ -19,6 +19,7 @@ Stick figures join the origins of the DH frames ``[base, frame_1..frame_n, ee]``
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -28,7 +29,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from qpik.analytic.api import IKSolutions, feasible_intervals, ik, symbol
-from qpik.analytic.intervals import FeasibleIntervals, Interval
+from qpik.analytic.intervals import FeasibleIntervals, Interval, wrap
 from qpik.plots.files import save
 from qpik.robots.robot import Robot
 
@@ -113,17 +114,20 @@ def selfmotion_map(
     fig = Figure(figsize=(12, 13), layout="constrained")
     axes = fig.subplots(4, 2, sharex=True)
     for j, ax in enumerate(axes.flat[: robot.dof]):
-        for lo, hi in spans:
-            ax.axvspan(lo, hi, color="0.85", zorder=0, gid=INFEASIBLE_GID)
-        for s in singular:
-            ax.axvline(s, color="k", ls=":", lw=1.0, gid=SINGULAR_GID)
+        first = j == 0  # the legend's entries come from the first panel; the others repeat its styles
+        for k, (lo, hi) in enumerate(spans):
+            ax.axvspan(lo, hi, color="0.85", zorder=0, gid=INFEASIBLE_GID,
+                       label=f"{sym} where branch {shade} leaves the limits" if first and not k else None)  # fmt: skip
+        for k, s in enumerate(singular):
+            ax.axvline(s, color="k", ls=":", lw=1.0, gid=SINGULAR_GID,
+                       label=f"singular {sym}" if first and not k else None)  # fmt: skip
         for b in draw:
             i = ids.index(b)
             xs, ys = _broken(x, sols.q[:, i, j], sols.valid[:, i])
             top = b == shade
             ax.plot(xs, ys, color=colors[b], lw=2.4 if top else 1.1, zorder=3 if top else 2, label=f"branch {b}")
-        for lim in (robot.q_min[j], robot.q_max[j]):
-            ax.axhline(lim, color="firebrick", ls="--", lw=1.0)
+        for k, lim in enumerate((robot.q_min[j], robot.q_max[j])):
+            ax.axhline(lim, color="firebrick", ls="--", lw=1.0, label="joint limits" if first and not k else None)
         ax.set_ylim(-3.3, 3.3)
         ax.set_ylabel(f"θ{j + 1} [rad]" if sols.param_name == "delta" else f"q{j + 1} [rad]")
         ax.grid(alpha=0.3)
@@ -133,27 +137,26 @@ def selfmotion_map(
         ax.set_xlim(-PI, PI)
         ax.set_xticks(np.linspace(-PI, PI, 5), ["−π", "−π/2", "0", "π/2", "π"])
     handles, labels = axes.flat[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside right center", fontsize=8, title="branch (no.)")
+    fig.legend(handles, labels, loc="outside right center", fontsize=8)
     p = np.asarray(pose, dtype=float)[:3, 3]
-    fig.suptitle(
-        title
-        or (
-            f"{robot.name}: self-motion in {sym} at p = ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m\n"
-            f"grey: {sym} where branch {shade} leaves the joint limits; red dashed: limits; "
-            f"dotted: singular {sym}"
-        ),
-        fontsize=11,
-    )
+    fig.suptitle(title or f"{robot.name}: self-motion in {sym} at p = ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m",
+                 fontsize=11)  # fmt: skip
     return fig
 
 
 def feasible_panel(ax: Axes, fi: FeasibleIntervals, draw: list[int], shade: int, colors: dict) -> None:
-    """Bars of the feasible parameter set of each drawn branch (exact intervals)."""
+    """Bars of the feasible parameter set of each drawn branch (exact intervals), its singular values as black ticks
+    (explained in the panel's legend)."""
+    marked = False
     for k, b in enumerate(draw):
         segs = [(lo, hi - lo) for lo, hi in fi[b]]
         ax.broken_barh(segs, (k - 0.35, 0.7), color=colors[b], alpha=1.0 if b == shade else 0.6)
         for s in fi.singular[fi.index(b)] if fi.singular else []:
-            ax.plot([s, s], [k - 0.45, k + 0.45], color="k", lw=1.5)
+            label = None if marked else f"singular {symbol(fi.param_name)} of the branch"
+            ax.plot([s, s], [k - 0.45, k + 0.45], color="k", lw=1.5, label=label)
+            marked = True
+    if marked:
+        ax.legend(loc="lower right", fontsize=7, framealpha=0.9)
     ax.set_yticks(range(len(draw)), [str(b) for b in draw], fontsize=7)
     ax.set_ylim(len(draw) - 0.5, -0.5)
     ax.set_ylabel("branch")
@@ -174,25 +177,49 @@ def sweep_figure(
         x: sweep coordinate (S,), e.g. p_z in metres.
         curves: ``(panel title, q (S, n) rad, ok (S,) bool)``; points with
             ``ok`` False (branch invalid) are not drawn; points outside the
-            joint limits are marked with a cross.
+            joint limits are marked with a cross, and the limits of every joint
+            that leaves them somewhere are drawn dashed in the joint's colour.
         xlabel, title: axis label and figure title.
+
+    The legend (right) names every curve, the crosses and the limit lines.
     """
-    fig = Figure(figsize=(6 * len(curves) + 1, 4.8), layout="constrained")
+    fig = Figure(figsize=(6 * len(curves) + 1.5, 4.8), layout="constrained")
     axes = fig.subplots(1, len(curves), sharey=True, squeeze=False)
     cmap = matplotlib.colormaps["tab10"]
-    for ax, (label, q, ok) in zip(axes[0], curves):
+    lo, hi = np.asarray(robot.q_min, float), np.asarray(robot.q_max, float)
+    outside = [ok[:, None] & ((q < lo) | (q > hi)) for _, q, ok in curves]
+    leaves = np.flatnonzero(np.any([o.any(axis=0) for o in outside], axis=0)) if curves else []
+    crossed = False
+    for k, (ax, (label, q, ok), bad) in enumerate(zip(axes[0], curves, outside)):
         for j in range(q.shape[1]):
             xs, ys = _broken(x, q[:, j], ok)
-            ax.plot(xs, ys, color=cmap(j), lw=1.8, label=f"θ{j + 1}")
-            bad = ok & ((q[:, j] < robot.q_min[j]) | (q[:, j] > robot.q_max[j]))
-            ax.plot(x[bad], q[bad, j], "x", color=cmap(j), ms=7, mew=2)
+            ax.plot(xs, ys, color=cmap(j), lw=1.8, label=f"θ{j + 1}" if not k else None)
+        for j in range(q.shape[1]):
+            if bad[:, j].any():
+                ax.plot(x[bad[:, j]], q[bad[:, j], j], "x", color=cmap(j), ms=7, mew=2,
+                        label=None if crossed else "outside its limits")  # fmt: skip
+                crossed = True
+        for j in leaves:
+            for m, lim in enumerate((lo[j], hi[j])):
+                ax.axhline(lim, color=cmap(j), ls="--", lw=1.0, label=f"θ{j + 1} limits" if not (k or m) else None)
         ax.set_title(label, fontsize=10)
         ax.set_xlabel(xlabel)
         ax.grid(alpha=0.3)
     axes[0, 0].set_ylabel("joint angle [rad]")
-    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside right center", fontsize=9)
-    fig.suptitle(title + "\n(× = outside the joint limits)", fontsize=11)
+    fig.legend(*legend_entries(fig), loc="outside right center", fontsize=9)
+    fig.suptitle(title, fontsize=11)
     return fig
+
+
+def legend_entries(fig: Figure) -> tuple[list, list[str]]:
+    """The labelled artists of every axes of ``fig`` (the first of each label), for one figure legend."""
+    handles, labels = [], []
+    for ax in fig.axes:
+        for h, text in zip(*ax.get_legend_handles_labels()):
+            if text not in labels:
+                handles.append(h)
+                labels.append(text)
+    return handles, labels
 
 
 def stick_points(robot: Robot, q: np.ndarray) -> np.ndarray:
@@ -266,39 +293,144 @@ def stick_overlay(robot: Robot, qs: np.ndarray, labels: Sequence[str], title: st
     return fig
 
 
+SAME_PLACE = 1e-9
+"""m: link capsules this close in every end point are drawn as one picture (:func:`same_links`)."""
+
+
+def same_links(robot: Robot, qs: np.ndarray) -> list[list[int]]:
+    """Groups of the configurations qs (K, n) whose link capsules lie at the same place (every capsule end point
+    within :data:`SAME_PLACE`), in order of first appearance: configurations that differ only by turning joints by
+    π about their own axes (a wrist flip θ5 + π, −θ6, θ7 + π, ...), which every picture of the arm shows alike."""
+    segs = robot.capsule_segments(np.atleast_2d(qs)).reshape(len(np.atleast_2d(qs)), -1)
+    groups: list[list[int]] = []
+    for k, seg in enumerate(segs):
+        for g in groups:
+            if np.abs(segs[g[0]] - seg).max() <= SAME_PLACE:
+                g.append(k)
+                break
+        else:
+            groups.append([k])
+    return groups
+
+
+def _flips(n: int) -> dict[str, tuple[tuple[int, str], ...]]:
+    """The named flips of an n-joint arm (0-based joint, what happens to it): the shoulder's first three joints and
+    the wrist's last three, (+π, mirrored, +π)."""
+    return {"shoulder flip": ((0, "+π"), (1, "−"), (2, "+π")),
+            "wrist flip": ((n - 3, "+π"), (n - 2, "−"), (n - 1, "+π"))}  # fmt: skip
+
+
+def _turn(q: np.ndarray, how: tuple[tuple[int, str], ...]) -> np.ndarray:
+    out = np.array(q, float)
+    for j, kind in how:
+        out[j] = out[j] + PI if kind == "+π" else -out[j]
+    return out
+
+
+def flip(qa: np.ndarray, qb: np.ndarray, tol: float = 1e-9) -> str:
+    """How configuration qb differs from qa (rad, angles modulo 2π), checked numerically.
+
+    The named flips first: the wrist flip (θ5 + π, −θ6, θ7 + π for 7 joints), the shoulder flip (θ1 + π, −θ2, θ3 + π)
+    or both, e.g. ``"θ5+π, −θ6, θ7+π (wrist flip)"``; otherwise joint by joint, ``−θj`` (mirrored), ``π−θj``,
+    ``θj+π`` or both values."""
+    qa, qb = np.asarray(qa, float), np.asarray(qb, float)
+    flips = _flips(len(qa))
+    for r in (1, 2):
+        for names in itertools.combinations(flips, r):
+            how = tuple(x for name in names for x in flips[name])
+            if len({j for j, _ in how}) == len(how) and np.abs(wrap(_turn(qa, how) - qb)).max() <= tol:
+                text = ", ".join(f"θ{j + 1}+π" if kind == "+π" else f"−θ{j + 1}" for j, kind in sorted(how))
+                return f"{text} ({' and '.join(names)})"
+    parts = []
+    for j, (a, b) in enumerate(zip(qa, qb)):
+        if abs(wrap(b - a)) <= tol:
+            continue
+        if abs(wrap(b + a)) <= tol:
+            parts.append(f"−θ{j + 1}")
+        elif abs(wrap(b + a - PI)) <= tol:
+            parts.append(f"π−θ{j + 1}")
+        elif abs(wrap(b - a - PI)) <= tol:
+            parts.append(f"θ{j + 1}+π")
+        else:
+            parts.append(f"θ{j + 1} {a:.2f} → {b:.2f}")
+    return ", ".join(parts) if parts else "the same joint angles"
+
+
+def flip_lines(branches: Sequence[int], qs: np.ndarray, groups: list[list[int]]) -> list[str]:
+    """One line per way two branches of a group of :func:`same_links` differ (:func:`flip`, each against the
+    group's first): ``"θ5+π, −θ6, θ7+π (wrist flip): 2 vs 1, 4 vs 3"``."""
+    pairs: dict[str, list[str]] = {}
+    for g in groups:
+        for k in g[1:]:
+            pairs.setdefault(flip(qs[g[0]], qs[k]), []).append(f"{branches[k]} vs {branches[g[0]]}")
+    return [f"{how}: {', '.join(p)}" for how, p in pairs.items()]
+
+
 def branch_pictures(
     robot: Robot, sols: IKSolutions, path: Path, cols: int | None = None, only_valid: bool = True
 ) -> str:
-    """Write the branch poses of one pose's :class:`IKSolutions` to the PNG ``path``.
+    """Write the branch poses of one pose's :class:`IKSolutions` to the PNG ``path``, one picture per way the
+    branches place the links (:func:`same_links`).
 
-    Tries :func:`qpik.render.render_configurations` (MuJoCo, needs OpenGL);
-    when that is unavailable, draws :func:`stick_grid`. Returns ``"render"``,
-    ``"sticks"`` (what was used) or ``"none"`` (no branch reaches the pose: the
-    PNG says so).
+    Branches that put every link at the same place (such as a wrist flip θ5 + π, −θ6, θ7 + π) share a picture,
+    titled with their ids (and those outside the joint limits); the caption says how their joint angles differ
+    (:func:`flip_lines`). Drawn by :func:`qpik.render.render_configurations` (MuJoCo, needs OpenGL), else as stick
+    figures (:func:`stick_points`). Returns ``"render"``, ``"sticks"`` (what was used) or ``"none"`` (no branch
+    reaches the pose: the PNG says so).
     """
     keep = sols.valid if only_valid else np.ones(len(sols), bool)
-    qs = sols.q[keep]
+    qs, ids, inside = sols.q[keep], sols.branch[keep].tolist(), sols.within_limits[keep]
     sym = symbol(sols.param_name)
     par = float(np.asarray(sols.param))
-    labels = [
-        f"branch {b}  {sols.param_name} = {par:.2f}" + ("" if lim else "  (out of limits)")
-        for b, lim in zip(sols.branch[keep], sols.within_limits[keep])
-    ]
-    cols = cols or min(4, max(1, len(qs)))
     path = Path(path)
     if not len(qs):
         fig = Figure(figsize=(6, 2))
         fig.text(0.5, 0.5, f"{robot.name}: no branch reaches this pose at {sym} = {par:.2f}", ha="center")
         save(fig, path)
         return "none"
+    groups = same_links(robot, qs)
+    reps = qs[[g[0] for g in groups]]
+    titles = []
+    for g in groups:
+        out = [str(ids[k]) for k in g if not inside[k]]
+        titles.append(("branches " if len(g) > 1 else "branch ") + ", ".join(str(ids[k]) for k in g)
+                      + (f"\n({', '.join(out)} outside the joint limits)" if out else ""))  # fmt: skip
     from qpik.render import RenderUnavailable, render_configurations
 
+    size = (480, 400)
     try:
-        render_configurations(robot, qs, path, cols=cols, labels=labels)
-        return "render"
+        image = render_configurations(robot, reps, None, cols=len(reps), size=size)
+        tiles, how = [image[:, k * size[0] : (k + 1) * size[0]] for k in range(len(reps))], "render"
     except RenderUnavailable:
-        pass
-    title = f"{robot.name}: the {len(qs)} branches at {sym} = {par:.2f} rad (stick figures: DH frame origins)"
-    fig = stick_grid(robot, qs, labels, cols=cols, title=title)
+        tiles, how = None, "sticks"
+    cols = cols or min(4 if tiles is None else 2, len(reps))
+    rows = -(-len(reps) // cols)
+    caption = flip_lines(ids, qs, groups)
+    fig = Figure(figsize=(4.8 * cols, 4.3 * rows + 0.9 + 0.22 * len(caption)), layout="constrained")
+    pts = stick_points(robot, reps)
+    for k, title in enumerate(titles):
+        if tiles is not None:
+            ax = fig.add_subplot(rows, cols, k + 1)
+            ax.imshow(tiles[k])
+            ax.set_axis_off()
+        else:
+            ax = fig.add_subplot(rows, cols, k + 1, projection="3d")
+            ax.plot([0.0], [0.0], [0.0], "k^", ms=6, label="base")
+            _draw_stick(ax, pts[k], "tab:blue")
+            ax.lines[-2].set_label("DH frame origins")
+            ax.lines[-1].set_label("hand")
+            _equal_3d(ax, pts)
+            ax.tick_params(labelsize=7)
+            ax.view_init(elev=25, azim=-60)
+            if k == 0:
+                ax.legend(fontsize=8, loc="upper left")
+        ax.set_title(title, fontsize=13)
+    shown = "rendered" if tiles is not None else "stick figures"
+    head = (f"{robot.name}: the {len(qs)} branches at {sym} = {par:.2f} rad place the links in {len(groups)}"
+            f" way{'s' if len(groups) > 1 else ''} ({shown})")  # fmt: skip
+    if caption:  # below the pictures, inside the layout
+        fig.supxlabel("Branches in one picture put every link at the same place; their joint angles differ by\n"
+                      + "\n".join(caption), x=0.01, ha="left", fontsize=10)  # fmt: skip
+    fig.suptitle(head, fontsize=13)
     save(fig, path)
-    return "sticks"
+    return how

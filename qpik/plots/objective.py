@@ -1,10 +1,11 @@
 """The objective of :func:`qpik.solve_best` against δ/ψ: every branch, its feasible set, the optimum.
 
-:func:`objective_map` returns a matplotlib ``Figure`` (no pyplot state): on top, the objective
-along every branch's self-motion over (−π, π] where the branch is inside the joint limits (the
-curves break where it leaves them) and, with obstacles, dotted where a link capsule comes
-closer than d_s; the answer marked with a star and its value; below, each branch's exact
-feasible set (:func:`qpik.feasible_intervals`) as bars.
+:func:`objective_map` returns a matplotlib ``Figure`` (no pyplot state): on top, the objective as the
+quantity it measures (:attr:`qpik.objectives.Objective.quantity`: the margin itself, not the −margin
+that is minimised) along every branch's self-motion over (−π, π] where the branch is inside the joint
+limits (the curves break where it leaves them) and, with obstacles, dotted where a link capsule comes
+closer than d_s; the answer marked with a star and its value; below, each branch's exact feasible set
+(:func:`qpik.feasible_intervals`) as bars. The legends name every line, marker and bar.
 """
 
 from __future__ import annotations
@@ -61,25 +62,35 @@ def objective_map(
         if d.shape[1]:
             clear[ok] = d.min(axis=1) >= d_safe
     sym = symbol(sols.param_name)
+    quantity = obj.quantity
+    shown = quantity.value(f)
     fig = Figure(figsize=(11, 8), layout="constrained")
     top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=(2.2, 1))
+    close = False
     for k, b in enumerate(ids):
-        y = f[:, k]
+        y = shown[:, k]
         top.plot(psi, np.where(clear[:, k], y, np.nan), color=colors[b], lw=1.6, label=f"branch {b}")
         if not clear[:, k].all():
             top.plot(psi, np.where(clear[:, k], np.nan, y), color=colors[b], lw=1.0, ls=":")
+            close = True
+    if close:  # the dotted style, in the legend after the branches
+        top.plot([], [], color="0.3", lw=1.0, ls=":", label=f"dotted: a link closer than d_s = {d_safe:g} m")
     if result.status == "optimal":
-        top.plot([result.param], [result.objective], "*", color="k", ms=16, zorder=5, gid=OPTIMUM_GID)
-        text = f"branch {result.branch}, {sym} = {result.param:.3f}\n{obj.name} = {result.objective:.4g}"
-        top.annotate(text, (result.param, result.objective), textcoords="offset points", xytext=(10, 10), fontsize=9)
-    top.set_ylabel(f"objective ({obj.name})")
+        value = quantity.value(result.objective)
+        answer = "the answer, certified" if result.certified else "the answer (best found, not certified)"
+        top.plot([result.param], [value], "*", color="k", ms=16, zorder=5, gid=OPTIMUM_GID, label=answer)
+        text = f"branch {result.branch}, {sym} = {result.param:.3f}\n{quantity.text(result.objective, '.4g')}"
+        top.annotate(text, (result.param, value), textcoords="offset points", xytext=(10, 10), fontsize=9)
+    top.set_ylabel(quantity.header + (", maximised" if quantity.maximised else ", minimised"))
+    top.margins(y=0.14)  # room for the answer's label
     top.grid(alpha=0.3)
-    top.legend(loc="upper right", fontsize=7, ncol=2)
+    top.legend(loc="best", fontsize=7, ncol=2)
     feasible_panel(bottom, fi, ids, result.branch if result.status == "optimal" else ids[0], colors)
     bottom.set_xlabel(f"{sym} [rad]")
     bottom.set_xlim(-PI, PI)
     bottom.set_xticks(np.linspace(-PI, PI, 5), ["−π", "−π/2", "0", "π/2", "π"])
     cert = "" if result.status != "optimal" else (", certified" if result.certified else ", not certified")
-    fig.suptitle(title or f"{robot.name}: {obj.name} against {sym} for every branch ({result.status}{cert})",
-                 fontsize=11)  # fmt: skip
+    minimised = f"; qpik minimises {quantity.minimised}" if quantity.minimised else ""
+    fig.suptitle(title or f"{robot.name}: {quantity.name} against {sym} for every branch ({result.status}{cert}"
+                 f"{minimised})", fontsize=11)  # fmt: skip
     return fig

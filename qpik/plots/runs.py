@@ -30,7 +30,7 @@ def plot_log(log: SimLog, path: str | os.PathLike, title: str | None = None) -> 
     Panels: position (m) and orientation (rad) error vs time on a log scale;
     each link's distance to its nearest obstacle (m) with ``log.d_safe`` marked;
     manipulability vs time; one small panel per joint (rad) with the region
-    past each limit shaded.
+    past each limit shaded (the first joint's legend says so).
     """
     fig = Figure(figsize=(13, 9), layout="constrained")
     grid = fig.add_gridspec(3, 4)
@@ -39,7 +39,7 @@ def plot_log(log: SimLog, path: str | os.PathLike, title: str | None = None) -> 
     n = log.q.shape[1]
     slots = [(1 + j // 4, j % 4) for j in range(n)]
     for j, (r, c) in enumerate(slots[: min(n, 7)]):
-        _joint(fig.add_subplot(grid[r, c]), log, j)
+        _joint(fig.add_subplot(grid[r, c]), log, j, legend=not j)
     ax = fig.add_subplot(grid[2, 3])
     ax.plot(log.t, log.manipulability, color="tab:purple")
     ax.set(xlabel="t (s)", ylabel="manipulability", title="sqrt(det(J Jᵀ))")
@@ -66,7 +66,8 @@ def render_strip(
     size: tuple[int, int] = (360, 320),
     camera: Camera | None = None,
 ) -> Path | None:
-    r"""A PNG of ``frames`` snapshots with the obstacles and the final target (green dot).
+    r"""A PNG of ``frames`` snapshots with the obstacles and the final target (a green dot, which the first label
+    names).
 
     The snapshots are evenly spaced along the joint-space path (arc length
     :math:`\sum \lVert q_{k+1} - q_k \rVert`), so a motion that settles early is
@@ -83,6 +84,8 @@ def render_strip(
     cols = min(3, len(idx))
     marks = [] if log.target is None else [TARGET_MARK.format(_fmt(log.target[i, :3, 3])) for i in idx[-1:]]
     labels = [f"t = {log.t[i]:.2f} s" for i in idx]
+    if marks:
+        labels[0] += "  (green dot: the final target)"
     try:
         if isinstance(log.robot, Robot):
             extra = [replace(o, name=None).to_mjcf_geom() for o in log.obstacles] + marks  # names may repeat
@@ -110,7 +113,7 @@ def _errors(ax, logs: Sequence[SimLog], which: int | None = None, single: bool =
             style = "--" if which is None else "-"
             ax.semilogy(log.t, np.maximum(e[1], ERROR_FLOOR), style, label="orientation (rad)" if single else log.label)
     name = {None: "tracking error", 0: "position error (m)", 1: "orientation error (rad)"}[which]
-    ax.set(xlabel="t (s)", ylabel=name, title=name)
+    ax.set(xlabel="t (s)", ylabel=name, title=f"{name}\n(below {ERROR_FLOOR:g}: drawn at {ERROR_FLOOR:g})")
     ax.grid(alpha=0.3, which="both")
     if ax.lines:
         ax.legend(fontsize=8)
@@ -127,29 +130,33 @@ def _clearance(ax, log: SimLog) -> None:
         ax.plot(log.t, dmin[:, i], lw=1.2, label=name.replace("_capsule", ""))
     if log.d_safe is not None:
         ax.axhline(log.d_safe, color="k", ls="--", lw=1, label=f"d_s = {log.d_safe:g} m")
-    ax.axhline(0.0, color="tab:red", lw=0.8)
+    ax.axhline(0.0, color="tab:red", lw=0.8, label="contact (0 m)")
     ax.set(xlabel="t (s)", ylabel="clearance (m)", title="clearance per link (MuJoCo)")
     ax.set_ylim(min(-0.01, float(dmin.min()) - 0.01), min(float(dmin.max()) + 0.02, 0.6))
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, ncol=2)
 
 
-def _joint(ax, log: SimLog, j: int) -> None:
-    """Joint j (rad) against its limits; the regions past the limits shaded."""
+def _joint(ax, log: SimLog, j: int, legend: bool = False) -> None:
+    """Joint j (rad) against its limits; the regions past the limits shaded (with ``legend``, a legend says so)."""
     lo, hi = float(log.q_min[j]), float(log.q_max[j])
     q = log.q[:, j]
     span = max(hi - lo, float(np.ptp(q)), 1e-3) if np.isfinite(hi - lo) else max(float(np.ptp(q)), 1.0)
     pad = 0.12 * span
     bottom = min(lo, float(q.min())) - pad if np.isfinite(lo) else float(q.min()) - pad
     top = max(hi, float(q.max())) + pad if np.isfinite(hi) else float(q.max()) + pad
+    label = "beyond the limits" if legend else None
     if np.isfinite(lo):
-        ax.axhspan(bottom, lo, color="tab:red", alpha=0.15, lw=0)
+        ax.axhspan(bottom, lo, color="tab:red", alpha=0.15, lw=0, label=label)
+        label = None
     if np.isfinite(hi):
-        ax.axhspan(hi, top, color="tab:red", alpha=0.15, lw=0)
-    ax.plot(log.t, q, color="tab:blue")
+        ax.axhspan(hi, top, color="tab:red", alpha=0.15, lw=0, label=label)
+    ax.plot(log.t, q, color="tab:blue", label="joint angle" if legend else None)
     ax.set_ylim(bottom, top)
     ax.set(title=f"joint {j + 1}", xlabel="t (s)", ylabel="rad")
     ax.grid(alpha=0.3)
+    if legend:
+        ax.legend(fontsize=7, loc="lower right")
 
 
 def _fmt(values: np.ndarray) -> str:

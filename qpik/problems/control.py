@@ -267,7 +267,8 @@ def run_reach(problem: Problem, out: Path) -> str:
         f"1. Closed form: the branches with ψ inside the joint limits (exact feasible intervals) are"
         f" {', '.join(open_branches) or 'none'}; q_home is on branch {runs.start_branch}.",
         f"2. NLP (qpik.solve_best over branch {runs.start_branch}, objective: {what}): branch {ref.branch},"
-        f" ψ = {ref.param:.4f} rad, objective {ref.objective:.6g}, {cert}, {ref.time * 1e3:.1f} ms;"
+        f" ψ = {ref.param:.4f} rad, {ref.quantity.text(ref.objective)}, {ref.quantity.sense}, {cert},"
+        f" {ref.time * 1e3:.1f} ms to solve;"
         f" q_ref = {np.array2string(ref.q, precision=3)}{its}.",
         f"3. QP controller from q_home toward the target with q_ref as its posture reference: final"
         f" configuration on branch {branch}, ψ = {psi:.4f} rad.",

@@ -26,7 +26,6 @@ from qpik.objectives import resolve
 from qpik.planning import Plan, plan_self_motion
 from qpik.planning.baselines import constant_parameter, online
 from qpik.plots import save
-from qpik.plots.closed_form import symbol
 from qpik.plots.plan import joint_trajectories, render_plan, selfmotion_map
 from qpik.problems.runners import runner
 from qpik.problems.schema import Problem
@@ -112,7 +111,6 @@ def run_plan(problem: Problem, out: Path) -> str:
 def _report(problem: Problem, out: Path) -> tuple[str, Plan]:
     plan = plan_problem(problem)
     robot, name = problem.robot, problem.name
-    sym = symbol(plan.param_name) if plan.param_name else ""
     others = baselines(problem, plan)
     lines = [f"# {name} (plan)", "", problem.description, ""]
     times = plan.times is not None
@@ -132,11 +130,11 @@ def _report(problem: Problem, out: Path) -> tuple[str, Plan]:
     if plan.reconfigurations:
         lines += [f"The arm stops and reconfigures after waypoint(s) {', '.join(map(str, plan.reconfigurations))}.", ""]
     stages = ", ".join(f"{k} {v:.3f} s" for k, v in plan.timings.items())
-    lines += [f"Time: {stages}.", ""]
+    lines += [f"Time (the solves; building and compiling their functions not counted): {stages}.", ""]
     lines += [
         "| plan | FK error (m, rad) | waypoints outside the limits (max) | closer than d_s (capsules / MuJoCo) |"
-        " min clearance (mm, capsules / MuJoCo) | max joint step / bound | joint path length (rad) | objective J |"
-        " reconfigurations |",
+        " min clearance (mm, capsules / MuJoCo) | max joint step / bound | joint path length (rad) |"
+        " objective J (minimised) | reconfigurations |",
         "|---|---|---|---|---|---|---|---|---|",
         *(_row(p) for p in (plan, *others) if len(p.q)),
         "",
@@ -145,7 +143,7 @@ def _report(problem: Problem, out: Path) -> tuple[str, Plan]:
     if plan.status != "failed":
         checks.append((f"every waypoint planned ({len(plan.q)})", True))
         if plan.dp_plan is not None:
-            checks.append((f"NLP objective {plan.cost:.8g} ≤ DP objective {plan.dp_cost:.8g}",
+            checks.append((f"NLP objective J {plan.cost:.8g} ≤ DP objective J {plan.dp_cost:.8g} (minimised)",
                            plan.cost <= plan.dp_cost + 1e-12 * max(1.0, abs(plan.dp_cost))))  # fmt: skip
     else:
         checks.append((f"path planned: failed at waypoint {plan.failure_waypoint}", False))
@@ -162,7 +160,7 @@ def _report(problem: Problem, out: Path) -> tuple[str, Plan]:
         strip = render_plan(plan, out / f"{name}_strip.png")
         files.append(strip.name if strip is not None else "(no image strip: it needs OpenGL)")
     if plan.profile is not None:
-        save(selfmotion_map(plan, f"{robot.name}: {sym} along the path (grey: infeasible)"), out / f"{name}_map.png")
+        save(selfmotion_map(plan, others=others), out / f"{name}_map.png")
         files.append(f"{name}_map.png")
     lines.append("Files: " + ", ".join(files))
     return "\n".join(lines), plan
