@@ -21,7 +21,7 @@ is large (:data:`FRAME_WEIGHT`) to make the part of ∇f in the row space of J (
 against the target) negligible, and the damping λ small (:data:`DAMPING`), so that a self-motion
 gradient :math:`N \nabla f` shows up amplified by w/λ.
 
-Tolerances (issue): same q to 1e-6 rad, same f to 1e-8, KKT residual of (b) ≤ 1e-8, |v| of (c)
+Tolerances (issue): same q to 1e-6 rad, same f to 1e-8, KKT residual of (b) ≤ 1e-8, :math:`|v|` of (c)
 ≤ 1e-6 rad/s. A disagreement is reported in :attr:`CrossCheck.failures`, never hidden.
 """
 
@@ -54,14 +54,14 @@ TOL_Q, TOL_F, TOL_KKT, TOL_V = 1e-6, 1e-8, 1e-8, 1e-6
 
 @dataclass
 class CrossCheck:
-    """The three answers for one pose and how far apart they are.
+    r"""The three answers for one pose and how far apart they are.
 
     Attributes:
         best: (a), :class:`~qpik.nlp.best.BestResult`.
         full: (b), :class:`~qpik.nlp.full.FullResult` (None when not applicable).
         velocity: (c), the QP's step (n,), rad/s (None when not applicable).
-        q_gap: max |q_b − q_a|, rad; f_gap: |f_b − f_a|; kkt: (b)'s KKT residual; speed: max |v| of (c)
-            (each +inf when not applicable).
+        q_gap: :math:`\max |q_b - q_a|`, rad; f_gap: :math:`|f_b - f_a|`; kkt: (b)'s KKT residual;
+            speed: :math:`\max |v|` of (c) (each +inf when not applicable).
         failures: the checks that failed, in words ([] when all agree).
         applicable: False when (a) has no answer (no feasible or no reachable configuration): then
             nothing was compared.

@@ -22,15 +22,15 @@ def log_expr(R: ca.SX) -> ca.SX:
     :math:`\sin\theta\,u = \mathrm{vee}(R - R^T)/2` and :math:`c = \cos\theta = (\mathrm{tr} R - 1)/2`.
     Away from π (c > −0.9) the vector is :math:`\mathrm{vee}\cdot g(c)` with
     :math:`g(c) = \arccos c/\sqrt{1 - c^2} = \theta/\sin\theta`, below x = 1 − c = 1e-4 its series
-    :math:`1 + x/3 + 2x^2/15 + 2x^3/35` (error < 1e-17): written through c, not through |vee|, so that
+    :math:`1 + x/3 + 2x^2/15 + 2x^3/35` (error < 1e-17): written through c, not through :math:`|\mathrm{vee}|`, so that
     it is smooth at θ = 0 to every order (the NLPs and the QP differentiate the pose error at its
-    solution; a square root of |vee|² there has a 0/0 derivative and second derivatives of order
+    solution; a square root of :math:`|\mathrm{vee}|^2` there has a 0/0 derivative and second derivatives of order
     1/θ). Near π, where vee loses its digits, :math:`\theta = \mathrm{atan2}(\|\mathrm{vee}\|, c)` and
     the axis comes from the symmetric part :math:`(R + R^T)/2 - c\,I = (1 - c)\,u u^T` (its largest
     diagonal column) with the sign of vee. The branches are selections (both are evaluated, and a
     selection's derivative multiplies the unselected branch's by 0, so that one must be finite too):
     the square roots of the near-π branch are taken of their argument's maximum with a bound that
-    changes no value where it is selected (1e-300 for |vee|², 1 for the axis' scale), and its first
+    changes no value where it is selected (1e-300 for :math:`|\mathrm{vee}|^2`, 1 for the axis' scale), and its first
     and second derivatives stay finite at θ = 0.
     """
     w = 0.5 * ca.vertcat(R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1])
@@ -63,7 +63,7 @@ def _coefficient(theta: ca.SX, series: tuple[float, ...], exact: ca.SX) -> ca.SX
 
 
 def so3_ljacinv_expr(w: ca.SX) -> ca.SX:
-    r"""Inverse left Jacobian of SO(3) (3, 3) at the rotation vector ``w`` (3,), rad, |w| = θ ≤ π.
+    r"""Inverse left Jacobian of SO(3) (3, 3) at the rotation vector ``w`` (3,), rad, :math:`|w| = \theta \le \pi`.
 
     :math:`J_l^{-1}(\omega) = I - \tfrac12 [\omega]_\times + \beta [\omega]_\times^2`,
     :math:`\beta = (1 - \tfrac{\theta}{2}\cot\tfrac{\theta}{2}) / \theta^2` (smooth up to θ = π, where
@@ -92,7 +92,7 @@ def se3_log_expr(T: ca.SX) -> ca.SX:
 
 
 def se3_ljacinv_expr(xi: ca.SX) -> ca.SX:
-    r"""Inverse left Jacobian of SE(3) (6, 6) at the twist ``xi`` = [ρ; ω] (6,), |ω| ≤ π.
+    r"""Inverse left Jacobian of SE(3) (6, 6) at the twist ``xi`` = [ρ; ω] (6,), :math:`|\omega| \le \pi`.
 
     :math:`J_l^{-1}(\xi) = \partial \log(\exp(\delta) \exp(\xi)) / \partial\delta` at δ = 0, and
     the inverse right Jacobian :math:`J_r^{-1}(\xi) = J_l^{-1}(-\xi) = \partial \log(\exp(\xi)\exp(\delta))

@@ -46,16 +46,16 @@ Singular cases (flag ``singular``, results defined and finite, never NaN):
 
 - wrist centre on the base z axis (r < ``SINGULAR_TOL``): δ is undefined; atan2(wy, wx) := 0
   there (below ``ZERO``), so δ is then θ1 itself;
-- elbow stretched or folded (|cos θ4| < ``SINGULAR_TOL``): θ4 is a double root and θ3 does
+- elbow stretched or folded (:math:`|\cos\theta_4|` < ``SINGULAR_TOL``): θ4 is a double root and θ3 does
   not move the wrist; θ3 := 0 (resp. ±π for the π-shifted indices) when
   :math:`|(w''_x, w''_y)| <` ``ZERO``;
-- shoulder (|w''_x| < ``SINGULAR_TOL``, the wrist in the plane of the joint-2 and joint-3
+- shoulder (:math:`|w''_x|` < ``SINGULAR_TOL``, the wrist in the plane of the joint-2 and joint-3
   axes): θ2 is a double root;
-- wrist (|sin θ6| < ``SINGULAR_TOL``): θ5 and θ7 turn about the same axis; θ5 keeps the
+- wrist (:math:`|\sin\theta_6|` < ``SINGULAR_TOL``): θ5 and θ7 turn about the same axis; θ5 keeps the
   value of the continuous formula (0 below ``ZERO``) and θ7 takes the rest, so the
   pose is reproduced exactly.
 
-``valid`` is 0 where |sin θ4| > 1 or the shoulder equation has no root (beyond 1e-12):
+``valid`` is 0 where :math:`|\sin\theta_4| > 1` or the shoulder equation has no root (beyond 1e-12):
 the branch does not reach the pose; its row is then the clamped, finite solution.
 """
 

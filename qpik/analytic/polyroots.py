@@ -24,9 +24,9 @@ method safeguarded by bisection), and a critical point where
 :math:`|H| \le 10^{-12} \sum |h_i|` is reported as well (a double root, or two roots
 closer than rounding separates: next to those, rounding can hide the sign changes of
 the Bernstein coefficients of H itself). A critical point is itself found (Newton on H′)
-only where its bracket does not settle that: where |H| exceeds the bound at both ends of
+only where its bracket does not settle that: where :math:`|H|` exceeds the bound at both ends of
 the bracket and H either changes sign in it (one root) or moves away from zero into it
-(no root, and |H| above the bound at the extremum too), the bracket's ends serve instead.
+(no root, and :math:`|H|` above the bound at the extremum too), the bracket's ends serve instead.
 Eigenvalues of companion matrices (``numpy.linalg.eigvals``) would cost several times
 more per ``qpik.feasible_intervals`` call (see ``qpik bench analytic``). The C source is
 compiled once by the system compiler (:func:`qpik.compiled.shared_library`); without
@@ -51,7 +51,7 @@ from qpik.compiled import shared_library
 from qpik.errors import InputError
 
 EIG_IMAG = 1e-7
-"""Eigenvalue path: |Im t| below which an eigenvalue counts as real."""
+r"""Eigenvalue path: :math:`|\operatorname{Im} t|` below which an eigenvalue counts as real."""
 MAX_DEGREE = 16
 """Largest n = max(deg A, deg B + 1) (H has degree 2n ≤ 32)."""
 

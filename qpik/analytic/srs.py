@@ -68,11 +68,11 @@ so bit 2 is the shoulder sign, bit 1 the elbow sign, bit 0 the wrist sign
 **Singular cases** (defined results, ``singular`` flag set, every valid
 branch still reaches the pose):
 
-- *shoulder*, |sin θ2| < ``SINGULAR_TOL``: only θ1 ± θ3 is determined. θ1 is
+- *shoulder*, :math:`|\sin\theta_2|` < ``SINGULAR_TOL``: only θ1 ± θ3 is determined. θ1 is
   set to its limit as ψ increases through the singular value,
   :math:`\theta_1 = \mathrm{atan2}(\sigma\,\partial_\psi M_{12}, \sigma\,\partial_\psi M_{02})`
   (0 if that vanishes too), and θ3 takes the rest (remainder formula).
-- *wrist*, |sin θ6| < ``SINGULAR_TOL``: the same for θ5 (limit) and θ7 (rest).
+- *wrist*, :math:`|\sin\theta_6|` < ``SINGULAR_TOL``: the same for θ5 (limit) and θ7 (rest).
 - *wrist centre on the base z axis* (:math:`\sqrt{x_{sw}^2+y_{sw}^2} < ` ``SINGULAR_TOL``
   :math:`|x_{sw}|`): the reference plane is undefined and ψ jumps with the
   azimuth of :math:`x_{sw}`. The formulas above are kept (they hold for any
@@ -110,7 +110,7 @@ if TYPE_CHECKING:
     from qpik.robots.robot import Robot
 
 SINGULAR_TOL = 1e-10
-"""A sine below this (|sin θ2|, |sin θ4|, |sin θ6|, horizontal/total length of x_sw) marks a singular case."""
+r"""A sine below this (:math:`|\sin\theta_i|`, i = 2, 4, 6; horizontal/total length of x_sw) marks a singular case."""
 ELBOW_TOL = 1e-13
 """Where ``1 ∓ cos θ4`` is below this the elbow is stretched (folded): θ4 := 0 (π) and ``singular`` is set.
 

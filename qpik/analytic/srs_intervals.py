@@ -47,7 +47,7 @@ The singular values listed per branch are the ψ where :math:`|M_{22}| = 1` for
 the shoulder or the wrist (θ2 or θ6 = 0 or π): the maximum :math:`c + \sqrt{a^2+b^2}`
 of :math:`M_{22}` is at ψ = atan2(a, b), the minimum at atan2(−a, −b) (Shimizu et al. 2008,
 :math:`\psi_0 = 2\arctan(a_t/(b_t - c_t))`), listed when within ``TOUCH_TOL``
-of ±1 (|sin θ| ≲ 1.5e-6). A joint that is singular for every ψ (stretched elbow
+of ±1 (:math:`|\sin\theta| \lesssim 1.5 \cdot 10^{-6}`). A joint that is singular for every ψ (stretched elbow
 with the tool along the forearm) is flagged by ``ik`` and not listed here.
 """
 
@@ -75,9 +75,10 @@ if TYPE_CHECKING:
     from qpik.analytic.srs import SRSSolver
 
 TOUCH_TOL = 1e-12
-"""|1 − |M22|| at the extremum below which a shoulder/wrist singular ψ is reported."""
+r""":math:`\bigl|1 - |M_{22}|\bigr|` at the extremum below which a shoulder/wrist singular ψ is reported."""
 MIRRORED = 1e-14
-"""|s(l + u) + 2c| (wrapped, rad) below which a joint's two limit levels have the same cosine at every margin."""
+""":math:`|s(l + u) + 2c|` (wrapped, rad) below which a joint's two limit levels have the same cosine at
+every margin."""
 NONE = 10.0
 """Stands for a singular ψ that does not exist in the compiled function's output (outside [−π, π])."""
 

@@ -47,7 +47,7 @@ ENDS = (1e-3, 4e-3, 1.6e-2)
 SINGULAR_END = 1e-7
 """An end of a feasible interval this close (rad) to a singular parameter of its branch is singular."""
 PSI_TOL = 1e-13
-"""A bracket narrower than this (rad, relative to 1 + |ψ|) has converged."""
+r"""A bracket narrower than this (rad, relative to :math:`1 + |\psi|`) has converged."""
 NOISE = 1e-15
 """Relative rounding of an objective value: values closer than this count as equal in :func:`polish`."""
 MAX_ROUNDS = 60

@@ -131,8 +131,8 @@ class Grid:
         return int(out) if np.ndim(out) == 0 else out
 
     def public(self, rows: np.ndarray, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Public branch ids and parameters (rad, wrapped) of rows (N,) at parameters (N,), as
-        :func:`qpik.redundancy_parameter` gives them: a mirrored arm's row b at |δ| > π/2 is branch
+        r"""Public branch ids and parameters (rad, wrapped) of rows (N,) at parameters (N,), as
+        :func:`qpik.redundancy_parameter` gives them: a mirrored arm's row b at :math:`|\delta| > \pi/2` is branch
         b + 8 at δ ∓ π."""
         rows, params = np.asarray(rows, int), wrap(np.asarray(params, float))
         if not self.mirrored:

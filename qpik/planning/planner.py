@@ -58,8 +58,10 @@ class Setup:
     """The checked inputs of one planning call: waypoints, progress, transition bounds and weights.
 
     Attributes:
-        robot, poses (N, 4, 4), times (N,) or None, progress (N,), objective (or None), obstacles,
-        d_safe (m), q_ref (n,), tr (:class:`~qpik.planning.dp.Transitions`).
+        robot, objective, obstacles: the arm, the objective (or None) and the obstacles (an ObstacleSet).
+        poses, times, progress: the waypoints (N, 4, 4), their times (N,) s or None, and progress (N,).
+        d_safe, q_ref: the safety distance (m) and the posture reference (n,), rad.
+        tr: the transition bounds (:class:`~qpik.planning.dp.Transitions`).
     """
 
     def __init__(self, robot, path, objective, obstacles, times, max_joint_step, d_safe, a_max, q_ref, waypoints,

@@ -125,6 +125,7 @@ CATALOG: dict[str, Callable[[], Robot]] = {
     "zheng7": zheng7,
     "panda": panda,
 }
+"""The catalog arms by name, each with the function that builds its :class:`Robot` (``qpik.load_robot(name)``)."""
 
 _cache: dict[str, Robot] = {}
 
