@@ -23,6 +23,7 @@ from qpik.errors import (
 from qpik.nlp import BestResult, solve_best, solve_ik
 from qpik.planning import Plan, plan_self_motion
 from qpik.robots import CATALOG, DHChain, Joint, LinkCapsule, Robot, SerialChain, load_robot
+from qpik.viewer import view  # imports viser only when a viewer starts
 
 __version__ = "0.1.0"
 
@@ -56,4 +57,5 @@ __all__ = [
     "redundancy_parameter",
     "solve_best",
     "solve_ik",
+    "view",
 ]
