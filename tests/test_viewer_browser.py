@@ -15,12 +15,12 @@ import pytest
 pytest.importorskip("viser", reason="viser is not installed (pip install 'qpik[view]')")
 pytest.importorskip("playwright", reason="playwright is not installed (pip install 'qpik[view]')")
 
-import qpik  # noqa: E402
-from qpik.cli import main  # noqa: E402
-from qpik.problems import find_problem, load  # noqa: E402
-from qpik.viewer import ViewerError  # noqa: E402
-from qpik.viewer.browser import browser, open_page, settle  # noqa: E402
-from qpik.viewer.server import Viewer  # noqa: E402
+import qpik
+from qpik.cli import main
+from qpik.problems import find_problem, load
+from qpik.viewer import ViewerError
+from qpik.viewer.browser import browser, open_page, settle
+from qpik.viewer.server import Viewer
 
 SIZE = (960, 640)
 
@@ -67,7 +67,7 @@ def _check_arm(viewer: Viewer, root: str, q: np.ndarray) -> None:
 
 
 def test_page_loads_without_console_errors(scene):
-    viewer, page, messages = scene
+    _, page, messages = scene
     settle(page)
     errors = [m for m in messages if m[0] in ("error", "pageerror")]
     assert not errors, errors
@@ -110,8 +110,8 @@ def test_moving_the_target_changes_the_branches(scene):
     assert not np.allclose(state.branches.q, old)
     valid = state.branches.valid
     assert valid.any()
-    np.testing.assert_allclose(viewer.robot.fk(state.branches.q[valid]), np.broadcast_to(pose, (int(valid.sum()), 4, 4)),
-                               atol=1e-9)  # fmt: skip
+    reached = viewer.robot.fk(state.branches.q[valid])
+    np.testing.assert_allclose(reached, np.broadcast_to(pose, reached.shape), atol=1e-9)
     for k, b in enumerate(state.branches.branch.tolist()):
         if viewer.server.scene.get_handle_by_name(f"/ghost{b}").visible:
             _check_arm(viewer, f"/ghost{b}", state.branches.q[k])
