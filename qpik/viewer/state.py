@@ -4,7 +4,8 @@
 (:func:`qpik.ik`), the exact feasible sets of every branch (:func:`qpik.feasible_intervals`), the best
 answer of :func:`qpik.solve_best` for an objective, and the clearances of the shown configuration to the
 obstacles. An arm without a closed form gets the numerical IK's answer (:class:`qpik.nlp.ik.IKSolver`,
-Levenberg–Marquardt from the last configuration shown), and neither branches nor feasible sets.
+Levenberg–Marquardt from the last configuration shown, within its iteration budget), and neither branches nor
+feasible sets.
 """
 
 from __future__ import annotations
@@ -19,9 +20,6 @@ from qpik.nlp import BestResult, solve_best
 from qpik.nlp.ik import IKResult
 from qpik.nlp.ik import solver_for as ik_solver
 from qpik.robots.robot import Robot
-
-IK_TIME = 0.03
-"""s: the time budget of the numerical IK for one pose of an arm without a closed form."""
 
 
 @dataclass
@@ -70,7 +68,7 @@ def solve_view(
     obstacles = obstacles if obstacles is not None else ObstacleSet(())
     seed = robot.q_home if q_seed is None else np.asarray(q_seed, dtype=float)
     if robot.closed_form is None:
-        found = ik_solver(robot).solve(pose, seed, max_time=IK_TIME)
+        found = ik_solver(robot).solve(pose, seed)  # its iteration budget, not a time: the same answer on any machine
         q, branches, intervals, best, numerical, param_ = found.q, None, None, None, found, None
     else:
         param_ = float(param)
