@@ -28,6 +28,7 @@ if TYPE_CHECKING:
     from qpik.nlp import BestResult, solve_best, solve_ik
     from qpik.planning import Plan, plan_self_motion
     from qpik.robots import CATALOG, DHChain, Joint, LinkCapsule, Robot, SerialChain, load_robot
+    from qpik.viewer import view
 
 # every name is imported on first use (qpik.lazy): `import qpik` loads none of the heavy dependencies
 __getattr__, __dir__ = exports(
@@ -50,6 +51,7 @@ __getattr__, __dir__ = exports(
         "qpik.nlp": ("BestResult", "solve_best", "solve_ik"),
         "qpik.planning": ("Plan", "plan_self_motion"),
         "qpik.robots": ("CATALOG", "DHChain", "Joint", "LinkCapsule", "Robot", "SerialChain", "load_robot"),
+        "qpik.viewer": ("view",),
     },
 )
 
@@ -85,4 +87,5 @@ __all__ = [
     "redundancy_parameter",
     "solve_best",
     "solve_ik",
+    "view",
 ]

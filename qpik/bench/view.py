@@ -1,0 +1,93 @@
+"""Bench: ``qpik view``'s update latency, from a dragged target pose received to the scene messages sent.
+
+For each arm a viewer (:class:`qpik.viewer.server.Viewer`) serves on a free local port, with a page of it
+open in a headless Chromium when one can be started (then the messages are really serialised and sent
+to a browser while the bench runs; the note says whether). A scripted drag of :data:`POSES` target poses
+(a loop of 8 cm around the home pose's end effector, turning ±0.3 rad about z) goes through
+:meth:`~qpik.viewer.server.Viewer.receive`, the path of the target's drag callback: every branch at the
+slider's ψ/δ, the feasible sets, :func:`qpik.solve_best` without its certificate (which follows when a
+drag ends) or the numerical IK, the clearances, every scene and panel message, and the flush of the
+websocket buffers. Each update's time is from the pose's arrival to the flush. Arms: the catalog iiwa14
+(alone, and with the ball and table of ``problems/iiwa_obstacle_reach.toml``), the catalog Panda (no
+closed form: the numerical IK) and the KUKA iiwa URDF of ``pybullet_data`` (meshes, closed form found
+in the file's chain).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import time
+
+import numpy as np
+
+from qpik.bench import Row
+from qpik.errors import QpikError
+
+TITLE = "Viewer update: target pose received → scene messages sent (qpik view, 100 scripted drag poses)"
+POSES = 100
+BUDGET = 0.050  # s per update, the issue's target
+
+
+def drag(robot, count: int = POSES) -> np.ndarray:
+    """The scripted drag: ``count`` poses (count, 4, 4) on a closed loop around the end effector at home."""
+    T0 = robot.fk(robot.q_home)
+    th = 2 * np.pi * np.arange(count) / count
+    out = np.repeat(T0[None], count, axis=0)
+    out[:, :3, 3] += 0.08 * np.stack([np.cos(th) - 1.0, np.sin(th), 0.5 * np.sin(2 * th)], axis=1)
+    a = 0.3 * np.sin(th)
+    Rz = np.zeros((count, 3, 3))
+    Rz[:, 0, 0], Rz[:, 0, 1], Rz[:, 1, 0], Rz[:, 1, 1], Rz[:, 2, 2] = np.cos(a), -np.sin(a), np.sin(a), np.cos(a), 1
+    out[:, :3, :3] = Rz @ T0[:3, :3]
+    return out
+
+
+def _arms() -> list[tuple[str, object, tuple, str]]:
+    from qpik.problems import find_problem, load
+    from qpik.robots.catalog import load_robot
+
+    iiwa, problem = load_robot("iiwa14"), load(find_problem("iiwa_obstacle_reach"))
+    arms = [("iiwa14", iiwa, (), ""), ("iiwa14 + ball and table", iiwa, problem.obstacles, ""),
+            ("panda (numerical IK)", load_robot("panda"), (), "")]  # fmt: skip
+    try:
+        from qpik.robots.loader import load_robot as load_file
+        from qpik.robots.packaged import packaged_model
+
+        arms.append(("URDF pybullet kuka_iiwa", load_file(str(packaged_model("pybullet/iiwa"))), (), ""))
+    except QpikError as exc:  # pybullet is not installed
+        arms.append(("URDF pybullet kuka_iiwa", None, (), str(exc)))
+    return arms
+
+
+def run(args: argparse.Namespace) -> list[Row]:
+    from qpik.viewer import ViewerError
+    from qpik.viewer.browser import browser, open_page
+    from qpik.viewer.server import Viewer
+
+    rows = []
+    with contextlib.ExitStack() as stack:
+        try:
+            chromium = stack.enter_context(browser())
+        except ViewerError as exc:
+            chromium, why = None, str(exc)
+        for label, robot, obstacles, missing in _arms():
+            if robot is None:
+                rows[-1].note += f"; {label} left out: {missing}"
+                continue
+            with Viewer(robot, obstacles=obstacles, port=0) as viewer:
+                viewer.wait()
+                page = open_page(chromium, viewer, (1280, 800)) if chromium is not None else None
+                for pose in drag(robot):
+                    viewer.receive(pose, time.perf_counter())
+                t = np.array(viewer.latencies)
+                if page is not None:
+                    page.close()
+            p95 = float(np.percentile(t, 95))
+            within = int(np.sum(t <= BUDGET))
+            what = ("numerical IK" if robot.closed_form is None
+                    else f"{len(viewer.state.branches)} branches, feasible sets, solve_best {viewer.state.best.method}")
+            seen = "a page open in headless Chromium" if page is not None else f"no page ({why})"
+            rows.append(Row(f"{label}: pose → scene", float(np.median(t)), p99=float(np.percentile(t, 99)),
+                            worst=float(t.max()),
+                            note=f"p95 {p95 * 1e3:.1f} ms; {within}/{len(t)} ≤ {BUDGET * 1e3:.0f} ms; {what}; {seen}"))
+    return rows

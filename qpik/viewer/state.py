@@ -1,0 +1,82 @@
+"""What the viewer shows for one target pose, computed by qpik alone (no web server).
+
+:func:`solve_view` gathers, for a pose and a value of the redundancy parameter: every closed-form branch
+(:func:`qpik.ik`), the exact feasible sets of every branch (:func:`qpik.feasible_intervals`), the best
+answer of :func:`qpik.solve_best` for an objective, and the clearances of the shown configuration to the
+obstacles. An arm without a closed form gets the numerical IK's answer (:class:`qpik.nlp.ik.IKSolver`,
+Levenberg–Marquardt from the last configuration shown, within its iteration budget), and neither branches nor
+feasible sets.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from qpik.analytic import FeasibleIntervals, IKSolutions, feasible_intervals, ik
+from qpik.geometry.distance import Distances, ObstacleSet, distances
+from qpik.nlp import BestResult, solve_best
+from qpik.nlp.ik import IKResult
+from qpik.nlp.ik import solver_for as ik_solver
+from qpik.robots.robot import Robot
+
+
+@dataclass
+class ViewState:
+    """One pose's answers.
+
+    Attributes:
+        pose: (4, 4) the target, base frame.
+        param: the redundancy parameter of the ghosts (δ or ψ, rad); None without a closed form.
+        branches: every branch at ``param`` (None without a closed form).
+        intervals: the feasible sets of every branch (None without a closed form).
+        best: :func:`qpik.solve_best`'s answer (None without a closed form).
+        numerical: the numerical IK's answer (None for a closed-form arm).
+        q: (n,) the configuration drawn solid, rad: the best answer, or the numerical IK's.
+        clearance: capsule–obstacle distances at ``q`` (:class:`qpik.geometry.Distances`, None without obstacles).
+        certify: whether :func:`qpik.solve_best` was asked for its certificate.
+    """
+
+    pose: np.ndarray
+    param: float | None
+    branches: IKSolutions | None
+    intervals: FeasibleIntervals | None
+    best: BestResult | None
+    numerical: IKResult | None
+    q: np.ndarray
+    clearance: Distances | None
+    certify: bool
+
+
+def solve_view(
+    robot: Robot,
+    pose: np.ndarray,
+    param: float,
+    objective: str = "margin",
+    obstacles: ObstacleSet | None = None,
+    d_safe: float = 0.02,
+    certify: bool = True,
+    q_seed: np.ndarray | None = None,
+) -> ViewState:
+    """The answers for target ``pose`` (4, 4) with the ghosts at redundancy parameter ``param`` (rad).
+
+    ``objective`` and ``d_safe`` (m) are :func:`qpik.solve_best`'s (the ``"distance"`` objective's
+    reference is ``q_seed``); ``q_seed`` (n,) is also where the numerical IK starts (default the home
+    configuration).
+    """
+    obstacles = obstacles if obstacles is not None else ObstacleSet(())
+    seed = robot.q_home if q_seed is None else np.asarray(q_seed, dtype=float)
+    if robot.closed_form is None:
+        found = ik_solver(robot).solve(pose, seed)  # its iteration budget, not a time: the same answer on any machine
+        q, branches, intervals, best, numerical, param_ = found.q, None, None, None, found, None
+    else:
+        param_ = float(param)
+        branches = ik(robot, pose, param_)
+        intervals = feasible_intervals(robot, pose)
+        q_ref = seed if objective == "distance" else None
+        best = solve_best(robot, pose, objective, obstacles, q_ref, d_safe=d_safe, certify=certify)
+        q, numerical = best.q, None
+    clearance = distances(robot.capsule_segments(q), robot.capsule_radii, obstacles) if len(obstacles) else None
+    return ViewState(np.asarray(pose, dtype=float), param_, branches, intervals, best, numerical, q, clearance,
+                     certify)  # fmt: skip

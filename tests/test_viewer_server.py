@@ -1,0 +1,111 @@
+"""qpik.viewer.server without a browser: a drag event, playback of a simulation log, live mode, the port check.
+
+The scene is read from viser's server-side handles and checked against MuJoCo's kinematics of the model
+and qpik's forward kinematics; quaternions of the drag events are made by scipy.
+"""
+
+from __future__ import annotations
+
+import socket
+import time
+from types import SimpleNamespace
+
+import mujoco
+import numpy as np
+import pytest
+from conftest import random_q
+from scipy.spatial.transform import Rotation
+
+pytest.importorskip("viser", reason="viser is not installed (pip install 'qpik[view]')")
+
+import qpik
+from qpik.sim import simulate
+from qpik.viewer import ViewerError
+from qpik.viewer.server import Viewer, port_free
+
+
+def _arm_at(viewer: Viewer, q: np.ndarray) -> None:
+    """The solid arm's body frames are where MuJoCo puts the bodies at q."""
+    model = viewer.robot.mj_model()
+    data = mujoco.MjData(model)
+    for name, value in zip(viewer.robot.joint_names, q):
+        data.qpos[model.jnt_qposadr[model.joint(name).id]] = value
+    mujoco.mj_kinematics(model, data)
+    for body in viewer.geometry.bodies:
+        handle = viewer.server.scene.get_handle_by_name(f"/arm/b{body.body}")
+        np.testing.assert_allclose(handle.position, data.xpos[body.body], atol=1e-9)
+
+
+@pytest.fixture(scope="module")
+def iiwa():
+    with Viewer(qpik.load_robot("iiwa14"), port=0) as viewer:
+        viewer.wait()
+        yield viewer
+
+
+def test_drag_event_moves_the_target_and_the_answers(iiwa):
+    robot = iiwa.robot
+    pose = robot.fk(random_q(robot, 1, 4)[0])
+    x, y, z, w = Rotation.from_matrix(pose[:3, :3]).as_quat()
+    before = iiwa.updates
+    iiwa._on_drag(SimpleNamespace(phase="update", target=SimpleNamespace(position=pose[:3, 3], wxyz=(w, x, y, z))))
+    assert iiwa.updates == before + 1 and len(iiwa.latencies) >= 1
+    np.testing.assert_allclose(iiwa.pose, pose, atol=1e-12)
+    assert not iiwa.state.certify  # during a drag: the certificate follows at its end
+    np.testing.assert_allclose(robot.fk(iiwa.state.q), pose, atol=1e-9)
+    _arm_at(iiwa, iiwa.state.q)
+    iiwa._on_drag(SimpleNamespace(phase="end", target=SimpleNamespace(position=pose[:3, 3], wxyz=(w, x, y, z))))
+    assert iiwa.state.certify and iiwa.state.best.certified
+
+
+def test_slider_puts_the_ghosts_at_the_parameter(iiwa):
+    iiwa.set_param(-2.0)
+    sol = iiwa.state.branches
+    assert sol.param == pytest.approx(-2.0)
+    psi, _ = qpik.redundancy_parameter(iiwa.robot, sol.q[sol.valid])
+    np.testing.assert_allclose(psi, -2.0, atol=1e-9)
+
+
+def test_live_mode_drives_the_arm_to_the_target(iiwa):
+    robot = iiwa.robot
+    target = robot.fk(robot.q_home)
+    target[:3, 3] += (0.05, -0.05, 0.05)
+    iiwa.set_target(target, certify=False)
+    iiwa.live = True
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            q = iiwa._override
+            if q is not None and np.linalg.norm(robot.fk(q)[:3, 3] - target[:3, 3]) < 1e-4:
+                break
+            time.sleep(0.1)
+        q = iiwa._override.copy()
+    finally:
+        iiwa.live = False
+    assert np.linalg.norm(robot.fk(q)[:3, 3] - target[:3, 3]) < 1e-4
+    assert robot.within_limits(q)
+    assert iiwa._override is None  # off again: the solid arm is the best answer
+
+
+def test_playback_of_a_simulation_log_shows_its_configurations():
+    robot = qpik.load_robot("iiwa14")
+    target = robot.fk(robot.q_home)
+    target[:3, 3] += (0.0, 0.1, 0.0)
+    log = simulate(robot, qpik.Controller.for_robot(robot, target=target, dt=0.01), robot.q_home, 0.3, dt=0.01,
+                   target=target, progress=False)  # fmt: skip
+    with Viewer(robot, port=0, play=log) as viewer:
+        for k in (0, len(log) // 2, len(log) - 1):
+            viewer.seek(k)
+            _arm_at(viewer, log.q[k])
+            np.testing.assert_allclose(viewer.server.scene.get_handle_by_name("/target").position, target[:3, 3],
+                                       atol=1e-12)  # fmt: skip
+
+
+def test_a_taken_port_is_named():
+    with socket.socket() as other:
+        other.bind(("127.0.0.1", 0))
+        other.listen()
+        port = other.getsockname()[1]
+        assert not port_free("127.0.0.1", port)
+        with pytest.raises(ViewerError, match=f"port {port} is taken"):
+            Viewer(qpik.load_robot("panda"), port=port)
