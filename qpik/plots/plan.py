@@ -6,10 +6,10 @@
   branch they use;
 - :func:`joint_trajectories`: every joint against path progress with the regions past its limits
   shaded, the plan and its baselines;
-
-Each figure has one legend that names every line, marker and shading.
 - :func:`render_plan`: an image strip of the arm along the plan with the obstacles (MuJoCo offscreen;
   None without OpenGL).
+
+Each figure has one legend that names every line, marker and shading.
 """
 
 from __future__ import annotations
