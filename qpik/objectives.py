@@ -840,6 +840,14 @@ class BoundFunction:
                     whole[:, at] = part.reshape(M, len(at))
         return self._split(c, params, q_ref, obstacle_params, d[0], s, r, lo, hi, *d[1:])
 
+    def build(self) -> None:
+        """Compile every function :meth:`rows` calls now (:meth:`~qpik.compiled.RowMap.build`)."""
+        self._split.build()
+        if self._segments is not None:
+            self._segments.build()
+        for kind, _ in _by_kind(self._pairs):
+            _pair_models(kind).build()
+
 
 def _by_kind(pairs: list[tuple[int, int, str]]) -> list[tuple[str, np.ndarray]]:
     """The pair indices of each obstacle family, in first-seen order."""
@@ -879,14 +887,6 @@ def _pair_models(kind: str) -> RowMap:
     a, u = tuple(axis[i] for i in range(3)), tuple(axis[i] for i in range(3, 6))
     d = axis_distance(a, u, radius, kind, [prm[i] for i in range(PARAMS[kind])], sy.CASADI)
     return RowMap(taylor_function(ca.Function(f"pair_{kind}", [axis, radius, prm], [d]), [0]), chunks=(64, 16))
-
-    def build(self) -> None:
-        """Compile every function :meth:`rows` calls now (:meth:`~qpik.compiled.RowMap.build`)."""
-        self._split.build()
-        if self._segments is not None:
-            self._segments.build()
-        for kind, _ in _by_kind(self._pairs):
-            _pair_models(kind).build()
 
 
 _BOUNDS: dict[tuple, tuple] = {}
