@@ -5,10 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from qpik.cli.args import add_robot, at_least_one, floats, robot_from_args, whole
+from qpik.cli.args import Subcommands, add_robot, at_least_one, floats, robot_from_args, whole
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: Subcommands) -> None:
     p = sub.add_parser("render", help="draw configurations of an arm to a PNG (MuJoCo, offscreen)")
     add_robot(p)
     p.add_argument(

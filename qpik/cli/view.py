@@ -11,12 +11,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from qpik.cli.args import add_robot, floats, robot_from_args, whole
+from qpik.cli.args import Subcommands, add_robot, floats, robot_from_args, whole
 
 DEFAULT_ROBOT = "iiwa14"
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: Subcommands) -> None:
     p = sub.add_parser("view", help="show an arm in a web browser: drag the target, see every branch (viser)")
     p.add_argument("arm", nargs="?", metavar="ROBOT|FILE",
                    help=f"arm of the catalog or an MJCF/URDF file (default: {DEFAULT_ROBOT}; or --robot)")  # fmt: skip
@@ -26,7 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--objective", default="margin", help="solve_best's objective (default: margin)")
     p.add_argument("--d-safe", type=float, default=0.02, help="clearance to the obstacles, m (default: 0.02)")
     p.add_argument("--live", action="store_true", help="start with the QP controller tracking the target")
-    p.add_argument("--host", default="127.0.0.1", help="address to listen on, this machine only by default (default: 127.0.0.1)")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1)")
     p.add_argument("--port", type=int, default=8080, help="port to listen on (default: 8080)")
     p.add_argument("--screenshot", type=Path, metavar="PNG", help="write the page as a PNG (headless browser) and exit")
     p.add_argument("--size", type=floats, default=None, metavar="W,H", help="screenshot size in pixels (1280,800)")
