@@ -52,6 +52,7 @@ import numpy as np
 
 from qpik import symbolic as sy
 from qpik.compiled import RowMap
+from qpik.core.layout import Layout
 from qpik.enclosure import taylor_function
 from qpik.errors import InputError
 from qpik.geometry.distance import PARAMS, ObstacleSet, axis_distance, distances, set_expr
@@ -418,7 +419,6 @@ class Sum(Objective):
         return all(o.smooth for _, o in self._terms)
 
 
-
 def _positive(x: object, name: str) -> float:
     """``x`` as a finite float > 0, else :class:`InputError` naming ``name``."""
     value = number(x, name)
@@ -685,8 +685,10 @@ class Evaluator:
         f = self.objective.expr(ctx, p)
         d = ctx.distances
         nearest = ca.gradient(ca.mmin(d), q) if self.n_pairs else ca.SX.zeros(n)
-        out = ca.densify(ca.substitute(ca.vertcat(f, ca.gradient(f, q), d, nearest), w, q))
-        return ca.Function(f"objective_{robot.name or 'robot'}", [q, p, q_ref, prm], [out])
+        out = self.layout.pack(f=f, grad=ca.gradient(f, q), d=d, nearest=nearest)
+        return ca.Function(
+            f"objective_{robot.name or 'robot'}", [q, p, q_ref, prm], [ca.densify(ca.substitute(out, w, q))]
+        )
 
     def value_function(self) -> ca.Function:
         """``(q (n,), p, q_ref (n,), obstacle params) -> [f, d (C'·O)]`` in one column: :meth:`function`
@@ -712,12 +714,18 @@ class Evaluator:
         f, grad, d, grad_d = self.rows(Q, np.broadcast_to(ref, Q.shape))
         return (f[0], grad[0], d[0], grad_d[0]) if q.ndim == 1 else (f, grad, d, grad_d)
 
+    @cached_property
+    def layout(self) -> Layout:
+        """The column of :meth:`function`: ``f``, ``grad`` (n,), ``d`` (C'·O,), ``nearest`` (n,) (∇ min d)."""
+        n = self.robot.dof
+        return Layout(f=(), grad=n, d=self.n_pairs, nearest=n)
+
     def rows(self, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, ...]:
         """:meth:`__call__` for configurations Q (M, n) and references R (M, n) that the caller built
         (float arrays of the right shapes, no check): the search's inner loop."""
         (out,) = self._maps.rows(Q, self.params, R, self.obstacles.params)
-        n, k = self.robot.dof, 1 + self.robot.dof + self.n_pairs
-        return out[:, 0], out[:, 1 : 1 + n], out[:, 1 + n : k], out[:, k:]
+        rows = self.layout.views(out)
+        return rows.f, rows.grad, rows.d, rows.nearest
 
     def build(self) -> None:
         """Compile both maps (:meth:`rows`, :meth:`value_rows`) now (:meth:`~qpik.compiled.RowMap.build`)."""
@@ -741,8 +749,6 @@ class _Maps:
     @cached_property
     def values(self) -> RowMap:
         return RowMap(self._value_function(), shared=(1, 3), chunks=CHUNKS)
-
-
 
 
 class BoundFunction:
@@ -881,8 +887,6 @@ def _pair_models(kind: str) -> RowMap:
     a, u = tuple(axis[i] for i in range(3)), tuple(axis[i] for i in range(3, 6))
     d = axis_distance(a, u, radius, kind, [prm[i] for i in range(PARAMS[kind])], sy.CASADI)
     return RowMap(taylor_function(ca.Function(f"pair_{kind}", [axis, radius, prm], [d]), [0]), chunks=(64, 16))
-
-
 
 
 def bound_function(robot: Robot, objective: Objective, obstacles: ObstacleSet) -> BoundFunction | None:

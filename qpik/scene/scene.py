@@ -1,0 +1,107 @@
+"""A problem's pieces as one value: the arm, its obstacles, the clearance kept, the objective, q_ref."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from qpik.errors import InputError
+from qpik.geometry.distance import ObstacleSet
+from qpik.geometry.shapes import Shape
+from qpik.objectives import BoundFunction, Evaluator, Objective, bound_function, clearance, pair_count, resolve
+from qpik.robots.robot import Robot, as_robot
+from qpik.validate import finite_array, number
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """What a problem is about, checked and converted once (:meth:`of`), then handed to every solver.
+
+    :func:`qpik.solve_best`, :func:`qpik.nlp.solve_full`, :func:`qpik.crosscheck.crosscheck`,
+    :func:`qpik.plan_self_motion`, :meth:`qpik.Controller.for_scene` and :func:`qpik.plots.objective.objective_map`
+    take it, so the arm, the obstacles and the objective mean the same to all of them.
+
+    Attributes:
+        robot: the arm.
+        obstacles: the obstacles, packed once (:class:`~qpik.geometry.distance.ObstacleSet`; base frame, m).
+        d_safe: the clearance every link capsule keeps from every obstacle, m (≥ 0).
+        objective: the cost minimised over the redundancy (:mod:`qpik.objectives`).
+        q_ref: (n,) the reference configuration of a :class:`~qpik.objectives.ReferenceDistance` term and of
+            the controller's posture task, rad (None: the arm's home configuration).
+    """
+
+    robot: Robot
+    obstacles: ObstacleSet
+    d_safe: float
+    objective: Objective
+    q_ref: np.ndarray | None
+
+    @classmethod
+    def of(
+        cls,
+        robot: Robot,
+        obstacles: Sequence[Shape] | ObstacleSet = (),
+        *,
+        d_safe: float = 0.02,
+        objective: Objective | str = "margin",
+        q_ref: np.ndarray | None = None,
+    ) -> Scene:
+        """The scene of ``robot`` with the arguments checked (:class:`~qpik.errors.InputError` naming the one that
+        is not right) and the obstacles packed.
+
+        Args:
+            robot: the arm (:func:`qpik.load_robot`).
+            obstacles: shapes of :mod:`qpik.geometry` or an ObstacleSet (base frame, m).
+            d_safe: clearance, m (finite, ≥ 0).
+            objective: an :class:`~qpik.objectives.Objective` or a name of :data:`qpik.objectives.NAMES`.
+            q_ref: (n,) reference configuration, rad, or None.
+        """
+        robot = as_robot(robot)
+        packed = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
+        d_safe = number(d_safe, "d_safe")
+        if q_ref is not None:
+            q_ref = finite_array(q_ref, "q_ref", (robot.dof,)).copy()
+            q_ref.flags.writeable = False
+        return cls(robot, packed, d_safe, resolve(objective), q_ref)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.robot, Robot) or not isinstance(self.obstacles, ObstacleSet):
+            raise InputError("Scene: build it with Scene.of(robot, obstacles, ...), which checks its arguments")
+
+    def replace(self, **changes: object) -> Scene:
+        """A scene with some of :meth:`of`'s arguments changed (checked again); the compiled functions of the
+        same robot, objective form and obstacle families are shared, not rebuilt."""
+        fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        fields.update(changes)
+        robot = fields.pop("robot")
+        return Scene.of(robot, fields.pop("obstacles"), **fields)
+
+    @property
+    def reference(self) -> np.ndarray:
+        """(n,) :attr:`q_ref`, or the arm's home configuration without one, rad."""
+        return self.robot.q_home if self.q_ref is None else self.q_ref
+
+    @property
+    def pairs(self) -> int:
+        """The number of (link capsule, obstacle) pairs kept apart: those of the capsules a joint moves."""
+        return pair_count(self.robot, self.obstacles)
+
+    @cached_property
+    def evaluator(self) -> Evaluator:
+        """The objective and the clearances at many configurations (compiled once per robot and form)."""
+        return Evaluator(self.robot, self.objective, self.obstacles)
+
+    @cached_property
+    def bounds(self) -> BoundFunction | None:
+        """The objective's Taylor-model bounds (the certificate of :func:`qpik.solve_best`), or None when the
+        objective has none."""
+        return bound_function(self.robot, self.objective, self.obstacles)
+
+    def clearance(self, q: np.ndarray) -> np.ndarray:
+        """(M,) the smallest distance of the pairs (:attr:`pairs`) at configurations q (M, n), m; inf without any."""
+        q = finite_array(q, "q", (None, self.robot.dof))
+        return clearance(self.robot, q, self.obstacles)
