@@ -168,6 +168,8 @@ class Controller:
         self.caps = tuple(lim for lim in self.limits if isinstance(lim, VelocityLimit))
         # one compiled call per step: the QP and the step's summary (_summary)
         self.assembler = Assembler(robot, self.tasks, self.limits, self.dt, self._summary)
+        summary = self.assembler.extra  # views, refilled by every build
+        self._clearance, self._past, self._task_error = summary.clearance, summary.past, summary.task_error
         self._d_safe = [lim.d_safe for lim in self.obstacle_limits]
         self.last = StepInfo()
 
@@ -254,7 +256,6 @@ class Controller:
                 raise InputError("target: this controller has no FrameTask")
             self.frame_task.set_target(target, twist)
         qp = self.assembler.build(q)
-        summary = self.assembler.extra
         t1 = time.perf_counter()
         sol = self.solver.solve(qp)
         exact = self.fallback or self.solver
@@ -285,7 +286,7 @@ class Controller:
                 raise SolverError(f"{self.solver.name}: no solution ({sol.status})")
             v = np.zeros(self.robot.dof)
             info.status = "failed"
-        clearances, past, info.task_error = summary.clearance.tolist(), summary.past[0], float(summary.task_error[0])
+        clearances, past, info.task_error = self._clearance.tolist(), self._past[0], float(self._task_error[0])
         if clearances:
             info.min_clearance = min(clearances)
         if info.status == "ok":

@@ -358,7 +358,8 @@ class SymState:
         blocks = self._owned.get(owner.token)
         if blocks is None:
             layout = owner.param_layout(self.n)
-            sym = self.parameter(layout.size, lambda state: layout.numbers(**owner.param_values()))
+            pack = layout.packer()
+            sym = self.parameter(layout.size, lambda state: pack(owner.param_values()))
             blocks = self._owned[owner.token] = layout.symbols(sym)
         return blocks
 

@@ -8,7 +8,7 @@ back numpy views (or CasADi symbols) by name. No other code computes an offset i
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from typing import Any, Union
 
 import casadi as ca
@@ -95,13 +95,24 @@ class Layout:
         return [column[i] for i in range(column.numel())]
 
     def numbers(self, **parts: Any) -> np.ndarray:
-        """The numeric buffer (size,) of the parts (arrays or numbers), in order."""
+        """A new numeric buffer (size,) of the parts (arrays or numbers of the blocks' shapes)."""
         if set(parts) != set(self._shapes):
             raise ValueError(f"numbers: expected the blocks {list(self._shapes)}, got {list(parts)}")
-        out = np.empty(self.size)
-        for name, span in self._spans.items():
-            out[span] = np.ravel(np.asarray(parts[name], dtype=float))
-        return out
+        return self.packer()(parts).copy()
+
+    def packer(self) -> Callable[[Mapping[str, Any]], np.ndarray]:
+        """A function writing parts by name (arrays or numbers of the blocks' shapes) into one buffer of this
+        layout and returning it: the same buffer every call, overwritten by the next (a control loop's
+        parameters, packed without allocating)."""
+        buffer = np.empty(self.size)
+        views = [(name, buffer[span].reshape(self.shape(name))) for name, span in self._spans.items()]
+
+        def pack(parts: Mapping[str, Any]) -> np.ndarray:
+            for name, view in views:
+                view[...] = parts[name]
+            return buffer
+
+        return pack
 
     # ---- reading --------------------------------------------------------------------------
 
