@@ -24,10 +24,12 @@ if TYPE_CHECKING:
         SolverError,
         UnknownRobotError,
         UnreachableError,
+        ViewerError,
     )
     from qpik.nlp import BestResult, solve_best, solve_ik
     from qpik.planning import Plan, plan_self_motion
     from qpik.robots import CATALOG, DHChain, Joint, LinkCapsule, Robot, SerialChain, load_robot
+    from qpik.scene import Scene
     from qpik.viewer import view
 
 # every name is imported on first use (qpik.lazy): `import qpik` loads none of the heavy dependencies
@@ -47,10 +49,12 @@ __getattr__, __dir__ = exports(
             "SolverError",
             "UnknownRobotError",
             "UnreachableError",
+            "ViewerError",
         ),
         "qpik.nlp": ("BestResult", "solve_best", "solve_ik"),
         "qpik.planning": ("Plan", "plan_self_motion"),
         "qpik.robots": ("CATALOG", "DHChain", "Joint", "LinkCapsule", "Robot", "SerialChain", "load_robot"),
+        "qpik.scene": ("Scene",),
         "qpik.viewer": ("view",),
     },
 )
@@ -75,11 +79,13 @@ __all__ = [
     "RenderUnavailable",
     "Robot",
     "RotationError",
+    "Scene",
     "SerialChain",
     "SolverError",
     "StepInfo",
     "UnknownRobotError",
     "UnreachableError",
+    "ViewerError",
     "feasible_intervals",
     "ik",
     "load_robot",

@@ -49,3 +49,7 @@ class SolverError(QpikError):
 
 class RenderUnavailable(QpikError):  # noqa: N818 (the name says what the caller catches)
     """No OpenGL context could be made for offscreen rendering (message: one line)."""
+
+
+class ViewerError(QpikError):
+    """The viewer cannot run: viser is not installed, the port is taken, or no headless browser for a picture."""

@@ -404,6 +404,9 @@ CASES = [
          Arg(st.just(None), st.sampled_from(["nope", 3, object(), "margin"])),
          Arg(st.sampled_from([SHAPES[:1], []]), OBSTACLES.bad),
          number_arg(0.2, 0.0), Arg(st.sampled_from(["forbid", "fewest"]), st.sampled_from(["", None, 1])))),
+    Case("Scene.of", lambda r, obs, d, obj, q: qpik.Scene.of(r, obs, d_safe=d, objective=obj, q_ref=q).clearance(
+         r.q_home[None]), (robot_arg(), OBSTACLES, number_arg(0.02), Arg(st.sampled_from(["margin", "distance"]),
+         st.sampled_from(["nope", 3, None])), Arg(st.just(None), _poisoned(PANDA.q_home)))),
     Case("simulate", _simulate, (Arg(st.sampled_from([IIWA, PANDA]), st.sampled_from(["iiwa14", None, "<mujoco/>"])),
          q_arg(IIWA), OBSTACLES, number_arg(0.02), number_arg(0.01, 0.0),
          Arg(st.just(None), _bad_pose(IIWA.fk(IIWA.q_home))))),
@@ -490,9 +493,10 @@ def test_every_public_name_is_fuzzed_or_a_type():
     (errors, records, bases): a new public function has to be added here."""
     covered = " ".join(c.name for c in CASES + SLOW_CASES)
     plain = {"QpikError", "InputError", "RotationError", "UnknownRobotError", "NoClosedFormError", "ProblemFileError",
-             "UnreachableError", "InfeasibleError", "SolverError", "RenderUnavailable", "StepInfo", "LinkCapsule",
-             "Robot", "IKSolutions", "FeasibleIntervals", "CATALOG", "Shape", "Distances", "PairDistance", "QP",
-             "Solution", "Solver", "Task", "Limit", "BoxLimit", "RowLimit", "CLIK", "Plan"}  # fmt: skip
+             "UnreachableError", "InfeasibleError", "SolverError", "RenderUnavailable", "ViewerError", "StepInfo",
+             "LinkCapsule", "Robot", "IKSolutions", "FeasibleIntervals", "CATALOG", "Shape", "Distances",
+             "PairDistance", "QP", "Solution", "Solver", "Task", "Limit", "BoxLimit", "RowLimit", "CLIK",
+             "Plan"}  # fmt: skip
     names = {*qpik.__all__, *geometry.__all__, *control.__all__}
     tasks_and_limits = {"FrameTask", "PostureTask", "ManipulabilityTask", "DampingTask", "ConfigurationLimit",
                         "VelocityLimit", "ObstacleLimit", "PseudoInverseCLIK", "DampedLeastSquares",

@@ -67,7 +67,7 @@ from qpik import symbolic as sy
 from qpik.analytic import trig
 from qpik.analytic.intervals import ArmSetsCall, Assembler, FeasibleIntervals, Interval, NativeSets, shrunk_limits, wrap
 from qpik.analytic.intervals import c_source as intervals_source
-from qpik.analytic.srs import arm_setup, branch_signs
+from qpik.analytic.srs_geometry import arm_setup, branch_signs
 from qpik.compiled import Compiled, Kernel, NativeFunction, python_library
 from qpik.symbolic import Scalar
 

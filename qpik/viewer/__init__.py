@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from typing import TYPE_CHECKING
 
-from qpik.errors import QpikError
+from qpik.errors import ViewerError
 
 if TYPE_CHECKING:
     import numpy as np
@@ -19,10 +19,6 @@ if TYPE_CHECKING:
     from qpik.viewer.server import Viewer
 
 VIEW_EXTRA = "viser is not installed: pip install 'qpik[view]'"
-
-
-class ViewerError(QpikError):
-    """The viewer cannot run: viser is not installed, the port is taken, or no headless browser for a picture."""
 
 
 def view(

@@ -18,8 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from qpik.errors import InputError
-from qpik.viewer import ViewerError
+from qpik.errors import InputError, ViewerError
 
 if TYPE_CHECKING:
     from qpik.viewer.server import Viewer

@@ -15,33 +15,8 @@ Every solver returns a :class:`Solution` and never raises on a failed solve
 
 from __future__ import annotations
 
-from abc import ABC, abstractmethod
-from dataclasses import dataclass
-
-import numpy as np
-
-from qpik.control.qp import QP
+from qpik.control.solvers.base import Solution, Solver
 from qpik.errors import SolverError
-
-
-@dataclass
-class Solution:
-    """Result of one QP solve: ``x`` (N,) if ``found``, a solver ``status`` string, iterations."""
-
-    x: np.ndarray | None
-    found: bool
-    status: str
-    iterations: int = 0
-
-
-class Solver(ABC):
-    """A QP solver; one instance per controller (it may keep state between steps)."""
-
-    name: str = ""
-
-    @abstractmethod
-    def solve(self, qp: QP) -> Solution:
-        """Solve ``qp``; never raises on numerical failure (``found=False``)."""
 
 
 def available() -> tuple[str, ...]:

@@ -19,7 +19,7 @@ import daqp
 import numpy as np
 
 from qpik.control.qp import QP
-from qpik.control.solvers import Solution, Solver
+from qpik.control.solvers.base import Solution, Solver
 
 STATUS = {
     1: "solved",

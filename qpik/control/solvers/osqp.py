@@ -53,7 +53,7 @@ from scipy import sparse
 from scipy.linalg import lapack
 
 from qpik.control.qp import QP
-from qpik.control.solvers import Solution, Solver
+from qpik.control.solvers.base import Solution, Solver
 from qpik.fastcall import build
 
 DEFAULTS: dict[str, object] = {

@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from qpik.control.qp import QP
-from qpik.control.solvers import Solution, Solver
+from qpik.control.solvers.base import Solution, Solver
 from qpik.errors import SolverError
 
 try:

@@ -16,7 +16,7 @@ import qpsolvers
 from scipy import sparse
 
 from qpik.control.qp import QP
-from qpik.control.solvers import Solution, Solver
+from qpik.control.solvers.base import Solution, Solver
 
 
 class QpsolversSolver(Solver):
