@@ -1,7 +1,7 @@
 """Fast numeric evaluation of CasADi functions.
 
-A CasADi ``Function`` called from Python spends ~25 µs converting arguments;
-its ``buffer()`` interface evaluates the same program in a few µs by reading
+A CasADi ``Function`` called from Python converts its arguments at every call;
+its ``buffer()`` interface evaluates the same program by reading
 and writing preallocated numpy arrays in place. :class:`Compiled` wraps that:
 the single-configuration paths of qpik (FK + Jacobian, the closed-form IK,
 capsule distances) are CasADi functions traced from the same source as the

@@ -494,9 +494,8 @@ class Manipulability(Objective):
     ``translational``: of the rows :math:`J_v` (m) only. Infinite at a singular configuration.
 
     Not :attr:`~Objective.bounded`: the Taylor model of m through the QR of J is finite only on
-    δ/ψ ranges narrower than about 1e-3 rad (measured on iiwa14: infinite at 1e-2, within 1.5e-4 of
-    the minimum at 1e-4), so a certificate would examine some 10⁴ cells per pose; answers with it are
-    the search's, not certified.
+    very narrow δ/ψ ranges (the design notes give the figures); answers with it are the search's,
+    not certified.
     """
 
     name = "manipulability"

@@ -16,10 +16,8 @@ Its inverse, the parameter and branch of a configuration, is written once too
 (:meth:`AnalyticSolver.parameter_expr`): numpy over a batch, compiled for one
 configuration (:meth:`AnalyticSolver.parameter`).
 
-Each evaluation is the fastest one measured for its use: per call, compiled
-code costs ~3 µs of overhead and numpy ~1 ms; per pose, numpy (vectorised
-across poses) beats the compiled code mapped over poses. The tests check that
-all of them agree.
+One pose goes through compiled code and a batch of poses through numpy vectorised across
+poses (the design notes give the measurements). The tests check that all of them agree.
 """
 
 from __future__ import annotations
@@ -316,7 +314,7 @@ class AnalyticSolver(ABC):
         """Redundancy parameter (rad) and branch id of configurations q (N, n): ((N,), (N,) int).
 
         :meth:`parameter_expr` over numpy columns; one configuration (N = 1) through its
-        compiled form (numpy's per-call overhead would cost ~50 µs there).
+        compiled form.
         """
         q = np.asarray(q, dtype=float)
         if len(q) == 1:
@@ -336,10 +334,7 @@ class AnalyticSolver(ABC):
     def solve_batch(self, T: np.ndarray, param: np.ndarray) -> Solved:
         """Poses (N, 4, 4), parameters (N,): q (N, B, n), valid, singular, within_limits (N, B) bool.
 
-        :meth:`branches` on numpy arrays of N poses: for large N this beats the
-        compiled code mapped over poses (about 1.0 against 2.1 µs per pose for
-        nammoto7's 16 branches, 0.6 against 0.9 for iiwa14), since numpy's
-        loops are vectorised across poses.
+        :meth:`branches` on numpy arrays of N poses, vectorised across poses.
         """
         N = T.shape[0]
         R, p = sy.frame_of_batch(T)

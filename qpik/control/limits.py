@@ -207,8 +207,7 @@ class ObstacleLimit(RowLimit):
       :math:`h_e = n^T(x_e - p_{obs}) - r`. With one witness point, a link sliding along a face
       (its axis nearly parallel to it) has its witness jump along the axis whenever the tilt
       changes sign, and the row of the old witness does not see the part that approaches
-      next: a first-order error (measured: 0.1–0.9 mm in one step, the wrist joints at their
-      velocity limits, dt = 2 ms). The obstacle lies behind
+      next: a first-order error. The obstacle lies behind
       the plane, and the capsule's distance to the plane is :math:`\min_e h_e` (an affine
       function along the axis is least at an end), so :math:`d_{k+1} \ge \min_e h_e(q_{k+1})`
       whatever feature of the obstacle is nearest next; the witness row itself is a convex

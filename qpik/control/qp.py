@@ -12,9 +12,7 @@ active-set solvers, as mink's default damping), the box from the
 :class:`~qpik.control.limits.BoxLimit` s and the rows from the
 :class:`~qpik.control.limits.RowLimit` s, which see the final box (a row limit may
 relax a row that the box makes unreachable, see
-:class:`~qpik.control.limits.ObstacleLimit`). No slack variable: a shared slack with an
-exact penalty was tried and measured to slow OSQP from ~40 to ~450–2500 ADMM iterations
-per step (the penalty dominates the problem's scaling).
+:class:`~qpik.control.limits.ObstacleLimit`). No slack variable (the design notes say why).
 
 Shapes are fixed for a controller (the rows of a limit that does not apply this step
 are ``−∞ ≤ · ≤ +∞``), so a persistent solver keeps its sparsity pattern.

@@ -38,8 +38,7 @@ of configurations) goes through numpy, vectorised over capsules × obstacles of
 each kernel family (a sphere is the segment–segment kernel with a point). An
 :class:`ObstacleSet` packed once and called with one (C, 2, 3) set of segments
 goes through a CasADi function traced from the same kernels and evaluated via
-:class:`qpik.compiled.Compiled` — the 1 kHz path (numpy's per-call overhead of
-~1 µs per operation dominates at this size).
+:class:`qpik.compiled.Compiled` — the 1 kHz path.
 """
 
 from __future__ import annotations

@@ -18,27 +18,19 @@ P and Ā hardly change, so the guess is almost always the same.
 A step first tries the previous step's answer as the guess: :func:`polish` from its solution ``x`` and
 the multipliers ``y`` of the last ADMM run (exact from any guess, see below). Between two control steps
 the active set rarely changes, and when it does the dual steps of :func:`polish` complete it, so most
-steps need no ADMM run at all (status :data:`REUSED`, 0 iterations); measured in the controller bench's
-scene where four obstacle rows bind (``qpik bench controller``), ADMM took 45 % of a step's time there
-(~45 iterations from its warm start), :func:`polish` from its guess ~8 µs. Only when that answer is not
+steps need no ADMM run at all (status :data:`REUSED`, 0 iterations). Only when that answer is not
 found (more than :data:`MAX_POLISH_STEPS` steps away, or no QP solution) does the step run OSQP:
 
 One ADMM run and one polish, each with a hard bound on its work: ADMM runs
 to ``eps_abs = eps_rel = 1e-5`` (enough to identify the active set), checking termination
-every 5 iterations (OSQP's default 25 made every warm-started step run 25 iterations), at
-most ``max_iter`` = 200 iterations; :func:`polish` then solves the KKT system of the
-guessed active set, and, if the guess was not exactly right, completes it with at most
-:data:`MAX_POLISH_STEPS` dual active-set steps (Goldfarb–Idnani) — the answer agrees with
-daqp to ~1e-12. No constraint guess is ever accepted unchecked: the answer meets every
-bound and every multiplier has its sign, else the step reports no solution (the
-controller then falls back to DAQP). Measured on the controller bench and the QPs of
-``tests/test_solvers.py``: ADMM's guess is right in 99.7 % / 79 % of the steps; the
-others, degenerate QPs (duplicate damper rows, most joints at their velocity bound)
-where ADMM crawls for thousands of iterations after it has nearly found the active set,
-need at most 8 steps (6 are not enough). The former fallback (re-running ADMM with 1e-3 × the tolerances
-for up to 4000 iterations, ~4 ms) is gone. OSQP's own ``polishing`` is off: version
-1.1.3 prints "Polishing not needed" to stdout, regardless of ``verbose``, on every solve
-where no constraint is active, which is most control steps.
+every 5 iterations, at most ``max_iter`` = 200 iterations; :func:`polish` then solves the KKT system of
+the guessed active set, and, if the guess was not exactly right, completes it with at most
+:data:`MAX_POLISH_STEPS` dual active-set steps (Goldfarb–Idnani). No constraint guess is ever accepted
+unchecked: the answer meets every bound and every multiplier has its sign, else the step reports no
+solution (the controller then falls back to DAQP). OSQP's own ``polishing`` is off.
+
+The extension object under ``osqp.OSQP`` is called directly; why, and the measurements behind these
+choices, are in the design notes (docs/design-notes.md).
 """
 
 from __future__ import annotations
@@ -68,7 +60,7 @@ DEFAULTS: dict[str, object] = {
 
 
 MAX_POLISH_STEPS = 16
-"""Bound on the dual active-set steps (additions and removals) of :func:`polish`; at most 8 were needed, see above."""
+"""Bound on the dual active-set steps (additions and removals) of :func:`polish`."""
 POLISH_TOL = 1e-9
 """Relative tolerance of :func:`polish`'s final checks (bounds and multiplier signs)."""
 REFRESH_EVERY = 10
@@ -85,9 +77,7 @@ class OSQPSolver(Solver):
     """One OSQP workspace, reused for every step of a controller.
 
     Each step calls the extension object under ``osqp.OSQP`` directly (``update_data_vec``,
-    ``update_data_mat``, ``solve``): measured on the controller bench, the public wrappers
-    spent ~15 µs of Python per step (clipping bounds, derivative caches, building an info
-    namespace) around ~30 µs of OSQP work.
+    ``update_data_mat``, ``solve``): the public wrappers' Python costs more than OSQP's work here.
     """
 
     name = "osqp"
