@@ -25,7 +25,6 @@ import casadi as ca
 import numpy as np
 
 from qpik.analytic import solver_for
-from qpik.analytic.intervals import wrap
 from qpik.compiled import Compiled, RowMap
 from qpik.enclosure import taylor_function
 from qpik.robots.robot import Robot
@@ -136,11 +135,6 @@ class SelfMotion:
         if b < self.searched:
             return None
         return b - self.searched, np.pi
-
-    def shifted(self, b: int, psi: np.ndarray) -> np.ndarray:
-        """The parameters (rad, any shape) of branch row b's configurations found on its searched row at ``psi``."""
-        m = self.mirror(b)
-        return np.asarray(psi, float) if m is None else wrap(psi - m[1])
 
 
 def _switch(name: str, rows: list[ca.Function]) -> ca.Function:

@@ -104,10 +104,6 @@ class JointMap:
         """q (..., n) of the robot -> the table's angles (not wrapped)."""
         return self.sign * q + self.shift
 
-    def from_table(self, q_table: np.ndarray) -> np.ndarray:
-        """The table's angles (..., n) -> the robot's (not wrapped)."""
-        return self.sign * (q_table - self.shift)
-
 
 @dataclass(frozen=True)
 class Canonical:
