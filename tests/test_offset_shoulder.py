@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 import qpik
 from qpik.analytic.api import solver_for
 from qpik.analytic.intervals import shrunk_limits, wrap
+from qpik.analytic.offset_shoulder_intervals import DeltaIntervals
 from qpik.problems import load as load_problem
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -261,7 +262,7 @@ LISTS_IN_PYTHON = _lists_in_python()
 def test_one_c_call_agrees_with_its_steps(seed):
     """The C path in one call (qpik_delta_sets; its lists built by the compiled extension or in Python) gives the
     sets of its steps taken one by one: :meth:`DeltaIntervals.breakpoints`, then the Assembler; with a margin too."""
-    native = SOLVER._intervals
+    native = DeltaIntervals(SOLVER)
     if native._fixed.native is None:
         pytest.skip("no C compiler: the numpy path only (test_feasible_intervals_exact_without_a_c_compiler)")
     limits = shrunk_limits(ROBOT.q_min, ROBOT.q_max, 0.3)

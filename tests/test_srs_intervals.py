@@ -16,6 +16,7 @@ from hypothesis import given, settings
 
 import qpik
 from qpik.analytic.api import solver_for
+from qpik.analytic.srs_intervals import PsiIntervals
 
 ROBOT = qpik.load_robot("iiwa14")
 SOLVER = solver_for(ROBOT)
@@ -288,7 +289,7 @@ def test_one_c_call_agrees_with_the_numpy_path(without_compiler):
     near a limit, singular, unreachable), margin 0 and a random margin in (0, 1.1) (above 1 every set is empty)."""
     rng = np.random.default_rng(11)
     for robot, numpy_path in zip((ROBOT, ASYMMETRIC), without_compiler):
-        c_path = solver_for(robot)._intervals
+        c_path = PsiIntervals(solver_for(robot))
         if c_path._fixed.native is None:
             pytest.skip("no C compiler: the numpy path only (test_intervals_exact_without_a_c_compiler)")
         poses = np.concatenate([poses_for(robot, 12, 120), singular_poses(robot, 13, 20)])

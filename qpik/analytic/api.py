@@ -15,10 +15,11 @@ from qpik.robots.robot import Robot, as_robot
 from qpik.validate import finite_array, joint_vector, number
 from qpik.validate import pose as check_pose
 
-_SOLVERS = {
-    "offset_shoulder": ("qpik.analytic.offset_shoulder", "OffsetShoulderSolver"),
-    "srs": ("qpik.analytic.srs", "SRSSolver"),
-}
+_SOLVERS = {  # family -> (solver, its feasible sets), each as (module, class)
+    "offset_shoulder": (("qpik.analytic.offset_shoulder", "OffsetShoulderSolver"),
+                        ("qpik.analytic.offset_shoulder_intervals", "DeltaIntervals")),
+    "srs": (("qpik.analytic.srs", "SRSSolver"), ("qpik.analytic.srs_intervals", "PsiIntervals")),
+}  # fmt: skip
 SYMBOL = {"delta": "δ", "psi": "ψ"}
 """The Greek letter of each redundancy parameter name (:attr:`IKSolutions.param_name`)."""
 
@@ -42,8 +43,9 @@ def _new_solver(robot: Robot) -> AnalyticSolver:
     if robot.closed_form not in _SOLVERS:
         why = robot.notes if robot.notes.startswith("no closed form") else "only offset-shoulder and S-R-S arms do"
         raise NoClosedFormError(f"{robot.name} has no closed-form IK ({why}); use qpik.solve_ik instead")
-    module, cls = _SOLVERS[robot.closed_form]
-    return getattr(importlib.import_module(module), cls)(robot)
+    (module, cls), (sets_module, sets) = _SOLVERS[robot.closed_form]
+    make_sets = getattr(importlib.import_module(sets_module), sets)
+    return getattr(importlib.import_module(module), cls)(robot, sets=make_sets)
 
 
 @dataclass(slots=True)

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from functools import cache
 from itertools import accumulate, pairwise
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
@@ -28,7 +28,7 @@ from qpik.fastcall import extension
 from qpik.validate import finite_array, number
 
 if TYPE_CHECKING:
-    from qpik.analytic.solver import AnalyticSolver
+    from qpik.robots.robot import Robot
 
 TWO_PI = 2.0 * np.pi
 SAME = 1e-9
@@ -101,6 +101,26 @@ def wrap(x: np.ndarray | float) -> np.ndarray:
     return sy.NUMPY.wrap(np.asarray(x, dtype=float))
 
 
+class Flagging(Protocol):
+    """What the breakpoint sets read of a closed-form solver (:class:`~qpik.analytic.solver.AnalyticSolver`)."""
+
+    robot: Robot
+
+    def checked(self, rows: int) -> Compiled: ...
+
+    def flags_many(
+        self, T: np.ndarray, params: np.ndarray, rows: int, limits: tuple[np.ndarray, np.ndarray] | None = None
+    ) -> np.ndarray: ...
+
+
+class ParameterSets(Protocol):
+    """The exact feasible sets of one closed form's parameter (``DeltaIntervals``, ``PsiIntervals``)."""
+
+    def __call__(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals: ...
+
+    def native_sets(self) -> NativeSets | None: ...
+
+
 class Assembler:
     """Feasible sets and singular values of a solver's first ``rows`` branches, from breakpoints.
 
@@ -121,7 +141,7 @@ class Assembler:
         shift: also return the sets moved by π.
     """
 
-    def __init__(self, solver: AnalyticSolver, rows: int, shift: bool = False):
+    def __init__(self, solver: Flagging, rows: int, shift: bool = False):
         self._solver, self.rows, self.shift = solver, rows, shift
         limits = (np.asarray(solver.robot.q_min, float), np.asarray(solver.robot.q_max, float))
         self._native = _NativeSets.for_function(solver.checked(rows), limits, rows, shift)

@@ -61,14 +61,13 @@ the branch does not reach the pose; its row is then the clamped, finite solution
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from qpik import symbolic as sy
-from qpik.analytic.intervals import FeasibleIntervals, NativeSets
 from qpik.analytic.solver import AnalyticSolver, Branches
 from qpik.analytic.trig import EPS, angle, flip, solve_cos_sin_cs
 from qpik.errors import NoClosedFormError
@@ -76,7 +75,8 @@ from qpik.robots.recognize import PATTERNS
 from qpik.symbolic import Mat, Ops, Scalar, Vec
 
 if TYPE_CHECKING:
-    from qpik.analytic.offset_shoulder_intervals import DeltaIntervals
+    from qpik.analytic.intervals import ParameterSets
+    from qpik.robots.robot import Robot
 
 PI = np.pi
 SINGULAR_TOL = 1e-7
@@ -130,8 +130,8 @@ class OffsetShoulderSolver(AnalyticSolver):
     param_name = "delta"
     branch_ids = tuple(range(1, 17))
 
-    def __init__(self, robot):
-        super().__init__(robot)
+    def __init__(self, robot: Robot, sets: Callable[[AnalyticSolver], ParameterSets] | None = None):
+        super().__init__(robot, sets)
         self.geometry = OffsetShoulderGeometry.of(self.table)
         base, tool = np.asarray(self.table.base, float), np.asarray(self.table.tool, float)
         self._base_inv = sy.frame_of(np.linalg.inv(base))  # identity folds away
@@ -256,23 +256,3 @@ class OffsetShoulderSolver(AnalyticSolver):
         arm = ops.where(c3, ops.where(c4, 0.0, 2.0), ops.where(c4, 3.0, 1.0))
         branch = 8.0 * second + 2.0 * arm + ops.where(q[5] < 0, 1.0, 0.0) + 1.0
         return delta, branch
-
-    # ---- feasible δ ---------------------------------------------------------
-
-    @cached_property
-    def _intervals(self) -> DeltaIntervals:
-        from qpik.analytic.offset_shoulder_intervals import DeltaIntervals  # builds on this module
-
-        return DeltaIntervals(self)
-
-    def feasible_intervals(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
-        """Per branch, the exact δ set (rad) where the branch is valid and every joint within the limits shrunk by
-        ``margin`` (>= 0; 0: the robot's limits; :func:`~qpik.analytic.intervals.shrunk_limits`).
-
-        See :mod:`qpik.analytic.offset_shoulder_intervals` for the breakpoint equations. ``T``: (4, 4), world frame.
-        """
-        return self._intervals(T, margin)
-
-    def native_sets(self) -> NativeSets | None:
-        """:meth:`feasible_intervals` under limits given at run time as one C call; None without a compiler."""
-        return self._intervals.native_sets()

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import threading
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 from typing import TYPE_CHECKING, NamedTuple
@@ -33,6 +34,7 @@ import numpy as np
 
 from qpik import symbolic as sy
 from qpik.compiled import Compiled
+from qpik.errors import NoClosedFormError
 from qpik.symbolic import Mat, Ops, Scalar, Vec
 
 SWEEP_CHUNKS = (32, 8)
@@ -40,7 +42,7 @@ SWEEP_CHUNKS = (32, 8)
 more than 3/4 of it would be used, then the small one (so that 38 parameters cost 40 evaluations, not 64)."""
 
 if TYPE_CHECKING:
-    from qpik.analytic.intervals import FeasibleIntervals, NativeSets
+    from qpik.analytic.intervals import FeasibleIntervals, NativeSets, ParameterSets
     from qpik.robots.robot import Robot
 
 
@@ -76,8 +78,10 @@ class AnalyticSolver(ABC):
 
     Subclasses set ``kind`` (the ``Robot.closed_form`` value), ``param_name``
     (``"delta"`` or ``"psi"``), ``branch_ids`` (the public number of each
-    branch, in output order) and implement :meth:`table_branches`,
-    :meth:`table_parameter_expr` and :meth:`feasible_intervals`.
+    branch, in output order) and implement :meth:`table_branches` and
+    :meth:`table_parameter_expr`; the exact feasible sets of the parameter come from ``sets``, built from
+    the solver on first use (:class:`~qpik.analytic.intervals.ParameterSets`: ``DeltaIntervals``,
+    ``PsiIntervals``), so the solver does not depend on the module that computes them.
 
     They are written for the catalog's DH table of their family (:attr:`table`: the
     robot's chain, or for a loaded arm the table found in it, ``robot.canonical``).
@@ -93,8 +97,9 @@ class AnalyticSolver(ABC):
     param_name: str
     branch_ids: tuple[int, ...]
 
-    def __init__(self, robot: Robot):
+    def __init__(self, robot: Robot, sets: Callable[[AnalyticSolver], ParameterSets] | None = None):
         self.robot = robot
+        self._make_sets = sets
         canonical = robot.canonical
         self.table = robot.chain if canonical is None else canonical.table
         self.joint_map = None if canonical is None or canonical.joints.identity else canonical.joints
@@ -171,19 +176,27 @@ class AnalyticSolver(ABC):
             out = [float(sy.NUMPY.wrap(np.array(x))) for x in out]
         return out
 
-    @abstractmethod
+    @cached_property
+    def _sets(self) -> ParameterSets:
+        if self._make_sets is None:
+            raise NoClosedFormError(f"{type(self).__name__} was made without its feasible sets")
+        return self._make_sets(self)
+
     def feasible_intervals(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
         r"""Per branch, the exact parameter set where every joint j lies in the limits shrunk by ``margin``,
         :math:`[l_j + m\rho_j,\ u_j - m\rho_j]`, :math:`\rho_j = (u_j - l_j)/2`
         (:func:`qpik.analytic.intervals.shrunk_limits`): the parameters whose joint-limit margin
         (:class:`qpik.objectives.JointLimitMargin`) is at least ``margin``. ``T``: (4, 4) pose, world frame;
-        ``margin`` >= 0 (0: the joint limits themselves; above 1 every set is empty)."""
+        ``margin`` >= 0 (0: the joint limits themselves; above 1 every set is empty). The breakpoint
+        equations are those of the family's sets module (:mod:`qpik.analytic.offset_shoulder_intervals`,
+        :mod:`qpik.analytic.srs_intervals`)."""
+        return self._sets(T, margin)
 
     def native_sets(self) -> NativeSets | None:
         """:meth:`feasible_intervals` under limits given at run time as one C call
         (:class:`~qpik.analytic.intervals.NativeSets`), for C code that calls it in a loop; None where there is no
         such call (no compiler)."""
-        return None
+        return self._sets.native_sets()
 
     # ---- evaluations -----------------------------------------------------------
 

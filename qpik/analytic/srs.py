@@ -89,18 +89,15 @@ clamped so that q stays finite (1 ∓ cos θ4 at 0).
 
 from __future__ import annotations
 
-from functools import cached_property
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from qpik import symbolic as sy
-from qpik.analytic.intervals import FeasibleIntervals, NativeSets
 from qpik.analytic.solver import AnalyticSolver, Branches
 from qpik.symbolic import Mat, Ops, Scalar, Vec
 
 if TYPE_CHECKING:
-    from qpik.analytic.srs_intervals import PsiIntervals
+    from qpik.analytic.intervals import ParameterSets
     from qpik.robots.robot import Robot
 
 from qpik.analytic.srs_geometry import (
@@ -126,8 +123,8 @@ class SRSSolver(AnalyticSolver):
     param_name = "psi"
     branch_ids = tuple(range(8))
 
-    def __init__(self, robot: Robot):
-        super().__init__(robot)
+    def __init__(self, robot: Robot, sets: Callable[[AnalyticSolver], ParameterSets] | None = None):
+        super().__init__(robot, sets)
         self.geometry = SRSGeometry.from_chain(self.table)
 
     def table_branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
@@ -179,22 +176,3 @@ class SRSSolver(AnalyticSolver):
         psi = ops.wrap(ops.atan2(sin_psi, sy.dot(n0, n)))
         branch = sum(ops.where(q[j] < 0, float(w), 0.0) for j, w in ((1, 4), (3, 2), (5, 1)))
         return psi, branch
-
-    @cached_property
-    def _intervals(self) -> PsiIntervals:
-        from qpik.analytic.srs_intervals import PsiIntervals  # srs_intervals builds on this module
-
-        return PsiIntervals(self)
-
-    def feasible_intervals(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
-        """Per branch, the exact ψ set (union of closed intervals) keeping every joint within limits.
-
-        See :class:`qpik.analytic.srs_intervals.PsiIntervals`. ``T``: (4, 4) pose, world frame. ``margin`` >= 0:
-        every joint within its limits shrunk by it (:func:`qpik.analytic.intervals.shrunk_limits`) instead.
-        """
-        return self._intervals(T, margin)
-
-    def native_sets(self) -> NativeSets | None:
-        """:meth:`feasible_intervals` under limits given at run time as one C call (``qpik_psi_sets``,
-        :class:`~qpik.analytic.intervals.NativeSets`: rows 0–7, the branches); None without a compiler."""
-        return self._intervals.native_sets()
