@@ -14,14 +14,11 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import numpy as np
 
 from qpik.errors import InputError, ViewerError
-
-if TYPE_CHECKING:
-    from qpik.viewer.server import Viewer
 
 EXECUTABLES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 ARGS = (
@@ -35,6 +32,13 @@ CONNECT_TIMEOUT = 30.0  # s: the page's websocket connects to the server
 SETTLE_TIMEOUT = 20.0  # s: the page stops changing
 SETTLE_INTERVAL = 0.4  # s between two pictures compared
 _local = threading.local()  # .open: the browsers of this thread's enclosing browser() contexts
+
+
+class Page(Protocol):
+    """What the browser reads of a :class:`~qpik.viewer.server.Viewer`: its address and its viser server."""
+
+    url: str
+    server: Any
 
 
 def find_browser() -> str:
@@ -84,7 +88,7 @@ def browser() -> Iterator[object]:
             chromium.close()
 
 
-def open_page(chromium, viewer: Viewer, size: tuple[int, int], messages: list | None = None):
+def open_page(chromium, viewer: Page, size: tuple[int, int], messages: list | None = None):
     """A page of ``viewer`` in ``chromium``, connected and with its scene drawn; console messages and page errors
     are appended to ``messages`` as ``(type, text)``."""
     known = set(viewer.server.get_clients())
@@ -126,7 +130,7 @@ def _picture(page) -> np.ndarray:
     return np.asarray(Image.open(io.BytesIO(page.screenshot())).convert("RGB"))
 
 
-def screenshot(viewer: Viewer, path: str | os.PathLike, size: tuple[int, int] = (1280, 800)) -> np.ndarray:
+def screenshot(viewer: Page, path: str | os.PathLike, size: tuple[int, int] = (1280, 800)) -> np.ndarray:
     """Write a PNG of ``viewer``'s page at ``size`` (width, height) px to ``path``; returns the picture (H, W, 3).
 
     Raises:

@@ -63,7 +63,6 @@ def feasible_chart(
     sym = escape(symbol)
     for value, text in ((-math.pi, "−π"), (0.0, f"{sym} = 0"), (math.pi, "π")):
         anchor = "start" if value < 0 else "end" if value > 0 else "middle"
-        out.append(f'<text x="{x_of(value):.2f}" y="{bottom + 10}" text-anchor="{anchor}"'
-                   f' fill="#868e96">{text}</text>')
+        out.append(f'<text x="{x_of(value):.2f}" y="{bottom + 10}" text-anchor="{anchor}" fill="#868e96">{text}</text>')
     out.append("</svg>")
     return "".join(out)

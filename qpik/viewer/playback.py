@@ -60,8 +60,9 @@ def as_track(play: Plan | SimLog | Track | str | os.PathLike, robot: Robot) -> T
     elif isinstance(play, str | os.PathLike):
         track = _plan_file(Path(play))
     else:
-        raise InputError(f"play: expected a qpik.Plan, a qpik.sim.SimLog or a plan file (.npz), "
-                         f"got {type(play).__name__}")
+        raise InputError(
+            f"play: expected a qpik.Plan, a qpik.sim.SimLog or a plan file (.npz), got {type(play).__name__}"
+        )
     if track.q.ndim != 2 or track.q.shape[1] != robot.dof or len(track.q) == 0:
         raise InputError(f"play ({track.label}): expected configurations (K, {robot.dof}) of {robot.name}, "
                          f"got shape {track.q.shape}")  # fmt: skip
