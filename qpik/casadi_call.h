@@ -1,4 +1,4 @@
-/* Calling CasADi-generated C from qpik's C code (qpik.compiled.call_header prepends this to its sources). */
+/* Calling CasADi-generated C from qpik's C code (qpik.build.call_header prepends this to its sources). */
 
 typedef long long casadi_int;
 typedef int (*casadi_fn)(const double **arg, double **res, casadi_int *iw, double *w, int mem);

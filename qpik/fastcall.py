@@ -10,7 +10,7 @@ inputs in C (``pose_ok``, ``vector_ok``: :mod:`qpik.validate`) and turn the arra
 C code into Python lists (``circle_lists``: :class:`qpik.analytic.intervals.Assembler`).
 
 The extension is compiled once by the system C compiler against this Python's and numpy's
-headers and cached with the other libraries (:func:`qpik.compiled.shared_library`). Without
+headers and cached with the other libraries (:func:`qpik.build.shared_library`). Without
 a compiler, without the Python headers, or with ``QPIK_NATIVE=0``, :func:`extension` is None
 and every caller keeps its general path (CasADi's buffer interface or virtual machine).
 """
@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from qpik.compiled import compiler, entry_point, shared_library
+from qpik.build import compiler, entry_point, shared_library
 from qpik.errors import InputError
 
 if TYPE_CHECKING:
@@ -57,7 +57,7 @@ def extension() -> ModuleType | None:
 
 def build(name: str, path: Path) -> ModuleType | None:
     """The CPython extension module ``name`` (its ``PyInit_<name>``) compiled from the C file ``path`` against
-    this Python's and numpy's headers, cached (:func:`qpik.compiled.shared_library`), or None when there is no
+    this Python's and numpy's headers, cached (:func:`qpik.build.shared_library`), or None when there is no
     compiler, no Python headers, or ``QPIK_NATIVE=0`` (a warning says why it does not build or load)."""
     if compiler() is None:
         return None

@@ -1,9 +1,10 @@
-"""The house rules, measured on the code: no cache keyed by ``id()``, no write into another object's
-``__dict__``, no read of another object's private attribute (one documented exception)."""
+"""The house rules, measured on the code: no import circle, no cache keyed by ``id()``, no write into another
+object's ``__dict__``, no read of another object's private attribute (one documented exception)."""
 
 from __future__ import annotations
 
 import ast
+from functools import cache
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "qpik"
@@ -16,9 +17,13 @@ PRIVATE_READS_ALLOWED = {
 }
 
 
+@cache
+def parsed() -> tuple[tuple[str, ast.Module], ...]:
+    return tuple((path.relative_to(PACKAGE).as_posix(), ast.parse(path.read_text(), str(path))) for path in MODULES)
+
+
 def trees():
-    for path in MODULES:
-        yield path.relative_to(PACKAGE).as_posix(), ast.parse(path.read_text(), str(path))
+    yield from parsed()
 
 
 def test_the_rules_see_every_module():
@@ -63,3 +68,64 @@ def test_no_read_of_another_objects_private_attribute():
     }
     assert not found - PRIVATE_READS_ALLOWED, sorted(found - PRIVATE_READS_ALLOWED)
     assert found >= PRIVATE_READS_ALLOWED, "an exception that no longer exists: drop it from the list"
+
+
+def imports_of(name: str, tree: ast.Module) -> set[str]:
+    """The qpik modules ``name`` imports when it runs: at module level or inside a function (a lazy import is
+    still an import), not under ``if TYPE_CHECKING:`` (annotations only)."""
+    typing_only = {
+        id(x) for n in ast.walk(tree) if isinstance(n, ast.If) and "TYPE_CHECKING" in ast.unparse(n.test)
+        for x in ast.walk(n)
+    }  # fmt: skip
+    modules = {m for m, _ in trees()}
+    out = set()
+    for node in ast.walk(tree):
+        if (
+            id(node) in typing_only
+            or not isinstance(node, ast.ImportFrom)
+            or not (node.module or "").startswith("qpik")
+        ):
+            continue
+        for alias in node.names:
+            for target in (f"{node.module}.{alias.name}", node.module):
+                path = target[5:].replace(".", "/") if target != "qpik" else ""
+                found = next((p for p in (f"{path}.py", f"{path}/__init__.py".lstrip("/")) if p in modules), None)
+                if found:
+                    out.add(found)
+                    break
+    return out - {name}
+
+
+def test_no_import_circle():
+    """Tarjan's strongly connected components of the runtime import graph: every component is one module.
+    A package's ``__init__`` that re-exports its modules counts as importing them."""
+    graph = {name: imports_of(name, tree) for name, tree in trees()}
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    circles = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                circles.append(sorted(component))
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    assert sum(len(g) for g in graph.values()) > 300  # the graph was read
+    assert not circles, circles

@@ -48,10 +48,10 @@ def test_native_code_equals_the_virtual_machine_and_can_be_turned_off(monkeypatc
     import pytest
 
     import qpik
-    from qpik import compiled
+    from qpik import build
     from qpik.analytic import solver_for
 
-    if shutil.which("cc") is None or compiled.compiler() is None:
+    if shutil.which("cc") is None or build.compiler() is None:
         pytest.skip("no C compiler, or QPIK_NATIVE=0: native() falls back to the virtual machine by design")
     monkeypatch.setenv("QPIK_CACHE", str(tmp_path))
     robot = qpik.load_robot("nammoto7")
@@ -66,7 +66,7 @@ def test_native_code_equals_the_virtual_machine_and_can_be_turned_off(monkeypatc
         for g, w in zip(got, want):
             np.testing.assert_allclose(g, np.array(w).reshape(g.shape, order="F"), atol=1e-13, rtol=0)
     monkeypatch.setenv("QPIK_NATIVE", "0")
-    assert compiled.native(f) is f
+    assert build.native(f) is f
 
 
 def test_row_map_equals_one_call_per_row():

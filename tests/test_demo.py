@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from qpik.compiled import compiler
+from qpik.build import compiler
 from qpik.demo import run_all
 
 

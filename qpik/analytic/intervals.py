@@ -22,7 +22,8 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from qpik import symbolic as sy
-from qpik.compiled import Compiled, NativeFunction, call_header, shared_library
+from qpik.build import call_header, shared_library
+from qpik.compiled import Compiled, NativeFunction
 from qpik.errors import InputError, SolverError
 from qpik.fastcall import extension
 from qpik.validate import finite_array, number

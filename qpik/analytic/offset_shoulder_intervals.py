@@ -86,7 +86,8 @@ from qpik.analytic.polyroots import FLAGS as POLYROOTS_FLAGS
 from qpik.analytic.polyroots import ROOM, trig_roots
 from qpik.analytic.polyroots import c_source as polyroots_source
 from qpik.analytic.trig import EPS, acos2
-from qpik.compiled import Compiled, Kernel, NativeFunction, python_library
+from qpik.build import python_library
+from qpik.compiled import Compiled, Kernel, NativeFunction
 from qpik.errors import QpikError
 from qpik.symbolic import Ops, Scalar
 

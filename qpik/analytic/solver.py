@@ -6,7 +6,7 @@ turns that one source into
 
 - a CasADi function ``q(T, param)`` of all branches, for exact derivatives (NLP);
 - that function plus the joint-limit test, compiled to machine code
-  (:func:`qpik.compiled.native`), for one pose (:meth:`AnalyticSolver.solve_one`)
+  (:func:`qpik.build.native`), for one pose (:meth:`AnalyticSolver.solve_one`)
   and mapped over chunks of parameters for a sweep of one pose
   (:meth:`AnalyticSolver.solve_many`, the feasible intervals);
 - a numpy evaluation over a batch of poses and parameters

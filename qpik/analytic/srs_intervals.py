@@ -68,7 +68,8 @@ from qpik.analytic import trig
 from qpik.analytic.intervals import ArmSetsCall, Assembler, FeasibleIntervals, Interval, NativeSets, shrunk_limits, wrap
 from qpik.analytic.intervals import c_source as intervals_source
 from qpik.analytic.srs_geometry import arm_setup, branch_signs
-from qpik.compiled import Compiled, Kernel, NativeFunction, python_library
+from qpik.build import python_library
+from qpik.compiled import Compiled, Kernel, NativeFunction
 from qpik.symbolic import Scalar
 
 if TYPE_CHECKING:

@@ -28,7 +28,8 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from qpik.compiled import Compiled, native_library
+from qpik.build import native_library
+from qpik.compiled import Compiled
 from qpik.control.limits import BoxLimit, Limit, RowLimit
 from qpik.control.state import SymState, kinematics_of
 from qpik.control.tasks import Task

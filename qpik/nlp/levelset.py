@@ -49,7 +49,8 @@ from pathlib import Path
 import numpy as np
 
 from qpik.analytic.intervals import FeasibleIntervals, NativeSets, wrap
-from qpik.compiled import Kernel, NativeFunction, call_header, python_library
+from qpik.build import call_header, python_library
+from qpik.compiled import Kernel, NativeFunction
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.scene import Points, Scene, least_per_row
 from qpik.nlp.search import END

@@ -37,7 +37,8 @@ import numpy as np
 from qpik import symbolic as sy
 from qpik.analytic import feasible_intervals, solver_for
 from qpik.analytic.intervals import FeasibleIntervals, wrap
-from qpik.compiled import Compiled, NativeFunction, RowMap, shared_library
+from qpik.build import shared_library
+from qpik.compiled import Compiled, NativeFunction, RowMap
 from qpik.errors import SolverError
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.selfmotion import MIRRORED
@@ -326,7 +327,7 @@ class _NativeLayers:
 
 @cache
 def _library() -> ctypes.CDLL | None:
-    """``grid.c`` compiled (cached on disk by :func:`qpik.compiled.shared_library`), or None without a compiler."""
+    """``grid.c`` compiled (cached on disk by :func:`qpik.build.shared_library`), or None without a compiler."""
     lib = shared_library("qpik_plan_layers", Path(__file__).with_name("grid.c").read_bytes())
     if lib is None:
         return None

@@ -59,7 +59,7 @@ import casadi as ca
 import numpy as np
 
 from qpik.analytic.intervals import wrap
-from qpik.compiled import native
+from qpik.build import native
 from qpik.geometry.distance import ObstacleSet
 from qpik.lie import log_expr
 from qpik.objectives import Context, Objective, clearance, pair_count
@@ -85,7 +85,7 @@ at the start."""
 ROUNDS = 3
 """Solves of the NLP at most, each with the waypoints that came near an obstacle in the one before."""
 NATIVE_WAYPOINTS = 200
-"""Waypoints from which the per-waypoint curvature function runs as machine code (:func:`qpik.compiled.native`,
+"""Waypoints from which the per-waypoint curvature function runs as machine code (:func:`qpik.build.native`,
 compiled once per arm, branch row and objective, cached on disk); shorter paths use CasADi's virtual machine."""
 INSIDE = 1e-8
 """rad and m: the NLP keeps ψ this far inside its feasible interval (whose ends are exact to 1e-9 rad) and the
