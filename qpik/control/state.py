@@ -128,7 +128,8 @@ class Kinematics:
             point = p_link if end < 0 else segments[c][end]
             heights.append(d if end < 0 else sy.dot(nrm, sy.vsub(point, p_obs)) - radii[c])
             link = robot.capsules[c].link
-            out += [sy.dot(nrm, col) for col in chain.point_jacobian_expr(frames, point, link)] + [0.0] * (n - link)
+            cols = chain.point_jacobian_expr(frames, point, link)
+            out += [sy.dot(nrm, col) for col in cols] + [0.0] * (n - len(cols))
         return ca.vertcat(*out, *heights)
 
     def pairs_size(self, kinds: tuple[str, ...]) -> int:
