@@ -146,7 +146,7 @@ class Kinematics:
             prm = ca.SX.sym("params", sum(PARAMS[k] for k in kinds))
             inputs.append(prm)
             out = ca.vertcat(out, self.pairs_expr(frames, kinds, prm))
-        name = f"step_{self.robot.name or 'robot'}_{'_'.join(kinds) or 'free'}"
+        name = f"step_{self.robot.identifier}_{'_'.join(kinds) or 'free'}"
         return ca.Function(name, inputs, [out])
 
 

@@ -56,7 +56,7 @@ def _solver(scene: Scene, b: int) -> tuple[ca.Function, ca.Function]:
     g = ca.vertcat(g_epi, d_s - ctx.distances)
     p = ca.vertcat(ca.vec(T), p_obj, q_ref, prm, d_s)
     nlp = {"x": ca.vertcat(psi, t), "f": cost, "g": g, "p": p}
-    solver = ca.nlpsol(f"branch_{robot.name}_{b}", "ipopt", nlp, OPTIONS)
+    solver = ca.nlpsol(f"branch_{robot.identifier}_{b}", "ipopt", nlp, OPTIONS)
     start = ca.Function("start", [psi, p], [ca.vertcat(*[ca.mmax(h) for _, h in split.maxima], ca.SX(0, 1))])
     _SOLVERS[key] = (robot, solver, start)
     return solver, start

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
+from xml.sax.saxutils import quoteattr
 
 import mujoco
 import numpy as np
@@ -67,7 +68,7 @@ def to_mjcf(robot: Robot, extra_worldbody: Sequence[str] = ()) -> str:
     r_base = 1.2 * radii.get(1, 0.05)
 
     lines = [
-        f'<mujoco model="{robot.name}">',
+        f"<mujoco model={quoteattr(robot.name)}>",
         '  <compiler angle="radian" autolimits="true"/>',
         '  <option gravity="0 0 0"/>',
         "  <visual>",

@@ -210,7 +210,7 @@ def urdf_joints(path: Path) -> dict[str, UrdfJoint]:
         InputError: an attribute that is not a number, naming the joint and the attribute.
     """
     out = {}
-    for joint in parse_xml(path).iter("joint"):
+    for joint in parse_xml(path).findall("joint"):  # not the <transmission> elements' <joint>
         name = joint.get("name", "")
 
         def number(element: ET.Element | None, attr: str, default: float | None, name: str = name) -> float | None:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from typing import TYPE_CHECKING
+from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
@@ -43,7 +44,7 @@ def to_urdf(robot: Robot) -> str:
         F[:3, 3] = a + w * (w @ (prev[:3, 3] - a))
         frames.append(F)
     lines = [
-        f'<robot name="{robot.name}">',
+        f"<robot name={quoteattr(robot.name)}>",
         f'  <link name="{BASE}"/>',
     ]
     for k in range(1, n + 1):

@@ -116,7 +116,7 @@ def build_scene(
         child = mujoco.MjSpec.from_string(f'<mujoco><worldbody><body name="all">{geoms}</body></worldbody></mujoco>')
         spec.worldbody.add_frame().attach_body(child.body("all"), OBSTACLE_PREFIX, "")
     model = spec.compile()
-    kin = MjKinematics(model, site, joint_names)
+    kin = MjKinematics(model, site, joint_names, robot.model.mimic if robot is not None and robot.model else ())
     if link_geoms is None:
         moving = model.body_weldid[model.geom_bodyid] != 0
         collides = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
@@ -286,7 +286,7 @@ def simulate(
                 log_target[r] = target_pose(target, t)
             scene.clearances(log_clear[r])
             mujoco.mj_jacSite(model, data, jacp, jacr, kin.site_id)
-            J = np.vstack((jacp[:, kin.dof_adr], jacr[:, kin.dof_adr]))
+            J = kin.columns(np.vstack((jacp, jacr)))
             log_m[r] = np.sqrt(max(np.linalg.det(J @ J.T), 0.0))
             if reporter is not None:
                 log_status[r], log_time[r] = reporter()
@@ -296,6 +296,7 @@ def simulate(
             mujoco.mj_integratePos(model, qpos, qvel, dt)
             q = qpos[kin.qpos_adr].copy()
             kin.update(q)
+            qpos[:] = kin.data.qpos  # mimic joints follow their leaders
         if bar is not None and (k % 200 == 0 or k == steps):
             bar.update(k + 1 - bar.n)
     if bar is not None:
