@@ -34,7 +34,7 @@ From the model (:mod:`qpik.robots.limits`, which refuses invalid limits):
 - velocity limits: URDF ``<limit velocity>``; in MJCF, the ``ctrlrange`` of a velocity
   actuator on the joint; otherwise :data:`DEFAULT_VELOCITY`;
 - inertias are not used: an inertia MuJoCo refuses (PR2's violate the triangle inequality) is
-  repaired with MuJoCo's ``balanceinertia``, and ``robot.notes`` says so;
+  replaced (:func:`~qpik.robots.model_files.repair_inertias`), and ``robot.notes`` says so;
 - home: the keyframe ``home`` if the model has one, else the reference configuration
   moved at least :data:`HOME_MARGIN` of each joint's range inside its limits;
 - link capsules: the smallest capsule containing the collision geoms (those with a
@@ -98,7 +98,6 @@ class ModelSource:
         placement: (4, 4) the base frame's pose in the file's world frame (joints above the base at
             their reference), m; :meth:`spec` moves the model by its inverse.
         allow_outside: mesh paths may leave their package root.
-        balance_inertia: MuJoCo's ``balanceinertia`` repairs the file's invalid inertias.
         mimic: ``(joint, leader, multiplier, offset)`` per mimic joint on the chain: the model's
             ``qpos[joint] = multiplier * qpos[leader] + offset``.
     """
@@ -111,7 +110,6 @@ class ModelSource:
     site: str = SITE
     placement: np.ndarray = field(default_factory=lambda: np.eye(4))
     allow_outside: bool = False
-    balance_inertia: bool = False
     mimic: tuple[tuple[str, str, float, float], ...] = ()
 
     def spec(self) -> mujoco.MjSpec:
@@ -120,7 +118,6 @@ class ModelSource:
         import mujoco
 
         spec = read_spec(self.path, self.package_map, self.collision_only, self.allow_outside)
-        spec.compiler.balanceinertia = self.balance_inertia
         if not np.array_equal(self.placement, np.eye(4)):
             _move(spec, np.linalg.inv(self.placement))
         for joint, leader, m, c in self.mimic:
@@ -286,7 +283,7 @@ def load_robot(
     pmap = {k: os.fspath(v) for k, v in (package_map or {}).items()}
     allow_outside = flag(allow_outside, "allow_outside")
     urdf = urdf_joints(path) if is_urdf(path) else None
-    model, balance, notes = _compile(path, pmap, collision_only, allow_outside)
+    model, notes = _compile(path, pmap, collision_only, allow_outside)
     tree = _Tree(model)
     base_id, base_offset = tree.frame(base, "base") if base is not None else (0, np.eye(4))
     tip_id, tip_offset = tree.frame(tip, "tip") if tip is not None else (tree.default_tip(base_id), np.eye(4))
@@ -302,7 +299,6 @@ def load_robot(
         names,
         model.body(tip_id).name,
         allow_outside=allow_outside,
-        balance_inertia=balance,
         mimic=tuple((model.joint(j).name, model.joint(lead).name, m, c) for j, (lead, m, c) in mimic.items()),
     )
     q_ref = model.qpos0[model.jnt_qposadr[arm]]
@@ -341,22 +337,17 @@ def load_robot(
 
 def _compile(
     path: Path, pmap: Mapping[str, str], collision_only: bool, allow_outside: bool
-) -> tuple[mujoco.MjModel, bool, list[str]]:
-    """The compiled model, whether its inertias needed ``balanceinertia``, and the note saying so."""
-    spec = read_spec(path, pmap, collision_only, allow_outside)
-    try:
-        return spec.compile(), False, []
-    except (ValueError, RuntimeError) as exc:
-        first = " ".join(str(exc).split())
-    if "inertia" not in first:
-        raise InputError(f"{path.name}: MuJoCo cannot compile it ({first})")
-    spec = read_spec(path, pmap, collision_only, allow_outside)
-    spec.compiler.balanceinertia = True
+) -> tuple[mujoco.MjModel, list[str]]:
+    """The compiled model and the notes of what was repaired in it (:func:`~qpik.robots.model_files.read_spec`)."""
+    repaired: list[str] = []
+    spec = read_spec(path, pmap, collision_only, allow_outside, repaired)
     try:
         model = spec.compile()
     except (ValueError, RuntimeError) as exc:
         raise InputError(f"{path.name}: MuJoCo cannot compile it ({' '.join(str(exc).split())})") from None
-    return model, True, [f"inertias repaired with MuJoCo's balanceinertia, unused by the kinematics ({first})"]
+    if not repaired:
+        return model, []
+    return model, [f"invalid inertias replaced (the kinematics does not use them): {', '.join(repaired)}"]
 
 
 def _mimic(

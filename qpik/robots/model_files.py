@@ -89,12 +89,14 @@ def read_spec(
     package_map: Mapping[str, str | os.PathLike] | None,
     collision_only: bool,
     allow_outside: bool = False,
+    repaired: list[str] | None = None,
 ) -> mujoco.MjSpec:
     """The model at ``path`` as a MuJoCo spec with every mesh file resolved to an absolute path.
 
     Static bodies are kept (``fusestatic`` off), so every URDF link can be named as a base or tip,
     and geoms without contacts are kept (``discardvisual`` off) once parsed; massless links get
-    :data:`MIN_MASS`. COLLADA meshes are replaced by their cached STL conversion.
+    :data:`MIN_MASS`. COLLADA meshes are replaced by their cached STL conversion. Invalid inertias
+    are replaced (:func:`repair_inertias`), their bodies' names appended to ``repaired``.
 
     Raises:
         InputError: the file is missing, declares a document type, or MuJoCo cannot parse it; a mesh
@@ -125,7 +127,41 @@ def read_spec(
             continue
         file = resolve_mesh(mesh.file, path, meshdir, package_map, allow_outside)
         mesh.file = str(as_stl(file) if is_collada(file) else file)
+    names = repair_inertias(spec)
+    if repaired is not None:
+        repaired += names
     return spec
+
+
+def repair_inertias(spec: mujoco.MjSpec) -> list[str]:
+    """Replace every explicit inertia MuJoCo would refuse by a valid one; the names of the bodies changed.
+
+    An inertia tensor needs positive principal moments A ≤ B ≤ C with A + B ≥ C (PR2's and TIAGo's
+    files break these; a zero tensor is left to ``boundinertia``). qpik uses the kinematics only, so a bad tensor becomes the isotropic one of
+    its largest principal moment (at least :data:`MIN_MASS`), about the same centre of mass.
+    """
+    import numpy as np
+
+    out = []
+    for body in spec.bodies:
+        if not body.explicitinertial:
+            continue
+        full = np.asarray(body.fullinertia, float)
+        given = bool(np.all(np.isfinite(full)))
+        if given:
+            xx, yy, zz, xy, xz, yz = full
+            moments = np.linalg.eigvalsh([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+        else:
+            moments = np.sort(np.asarray(body.inertia, float))
+        if not np.all(np.isfinite(moments)) or np.all(moments == 0):  # NaN: MuJoCo says so; 0: boundinertia
+            continue
+        if not (np.any(moments < 0) or (given and moments[0] <= 0) or moments[0] + moments[1] < moments[2]):
+            continue
+        big = max(float(np.abs(moments).max()), MIN_MASS)
+        body.fullinertia = [math.nan] * 6
+        body.inertia, body.iquat = [big] * 3, [1.0, 0.0, 0.0, 0.0]
+        out.append(body.name)
+    return out
 
 
 def resolve_mesh(
