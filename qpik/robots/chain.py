@@ -369,21 +369,21 @@ class SerialChain:
         """Geometric Jacobian ``[v; ω]`` (base frame): (6, n) or (N, 6, n)."""
         fast = self._fresh["jacobian"]
         if fast is not None and (out := fast(q)) is not None:
-            return out[0]
+            return out[0] if self.dof > 1 else out[0].reshape(6, 1)  # (a one-column output comes flat)
         q, batched = joint_vector(q, self.dof)
         if not batched:
-            return self._compiled["jacobian"].copies(q)[0]
+            return self._compiled["jacobian"].copies(q)[0].reshape(6, self.dof)
         return self._jac_np(self._batch(q), len(q))
 
     def fk_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Pose and Jacobian together (one kinematics pass)."""
         fast = self._fresh["fk_jacobian"]
         if fast is not None and (out := fast(q)) is not None:
-            return out
+            return out if self.dof > 1 else (out[0], out[1].reshape(6, 1))  # (a one-column output comes flat)
         q, batched = joint_vector(q, self.dof)
         if not batched:
             T, J = self._compiled["fk_jacobian"].copies(q)
-            return T, J
+            return T, J.reshape(6, self.dof)
         fr = self._batch(q)
         return _frame_to_np(fr[-1], len(q)), self._jac_np(fr, len(q))
 

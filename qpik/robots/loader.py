@@ -114,16 +114,10 @@ class ModelSource:
 
     def spec(self) -> mujoco.MjSpec:
         """A fresh spec of the file (meshes resolved, static bodies kept), moved so that its world frame is the
-        robot's base frame, with a joint equality per mimic joint."""
-        import mujoco
-
+        robot's base frame (a mimic joint keeps the joint equality MuJoCo reads from the file)."""
         spec = read_spec(self.path, self.package_map, self.collision_only, self.allow_outside)
         if not np.array_equal(self.placement, np.eye(4)):
             _move(spec, np.linalg.inv(self.placement))
-        for joint, leader, m, c in self.mimic:
-            eq = spec.add_equality()
-            eq.name, eq.type, eq.name1, eq.name2 = f"qpik_mimic_{joint}", mujoco.mjtEq.mjEQ_JOINT, joint, leader
-            eq.data[:5] = [c, m, 0.0, 0.0, 0.0]  # qpos0 is 0 for a URDF joint: y = c + m x
         return spec
 
     def qpos(self, model: mujoco.MjModel, q: np.ndarray) -> np.ndarray:
@@ -353,23 +347,39 @@ def _compile(
 def _mimic(
     model: mujoco.MjModel, on_chain: list[int], urdf: Mapping[str, UrdfJoint], file: str
 ) -> dict[int, tuple[int, float, float]]:
-    """``{joint id: (leader id, multiplier, offset)}`` of the mimic joints on the chain (leader: an independent
-    chain joint before it)."""
+    """``{joint id: (leader id, multiplier, offset)}`` of the chain joints that an active joint equality couples to
+    an independent chain joint before them: ``qpos = multiplier * qpos[leader] + offset``.
+
+    MuJoCo writes a URDF ``<mimic>`` as such an equality; an MJCF may have its own. With MuJoCo's
+    :math:`y - y_0 = a_0 + a_1 (x - x_0)`: multiplier :math:`a_1`, offset :math:`y_0 + a_0 - a_1 x_0`.
+    A URDF mimic joint that MuJoCo left uncoupled (its leader is no joint of the file) is refused.
+    """
     import mujoco
 
     out: dict[int, tuple[int, float, float]] = {}
-    for k, j in enumerate(on_chain):
-        info = urdf.get(model.joint(j).name)
-        if info is None or info.mimic is None:
+    for e in range(model.neq):
+        if model.eq_type[e] != mujoco.mjtEq.mjEQ_JOINT or not model.eq_active0[e]:
             continue
-        leader, m, c = info.mimic
-        lead = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, leader)
-        if lead not in on_chain[:k] or lead in out:
+        j, lead = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
+        if j not in on_chain:
+            continue
+        name = model.joint(j).name
+        a = model.eq_data[e, :5]
+        if lead < 0 or np.any(a[2:] != 0.0):
+            raise InputError(f"{file}: joint {name!r} is held by a joint equality that is not linear in another joint")
+        if lead not in on_chain[: on_chain.index(j)] or lead in out:
             raise InputError(
-                f"{file}: joint {model.joint(j).name!r} mimics {leader!r}, which is not an independent arm joint "
+                f"{file}: joint {name!r} mimics {model.joint(lead).name!r}, which is not an independent arm joint "
                 "before it on the chain (qpik couples a mimic joint to such a joint only)"
             )
-        out[j] = (lead, m, c)
+        if not np.all(np.isfinite(a[:2])):
+            raise InputError(f"{file}: joint {name!r}: mimic multiplier and offset must be finite, got {a[1]}, {a[0]}")
+        y0, x0 = (float(model.qpos0[model.jnt_qposadr[i]]) for i in (j, lead))
+        out[j] = (lead, float(a[1]), y0 + float(a[0]) - float(a[1]) * x0)
+    for j in on_chain:
+        info = urdf.get(model.joint(j).name)
+        if j not in out and info is not None and info.mimic is not None:
+            raise InputError(f"{file}: joint {info.name!r} mimics {info.mimic!r}, which is not a joint of the file")
     return out
 
 

@@ -16,8 +16,8 @@
   ``allow_outside=True``.
 - The XML is read without a document type: a file declaring entities (``<!DOCTYPE ... [<!ENTITY``,
   the "billion laughs") is refused before any parser expands them (:func:`parse_xml`).
-- URDF ``<limit velocity=...>`` and ``<mimic>`` are not kept by MuJoCo, and it silently drops
-  invalid limits: :func:`urdf_joints` reads them from the XML.
+- URDF ``<limit velocity=...>`` is not kept by MuJoCo, and it silently drops invalid limits:
+  :func:`urdf_joints` reads the limits from the XML.
 """
 
 from __future__ import annotations
@@ -137,8 +137,9 @@ def repair_inertias(spec: mujoco.MjSpec) -> list[str]:
     """Replace every explicit inertia MuJoCo would refuse by a valid one; the names of the bodies changed.
 
     An inertia tensor needs positive principal moments A ≤ B ≤ C with A + B ≥ C (PR2's and TIAGo's
-    files break these; a zero tensor is left to ``boundinertia``). qpik uses the kinematics only, so a bad tensor becomes the isotropic one of
-    its largest principal moment (at least :data:`MIN_MASS`), about the same centre of mass.
+    files break these; a zero tensor is left to ``boundinertia``). qpik uses the kinematics only, so a bad
+    tensor becomes the isotropic one of its largest principal moment (at least :data:`MIN_MASS`), about the
+    same centre of mass.
     """
     import numpy as np
 
@@ -228,7 +229,7 @@ class UrdfJoint:
         kind: its ``type`` attribute (``revolute``, ``continuous``, ``prismatic``, ...).
         lower, upper, velocity: the ``<limit>`` attributes (rad, m, rad/s or m/s), None where absent;
             parsed as given (NaN, inf and signs kept, for :mod:`qpik.robots.limits` to judge).
-        mimic: ``(leader joint, multiplier, offset)`` of a ``<mimic>`` element, else None.
+        mimic: the joint a ``<mimic>`` element names (MuJoCo reads the coupling itself), else None.
     """
 
     name: str
@@ -236,7 +237,7 @@ class UrdfJoint:
     lower: float | None = None
     upper: float | None = None
     velocity: float | None = None
-    mimic: tuple[str, float, float] | None = None
+    mimic: str | None = None
 
 
 def urdf_joints(path: Path) -> dict[str, UrdfJoint]:
@@ -261,20 +262,13 @@ def urdf_joints(path: Path) -> dict[str, UrdfJoint]:
                 ) from None
 
         limit, mimic = joint.find("limit"), joint.find("mimic")
-        lead = None
-        if mimic is not None:
-            if not mimic.get("joint"):
-                raise InputError(f"{path.name}: joint {name!r}: <mimic> names no joint")
-            lead = (mimic.get("joint"), number(mimic, "multiplier", 1.0), number(mimic, "offset", 0.0))
-            if not all(math.isfinite(x) for x in lead[1:]):
-                raise InputError(f"{path.name}: joint {name!r}: mimic multiplier and offset must be finite")
         out[name] = UrdfJoint(
             name,
             joint.get("type", ""),
             number(limit, "lower", None),
             number(limit, "upper", None),
             number(limit, "velocity", None),
-            lead,
+            None if mimic is None else mimic.get("joint", ""),
         )
     return out
 

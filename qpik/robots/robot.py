@@ -8,7 +8,6 @@ frame is ``robot.model.placement``; for one loaded without ``base`` the file's w
 
 from __future__ import annotations
 
-import keyword
 import re
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -87,10 +86,10 @@ class Robot:
 
     @cached_property
     def identifier(self) -> str:
-        """The name as a C identifier (for CasADi function names): every character outside ``[A-Za-z0-9_]``
-        becomes ``_``, a leading digit or keyword gets a ``_`` prefix; ``"robot"`` for an empty name."""
-        out = re.sub(r"[^A-Za-z0-9_]", "_", self.name) or "robot"
-        return f"_{out}" if out[0].isdigit() or keyword.iskeyword(out) else out
+        """The name as an identifier that CasADi accepts in function names: ASCII letters and digits, each run of
+        other characters one ``_`` (none at the ends), ``robot_`` before a leading digit; ``"robot"`` if empty."""
+        out = "_".join(re.findall(r"[A-Za-z0-9]+", self.name)) or "robot"
+        return f"robot_{out}" if out[0].isdigit() else out
 
     # kinematics (see SerialChain for shapes; every pose in the robot's base frame, see the module docstring)
     def fk(self, q: np.ndarray) -> np.ndarray:
