@@ -283,6 +283,7 @@ def load_robot(
     tip_id, tip_offset = tree.frame(tip, "tip") if tip is not None else (tree.default_tip(base_id), np.eye(4))
     path_bodies = tree.path(base_id, tip_id)
     on_chain = tree.arm_joints(path_bodies, joints)
+    _finite(model, path_bodies, on_chain, path.name)
     mimic = _mimic(model, on_chain, urdf or {}, path.name)
     arm = [j for j in on_chain if j not in mimic]
     names = tuple(model.joint(j).name for j in arm)
@@ -342,6 +343,17 @@ def _compile(
     if not repaired:
         return model, []
     return model, [f"invalid inertias replaced (the kinematics does not use them): {', '.join(repaired)}"]
+
+
+def _finite(model: mujoco.MjModel, bodies: list[int], on_chain: list[int], file: str) -> None:
+    """Refuse NaN or infinite placements of the chain's bodies and joints (MuJoCo keeps them)."""
+    for b in bodies:
+        if not (np.all(np.isfinite(model.body_pos[b])) and np.all(np.isfinite(model.body_quat[b]))):
+            raise InputError(f"{file}: body {model.body(b).name!r} has a NaN or infinite position or orientation")
+    for j in on_chain:
+        values = (model.jnt_pos[j], model.jnt_axis[j], model.qpos0[model.jnt_qposadr[j]])
+        if not all(np.all(np.isfinite(v)) for v in values):
+            raise InputError(f"{file}: joint {model.joint(j).name!r} has a NaN or infinite anchor, axis or reference")
 
 
 def _mimic(

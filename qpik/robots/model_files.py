@@ -95,7 +95,8 @@ def read_spec(
 
     Static bodies are kept (``fusestatic`` off), so every URDF link can be named as a base or tip,
     and geoms without contacts are kept (``discardvisual`` off) once parsed; massless links get
-    :data:`MIN_MASS`. COLLADA meshes are replaced by their cached STL conversion. Invalid inertias
+    :data:`MIN_MASS`; unnamed joints are named ``qpik_joint{k}`` (k: their place in the spec). COLLADA meshes are
+    replaced by their cached STL conversion. Invalid inertias
     are replaced (:func:`repair_inertias`), their bodies' names appended to ``repaired``.
 
     Raises:
@@ -127,6 +128,12 @@ def read_spec(
             continue
         file = resolve_mesh(mesh.file, path, meshdir, package_map, allow_outside)
         mesh.file = str(as_stl(file) if is_collada(file) else file)
+    taken = {j.name for j in spec.joints}
+    for k, joint in enumerate(spec.joints):  # qpik refers to joints by name (MjKinematics, the twin's sim)
+        if not joint.name:
+            joint.name = next(
+                n for n in (f"qpik_joint{k}", *(f"qpik_joint{k}_{i}" for i in range(99))) if n not in taken
+            )
     names = repair_inertias(spec)
     if repaired is not None:
         repaired += names
