@@ -184,7 +184,7 @@ def test_urdf_velocity_and_continuous_joints(tmp_path):
             "<mujoco><worldbody><body><joint type='ball'/><geom size='.1'/><body><joint/><geom size='.1'/>"
             "</body></body></worldbody></mujoco>",
             {},
-            "unsupported joint: 'unnamed' is a ball joint",
+            "unsupported joint: 'qpik_joint0' is a ball joint",
         ),
         (
             "<mujoco><worldbody><body name='a'><joint/><geom size='.1'/></body>"

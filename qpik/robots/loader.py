@@ -479,7 +479,7 @@ class _Tree:
             if bad:
                 kind = mujoco.mjtJoint(int(m.jnt_type[bad[0]])).name[6:].lower()
                 raise InputError(
-                    f"unsupported joint: {m.joint(bad[0]).name or 'unnamed'!r} is a {kind} joint "
+                    f"unsupported joint: {m.joint(bad[0]).name!r} is a {kind} joint "
                     "(only hinge and slide joints can be arm joints; choose base= below it)"
                 )
             arm = on_path
