@@ -152,6 +152,8 @@ def test_mimic_joint_in_mujoco():
     np.testing.assert_allclose(kin.jacobian(Q), robot.jacobian(Q), atol=1e-12)
     log = simulate(robot, lambda t, q: np.array([0.3, -0.4, 0.5]), Q[0] * 0.5, 1.0, 0.01)
     np.testing.assert_allclose(log.ee, robot.fk(log.q), atol=1e-12)
+    with pytest.raises(InputError, match="mimic joints"):
+        robot.to_urdf()  # its writer has one axis per joint
 
 
 @pytest.mark.parametrize(

@@ -96,7 +96,8 @@ def build_scene(
     Args:
         arm: a :class:`Robot` (its MuJoCo model: the MJCF twin of a catalog arm, the model of a
             loaded one), an MJCF string or an MJCF file path.
-        obstacles: shapes in the world frame; each becomes geom ``obstacles/<i>``.
+        obstacles: shapes in the world frame (the robot's base frame: its MuJoCo model is moved so that they are the
+            same, :mod:`qpik.robots.loader`); each becomes geom ``obstacles/<i>``.
         joint_names, site: the arm's joints and end-effector site (an MJCF arm;
             the twin uses ``joint1..7`` and ``ee``).
         link_geoms: the arm geoms whose clearance is logged; default: every geom
@@ -217,7 +218,7 @@ def simulate(
         q0: initial configuration (n,) (rad).
         duration: simulated time (s); ``round(duration / dt)`` steps are taken.
         dt: integration step (s).
-        obstacles: shapes (world frame) added to the model (ignored for a Scene).
+        obstacles: shapes (world frame, which is the robot's base frame) added to the model (ignored for a Scene).
         target: a pose (4, 4), a :class:`TimedPath` (``pose(t)``, ``twist(t)``) or
             ``None``; logged, and handed to a controller.
         record_every: log every this many steps (and always the last state); at most
