@@ -140,6 +140,23 @@ def test_mimic_jacobian_and_hessian_are_the_chain_rule():
     np.testing.assert_allclose(g, fd(lambda q: robot.manipulability(q, translational=True), Q[0]), atol=1e-6)
 
 
+def test_mimic_point_jacobians_of_every_link():
+    """The controller's capsule rows: each link's point Jacobian (its columns up to its last driving joint) is FD's."""
+    from qpik import symbolic as sy
+
+    robot = qpik.load_robot(MIMIC)
+    assert [c.link for c in robot.capsules] == [1, 2, 3, 4]  # link 3 is moved by the mimic joint
+    for q in random_q(robot, 5, 6):
+        frames = robot.chain.frames_expr([np.array([x]) for x in q], sy.NUMPY)
+        for c, cap in enumerate(robot.capsules):
+            point = robot.capsule_segments(q)[c, 1]
+            cols = robot.chain.point_jacobian_expr(frames, tuple(point), cap.link)
+            J = np.zeros((3, robot.dof))
+            for i, col in enumerate(cols):
+                J[:, i] = [float(np.squeeze(x)) for x in col]
+            np.testing.assert_allclose(J, fd(lambda q, c=c: robot.capsule_segments(q)[c, 1], q), atol=1e-6)
+
+
 def test_mimic_joint_in_mujoco():
     """The MuJoCo model couples the joint (MuJoCo's equality constraint; the kinematics and the sim write it)."""
     robot = qpik.load_robot(MIMIC)

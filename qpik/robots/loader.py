@@ -108,7 +108,7 @@ class ModelSource:
     joint_names: tuple[str, ...] = ()
     tip_body: str = ""
     site: str = SITE
-    placement: np.ndarray = field(default_factory=lambda: np.eye(4))
+    placement: np.ndarray = field(default_factory=lambda: np.eye(4), compare=False)  # (arrays do not compare)
     allow_outside: bool = False
     mimic: tuple[tuple[str, str, float, float], ...] = ()
 
