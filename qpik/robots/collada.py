@@ -32,7 +32,7 @@ def as_stl(path: Path) -> Path:
     """The cached binary STL (metres) of the COLLADA file ``path``, converted on the first call.
 
     Raises:
-        InputError: the file cannot be read as COLLADA or holds no triangles.
+        InputError: the file cannot be read as COLLADA or holds no triangles, or the cache cannot be written.
     """
     from qpik.compiled import cache_dir
 
@@ -42,11 +42,15 @@ def as_stl(path: Path) -> Path:
     if out.is_file():
         return out
     mesh = _triangles(data, path.name)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=out.parent, suffix=".stl.tmp")
-    with os.fdopen(fd, "wb") as f:
-        f.write(mesh.export(file_type="stl"))
-    os.replace(tmp, out)  # atomic: a concurrent loader sees the whole file or none
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=out.parent, suffix=".stl.tmp")
+        with os.fdopen(fd, "wb") as f:
+            f.write(mesh.export(file_type="stl"))
+        os.replace(tmp, out)  # atomic: a concurrent loader sees the whole file or none
+    except OSError as exc:
+        where = f"cannot write its conversion to {out.parent} ({exc}); set QPIK_CACHE"
+        raise InputError(f"mesh {path.name!r}: {where}") from None
     return out
 
 
