@@ -243,12 +243,13 @@ def test_missing_limits_get_documented_defaults(tmp_path):
 
 
 _NUMBERS = st.one_of(
+    st.floats(min_value=-4.0, max_value=4.0),
     st.floats(allow_nan=True, allow_infinity=True, width=64),
     st.sampled_from([0.0, -0.0, 1.0, -1.0, 1e-300, 1e300]),
 )
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=60, deadline=None)
 @given(lower=_NUMBERS, upper=_NUMBERS, velocity=_NUMBERS)
 def test_limits_are_used_as_given_or_refused(tmp_path_factory, lower, upper, velocity):
     """A mutated URDF limit: loaded exactly as written, or one InputError naming j1 (never rewritten)."""
@@ -260,11 +261,8 @@ def test_limits_are_used_as_given_or_refused(tmp_path_factory, lower, upper, vel
         with pytest.raises(InputError, match="joint 'j1'"):
             qpik.load_robot(path)
         return
-    try:
-        robot = qpik.load_robot(path)
-    except InputError as exc:  # a range too wide or narrow for MuJoCo or the home configuration: said so
-        assert "j1" in str(exc) or "two.urdf" in str(exc)
-        return
+    robot = qpik.load_robot(path)
+    assert np.all(np.isfinite(robot.q_home)) and robot.within_limits(robot.q_home)
     assert (robot.q_min[0], robot.q_max[0], robot.v_max[0]) == (lower, upper, velocity)
 
 

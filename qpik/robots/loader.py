@@ -274,6 +274,8 @@ def load_robot(
             raise UnknownRobotError(f"unknown robot {text!r}; known: {known}, or the path of an MJCF or URDF file")
         what = "is a folder, not a model file" if path.is_dir() else "no such file"
         raise UnknownRobotError(f"{text!r}: {what} (the catalog's arms: {known})")
+    if name is not None and not isinstance(name, str):
+        raise InputError(f"name: expected a string, got {type(name).__name__}")
     pmap = {k: os.fspath(v) for k, v in (package_map or {}).items()}
     allow_outside = flag(allow_outside, "allow_outside")
     urdf = urdf_joints(path) if is_urdf(path) else None
