@@ -256,6 +256,8 @@ class Compiled:
         kernel: the compiled extension's call of that library (:func:`qpik.fastcall.kernel`),
             returning :attr:`outputs` (or None for arguments it does not take), or None
             without the extension.
+        arguments, results: the flat input and output buffers (CasADi's column-major order) that
+            :meth:`run` reads and writes.
 
     Calling it with numpy inputs returns *views* of internal output buffers
     shaped like the CasADi outputs (row-major ``(rows, cols)``, squeezed to 1-D
@@ -270,14 +272,14 @@ class Compiled:
         fn = self.fn
         self._buf, self._eval = fn.buffer()
         self._lock = threading.Lock()
-        self._args = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
-        self._res = [np.zeros(fn.nnz_out(i)) for i in range(fn.n_out())]
-        for i, a in enumerate(self._args):
+        self.arguments = [np.zeros(fn.nnz_in(i)) for i in range(fn.n_in())]
+        self.results = [np.zeros(fn.nnz_out(i)) for i in range(fn.n_out())]
+        for i, a in enumerate(self.arguments):
             self._buf.set_arg(i, memoryview(a))
-        for i, r in enumerate(self._res):
+        for i, r in enumerate(self.results):
             self._buf.set_res(i, memoryview(r))
         self._views = []
-        for i, r in enumerate(self._res):
+        for i, r in enumerate(self.results):
             rows, cols = fn.size_out(i)
             # CasADi stores column-major: reshape (cols, rows) then transpose.
             self._views.append(r if cols == 1 else r.reshape(cols, rows).T)
@@ -295,7 +297,7 @@ class Compiled:
             return None
         from qpik.fastcall import kernel
 
-        return kernel(self.fn, self.library, self._args, self._res, result, inputs, outputs)
+        return kernel(self.fn, self.library, self.arguments, self.results, result, inputs, outputs)
 
     @property
     def outputs(self) -> Sequence[np.ndarray]:
@@ -313,13 +315,17 @@ class Compiled:
             out = self.kernel(*args)
             if out is not None:
                 return out
-        for dst, src in zip(self._args, args):
+        for dst, src in zip(self.arguments, args):
             if type(src) is np.ndarray and src.ndim == 1:
                 dst[:] = src  # the common case, without conversions
             else:  # column-major flatten for matrix inputs
                 dst[:] = np.asarray(src, dtype=float).reshape(-1, order="F")
         self._eval()
         return self._views
+
+    def run(self) -> None:
+        """Evaluate on what :attr:`arguments` hold now, into :attr:`results`."""
+        self._eval()
 
 
 @cache
@@ -413,8 +419,8 @@ class RowMap:
         for size, fn in zip(sizes, fns):
             call = Compiled(fn, compile=False, library=lib)
             # column-major (nnz, size) buffers: one row's entries are contiguous
-            ins = [None if k in self.shared else a.reshape(size, -1) for k, a in enumerate(call._args)]
-            maps[size] = (call, ins, [r.reshape(size, -1) for r in call._res])
+            ins = [None if k in self.shared else a.reshape(size, -1) for k, a in enumerate(call.arguments)]
+            maps[size] = (call, ins, [r.reshape(size, -1) for r in call.results])
         return maps
 
     def build(self) -> None:
@@ -438,13 +444,13 @@ class RowMap:
             m = min(size, M - i)
             call, ins, res = maps[size]
             for k in shared:
-                call._args[k][:] = np.ravel(args[k])
+                call.arguments[k][:] = np.ravel(args[k])
             for k, rows in per_row:
                 buf = ins[k]
                 buf[:m] = rows[i : i + m]
                 if m < size:
                     buf[m:] = rows[i]
-            call._eval()
+            call.run()
             for out, r in zip(outs, res):
                 out[i : i + m] = r[:m]
             i += m

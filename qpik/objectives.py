@@ -672,11 +672,8 @@ class Evaluator:
         self.obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
         self.n_pairs = pair_count(robot, self.obstacles)
         self.params = objective.params(robot)
-        key = (id(robot), objective.key(), self.obstacles.kinds, len(self.params))
-        entry = _EVALUATORS.get(key)
-        if entry is None or entry[0] is not robot:
-            entry = _EVALUATORS[key] = (robot, _Maps(self))
-        self._maps = entry[1]
+        key = ("objective maps", objective.key(), self.obstacles.kinds, len(self.params))
+        self._maps = robot.cache.get(key, _Maps, self)
 
     def function(self) -> ca.Function:
         """``(q (n,), p, q_ref (n,), obstacle params) -> [f, ∇f (n), d (C'·O), ∇ min d (n)]`` in one column."""
@@ -746,7 +743,6 @@ class _Maps:
         return RowMap(self._value_function(), shared=(1, 3), chunks=CHUNKS)
 
 
-_EVALUATORS: dict[tuple, tuple] = {}
 
 
 class BoundFunction:
@@ -855,27 +851,25 @@ def _by_kind(pairs: list[tuple[int, int, str]]) -> list[tuple[str, np.ndarray]]:
     return [(kind, np.array([k for k, (_, _, x) in enumerate(pairs) if x == kind])) for kind in kinds]
 
 
-_SEGMENT_MODELS: dict[int, tuple] = {}
-
-
 def _segment_models(robot: Robot) -> RowMap:
     """The Taylor models of the moving capsules' axes ``[a, u]`` (6 C', world frame, m) from q's model:
     ``(c, s, r, lo, hi) -> 5 × (6 C')``, compiled once per robot. A capsule of link k with end points
     :math:`p_0, p_1` (link frame) has :math:`a = R_k p_0 + t_k` and :math:`u = R_k (p_1 - p_0)`: u written
     without the link's position, so its model carries none of t_k's remainder."""
-    entry = _SEGMENT_MODELS.get(id(robot))
-    if entry is None or entry[0] is not robot:
-        q = ca.SX.sym("q", robot.dof)
-        frames = robot.chain.frames_expr([q[i] for i in range(robot.dof)], sy.CASADI)
-        axes = []
-        for c in np.flatnonzero(~robot.fixed_capsules):
-            capsule = robot.capsules[c]
-            R, t = frames[capsule.link]
-            p0, p1 = (tuple(map(sy.snap, p)) for p in (capsule.p0, capsule.p1))
-            axes += [*sy.vadd(sy.matvec(R, p0), t), *sy.matvec(R, sy.vsub(p1, p0))]
-        fn = ca.Function(f"axes_{robot.identifier}", [q], [ca.densify(ca.vertcat(*axes))])
-        entry = _SEGMENT_MODELS[id(robot)] = (robot, RowMap(taylor_function(fn, [0]), chunks=(16, 16)))
-    return entry[1]
+    return robot.cache.get("capsule axis models", _build_segment_models, robot)
+
+
+def _build_segment_models(robot: Robot) -> RowMap:
+    q = ca.SX.sym("q", robot.dof)
+    frames = robot.chain.frames_expr([q[i] for i in range(robot.dof)], sy.CASADI)
+    axes = []
+    for c in np.flatnonzero(~robot.fixed_capsules):
+        capsule = robot.capsules[c]
+        R, t = frames[capsule.link]
+        p0, p1 = (tuple(map(sy.snap, p)) for p in (capsule.p0, capsule.p1))
+        axes += [*sy.vadd(sy.matvec(R, p0), t), *sy.matvec(R, sy.vsub(p1, p0))]
+    fn = ca.Function(f"axes_{robot.identifier}", [q], [ca.densify(ca.vertcat(*axes))])
+    return RowMap(taylor_function(fn, [0]), chunks=(16, 16))
 
 
 @cache
@@ -889,7 +883,6 @@ def _pair_models(kind: str) -> RowMap:
     return RowMap(taylor_function(ca.Function(f"pair_{kind}", [axis, radius, prm], [d]), [0]), chunks=(64, 16))
 
 
-_BOUNDS: dict[tuple, tuple] = {}
 
 
 def bound_function(robot: Robot, objective: Objective, obstacles: ObstacleSet) -> BoundFunction | None:
@@ -898,15 +891,15 @@ def bound_function(robot: Robot, objective: Objective, obstacles: ObstacleSet) -
     Taylor-model rule."""
     if not objective.bounded:
         return None
-    key = (id(robot), objective.key(), obstacles.kinds, len(objective.params(robot)))
-    entry = _BOUNDS.get(key)
-    if entry is None or entry[0] is not robot:
-        try:
-            found = BoundFunction(robot, objective, obstacles)
-        except InputError:
-            found = None
-        entry = _BOUNDS[key] = (robot, found)
-    return entry[1]
+    key = ("bound function", objective.key(), obstacles.kinds, len(objective.params(robot)))
+    return robot.cache.get(key, _bounds, robot, objective, obstacles)
+
+
+def _bounds(robot: Robot, objective: Objective, obstacles: ObstacleSet) -> BoundFunction | None:
+    try:
+        return BoundFunction(robot, objective, obstacles)
+    except InputError:
+        return None
 
 
 _NAMED: dict[str, Callable[[], Objective]] = {

@@ -185,6 +185,12 @@ def _controller(robot, target, obstacles, solver, gain, dt, q):
     return v, ctrl.last
 
 
+def _view(robot, target, obstacles, objective, d_safe):
+    viewer = qpik.view(robot, target, obstacles, objective, d_safe=d_safe, port=0, block=False)
+    viewer.close()
+    return viewer.state.q
+
+
 def _steps(robot, q, target, twist):
     ctrl = qpik.Controller.for_robot(robot, target=robot.fk(robot.q_home), obstacles=SHAPES[:1])
     outs = [ctrl.step(q, target, twist), ctrl.last]
@@ -403,6 +409,8 @@ CASES = [
          Arg(st.just(None), _bad_pose(IIWA.fk(IIWA.q_home))))),
 ]  # fmt: skip
 SLOW_CASES = [
+    Case("view", _view, (robot_arg((IIWA, PANDA)), pose_arg(IIWA), OBSTACLES,
+         Arg(st.sampled_from(["margin", "manipulability"]), st.sampled_from(["nope", 3, None])), number_arg(0.02))),
     Case("crosscheck CrossCheck", _crosscheck, (robot_arg((IIWA, NAMMOTO)), pose_arg(IIWA),
          Arg(st.just("smooth-margin"), st.sampled_from(["margin", "nope", 3, None])), OBSTACLES, q_arg(IIWA),
          number_arg(0.02), Arg(st.just(0), INTS))),

@@ -128,12 +128,16 @@ def test_find_problem_by_name_or_path():
         find_problem("no_such_problem")
 
 
-def test_problems_folder_falls_back_to_the_source_tree(tmp_path, monkeypatch):
+def test_the_shipped_problems_are_found_from_any_folder(tmp_path, monkeypatch):
+    """The problem files ship inside the package: a ``problems/`` folder in the working folder is not read."""
     monkeypatch.chdir(tmp_path)
-    assert problems_folder() == Path(qpik.__file__).resolve().parents[1] / "problems"
     (tmp_path / "problems").mkdir()
-    assert problems_folder() == tmp_path / "problems"
-    assert problem_files() == [] and list_problems() == []
+    (tmp_path / "problems" / "zheng2019_clik.toml").write_text("not a problem")
+    assert (problems_folder() / "__init__.py").is_file() and problems_folder() != tmp_path / "problems"
+    assert find_problem("zheng2019_clik") == problems_folder() / "zheng2019_clik.toml"
+    source = Path(__file__).parents[1] / "problems"
+    assert {p.stem for p in problem_files()} == {p.stem for p in source.glob("*.toml")}
+    assert problem_files(tmp_path / "problems") == [tmp_path / "problems" / "zheng2019_clik.toml"]
 
 
 # ---- the other target forms, parameters, obstacles ------------------------------

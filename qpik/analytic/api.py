@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import importlib
 import math
-import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,8 +21,6 @@ _SOLVERS = {
 }
 SYMBOL = {"delta": "δ", "psi": "ψ"}
 """The Greek letter of each redundancy parameter name (:attr:`IKSolutions.param_name`)."""
-_instances: dict[int, AnalyticSolver] = {}  # id(robot) -> solver; the solver holds the robot, so the id stays its own
-_creating = threading.Lock()
 
 
 def symbol(param_name: str) -> str:
@@ -38,17 +35,10 @@ def solver_for(robot: Robot) -> AnalyticSolver:
         InputError: ``robot`` is not a :class:`~qpik.robots.robot.Robot` (e.g. its name).
         NoClosedFormError: the arm has no closed form.
     """
-    solver = _instances.get(id(robot))
-    if solver is None or solver.robot is not robot:  # a robot not seen before
-        with _creating:  # one solver per robot, also when threads ask for it at once
-            solver = _instances.get(id(robot))
-            if solver is None or solver.robot is not robot:
-                solver = _instances[id(robot)] = _new_solver(robot)
-    return solver
+    return as_robot(robot).cache.get("closed form", _new_solver, robot)
 
 
 def _new_solver(robot: Robot) -> AnalyticSolver:
-    robot = as_robot(robot)
     if robot.closed_form not in _SOLVERS:
         why = robot.notes if robot.notes.startswith("no closed form") else "only offset-shoulder and S-R-S arms do"
         raise NoClosedFormError(f"{robot.name} has no closed-form IK ({why}); use qpik.solve_ik instead")

@@ -137,6 +137,10 @@ class OffsetShoulderSolver(AnalyticSolver):
         self._base_inv = sy.frame_of(np.linalg.inv(base))  # identity folds away
         self._tool_inv = sy.frame_of(np.linalg.inv(tool))
 
+    def to_flange(self, R: Mat, p: Vec) -> tuple[Mat, Vec]:
+        """A world pose of the end effector (R, p) as the flange's pose in the chain's frame 0."""
+        return sy.compose(sy.compose(self._base_inv, (R, p)), self._tool_inv)
+
     # ---- the one source -----------------------------------------------------
 
     def table_branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
@@ -147,7 +151,7 @@ class OffsetShoulderSolver(AnalyticSolver):
         is built joint by joint, each partial product shared by the branches
         that share those joints.
         """
-        R, p = sy.compose(sy.compose(self._base_inv, (R, p)), self._tool_inv)  # chain frame 0 -> flange
+        R, p = self.to_flange(R, p)
         w = sy.vadd(p, sy.vscale(self.geometry.d7, sy.col(R, 2)))  # eq. (5)
         r = ops.sqrt(w[0] * w[0] + w[1] * w[1])
         far = r > ZERO

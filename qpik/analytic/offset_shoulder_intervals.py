@@ -176,7 +176,7 @@ class DeltaIntervals:
         """
         g = self._solver.geometry
         R, p = sy.frame_of_batch(T)
-        R, p = sy.compose(sy.compose(self._solver._base_inv, (R, p)), self._solver._tool_inv)
+        R, p = self._solver.to_flange(R, p)
         n, t, b = sy.col(R, 0), sy.col(R, 1), sy.col(R, 2)
         w = sy.vadd(p, sy.vscale(g.d7, b))
         r = ops.sqrt(w[0] * w[0] + w[1] * w[1])

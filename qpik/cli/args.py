@@ -4,8 +4,15 @@ from __future__ import annotations
 
 import argparse
 import re
+from typing import Any, Protocol
 
 import numpy as np
+
+
+class Subcommands(Protocol):
+    """What a command's ``register`` is given: argparse's sub-parsers, whose ``add_parser`` adds the command."""
+
+    def add_parser(self, name: str, **kwargs: Any) -> argparse.ArgumentParser: ...
 
 
 def fields(text: str) -> list[str]:

@@ -5,8 +5,10 @@ from __future__ import annotations
 import argparse
 import importlib
 
+from qpik.cli.args import Subcommands
 
-def register(sub: argparse._SubParsersAction) -> None:
+
+def register(sub: Subcommands) -> None:
     from qpik.bench import BENCHES
 
     p = sub.add_parser("bench", help="time qpik next to mink, ssik and other solvers")

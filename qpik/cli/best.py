@@ -10,11 +10,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from qpik.cli.args import add_robot, floats, robot_from_args
+from qpik.cli.args import Subcommands, add_robot, floats, robot_from_args
 from qpik.cli.ik import add_pose, pose_from_args
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: Subcommands) -> None:
     from qpik.objectives import NAMES
 
     p = sub.add_parser("best", help="the globally best branch and δ/ψ for a pose (certified NLP over every branch)")

@@ -5,8 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from qpik.cli.args import Subcommands
 
-def register(sub: argparse._SubParsersAction) -> None:
+
+def register(sub: Subcommands) -> None:
     from qpik.demo import ORDER
 
     p = sub.add_parser("demo", help="show what qpik does (tables and PNGs)")

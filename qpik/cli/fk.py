@@ -10,10 +10,10 @@ import argparse
 
 import numpy as np
 
-from qpik.cli.args import add_robot, floats, robot_from_args
+from qpik.cli.args import Subcommands, add_robot, floats, robot_from_args
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: Subcommands) -> None:
     p = sub.add_parser("fk", help="forward kinematics: pose, position, roll-pitch-yaw of a configuration")
     add_robot(p)
     p.add_argument(

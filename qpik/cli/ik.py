@@ -9,14 +9,15 @@ gives back ``q``.
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 import numpy as np
 
-from qpik.cli.args import add_robot, floats, robot_from_args
+from qpik.cli.args import Subcommands, add_robot, floats, robot_from_args
 from qpik.errors import InputError
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: Subcommands) -> None:
     p = sub.add_parser("ik", help="closed-form IK: all branches at one δ/ψ, checked by forward kinematics")
     add_robot(p)
     add_pose(p)
@@ -29,7 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_run)
 
 
-def add_pose(p: argparse.ArgumentParser) -> argparse._MutuallyExclusiveGroup:
+def add_pose(p: argparse.ArgumentParser) -> Any:
     """The pose options shared by ``qpik ik`` and ``qpik plot``; returns their exclusive group."""
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--pose", type=floats, help="16 numbers, the 4x4 pose row by row (m)")

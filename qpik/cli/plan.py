@@ -13,8 +13,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from qpik.cli.args import Subcommands
 
-def register(sub: argparse._SubParsersAction) -> None:
+
+def register(sub: Subcommands) -> None:
     p = sub.add_parser("plan", help="plan the joint motion along a path (problem files of kind plan)")
     p.add_argument("files", nargs="+", metavar="FILE|DIR", help="problem files or folders of them (or problem names)")
     p.add_argument(

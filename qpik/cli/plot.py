@@ -13,11 +13,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from qpik.cli.args import add_robot, floats, robot_from_args, whole
+from qpik.cli.args import Subcommands, add_robot, floats, robot_from_args, whole
 from qpik.cli.ik import add_pose, pose_from_args
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: Subcommands) -> None:
     p = sub.add_parser("plot", help="self-motion map or branch poses of one pose (PNG)")
     p.add_argument("what", choices=("selfmotion", "branches"), help="which picture")
     add_robot(p, required=False)

@@ -5,8 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from qpik.cli.args import Subcommands
 
-def register(sub: argparse._SubParsersAction) -> None:
+
+def register(sub: Subcommands) -> None:
     p = sub.add_parser("problems", help="list the problem files (default: the ones shipped with qpik)")
     p.add_argument(
         "folder", nargs="?", type=Path, help="folder of *.toml files (default: the problems shipped with qpik)"

@@ -5,10 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from qpik.cli.args import add_robot, at_least_one, floats, robot_from_args, whole
+from qpik.cli.args import Subcommands, add_robot, at_least_one, floats, robot_from_args, whole
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: Subcommands) -> None:
     p = sub.add_parser("render", help="draw configurations of an arm to a PNG (MuJoCo, offscreen)")
     add_robot(p)
     p.add_argument(
@@ -21,7 +21,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--out", type=Path, default=Path("pose.png"), help="PNG file to write (default: pose.png)")
     p.add_argument("--overlay", action="store_true", help="draw every configuration in one picture")
     p.add_argument("--cols", type=int, default=None, help="tiles per row (default: about the square root of the count)")
-    p.add_argument("--size", type=floats, default=None, metavar="W,H", help="tile size in pixels (default 480,400)")
+    p.add_argument("--size", type=floats, default=None, metavar="W,H", help="tile size in pixels (default: 480,400)")
     p.set_defaults(func=_run)
 
 

@@ -11,23 +11,23 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from qpik.cli.args import add_robot, floats, robot_from_args, whole
+from qpik.cli.args import Subcommands, add_robot, floats, robot_from_args, whole
 
 DEFAULT_ROBOT = "iiwa14"
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: Subcommands) -> None:
     p = sub.add_parser("view", help="show an arm in a web browser: drag the target, see every branch (viser)")
     p.add_argument("arm", nargs="?", metavar="ROBOT|FILE",
-                   help=f"arm of the catalog or an MJCF/URDF file (default {DEFAULT_ROBOT}; or --robot)")  # fmt: skip
+                   help=f"arm of the catalog or an MJCF/URDF file (default: {DEFAULT_ROBOT}; or --robot)")  # fmt: skip
     add_robot(p, required=False)
     p.add_argument("--problem", metavar="NAME|FILE", help="robot, first target and obstacles of a problem file")
     p.add_argument("--play", type=Path, metavar="PLAN.npz", help="play back the plan file that qpik plan writes")
-    p.add_argument("--objective", default="margin", help="solve_best's objective (default margin)")
-    p.add_argument("--d-safe", type=float, default=0.02, help="clearance to the obstacles, m (default 0.02)")
+    p.add_argument("--objective", default="margin", help="solve_best's objective (default: margin)")
+    p.add_argument("--d-safe", type=float, default=0.02, help="clearance to the obstacles, m (default: 0.02)")
     p.add_argument("--live", action="store_true", help="start with the QP controller tracking the target")
-    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
-    p.add_argument("--port", type=int, default=8080, help="port to listen on (default 8080)")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default: 127.0.0.1)")
+    p.add_argument("--port", type=int, default=8080, help="port to listen on (default: 8080)")
     p.add_argument("--screenshot", type=Path, metavar="PNG", help="write the page as a PNG (headless browser) and exit")
     p.add_argument("--size", type=floats, default=None, metavar="W,H", help="screenshot size in pixels (1280,800)")
     p.set_defaults(func=_run)

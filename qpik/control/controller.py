@@ -79,6 +79,8 @@ class StepInfo:
         task_error: norm of the first FrameTask's pose error ``[m; rad]`` (nan without one).
         solver_status: the solver's own status string.
         solve_time, total_time: seconds in the solver, and in the whole step.
+        activity: what :attr:`active` is built from: the step's v (n,), a function giving the step's QP,
+            and the controller's velocity limits (None when the step failed).
     """
 
     status: str = "ok"
@@ -88,19 +90,19 @@ class StepInfo:
     solver_status: str = ""
     solve_time: float = 0.0
     total_time: float = 0.0
-    _activity: tuple | None = field(default=None, repr=False, compare=False)
+    activity: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
     def active(self) -> tuple[str, ...]:
         """Names of the constraints at their bound, built on first access."""
-        if self._activity is None:
+        if self.activity is None:
             return ()
-        v, saved, caps = self._activity
+        v, saved, caps = self.activity
         qp = saved()
         lb, ub, l, u = qp.lb, qp.ub, qp.l, qp.u
         Av = qp.A @ v
         gap_lo, gap_hi = Av - l, u - Av
-        cap = [lim._bounds for lim in caps if lim._bounds is not None]
+        cap = [lim.range for lim in caps if lim.range is not None]
 
         def kind(j: int, bound: float, side: int) -> str:
             return "velocity" if any(bound == c[side][j] for c in cap) else "position"
@@ -217,27 +219,25 @@ class Controller:
             if isinstance(task, PostureTask):
                 task.set_target(q_ref)
 
-    def _summary(self, s: SymState) -> list:
-        """The step's summary, computed in the compiled call: per :class:`ObstacleLimit` its smallest
-        capsule–obstacle distance (m; inf without pairs) over the capsules a joint moves
-        (:attr:`~qpik.robots.robot.Robot.fixed_capsules` are left out), then 1.0 if q is past a
-        :class:`ConfigurationLimit`'s range (else 0.0), then the norm of the first :class:`FrameTask`'s pose
-        error ``[m; rad]`` (nan without one)."""
-        out = []
+    def _summary(self, s: SymState) -> dict[str, ca.SX]:
+        """The step's summary, computed in the compiled call: ``clearance``, per :class:`ObstacleLimit` its
+        smallest capsule–obstacle distance (m; inf without pairs) over the capsules a joint moves
+        (:attr:`~qpik.robots.robot.Robot.fixed_capsules` are left out); ``past``, 1.0 if q is past a
+        :class:`ConfigurationLimit`'s range (else 0.0); ``task_error``, the norm of the first
+        :class:`FrameTask`'s pose error ``[m; rad]`` (nan without one)."""
+        clearance = []
         for lim in self.obstacle_limits:
             moving = np.repeat(~self.robot.fixed_capsules, len(lim.obstacles))  # pair (c, o) at c·O + o
             d = lim.distances_expr(s)[np.flatnonzero(moving).tolist()]
-            out.append(ca.mmin(d) if d.numel() else ca.inf)
+            clearance.append(ca.mmin(d) if d.numel() else ca.inf)
         past = ca.SX(0.0)
         for lim in self.config_limits:
             p = s.params_of(lim)
-            past = past + ca.sum1(s.q < p[: s.n]) + ca.sum1(s.q > p[s.n :])
-        out.append(past > 0)
+            past = past + ca.sum1(s.q < p.lo) + ca.sum1(s.q > p.hi)
+        error = ca.SX(np.nan)
         if self.frame_task is not None:
-            out.append(ca.norm_2(self.frame_task.error_expr(s, s.params_of(self.frame_task))))
-        else:
-            out.append(ca.SX(np.nan))
-        return [ca.vertcat(*out)]
+            error = ca.norm_2(self.frame_task.error_expr(s, s.params_of(self.frame_task)))
+        return {"clearance": ca.vertcat(*clearance), "past": past > 0, "task_error": error}
 
     def step(self, q: np.ndarray, target: np.ndarray | None = None, twist: np.ndarray | None = None) -> np.ndarray:
         """One control step: the joint velocity v (n,), rad/s, for configuration ``q`` (n,), rad.
@@ -254,7 +254,7 @@ class Controller:
                 raise InputError("target: this controller has no FrameTask")
             self.frame_task.set_target(target, twist)
         qp = self.assembler.build(q)
-        summary = self.assembler.extra[0]
+        summary = self.assembler.extra
         t1 = time.perf_counter()
         sol = self.solver.solve(qp)
         exact = self.fallback or self.solver
@@ -279,13 +279,13 @@ class Controller:
         info = StepInfo(solver_status=sol.status, solve_time=t2 - t1, relaxation=relaxation)
         if sol.found:
             v = np.minimum(np.maximum(sol.x, qp.lb), qp.ub)  # remove the solver's tolerance-level box violations
-            info._activity = (v, self.assembler.snapshot(qp), self.caps)
+            info.activity = (v, self.assembler.snapshot(qp), self.caps)
         else:
             if self.raise_on_failure:
                 raise SolverError(f"{self.solver.name}: no solution ({sol.status})")
             v = np.zeros(self.robot.dof)
             info.status = "failed"
-        *clearances, past, info.task_error = summary.tolist()
+        clearances, past, info.task_error = summary.clearance.tolist(), summary.past[0], float(summary.task_error[0])
         if clearances:
             info.min_clearance = min(clearances)
         if info.status == "ok":

@@ -27,7 +27,8 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 
-from qpik.control.state import State, SymState, _unique, evaluate, kinematics_of
+from qpik.control.state import State, SymState, Traced, evaluate, kinematics_of
+from qpik.core.layout import Blocks, Layout
 from qpik.errors import InfeasibleError, InputError
 from qpik.validate import finite_array, number
 
@@ -36,7 +37,7 @@ if TYPE_CHECKING:
     from qpik.robots.robot import Robot
 
 
-class Limit:
+class Limit(Traced):
     """A constraint family of the QP (subclass :class:`BoxLimit` or :class:`RowLimit`)."""
 
     name: str = "limit"
@@ -48,24 +49,8 @@ class Limit:
         """
         return None
 
-    def param_size(self, n: int) -> int:
-        """Number of parameters for an arm with n joints (default 0)."""
-        return 0
-
-    def params(self) -> np.ndarray:
-        """The current parameters, a flat (param_size,) vector (after :meth:`check`)."""
-        return np.zeros(0)
-
-    def structure(self) -> tuple:
-        """What fixes the expression's form beyond the parameters (part of the compiled function's key).
-
-        The default is unique to this object (its compiled function is never shared);
-        subclasses whose form depends only on their parameters return ``()``.
-        """
-        return (_unique(self),)
-
-    def parameters(self, s: SymState) -> ca.SX:
-        """This limit's parameters declared as inputs of ``s``."""
+    def parameters(self, s: SymState) -> Blocks:
+        """This limit's parameters declared as inputs of ``s`` (SX blocks of :meth:`param_layout`)."""
         return s.params_of(self)
 
 
@@ -75,7 +60,7 @@ class BoxLimit(Limit, ABC):
     cap: bool = False  # cap boxes (velocity limits) clip every other box
 
     @abstractmethod
-    def expr(self, s: SymState, p: ca.SX) -> tuple[ca.SX, ca.SX]:
+    def expr(self, s: SymState, p: Blocks) -> tuple[ca.SX, ca.SX]:
         """``(lb, ub)``, each (n,) SX, rad/s; ``±inf`` for no bound."""
 
     def bounds(self, state: State) -> tuple[np.ndarray, np.ndarray]:
@@ -97,7 +82,7 @@ class RowLimit(Limit, ABC):
         """One name per row (for :attr:`StepInfo.active`)."""
 
     @abstractmethod
-    def expr(self, s: SymState, p: ca.SX, lb: ca.SX, ub: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+    def expr(self, s: SymState, p: Blocks, lb: ca.SX, ub: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
         """``(A, l, u)``: (m, n), (m,), (m,) SX, given the step's final box ``lb ≤ v ≤ ub`` (n,)."""
 
     def rows(self, state: State, lb: np.ndarray, ub: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -149,15 +134,14 @@ class ConfigurationLimit(BoxLimit):
     def structure(self) -> tuple:
         return ()
 
-    def param_size(self, n: int) -> int:
-        return 2 * n
+    def param_layout(self, n: int) -> Layout:
+        return Layout(lo=n, hi=n)
 
-    def params(self) -> np.ndarray:
-        return np.concatenate((self._lo, self._hi))
+    def param_values(self) -> dict[str, np.ndarray]:
+        return {"lo": self._lo, "hi": self._hi}
 
-    def expr(self, s: SymState, p: ca.SX) -> tuple[ca.SX, ca.SX]:
-        n = s.n
-        return (p[:n] - s.q) / s.dt, (p[n:] - s.q) / s.dt
+    def expr(self, s: SymState, p: Blocks) -> tuple[ca.SX, ca.SX]:
+        return (p.lo - s.q) / s.dt, (p.hi - s.q) / s.dt
 
 
 class VelocityLimit(BoxLimit):
@@ -183,17 +167,22 @@ class VelocityLimit(BoxLimit):
             raise InfeasibleError("VelocityLimit: negative v_max for joint(s) " + ", ".join(str(j + 1) for j in bad))
         self._bounds = (-vmax.copy(), vmax.copy())
 
+    @property
+    def range(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(−v_max, v_max)``, each (n,), rad/s: the range kept (after :meth:`check`; None before)."""
+        return self._bounds
+
     def structure(self) -> tuple:
         return ()
 
-    def param_size(self, n: int) -> int:
-        return n
+    def param_layout(self, n: int) -> Layout:
+        return Layout(v_max=n)
 
-    def params(self) -> np.ndarray:
-        return self._bounds[1]
+    def param_values(self) -> dict[str, np.ndarray]:
+        return {"v_max": self._bounds[1]}
 
-    def expr(self, s: SymState, p: ca.SX) -> tuple[ca.SX, ca.SX]:
-        return -p, p
+    def expr(self, s: SymState, p: Blocks) -> tuple[ca.SX, ca.SX]:
+        return -p.v_max, p.v_max
 
 
 class ObstacleLimit(RowLimit):
@@ -293,11 +282,11 @@ class ObstacleLimit(RowLimit):
         layout = kinematics_of(robot).damper_layout(self.obstacles.kinds)
         return [f"obstacle {names[o]} / link{robot.capsules[c].link}{ends[e]}" for c, o, e in layout]
 
-    def param_size(self, n: int) -> int:
-        return 3
+    def param_layout(self, n: int) -> Layout:
+        return Layout(d_influence=(), d_safe=(), xi=())
 
-    def params(self) -> np.ndarray:
-        return np.array((self.d_influence, self.d_safe + self.buffer, self.xi))
+    def param_values(self) -> dict[str, float]:
+        return {"d_influence": self.d_influence, "d_safe": self.d_safe + self.buffer, "xi": self.xi}
 
     def structure(self) -> tuple:
         return (self.obstacles.kinds,)
@@ -306,11 +295,11 @@ class ObstacleLimit(RowLimit):
         """Signed distances (C·O,) of every capsule–obstacle pair, m (SX)."""
         return s.distances(self.obstacles)
 
-    def expr(self, s: SymState, p: ca.SX, lb: ca.SX, ub: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
+    def expr(self, s: SymState, p: Blocks, lb: ca.SX, ub: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
         # every row (fixed shape, from the step's compiled kinematics); rows beyond d_i get l = -inf
         A = s.damper_rows(self.obstacles)
         h = s.damper_heights(self.obstacles)
-        d_i, ds, xi = p[0], p[1], p[2]
+        d_i, ds, xi = p.d_influence, p.d_safe, p.xi
         m = A.shape[0]
         lower = (-xi / (d_i - ds)) * (h - ds)
         # inside d_s + δ (lower > 0): ask for at most half of what the box widened to v = 0 can give

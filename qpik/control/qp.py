@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -35,6 +34,7 @@ from qpik.compiled import Compiled, native_library
 from qpik.control.limits import BoxLimit, Limit, RowLimit
 from qpik.control.state import SymState, kinematics_of
 from qpik.control.tasks import Task
+from qpik.core.layout import Blocks, Layout
 
 REGULARIZATION = 1e-12
 
@@ -100,7 +100,12 @@ class Assembler:
         robot: the arm (fixes n and the number of rows).
         tasks, limits: the controller's tasks and limits.
         dt: control period, s.
-        extra: ``f(s) -> list of SX`` outputs appended after the QP (e.g. a pose error).
+        extra: ``f(s) -> {name: SX}``, outputs appended after the QP (e.g. a pose error), read back by name
+            from :attr:`extra`.
+
+    Attributes:
+        qp: the :class:`QP` filled by :meth:`build` (views into the output buffer).
+        extra: the ``extra`` outputs by name (views into the output buffer, flat).
     """
 
     def __init__(self, robot, tasks: Sequence[Task], limits: Sequence[Limit], dt: float, extra=None):
@@ -113,7 +118,7 @@ class Assembler:
         self.row_limits = tuple(lim for lim in limits if isinstance(lim, RowLimit))
         m = sum(lim.size(robot) for lim in self.row_limits)
         self.m = m
-        names = tuple(nm for lim in self.row_limits for nm in lim.row_names(robot))
+        self.row_names = tuple(nm for lim in self.row_limits for nm in lim.row_names(robot))
         kin = kinematics_of(robot)
         values, sizes, key = self._compose(kin, extra, trace=False)
         entry = kin.composed.get(key)
@@ -123,19 +128,23 @@ class Assembler:
         fn, lib = entry
         self._values = values
         self._fn = Compiled(fn, compile=False, library=lib)
-        out = self._fn.outputs[0]
-        offsets = np.cumsum([0, n * n, n, n, n, m * n, m, m])
-        shapes = ((n, n), (n,), (m, n), (m,), (m,), (n,), (n,))  # in QP's field order: P, c, A, l, u, lb, ub
-        order = (0, 1, 4, 5, 6, 2, 3)  # where each field is in the output
-        self._layout = [(offsets[k], offsets[k + 1], shape) for k, shape in zip(order, shapes)]
-        self._flat = out[: offsets[-1]]
-        P, c, lb, ub, A, lo, hi = (out[a:b] for a, b in itertools.pairwise(offsets))
-        self.qp = QP(P=P.reshape(n, n), c=c, A=A.reshape(m, n), l=lo, u=hi, lb=lb, ub=ub, n=n, row_names=names)
-        self.extra = []
-        start = offsets[-1]
-        for size in sizes:
-            self.extra.append(out[start : start + size])
-            start += size
+        out = self._output_layout(sizes).views(self._fn.outputs[0])
+        self._flat = out.qp
+        self.qp = self._qp(self._flat)
+        self.extra = Blocks({name: out[name] for name in sizes})
+
+    def _qp_layout(self) -> Layout:
+        """The QP's part of the output: :class:`QP`'s arrays by name."""
+        n, m = self.n, self.m
+        return Layout(P=(n, n), c=n, lb=n, ub=n, A=(m, n), l=m, u=m)
+
+    def _output_layout(self, sizes: dict[str, int]) -> Layout:
+        """The output: the QP's part, then the ``extra`` outputs by name (``sizes``: their lengths)."""
+        return Layout(qp=self._qp_layout(), **sizes)
+
+    def _qp(self, flat: np.ndarray) -> QP:
+        """The QP whose arrays are views into ``flat`` (the QP's part of the output)."""
+        return QP(**self._qp_layout().views(flat), n=self.n, row_names=self.row_names)
 
     def _compose(self, kin, extra, trace: bool):
         """The step function (``trace``), else ``(values, extra sizes, key)`` from free symbols."""
@@ -164,14 +173,15 @@ class Assembler:
             lo.append(li)
             hi.append(ui)
         A, lo, hi = ca.vertcat(*A), ca.vertcat(*lo), ca.vertcat(*hi)
-        more = [ca.vec(x) for x in (extra(s) if extra else [])]
+        more = extra(s) if extra else {}
+        sizes = {name: x.numel() for name, x in more.items()}
         if not trace:
             objects = (*self.tasks, *self.boxes, *self.caps, *self.row_limits)
-            sizes = [x.numel() for x in more]
             structure = tuple((type(o).__module__, type(o).__qualname__, o.structure()) for o in objects)
-            key = (structure, tuple(sym.numel() for sym, _ in s.inputs), tuple(sizes), A.shape)
+            key = (structure, tuple(sym.numel() for sym, _ in s.inputs), tuple(sizes.items()), A.shape)
             return [value for _, value in s.inputs], sizes, key
-        out = ca.densify(ca.vertcat(ca.vec(P.T), c, lb, ub, ca.vec(A.T), lo, hi, *more))
+        qp = self._qp_layout().pack(P=P, c=c, lb=lb, ub=ub, A=A, l=lo, u=hi)
+        out = ca.densify(self._output_layout(sizes).pack(qp=qp, **more))
         prm = ca.vertcat(*[sym for sym, _ in s.inputs])
         tag = hashlib.sha256(repr(self._compose(kin, extra, trace=False)[2]).encode()).hexdigest()[:12]
         return ca.Function(f"qp_{kin.robot.identifier}_{tag}", [q, prm], [out])
@@ -182,11 +192,7 @@ class Assembler:
         :meth:`QP.copy` now (each call copies that copy)."""
         if qp is not self.qp:
             return qp.copy().copy
-        return functools.partial(self._restore, self._flat.copy())
-
-    def _restore(self, flat: np.ndarray) -> QP:
-        """The QP whose arrays are views into ``flat``, a copy of the output buffer."""
-        return QP(*(flat[a:b].reshape(shape) for a, b, shape in self._layout), self.n, self.qp.row_names)
+        return functools.partial(self._qp, self._flat.copy())
 
     def build(self, q: np.ndarray) -> QP:
         """Fill the QP for configuration ``q`` (n,), rad, and return it (the same object every call)."""

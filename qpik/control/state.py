@@ -34,6 +34,7 @@ import numpy as np
 
 from qpik import symbolic as sy
 from qpik.compiled import Compiled
+from qpik.core.layout import Blocks, Layout
 from qpik.errors import InputError
 from qpik.robots.manipulability import hessian_rows, jacobian_rows, manipulability_gradient_expr
 from qpik.robots.robot import as_robot
@@ -47,18 +48,21 @@ if TYPE_CHECKING:
 class Kinematics:
     """Per-robot compiled step functions, one per tuple of obstacle kernel families.
 
-    ``function(kinds)`` maps ``q`` (n,) [and the obstacle parameters] to one flat vector:
-    pose (16, row-major), J (6n, row-major), ∇m (n), translational ∇m (n), capsule end
-    points (6C), then for C capsules × O obstacles: ``[d, p_link, p_obs, n, s]`` (11 per
-    pair), the R damper rows (R × n, row-major) and their heights (R) of
-    :meth:`damper_layout`. Built once per robot by :func:`kinematics_of`.
+    ``function(kinds)`` maps ``q`` (n,) [and the obstacle parameters] to one flat vector laid out by
+    :meth:`layout`: the :attr:`base` part (pose (4, 4), J (6, n), ∇m and translational ∇m (2, n), capsule
+    end points (C, 2, 3)), then with obstacles the :meth:`pair_layout` part (for C capsules × O obstacles
+    one :data:`~qpik.geometry.distance.PAIR` record each, the R damper rows (R, n) and their heights (R,)
+    of :meth:`damper_layout`). Built once per robot by :func:`kinematics_of`.
+
+    Attributes:
+        base: the :class:`~qpik.core.layout.Layout` of the part without obstacles.
     """
 
     def __init__(self, robot: Robot):
         self.robot = robot
         self.n = robot.dof
         self.n_capsules = len(robot.capsules)
-        self.base_size = 16 + 8 * self.n + 6 * self.n_capsules
+        self.base = Layout(pose=(4, 4), J=(6, self.n), grad=(2, self.n), segments=(self.n_capsules, 2, 3))
         self._functions: dict[tuple[str, ...], Compiled] = {}
         self._layouts: dict[tuple[str, ...], tuple[tuple[int, int, int], ...]] = {}
         self.composed: dict[tuple, tuple] = {}  # the controllers' QP functions and their libraries, by structure
@@ -77,13 +81,23 @@ class Kinematics:
         jv, jw = chain.jacobian_expr(frames)
         Jr, Hr = jacobian_rows(jv, jw), hessian_rows(chain.hessian_expr(frames, (jv, jw)))
         R, p = frames[-1]
-        out = [*R[0], p[0], *R[1], p[1], *R[2], p[2], 0.0, 0.0, 0.0, 1.0]
-        out += [x for row in Jr for x in row]
-        for rows in (6, 3):
-            out += manipulability_gradient_expr(Jr[:rows], [Hk[:rows] for Hk in Hr])[0]
+        pose = [[*R[i], p[i]] for i in range(3)] + [[0.0, 0.0, 0.0, 1.0]]
+        grad = [manipulability_gradient_expr(Jr[:rows], [Hk[:rows] for Hk in Hr])[0] for rows in (6, 3)]
         segments = robot.capsule_segments_expr(frames)
-        out += [x for ab in segments for end in ab for x in end]
-        return frames, ca.vertcat(*out)
+        return frames, self.base.pack(pose=pose, J=Jr, grad=grad, segments=segments)
+
+    def pair_layout(self, kinds: tuple[str, ...]) -> Layout:
+        """The layout of the part for obstacles of families ``kinds``: ``pairs`` (C, O, PAIR.size), ``rows``
+        (R, n) and ``heights`` (R,) of :meth:`damper_layout`."""
+        from qpik.geometry.distance import PAIR
+
+        R = len(self.damper_layout(kinds))
+        return Layout(pairs=(self.n_capsules, len(kinds), PAIR.size), rows=(R, self.n), heights=R)
+
+    def layout(self, kinds: tuple[str, ...]) -> Layout:
+        """The layout of :meth:`function`'s output: ``base`` (:attr:`base`) and, with obstacles, ``pairs``
+        (:meth:`pair_layout`)."""
+        return Layout(base=self.base, pairs=self.pair_layout(kinds)) if kinds else Layout(base=self.base)
 
     def damper_layout(self, kinds: tuple[str, ...]) -> tuple[tuple[int, int, int], ...]:
         r"""``(capsule, obstacle, end)`` of every velocity-damper row for obstacles of families ``kinds``.
@@ -115,26 +129,22 @@ class Kinematics:
 
     def pairs_expr(self, frames: list, kinds: tuple[str, ...], prm: ca.SX) -> ca.SX:
         """The flat pair part of the output (SX column) for obstacles ``kinds`` with parameters ``prm``."""
-        from qpik.geometry.distance import set_expr
+        from qpik.geometry.distance import pair_record, set_expr
 
         robot, chain, n = self.robot, self.robot.chain, self.n
         segments = robot.capsule_segments_expr(frames)
         radii = robot.capsule_radii
         pairs = set_expr(segments, radii, kinds, [prm[i] for i in range(prm.numel())], sy.CASADI)
-        out = [x for row in pairs for d, p_link, p_obs, nrm, s in row for x in (d, *p_link, *p_obs, *nrm, s)]
-        heights = []
+        heights, rows = [], []
         for c, o, end in self.damper_layout(kinds):
             d, p_link, p_obs, nrm, _ = pairs[c][o]
             point = p_link if end < 0 else segments[c][end]
             heights.append(d if end < 0 else sy.dot(nrm, sy.vsub(point, p_obs)) - radii[c])
             link = robot.capsules[c].link
             cols = chain.point_jacobian_expr(frames, point, link)
-            out += [sy.dot(nrm, col) for col in cols] + [0.0] * (n - len(cols))
-        return ca.vertcat(*out, *heights)
-
-    def pairs_size(self, kinds: tuple[str, ...]) -> int:
-        """Length of :meth:`pairs_expr`'s output: 11 per pair, then n + 1 per damper row."""
-        return 11 * self.n_capsules * len(kinds) + (self.n + 1) * len(self.damper_layout(kinds))
+            rows.append([sy.dot(nrm, col) for col in cols] + [0.0] * (n - len(cols)))
+        records = [pair_record(pair) for row in pairs for pair in row]
+        return self.pair_layout(kinds).pack(pairs=records, rows=rows, heights=heights)
 
     def _build(self, kinds: tuple[str, ...]) -> ca.Function:
         from qpik.geometry.distance import PARAMS
@@ -150,15 +160,9 @@ class Kinematics:
         return ca.Function(name, inputs, [out])
 
 
-_KIN: dict[int, Kinematics] = {}
-
-
 def kinematics_of(robot: Robot) -> Kinematics:
-    """The cached :class:`Kinematics` of ``robot`` (robots are immutable)."""
-    k = _KIN.get(id(robot))
-    if k is None or k.robot is not robot:
-        k = _KIN[id(robot)] = Kinematics(robot)
-    return k
+    """The :class:`Kinematics` of ``robot``, built once (``robot.cache``)."""
+    return robot.cache.get("control kinematics", Kinematics, robot)
 
 
 class State:
@@ -191,47 +195,37 @@ class State:
         self.robot = robot
         self.q = q
         self.dt = dt
-        n, C = kin.n, kin.n_capsules
         out = self._evaluate(obstacles)
-        self.pose = out[:16].reshape(4, 4)
-        self.J = out[16 : 16 + 6 * n].reshape(6, n)
-        self._grad = out[16 + 6 * n : 16 + 8 * n].reshape(2, n)
-        self.segments = out[16 + 8 * n : kin.base_size].reshape(C, 2, 3)
-        self.base = out[: kin.base_size]  # the flat base part (the input of :class:`SymState` ``.free``)
-        self._pairs: dict[int, tuple[ObstacleSet, Distances, np.ndarray, np.ndarray, np.ndarray]] = {}
+        base = kin.base.views(out.base)
+        self.pose, self.J, self._grad, self.segments = base.pose, base.J, base.grad, base.segments
+        self.base = out.base  # the flat base part (the input of :class:`SymState` ``.free``)
+        self._pairs: dict[ObstacleSet, Blocks] = {}
         if obstacles is not None and len(obstacles):
-            self._unpack(obstacles, out)
+            self._pairs[obstacles] = out
 
-    def _evaluate(self, obstacles: ObstacleSet | None) -> np.ndarray:
-        """A read-only copy of the step function's output for ``obstacles`` (None or empty: kinematics only)."""
-        if obstacles is None or not len(obstacles):
-            out = self.kin.function(())(self.q)[0].copy()
-        else:
-            out = self.kin.function(obstacles.kinds)(self.q, obstacles.params)[0].copy()
+    def _evaluate(self, obstacles: ObstacleSet | None) -> Blocks:
+        """The step function's output for ``obstacles`` (None or empty: kinematics only), read-only, by
+        :meth:`Kinematics.layout`; its ``pairs`` block as :meth:`Kinematics.pair_layout`'s blocks, with the
+        distances as :class:`~qpik.geometry.distance.Distances` and the flat part as ``flat``."""
+        from qpik.geometry.distance import PAIR, Distances
+
+        kinds = () if obstacles is None else obstacles.kinds
+        out = self.kin.function(kinds)(self.q, obstacles.params)[0] if kinds else self.kin.function(())(self.q)[0]
+        out = out.copy()
         out.flags.writeable = False
-        return out
+        blocks = dict(self.kin.layout(kinds).views(out))
+        if kinds:
+            pairs = dict(self.kin.pair_layout(kinds).views(blocks["pairs"]))
+            pairs["distances"], pairs["flat"] = Distances(**PAIR.views(pairs["pairs"])), blocks["pairs"]
+            blocks["pairs"] = Blocks(pairs)
+        return Blocks(blocks)
 
-    def _unpack(
-        self, obstacles: ObstacleSet, out: np.ndarray
-    ) -> tuple[ObstacleSet, Distances, np.ndarray, np.ndarray, np.ndarray]:
-        from qpik.geometry.distance import Distances
-
-        C, O, base, n = self.kin.n_capsules, len(obstacles), self.kin.base_size, self.kin.n
-        R = len(self.kin.damper_layout(obstacles.kinds))
-        pairs = out[base : base + 11 * C * O].reshape(C, O, 11)
-        dist = Distances(
-            d=pairs[..., 0], p_link=pairs[..., 1:4], p_obs=pairs[..., 4:7], normal=pairs[..., 7:10], s=pairs[..., 10]
-        )
-        start = base + 11 * C * O
-        rows, heights = out[start : start + R * n].reshape(R, n), out[start + R * n :]
-        entry = self._pairs[id(obstacles)] = (obstacles, dist, rows, heights, out[base:])
-        return entry
-
-    def _entry(self, obstacles: ObstacleSet) -> tuple[ObstacleSet, Distances, np.ndarray, np.ndarray, np.ndarray]:
-        entry = self._pairs.get(id(obstacles))
-        if entry is None or entry[0] is not obstacles:
-            entry = self._unpack(obstacles, self._evaluate(obstacles))
-        return entry
+    def _entry(self, obstacles: ObstacleSet) -> Blocks:
+        """The pair part for ``obstacles``: ``distances``, ``rows``, ``heights`` and ``flat``."""
+        out = self._pairs.get(obstacles)
+        if out is None:
+            out = self._pairs[obstacles] = self._evaluate(obstacles)
+        return out.pairs
 
     def manipulability_gradient(self, translational: bool = False) -> np.ndarray:
         """∇m (n,), per rad, of Yoshikawa's index (``translational``: of J_v only)."""
@@ -239,7 +233,7 @@ class State:
 
     def distances(self, obstacles: ObstacleSet) -> Distances:
         """Capsule–obstacle distances and witness points (C, O) of a packed obstacle set, world frame."""
-        return self._entry(obstacles)[1]
+        return self._entry(obstacles).distances
 
     def damper_rows(self, obstacles: ObstacleSet) -> np.ndarray:
         r"""Rows :math:`n^T J_p(x)` (R, n) in the order of :meth:`Kinematics.damper_layout`.
@@ -249,31 +243,50 @@ class State:
         capsule's link (zero columns for the joints beyond it), so the row is the rate
         :math:`\dot h` of the row's height (:meth:`damper_heights`) per unit ``v``.
         """
-        return self._entry(obstacles)[2]
+        return self._entry(obstacles).rows
 
     def damper_heights(self, obstacles: ObstacleSet) -> np.ndarray:
         """Heights h (R,), m, of the damper rows (:meth:`Kinematics.damper_layout`): each is ≥ the pair's d."""
-        return self._entry(obstacles)[3]
+        return self._entry(obstacles).heights
 
     def pairs(self, obstacles: ObstacleSet) -> np.ndarray:
         """The flat pair part of the step output for ``obstacles`` (the input of :class:`SymState` ``.free``)."""
-        return self._entry(obstacles)[4]
+        return self._entry(obstacles).flat
 
 
 _TOKENS = itertools.count()
 
 
-def _unique(owner) -> int:
-    """A number unique to ``owner`` for the life of the process (unlike ``id``, never reused)."""
-    token = owner.__dict__.get("_token")
-    if token is None:
-        token = owner.__dict__["_token"] = next(_TOKENS)
-    return token
+class Traced:
+    """The base of tasks and limits: math written once as a CasADi expression of a :class:`SymState` and of
+    named parameters.
 
+    Attributes:
+        token: a number unique to this object for the life of the process (unlike ``id``, never reused).
+        evaluators: this object's expressions compiled for numeric states (:func:`evaluate`), by kinematics.
+    """
 
-def _rows(v: ca.SX, r: int, c: int) -> ca.SX:
-    """The (r, c) matrix stored row-major in the SX column ``v``."""
-    return ca.reshape(v, c, r).T
+    def __new__(cls, *args: object, **kwargs: object):
+        self = super().__new__(cls)
+        self.token = next(_TOKENS)
+        self.evaluators = {}
+        return self
+
+    def param_layout(self, n: int) -> Layout:
+        """The parameters' layout for an arm with n joints (default: none)."""
+        return Layout()
+
+    def param_values(self) -> dict[str, object]:
+        """The current parameters by name (numbers or arrays of :meth:`param_layout`'s shapes)."""
+        return {}
+
+    def structure(self) -> tuple:
+        """What fixes the expression's form beyond the parameters (part of the compiled function's key).
+
+        The default is unique to this object (its compiled function is never shared);
+        subclasses whose form depends only on their parameters return ``()``.
+        """
+        return (self.token,)
 
 
 class SymState:
@@ -292,15 +305,14 @@ class SymState:
     """
 
     def __init__(self, kin: Kinematics, q: ca.SX, dt: ca.SX, base: ca.SX, pairs_of):
-        n = kin.n
-        self.kin, self.q, self.dt, self.n = kin, q, dt, n
-        self.pose = _rows(base[:16], 4, 4)
-        self.J = _rows(base[16 : 16 + 6 * n], 6, n)
-        self._grad = (base[16 + 6 * n : 16 + 7 * n], base[16 + 7 * n : 16 + 8 * n])
+        self.kin, self.q, self.dt, self.n = kin, q, dt, kin.n
+        blocks = kin.base.symbols(base)
+        self.pose, self.J = blocks.pose, blocks.J
+        self._grad = (blocks.grad[0, :].T, blocks.grad[1, :].T)
         self._pairs_of = pairs_of
-        self._pairs: dict[int, tuple[ObstacleSet, ca.SX]] = {}
+        self._pairs: dict[ObstacleSet, Blocks] = {}
         self.inputs: list = []
-        self._owned: dict[int, ca.SX] = {}
+        self._owned: dict[int, Blocks] = {}
 
     @classmethod
     def of(cls, kin: Kinematics, q: ca.SX, dt: ca.SX, trace: bool = True) -> SymState:
@@ -312,23 +324,23 @@ class SymState:
         if trace:
             frames, base = kin.base_expr(q)
         else:
-            base = ca.SX.sym("base", kin.base_size)
+            base = ca.SX.sym("base", kin.base.size)
 
         def pairs_of(s: SymState, obstacles: ObstacleSet) -> ca.SX:
             prm = s.parameter(len(obstacles.params), lambda state: obstacles.params)
             if trace:
                 return kin.pairs_expr(frames, obstacles.kinds, prm)
-            return ca.SX.sym("pairs", kin.pairs_size(obstacles.kinds))
+            return ca.SX.sym("pairs", kin.pair_layout(obstacles.kinds).size)
 
         return cls(kin, q, dt, base, pairs_of)
 
     @classmethod
     def free(cls, kin: Kinematics) -> SymState:
         """Free symbols for a numeric :class:`State` (inputs ``q``, dt, base and pairs)."""
-        base = ca.SX.sym("base", kin.base_size)
+        base = ca.SX.sym("base", kin.base.size)
 
         def pairs_of(s: SymState, obstacles: ObstacleSet) -> ca.SX:
-            return s.parameter(kin.pairs_size(obstacles.kinds), lambda state: state.pairs(obstacles))
+            return s.parameter(kin.pair_layout(obstacles.kinds).size, lambda state: state.pairs(obstacles))
 
         s = cls(kin, ca.SX.sym("q", kin.n), ca.SX.sym("dt"), base, pairs_of)
         s.inputs += [(s.q, lambda state: state.q), (s.dt, lambda state: state.dt), (base, lambda state: state.base)]
@@ -340,54 +352,58 @@ class SymState:
         self.inputs.append((sym, value))
         return sym
 
-    def params_of(self, owner) -> ca.SX:
-        """The parameters of a task or limit (``param_size``, ``params()``) as an input, declared once per owner."""
-        sym = self._owned.get(id(owner))
-        if sym is None:
-            sym = self._owned[id(owner)] = self.parameter(owner.param_size(self.n), lambda state: owner.params())
-        return sym
+    def params_of(self, owner: Traced) -> Blocks:
+        """The parameters of a task or limit as an input (SX blocks of its ``param_layout``, by name), declared
+        once per owner; their numbers are read from ``param_values()`` at every call."""
+        blocks = self._owned.get(owner.token)
+        if blocks is None:
+            layout = owner.param_layout(self.n)
+            sym = self.parameter(layout.size, lambda state: layout.numbers(**owner.param_values()))
+            blocks = self._owned[owner.token] = layout.symbols(sym)
+        return blocks
 
     def manipulability_gradient(self, translational: bool = False) -> ca.SX:
         """∇m (n,) as in :meth:`State.manipulability_gradient`."""
         return self._grad[int(translational)]
 
-    def _entry(self, obstacles: ObstacleSet) -> ca.SX:
-        entry = self._pairs.get(id(obstacles))
-        if entry is None or entry[0] is not obstacles:
-            entry = self._pairs[id(obstacles)] = (obstacles, self._pairs_of(self, obstacles))
-        return entry[1]
+    def _entry(self, obstacles: ObstacleSet) -> Blocks:
+        """The pair part for ``obstacles`` as SX blocks of :meth:`Kinematics.pair_layout`."""
+        blocks = self._pairs.get(obstacles)
+        if blocks is None:
+            flat = self._pairs_of(self, obstacles)
+            blocks = self._pairs[obstacles] = self.kin.pair_layout(obstacles.kinds).symbols(flat)
+        return blocks
 
     def distances(self, obstacles: ObstacleSet) -> ca.SX:
         """Signed distances d (C·O,), pair ``(c, o)`` at ``c·O + o``, m."""
-        C, O = self.kin.n_capsules, len(obstacles)
-        return self._entry(obstacles)[0 : 11 * C * O : 11]
+        from qpik.geometry.distance import PAIR
+
+        pairs = self._entry(obstacles).pairs
+        return PAIR.symbols(pairs, count=pairs.numel() // PAIR.size).d
 
     def damper_rows(self, obstacles: ObstacleSet) -> ca.SX:
         """Rows (R, n) as in :meth:`State.damper_rows`."""
-        start, R = 11 * self.kin.n_capsules * len(obstacles), len(self.kin.damper_layout(obstacles.kinds))
-        return _rows(self._entry(obstacles)[start : start + R * self.n], R, self.n)
+        return self._entry(obstacles).rows
 
     def damper_heights(self, obstacles: ObstacleSet) -> ca.SX:
         """Heights (R,) as in :meth:`State.damper_heights`, m."""
-        start, R = 11 * self.kin.n_capsules * len(obstacles), len(self.kin.damper_layout(obstacles.kinds))
-        return self._entry(obstacles)[start + R * self.n : start + R * (self.n + 1)]
+        return self._entry(obstacles).heights
 
 
 def evaluate(owner, state: State, build, *extra: np.ndarray) -> list[np.ndarray]:
     """Evaluate ``build(s, *x)`` (a list of SX outputs) at a numeric ``state`` and ``extra`` vectors.
 
     ``s`` is a :meth:`SymState.free` state and ``x`` symbols for the ``extra`` arrays. The
-    CasADi function is cached on ``owner`` per robot and builder (``owner._numeric``): the one
+    CasADi function is kept in ``owner.evaluators`` per kinematics and builder: the one
     implementation of a task or limit's math is its ``expr``, evaluated here on numbers.
     """
-    cache = owner.__dict__.setdefault("_numeric", {})
-    key = (id(state.kin), build.__code__, tuple(len(x) for x in extra))
-    entry = cache.get(key)
-    if entry is None or entry[0] is not state.kin:
+    key = (state.kin, build.__code__, tuple(len(x) for x in extra))
+    entry = owner.evaluators.get(key)
+    if entry is None:
         s = SymState.free(state.kin)
         syms = [ca.SX.sym(f"x{i}", len(x)) for i, x in enumerate(extra)]
         outs = build(s, *syms)
         fn = ca.Function("evaluate", [sym for sym, _ in s.inputs] + syms, outs)
-        entry = cache[key] = (state.kin, fn, [value for _, value in s.inputs])
-    _, fn, values = entry
+        entry = owner.evaluators[key] = (fn, [value for _, value in s.inputs])
+    fn, values = entry
     return [np.asarray(x) for x in fn.call([value(state) for value in values] + list(extra))]

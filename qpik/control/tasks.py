@@ -20,7 +20,8 @@ from typing import Literal
 import casadi as ca
 import numpy as np
 
-from qpik.control.state import State, SymState, _unique, evaluate
+from qpik.control.state import State, SymState, Traced, evaluate
+from qpik.core.layout import Blocks, Layout
 from qpik.errors import InputError
 from qpik.geometry.distance import ObstacleSet
 from qpik.lie import pose_error_expr, se3_ljacinv_expr, se3_log_expr
@@ -28,40 +29,23 @@ from qpik.objectives import Context, Objective, resolve
 from qpik.robots.robot import as_robot
 from qpik.validate import finite_array, number, single_pose
 
-_EMPTY = np.zeros(0)
 
-
-class Task(ABC):
+class Task(Traced, ABC):
     """A cost term :math:`\\tfrac12 v^T P v + c^T v` of the QP (v in rad/s).
 
     A task holds its math once, as a CasADi expression (:meth:`expr`) of the symbolic
-    state and of its own parameters (:meth:`params`: targets, gains, weights — inputs of
-    the compiled function, so changing them never recompiles). The controller composes
+    state and of its own parameters (:meth:`param_layout`, :meth:`param_values`: targets, gains, weights —
+    inputs of the compiled function, so changing them never recompiles). The controller composes
     every task's expression into one compiled function; :meth:`compute` evaluates the
     same expression on a numeric :class:`State`.
     """
 
     name: str = "task"
 
-    def param_size(self, n: int) -> int:
-        """Number of parameters for an arm with n joints (default 0)."""
-        return 0
-
-    def params(self) -> np.ndarray:
-        """The current parameters, a flat (param_size,) vector."""
-        return _EMPTY
-
-    def structure(self) -> tuple:
-        """What fixes the expression's form beyond the parameters (part of the compiled function's key).
-
-        The default is unique to this object (its compiled function is never shared);
-        subclasses whose form depends only on their parameters return ``()``.
-        """
-        return (_unique(self),)
-
     @abstractmethod
-    def expr(self, s: SymState, p: ca.SX) -> tuple[ca.SX, ca.SX]:
-        """``(P, c)``: (n, n) symmetric PSD and (n,) SX, given the state ``s`` and the parameters ``p``."""
+    def expr(self, s: SymState, p: Blocks) -> tuple[ca.SX, ca.SX]:
+        """``(P, c)``: (n, n) symmetric PSD and (n,) SX, given the state ``s`` and the parameters ``p`` (SX blocks
+        of :meth:`param_layout`, by name)."""
 
     def bind(self, s: SymState) -> tuple[ca.SX, ca.SX]:
         """:meth:`expr` with this task's parameters declared as inputs of ``s``."""
@@ -94,7 +78,7 @@ class FrameTask(Task):
     K_d = 1; exactly for ``"se3"``). mink's ``FrameTask`` with costs :math:`c_p, c_o`, gain g and step dt
     is ``error="se3"`` with :math:`w = c^2`, :math:`k = g/dt`.
 
-    Parameters (30): the target's first three rows (12, row-major), twist, gain and weight (6 each).
+    Parameters: the target's first three rows (3, 4), twist, gain and weight (6 each).
 
     Args:
         target: (4, 4) target pose in the base frame (may be set later by :meth:`set_target`).
@@ -140,35 +124,30 @@ class FrameTask(Task):
         """The convention: ``()`` for ``"world"``, ``("se3",)`` for the body-frame error."""
         return () if self.convention == "world" else (self.convention,)
 
-    def param_size(self, n: int) -> int:
-        return 30
+    def param_layout(self, n: int) -> Layout:
+        return Layout(target=(3, 4), twist=6, gain=6, weight=6)
 
-    def params(self) -> np.ndarray:
+    def param_values(self) -> dict[str, np.ndarray]:
         if self.target is None:
             raise InputError("target: FrameTask has no target (call set_target)")
-        return np.concatenate((self.target[:3].ravel(), self.twist, self.gain, self.weight))
+        return {"target": self.target[:3], "twist": self.twist, "gain": self.gain, "weight": self.weight}
 
-    @staticmethod
-    def _target_expr(p: ca.SX) -> ca.SX:
-        """The target's first three rows (3, 4) from the parameters."""
-        return ca.reshape(p[:12], 4, 3).T
-
-    def error_expr(self, s: SymState, p: ca.SX) -> ca.SX:
+    def error_expr(self, s: SymState, p: Blocks) -> ca.SX:
         """Pose error e (6,) ``[m; rad]`` of the end-effector toward the target (SX), in the task's convention."""
-        target = self._target_expr(p)
+        target = p.target
         if self.convention == "world":
             return pose_error_expr(target, s.pose)
         R = s.pose[:3, :3]
         # T⁻¹ T* = [Rᵀ R*, Rᵀ (p* − p)]
         return se3_log_expr(ca.horzcat(ca.mtimes(R.T, target[:, :3]), ca.mtimes(R.T, target[:, 3] - s.pose[:3, 3])))
 
-    def expr(self, s: SymState, p: ca.SX) -> tuple[ca.SX, ca.SX]:
-        twist, gain, weight = p[12:18], p[18:24], p[24:30]
+    def expr(self, s: SymState, p: Blocks) -> tuple[ca.SX, ca.SX]:
+        twist, gain, weight = p.twist, p.gain, p.weight
         e = self.error_expr(s, p)
         if self.convention == "world":
             A, b = s.J, twist + gain * e
         else:
-            R, R_t = s.pose[:3, :3], self._target_expr(p)[:, :3]
+            R, R_t = s.pose[:3, :3], p.target[:, :3]
             J_b = ca.vertcat(ca.mtimes(R.T, s.J[:3, :]), ca.mtimes(R.T, s.J[3:, :]))
             twist_b = ca.vertcat(ca.mtimes(R_t.T, twist[:3]), ca.mtimes(R_t.T, twist[3:]))
             A, b = ca.mtimes(se3_ljacinv_expr(e), J_b), ca.mtimes(se3_ljacinv_expr(-e), twist_b) + gain * e
@@ -207,16 +186,14 @@ class PostureTask(Task):
     def structure(self) -> tuple:
         return ()
 
-    def param_size(self, n: int) -> int:
-        return n + 2
+    def param_layout(self, n: int) -> Layout:
+        return Layout(q_ref=n, gain=(), weight=())
 
-    def params(self) -> np.ndarray:
-        return np.concatenate((self.q_ref, (self.gain, self.weight)))
+    def param_values(self) -> dict[str, object]:
+        return {"q_ref": self.q_ref, "gain": self.gain, "weight": self.weight}
 
-    def expr(self, s: SymState, p: ca.SX) -> tuple[ca.SX, ca.SX]:
-        n = s.n
-        k, w = p[n], p[n + 1]
-        return 2.0 * w * ca.SX.eye(n), (-2.0 * w * k) * (p[:n] - s.q)
+    def expr(self, s: SymState, p: Blocks) -> tuple[ca.SX, ca.SX]:
+        return 2.0 * p.weight * ca.SX.eye(s.n), (-2.0 * p.weight * p.gain) * (p.q_ref - s.q)
 
 
 class DampingTask(Task):
@@ -230,14 +207,14 @@ class DampingTask(Task):
     def structure(self) -> tuple:
         return ()
 
-    def param_size(self, n: int) -> int:
-        return 1
+    def param_layout(self, n: int) -> Layout:
+        return Layout(weight=())
 
-    def params(self) -> np.ndarray:
-        return np.array((self.weight,))
+    def param_values(self) -> dict[str, object]:
+        return {"weight": self.weight}
 
-    def expr(self, s: SymState, p: ca.SX) -> tuple[ca.SX, ca.SX]:
-        return 2.0 * p[0] * ca.SX.eye(s.n), ca.SX.zeros(s.n)
+    def expr(self, s: SymState, p: Blocks) -> tuple[ca.SX, ca.SX]:
+        return 2.0 * p.weight * ca.SX.eye(s.n), ca.SX.zeros(s.n)
 
 
 class ManipulabilityTask(Task):
@@ -260,18 +237,18 @@ class ManipulabilityTask(Task):
         self.weight = number(weight, "manipulability weight")
         self.translational = bool(translational)
 
-    def param_size(self, n: int) -> int:
-        return 1
+    def param_layout(self, n: int) -> Layout:
+        return Layout(weight=())
 
-    def params(self) -> np.ndarray:
-        return np.array((self.weight,))
+    def param_values(self) -> dict[str, object]:
+        return {"weight": self.weight}
 
     def structure(self) -> tuple:
         return (self.translational,)
 
-    def expr(self, s: SymState, p: ca.SX) -> tuple[ca.SX, ca.SX]:
+    def expr(self, s: SymState, p: Blocks) -> tuple[ca.SX, ca.SX]:
         """∇m(q) from :func:`qpik.robots.manipulability.manipulability_gradient_expr`, traced into the state."""
-        return ca.SX.zeros(s.n, s.n), -p[0] * s.manipulability_gradient(self.translational)
+        return ca.SX.zeros(s.n, s.n), -p.weight * s.manipulability_gradient(self.translational)
 
 
 class ObjectiveTask(Task):
@@ -311,19 +288,20 @@ class ObjectiveTask(Task):
     def structure(self) -> tuple:
         return (self.objective.key(), self.obstacles.kinds)
 
-    def param_size(self, n: int) -> int:
-        return 1 + self.objective.param_size(self.robot) + n + len(self.obstacles.params)
+    def param_layout(self, n: int) -> Layout:
+        return Layout(weight=(), objective=self.objective.param_size(self.robot), q_ref=n,
+                      obstacles=len(self.obstacles.params))  # fmt: skip
 
-    def params(self) -> np.ndarray:
-        return np.concatenate(([self.weight], self.objective.params(self.robot), self.q_ref, self.obstacles.params))
+    def param_values(self) -> dict[str, object]:
+        return {"weight": self.weight, "objective": self.objective.params(self.robot), "q_ref": self.q_ref,
+                "obstacles": self.obstacles.params}  # fmt: skip
 
-    def gradient_expr(self, s: SymState, p: ca.SX) -> ca.SX:
+    def gradient_expr(self, s: SymState, p: Blocks) -> ca.SX:
         """∇f (n,) at the state's q (SX)."""
-        n, k = s.n, self.objective.param_size(self.robot)
-        w = ca.SX.sym("witness", n)
-        ctx = Context(self.robot, s.q, p[1 + k : 1 + k + n], self.obstacles, p[1 + k + n :], witness=w)
-        grad = ca.gradient(self.objective.expr(ctx, p[1 : 1 + k]), s.q)
+        w = ca.SX.sym("witness", s.n)
+        ctx = Context(self.robot, s.q, p.q_ref, self.obstacles, p.obstacles, witness=w)
+        grad = ca.gradient(self.objective.expr(ctx, p.objective), s.q)
         return ca.substitute(grad, w, s.q)
 
-    def expr(self, s: SymState, p: ca.SX) -> tuple[ca.SX, ca.SX]:
-        return ca.SX.zeros(s.n, s.n), p[0] * self.gradient_expr(s, p)
+    def expr(self, s: SymState, p: Blocks) -> tuple[ca.SX, ca.SX]:
+        return ca.SX.zeros(s.n, s.n), p.weight * self.gradient_expr(s, p)

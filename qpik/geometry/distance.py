@@ -52,6 +52,7 @@ import casadi as ca
 import numpy as np
 
 from qpik.compiled import Compiled
+from qpik.core.layout import Layout
 from qpik.errors import InputError
 from qpik.geometry.segment import segment_box, segment_capsule, segment_halfspace
 from qpik.geometry.shapes import Box, Capsule, HalfSpace, Shape, Sphere
@@ -170,6 +171,15 @@ class ObstacleSet:
         return len(self.shapes)
 
 
+PAIR = Layout(d=(), p_link=3, p_obs=3, normal=3, s=())
+"""One pair's record in a flat buffer: the fields of :class:`Distances` (:func:`pair_expr`'s order)."""
+
+
+def pair_record(pair: tuple[Scalar, Vec, Vec, Vec, Scalar]) -> list:
+    """The scalars of one :func:`pair_expr` result in :data:`PAIR`'s order."""
+    return PAIR.flatten(**dict(zip(PAIR.names, pair)))
+
+
 @dataclass(frozen=True)
 class Distances:
     """Every (capsule, obstacle) pair: C capsules (rows) × O obstacles (columns), world frame.
@@ -225,10 +235,7 @@ def distances(segments: np.ndarray, radii: np.ndarray, obstacles: Sequence[Shape
     obs = obstacles if packed else ObstacleSet(obstacles)
     if packed and seg.ndim == 3 and len(obs):
         out = _compiled(seg.shape[0], obs.kinds)(seg.reshape(-1), r, obs.params)[0]
-        out = out.reshape(seg.shape[0], len(obs), 11).copy()
-        return Distances(
-            d=out[..., 0], p_link=out[..., 1:4], p_obs=out[..., 4:7], normal=out[..., 7:10], s=out[..., 10]
-        )
+        return Distances(**PAIR.views(out.reshape(seg.shape[0], len(obs), PAIR.size).copy()))
     return _numpy(seg, r, obs)
 
 
@@ -263,10 +270,8 @@ def _numpy(seg: np.ndarray, r: np.ndarray, obs: ObstacleSet) -> Distances:
 
 @lru_cache(maxsize=32)
 def _compiled(n_capsules: int, kinds: tuple[str, ...]) -> Compiled:
-    """CasADi function ``(segments (6C,), radii (C,), params) -> (C·O·11,)``, traced from the same kernels.
-
-    Output per pair, row-major over (capsule, obstacle): ``[d, p_link (3), p_obs (3), n (3), s]``.
-    """
+    """CasADi function ``(segments (6C,), radii (C,), params) -> (C·O records of PAIR,)``, traced from the
+    same kernels; the pairs row-major over (capsule, obstacle), each a :data:`PAIR` record."""
     seg = ca.SX.sym("segments", 6 * n_capsules)
     rad = ca.SX.sym("radii", n_capsules)
     prm = ca.SX.sym("params", sum(PARAMS[k] for k in kinds))
@@ -275,5 +280,5 @@ def _compiled(n_capsules: int, kinds: tuple[str, ...]) -> Compiled:
         for c in range(n_capsules)
     ]
     pairs = set_expr(ends, [rad[c] for c in range(n_capsules)], kinds, [prm[i] for i in range(prm.numel())], CASADI)
-    out = [x for row in pairs for d, p_link, p_obs, n, s in row for x in (d, *p_link, *p_obs, *n, s)]
+    out = [x for row in pairs for pair in row for x in pair_record(pair)]
     return Compiled(ca.Function("capsule_distances", [seg, rad, prm], [ca.vertcat(*out)]))

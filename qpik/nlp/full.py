@@ -122,20 +122,11 @@ class FullNLP:
         )
 
 
-_NLPS: dict[tuple, FullNLP] = {}
-_BUILDING = threading.Lock()
-
-
 def full_nlp(robot: Robot, objective: Objective | None, obstacles: ObstacleSet) -> FullNLP:
-    """The cached :class:`FullNLP` for ``robot``, the objective's form and the obstacle families."""
-    key = (id(robot), None if objective is None else (objective.key(), len(objective.params(robot))), obstacles.kinds)
-    nlp = _NLPS.get(key)
-    if nlp is None or nlp.robot is not robot:
-        with _BUILDING:  # one NLP per key, also when threads ask for it at once
-            nlp = _NLPS.get(key)
-            if nlp is None or nlp.robot is not robot:
-                nlp = _NLPS[key] = FullNLP(robot, objective, obstacles)
-    return nlp
+    """The :class:`FullNLP` for ``robot``, the objective's form and the obstacle families, built once
+    (``robot.cache``)."""
+    form = None if objective is None else (objective.key(), len(objective.params(robot)))
+    return robot.cache.get(("full nlp", form, obstacles.kinds), FullNLP, robot, objective, obstacles)
 
 
 def solve_full(

@@ -342,15 +342,9 @@ class IKSolver:
         return IKResult(best_q, status, best, "levenberg-marquardt", iterations, attempts)
 
 
-_solvers: dict[int, IKSolver] = {}  # id(robot) -> solver; the solver holds the robot, so the id stays its own
-
-
 def solver_for(robot: Robot) -> IKSolver:
-    """The :class:`IKSolver` of ``robot`` (cached per robot object)."""
-    solver = _solvers.get(id(robot))
-    if solver is None or solver.robot is not robot:
-        solver = _solvers[id(robot)] = IKSolver(robot)
-    return solver
+    """The :class:`IKSolver` of ``robot``, built once (``robot.cache``)."""
+    return robot.cache.get("numerical ik", IKSolver, robot)
 
 
 def solve_ik(

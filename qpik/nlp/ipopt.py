@@ -35,16 +35,15 @@ OPTIONS = {
 }
 """IPOPT options of the per-branch NLPs."""
 
-_SOLVERS: dict[tuple, tuple] = {}
-
-
 def _solver(scene: Scene, b: int) -> tuple[ca.Function, ca.Function]:
     """``(nlpsol, start)`` of branch row b: ``start(T, ψ, p) -> [t (K,)]`` (the maxima at ψ, a start for t)."""
     robot, obs = scene.robot, scene.obstacles
-    key = (id(robot), scene.objective.key(), obs.kinds, len(scene.params), b)
-    entry = _SOLVERS.get(key)
-    if entry is not None and entry[0] is robot:
-        return entry[1], entry[2]
+    key = ("branch nlp", scene.objective.key(), obs.kinds, len(scene.params), b)
+    return robot.cache.get(key, _build, scene, b)
+
+
+def _build(scene: Scene, b: int) -> tuple[ca.Function, ca.Function]:
+    robot, obs = scene.robot, scene.obstacles
     n = robot.dof
     T, psi = ca.SX.sym("T", 4, 4), ca.SX.sym("psi")
     p_obj, q_ref = ca.SX.sym("p", len(scene.params)), ca.SX.sym("q_ref", n)
@@ -58,7 +57,6 @@ def _solver(scene: Scene, b: int) -> tuple[ca.Function, ca.Function]:
     nlp = {"x": ca.vertcat(psi, t), "f": cost, "g": g, "p": p}
     solver = ca.nlpsol(f"branch_{robot.identifier}_{b}", "ipopt", nlp, OPTIONS)
     start = ca.Function("start", [psi, p], [ca.vertcat(*[ca.mmax(h) for _, h in split.maxima], ca.SX(0, 1))])
-    _SOLVERS[key] = (robot, solver, start)
     return solver, start
 
 

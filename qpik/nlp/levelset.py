@@ -382,21 +382,17 @@ class _Native:
         )  # fmt: skip
 
 
-_NATIVE: dict[int, tuple[SelfMotion, _Native | None]] = {}
-
-
 def _native(selfmotion: SelfMotion) -> _Native | None:
-    """The C rounds of ``selfmotion``'s arm (built once), None without a compiler or the arm's native sets."""
-    entry = _NATIVE.get(id(selfmotion))
-    if entry is None or entry[0] is not selfmotion:
-        built = None
-        sets = selfmotion.solver.native_sets()
-        dll = None if sets is None else _library()
-        motion = None if dll is None else NativeFunction.of(selfmotion.point_call, outputs=(0,))
-        if motion is not None:
-            built = _Native(dll, sets, motion, selfmotion)
-        entry = _NATIVE[id(selfmotion)] = (selfmotion, built)
-    return entry[1]
+    """The C rounds of ``selfmotion``'s arm (built once per robot), None without a compiler or the arm's
+    native sets."""
+    return selfmotion.robot.cache.get("level-set rounds", _build_native, selfmotion)
+
+
+def _build_native(selfmotion: SelfMotion) -> _Native | None:
+    sets = selfmotion.solver.native_sets()
+    dll = None if sets is None else _library()
+    motion = None if dll is None else NativeFunction.of(selfmotion.point_call, outputs=(0,))
+    return None if motion is None else _Native(dll, sets, motion, selfmotion)
 
 
 @cache

@@ -154,12 +154,6 @@ def columns(T: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.swapaxes(T, 1, 2)).reshape(len(T), 16)
 
 
-_CACHE: dict[int, SelfMotion] = {}
-
-
 def selfmotion_of(robot: Robot) -> SelfMotion:
-    """The cached :class:`SelfMotion` of ``robot``."""
-    sm = _CACHE.get(id(robot))
-    if sm is None or sm.robot is not robot:
-        sm = _CACHE[id(robot)] = SelfMotion(robot)
-    return sm
+    """The :class:`SelfMotion` of ``robot``, built once (``robot.cache``)."""
+    return robot.cache.get("self-motion", SelfMotion, robot)

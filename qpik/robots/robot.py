@@ -17,6 +17,7 @@ import numpy as np
 
 from qpik import symbolic as sy
 from qpik.errors import InputError
+from qpik.robots.cache import RobotCache
 from qpik.robots.chain import SerialChain
 from qpik.symbolic import Frame, Vec
 from qpik.validate import joint_vector, number
@@ -64,6 +65,7 @@ class Robot:
             or None for a catalog arm (whose MuJoCo model is the twin).
         canonical: for a closed form found in a loaded chain (:func:`qpik.robots.recognize.recognize`),
             the catalog-form DH table and the joint map to it; None when ``chain`` is that table itself.
+        cache: what is built once for this robot (:class:`~qpik.robots.cache.RobotCache`), freed with it.
     """
 
     name: str
@@ -78,6 +80,7 @@ class Robot:
     notes: str = field(default="", compare=False)
     model: ModelSource | None = field(default=None, compare=False)
     canonical: Canonical | None = field(default=None, compare=False)
+    cache: RobotCache = field(default_factory=RobotCache, init=False, repr=False, compare=False)
 
     @property
     def dof(self) -> int:

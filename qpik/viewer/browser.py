@@ -60,7 +60,9 @@ def browser() -> Iterator[object]:
     Raises:
         ViewerError: Playwright is not installed, no browser is found, or it does not start (one line each).
     """
-    opened = _local.__dict__.setdefault("open", [])
+    opened = getattr(_local, "open", None)
+    if opened is None:
+        opened = _local.open = []
     if opened:  # Playwright's sync API runs one instance per thread: share the open one
         yield opened[-1]
         return

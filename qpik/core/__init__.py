@@ -1,0 +1,1 @@
+"""The infrastructure under every maths package: named buffer layouts."""
