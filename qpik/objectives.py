@@ -418,7 +418,6 @@ class Sum(Objective):
         return all(o.smooth for _, o in self._terms)
 
 
-
 def _positive(x: object, name: str) -> float:
     """``x`` as a finite float > 0, else :class:`InputError` naming ``name``."""
     value = number(x, name)
@@ -743,8 +742,6 @@ class _Maps:
         return RowMap(self._value_function(), shared=(1, 3), chunks=CHUNKS)
 
 
-
-
 class BoundFunction:
     r"""Taylor models of an objective's split and of the capsule–obstacle distances, for the certificate.
 
@@ -881,8 +878,6 @@ def _pair_models(kind: str) -> RowMap:
     a, u = tuple(axis[i] for i in range(3)), tuple(axis[i] for i in range(3, 6))
     d = axis_distance(a, u, radius, kind, [prm[i] for i in range(PARAMS[kind])], sy.CASADI)
     return RowMap(taylor_function(ca.Function(f"pair_{kind}", [axis, radius, prm], [d]), [0]), chunks=(64, 16))
-
-
 
 
 def bound_function(robot: Robot, objective: Objective, obstacles: ObstacleSet) -> BoundFunction | None:

@@ -35,6 +35,7 @@ OPTIONS = {
 }
 """IPOPT options of the per-branch NLPs."""
 
+
 def _solver(scene: Scene, b: int) -> tuple[ca.Function, ca.Function]:
     """``(nlpsol, start)`` of branch row b: ``start(T, ψ, p) -> [t (K,)]`` (the maxima at ψ, a start for t)."""
     robot, obs = scene.robot, scene.obstacles
