@@ -104,6 +104,32 @@ def test_pr2_loads_with_its_inertias_replaced():
     np.testing.assert_allclose(MjKinematics.from_robot(robot).fk(Q), robot.fk(Q), atol=1e-10)
 
 
+@pytest.mark.parametrize(
+    "inertial",
+    [
+        '<mass value="nan"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/>',
+        '<mass value="-1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/>',
+        '<mass value="1"/><inertia ixx="1" iyy="nan" izz="1" ixy="0" ixz="0" iyz="0"/>',
+        '<mass value="1"/><inertia ixx="-1" iyy="-1" izz="-1" ixy="0" ixz="0" iyz="0"/>',
+        '<mass value="1"/><inertia ixx="1" iyy="1" izz="5" ixy="0" ixz="0" iyz="0"/>',
+        '<mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="2" ixz="0" iyz="0"/>',
+        '<origin xyz="nan 0 0"/><mass value="1"/><inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/>',
+    ],
+)
+def test_bad_inertials_never_block_loading(tmp_path, inertial):
+    """Mass, centre and tensor the kinematics does not use: replaced, said in the notes; the model compiles."""
+    path = tmp_path / "arm.urdf"
+    path.write_text(
+        _TWO.format(limit='<limit lower="-1" upper="1" velocity="1"/>').replace(
+            '<link name="l1">', f'<link name="l1"><inertial>{inertial}</inertial>'
+        )
+    )
+    robot = qpik.load_robot(path)
+    assert "invalid inertias replaced (the kinematics does not use them): l1" in robot.notes
+    model = robot.mj_model()
+    assert np.all(np.isfinite(model.body_inertia)) and np.all(model.body_mass >= 0)
+
+
 # ---- mimic joints -------------------------------------------------------------
 
 

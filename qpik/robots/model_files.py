@@ -141,12 +141,13 @@ def read_spec(
 
 
 def repair_inertias(spec: mujoco.MjSpec) -> list[str]:
-    """Replace every explicit inertia MuJoCo would refuse by a valid one; the names of the bodies changed.
+    """Replace every explicit inertial MuJoCo would refuse or keep as NaN by a valid one; the bodies changed.
 
     An inertia tensor needs positive principal moments A ≤ B ≤ C with A + B ≥ C (PR2's and TIAGo's
-    files break these; a zero tensor is left to ``boundinertia``). qpik uses the kinematics only, so a bad
-    tensor becomes the isotropic one of its largest principal moment (at least :data:`MIN_MASS`), about the
-    same centre of mass.
+    files break these; a zero tensor is left to ``boundinertia``), a finite mass ≥ 0 and a finite
+    centre of mass. qpik uses the kinematics only, so a bad tensor becomes the isotropic one of its
+    largest principal moment (at least :data:`MIN_MASS`), a bad mass :data:`MIN_MASS`, a bad centre
+    the body's origin.
     """
     import numpy as np
 
@@ -154,21 +155,28 @@ def repair_inertias(spec: mujoco.MjSpec) -> list[str]:
     for body in spec.bodies:
         if not body.explicitinertial:
             continue
+        bad = False
+        if not math.isfinite(body.mass) or body.mass < 0:
+            body.mass, bad = MIN_MASS, True
+        if not (np.all(np.isfinite(body.ipos)) and np.all(np.isfinite(body.iquat)) and np.any(body.iquat != 0)):
+            body.ipos, body.iquat, bad = [0.0, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0], True
         full = np.asarray(body.fullinertia, float)
-        given = bool(np.all(np.isfinite(full)))
-        if given:
+        if math.isfinite(full[0]):  # (NaN in the first entry: no full tensor given)
             xx, yy, zz, xy, xz, yz = full
-            moments = np.linalg.eigvalsh([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+            moments = (
+                np.linalg.eigvalsh([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]) if np.all(np.isfinite(full)) else full
+            )
+            positive = bool(np.all(np.isfinite(moments)) and moments[0] > 0)
         else:
             moments = np.sort(np.asarray(body.inertia, float))
-        if not np.all(np.isfinite(moments)) or np.all(moments == 0):  # NaN: MuJoCo says so; 0: boundinertia
-            continue
-        if not (np.any(moments < 0) or (given and moments[0] <= 0) or moments[0] + moments[1] < moments[2]):
-            continue
-        big = max(float(np.abs(moments).max()), MIN_MASS)
-        body.fullinertia = [math.nan] * 6
-        body.inertia, body.iquat = [big] * 3, [1.0, 0.0, 0.0, 0.0]
-        out.append(body.name)
+            positive = bool(np.all(np.isfinite(moments)) and (moments[0] >= 0 or np.all(moments == 0)))
+        if not (positive and moments[0] + moments[1] >= moments[2]) and not np.all(moments == 0):
+            finite = np.abs(moments[np.isfinite(moments)])
+            big = max(float(finite.max()) if finite.size else 0.0, MIN_MASS)
+            body.fullinertia = [math.nan] * 6
+            body.inertia, body.iquat, bad = [big] * 3, [1.0, 0.0, 0.0, 0.0], True
+        if bad:
+            out.append(body.name)
     return out
 
 
