@@ -111,3 +111,51 @@ def test_base_below_a_joint_and_no_base():
     np.testing.assert_allclose(on_link.model.placement @ on_link.fk(Q), plain.fk(full), atol=1e-12)
     np.testing.assert_allclose(on_link.model.placement[:3, 3], (0.0, -0.6, 0.0), atol=1e-12)
     np.testing.assert_allclose(MjKinematics.from_robot(on_link).fk(Q), on_link.fk(Q), atol=1e-10)
+
+
+_FRAMED = """<mujoco model="framed">
+  <worldbody>
+    <geom name="floor" type="plane" size="1 1 0.1"/>
+    <light pos="0 0 3"/>
+    <frame pos="0.3 0.1 0.2" euler="0 0 30">
+      <body name="stand" pos="0 0 0.1" euler="10 0 0">
+        <geom type="box" size="0.1 0.1 0.1"/>
+        <site name="mount" pos="0.01 0.02 0.2" euler="0 5 15"/>
+        <body name="l1" pos="0 0 0.2"><joint name="a" axis="0 0 1" range="-2 2"/>
+          <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+          <body name="l2" pos="0.3 0 0"><joint name="b" axis="0 1 0" range="-2 2"/>
+            <geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03"/>
+            <site name="tip" pos="0.3 0 0"/>
+          </body>
+        </body>
+      </body>
+    </frame>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize("base", ["stand", "mount"])
+def test_base_body_or_site_under_a_world_frame(tmp_path, base):
+    """A base body (or a site on it) placed through an MJCF ``<frame>``: FK relative to it, the placement its world
+    pose (MuJoCo's), and the moved model agrees."""
+    import mujoco
+
+    path = tmp_path / "framed.xml"
+    path.write_text(_FRAMED)
+    world = qpik.load_robot(path, tip="tip")
+    robot = qpik.load_robot(path, base=base, tip="tip")
+    model = mujoco.MjModel.from_xml_path(str(path))
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    kind = mujoco.mjtObj.mjOBJ_SITE if base == "mount" else mujoco.mjtObj.mjOBJ_BODY
+    i = mujoco.mj_name2id(model, kind, base)
+    xmat, xpos = (data.site_xmat, data.site_xpos) if base == "mount" else (data.xmat, data.xpos)
+    placement = np.eye(4)
+    placement[:3, :3], placement[:3, 3] = xmat[i].reshape(3, 3), xpos[i]
+    np.testing.assert_allclose(robot.model.placement, placement, atol=1e-12)
+    Q = random_q(robot, 30, 6)
+    np.testing.assert_allclose(placement @ robot.fk(Q), world.fk(Q), atol=1e-12)
+    np.testing.assert_allclose(MjKinematics.from_robot(robot).fk(Q), robot.fk(Q), atol=1e-10)
+    np.testing.assert_allclose(robot.capsule_segments(Q), np.einsum("ij,...j->...i", np.linalg.inv(placement)[:3, :3],
+                               world.capsule_segments(Q)) + np.linalg.inv(placement)[:3, 3], atol=1e-12)  # fmt: skip
