@@ -181,3 +181,6 @@ def test_outside_meshes_load_with_the_flag(tmp_path):
     path = folder / "inside.urdf"
     path.write_text(mesh_urdf("../meshes/inside.stl"))  # up from urdf/ but inside the package: allowed
     assert qpik.load_robot(path).dof == 1
+    (tmp_path / "pkg" / "meshes" / "linked.stl").symlink_to(tmp_path / "shared.stl")  # a --symlink-install tree
+    path.write_text(mesh_urdf("package://pkg/meshes/linked.stl"))
+    assert qpik.load_robot(path).dof == 1

@@ -13,7 +13,7 @@
 - Mesh paths stay inside their root: a ``package://`` path inside its package's folder, any
   other inside the model's package (the nearest folder above the model holding a ``package.xml``,
   else the model's own folder); absolute paths and ``..`` steps out of it are refused unless
-  ``allow_outside=True``.
+  ``allow_outside=True`` (symbolic links inside the package are followed).
 - The XML is read without a document type: a file declaring entities (``<!DOCTYPE ... [<!ENTITY``,
   the "billion laughs") is refused before any parser expands them (:func:`parse_xml`).
 - URDF ``<limit velocity=...>`` is not kept by MuJoCo, and it silently drops invalid limits:
@@ -217,7 +217,7 @@ def resolve_mesh(
     for root, rest in candidates:
         c = root / rest
         if c.is_file():
-            if not allow_outside and not c.resolve().is_relative_to(root.resolve()):
+            if not allow_outside and not _lexically_inside(c, root):
                 raise InputError(
                     f"{model.name}: mesh {file!r} lies outside its root {str(root)!r}; allow_outside=True reads it"
                 )
@@ -226,6 +226,12 @@ def resolve_mesh(
     first = candidates[0][0] / candidates[0][1]
     where = f" (looked in {first.parent}" + (f" and {len(candidates) - 1} more places" if len(candidates) > 1 else "")
     raise InputError(f"{model.name}: mesh {file!r} not found{where}){hint}; or load with collision_only=True")
+
+
+def _lexically_inside(path: Path, root: Path) -> bool:
+    """Whether ``path`` names a place inside ``root`` once ``..`` steps are taken (symbolic links inside the
+    package are the package's own, as in a ROS workspace built with ``--symlink-install``, and are followed)."""
+    return Path(os.path.normpath(os.path.abspath(path))).is_relative_to(os.path.normpath(os.path.abspath(root)))
 
 
 def package_root(model: Path) -> Path:
