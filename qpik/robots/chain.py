@@ -172,11 +172,6 @@ class SerialChain:
                 out.append(j.mimic)
         return tuple(out)
 
-    @cached_property
-    def q_reference(self) -> np.ndarray:
-        """(n,) q where every independent joint's motion is zero (q = -offset): the model's reference."""
-        return np.array([-j.offset for j in self.joints if j.mimic is None])
-
     def _contract(self, cols: list, zero: sy.Vec) -> list:
         """Per-joint columns (one per chain joint) -> per-q columns (chain rule); identity without couplings."""
         if len(self.joints) == self.dof:
