@@ -190,6 +190,10 @@ def test_mimic_joint_in_mujoco():
     assert model.neq == 1 and model.eq_type[0] == mujoco.mjtEq.mjEQ_JOINT
     np.testing.assert_allclose(model.eq_data[0, :2], (0.2, -0.5))
     kin = MjKinematics.from_robot(robot)
+    with pytest.raises(InputError, match="mimic joint 'ghost' is not in the model"):
+        MjKinematics(model, robot.site, robot.joint_names, [("ghost", "j2", 1.0, 0.0)])
+    with pytest.raises(InputError, match=r"mimic: leaders \['j3'\] are not arm joints"):
+        MjKinematics(model, robot.site, robot.joint_names, [("j1", "j3", 1.0, 0.0)])
     Q = random_q(robot, 30, 4)
     np.testing.assert_allclose(kin.fk(Q), robot.fk(Q), atol=1e-12)
     np.testing.assert_allclose(kin.jacobian(Q), robot.jacobian(Q), atol=1e-12)

@@ -88,14 +88,14 @@ class MjKinematics:
         self.q_max = np.where(limited, rng[:, 1], np.inf)
         self._qpos = model.qpos0.copy()
         names = [model.joint(int(j)).name for j in self.joint_ids]
-        try:
-            ids = [self._id(mujoco.mjtObj.mjOBJ_JOINT, joint, "mimic joint") for joint, _, _, _ in mimic]
-            self._mimic = [
-                (int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j]), names.index(lead), float(m), float(c))
-                for j, (_, lead, m, c) in zip(ids, mimic)
-            ]
-        except ValueError:
-            raise InputError(f"mimic: a leader is not an arm joint ({[x[1] for x in mimic]} of {names})") from None
+        ids = [self._id(mujoco.mjtObj.mjOBJ_JOINT, joint, "mimic joint") for joint, _, _, _ in mimic]
+        strays = [lead for _, lead, _, _ in mimic if lead not in names]
+        if strays:
+            raise InputError(f"mimic: leaders {strays} are not arm joints ({names})")
+        self._mimic = [
+            (int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j]), names.index(lead), float(m), float(c))
+            for j, (_, lead, m, c) in zip(ids, mimic)
+        ]
         # the arm is the whole model: q is qpos and Jacobian columns need no selection
         self._whole = (
             not self._mimic
