@@ -153,6 +153,28 @@ def test_mimic_joint_is_coupled_as_pinocchio_says():
     np.testing.assert_allclose(robot.fk(Q), np.array(poses), atol=1e-12, rtol=0)
 
 
+def test_pr2_finger_chain_with_a_mimic_joint_is_pinocchios():
+    """PR2's arm down to a fingertip: the tip joint mimics the finger joint; base-frame FK equals pinocchio's."""
+    pin = pytest.importorskip("pinocchio")
+    path = packaged("erd/pr2")
+    robot = qpik.load_robot(path, base="torso_lift_link", tip="l_gripper_l_finger_tip_link")
+    assert robot.dof == 8 and robot.model.mimic == (
+        ("l_gripper_l_finger_tip_joint", "l_gripper_l_finger_joint", 1.0, 0.0),
+    )
+    model = pin.buildModelFromUrdf(str(path), mimic=True)
+    data = model.createData()
+    base, tip = model.getFrameId("torso_lift_link"), model.getFrameId("l_gripper_l_finger_tip_link")
+    Q = random_q(robot, 50, 8)
+    for q in Q:
+        full = pin.neutral(model)
+        for name, x in zip(robot.joint_names, q):
+            joint = model.joints[model.getJointId(name)]
+            full[joint.idx_q : joint.idx_q + joint.nq] = (np.cos(x), np.sin(x)) if joint.nq == 2 else x  # continuous
+        pin.framesForwardKinematics(model, data, full)
+        np.testing.assert_allclose(robot.fk(q), (data.oMf[base].inverse() * data.oMf[tip]).homogeneous, atol=1e-12)
+    np.testing.assert_allclose(robot.jacobian(Q[:10]), fd_geometric_jacobian(robot.fk, Q[:10]), atol=1e-6)
+
+
 def test_mimic_jacobian_and_hessian_are_the_chain_rule():
     robot = qpik.load_robot(MIMIC)
     Q = random_q(robot, 40, 3)
