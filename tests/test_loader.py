@@ -165,7 +165,7 @@ _URDF = """<robot name="two">
 
 
 def test_urdf_velocity_and_continuous_joints(tmp_path):
-    from qpik.robots.loader import CONTINUOUS_LIMIT, DEFAULT_VELOCITY
+    from qpik.robots.limits import CONTINUOUS_LIMIT, DEFAULT_VELOCITY
 
     path = tmp_path / "two.urdf"
     path.write_text(_URDF.format(geom='<box size="0.1 0.1 0.3"/>'))

@@ -29,10 +29,10 @@ before it on the chain; the arm's q has one entry per independent joint.
 From the model (:mod:`qpik.robots.limits`, which refuses invalid limits):
 
 - position limits: the joint ``range`` (URDF ``<limit lower upper>``); a joint without one (URDF
-  ``continuous``) gets :data:`CONTINUOUS_LIMIT` (two turns each way, so that a path through ±π
+  ``continuous``) gets :data:`~qpik.robots.limits.CONTINUOUS_LIMIT` (two turns each way, so that a path through ±π
   stays inside and the closed form offers each angle's representatives q + 2πk);
 - velocity limits: URDF ``<limit velocity>``; in MJCF, the ``ctrlrange`` of a velocity
-  actuator on the joint; otherwise :data:`DEFAULT_VELOCITY`;
+  actuator on the joint; otherwise :data:`~qpik.robots.limits.DEFAULT_VELOCITY`;
 - inertias are not used: an inertia MuJoCo refuses (PR2's violate the triangle inequality) is
   replaced (:func:`~qpik.robots.model_files.repair_inertias`), and ``robot.notes`` says so;
 - home: the keyframe ``home`` if the model has one, else the reference configuration
@@ -66,7 +66,7 @@ from qpik.errors import InputError, UnknownRobotError
 from qpik.robots.catalog import CATALOG
 from qpik.robots.catalog import load_robot as catalog_robot
 from qpik.robots.chain import Joint, SerialChain
-from qpik.robots.limits import CONTINUOUS_LIMIT, DEFAULT_VELOCITY, arm_limits
+from qpik.robots.limits import arm_limits
 from qpik.robots.model_files import UrdfJoint, is_urdf, read_spec, urdf_joints
 from qpik.robots.recognize import recognize
 from qpik.robots.robot import LinkCapsule, Robot
@@ -75,7 +75,6 @@ from qpik.validate import finite_array, flag
 if TYPE_CHECKING:
     import mujoco
 
-__all__ = ["CONTINUOUS_LIMIT", "DEFAULT_VELOCITY", "ModelSource", "load_robot", "looks_like_a_file"]
 HOME_MARGIN = 0.1
 """Without a ``home`` keyframe, the home configuration keeps this fraction of each joint's range from its limits."""
 SITE = "qpik_ee"
