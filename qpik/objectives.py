@@ -684,10 +684,8 @@ class Evaluator:
         f = self.objective.expr(ctx, p)
         d = ctx.distances
         nearest = ca.gradient(ca.mmin(d), q) if self.n_pairs else ca.SX.zeros(n)
-        out = self.layout.pack(f=f, grad=ca.gradient(f, q), d=d, nearest=nearest)
-        return ca.Function(
-            f"objective_{robot.name or 'robot'}", [q, p, q_ref, prm], [ca.densify(ca.substitute(out, w, q))]
-        )
+        out = ca.densify(ca.substitute(self.layout.pack(f=f, grad=ca.gradient(f, q), d=d, nearest=nearest), w, q))
+        return ca.Function(f"objective_{robot.identifier}", [q, p, q_ref, prm], [out])
 
     def value_function(self) -> ca.Function:
         """``(q (n,), p, q_ref (n,), obstacle params) -> [f, d (C'·O)]`` in one column: :meth:`function`
@@ -698,7 +696,7 @@ class Evaluator:
         prm = ca.SX.sym("obstacles", len(self.obstacles.params))
         ctx = Context(robot, q, q_ref, self.obstacles, prm, witness=w)  # the same expressions as :meth:`function`
         out = ca.densify(ca.substitute(ca.vertcat(self.objective.expr(ctx, p), ctx.distances), w, q))
-        return ca.Function(f"objective_value_{robot.name or 'robot'}", [q, p, q_ref, prm], [out])
+        return ca.Function(f"objective_value_{robot.identifier}", [q, p, q_ref, prm], [out])
 
     def __call__(self, q: np.ndarray, q_ref: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
         """``(f (M,), ∇f (M, n), d (M, C'·O), ∇ min d (M, n))`` at configurations q (M, n) (or (n,): then
@@ -793,7 +791,7 @@ class BoundFunction:
         self.sizes = tuple(int(h.numel()) for _, h in split.maxima)
         """m_k: the number of pieces of each maximum."""
         values = ca.vertcat(split.smooth, *[w for w, _ in split.maxima], *[h for _, h in split.maxima], d)
-        name = robot.name or "robot"
+        name = robot.identifier
         self._split = RowMap(
             taylor_function(ca.Function(f"bound_{name}", [q, p, q_ref, prm, d], [ca.densify(values)]), [0, 4]),
             shared=(1, 3),
@@ -816,7 +814,7 @@ class BoundFunction:
         ctx = Context(robot, q, q_ref, obstacles, prm)
         split = objective.split(ctx, p)
         v = ca.vertcat(split.smooth, *[w for w, _ in split.maxima], *[h for _, h in split.maxima], ctx.distances)
-        return ca.Function(f"bound_values_{robot.name or 'robot'}", [q, p, q_ref, prm], [ca.densify(v)])
+        return ca.Function(f"bound_values_{robot.identifier}", [q, p, q_ref, prm], [ca.densify(v)])
 
     def rows(self, c: np.ndarray, params: np.ndarray, q_ref: np.ndarray, obstacle_params: np.ndarray,
              s: np.ndarray, r: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:  # fmt: skip
@@ -873,7 +871,7 @@ def _build_segment_models(robot: Robot) -> RowMap:
         R, t = frames[capsule.link]
         p0, p1 = (tuple(map(sy.snap, p)) for p in (capsule.p0, capsule.p1))
         axes += [*sy.vadd(sy.matvec(R, p0), t), *sy.matvec(R, sy.vsub(p1, p0))]
-    fn = ca.Function(f"axes_{robot.name or 'robot'}", [q], [ca.densify(ca.vertcat(*axes))])
+    fn = ca.Function(f"axes_{robot.identifier}", [q], [ca.densify(ca.vertcat(*axes))])
     return RowMap(taylor_function(fn, [0]), chunks=(16, 16))
 
 

@@ -120,3 +120,20 @@ def test_a_missing_model_file_is_no_such_file(tmp_path, monkeypatch, capsys, rob
     assert "is a folder, not a model file" in capsys.readouterr().err
     assert main(["fk", "-r", "ur5", "--q", Q]) == 2
     assert capsys.readouterr().err.startswith("qpik fk: unknown robot 'ur5'; known: nammoto7, iiwa14")
+
+
+def test_allow_outside_reads_a_mesh_outside_the_package(tmp_path, capsys):
+    """``--allow-outside``: a mesh path leaving the model's folder is refused by default, read with the flag."""
+    import trimesh
+
+    trimesh.creation.box((0.1, 0.1, 0.2)).export(tmp_path / "shared.stl")
+    (tmp_path / "arm").mkdir()
+    path = tmp_path / "arm" / "arm.urdf"
+    path.write_text(
+        '<robot name="one"><link name="b"/><link name="l"><collision><geometry><mesh filename="../shared.stl"/>'
+        '</geometry></collision></link><joint name="j" type="revolute"><parent link="b"/><child link="l"/>'
+        '<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>'
+    )
+    assert main(["fk", "-r", str(path), "--q", "0.3"]) != 0
+    assert "allow_outside=True" in capsys.readouterr().err
+    assert main(["fk", "-r", str(path), "--allow-outside", "--q", "0.3"]) == 0

@@ -72,7 +72,7 @@ def modified_iiwa(tmp_path) -> qpik.Robot:
         text = head + f'name="{name}"' + tail[:end].replace(old, new) + tail[end:]
     path = tmp_path / "iiwa_modified.xml"
     path.write_text(text)
-    return qpik.load_robot(path, collision_only=True)
+    return qpik.load_robot(path, collision_only=True, allow_outside=True)  # its meshdir is the original folder
 
 
 @pytest.fixture(scope="module")

@@ -49,7 +49,7 @@ def add_robot(parser: argparse.ArgumentParser, required: bool = True) -> None:
         help=f"arm of the catalog ({', '.join(sorted(CATALOG))}) or an MJCF (.xml, .mjcf) or URDF (.urdf) file",
     )
     g = parser.add_argument_group("model file options (with --robot FILE)")
-    g.add_argument("--base", help="body or site the arm starts from (default: the world)")
+    g.add_argument("--base", help="body or site the arm starts from; poses are relative to it (default: the world)")
     g.add_argument("--tip", help="body or site at the end effector (default: the end of the chain)")
     g.add_argument("--joints", type=fields, help='the arm\'s joints, "j1,j2,..."')
     g.add_argument(
@@ -60,6 +60,9 @@ def add_robot(parser: argparse.ArgumentParser, required: bool = True) -> None:
         help="folder of a ROS package for package:// mesh paths (repeatable)",
     )
     g.add_argument("--collision-only", action="store_true", help="leave out visual geoms and their meshes")
+    g.add_argument(
+        "--allow-outside", action="store_true", help="read mesh files outside their package (absolute paths, ..)"
+    )
 
 
 def robot_from_args(args: argparse.Namespace):
@@ -75,6 +78,8 @@ def robot_from_args(args: argparse.Namespace):
         options["package_map"] = dict(p.split("=", 1) for p in args.package)
     if args.collision_only:
         options["collision_only"] = True
+    if getattr(args, "allow_outside", False):
+        options["allow_outside"] = True
     return load_robot(args.robot, **options)
 
 

@@ -183,7 +183,7 @@ class Assembler:
         out = ca.densify(self._output_layout(sizes).pack(qp=qp, **more))
         prm = ca.vertcat(*[sym for sym, _ in s.inputs])
         tag = hashlib.sha256(repr(self._compose(kin, extra, trace=False)[2]).encode()).hexdigest()[:12]
-        return ca.Function(f"qp_{kin.robot.name or 'robot'}_{tag}", [q, prm], [out])
+        return ca.Function(f"qp_{kin.robot.identifier}_{tag}", [q, prm], [out])
 
     def snapshot(self, qp: QP) -> Callable[[], QP]:
         """A function giving ``qp`` as it is now, which later builds do not overwrite: for the assembler's own QP

@@ -141,8 +141,8 @@ class Kinematics:
             point = p_link if end < 0 else segments[c][end]
             heights.append(d if end < 0 else sy.dot(nrm, sy.vsub(point, p_obs)) - radii[c])
             link = robot.capsules[c].link
-            rate = [sy.dot(nrm, col) for col in chain.point_jacobian_expr(frames, point, link)]
-            rows.append(rate + [0.0] * (n - link))
+            cols = chain.point_jacobian_expr(frames, point, link)
+            rows.append([sy.dot(nrm, col) for col in cols] + [0.0] * (n - len(cols)))
         records = [pair_record(pair) for row in pairs for pair in row]
         return self.pair_layout(kinds).pack(pairs=records, rows=rows, heights=heights)
 
@@ -156,7 +156,7 @@ class Kinematics:
             prm = ca.SX.sym("params", sum(PARAMS[k] for k in kinds))
             inputs.append(prm)
             out = ca.vertcat(out, self.pairs_expr(frames, kinds, prm))
-        name = f"step_{self.robot.name or 'robot'}_{'_'.join(kinds) or 'free'}"
+        name = f"step_{self.robot.identifier}_{'_'.join(kinds) or 'free'}"
         return ca.Function(name, inputs, [out])
 
 

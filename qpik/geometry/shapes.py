@@ -1,5 +1,8 @@
 """Obstacle shapes in the world frame, and their construction from problem-file dicts.
 
+The world frame is the robot's base frame (for an arm loaded with ``base="link"``, that link's frame:
+:mod:`qpik.robots.loader`).
+
 Every shape is a frozen dataclass whose arrays are validated (finite, right
 shape), stored as read-only float64 and given in the world (robot base) frame,
 in metres. Shapes are convex, so the distance of a link capsule to a shape is a

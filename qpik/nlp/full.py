@@ -110,7 +110,7 @@ class FullNLP:
         g = ca.vertcat(err, g_epi, d_s - ctx.distances)
         p = ca.vertcat(ca.vec(T), p_obj, q_ref, prm, d_s)
         self.n_eq, self.n_t = 6, t.numel()
-        self.solver = ca.nlpsol(f"full_{robot.name}", "ipopt", {"x": x, "f": cost, "g": g, "p": p}, OPTIONS)
+        self.solver = ca.nlpsol(f"full_{robot.identifier}", "ipopt", {"x": x, "f": cost, "g": g, "p": p}, OPTIONS)
         lam_g, lam_x = ca.SX.sym("lam_g", g.numel()), ca.SX.sym("lam_x", x.numel())
         grad = ca.gradient(cost + ca.dot(lam_g, g), x) + lam_x
         self.kkt_terms = ca.Function("kkt", [x, p, lam_g, lam_x], [grad, g])

@@ -197,14 +197,14 @@ class IKSolver:
         step = ca.Function("step", [q, t], [step_expr(self.robot, q, ca.reshape(t, 4, 4))])
         qm, Tm = ca.MX.sym("q", n), ca.MX.sym("T", 4, 4)
         x = step.mapaccum("steps", CHUNK)(qm, ca.repmat(ca.vec(Tm), 1, CHUNK))[:, -1]
-        return Compiled(ca.Function(f"ik_lm_{self.robot.name}", [qm, Tm], [x, self._error_function(x, Tm)]))
+        return Compiled(ca.Function(f"ik_lm_{self.robot.identifier}", [qm, Tm], [x, self._error_function(x, Tm)]))
 
     @cached_property
     def _error_function(self) -> ca.Function:
         """``(q (n,), T (4, 4)) -> ‖e(q)‖`` as an SX function."""
         q, T = ca.SX.sym("q", self.robot.dof), ca.SX.sym("T", 4, 4)
         e = pose_error_expr(T, self.robot.chain.casadi_functions["fk"](q))
-        return ca.Function(f"ik_error_{self.robot.name}", [q, T], [ca.norm_2(e)])
+        return ca.Function(f"ik_error_{self.robot.identifier}", [q, T], [ca.norm_2(e)])
 
     @cached_property
     def _error(self) -> Compiled:

@@ -35,6 +35,7 @@ OPTIONS = {
 }
 """IPOPT options of the per-branch NLPs."""
 
+
 def _solver(scene: Scene, b: int) -> tuple[ca.Function, ca.Function]:
     """``(nlpsol, start)`` of branch row b: ``start(T, ψ, p) -> [t (K,)]`` (the maxima at ψ, a start for t)."""
     robot, obs = scene.robot, scene.obstacles
@@ -55,7 +56,7 @@ def _build(scene: Scene, b: int) -> tuple[ca.Function, ca.Function]:
     g = ca.vertcat(g_epi, d_s - ctx.distances)
     p = ca.vertcat(ca.vec(T), p_obj, q_ref, prm, d_s)
     nlp = {"x": ca.vertcat(psi, t), "f": cost, "g": g, "p": p}
-    solver = ca.nlpsol(f"branch_{robot.name}_{b}", "ipopt", nlp, OPTIONS)
+    solver = ca.nlpsol(f"branch_{robot.identifier}_{b}", "ipopt", nlp, OPTIONS)
     start = ca.Function("start", [psi, p], [ca.vertcat(*[ca.mmax(h) for _, h in split.maxima], ca.SX(0, 1))])
     return solver, start
 

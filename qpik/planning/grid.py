@@ -184,7 +184,7 @@ class Grid:
             f = self.objective.expr(ctx, p) if self.objective is not None else ca.SX(0.0)
             d = ca.mmin(ctx.distances) if len(self.obstacles) and root[b] == b else ca.SX(np.inf)
             out.append(ca.vertcat(ctx.q, ok, f, d))
-        name = f"plan_states_{self.solver.kind}_{robot.name or 'robot'}"
+        name = f"plan_states_{self.solver.kind}_{robot.identifier}"
         return ca.Function(name, [T, psi, p, q_ref, prm], [ca.densify(ca.vertcat(*out))])
 
     @cached_property

@@ -231,7 +231,7 @@ class PathNLP:
             R, pos = ctx.frames[-1]
             D = ca.mtimes(T[:3, :3], ca.vertcat(*[ca.horzcat(*R[i]) for i in range(3)]).T)  # R* Rᵀ
             g.append(ca.vertcat(T[:3, 3] - ca.vertcat(*pos), log_expr(D)))
-        name = f"plan_point_{robot.name or 'robot'}_{b}" + ("_near" if near else "")
+        name = f"plan_point_{robot.identifier}_{b}" + ("_near" if near else "")
         self._points[key] = ca.Function(name, [cols, z, t, p, q_ref, prm], [q, cost, g_epi, ca.vertcat(*g)])
         return self._points[key]
 

@@ -15,8 +15,15 @@ over a batch, CasADi symbols, and a compiled CasADi function for one configurati
 fast path, :mod:`qpik.compiled`). Constant 0 and ±1 entries fold away while tracing, so
 an identity ``pre`` or ``post`` costs nothing.
 
+A joint may be coupled (a URDF mimic joint): :math:`q_k = m\,q_i` for an independent joint *i*
+before it (the constant part goes into its offset). The chain's configuration q then has one
+entry per independent joint (:attr:`SerialChain.dof`), its frames one per joint, and each
+Jacobian column of joint *i* is, by the chain rule, the sum of the columns of the joints it
+drives, times their multipliers (and the Hessian's entries likewise in both indices).
+
 Conventions: metres and radians; the geometric Jacobian rows are ``[v; ω]`` of the
-end-effector origin, both in the base (world) frame.
+end-effector origin, both in the chain's base frame (the frame ``base`` is given in; for a
+catalog arm the world, for a loaded one its base link: :mod:`qpik.robots.loader`).
 """
 
 from __future__ import annotations
@@ -59,6 +66,8 @@ class Joint:
         kind: ``"revolute"`` (q in rad, about z) or ``"prismatic"`` (q in m, along z).
         offset: o, added to q before the motion (rad or m).
         name: the joint's name in its model (``""`` for a DH table).
+        mimic: ``(i, m)`` for a coupled joint: its q is m times independent joint i's (i counts the
+            chain's independent joints from 0; i comes before this joint); None for an independent joint.
     """
 
     pre: np.ndarray = field(default_factory=_eye)
@@ -66,6 +75,7 @@ class Joint:
     kind: JointKind = "revolute"
     offset: float = 0.0
     name: str = ""
+    mimic: tuple[int, float] | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.kind, str) or self.kind not in ("revolute", "prismatic"):
@@ -73,6 +83,14 @@ class Joint:
         for name in ("pre", "post"):  # rigid transforms: rotation blocks orthonormal, lengths within 1e6 m
             object.__setattr__(self, name, single_pose(getattr(self, name), f"Joint.{name}"))
         object.__setattr__(self, "offset", number(self.offset, "Joint.offset", minimum=None))
+        if self.mimic is not None:
+            try:
+                i, m = self.mimic
+            except (TypeError, ValueError):
+                raise InputError(f"Joint.mimic: expected (joint index, multiplier), got {self.mimic!r}") from None
+            if isinstance(i, bool) or not isinstance(i, int | np.integer) or i < 0:
+                raise InputError(f"Joint.mimic: joint index must be an int >= 0, got {i!r}")
+            object.__setattr__(self, "mimic", (int(i), number(m, "Joint.mimic multiplier", minimum=None)))
 
     def motion(self, q: Scalar, ops: Ops) -> Frame:
         """:math:`M(q + o)` as a :mod:`qpik.symbolic` frame."""
@@ -102,7 +120,7 @@ class SerialChain:
 
     Args:
         joints: the joints from the base outward.
-        base: (4, 4) world-from-frame-0 transform.
+        base: (4, 4) frame 0 in the chain's base frame (the frame of every pose it gives).
         tool: (4, 4) frame-n-from-end-effector transform.
     """
 
@@ -125,28 +143,64 @@ class SerialChain:
         bad = [i for i, j in enumerate(joints) if not isinstance(j, Joint)]
         if bad:
             raise InputError(f"{cls}.joints[{bad[0]}]: expected a Joint, got {type(joints[bad[0]]).__name__}")
+        independent = 0
+        for k, j in enumerate(joints):
+            if j.mimic is None:
+                independent += 1
+            elif j.mimic[0] >= independent:
+                raise InputError(f"{cls}.joints[{k}]: mimics independent joint {j.mimic[0]}, which is not before it")
+        if not independent:
+            raise InputError(f"{cls}.joints: a chain needs at least one independent joint")
         object.__setattr__(self, "joints", joints)
         for name, T in (("base", base), ("tool", tool)):
             object.__setattr__(self, name, np.eye(4) if T is None else single_pose(T, f"{cls}.{name}"))
 
-    @property
+    @cached_property
     def dof(self) -> int:
-        return len(self.joints)
+        """The number of independent joints: the length of q."""
+        return sum(j.mimic is None for j in self.joints)
+
+    @cached_property
+    def coupling(self) -> tuple[tuple[int, float], ...]:
+        """Per chain joint k: ``(i, m)``, its q is m times q[i] (``(i, 1.0)`` for independent joint i)."""
+        out, i = [], 0
+        for j in self.joints:
+            if j.mimic is None:
+                out.append((i, 1.0))
+                i += 1
+            else:
+                out.append(j.mimic)
+        return tuple(out)
+
+    def _contract(self, cols: list, zero: sy.Vec) -> list:
+        """Per-joint columns (one per chain joint) -> per-q columns (chain rule); identity without couplings."""
+        if len(self.joints) == self.dof:
+            return cols
+        out: list = [None] * self.dof
+        for (i, m), c in zip(self.coupling, cols):
+            c = c if m == 1.0 else sy.vscale(m, c)
+            out[i] = c if out[i] is None else sy.vadd(out[i], c)
+        return [zero if c is None else c for c in out]
+
+    def _full_q(self, q: list[Scalar]) -> list[Scalar]:
+        """Each chain joint's variable from the independent q."""
+        return [q[i] if m == 1.0 else sy.mul(m, q[i]) for i, m in self.coupling]
 
     @cached_property
     def prismatic(self) -> np.ndarray:
-        """(n,) bool, True for the prismatic joints."""
-        return np.array([j.kind == "prismatic" for j in self.joints])
+        """(n,) bool, True for the prismatic independent joints."""
+        return np.array([j.kind == "prismatic" for j in self.joints if j.mimic is None])
 
     # ---- the one definition -------------------------------------------------
 
     def frames_expr(self, q: list[Scalar], ops: Ops) -> list[Frame]:
         """Frames 0..n and the end-effector, as :mod:`qpik.symbolic` frames.
 
-        Returns ``n + 2`` frames: ``[base, frame_1, ..., frame_n, ee]``.
+        Returns ``len(joints) + 2`` frames: ``[base, frame_1, ..., frame_n, ee]`` (n + 2 without mimic joints);
+        ``q`` has :attr:`dof` entries.
         """
         frames = [sy.frame_of(self.base)]
-        for joint, qi in zip(self.joints, q):
+        for joint, qi in zip(self.joints, self._full_q(q)):
             frames.append(sy.compose(frames[-1], joint.local_expr(qi, ops)))
         frames.append(sy.compose(frames[-1], sy.frame_of(self.tool)))
         return frames
@@ -170,18 +224,22 @@ class SerialChain:
         A revolute joint ``j`` turns about the unit axis :math:`z_j` through :math:`o_j` (world
         frame), a prismatic one slides along :math:`z_j`, so
         :math:`\dot p = \sum_{j \le link} c_j\,\dot q_j` with :math:`c_j = z_j \times (p - o_j)`
-        or :math:`z_j`; returns those ``link`` columns (the joints beyond ``link`` do not move it).
+        or :math:`z_j`; returns the columns of q's entries up to the last independent joint at or before ``link``
+        (``link`` columns without mimic joints; the joints beyond do not move it).
         """
         cols = []
         for joint, (z, o) in zip(self.joints[:link], self.axes_expr(frames)[:link]):
             cols.append(z if joint.kind == "prismatic" else sy.cross(z, sy.vsub(point, o)))
-        return cols
+        if len(self.joints) == self.dof:
+            return cols
+        used = max(i for i, _ in self.coupling[:link]) + 1
+        return self._contract(cols + [ZERO_VEC] * (len(self.joints) - link), ZERO_VEC)[:used]
 
     def jacobian_expr(self, frames: list[Frame]) -> tuple[list[sy.Vec], list[sy.Vec]]:
         """Columns of the geometric Jacobian: (linear parts, angular parts); a prismatic joint's angular part is 0."""
-        jv = self.point_jacobian_expr(frames, frames[-1][1], self.dof)
+        jv = self.point_jacobian_expr(frames, frames[-1][1], len(self.joints))
         jw = [ZERO_VEC if j.kind == "prismatic" else z for j, (z, _) in zip(self.joints, self.axes_expr(frames))]
-        return jv, jw
+        return jv, self._contract(jw, ZERO_VEC)
 
     def hessian_expr(
         self, frames: list[Frame], jacobian: tuple[list[sy.Vec], list[sy.Vec]] | None = None
@@ -192,8 +250,11 @@ class SerialChain:
         for a revolute joint, 0 for a prismatic one):
         :math:`∂J_{v,j}/∂q_k = J_{\omega,\min(j,k)} \times J_{v,\max(j,k)}`, and
         :math:`∂J_{\omega,j}/∂q_k = J_{\omega,k} \times J_{\omega,j}` for :math:`k < j`, else 0.
-        ``jacobian``: the columns of :meth:`jacobian_expr` if the caller has them already.
+        ``jacobian``: the columns of :meth:`jacobian_expr` if the caller has them already. With mimic joints the
+        per-joint Hessian is contracted in both indices (the chain rule; the couplings are linear).
         """
+        if len(self.joints) != self.dof:
+            return self._hessian_coupled(frames)
         jv, jw = self.jacobian_expr(frames) if jacobian is None else jacobian
         H = []
         for k in range(self.dof):
@@ -204,6 +265,25 @@ class SerialChain:
                 hw = sy.cross(jw[k], jw[j]) if k < j else ZERO_VEC
                 row.append((hv, hw))
             H.append(row)
+        return H
+
+    def _hessian_coupled(self, frames: list[Frame]) -> list[list[tuple[sy.Vec, sy.Vec]]]:
+        """:meth:`hessian_expr` of a chain with mimic joints: the per-joint Hessian, contracted."""
+        m = len(self.joints)
+        axes = self.axes_expr(frames)
+        p = frames[-1][1]
+        jv = [z if j.kind == "prismatic" else sy.cross(z, sy.vsub(p, o)) for j, (z, o) in zip(self.joints, axes)]
+        jw = [ZERO_VEC if j.kind == "prismatic" else z for j, (z, _) in zip(self.joints, axes)]
+        zero = (ZERO_VEC, ZERO_VEC)
+        H = [[zero] * self.dof for _ in range(self.dof)]
+        for k in range(m):
+            a, ma = self.coupling[k]
+            for j in range(m):
+                b, mb = self.coupling[j]
+                lo, hi = min(j, k), max(j, k)
+                hv = sy.vscale(ma * mb, sy.cross(jw[lo], jv[hi]))
+                hw = sy.vscale(ma * mb, sy.cross(jw[k], jw[j])) if k < j else ZERO_VEC
+                H[a][b] = (sy.vadd(H[a][b][0], hv), sy.vadd(H[a][b][1], hw))
         return H
 
     # ---- CasADi -------------------------------------------------------------
@@ -252,7 +332,7 @@ class SerialChain:
         return self.frames_expr([q[:, i] for i in range(self.dof)], sy.NUMPY)
 
     def fk(self, q: np.ndarray) -> np.ndarray:
-        """End-effector pose in the world frame: q (n,) -> (4, 4); q (N, n) -> (N, 4, 4)."""
+        """End-effector pose in the chain's base frame: q (n,) -> (4, 4); q (N, n) -> (N, 4, 4)."""
         fast = self._fresh["fk"]
         if fast is not None and (out := fast(q)) is not None:
             return out[0]
@@ -262,16 +342,17 @@ class SerialChain:
         return _frame_to_np(self._batch(q)[-1], len(q))
 
     def frames(self, q: np.ndarray) -> np.ndarray:
-        """World poses of ``[base, frame_1..frame_n, ee]``: (n+2, 4, 4) or (N, n+2, 4, 4)."""
+        """Base-frame poses of ``[base, frame_1..frame_n, ee]``: (n+2, 4, 4) or (N, n+2, 4, 4) (n: every chain
+        joint, mimic joints included)."""
         q, batched = joint_vector(q, self.dof)
         if not batched:
             F = self._compiled["frames"].copies(q)[0]
-            return F.reshape(4, self.dof + 2, 4).transpose(1, 0, 2).copy()
+            return F.reshape(4, len(self.joints) + 2, 4).transpose(1, 0, 2).copy()
         fr = self._batch(q)
         return np.stack([_frame_to_np(f, len(q)) for f in fr], axis=1)
 
     def axes(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """World joint axes at q (n,): unit directions (n, 3) and a point on each axis (n, 3), m."""
+        """Joint axes at q (n,), base frame: unit directions and a point on each axis, (len(joints), 3) each, m."""
         q, batched = joint_vector(q, self.dof)
         if batched:
             raise InputError(f"q: expected shape ({self.dof},), got {q.shape}")
@@ -280,24 +361,24 @@ class SerialChain:
         return np.array(z), np.array(o)
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
-        """Geometric Jacobian ``[v; ω]`` (world frame): (6, n) or (N, 6, n)."""
+        """Geometric Jacobian ``[v; ω]`` (base frame): (6, n) or (N, 6, n)."""
         fast = self._fresh["jacobian"]
         if fast is not None and (out := fast(q)) is not None:
-            return out[0]
+            return out[0] if self.dof > 1 else out[0].reshape(6, 1)  # (a one-column output comes flat)
         q, batched = joint_vector(q, self.dof)
         if not batched:
-            return self._compiled["jacobian"].copies(q)[0]
+            return self._compiled["jacobian"].copies(q)[0].reshape(6, self.dof)
         return self._jac_np(self._batch(q), len(q))
 
     def fk_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Pose and Jacobian together (one kinematics pass)."""
         fast = self._fresh["fk_jacobian"]
         if fast is not None and (out := fast(q)) is not None:
-            return out
+            return out if self.dof > 1 else (out[0], out[1].reshape(6, 1))  # (a one-column output comes flat)
         q, batched = joint_vector(q, self.dof)
         if not batched:
             T, J = self._compiled["fk_jacobian"].copies(q)
-            return T, J
+            return T, J.reshape(6, self.dof)
         fr = self._batch(q)
         return _frame_to_np(fr[-1], len(q)), self._jac_np(fr, len(q))
 

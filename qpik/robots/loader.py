@@ -14,13 +14,27 @@ position). Joint *k* becomes a :class:`~qpik.robots.chain.Joint` with
 so that the chain's FK equals MuJoCo's ``mj_kinematics`` of the same model. The tool
 is the tip body's (or site's) frame in link *n*, times ``ee``.
 
-From the model:
+Frames: every pose of the robot (:meth:`qpik.Robot.fk`, the capsules, obstacles given to the
+controller and planner) is in the **base frame**: the frame of the ``base`` body or site, as
+pinocchio, KDL/TRAC-IK and MoveIt give poses relative to a chain's base link. Without ``base``
+it is the model's world frame. The base's pose in the model's world frame, with the joints above
+the base at their reference, is ``robot.model.placement`` (4, 4): a world-frame pose is
+``robot.model.placement @ robot.fk(q)``. The MuJoCo model of the robot (:meth:`ModelSource.spec`)
+is moved by its inverse, so that its world frame is the base frame too.
 
-- position limits: the joint ``range``; a joint without one (URDF ``continuous``)
-  gets :data:`CONTINUOUS_LIMIT` (two turns each way, so that a path through ±π stays
-  inside and the closed form offers each angle's representatives q + 2πk);
+Mimic joints (URDF ``<mimic joint=J multiplier=m offset=c>``) on the chain are coupled, not free:
+:math:`q_{mimic} = m\,q_J + c` (:class:`~qpik.robots.chain.Joint` ``mimic``), with J an arm joint
+before it on the chain; the arm's q has one entry per independent joint.
+
+From the model (:mod:`qpik.robots.limits`, which refuses invalid limits):
+
+- position limits: the joint ``range`` (URDF ``<limit lower upper>``); a joint without one (URDF
+  ``continuous``) gets :data:`~qpik.robots.limits.CONTINUOUS_LIMIT` (two turns each way, so that a path through ±π
+  stays inside and the closed form offers each angle's representatives q + 2πk);
 - velocity limits: URDF ``<limit velocity>``; in MJCF, the ``ctrlrange`` of a velocity
-  actuator on the joint; otherwise :data:`DEFAULT_VELOCITY`;
+  actuator on the joint; otherwise :data:`~qpik.robots.limits.DEFAULT_VELOCITY`;
+- inertias are not used: an inertia MuJoCo refuses (PR2's violate the triangle inequality) is
+  replaced (:func:`~qpik.robots.model_files.repair_inertias`), and ``robot.notes`` says so;
 - home: the keyframe ``home`` if the model has one, else the reference configuration
   moved at least :data:`HOME_MARGIN` of each joint's range inside its limits;
 - link capsules: the smallest capsule containing the collision geoms (those with a
@@ -42,7 +56,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -52,18 +66,15 @@ from qpik.errors import InputError, UnknownRobotError
 from qpik.robots.catalog import CATALOG
 from qpik.robots.catalog import load_robot as catalog_robot
 from qpik.robots.chain import Joint, SerialChain
-from qpik.robots.model_files import is_urdf, read_spec, urdf_velocity_limits
+from qpik.robots.limits import arm_limits
+from qpik.robots.model_files import UrdfJoint, is_urdf, read_spec, urdf_joints
 from qpik.robots.recognize import recognize
 from qpik.robots.robot import LinkCapsule, Robot
-from qpik.validate import finite_array
+from qpik.validate import finite_array, flag
 
 if TYPE_CHECKING:
     import mujoco
 
-CONTINUOUS_LIMIT = 2.0 * np.pi
-"""Limits ±this (rad) of a joint that has none in the model (URDF ``continuous``)."""
-DEFAULT_VELOCITY = 1.5
-"""Velocity limit (rad/s, or m/s for a slide joint) of a joint whose model gives none."""
 HOME_MARGIN = 0.1
 """Without a ``home`` keyframe, the home configuration keeps this fraction of each joint's range from its limits."""
 SITE = "qpik_ee"
@@ -80,9 +91,14 @@ class ModelSource:
         path: the MJCF or URDF file.
         package_map: ``{package: folder}`` for ``package://`` mesh paths.
         collision_only: visual geoms (and meshes only they use) are left out.
-        joint_names: the arm's joints in the model, in chain order.
+        joint_names: the arm's independent joints in the model, in chain order (one per entry of q).
         tip_body: the body the end effector is attached to.
         site: the name of the end-effector site added by :meth:`spec_with`.
+        placement: (4, 4) the base frame's pose in the file's world frame (joints above the base at
+            their reference), m; :meth:`spec` moves the model by its inverse.
+        allow_outside: mesh paths may leave their package root.
+        mimic: ``(joint, leader, multiplier, offset)`` per mimic joint on the chain: the model's
+            ``qpos[joint] = multiplier * qpos[leader] + offset``.
     """
 
     path: Path
@@ -91,15 +107,32 @@ class ModelSource:
     joint_names: tuple[str, ...] = ()
     tip_body: str = ""
     site: str = SITE
+    placement: np.ndarray = field(default_factory=lambda: np.eye(4), compare=False)  # (arrays do not compare)
+    allow_outside: bool = False
+    mimic: tuple[tuple[str, str, float, float], ...] = ()
 
     def spec(self) -> mujoco.MjSpec:
-        """A fresh spec of the file (meshes resolved, static bodies kept)."""
-        return read_spec(self.path, self.package_map, self.collision_only)
+        """A fresh spec of the file (meshes resolved, static bodies kept), moved so that its world frame is the
+        robot's base frame (a mimic joint keeps the joint equality MuJoCo reads from the file)."""
+        spec = read_spec(self.path, self.package_map, self.collision_only, self.allow_outside)
+        if not np.array_equal(self.placement, np.eye(4)):
+            _move(spec, np.linalg.inv(self.placement))
+        return spec
+
+    def qpos(self, model: mujoco.MjModel, q: np.ndarray) -> np.ndarray:
+        """The model's ``qpos`` at arm configuration q (n,): ``qpos0`` with the arm's and the mimic joints' entries."""
+        qpos = model.qpos0.copy()
+        adr = {nm: int(model.joint(nm).qposadr[0]) for nm in self.joint_names}
+        for nm, x in zip(self.joint_names, q):
+            qpos[adr[nm]] = x
+        for joint, leader, m, c in self.mimic:
+            qpos[model.joint(joint).qposadr[0]] = m * qpos[adr[leader]] + c
+        return qpos
 
     def spec_with(self, robot: Robot) -> mujoco.MjSpec:
         """The spec with the robot's capsules (visual: translucent, group 2, no contacts) and the end-effector site.
 
-        Capsule ``c`` of link ``k`` is geom ``qpik_capsule{c}`` on the body of joint ``k``, placed by
+        Capsule ``c`` of link ``k`` is geom ``qpik_capsule{c}`` on the body of chain joint ``k``, placed by
         link frame ``k`` (the joint frame) in that body.
         """
         import mujoco
@@ -107,7 +140,7 @@ class ModelSource:
         spec = self.spec()
         model = spec.compile()
         for c, cap in enumerate(robot.capsules):
-            joint = model.joint(self.joint_names[cap.link - 1])
+            joint = model.joint(robot.chain.joints[cap.link - 1].name)
             body = spec.body(model.body(int(joint.bodyid[0])).name)
             to_link = _anchor(model, joint.id)  # link frame k in the joint's body (at any q: it moves with it)
             p0, p1 = (to_link[:3, :3] @ p + to_link[:3, 3] for p in (cap.p0, cap.p1))
@@ -123,8 +156,9 @@ class ModelSource:
                 mujoco.mju_quatZ2Vec(quat, p1 - p0)
                 g.type, g.size = mujoco.mjtGeom.mjGEOM_CAPSULE, [cap.radius, half, 0]
                 g.pos, g.quat = 0.5 * (p0 + p1), quat
-        q_ref = -np.array([j.offset for j in robot.chain.joints])  # MuJoCo's reference configuration
-        ee = np.linalg.inv(_Tree(model).pose(model.body(self.tip_body).id)) @ robot.fk(q_ref)
+        q_ref = np.array([model.qpos0[model.joint(nm).qposadr[0]] for nm in self.joint_names])
+        tree = _Tree(model, self.qpos(model, q_ref))
+        ee = np.linalg.inv(tree.pose(model.body(self.tip_body).id)) @ robot.fk(q_ref)
         quat = np.zeros(4)
         mujoco.mju_mat2Quat(quat, np.ascontiguousarray(ee[:3, :3]).ravel())
         site = spec.body(self.tip_body).add_site()
@@ -137,6 +171,20 @@ class ModelSource:
         )
         _stage(spec)
         return spec
+
+
+def _move(spec: mujoco.MjSpec, T: np.ndarray) -> None:
+    """Move everything in the spec's world body by the rigid transform ``T`` (4, 4), through one frame."""
+    import mujoco
+
+    frame = spec.worldbody.add_frame()
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(T[:3, :3]).ravel())
+    frame.pos, frame.quat = T[:3, 3], quat
+    w = spec.worldbody
+    for element in [*w.bodies, *w.geoms, *w.sites, *w.cameras, *w.lights, *w.frames]:
+        if element is not frame and element.frame is None:
+            element.set_frame(frame)
 
 
 def _stage(spec: mujoco.MjSpec) -> None:
@@ -177,29 +225,36 @@ def load_robot(
     collision_only: bool = False,
     q_home: np.ndarray | None = None,
     name: str | None = None,
+    allow_outside: bool = False,
 ) -> Robot:
     """A catalog arm by name, or the arm of an MJCF or URDF file.
 
     Args:
         path_or_name: ``"nammoto7"``, ``"iiwa14"``, ``"zheng7"``, ``"panda"`` (the catalog,
             no options), or the path of an MJCF (``.xml``) or URDF (``.urdf``) file.
-        base: body (or site's body) the chain starts from; default the world.
+        base: body or site the chain starts from, and the frame of every pose of the robot (its FK, capsules,
+            obstacles): poses are relative to the base, as in pinocchio, KDL and MoveIt; default the model's
+            world. The base's pose in the world is ``robot.model.placement``.
         tip: body or site at the end effector; default the end of the chain: from the base down
             to the first body with two moving branches (a gripper's fingers) or none.
         joints: names of the arm's joints in chain order; default every hinge and slide joint on
             the path from base to tip. Other joints on the path are locked at their reference.
         ee: (4, 4) end-effector frame in the tip's frame (default identity), m.
+            Mimic joints on the chain (URDF ``<mimic>``) are coupled to their leader, not arm joints of their own.
         package_map: ``{package: folder}`` for ``package://`` mesh paths (default: found
             from the file's own folders).
         collision_only: leave out visual geoms and their meshes (for models shipped without them).
         q_home: (n,) home configuration, rad (default from the model, see the module docstring).
-        name: the robot's name (default the model's name).
+        name: the robot's name (default the model's name; any text: ``robot.identifier`` is its C-safe form).
+        allow_outside: read mesh files outside their package root (absolute paths, ``..`` out of it).
 
     Raises:
         UnknownRobotError: neither a catalog name nor an existing file; a name that looks like a file
             (:func:`looks_like_a_file`) and is none says "no such file".
-        InputError: a bad model: MuJoCo cannot read it, a mesh is missing, the chain from base
-            to tip branches or has no joint, a joint on it is a ball or free joint, unknown names.
+        InputError: a bad model: not well-formed XML or declaring entities, MuJoCo cannot read it, a mesh is
+            missing or outside its root, the chain from base to tip branches or has no joint, a joint on it is a
+            ball or free joint, unknown names, invalid limits (:mod:`qpik.robots.limits`), a mimic joint whose
+            leader is not an arm joint before it.
     """
     if not isinstance(path_or_name, str | os.PathLike):
         raise UnknownRobotError(
@@ -208,7 +263,7 @@ def load_robot(
     text = os.fspath(path_or_name)
     options = (base, tip, joints, ee, package_map, q_home, name)
     if text in CATALOG:
-        if any(o is not None for o in options) or collision_only:
+        if any(o is not None for o in options) or collision_only or allow_outside:
             raise InputError(f"load_robot: {text!r} is a catalog arm; the options are for model files")
         return catalog_robot(text)
     path = Path(text)
@@ -218,28 +273,48 @@ def load_robot(
             raise UnknownRobotError(f"unknown robot {text!r}; known: {known}, or the path of an MJCF or URDF file")
         what = "is a folder, not a model file" if path.is_dir() else "no such file"
         raise UnknownRobotError(f"{text!r}: {what} (the catalog's arms: {known})")
+    if name is not None and not isinstance(name, str):
+        raise InputError(f"name: expected a string, got {type(name).__name__}")
     pmap = {k: os.fspath(v) for k, v in (package_map or {}).items()}
-    spec = read_spec(path, pmap, collision_only)
-    try:
-        model = spec.compile()
-    except ValueError as exc:
-        raise InputError(f"{path.name}: MuJoCo cannot compile it ({' '.join(str(exc).split())})") from None
+    allow_outside = flag(allow_outside, "allow_outside")
+    urdf = urdf_joints(path) if is_urdf(path) else None
+    model, notes = _compile(path, pmap, collision_only, allow_outside)
     tree = _Tree(model)
-    base_id, _ = tree.frame(base, "base") if base is not None else (0, np.eye(4))
+    base_id, base_offset = tree.frame(base, "base") if base is not None else (0, np.eye(4))
     tip_id, tip_offset = tree.frame(tip, "tip") if tip is not None else (tree.default_tip(base_id), np.eye(4))
     path_bodies = tree.path(base_id, tip_id)
-    arm = tree.arm_joints(path_bodies, joints)
-    chain = _chain(model, tree, base_id, path_bodies, arm, tip_offset, ee)
-    limited = model.jnt_limited[arm].astype(bool)
-    rng = model.jnt_range[arm]
-    q_min = np.where(limited, rng[:, 0], -CONTINUOUS_LIMIT)
-    q_max = np.where(limited, rng[:, 1], CONTINUOUS_LIMIT)
+    on_chain = tree.arm_joints(path_bodies, joints)
+    _finite(model, path_bodies, on_chain, path.name)
+    mimic = _mimic(model, on_chain, urdf or {}, path.name)
+    arm = [j for j in on_chain if j not in mimic]
     names = tuple(model.joint(j).name for j in arm)
-    urdf = is_urdf(path)
-    v_max = _velocity_limits(model, arm, urdf_velocity_limits(path) if urdf else {})
+    source = ModelSource(
+        path.resolve(),
+        pmap,
+        collision_only,
+        names,
+        model.body(tip_id).name,
+        allow_outside=allow_outside,
+        mimic=tuple((model.joint(j).name, model.joint(lead).name, m, c) for j, (lead, m, c) in mimic.items()),
+    )
+    q_ref = model.qpos0[model.jnt_qposadr[arm]]
+    tree = _Tree(model, source.qpos(model, q_ref))  # mimic joints coupled at the reference
+    placement = tree.pose(base_id) @ base_offset
+    source = replace(source, placement=placement)
+    chain = _chain(model, path_bodies, on_chain, arm, mimic, base_offset, tip_offset, ee)
+    q_min, q_max, v_max, limit_notes = arm_limits(model, arm, urdf, path.name)
+    notes += limit_notes
+    if mimic:
+        notes.append(
+            "mimic joints coupled to their leaders (their own limits are not enforced): "
+            + ", ".join(
+                f"{model.joint(j).name} = {m:g}·{model.joint(lead).name} + {c:g}" for j, (lead, m, c) in mimic.items()
+            )
+        )
     home = _home(model, arm, q_min, q_max) if q_home is None else finite_array(q_home, "q_home", (len(arm),)).copy()
-    source = ModelSource(path.resolve(), pmap, collision_only, names, model.body(tip_id).name)
     canonical, why = recognize(chain)
+    if canonical is None:
+        notes.insert(0, f"no closed form: {why}")
     return Robot(
         name=name or model.names[: model.names.index(b"\0")].decode() or path.stem,
         chain=chain,
@@ -247,23 +322,91 @@ def load_robot(
         q_max=q_max,
         v_max=v_max,
         q_home=home,
-        capsules=_capsules(model, tree, arm, chain),
+        capsules=_capsules(model, tree, on_chain, chain, placement),
         closed_form=None if canonical is None else canonical.kind,  # type: ignore[arg-type]
         source=str(path.resolve()),
-        notes=f"no closed form: {why}" if canonical is None else "",
+        notes="; ".join(notes),
         model=source,
         canonical=canonical,
     )
 
 
-class _Tree:
-    """The body tree of a compiled model: parents, joints per body, poses at the reference configuration."""
+def _compile(
+    path: Path, pmap: Mapping[str, str], collision_only: bool, allow_outside: bool
+) -> tuple[mujoco.MjModel, list[str]]:
+    """The compiled model and the notes of what was repaired in it (:func:`~qpik.robots.model_files.read_spec`)."""
+    repaired: list[str] = []
+    spec = read_spec(path, pmap, collision_only, allow_outside, repaired)
+    try:
+        model = spec.compile()
+    except (ValueError, RuntimeError) as exc:
+        raise InputError(f"{path.name}: MuJoCo cannot compile it ({' '.join(str(exc).split())})") from None
+    if not repaired:
+        return model, []
+    return model, [f"invalid inertias replaced (the kinematics does not use them): {', '.join(repaired)}"]
 
-    def __init__(self, model: mujoco.MjModel):
+
+def _finite(model: mujoco.MjModel, bodies: list[int], on_chain: list[int], file: str) -> None:
+    """Refuse NaN or infinite placements of the chain's bodies and joints (MuJoCo keeps them)."""
+    for b in bodies:
+        if not (np.all(np.isfinite(model.body_pos[b])) and np.all(np.isfinite(model.body_quat[b]))):
+            raise InputError(f"{file}: body {model.body(b).name!r} has a NaN or infinite position or orientation")
+    for j in on_chain:
+        values = (model.jnt_pos[j], model.jnt_axis[j], model.qpos0[model.jnt_qposadr[j]])
+        if not all(np.all(np.isfinite(v)) for v in values):
+            raise InputError(f"{file}: joint {model.joint(j).name!r} has a NaN or infinite anchor, axis or reference")
+
+
+def _mimic(
+    model: mujoco.MjModel, on_chain: list[int], urdf: Mapping[str, UrdfJoint], file: str
+) -> dict[int, tuple[int, float, float]]:
+    """``{joint id: (leader id, multiplier, offset)}`` of the chain joints that an active joint equality couples to
+    an independent chain joint before them: ``qpos = multiplier * qpos[leader] + offset``.
+
+    MuJoCo writes a URDF ``<mimic>`` as such an equality; an MJCF may have its own. With MuJoCo's
+    :math:`y - y_0 = a_0 + a_1 (x - x_0)`: multiplier :math:`a_1`, offset :math:`y_0 + a_0 - a_1 x_0`.
+    A URDF mimic joint that MuJoCo left uncoupled (its leader is no joint of the file) is refused.
+    """
+    import mujoco
+
+    out: dict[int, tuple[int, float, float]] = {}
+    for e in range(model.neq):
+        if model.eq_type[e] != mujoco.mjtEq.mjEQ_JOINT or not model.eq_active0[e]:
+            continue
+        j, lead = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
+        if j not in on_chain:
+            continue
+        name = model.joint(j).name
+        a = model.eq_data[e, :5]
+        if lead < 0 or np.any(a[2:] != 0.0):
+            raise InputError(f"{file}: joint {name!r} is held by a joint equality that is not linear in another joint")
+        if lead not in on_chain[: on_chain.index(j)] or lead in out:
+            raise InputError(
+                f"{file}: joint {name!r} mimics {model.joint(lead).name!r}, which is not an independent arm joint "
+                "before it on the chain (qpik couples a mimic joint to such a joint only)"
+            )
+        if not np.all(np.isfinite(a[:2])):
+            raise InputError(f"{file}: joint {name!r}: mimic multiplier and offset must be finite, got {a[1]}, {a[0]}")
+        y0, x0 = (float(model.qpos0[model.jnt_qposadr[i]]) for i in (j, lead))
+        out[j] = (lead, float(a[1]), y0 + float(a[0]) - float(a[1]) * x0)
+    for j in on_chain:
+        info = urdf.get(model.joint(j).name)
+        if j not in out and info is not None and info.mimic is not None:
+            raise InputError(f"{file}: joint {info.name!r} mimics {info.mimic!r}, which is not a joint of the file")
+    return out
+
+
+class _Tree:
+    """The body tree of a compiled model: parents, joints per body, poses at the reference configuration (or at
+    ``qpos``), in the model's world frame."""
+
+    def __init__(self, model: mujoco.MjModel, qpos: np.ndarray | None = None):
         import mujoco
 
         self.model = model
         self.data = mujoco.MjData(model)
+        if qpos is not None:
+            self.data.qpos[:] = qpos
         mujoco.mj_kinematics(model, self.data)
         self.children: dict[int, list[int]] = {b: [] for b in range(model.nbody)}
         for b in range(1, model.nbody):
@@ -337,7 +480,7 @@ class _Tree:
             if bad:
                 kind = mujoco.mjtJoint(int(m.jnt_type[bad[0]])).name[6:].lower()
                 raise InputError(
-                    f"unsupported joint: {m.joint(bad[0]).name or 'unnamed'!r} is a {kind} joint "
+                    f"unsupported joint: {m.joint(bad[0]).name!r} is a {kind} joint "
                     "(only hinge and slide joints can be arm joints; choose base= below it)"
                 )
             arm = on_path
@@ -391,60 +534,47 @@ def _anchor(model: mujoco.MjModel, j: int) -> np.ndarray:
 
 def _chain(
     model: mujoco.MjModel,
-    tree: _Tree,
-    base: int,
     bodies: list[int],
+    on_chain: list[int],
     arm: list[int],
+    mimic: Mapping[int, tuple[int, float, float]],
+    base_offset: np.ndarray,
     tip_offset: np.ndarray,
     ee: np.ndarray | None,
 ) -> SerialChain:
-    """The serial chain of ``arm`` along ``bodies`` (see the module docstring)."""
+    """The serial chain of the joints ``on_chain`` along ``bodies``, in the base frame (see the module docstring).
+
+    ``arm``: the independent joints (one entry of q each); ``mimic``: the others, coupled to a leader in ``arm``.
+    """
     import mujoco
 
     joints = []
-    acc = np.eye(4)  # the current body frame in the last link frame (the base body's frame at first)
+    acc = np.linalg.inv(base_offset)  # the current body frame in the last link frame (the base frame at first)
     for b in bodies:
         acc = acc @ _transform(model.body_pos[b], model.body_quat[b])
         for j in range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b]):
-            if j not in arm:
+            if j not in on_chain:
                 continue  # locked at its reference: no motion
             anchor = _anchor(model, j)
             slide = int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_SLIDE)
             q_ref = float(model.qpos0[model.jnt_qposadr[j]])
+            if j in mimic:  # qpos = m q_leader + c: the motion m q_leader + (c - q_ref)
+                lead, m, c = mimic[j]
+                coupling, offset = (arm.index(lead), m), c - q_ref
+            else:
+                coupling, offset = None, -q_ref
             joints.append(
                 Joint(
                     pre=acc @ anchor,
                     kind="prismatic" if slide else "revolute",
-                    offset=-q_ref,
+                    offset=offset,
                     name=model.joint(j).name,
+                    mimic=coupling,
                 )
             )
             acc = np.linalg.inv(anchor)
     tool = acc @ tip_offset @ (np.eye(4) if ee is None else finite_array(ee, "ee", (4, 4)))
-    return SerialChain(joints, base=tree.pose(base), tool=tool)
-
-
-def _velocity_limits(model: mujoco.MjModel, arm: list[int], urdf: dict[str, float]) -> np.ndarray:
-    """Per arm joint: the URDF velocity, a velocity actuator's ctrlrange, or :data:`DEFAULT_VELOCITY`."""
-    import mujoco
-
-    out = np.full(len(arm), DEFAULT_VELOCITY)
-    for i, j in enumerate(arm):
-        name = model.joint(j).name
-        if name in urdf and urdf[name] > 0:
-            out[i] = urdf[name]
-            continue
-        for a in range(model.nu):
-            velocity = (
-                model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT
-                and model.actuator_trnid[a, 0] == j
-                and model.actuator_biasprm[a, 1] == 0.0
-                and model.actuator_biasprm[a, 2] < 0.0
-                and model.actuator_ctrllimited[a]
-            )
-            if velocity:
-                out[i] = float(np.abs(model.actuator_ctrlrange[a]).max())
-    return out
+    return SerialChain(joints, tool=tool)
 
 
 def _home(model: mujoco.MjModel, arm: list[int], q_min: np.ndarray, q_max: np.ndarray) -> np.ndarray:
@@ -459,8 +589,14 @@ def _home(model: mujoco.MjModel, arm: list[int], q_min: np.ndarray, q_max: np.nd
     return np.clip(model.qpos0[adr], q_min + margin, q_max - margin)
 
 
-def _capsules(model: mujoco.MjModel, tree: _Tree, arm: list[int], chain: SerialChain) -> tuple[LinkCapsule, ...]:
-    """One capsule per link with geoms: the smallest containing its collision geoms (else all), in link frame k."""
+def _capsules(
+    model: mujoco.MjModel, tree: _Tree, arm: list[int], chain: SerialChain, placement: np.ndarray
+) -> tuple[LinkCapsule, ...]:
+    """One capsule per link with geoms: the smallest containing its collision geoms (else all), in link frame k.
+
+    ``arm``: every chain joint (link k is moved by chain joint k); ``tree`` at the chain's reference configuration;
+    ``placement``: the base frame in the model's world frame (4, 4).
+    """
     from qpik.robots.capsule_fit import fit_capsule  # SciPy's optimisers: only for a model file
 
     owner = {}  # body -> link index (1..n) of the arm joint that moves it last
@@ -474,8 +610,8 @@ def _capsules(model: mujoco.MjModel, tree: _Tree, arm: list[int], chain: SerialC
             assign(c, link)
 
     assign(0, 0)
-    q_ref = -np.array([j.offset for j in chain.joints])
-    frames = chain.frames(q_ref)  # link frames at the reference configuration (world)
+    q_ref = np.array([-j.offset for j in chain.joints if j.mimic is None])
+    frames = placement @ chain.frames(q_ref)  # link frames at the reference configuration (model's world)
     geoms: dict[int, list[int]] = {}
     for g in range(model.ngeom):
         link = owner[int(model.geom_bodyid[g])]

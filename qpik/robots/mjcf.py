@@ -24,9 +24,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
+from xml.sax.saxutils import quoteattr
 
 import mujoco
 import numpy as np
+
+from qpik.errors import InputError
 
 if TYPE_CHECKING:
     from qpik.robots.chain import Joint
@@ -57,8 +60,13 @@ def to_mjcf(robot: Robot, extra_worldbody: Sequence[str] = ()) -> str:
         MJCF text with bodies ``link1..linkn``, hinges ``joint1..jointn``
         (``range`` = the robot's limits), capsule geoms ``link{k}_capsule`` and
         the end-effector site ``ee``.
+
+    Raises:
+        InputError: the chain has mimic joints (a loaded arm with them uses its own model instead).
     """
     chain = robot.chain
+    if len(chain.joints) != robot.dof:
+        raise InputError(f"to_mjcf: {robot.name} has mimic joints, which the twin does not cover")
     n = chain.dof
     F = chain.frames(np.zeros(n))  # [base, frame_1..frame_n, ee] at q = 0
     body = [F[k - 1] @ j.pre @ _motion(j) for k, j in enumerate(chain.joints, start=1)]
@@ -67,7 +75,7 @@ def to_mjcf(robot: Robot, extra_worldbody: Sequence[str] = ()) -> str:
     r_base = 1.2 * radii.get(1, 0.05)
 
     lines = [
-        f'<mujoco model="{robot.name}">',
+        f"<mujoco model={quoteattr(robot.name)}>",
         '  <compiler angle="radian" autolimits="true"/>',
         '  <option gravity="0 0 0"/>',
         "  <visual>",

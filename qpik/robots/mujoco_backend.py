@@ -13,7 +13,12 @@ with the world frame — our convention — whereas mink's ``get_frame_jacobian`
 returns the body-frame Jacobian :math:`{}_B J_{WB}` (``[v; ω]`` rotated into the
 site frame).
 
-Frames: MuJoCo's world frame is the base frame. Units: metres, radians.
+Mimic joints (``mimic``: ``(joint, leader, multiplier, offset)``) follow their leader, an arm joint:
+``qpos[joint] = multiplier * qpos[leader] + offset``, and the leader's Jacobian column gains
+``multiplier`` times theirs (the chain rule).
+
+Frames: MuJoCo's world frame is the base frame (a loaded robot's model is moved so that it is:
+:meth:`qpik.robots.loader.ModelSource.spec`). Units: metres, radians.
 Not thread-safe: every call overwrites the configuration's ``MjData``.
 """
 
@@ -44,6 +49,7 @@ class MjKinematics:
         site: name of the end-effector site.
         joint_names: the arm's joints in order; default: every hinge and slide
             joint of the model, in model order.
+        mimic: ``(joint, leader, multiplier, offset)`` per joint coupled to an arm joint ``leader``.
 
     Attributes:
         model: the MuJoCo model.
@@ -52,7 +58,13 @@ class MjKinematics:
         q_min, q_max: joint ranges (rad or m), shape (n,); ±inf for an unlimited joint.
     """
 
-    def __init__(self, model: mujoco.MjModel, site: str = "ee", joint_names: Sequence[str] | None = None):
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        site: str = "ee",
+        joint_names: Sequence[str] | None = None,
+        mimic: Sequence[tuple[str, str, float, float]] = (),
+    ):
         self.model = model
         self.configuration = mink.Configuration(model)
         self.data = self.configuration.data
@@ -75,9 +87,20 @@ class MjKinematics:
         self.q_min = np.where(limited, rng[:, 0], -np.inf)
         self.q_max = np.where(limited, rng[:, 1], np.inf)
         self._qpos = model.qpos0.copy()
+        names = [model.joint(int(j)).name for j in self.joint_ids]
+        ids = [self._id(mujoco.mjtObj.mjOBJ_JOINT, joint, "mimic joint") for joint, _, _, _ in mimic]
+        strays = [lead for _, lead, _, _ in mimic if lead not in names]
+        if strays:
+            raise InputError(f"mimic: leaders {strays} are not arm joints ({names})")
+        self._mimic = [
+            (int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j]), names.index(lead), float(m), float(c))
+            for j, (_, lead, m, c) in zip(ids, mimic)
+        ]
         # the arm is the whole model: q is qpos and Jacobian columns need no selection
-        self._whole = np.array_equal(self.qpos_adr, np.arange(model.nq)) and np.array_equal(
-            self.dof_adr, np.arange(model.nv)
+        self._whole = (
+            not self._mimic
+            and np.array_equal(self.qpos_adr, np.arange(model.nq))
+            and np.array_equal(self.dof_adr, np.arange(model.nv))
         )
         self._jacp = np.zeros((3, model.nv))
         self._fromto = np.zeros(6)
@@ -113,7 +136,7 @@ class MjKinematics:
                 f'<mujoco><worldbody><body name="extra">{"".join(extra_worldbody)}</body></worldbody></mujoco>'
             )
             spec.worldbody.add_frame().attach_body(child.body("extra"), "extra/", "")
-        return cls(spec.compile(), robot.site, robot.joint_names)
+        return cls(spec.compile(), robot.site, robot.joint_names, robot.model.mimic)
 
     @property
     def dof(self) -> int:
@@ -127,6 +150,8 @@ class MjKinematics:
             self.configuration.update(q)
         else:
             self._qpos[self.qpos_adr] = q
+            for adr, _, lead, m, c in self._mimic:
+                self._qpos[adr] = m * q[lead] + c
             self.configuration.update(self._qpos)
 
     def fk(self, q: np.ndarray) -> np.ndarray:
@@ -164,7 +189,7 @@ class MjKinematics:
         bid = self._id(mujoco.mjtObj.mjOBJ_BODY, body, "body")
         self.update(q)
         mujoco.mj_jac(self.model, self.data, self._jacp, None, point, bid)
-        return self._jacp[:, self.dof_adr].copy()
+        return self.columns(self._jacp)
 
     def geom_distance(self, q: np.ndarray, geom_a: str, geom_b: str, distmax: float = 1.0) -> tuple[float, np.ndarray]:
         """Signed distance (m) between two geoms and the witness segment.
@@ -198,7 +223,15 @@ class MjKinematics:
     def _site_J(self) -> np.ndarray:
         J = np.empty((6, self.model.nv))
         mujoco.mj_jacSite(self.model, self.data, J[:3], J[3:], self.site_id)
-        return J if self._whole else J[:, self.dof_adr]
+        return J if self._whole else self.columns(J)
+
+    def columns(self, J: np.ndarray) -> np.ndarray:
+        """The arm's columns (..., n) of a MuJoCo Jacobian (..., nv): its joints', plus each mimic joint's
+        times its multiplier on its leader's (a new array)."""
+        out = J[..., self.dof_adr]
+        for _, dof, lead, m, _ in self._mimic:
+            out[..., lead] += m * J[..., dof]
+        return out
 
     def _map(self, q: np.ndarray, read: Callable[[], np.ndarray]) -> np.ndarray:
         q, batched = joint_vector(q, self.dof)

@@ -10,6 +10,11 @@ key                       package                  file
 ``pybullet/panda``        pybullet                 ``pybullet_data/franka_panda/panda.urdf``
 ``erd/panda``             example-robot-data       ``robots/panda_description/urdf/panda.urdf``
 ``erd/xarm7``             example-robot-data       ``robots/xarm_description/urdf/xarm7.urdf``
+``erd/talos``             example-robot-data       ``robots/talos_data/robots/talos_reduced.urdf``
+``erd/tiago_pro``         example-robot-data       ``robots/tiago_pro_description/robots/tiago_pro.urdf``
+``erd/tiago``             example-robot-data       ``robots/tiago_description/robots/tiago.urdf`` (COLLADA)
+``erd/baxter``            example-robot-data       ``robots/baxter_description/urdf/baxter.urdf`` (COLLADA)
+``erd/pr2``               example-robot-data       ``robots/pr2_description/urdf/pr2.urdf``
 ========================  =======================  ================================================
 """
 
@@ -26,6 +31,11 @@ PACKAGED = {
     "pybullet/panda": ("pybullet", "franka_panda/panda.urdf"),
     "erd/panda": ("example-robot-data", "panda_description/urdf/panda.urdf"),
     "erd/xarm7": ("example-robot-data", "xarm_description/urdf/xarm7.urdf"),
+    "erd/talos": ("example-robot-data", "talos_data/robots/talos_reduced.urdf"),
+    "erd/tiago_pro": ("example-robot-data", "tiago_pro_description/robots/tiago_pro.urdf"),
+    "erd/tiago": ("example-robot-data", "tiago_description/robots/tiago.urdf"),
+    "erd/baxter": ("example-robot-data", "baxter_description/urdf/baxter.urdf"),
+    "erd/pr2": ("example-robot-data", "pr2_description/urdf/pr2.urdf"),
 }
 
 

@@ -116,6 +116,8 @@ class Canonical:
 
 def recognize(chain: SerialChain) -> tuple[Canonical | None, str]:
     """The first pattern of :data:`PATTERNS` that ``chain`` fits, or None and the reason (one line)."""
+    if len(chain.joints) != chain.dof:
+        return None, "the closed forms do not cover mimic (coupled) joints"
     if chain.dof != 7 or chain.prismatic.any():
         return None, f"the closed forms need 7 revolute joints, the chain has {chain.dof} joints" + (
             f", {int(chain.prismatic.sum())} prismatic" if chain.prismatic.any() else ""

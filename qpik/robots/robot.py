@@ -1,7 +1,14 @@
-"""A robot: a serial chain plus limits, home configuration and link capsules."""
+"""A robot: a serial chain plus limits, home configuration and link capsules.
+
+Frames: every pose a robot gives or takes (FK, Jacobians, frames, capsules, obstacles) is in its
+**base frame**: for a catalog arm the world frame of its MuJoCo twin; for an arm loaded with
+``base="link"`` that link's frame (:mod:`qpik.robots.loader`), whose pose in the file's world
+frame is ``robot.model.placement``; for one loaded without ``base`` the file's world frame.
+"""
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import TYPE_CHECKING, Literal
@@ -28,7 +35,8 @@ ClosedForm = Literal["offset_shoulder", "srs"] | None
 class LinkCapsule:
     """A capsule rigidly attached to link ``link`` (1..n, the body moved by joint ``link``).
 
-    ``p0``, ``p1`` (3,) are the segment end points in link frame ``link`` of the chain
+    ``p0``, ``p1`` (3,) are the segment end points in link frame ``link`` of the chain (for a chain with mimic
+    joints, ``link`` counts every chain joint)
     (:meth:`SerialChain.frames`; the DH frame for a DH table), metres; ``radius`` in metres.
     A zero-length segment is a sphere.
     """
@@ -76,23 +84,31 @@ class Robot:
 
     @property
     def dof(self) -> int:
+        """n, the number of independent joints (entries of q)."""
         return self.chain.dof
 
-    # kinematics (see SerialChain for shapes and frames)
+    @cached_property
+    def identifier(self) -> str:
+        """The name as an identifier that CasADi accepts in function names: ASCII letters and digits, each run of
+        other characters one ``_`` (none at the ends), ``robot_`` before a leading digit; ``"robot"`` if empty."""
+        out = "_".join(re.findall(r"[A-Za-z0-9]+", self.name)) or "robot"
+        return f"robot_{out}" if out[0].isdigit() else out
+
+    # kinematics (see SerialChain for shapes; every pose in the robot's base frame, see the module docstring)
     def fk(self, q: np.ndarray) -> np.ndarray:
-        """End-effector pose (4, 4) in the base/world frame; batched (N, 4, 4)."""
+        """End-effector pose (4, 4) in the base frame; batched (N, 4, 4)."""
         return self.chain.fk(q)
 
     def frames(self, q: np.ndarray) -> np.ndarray:
-        """World poses of ``[base, frame_1..frame_n, ee]``: (n+2, 4, 4); batched (N, n+2, 4, 4)."""
+        """Base-frame poses of ``[base, frame_1..frame_n, ee]``: (n+2, 4, 4); batched (N, n+2, 4, 4)."""
         return self.chain.frames(q)
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
-        """Geometric Jacobian ``[v; ω]`` in the world frame: (6, n); batched (N, 6, n)."""
+        """Geometric Jacobian ``[v; ω]`` in the base frame: (6, n); batched (N, 6, n)."""
         return self.chain.jacobian(q)
 
     def fk_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Pose and Jacobian from one kinematics pass."""
+        """Pose (4, 4) and Jacobian (6, n) from one kinematics pass, base frame."""
         return self.chain.fk_jacobian(q)
 
     def hessian(self, q: np.ndarray) -> np.ndarray:
@@ -115,7 +131,7 @@ class Robot:
         return bool(ok) if ok.ndim == 0 else ok
 
     def capsule_segments_expr(self, frames: list[Frame]) -> list[tuple[Vec, Vec]]:
-        """World end points ``(a, b)`` of every capsule from the frames of :meth:`SerialChain.frames_expr`.
+        """Base-frame end points ``(a, b)`` of every capsule from the frames of :meth:`SerialChain.frames_expr`.
 
         Capsule ``c`` is ``self.capsules[c]``: ``a = R_k p0 + t_k``, ``b = R_k p1 + t_k`` with
         ``(R_k, t_k)`` the world pose of its link ``k``. Written in :mod:`qpik.symbolic`
@@ -128,7 +144,7 @@ class Robot:
         return out  # type: ignore[return-value]
 
     def capsule_segments(self, q: np.ndarray) -> np.ndarray:
-        """World end points of every capsule: (C, 2, 3); batched (N, C, 2, 3)."""
+        """Base-frame end points of every capsule: (C, 2, 3); batched (N, C, 2, 3), m."""
         q, batched = joint_vector(q, self.dof)
         Q = q if batched else q[None]
         segs = self.capsule_segments_expr(self.chain.frames_expr([Q[:, i] for i in range(self.dof)], sy.NUMPY))

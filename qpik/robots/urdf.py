@@ -20,8 +20,11 @@ from __future__ import annotations
 
 import math
 from typing import TYPE_CHECKING
+from xml.sax.saxutils import quoteattr
 
 import numpy as np
+
+from qpik.errors import InputError
 
 if TYPE_CHECKING:
     from qpik.robots.robot import Robot
@@ -30,7 +33,13 @@ BASE, TIP = "base", "ee"
 
 
 def to_urdf(robot: Robot) -> str:
-    """The URDF of ``robot`` as an XML string: links ``base``, ``link1..linkn``, ``ee``; joints ``joint1..jointn``."""
+    """The URDF of ``robot`` as an XML string: links ``base``, ``link1..linkn``, ``ee``; joints ``joint1..jointn``.
+
+    Raises:
+        InputError: the chain has mimic joints (a coupled column is no single joint axis).
+    """
+    if len(robot.chain.joints) != robot.dof:
+        raise InputError(f"to_urdf: {robot.name} has mimic joints, which this writer does not cover")
     n = robot.dof
     T_ee, J = (x[0] for x in robot.fk_jacobian(np.zeros((1, n))))  # the batched path: nothing to compile
     frames = [np.eye(4)]
@@ -43,7 +52,7 @@ def to_urdf(robot: Robot) -> str:
         F[:3, 3] = a + w * (w @ (prev[:3, 3] - a))
         frames.append(F)
     lines = [
-        f'<robot name="{robot.name}">',
+        f"<robot name={quoteattr(robot.name)}>",
         f'  <link name="{BASE}"/>',
     ]
     for k in range(1, n + 1):

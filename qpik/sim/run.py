@@ -96,7 +96,8 @@ def build_scene(
     Args:
         arm: a :class:`Robot` (its MuJoCo model: the MJCF twin of a catalog arm, the model of a
             loaded one), an MJCF string or an MJCF file path.
-        obstacles: shapes in the world frame; each becomes geom ``obstacles/<i>``.
+        obstacles: shapes in the world frame (the robot's base frame: its MuJoCo model is moved so that they are the
+            same, :mod:`qpik.robots.loader`); each becomes geom ``obstacles/<i>``.
         joint_names, site: the arm's joints and end-effector site (an MJCF arm;
             the twin uses ``joint1..7`` and ``ee``).
         link_geoms: the arm geoms whose clearance is logged; default: every geom
@@ -116,7 +117,7 @@ def build_scene(
         child = mujoco.MjSpec.from_string(f'<mujoco><worldbody><body name="all">{geoms}</body></worldbody></mujoco>')
         spec.worldbody.add_frame().attach_body(child.body("all"), OBSTACLE_PREFIX, "")
     model = spec.compile()
-    kin = MjKinematics(model, site, joint_names)
+    kin = MjKinematics(model, site, joint_names, robot.model.mimic if robot is not None and robot.model else ())
     if link_geoms is None:
         moving = model.body_weldid[model.geom_bodyid] != 0
         collides = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
@@ -217,7 +218,7 @@ def simulate(
         q0: initial configuration (n,) (rad).
         duration: simulated time (s); ``round(duration / dt)`` steps are taken.
         dt: integration step (s).
-        obstacles: shapes (world frame) added to the model (ignored for a Scene).
+        obstacles: shapes (world frame, which is the robot's base frame) added to the model (ignored for a Scene).
         target: a pose (4, 4), a :class:`TimedPath` (``pose(t)``, ``twist(t)``) or
             ``None``; logged, and handed to a controller.
         record_every: log every this many steps (and always the last state); at most
@@ -286,7 +287,7 @@ def simulate(
                 log_target[r] = target_pose(target, t)
             scene.clearances(log_clear[r])
             mujoco.mj_jacSite(model, data, jacp, jacr, kin.site_id)
-            J = np.vstack((jacp[:, kin.dof_adr], jacr[:, kin.dof_adr]))
+            J = kin.columns(np.vstack((jacp, jacr)))
             log_m[r] = np.sqrt(max(np.linalg.det(J @ J.T), 0.0))
             if reporter is not None:
                 log_status[r], log_time[r] = reporter()
@@ -296,6 +297,7 @@ def simulate(
             mujoco.mj_integratePos(model, qpos, qvel, dt)
             q = qpos[kin.qpos_adr].copy()
             kin.update(q)
+            qpos[:] = kin.data.qpos  # mimic joints follow their leaders
         if bar is not None and (k % 200 == 0 or k == steps):
             bar.update(k + 1 - bar.n)
     if bar is not None:
