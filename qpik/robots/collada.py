@@ -34,7 +34,7 @@ def as_stl(path: Path) -> Path:
     Raises:
         InputError: the file cannot be read as COLLADA or holds no triangles, or the cache cannot be written.
     """
-    from qpik.compiled import cache_dir
+    from qpik.build import cache_dir
 
     data = path.read_bytes()
     key = hashlib.sha256(VERSION + data).hexdigest()[:40]
