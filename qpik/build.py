@@ -20,7 +20,7 @@ import sys
 import tempfile
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from functools import cache
 from pathlib import Path
 
@@ -199,6 +199,18 @@ def native_library(*fns: ca.Function) -> Path | None:
             return shared_library(name, Path(tmp, f"{name}.c").read_bytes())
     except RuntimeError as exc:  # CasADi's code generation failed
         return _off(exc)
+
+
+def concurrently(*builds: Callable[[], object]) -> None:
+    """Run ``builds`` (functions that compile, e.g. :meth:`qpik.compiled.RowMap.build`) in threads, one per core:
+    while one waits for its compiler, another traces or compiles; CasADi's own calls keep the interpreter's lock,
+    so they run one at a time. The first exception is raised once all have finished."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=max(1, min(len(builds), os.cpu_count() or 1))) as pool:
+        futures = [pool.submit(build) for build in builds]
+    for future in futures:
+        future.result()
 
 
 def native(fn: ca.Function) -> ca.Function:

@@ -51,6 +51,7 @@ import casadi as ca
 import numpy as np
 
 from qpik import symbolic as sy
+from qpik.build import concurrently
 from qpik.compiled import RowMap
 from qpik.core.layout import Layout
 from qpik.enclosure import taylor_function
@@ -724,10 +725,13 @@ class Evaluator:
         rows = self.layout.views(out)
         return rows.f, rows.grad, rows.d, rows.nearest
 
+    def builds(self) -> list[Callable[[], None]]:
+        """The compiles of both maps (:meth:`rows`, :meth:`value_rows`; :meth:`~qpik.compiled.RowMap.build`)."""
+        return [self._maps.rows.build, self._maps.values.build]
+
     def build(self) -> None:
-        """Compile both maps (:meth:`rows`, :meth:`value_rows`) now (:meth:`~qpik.compiled.RowMap.build`)."""
-        self._maps.rows.build()
-        self._maps.values.build()
+        """Compile both maps now, concurrently."""
+        concurrently(*self.builds())
 
     def value_rows(self, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`rows` without the derivatives (:meth:`value_function`): ``(f (M,), d (M, C'·O))``."""
@@ -839,13 +843,14 @@ class BoundFunction:
                     whole[:, at] = part.reshape(M, len(at))
         return self._split(c, params, q_ref, obstacle_params, d[0], s, r, lo, hi, *d[1:])
 
+    def builds(self) -> list[Callable[[], None]]:
+        """The compiles of every function :meth:`rows` calls (:meth:`~qpik.compiled.RowMap.build`), to run now."""
+        maps = [self._split, *([] if self._segments is None else [self._segments])]
+        return [m.build for m in maps + [_pair_models(kind) for kind, _ in _by_kind(self._pairs)]]
+
     def build(self) -> None:
-        """Compile every function :meth:`rows` calls now (:meth:`~qpik.compiled.RowMap.build`)."""
-        self._split.build()
-        if self._segments is not None:
-            self._segments.build()
-        for kind, _ in _by_kind(self._pairs):
-            _pair_models(kind).build()
+        """Compile every function :meth:`rows` calls now, concurrently (:func:`qpik.build.concurrently`)."""
+        concurrently(*self.builds())
 
 
 def _by_kind(pairs: list[tuple[int, int, str]]) -> list[tuple[str, np.ndarray]]:

@@ -12,11 +12,13 @@ search and the certificate need, from two compiled functions: the self-motion
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, fields
 from functools import cached_property
 
 import numpy as np
 
+from qpik.build import concurrently
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.selfmotion import SelfMotion, columns
 from qpik.objectives import BoundFunction, Evaluator, Objective, bound_function
@@ -107,23 +109,25 @@ class Scene:
         self.counts = np.zeros((len(poses), selfmotion.searched), int)
         self.watch = Stopwatch()
 
+    def _search_builds(self) -> list[Callable[[], object]]:
+        """What the search calls, to compile: the exact feasible sets (by evaluating them at the first pose), the
+        self-motion and the objective at every call size."""
+        return [lambda: self.selfmotion.solver.feasible_intervals(self.poses[0]),
+                *self.selfmotion.builds(models=False), *self.evaluator.builds()]  # fmt: skip
+
     def build_search(self) -> None:
-        """Trace and compile, with :attr:`watch` paused, what the search calls: the exact feasible sets (by
-        evaluating them at the first pose), the self-motion and the objective at every call size."""
+        """Trace and compile what the search calls (:meth:`_search_builds`) now, concurrently, with :attr:`watch`
+        paused."""
         with self.watch.paused():
-            self.selfmotion.solver.feasible_intervals(self.poses[0])
-            self.selfmotion.build(models=False)
-            self.evaluator.build()
+            concurrently(*self._search_builds())
 
     def build_certificate(self) -> BoundFunction | None:
-        """:meth:`build_search`, then the certificate's Taylor models (of q and of the objective's split), with
-        :attr:`watch` paused; returns the bound function (None: the objective has none)."""
-        self.build_search()
+        """:meth:`build_search` and the certificate's Taylor models (of q and of the objective's split), compiled
+        concurrently with :attr:`watch` paused; returns the bound function (None: the objective has none)."""
         with self.watch.paused():
-            self.selfmotion.build(models=True)
             bounds = bound_function(self.robot, self.objective, self.obstacles)
-            if bounds is not None:
-                bounds.build()
+            models = [self.selfmotion.builds(models=True)[-1]]
+            concurrently(*self._search_builds(), *models, *([] if bounds is None else bounds.builds()))
         return bounds
 
     @cached_property

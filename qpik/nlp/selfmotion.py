@@ -19,12 +19,14 @@ first 8 are searched (:attr:`SelfMotion.searched`); :meth:`SelfMotion.mirror` ma
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import cached_property
 
 import casadi as ca
 import numpy as np
 
 from qpik.analytic import solver_for
+from qpik.build import concurrently
 from qpik.compiled import Compiled, RowMap
 from qpik.enclosure import taylor_function
 from qpik.robots.robot import Robot
@@ -102,13 +104,15 @@ class SelfMotion:
         that evaluates rows one at a time (:mod:`qpik.nlp.levelset`)."""
         return Compiled(self._point_map.fn)
 
+    def builds(self, models: bool = True) -> list[Callable[[], None]]:
+        """The compiles of what :meth:`points` and :meth:`values` (and with ``models`` :meth:`models`, last) call,
+        at every call size, to run now (:func:`qpik.build.concurrently`): later calls only evaluate."""
+        return [m.build for m in (self._point_map, self._value_map, *([self._model_map] if models else []))]
+
     def build(self, models: bool = True, point_call: bool = False) -> None:
         """Trace and compile now what :meth:`points` and :meth:`values` (and with ``models`` :meth:`models`, with
         ``point_call`` :attr:`point_call`) call, at every call size: later calls only evaluate."""
-        self._point_map.build()
-        self._value_map.build()
-        if models:
-            self._model_map.build()
+        concurrently(*self.builds(models))
         if point_call:
             _ = self.point_call
 
