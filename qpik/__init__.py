@@ -27,6 +27,7 @@ if TYPE_CHECKING:
     )
     from qpik.nlp import BestResult, solve_best, solve_ik
     from qpik.planning import Plan, plan_self_motion
+    from qpik.planning.many import PlanningError, plan_many
     from qpik.robots import CATALOG, DHChain, Joint, LinkCapsule, Robot, SerialChain, load_robot
     from qpik.viewer import view
 
@@ -50,6 +51,7 @@ __getattr__, __dir__ = exports(
         ),
         "qpik.nlp": ("BestResult", "solve_best", "solve_ik"),
         "qpik.planning": ("Plan", "plan_self_motion"),
+        "qpik.planning.many": ("PlanningError", "plan_many"),
         "qpik.robots": ("CATALOG", "DHChain", "Joint", "LinkCapsule", "Robot", "SerialChain", "load_robot"),
         "qpik.viewer": ("view",),
     },
@@ -70,6 +72,7 @@ __all__ = [
     "LinkCapsule",
     "NoClosedFormError",
     "Plan",
+    "PlanningError",
     "ProblemFileError",
     "QpikError",
     "RenderUnavailable",
@@ -83,6 +86,7 @@ __all__ = [
     "feasible_intervals",
     "ik",
     "load_robot",
+    "plan_many",
     "plan_self_motion",
     "redundancy_parameter",
     "solve_best",
