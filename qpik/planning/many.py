@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from qpik.errors import InputError, QpikError
+from qpik.geometry.distance import ObstacleSet
 from qpik.planning.batch import JobFailure, run_batch
 from qpik.planning.plan import Plan
 from qpik.planning.planner import WAYPOINTS, plan_self_motion
@@ -97,7 +98,7 @@ def plan_many(
         InputError: bad arguments (naming them). PlanningError: see ``errors``.
     """
     robot = as_robot(robot)
-    if errors not in ("raise", "keep"):
+    if not isinstance(errors, str) or errors not in ("raise", "keep"):
         raise InputError(f"errors: expected 'raise' or 'keep', got {errors!r}")
     progress = flag(progress, "progress")
     if isinstance(paths, np.ndarray) and paths.ndim == 3:
@@ -113,7 +114,8 @@ def plan_many(
     times = options.pop("times", None)
     count = options.pop("waypoints", None)
     items = [_sampled(p, times, count, f"paths[{i}]") for i, p in enumerate(paths)]
-    context = (RobotBundle.of(robot), objective, tuple(obstacles), options)
+    obstacles = ObstacleSet(obstacles).shapes  # checked here, once, rather than in every job
+    context = (RobotBundle.of(robot), objective, obstacles, options)
     if client is None and workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
                                                    or workers < 1):  # fmt: skip
         raise InputError(f"workers: expected an integer >= 1, got {workers!r}")
