@@ -168,7 +168,7 @@ def _dask(fn, args: tuple, items: list, scheduler: Any, retries: int) -> Iterato
 
     client, owned = connect(scheduler)
     try:
-        shared = [client.scatter(a, broadcast=True, hash=False) for a in args]  # once per worker, not per job
+        shared = client.scatter(list(args), broadcast=True, hash=False) if args else []  # once per worker
         batch = uuid.uuid4().hex
         futures = [
             client.submit(_call, fn, tuple(shared), i, item, pure=False, retries=retries, key=f"qpik-{batch}-{i}")
