@@ -13,8 +13,8 @@
 The function, the items and the results must pickle (a function defined at module level). ``context`` (e.g. the
 robot) is sent once per worker, not once per job: the function is called ``fn(context, item)`` (``fn(item)``
 without one). A job that raises, or whose worker dies, gives a :class:`JobFailure` as its result; the batch goes on.
-A local process that dies breaks its pool: its unfinished jobs run again in a new pool, at most
-:data:`ALLOWED_FAILURES` times, as Dask's scheduler reruns the jobs of a worker that dies (its
+A local process that dies breaks its pool: its unfinished jobs run again, each alone in a new process, at
+most :data:`ALLOWED_FAILURES` times, as Dask's scheduler reruns the jobs of a worker that dies (its
 ``allowed-failures``). ``retries`` is Dask's: a job that raises runs again that many times (for failures that may
 pass, e.g. a node's disk or memory; qpik's own errors are deterministic, hence the default 0).
 """
@@ -122,24 +122,31 @@ def _local(fn, index: int, item: Any) -> Any:
 
 
 def _processes(fn, args: tuple, items: list, count: int) -> Iterator[tuple[int, Any]]:
+    lost: list[int] = []
+    yield from _pool(fn, args, items, range(len(items)), count, lost)
+    for i in lost:  # each alone now, so that a job that kills its process takes no other job with it
+        for attempt in range(ALLOWED_FAILURES):
+            again: list[int] = []
+            yield from _pool(fn, args, items, [i], 1, again, final=attempt == ALLOWED_FAILURES - 1)
+            if not again:
+                break
+
+
+def _pool(fn, args: tuple, items: list, which, count: int, lost: list[int], final: bool = False):
+    """The jobs ``which`` in a new pool of ``count`` processes; those whose process died go to ``lost`` (or, when
+    ``final``, give their failure)."""
     spawn = multiprocessing.get_context("spawn")
-    pending = list(range(len(items)))
-    for attempt in range(ALLOWED_FAILURES + 1):
-        lost: list[int] = []
-        with ProcessPoolExecutor(min(count, len(pending)), spawn, initializer=_install, initargs=(args,)) as pool:
-            futures = {pool.submit(_local, fn, i, items[i]): i for i in pending}
-            for done in as_completed(futures):
-                i = futures[done]
-                try:
-                    yield i, done.result()
-                except BrokenProcessPool as exc:  # its process died (killed, out of memory, a crash)
-                    if attempt == ALLOWED_FAILURES:
-                        yield i, JobFailure.of(i, exc)
-                    else:
-                        lost.append(i)
-        if not lost:
-            return
-        pending = sorted(lost)
+    with ProcessPoolExecutor(count, spawn, initializer=_install, initargs=(args,)) as pool:
+        futures = {pool.submit(_local, fn, i, items[i]): i for i in which}
+        for done in as_completed(futures):
+            i = futures[done]
+            try:
+                yield i, done.result()
+            except BrokenProcessPool as exc:  # its process died (killed, out of memory, a crash)
+                if final:
+                    yield i, JobFailure.of(i, exc)
+                else:
+                    lost.append(i)
 
 
 def connect(scheduler: Any):
