@@ -119,6 +119,7 @@ def test_a_raising_job_and_a_killed_worker_lose_no_other_result(cluster, client_
         if out.is_dir() and any(out.iterdir()):
             break
         time.sleep(0.05)
+    assert run.poll() is None and len(list(out.iterdir())) < 11  # the batch is still running
     cluster.kill_worker(0)
     stdout, stderr = run.communicate(timeout=600)
     assert run.returncode == 1, stderr
