@@ -28,6 +28,7 @@ if TYPE_CHECKING:
     )
     from qpik.nlp import BestResult, solve_best, solve_ik
     from qpik.planning import Plan, plan_self_motion
+    from qpik.planning.many import PlanningError, plan_many
     from qpik.robots import CATALOG, DHChain, Joint, LinkCapsule, Robot, SerialChain, load_robot
     from qpik.scene import Scene
     from qpik.viewer import view
@@ -53,6 +54,7 @@ __getattr__, __dir__ = exports(
         ),
         "qpik.nlp": ("BestResult", "solve_best", "solve_ik"),
         "qpik.planning": ("Plan", "plan_self_motion"),
+        "qpik.planning.many": ("PlanningError", "plan_many"),
         "qpik.robots": ("CATALOG", "DHChain", "Joint", "LinkCapsule", "Robot", "SerialChain", "load_robot"),
         "qpik.scene": ("Scene",),
         "qpik.viewer": ("view",),
@@ -74,6 +76,7 @@ __all__ = [
     "LinkCapsule",
     "NoClosedFormError",
     "Plan",
+    "PlanningError",
     "ProblemFileError",
     "QpikError",
     "RenderUnavailable",
@@ -89,6 +92,7 @@ __all__ = [
     "feasible_intervals",
     "ik",
     "load_robot",
+    "plan_many",
     "plan_self_motion",
     "redundancy_parameter",
     "solve_best",

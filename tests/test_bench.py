@@ -61,6 +61,12 @@ EXPECTED = {
         "mink.solve_ik iterated, daqp (zheng7)",
     ],
     "plan": ["DP, 1 obstacle (iiwa14)", "NLP from the DP, 1 obstacle (iiwa14)", "DP, no obstacle (iiwa14)"],
+    "batch": [
+        "in this process",
+        "2 local processes",
+        "Dask LocalCluster, 1 worker(s)",
+        "Dask LocalCluster, 2 worker(s)",
+    ],
     "view": [
         "iiwa14: pose → scene",
         "iiwa14 + ball and table: pose → scene",

@@ -288,6 +288,11 @@ def _plan(robot, path, objective, obstacles, step, reconfigure):
 PLAN_PATH = IIWA.fk(IIWA.q_home + np.linspace(0.0, 0.2, 4)[:, None])
 
 
+def _plan_many(robot, paths, obstacles, workers, errors):
+    return qpik.plan_many(robot, paths, obstacles=obstacles, workers=workers, errors=errors, progress=False,
+                          resolution=36, refine=False, mujoco=False)  # fmt: skip
+
+
 def _intervals(robot, pose, branch, value):
     fi = qpik.feasible_intervals(robot, pose)
     return fi[branch], fi.measure(branch), fi.contains(branch, value)
@@ -407,6 +412,10 @@ CASES = [
     Case("Scene.of", lambda r, obs, d, obj, q: qpik.Scene.of(r, obs, d_safe=d, objective=obj, q_ref=q).clearance(
          r.q_home[None]), (robot_arg(), OBSTACLES, number_arg(0.02), Arg(st.sampled_from(["margin", "distance"]),
          st.sampled_from(["nope", 3, None])), Arg(st.just(None), _poisoned(PANDA.q_home)))),
+    Case("plan_many", _plan_many, (robot_arg((IIWA, NAMMOTO)),
+         Arg(st.just([PLAN_PATH, PLAN_PATH]), st.sampled_from([PLAN_PATH, [PLAN_PATH[:1]], [np.nan], "path", [None]])),
+         Arg(st.sampled_from([SHAPES[:1], []]), OBSTACLES.bad), Arg(st.just(1), st.sampled_from([0, -1, 2.5, "2"])),
+         Arg(st.sampled_from(["raise", "keep"]), st.sampled_from(["", None, "ignore"])))),
     Case("simulate", _simulate, (Arg(st.sampled_from([IIWA, PANDA]), st.sampled_from(["iiwa14", None, "<mujoco/>"])),
          q_arg(IIWA), OBSTACLES, number_arg(0.02), number_arg(0.01, 0.0),
          Arg(st.just(None), _bad_pose(IIWA.fk(IIWA.q_home))))),
@@ -496,7 +505,7 @@ def test_every_public_name_is_fuzzed_or_a_type():
              "UnreachableError", "InfeasibleError", "SolverError", "RenderUnavailable", "ViewerError", "StepInfo",
              "LinkCapsule", "Robot", "IKSolutions", "FeasibleIntervals", "CATALOG", "Shape", "Distances",
              "PairDistance", "QP", "Solution", "Solver", "Task", "Limit", "BoxLimit", "RowLimit", "CLIK",
-             "Plan"}  # fmt: skip
+             "Plan", "PlanningError"}  # fmt: skip
     names = {*qpik.__all__, *geometry.__all__, *control.__all__}
     tasks_and_limits = {"FrameTask", "PostureTask", "ManipulabilityTask", "DampingTask", "ConfigurationLimit",
                         "VelocityLimit", "ObstacleLimit", "PseudoInverseCLIK", "DampedLeastSquares",

@@ -56,6 +56,7 @@ def with_robot(text: str) -> str:
     """BASE with ``text`` added to its ``[robot]`` table."""
     return BASE.replace('name = "iiwa14"', f'name = "iiwa14"\n{text}')
 
+
 # ---- the shipped files -------------------------------------------------------
 
 
@@ -193,7 +194,9 @@ def test_parameter_forms(tmp_path, table, want):
 
 
 def test_obstacles(tmp_path):
-    text = BASE + """
+    text = (
+        BASE
+        + """
 [[obstacles]]
 type = "sphere"
 name = "ball"
@@ -213,6 +216,7 @@ type = "halfspace"
 normal = [0, 0, 2]
 offset = 0.2
 """
+    )
     sphere, capsule, box, half = load(write(tmp_path, text)).obstacles
     assert isinstance(sphere, Sphere) and sphere.name == "ball" and sphere.radius == 0.1
     assert isinstance(capsule, Capsule) and capsule.name == "obstacles[1]" and capsule.p1[2] == 1.0
@@ -391,3 +395,43 @@ def test_project_true_refuses_what_is_not_a_rotation(tmp_path):
     text = with_target('rotation = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]\nposition = [0, 0, 1]\nproject = "no"')
     with pytest.raises(ProblemFileError, match=r"target\.project: expected true or false"):
         load(write(tmp_path, text))
+
+
+# ---- size caps of plan problems (a file cannot ask for hours of work or all the memory) --------------------------
+
+PLAN = with_target(ZHENG, "plan")
+WIPE = with_target(
+    'path = "wipe"\npath_params = { center = [0.5, 0.0, 0.3], amplitude = 0.1, length = 0.3, strokes = 2, '
+    "duration = 4.0 }",
+    "plan",
+)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (PLAN + "[solver]\nwaypoints = 3000000\n", r"solver\.waypoints: must be <= 20000"),
+        (PLAN + "[solver]\nwaypoints = 1\n", r"solver\.waypoints: must be >= 2"),
+        (PLAN + "[solver]\nresolution = 100000000\n", r"solver\.resolution: must be <= 20000"),
+        (PLAN + "[solver]\nresolution = 4\n", r"solver\.resolution: must be >= 8"),
+        (PLAN + "[solver]\nwaypoints = 10000\nresolution = 2000\n", r"solver\.resolution: 10000 waypoints × resolution "
+         r"2000 is over 10,000,000 grid points per branch"),
+        (PLAN + "[solver]\nbaseline_branch = 99\n", r"solver\.baseline_branch: iiwa14's branches are 0 to 7, got 99"),
+        (PLAN + "[solver]\nbranch = -1\n", r"solver\.branch: iiwa14's branches are 0 to 7, got -1"),
+        (PLAN.replace('"iiwa14"', '"nammoto7"') + "[solver]\nbranch = 0\n", r"nammoto7's branches are 1 to 16, got 0"),
+        (PLAN.replace('"iiwa14"', '"zheng7"') + "[solver]\nbaseline_branch = 1\n", r"zheng7 has no closed form"),
+        (WIPE.replace("strokes = 2", "strokes = -3"), r"target\.path_params: strokes must be > 0, got -3"),
+        (WIPE.replace("strokes = 2", "strokes = 0"), r"strokes must be > 0"),
+        (with_target("random = { seed = 0, count = 100000000 }"), r"target\.random\.count: expected an integer from 1"),
+        (BASE + "[parameter]\nsweep = { start = 0, stop = 1, num = 1000001 }\n", r"parameter\.sweep\.num: expected an"),
+    ],
+)  # fmt: skip
+def test_plan_sizes_are_capped(tmp_path, text, message):
+    with pytest.raises(ProblemFileError, match=message):
+        load(write(tmp_path, text))
+
+
+def test_sizes_at_their_caps_load(tmp_path):
+    p = load(write(tmp_path, PLAN + "[solver]\nwaypoints = 20000\nresolution = 500\nbaseline_branch = 7\n"))
+    assert p.solver["waypoints"] == 20000 and p.solver["baseline_branch"] == 7
+    assert load(write(tmp_path, WIPE)).path.duration == 4.0

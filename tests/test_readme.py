@@ -83,12 +83,21 @@ def check_bring_your_own_arm(ns: dict) -> None:
     assert np.abs(arm.fk(sols.q[sols.valid]) - arm.fk(arm.q_home + 0.3)).max() < 1e-9
 
 
+def check_planning_on_a_cluster(ns: dict) -> None:
+    # plan_many's plans, in order, are the plans of a loop (checked by FK against each path's own waypoints)
+    arm, plans, paths = ns["arm"], ns["plans"], ns["paths"]
+    assert len(plans) == len(paths) and all(p.ok and p.robot is arm for p in plans)
+    for plan, path in zip(plans, paths, strict=True):
+        assert np.abs(arm.fk(plan.q) - path).max() < 1e-9
+
+
 CHECKS = {
     "Closed form": check_closed_form,
     "QP controller": check_qp_controller,
     "NLP": check_nlp,
     "Numerical IK": check_numerical_ik,
     "Self-motion planning": check_self_motion_planning,
+    "Planning on a cluster": check_planning_on_a_cluster,
     "Bring your own arm": check_bring_your_own_arm,
 }
 

@@ -17,7 +17,7 @@ from types import ModuleType
 
 import numpy as np
 
-BENCHES = ("kinematics", "analytic", "controller", "ik", "nlp", "plan", "view")
+BENCHES = ("kinematics", "analytic", "controller", "ik", "nlp", "plan", "batch", "view")
 
 
 @dataclass

@@ -4,7 +4,8 @@
   arms; the QP controller's run refined by the same NLP for the others (:mod:`qpik.planning.planner`);
 - :class:`Plan`: the answer, its checks, CSV/NPZ files and :meth:`Plan.retime` (toppra) (:mod:`qpik.planning.plan`);
 - :mod:`qpik.planning.baselines`: constant δ/ψ and the online QP controller on the same waypoints;
-- :mod:`qpik.planning.batch`: many path files, in local processes or on a Dask cluster.
+- :func:`qpik.planning.many.plan_many`: many paths of one arm, in local processes or on a Dask cluster
+  (:mod:`qpik.planning.batch`, which also runs ``qpik plan``'s problem files).
 """
 
 from qpik.planning.plan import Check, Plan, Trajectory

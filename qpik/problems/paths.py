@@ -101,6 +101,8 @@ def wipe(robot: Robot, params: dict[str, Any]) -> TargetPath:
     a, length, k, T = (float(finite_array(params[x], x, ())) for x in ("amplitude", "length", "strokes", "duration"))
     if not T > 0:
         raise InputError(f"duration must be > 0 s, got {T}")
+    if not k > 0:
+        raise InputError(f"strokes must be > 0, got {k:g}")
     w = 2.0 * np.pi * k / T
 
     def position(t: np.ndarray) -> np.ndarray:

@@ -13,22 +13,36 @@ baseline_branch``, default the plan's first); the QP controller tracking the way
 waypoints outside the joint limits and closer than d_s (capsules and MuJoCo), the largest joint step
 over its bound, the joint path length and the objective J. Files: the plan as CSV and NPZ, the
 self-motion map, the joint trajectories against their limits, an image strip of the arm.
+
+For ``qpik plan`` on local processes or a Dask cluster the client reads, the workers compute, the client writes:
+:func:`plan_job` (on the client) turns a problem into a :class:`PlanJob`, pure data (the robot as a
+:class:`~qpik.robots.bundle.RobotBundle`); :func:`solve` (on a worker) returns a :class:`PlanReport` (the plan, the
+report's text, its files' bytes); :meth:`PlanReport.write` (on the client) writes them under the output folder.
 """
 
 from __future__ import annotations
 
+import os
+import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from qpik.errors import ProblemFileError
+from qpik.errors import InputError, ProblemFileError
+from qpik.geometry.shapes import Shape
 from qpik.objectives import resolve
 from qpik.planning import Plan, plan_self_motion
 from qpik.planning.baselines import constant_parameter, online
+from qpik.planning.many import detach
 from qpik.plots import save
 from qpik.plots.plan import joint_trajectories, render_plan, selfmotion_map
 from qpik.problems.runners import runner
 from qpik.problems.schema import Problem
+from qpik.robots.bundle import RobotBundle
+from qpik.robots.robot import Robot
 
 
 def waypoints(problem: Problem) -> tuple[np.ndarray, np.ndarray | None]:
@@ -40,55 +54,133 @@ def waypoints(problem: Problem) -> tuple[np.ndarray, np.ndarray | None]:
     return path.pose(times), times
 
 
+@dataclass(frozen=True, eq=False)
+class PlanJob:
+    """A ``plan`` problem as data for a worker that shares no folder with the client: made by :func:`plan_job`
+    on the client, solved by :func:`solve` wherever it runs.
+
+    Attributes:
+        name, description: the problem's. file: the problem file it was read from (for messages only).
+        robot: the arm (:class:`~qpik.robots.bundle.RobotBundle`: a catalog name, or the robot and its model files).
+        poses: (N, 4, 4) the waypoints, base frame, m. times: (N,) s, or None.
+        obstacles: the obstacle shapes (world frame). params: (M,) the ``[parameter]`` values, rad, or None.
+        solver: the ``[solver]`` settings.
+    """
+
+    name: str
+    description: str
+    file: str
+    robot: RobotBundle
+    poses: np.ndarray
+    times: np.ndarray | None
+    obstacles: tuple[Shape, ...]
+    params: np.ndarray | None
+    solver: dict[str, Any]
+
+
+def plan_job(problem: Problem) -> PlanJob:
+    """The :class:`PlanJob` of a ``plan`` problem (the path sampled, the robot's model files read).
+
+    Raises:
+        ProblemFileError: the problem is not of kind ``plan``.
+        InputError: a file of the robot's model cannot be read.
+    """
+    if problem.kind != "plan":
+        raise ProblemFileError(f'{problem.file}: kind {problem.kind!r} is not a planning problem (kind = "plan")')
+    poses, times = waypoints(problem)
+    return PlanJob(problem.name, problem.description, str(problem.file), RobotBundle.of(problem.robot), poses, times,
+                   problem.obstacles, problem.params, dict(problem.solver))  # fmt: skip
+
+
+def check_names(problems: Sequence[Problem]) -> None:
+    """Check the problems' names as output folder names, before anything runs: each one folder inside the output
+    folder, none shared by two files (ignoring case, for file systems that do).
+
+    Raises:
+        InputError: a name that is empty, ``.`` or ``..``, or holds a path separator or a control character; a name
+            given by two files (both named).
+    """
+    seen: dict[str, Problem] = {}
+    for problem in problems:
+        name = problem.name
+        if name in ("", ".", "..") or any(c in name for c in "/\\") or any(ord(c) < 32 for c in name):
+            raise InputError(f"{problem.file}: name: {name!r} cannot be an output folder's name (an empty name, "
+                             "'.', '..', a path separator or a control character)")  # fmt: skip
+        other = seen.setdefault(name.casefold(), problem)
+        if other is not problem:
+            raise InputError(f"name: {other.file} and {problem.file} both have the name {name!r}, which names their "
+                             "output folder; give each file its own name")  # fmt: skip
+
+
+@dataclass(eq=False)
+class PlanReport:
+    """What :func:`solve` returns: the plan, the report and its files, as data.
+
+    Attributes:
+        name: the problem's name (the output folder's). plan: the plan, without its robot
+            (:func:`qpik.planning.many.attach` gives it the client's). ok: every check of the report holds.
+        text: the Markdown report. files: ``{file name: bytes}`` (CSV, NPZ, figures).
+    """
+
+    name: str
+    plan: Plan
+    ok: bool
+    text: str
+    files: dict[str, bytes]
+
+    def write(self, folder: str | os.PathLike) -> Path:
+        """Write ``report.md`` and the files into ``folder`` (created), the layout of a local run; returns the
+        report's path."""
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        for name, blob in self.files.items():
+            (folder / name).write_bytes(blob)
+        (folder / "report.md").write_text(self.text + "\n")
+        return folder / "report.md"
+
+
+def solve(job: PlanJob) -> PlanReport:
+    """Plan ``job``, compare with the baselines and make the report and its files (in a temporary folder that is
+    read back and deleted): the whole work of one file of ``qpik plan``, run on a worker or in this process.
+    The returned plan carries no robot (:func:`qpik.planning.many.detach`); nothing is written anywhere else."""
+    robot = job.robot.robot()
+    with tempfile.TemporaryDirectory(prefix="qpik-plan-") as tmp:
+        folder = Path(tmp)
+        text, plan, ok = _report(job, robot, folder)
+        files = {f.name: f.read_bytes() for f in sorted(folder.iterdir()) if f.is_file()}
+    return PlanReport(job.name, detach(plan), ok, text, files)
+
+
+def _plan(job: PlanJob, robot: Robot, mujoco: bool = True) -> Plan:
+    s = job.solver
+    objective = None if s["objective"] == "none" else resolve(s["objective"]) * s["objective_weight"]
+    a_max = s["a_max"] if job.times is not None else None
+    branches = None if s["branch"] is None else [s["branch"]]
+    return plan_self_motion(robot, job.poses, objective, job.obstacles, job.times, s["max_joint_step"],
+                            s["reconfigure"], d_safe=s["d_safe"], a_max=a_max, resolution=s["resolution"],
+                            mujoco=mujoco, branches=branches)  # fmt: skip
+
+
 def plan_problem(problem: Problem, mujoco: bool = True) -> Plan:
     """:func:`qpik.plan_self_motion` of a ``plan`` problem with its ``[solver]`` settings."""
-    if problem.kind != "plan":
-        raise ProblemFileError(f"{problem.file}: kind {problem.kind!r} is not a planning problem (kind = \"plan\")")
-    s = problem.solver
-    poses, times = waypoints(problem)
-    objective = None if s["objective"] == "none" else resolve(s["objective"]) * s["objective_weight"]
-    return plan_self_motion(problem.robot, poses, objective, problem.obstacles, times, s["max_joint_step"],
-                            s["reconfigure"], d_safe=s["d_safe"], a_max=s["a_max"] if times is not None else None,
-                            resolution=s["resolution"], mujoco=mujoco,
-                            branches=None if s["branch"] is None else [s["branch"]])  # fmt: skip
+    job = plan_job(problem)
+    return _plan(job, job.robot.robot(), mujoco)
 
 
-def baselines(problem: Problem, plan: Plan, mujoco: bool = True) -> list[Plan]:
+def baselines(job: PlanJob, robot: Robot, plan: Plan, mujoco: bool = True) -> list[Plan]:
     """The DP-only plan, the constant-parameter plans of ``[parameter]`` and the online QP controller."""
     out = []
     if plan.dp_plan is not None:
         out.append(plan.dp_plan)
     if plan.status == "failed" or not len(plan.q):
         return out
-    if problem.robot.closed_form is not None and problem.params is not None:
-        branch = problem.solver["baseline_branch"]
+    if robot.closed_form is not None and job.params is not None:
+        branch = job.solver["baseline_branch"]
         branch = int(plan.branch[0]) if branch is None else branch
-        out += [constant_parameter(plan, float(v), branch, mujoco) for v in problem.params]
-    if problem.robot.closed_form is not None:
+        out += [constant_parameter(plan, float(v), branch, mujoco) for v in job.params]
+    if robot.closed_form is not None:
         out.append(online(plan, mujoco))
     return out
-
-
-def plan_file(job: tuple[str, str | None]) -> dict:
-    """One job of a batch (``qpik plan`` over many files, :func:`qpik.planning.batch.run_batch`): the problem
-    file ``job[0]`` planned; with an output folder ``job[1]``, its report (``report.md``) and files written there.
-
-    Returns a picklable summary: ``name``, ``file``, ``ok`` (every check holds), ``summary`` (one line),
-    ``q`` (K, n) the plan, ``cost``, ``reconfigurations``, ``report`` (the Markdown text or "")."""
-    from qpik.problems.schema import load
-
-    path, out = job
-    problem = load(path)
-    if out is None:
-        plan = plan_problem(problem, mujoco=False)
-        report = ""
-    else:
-        folder = Path(out)
-        folder.mkdir(parents=True, exist_ok=True)
-        report, plan = _report(problem, folder)
-        (folder / "report.md").write_text(report + "\n")
-    return {"name": problem.name, "file": str(path), "ok": plan.ok, "summary": plan.summary(), "q": plan.q,
-            "cost": plan.cost, "reconfigurations": list(plan.reconfigurations), "report": report}  # fmt: skip
 
 
 def _row(p: Plan) -> str:
@@ -105,22 +197,24 @@ def _row(p: Plan) -> str:
 @runner("plan")
 def run_plan(problem: Problem, out: Path) -> str:
     """Plan, compare with the baselines, write the files; return the Markdown report."""
-    return _report(problem, out)[0]
+    report = solve(plan_job(problem))
+    report.write(out)
+    return report.text
 
 
-def _report(problem: Problem, out: Path) -> tuple[str, Plan]:
-    plan = plan_problem(problem)
-    robot, name = problem.robot, problem.name
-    others = baselines(problem, plan)
-    lines = [f"# {name} (plan)", "", problem.description, ""]
+def _report(job: PlanJob, robot: Robot, out: Path) -> tuple[str, Plan, bool]:
+    plan = _plan(job, robot)
+    name, solver = job.name, job.solver
+    others = baselines(job, robot, plan)
+    lines = [f"# {name} (plan)", "", job.description, ""]
     times = plan.times is not None
     lines.append(
         f"{robot.name}, {len(plan.poses)} waypoints" + (f" over {plan.progress[-1]:g} s" if times else "")
-        + f", {len(problem.obstacles)} obstacle(s), d_s = {plan.d_safe:g} m,"
-        + f" joint step ≤ {problem.solver['max_joint_step']:g} rad"
-        + (" and ≤ v_max·Δt" if times else "") + f"; objective: {problem.solver['objective']}"
-        + (f" × {problem.solver['objective_weight']:g}" if problem.solver["objective"] != "none" else "")
-        + f"; reconfigurations: {problem.solver['reconfigure']}."
+        + f", {len(job.obstacles)} obstacle(s), d_s = {plan.d_safe:g} m,"
+        + f" joint step ≤ {solver['max_joint_step']:g} rad"
+        + (" and ≤ v_max·Δt" if times else "") + f"; objective: {solver['objective']}"
+        + (f" × {solver['objective_weight']:g}" if solver["objective"] != "none" else "")
+        + f"; reconfigurations: {solver['reconfigure']}."
     )  # fmt: skip
     lines += ["", f"**Plan: {plan.summary()}**", ""]
     if plan.status == "failed":
@@ -163,4 +257,4 @@ def _report(problem: Problem, out: Path) -> tuple[str, Plan]:
         save(selfmotion_map(plan, others=others), out / f"{name}_map.png")
         files.append(f"{name}_map.png")
     lines.append("Files: " + ", ".join(files))
-    return "\n".join(lines), plan
+    return "\n".join(lines), plan, verdict

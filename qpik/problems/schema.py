@@ -104,6 +104,7 @@ class Setting:
         integer: an integer (else a float).
         positive: the value must be > 0 (else ≥ 0, or any integer).
         choices: the words it takes (then it is a string, one of them).
+        minimum, maximum: the bounds of an integer (inclusive; None: the sign rule above only).
     """
 
     default: float | int | str | None
@@ -111,6 +112,18 @@ class Setting:
     integer: bool = False
     positive: bool = False
     choices: tuple[str, ...] = ()
+    minimum: int | None = None
+    maximum: int | None = None
+
+
+MAX_COUNT = 100_000
+"""The largest count of a target (``random.count``, ``sweep.num``) or a ``[parameter]`` sweep."""
+MAX_WAYPOINTS = 20_000
+"""The largest ``[solver] waypoints`` of a ``plan`` problem."""
+MAX_RESOLUTION = 20_000
+"""The largest ``[solver] resolution`` of a ``plan`` problem (parameter values per branch)."""
+MAX_GRID = 10_000_000
+"""The largest waypoints × resolution of a ``plan`` problem: the DP's grid per branch (its memory and time)."""
 
 
 _GAINS = {
@@ -138,22 +151,39 @@ SOLVER_KEYS: dict[str, dict[str, Setting]] = {
         "xi": Setting(0.5, "largest approach speed of the velocity dampers, m/s", positive=True),
     },
     "plan": {
-        "objective": Setting("none", "the point objective integrated along the path (qpik.objectives)",
-                             choices=("none", *OBJECTIVE_NAMES)),
+        "objective": Setting(
+            "none",
+            "the point objective integrated along the path (qpik.objectives)",
+            choices=("none", *OBJECTIVE_NAMES),
+        ),
         "objective_weight": Setting(1.0, "weight of the objective beside the joint motion"),
         "max_joint_step": Setting(0.1, "largest move of any joint between consecutive waypoints, rad", positive=True),
         "d_safe": Setting(0.02, "smallest capsule–obstacle distance, m", positive=True),
-        "resolution": Setting(720, "parameter values per branch in the DP's grid", integer=True, positive=True),
-        "reconfigure": Setting("forbid", "without a continuous plan: report it, or plan the fewest reconfigurations",
-                               choices=("forbid", "fewest")),
-        "waypoints": Setting(101, "waypoints sampled from a path target", integer=True, positive=True),
+        "resolution": Setting(
+            720,
+            "parameter values per branch in the DP's grid (even)",
+            integer=True,
+            positive=True,
+            minimum=8,
+            maximum=MAX_RESOLUTION,
+        ),
+        "reconfigure": Setting(
+            "forbid",
+            "without a continuous plan: report it, or plan the fewest reconfigurations",
+            choices=("forbid", "fewest"),
+        ),
+        "waypoints": Setting(
+            101, "waypoints sampled from a path target", integer=True, positive=True, minimum=2, maximum=MAX_WAYPOINTS
+        ),
         "a_max": Setting(None, "joint acceleration limit of every joint along a path target, rad/s²", positive=True),
         "branch": Setting(None, "the one branch the plan may use (default: every branch)", integer=True),
-        "baseline_branch": Setting(None, "branch of the constant-parameter baselines (default: the plan's first)",
-                                   integer=True),
+        "baseline_branch": Setting(
+            None, "branch of the constant-parameter baselines (default: the plan's first)", integer=True
+        ),
     },
 }
 """Per kind, every ``[solver]`` key its runner (:mod:`qpik.problems.runners`) reads: the one list of them."""
+
 
 @dataclass(frozen=True, eq=False)
 class Problem:
@@ -290,8 +320,8 @@ class _Reader:
         return x
 
     def count(self, value: Any, field: str) -> int:
-        if not isinstance(value, int) or isinstance(value, bool) or value < 1:
-            raise self.fail(field, f"expected an integer >= 1, got {value!r}")
+        if not isinstance(value, int) or isinstance(value, bool) or not 1 <= value <= MAX_COUNT:
+            raise self.fail(field, f"expected an integer from 1 to {MAX_COUNT}, got {value!r}")
         return value
 
     def text(self, value: Any, field: str) -> str:
@@ -337,6 +367,9 @@ class _Reader:
         obstacles = data.get("obstacles", [])
         if not isinstance(obstacles, list):
             raise self.fail("obstacles", "expected an array of tables ([[obstacles]])")
+        solver = self.solver(data.get("solver", {}), kind)
+        if kind == "plan":
+            self.plan_sizes(solver, robot, None if poses is None else len(poses))
         return Problem(
             name=self.text(data.get("name", self.file.stem), "name"),
             kind=kind,  # type: ignore[arg-type]
@@ -348,7 +381,7 @@ class _Reader:
             path=path,
             params=params,
             obstacles=tuple(self.obstacle(o, f"obstacles[{i}]") for i, o in enumerate(obstacles)),
-            solver=self.solver(data.get("solver", {}), kind),
+            solver=solver,
             expected={k: _numeric(v) for k, v in self.free(data.get("expected", {}), "expected").items()},
             file=self.file,
         )
@@ -369,6 +402,24 @@ class _Reader:
             out[key] = raw if raw is None or key not in table else self.setting(raw, f"solver.{key}", setting)
         return out
 
+    def plan_sizes(self, solver: dict[str, Any], robot: Robot, poses: int | None) -> None:
+        """A ``plan`` problem's grid within :data:`MAX_GRID`, and its branches among the closed form's."""
+        waypoints = solver["waypoints"] if poses is None else poses
+        if waypoints * solver["resolution"] > MAX_GRID:
+            size = f"{waypoints} waypoints × resolution {solver['resolution']}"
+            raise self.fail("solver.resolution", f"{size} is over {MAX_GRID:,} grid points per branch; use fewer "
+                            "waypoints or a lower resolution")  # fmt: skip
+        for key in ("branch", "baseline_branch"):
+            if solver[key] is None:
+                continue
+            if robot.closed_form is None:
+                raise self.fail(f"solver.{key}", f"{robot.name} has no closed form, so no branches")
+            ids = _branch_ids(robot.closed_form)
+            if solver[key] not in ids:
+                raise self.fail(
+                    f"solver.{key}", f"{robot.name}'s branches are {ids[0]} to {ids[-1]}, got {solver[key]}"
+                )
+
     def setting(self, value: Any, field: str, setting: Setting) -> float | int | str:
         if setting.choices:
             if value not in setting.choices:
@@ -379,6 +430,10 @@ class _Reader:
                 raise self.fail(field, f"expected an integer, got {value!r}")
             if setting.positive and value < 1:
                 raise self.fail(field, f"must be >= 1, got {value}")
+            if setting.minimum is not None and value < setting.minimum:
+                raise self.fail(field, f"must be >= {setting.minimum} ({setting.doc}), got {value}")
+            if setting.maximum is not None and value > setting.maximum:
+                raise self.fail(field, f"must be <= {setting.maximum} ({setting.doc}), got {value}")
             return value
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise self.fail(field, f"expected a number ({setting.doc}), got {value!r}")
@@ -520,6 +575,17 @@ class _Reader:
             return shape_from_spec({"name": field, **value})
         except InputError as exc:
             raise self.fail(field, str(exc)) from None
+
+
+def _branch_ids(closed_form: str) -> tuple[int, ...]:
+    """The public branch ids of a closed form (:attr:`qpik.analytic.solver.AnalyticSolver.branch_ids`)."""
+    if closed_form == "srs":
+        from qpik.analytic.srs import SRSSolver
+
+        return SRSSolver.branch_ids
+    from qpik.analytic.offset_shoulder import OffsetShoulderSolver
+
+    return OffsetShoulderSolver.branch_ids
 
 
 def _numeric(value: Any) -> Any:

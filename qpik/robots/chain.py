@@ -155,6 +155,12 @@ class SerialChain:
         for name, T in (("base", base), ("tool", tool)):
             object.__setattr__(self, name, np.eye(4) if T is None else single_pose(T, f"{cls}.{name}"))
 
+    def __getstate__(self) -> dict:
+        """The chain's numbers without its cached CasADi functions and compiled code (rebuilt on first use after
+        unpickling): a chain pickles to another process or machine (:mod:`qpik.robots.bundle`)."""
+        cached = {n for k in type(self).__mro__ for n, v in vars(k).items() if isinstance(v, cached_property)}
+        return {k: v for k, v in self.__dict__.items() if k not in cached}
+
     @cached_property
     def dof(self) -> int:
         """The number of independent joints: the length of q."""
