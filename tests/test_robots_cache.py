@@ -53,6 +53,10 @@ def test_copies_start_with_an_empty_cache():
     robot = qpik.load_robot("panda")
     qpik.solve_ik(robot, robot.fk(robot.q_home), robot.q_home)
     assert len(robot.cache) >= 1
-    copy = dataclasses.replace(robot)
-    assert len(copy.cache) == 0 and len(pickle.loads(pickle.dumps(robot.cache))) == 0
-    assert np.allclose(copy.fk(copy.q_home), robot.fk(robot.q_home), atol=1e-15)
+    for copy in (dataclasses.replace(robot), pickle.loads(pickle.dumps(robot))):
+        assert len(copy.cache) == 0
+        assert np.allclose(copy.fk(copy.q_home), robot.fk(robot.q_home), atol=1e-15)
+        assert np.allclose(
+            copy.fk(qpik.solve_ik(copy, robot.fk(robot.q_home), copy.q_home)), robot.fk(robot.q_home), atol=1e-9
+        )
+        assert len(copy.cache) == 1
