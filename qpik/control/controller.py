@@ -45,6 +45,7 @@ from qpik.control.qp import QP, Assembler
 from qpik.control.solvers import Solver, get_solver
 from qpik.control.state import SymState
 from qpik.control.tasks import DampingTask, FrameTask, ManipulabilityTask, PostureTask, Task
+from qpik.contacts import capsule_pairs
 from qpik.errors import InfeasibleError, InputError, SolverError
 from qpik.geometry.distance import ObstacleSet
 from qpik.robots.robot import as_robot
@@ -71,8 +72,9 @@ class StepInfo:
             hold, the first of failed, yielding, penetrating, recovering is reported.
         active: names of the constraints at their bound (``"joint3 position upper"``,
             ``"obstacle sphere0 / link4"``, ...).
-        min_clearance: smallest capsule–obstacle signed distance, m, over the capsules a joint moves
-            (inf without obstacles).
+        min_clearance: smallest capsule–obstacle signed distance, m, over the pairs :mod:`qpik.contacts`
+            checks (not those whose distance no joint motion changes: a base column on its table;
+            inf without such pairs).
         relaxation: 0 if the QP was solved as built; else the part of the separating rows'
             demand that was dropped (3/4, 15/16, or 1: only approach is forbidden, which
             ``v = 0`` meets) when they conflicted (failure policy, step 4).
@@ -167,6 +169,8 @@ class Controller:
         # one compiled call per step: the QP and the step's summary (_summary)
         self.assembler = Assembler(robot, self.tasks, self.limits, self.dt, self._summary)
         self._d_safe = [lim.d_safe for lim in self.obstacle_limits]
+        self._checked = [capsule_pairs(robot, lim.obstacles)[~robot.fixed_capsules].ravel()
+                         for lim in self.obstacle_limits]  # fmt: skip
         self.last = StepInfo()
 
     @classmethod
@@ -204,6 +208,7 @@ class Controller:
             DampingTask(number(damping, "damping")),
         ]
         limits: list[Limit] = [ConfigurationLimit(margin), VelocityLimit()]
+        d_safe = number(d_safe, "d_safe")  # m, >= 0
         obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
         if len(obstacles):
             limits.append(ObstacleLimit(obstacles, d_influence, d_safe, xi))
@@ -218,16 +223,15 @@ class Controller:
                 task.set_target(q_ref)
 
     def _summary(self, s: SymState) -> list:
-        """The step's summary, computed in the compiled call: per :class:`ObstacleLimit` its smallest
-        capsule–obstacle distance (m; inf without pairs) over the capsules a joint moves
-        (:attr:`~qpik.robots.robot.Robot.fixed_capsules` are left out), then 1.0 if q is past a
+        """The step's summary, computed in the compiled call: per :class:`ObstacleLimit` the distances (m) of its
+        capsule–obstacle pairs over the capsules a joint moves (:attr:`~qpik.robots.robot.Robot.fixed_capsules`
+        are left out; :meth:`step` keeps the pairs :mod:`qpik.contacts` checks), then 1.0 if q is past a
         :class:`ConfigurationLimit`'s range (else 0.0), then the norm of the first :class:`FrameTask`'s pose
         error ``[m; rad]`` (nan without one)."""
         out = []
         for lim in self.obstacle_limits:
             moving = np.repeat(~self.robot.fixed_capsules, len(lim.obstacles))  # pair (c, o) at c·O + o
-            d = lim.distances_expr(s)[np.flatnonzero(moving).tolist()]
-            out.append(ca.mmin(d) if d.numel() else ca.inf)
+            out.append(lim.distances_expr(s)[np.flatnonzero(moving).tolist()])
         past = ca.SX(0.0)
         for lim in self.config_limits:
             p = s.params_of(lim)
@@ -285,7 +289,10 @@ class Controller:
                 raise SolverError(f"{self.solver.name}: no solution ({sol.status})")
             v = np.zeros(self.robot.dof)
             info.status = "failed"
-        *clearances, past, info.task_error = summary.tolist()
+        cuts = np.cumsum([len(c) for c in self._checked])
+        *pairs, tail = np.split(np.asarray(summary, float), cuts)
+        past, info.task_error = tail.tolist()
+        clearances = [float(d[c].min(initial=np.inf)) for d, c in zip(pairs, self._checked)]
         if clearances:
             info.min_clearance = min(clearances)
         if info.status == "ok":

@@ -29,7 +29,7 @@ from qpik.geometry.distance import ObstacleSet
 from qpik.objectives import clearance
 from qpik.robots.robot import Robot
 from qpik.sim.log import tracking_errors
-from qpik.validate import finite_array
+from qpik.validate import count, finite_array
 
 if TYPE_CHECKING:
     from qpik.planning.planner import Setup
@@ -226,11 +226,12 @@ class Plan:
         Args:
             v_max: (n,) joint speed limits, rad/s (default the robot's).
             a_max: (n,) joint acceleration limits, rad/s² (default 4 × v_max per second).
-            samples: samples per segment of the returned :class:`Trajectory`.
+            samples: samples per segment of the returned :class:`Trajectory` (an integer >= 2).
         """
         import toppra
         from toppra import constraint
 
+        samples = count(samples, "samples", 2)
         if self.status == "failed" or len(self.q) < 2:
             raise InputError("plan: only a plan of at least two planned waypoints can be retimed")
         n = self.robot.dof
