@@ -40,12 +40,12 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from qpik.contacts import capsule_pairs
 from qpik.control.limits import ConfigurationLimit, Limit, ObstacleLimit, VelocityLimit
 from qpik.control.qp import QP, Assembler
 from qpik.control.solvers import Solver, get_solver
 from qpik.control.state import SymState
 from qpik.control.tasks import DampingTask, FrameTask, ManipulabilityTask, PostureTask, Task
-from qpik.contacts import capsule_pairs
 from qpik.errors import InfeasibleError, InputError, SolverError
 from qpik.geometry.distance import ObstacleSet
 from qpik.robots.robot import as_robot
