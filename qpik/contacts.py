@@ -77,8 +77,7 @@ def capsule_facts(robot, obstacles) -> list[Fact]:
     d = distances(robot.capsule_segments(probes(robot.q_min, robot.q_max)[:1]), robot.capsule_radii, obs).d[0]
     names = _obstacle_names(obs.shapes)
     return [
-        Fact(_capsule_name(robot, c), names[o], float(d[c, o]))
-        for c, o in zip(*np.nonzero(~capsule_pairs(robot, obs)))
+        Fact(_capsule_name(robot, c), names[o], float(d[c, o])) for c, o in zip(*np.nonzero(~capsule_pairs(robot, obs)))
     ]
 
 

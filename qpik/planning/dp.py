@@ -144,6 +144,8 @@ def solve(grid: Grid, tr: Transitions, window: int, fewest: bool) -> DPResult:
         Vn, Jn, s = step.banded(V, J, offsets)
         if not np.isfinite(Vn).any() and okb.any():
             Vn, Jn, s = step.full(V, J)  # the band lost every state: every pair
+        elif okb.any():  # across branches too: they meet at the singular positions
+            Vn, Jn, s = _merge((Vn, Jn, s), step.full(V, J, cross=True))
         jump = np.zeros((B, G), bool)
         if fewest:
             Vn, Jn, s, jump = _jumps(V, J, Vn, Jn, s, okb, tr.point[k + 1] * fb)
@@ -214,12 +216,12 @@ class _Step:
                            Jn.ctypes.data, s.ctypes.data)  # fmt: skip
         return Vn, Jn, s
 
-    def full(self, V, J):
-        """Every reachable source state against every feasible destination (any branch): the pairs within the
-        joint-step bounds are found by a k-d tree (scipy's ``cKDTree``, L∞ metric on the moves scaled by their
-        bounds), so the cost grows with the pairs that fit, not with all pairs; also the pair that comes
-        closest to the bounds (for :func:`_failure`): ``(largest step over its bound, source flat index,
-        destination flat index)``."""
+    def full(self, V, J, cross: bool = False):
+        """Every reachable source state against every feasible destination (any branch; ``cross``: of another
+        branch only): the pairs within the joint-step bounds are found by k-d trees (scipy's ``cKDTree``, L∞
+        metric on the moves scaled by their bounds; one tree per branch with ``cross``, so that branches far
+        apart are pruned at once), so the cost grows with the pairs that fit, not with all pairs. Also keeps
+        what :attr:`closest` needs."""
         from scipy.spatial import cKDTree
 
         B, G = self.B, self.G
@@ -227,19 +229,19 @@ class _Step:
         best = (np.full((B, G), np.inf), np.zeros((B, G), np.int64), np.full((B, G), -1))
         live = np.flatnonzero(np.isfinite(V.reshape(-1)))
         dest = np.flatnonzero(self.okb.reshape(-1))
-        self.closest = (np.inf, -1, -1)
+        self._closest = None
         if not len(live) or not len(dest):
             return best
         qa = self.qa.reshape(B * G, n)[live] / self.lim
         tree = cKDTree(self.qb.reshape(B * G, n)[dest] / self.lim)
-        ratio, m = tree.query(qa, k=1, p=np.inf)
-        a = int(np.argmin(ratio))
-        self.closest = (float(ratio[a]), int(live[a]), int(dest[m[a]]))
-        hits = tree.query_ball_point(qa, r=1.0 + 1e-12, p=np.inf)
-        src = np.repeat(live, [len(h) for h in hits])
+        self._closest = (tree, qa, live, dest)
+        if cross:
+            src, dst = self._cross(live, dest)
+        else:
+            pairs = cKDTree(qa).sparse_distance_matrix(tree, 1.0 + 1e-12, p=np.inf, output_type="ndarray")
+            src, dst = live[pairs["i"]], dest[pairs["j"]]
         if not len(src):
             return best
-        dst = dest[np.concatenate([np.asarray(h, np.int64) for h in hits])]
         D = self.qb.reshape(B * G, n)[dst] - self.qa.reshape(B * G, n)[src]
         c = self._cost(V, D, src) + self.wp * self.fb.reshape(-1)[dst]
         jumps = J.reshape(-1)[src]
@@ -253,6 +255,35 @@ class _Step:
         Vn[dst[pick]], Jn[dst[pick]], s[dst[pick]] = c[pick], jumps[pick], src[pick]
         return Vn.reshape(B, G), Jn.reshape(B, G), s.reshape(B, G)
 
+    def _cross(self, live: np.ndarray, dest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Flat (source, destination) pairs within the bounds whose branches differ."""
+        from scipy.spatial import cKDTree
+
+        n = self.qa.shape[-1]
+        rows_a, rows_b = live // self.G, dest // self.G
+        trees_a = {b: (live[rows_a == b], cKDTree(self.qa.reshape(-1, n)[live[rows_a == b]] / self.lim))
+                   for b in np.unique(rows_a)}  # fmt: skip
+        trees_b = {b: (dest[rows_b == b], cKDTree(self.qb.reshape(-1, n)[dest[rows_b == b]] / self.lim))
+                   for b in np.unique(rows_b)}  # fmt: skip
+        src, dst = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+        for a, (ia, ta) in trees_a.items():
+            for b, (ib, tb) in trees_b.items():
+                if a != b:
+                    pairs = ta.sparse_distance_matrix(tb, 1.0 + 1e-12, p=np.inf, output_type="ndarray")
+                    src.append(ia[pairs["i"]]), dst.append(ib[pairs["j"]])
+        return np.concatenate(src), np.concatenate(dst)
+
+    @property
+    def closest(self) -> tuple[float, int, int]:
+        """After :meth:`full`: the pair that comes closest to the bounds, ``(largest step over its bound, source
+        flat index, destination flat index)``."""
+        if self._closest is None:
+            return (np.inf, -1, -1)
+        tree, qa, live, dest = self._closest
+        ratio, m = tree.query(qa, k=1, p=np.inf)
+        a = int(np.argmin(ratio))
+        return (float(ratio[a]), int(live[a]), int(dest[m[a]]))
+
     def _pick(self, c, Jc, flat, axis: int):
         """Per destination (b, j), the candidate along ``axis`` of fewest jumps, then least value."""
         ok = np.expand_dims(self.okb, axis)
@@ -265,6 +296,12 @@ class _Step:
         s = np.take_along_axis(np.broadcast_to(flat, c.shape), best, axis).squeeze(axis)
         live = np.isfinite(V)
         return V, np.where(live, Jmin.squeeze(axis), 0), np.where(live, s, -1)
+
+
+def _merge(a, b):
+    """Per destination, the better of two (V, J, source) candidates: fewest jumps, then least value."""
+    better = np.isfinite(b[0]) & (~np.isfinite(a[0]) | (b[1] < a[1]) | ((b[1] == a[1]) & (b[0] < a[0])))
+    return tuple(np.where(better, y, x) for x, y in zip(a, b))
 
 
 def _jumps(V, J, Vn, Jn, s, okb, fb):
@@ -345,7 +382,11 @@ def _library() -> ctypes.CDLL | None:
         return None
     dll = ctypes.CDLL(str(lib))
     fn = dll.qpik_dp_banded
-    fn.argtypes = [ctypes.c_longlong] * 4 + [ctypes.c_void_p] * 8 + [ctypes.c_double] * 2 + [
-        ctypes.c_void_p, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
+    fn.argtypes = (
+        [ctypes.c_longlong] * 4
+        + [ctypes.c_void_p] * 8
+        + [ctypes.c_double] * 2
+        + [ctypes.c_void_p, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
+    )
     fn.restype = None
     return dll

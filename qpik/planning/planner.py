@@ -188,8 +188,9 @@ def plan_self_motion(
         d_safe: m. a_max: (n,) or a number, rad/s² (needs ``times``). q_ref: (n,) the reference of the
             ``"distance"`` objective, rad.
         resolution: parameter values per branch in the DP's grid (even, ≥ 8).
-        window: the largest parameter change (rad) between consecutive waypoints the DP searches (default:
-            the largest joint-step bound).
+        window: the largest parameter change (rad) between consecutive waypoints the DP searches on one branch
+            (default: three times the largest joint-step bound, since S-R-S: Σ_{j≤3} |Δq_j| ≥ |Δψ| allows a
+            change of up to three bounds); moves to another branch are searched whatever their size.
         branches: public branch ids the plan may use (None: all).
         refine: run the NLP after the DP.
         waypoints: samples of a timed path without ``times``.
@@ -213,7 +214,7 @@ def plan_self_motion(
         raise InputError(f"resolution: expected an even integer in [8, {MAX_RESOLUTION}], got {resolution!r}")
     if res * len(setup.poses) > MAX_STATES:
         raise InputError(f"resolution: {res} values × {len(setup.poses)} waypoints exceeds {MAX_STATES:g}; use fewer")
-    w = float(setup.tr.step.max()) if window is None else number(window, "window")
+    w = 3.0 * float(setup.tr.step.max()) if window is None else number(window, "window")
     return _plan_closed_form(setup, res, w, branches, reconfigure == "fewest", flag(refine, "refine"),
                              flag(mujoco, "mujoco"))  # fmt: skip
 
@@ -365,16 +366,23 @@ def _plan_joints(setup: Setup, refine: bool, mujoco: bool) -> Plan:
     try:
         q0 = solve_ik(setup.robot, setup.poses[0], setup.robot.q_home)
     except UnreachableError as exc:  # no proof without a closed form: the plan fails its FK check at waypoint 0
-        plan = setup.plan(np.zeros((0, setup.robot.dof)), "failed", failure=f"check 'fk' fails at waypoint 0: {exc}",
-                          failure_waypoint=0, failure_kind="check", label="QP controller (online)")
+        plan = setup.plan(
+            np.zeros((0, setup.robot.dof)),
+            "failed",
+            failure=f"check 'fk' fails at waypoint 0: {exc}",
+            failure_waypoint=0,
+            failure_kind="check",
+            label="QP controller (online)",
+        )
         measure(plan, mujoco)
         return plan
     watch = Stopwatch()
     q_track, _ = track(setup, q0, watch)
     timings = {"tracking": watch.stop()}
     continuous = np.ones(len(setup.poses) - 1, bool)
-    plan = setup.plan(q_track, "tracking", cost=setup.cost(q_track, continuous), timings=timings,
-                      label="QP controller (online)")
+    plan = setup.plan(
+        q_track, "tracking", cost=setup.cost(q_track, continuous), timings=timings, label="QP controller (online)"
+    )
     measure(plan, mujoco)
     if not refine:
         return plan
@@ -385,4 +393,3 @@ def _plan_joints(setup: Setup, refine: bool, mujoco: bool) -> Plan:
     refined = setup.plan(out.q, "optimal", cost=out.cost, timings=timings, label="NLP", dp_plan=plan)
     measure(refined, mujoco)
     return refined if refined.ok or not plan.ok else plan
-
