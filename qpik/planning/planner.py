@@ -59,6 +59,8 @@ MAX_STATES = 4_000_000
 """The most grid values per branch over the whole path, waypoints × resolution (memory)."""
 REFINE = (4, 16)
 """Factors of ``resolution`` at which the DP runs again when the grid alone failed (capped by the limits above)."""
+NEAR_MISS = 2.0
+"""A reconfiguration whose closest grid states need at most this many joint-step bounds is tried on finer grids."""
 IMPROVED = 1e-12
 """The NLP's answer replaces the DP's when its objective is lower by more than this (relative)."""
 TRACK_DT = 0.002
@@ -230,7 +232,8 @@ def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fe
     result = dp.solve(grid, setup.tr, int(np.ceil(window / grid.spacing)), fewest)
     for factor in REFINE:  # only the grid failed: finer grids before giving up
         finer = resolution * factor
-        if not _grid_failed(result, fewest) or finer > MAX_RESOLUTION or finer * len(setup.poses) > MAX_STATES:
+        too_big = finer > MAX_RESOLUTION or finer * len(setup.poses) > MAX_STATES
+        if too_big or not _grid_failed(grid, setup.tr, result, fewest):
             break
         with watch.paused():
             fine = _grid(setup, finer, branches)
@@ -293,12 +296,25 @@ def _grid(setup: Setup, resolution: int, branches) -> Grid:
     return grid
 
 
-def _grid_failed(result: dp.DPResult, fewest: bool) -> bool:
+def _grid_failed(grid: Grid, tr: dp.Transitions, result: dp.DPResult, fewest: bool) -> bool:
     """Whether a finer grid may do better: the grid alone failed (no proof), or with ``fewest`` a reconfiguration
-    that a finer grid may make a continuous transition."""
+    between two waypoints whose closest feasible states are within :data:`NEAR_MISS` times the joint-step bound
+    (a finer grid may make it a continuous transition; far apart, none can)."""
     if result.failure is not None:
         return result.failure.kind == "grid"
-    return fewest and bool(result.reconfigurations)
+    return fewest and any(_closest_ratio(grid, tr, k) <= NEAR_MISS for k in result.reconfigurations)
+
+
+def _closest_ratio(grid: Grid, tr: dp.Transitions, k: int) -> float:
+    """min over feasible state pairs of waypoints k and k + 1 of max_j |Δq_j| / bound_j (k-d tree, L∞)."""
+    from scipy.spatial import cKDTree
+
+    layers = grid.layers(k, k + 2)
+    n = layers.q.shape[-1]
+    a, b = (layers.q[i][layers.ok[i]].reshape(-1, n) / tr.step[k] for i in (0, 1))
+    if not len(a) or not len(b):
+        return np.inf
+    return float(cKDTree(b).query(a, k=1, p=np.inf)[0].min())
 
 
 def _better(new: dp.DPResult, old: dp.DPResult) -> bool:
