@@ -183,7 +183,7 @@ class Plan:
         """One line: status, waypoints, reconfigurations, the objective J (minimised); when failed, which check
         or which waypoint and why."""
         if self.status == "failed":
-            return f"failed ({self.failure_kind}) at waypoint {self.failure_waypoint}: {self.failure}"
+            return f"failed at waypoint {self.failure_waypoint} ({self.failure_kind}): {self.failure}"
         rec = f"{len(self.reconfigurations)} reconfiguration(s)" + (
             f" (after waypoints {', '.join(map(str, self.reconfigurations))})" if self.reconfigurations else ""
         )
