@@ -66,6 +66,6 @@ def test_a_grid_failure_is_not_called_infeasible():
 
 def test_an_empty_feasible_set_is_infeasible():
     T, _ = _crossing(0, n=6)
-    T[3, :3, 3] = (2.0, 0.0, 0.5)
-    plan = qpik.plan_self_motion(IIWA, T, refine=False, mujoco=False)
+    T[3, :3, 3] = (2.0, 0.0, 0.5)  # 2 m away: beyond reach
+    plan = qpik.plan_self_motion(IIWA, T, max_joint_step=0.5, refine=False, mujoco=False)
     assert plan.status == "failed" and plan.failure_kind == "infeasible" and plan.failure_waypoint == 3
