@@ -26,7 +26,7 @@ THIRD_PARTY = {
     "erd_xarm7": (ROBOTS / "xarm_description/urdf/xarm7.urdf", {"collision_only": True}),
     "pybullet_panda": (_SITE / "pybullet_data/franka_panda/panda.urdf", {}),
     "tiago_pro_left": (ROBOTS / "tiago_pro_description/robots/tiago_pro.urdf",
-                       {"collision_only": True, "base": "torso_arm_left_link", "tip": "arm_left_7_link"}),
+                       {"collision_only": True, "base": "torso_lift_link", "tip": "arm_left_7_link"}),
 }  # fmt: skip
 SUCCESS = {"optimal", "dp", "tracking"}
 PER_ARM = 25
@@ -95,9 +95,10 @@ def test_no_plan_whose_check_fails_is_a_success(arm):
     closed = robot.closed_form is not None
     statuses = []
     for seed in range(PER_ARM):
-        # without a closed form the QP controller tracks the path (at 0.1 m/s): one far waypoint per arm
-        T, obstacles = _case(robot, 1000 * ARMS.index(arm) + seed, far=closed or seed == 1)
-        refine = not closed or seed % 5 == 0  # without a closed form only the NLP follows the path exactly
+        # without a closed form the QP controller tracks the path at 0.1 m/s: a far waypoint takes long to
+        # track, so it is tested on zheng7 alone (the test below)
+        T, obstacles = _case(robot, 1000 * ARMS.index(arm) + seed, far=closed)
+        refine = seed % 5 == 0  # without a closed form only the NLP's plans follow the path exactly
         plan = qpik.plan_self_motion(robot, T, obstacles=obstacles, refine=refine, mujoco=False)
         statuses.append(plan.status)
         own = all(c.ok for c in plan.checks) and len(plan.q) == len(T)
@@ -115,7 +116,7 @@ def test_no_plan_whose_check_fails_is_a_success(arm):
 def test_an_unreachable_waypoint_on_a_fallback_arm_fails_its_fk_check():
     robot = qpik.load_robot("zheng7")
     T, _ = _case(robot, 7)
-    T[3, :3, 3] += (3.0, 0.0, 0.0)
+    T[3, :3, 3] *= 3.0  # out of reach
     plan = qpik.plan_self_motion(robot, T, mujoco=False)
     assert plan.status == "failed" and plan.failure_kind == "check" and not plan.ok
     assert "'fk'" in plan.failure and "fk" in plan.summary()
