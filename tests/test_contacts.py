@@ -59,3 +59,11 @@ def test_nammoto7_on_a_table_the_controller_does_not_say_penetrating():
     assert log.checked is not None and not log.checked.all()
     assert log.facts and all("not checked" in f for f in log.facts)
     assert np.all(log.summary().min_clearance > 0)
+
+
+def test_nammoto7_on_a_table_plans_its_turning_base_column_is_a_fact():
+    robot = qpik.load_robot("nammoto7")
+    T = _line(robot, robot.q_home, np.full(7, 0.1), 8)
+    plan = qpik.plan_self_motion(robot, T, obstacles=[TABLE], refine=False)  # MuJoCo check included
+    assert plan.ok, plan.summary()
+    assert any("touches table" in f for f in plan.facts)
