@@ -16,7 +16,7 @@ import pytest
 
 import qpik
 from qpik.contacts import capsule_pairs
-from qpik.geometry.distance import distances
+from qpik.geometry.distance import ObstacleSet, distances
 from qpik.geometry.shapes import Sphere
 
 _SITE = Path(np.__file__).resolve().parents[1]
@@ -120,3 +120,36 @@ def test_an_unreachable_waypoint_on_a_fallback_arm_fails_its_fk_check():
     plan = qpik.plan_self_motion(robot, T, mujoco=False)
     assert plan.status == "failed" and plan.failure_kind == "check" and not plan.ok
     assert "'fk'" in plan.failure and "fk" in plan.summary()
+
+
+def _pose_ok(robot, q, T, obstacles, d_safe) -> bool:
+    """Our own check of one answer: FK at T, inside the limits, clear by d_safe (checked pairs)."""
+    if np.abs(robot.fk(q) - T).max() > 1e-8:
+        return False
+    if np.any(q < robot.q_min) or np.any(q > robot.q_max):
+        return False
+    if obstacles:
+        d = distances(robot.capsule_segments(q), robot.capsule_radii, ObstacleSet(obstacles)).d
+        if np.where(capsule_pairs(robot, obstacles), d, np.inf).min() < d_safe - 1e-9:
+            return False
+    return True
+
+
+@pytest.mark.parametrize("arm", ["iiwa14", "nammoto7", "zheng7"])
+def test_no_ik_result_whose_check_fails_is_optimal(arm):
+    """solve_best (closed form) and solve_full (any arm) on reachable, unreachable and obstructed poses."""
+    from qpik.nlp import solve_best, solve_full
+
+    robot = qpik.load_robot(arm)
+    for seed in range(5):
+        T, obstacles = _case(robot, 5000 + seed)
+        pose = T[N // 2]
+        if robot.closed_form is not None:
+            best = solve_best(robot, pose, "margin", obstacles, certify=False)
+            assert best.status in {"optimal", "unreachable", "no feasible branch", "solver failed"}
+            assert (best.status == "optimal") <= _pose_ok(robot, best.q, pose, obstacles, 0.02), best.summary()
+        full = solve_full(robot, pose, None, obstacles, max_starts=4)
+        assert full.status in {"optimal", "unreachable", "not found", "solver failed"}
+        assert (full.status == "optimal") <= _pose_ok(robot, full.q, pose, obstacles, 0.02), full.message
+        if full.status == "unreachable":
+            assert robot.closed_form is not None and not any(qpik.feasible_intervals(robot, pose).intervals)
