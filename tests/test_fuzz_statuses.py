@@ -153,3 +153,15 @@ def test_no_ik_result_whose_check_fails_is_optimal(arm):
         assert (full.status == "optimal") <= _pose_ok(robot, full.q, pose, obstacles, 0.02), full.message
         if full.status == "unreachable":
             assert robot.closed_form is not None and not any(qpik.feasible_intervals(robot, pose).intervals)
+
+
+def test_crosscheck_reports_a_qp_failure(monkeypatch):
+    """A failed QP step returns v = 0, which would pass check (c): the cross-check names the failure instead."""
+    import qpik.crosscheck as cc
+
+    robot = qpik.load_robot("iiwa14")
+    pose = robot.fk(robot.q_home + 0.2)
+    assert not cc.crosscheck(robot, pose, "manipulability").failures
+    monkeypatch.setattr(cc, "_qp_step", lambda *a: (np.zeros(robot.dof), "failed"))
+    out = cc.crosscheck(robot, pose, "manipulability")
+    assert any("QP controller found no solution" in f for f in out.failures)
