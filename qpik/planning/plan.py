@@ -99,13 +99,16 @@ class Plan:
     Attributes:
         robot: the arm; poses: (N, 4, 4) the waypoints (base frame); times: (N,) s, or None.
         progress: (N,) path progress in [0, 1] (or the times, s, when given).
-        q: (K, n) the configuration at each planned waypoint, rad (K = N unless the plan failed).
+        q: (K, n) the configuration at each planned waypoint, rad (K = N unless the plan failed before the
+            last waypoint; a plan that fails a check keeps all its configurations).
         param: (K,) the redundancy parameter (δ or ψ, rad, wrapped) and branch: (K,) the public branch id
             of each configuration (both empty for an arm without a closed form).
         param_name: ``"delta"``, ``"psi"`` or ``""``.
-        status: ``"optimal"`` (the NLP improved the DP's plan), ``"dp"`` (the DP's plan: the NLP did not
-            improve it or was not run), ``"tracking"`` (the QP controller's run, refined by the NLP for an
-            arm without a closed form) or ``"failed"`` (see :attr:`failure`).
+        status: ``"optimal"`` (the NLP improved the DP's plan, or refined the QP controller's run of an arm
+            without a closed form), ``"dp"`` (the DP's plan: the NLP did not improve it or was not run),
+            ``"tracking"`` (the QP controller's run of an arm without a closed form) or ``"failed"`` (see
+            :attr:`failure`). The same on every arm, and derived from the checks: a plan is not failed if and
+            only if every waypoint is planned and every one of its :attr:`checks` holds (:func:`measure`).
         failure: the first waypoint that cannot be planned, or the check that fails and where, and why; or "".
         failure_kind: ``"infeasible"`` (proved: no configuration of the exact feasible set at that waypoint),
             ``"grid"`` (every waypoint has feasible configurations but the DP's grid, refined, found no
