@@ -306,7 +306,8 @@ def _grid_failed(grid: Grid, tr: dp.Transitions, result: dp.DPResult, fewest: bo
 
 
 def _closest_ratio(grid: Grid, tr: dp.Transitions, k: int) -> float:
-    """min over feasible state pairs of waypoints k and k + 1 of max_j |Δq_j| / bound_j (k-d tree, L∞)."""
+    """min over feasible state pairs of waypoints k and k + 1 of max_j |Δq_j| / bound_j (k-d tree, L∞); inf when
+    above :data:`NEAR_MISS`."""
     from scipy.spatial import cKDTree
 
     layers = grid.layers(k, k + 2)
@@ -314,7 +315,7 @@ def _closest_ratio(grid: Grid, tr: dp.Transitions, k: int) -> float:
     a, b = (layers.q[i][layers.ok[i]].reshape(-1, n) / tr.step[k] for i in (0, 1))
     if not len(a) or not len(b):
         return np.inf
-    return float(cKDTree(b).query(a, k=1, p=np.inf)[0].min())
+    return float(cKDTree(b).query(a, k=1, p=np.inf, distance_upper_bound=NEAR_MISS * (1 + 1e-9))[0].min())
 
 
 def _better(new: dp.DPResult, old: dp.DPResult) -> bool:
