@@ -32,8 +32,8 @@ class Fact:
     distance: float
 
     def __str__(self) -> str:
-        touch = "touches" if self.distance < 0 else "is near"
-        return f"{self.link} {touch} {self.obstacle}: {self.distance * 1e3:.0f} mm, constant, not checked"
+        how = "touches" if self.distance < 0 else "to"
+        return f"{self.link} {how} {self.obstacle}: {self.distance * 1e3:.0f} mm, constant, not checked"
 
 
 def probes(q_min: np.ndarray, q_max: np.ndarray) -> np.ndarray:
