@@ -145,7 +145,7 @@ def crosscheck(
     if best.status != "optimal":
         return CrossCheck(best, None, None, np.inf, np.inf, np.inf, np.inf, applicable=False)
     full = solve_full(robot, pose, obj, obs, q_ref, q0=best.q, d_safe=d_safe, starts=1, max_starts=1)
-    velocity = _qp_step(robot, pose, obj, obs, q_ref, best.q, d_safe)
+    velocity, qp_status = _qp_step(robot, pose, obj, obs, q_ref, best.q, d_safe)
     q_gap = float(np.abs(full.q - best.q).max())
     f_gap = float(abs(full.objective - best.objective))
     speed = float(np.abs(velocity).max())
@@ -158,6 +158,8 @@ def crosscheck(
         failures.append(f"(b)'s objective differs by {f_gap:.2e} (> {TOL_F:g})")
     if not full.kkt <= TOL_KKT:
         failures.append(f"(b)'s KKT residual is {full.kkt:.2e} (> {TOL_KKT:g})")
+    if qp_status == "failed":  # its v = 0 would pass the next check: a failure is reported, never hidden
+        failures.append("(c) the QP controller found no solution at (a)'s configuration")
     if not speed <= TOL_V:
         failures.append(f"(c) moves at {speed:.2e} rad/s (> {TOL_V:g})")
     out = CrossCheck(best, full, velocity, q_gap, f_gap, full.kkt, speed, failures)
@@ -172,8 +174,9 @@ def crosscheck(
     return out
 
 
-def _qp_step(robot, pose, obj, obs, q_ref, q, d_safe) -> np.ndarray:
-    """(c): one step of the QP controller at q (daqp, exact) with the target, f as a task, limits and dampers."""
+def _qp_step(robot, pose, obj, obs, q_ref, q, d_safe) -> tuple[np.ndarray, str]:
+    """(c): one step of the QP controller at q (daqp, exact) with the target, f as a task, limits and dampers:
+    its velocity (n,), rad/s, and the step's status (``"failed"``: no QP solution, v = 0)."""
     dt = 0.01
     tasks = [
         FrameTask(pose, 1.0 / dt, 1.0 / dt, FRAME_WEIGHT, FRAME_WEIGHT),
@@ -184,4 +187,5 @@ def _qp_step(robot, pose, obj, obs, q_ref, q, d_safe) -> np.ndarray:
     if len(obs):
         limits.append(ObstacleLimit(obs, d_influence=d_safe + 0.1, d_safe=d_safe, xi=0.5, buffer=0.0))
     ctrl = Controller(robot, tasks, limits, solver="daqp", dt=dt)
-    return ctrl.step(q)
+    v = ctrl.step(q)
+    return v, ctrl.last.status

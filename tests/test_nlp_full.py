@@ -94,7 +94,7 @@ def test_unreachable_and_bad_input():
     far = np.eye(4)
     far[:3, 3] = (2.0, 0.0, 0.5)
     res = solve_full(robot, far, max_starts=3)
-    assert res.status == "unreachable" and res.pose_error > 0.5 and res.starts == 3
+    assert res.status == "not found" and res.pose_error > 0.5 and res.starts == 3
     with pytest.raises(InputError, match="pose"):
         solve_full(robot, np.full((4, 4), np.nan))
     with pytest.raises(InputError, match="pose"):

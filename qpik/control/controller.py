@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from qpik.contacts import capsule_pairs
 from qpik.control.limits import ConfigurationLimit, Limit, ObstacleLimit, VelocityLimit
 from qpik.control.qp import QP, Assembler
 from qpik.control.solvers import Solver, get_solver
@@ -71,8 +72,9 @@ class StepInfo:
             hold, the first of failed, yielding, penetrating, recovering is reported.
         active: names of the constraints at their bound (``"joint3 position upper"``,
             ``"obstacle sphere0 / link4"``, ...).
-        min_clearance: smallest capsule–obstacle signed distance, m, over the capsules a joint moves
-            (inf without obstacles).
+        min_clearance: smallest capsule–obstacle signed distance, m, over the pairs :mod:`qpik.contacts`
+            checks (not those whose distance no joint motion changes: a base column on its table;
+            inf without such pairs).
         relaxation: 0 if the QP was solved as built; else the part of the separating rows'
             demand that was dropped (3/4, 15/16, or 1: only approach is forbidden, which
             ``v = 0`` meets) when they conflicted (failure policy, step 4).
@@ -169,7 +171,9 @@ class Controller:
         # one compiled call per step: the QP and the step's summary (_summary)
         self.assembler = Assembler(robot, self.tasks, self.limits, self.dt, self._summary)
         summary = self.assembler.extra  # views, refilled by every build
-        self._clearance, self._past, self._task_error = summary.clearance, summary.past, summary.task_error
+        self._past, self._task_error = summary.past, summary.task_error
+        self._pairs = [(summary[f"pairs{k}"], capsule_pairs(robot, lim.obstacles)[~robot.fixed_capsules].ravel())
+                       for k, lim in enumerate(self.obstacle_limits)]  # fmt: skip
         self._d_safe = [lim.d_safe for lim in self.obstacle_limits]
         self.last = StepInfo()
 
@@ -208,6 +212,7 @@ class Controller:
             DampingTask(number(damping, "damping")),
         ]
         limits: list[Limit] = [ConfigurationLimit(margin), VelocityLimit()]
+        d_safe = number(d_safe, "d_safe")  # m, >= 0
         obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
         if len(obstacles):
             limits.append(ObstacleLimit(obstacles, d_influence, d_safe, xi))
@@ -222,16 +227,15 @@ class Controller:
                 task.set_target(q_ref)
 
     def _summary(self, s: SymState) -> dict[str, ca.SX]:
-        """The step's summary, computed in the compiled call: ``clearance``, per :class:`ObstacleLimit` its
-        smallest capsule–obstacle distance (m; inf without pairs) over the capsules a joint moves
-        (:attr:`~qpik.robots.robot.Robot.fixed_capsules` are left out); ``past``, 1.0 if q is past a
-        :class:`ConfigurationLimit`'s range (else 0.0); ``task_error``, the norm of the first
-        :class:`FrameTask`'s pose error ``[m; rad]`` (nan without one)."""
-        clearance = []
-        for lim in self.obstacle_limits:
+        """The step's summary, computed in the compiled call: ``pairs<k>``, per :class:`ObstacleLimit` k the
+        distances (m) of its capsule–obstacle pairs over the capsules a joint moves
+        (:attr:`~qpik.robots.robot.Robot.fixed_capsules` are left out; :meth:`step` keeps the pairs
+        :mod:`qpik.contacts` checks); ``past``, 1.0 if q is past a :class:`ConfigurationLimit`'s range (else 0.0);
+        ``task_error``, the norm of the first :class:`FrameTask`'s pose error ``[m; rad]`` (nan without one)."""
+        out = {}
+        for k, lim in enumerate(self.obstacle_limits):
             moving = np.repeat(~self.robot.fixed_capsules, len(lim.obstacles))  # pair (c, o) at c·O + o
-            d = lim.distances_expr(s)[np.flatnonzero(moving).tolist()]
-            clearance.append(ca.mmin(d) if d.numel() else ca.inf)
+            out[f"pairs{k}"] = lim.distances_expr(s)[np.flatnonzero(moving).tolist()]
         past = ca.SX(0.0)
         for lim in self.config_limits:
             p = s.params_of(lim)
@@ -239,7 +243,7 @@ class Controller:
         error = ca.SX(np.nan)
         if self.frame_task is not None:
             error = ca.norm_2(self.frame_task.error_expr(s, s.params_of(self.frame_task)))
-        return {"clearance": ca.vertcat(*clearance), "past": past > 0, "task_error": error}
+        return {**out, "past": past > 0, "task_error": error}
 
     def step(self, q: np.ndarray, target: np.ndarray | None = None, twist: np.ndarray | None = None) -> np.ndarray:
         """One control step: the joint velocity v (n,), rad/s, for configuration ``q`` (n,), rad.
@@ -286,7 +290,8 @@ class Controller:
                 raise SolverError(f"{self.solver.name}: no solution ({sol.status})")
             v = np.zeros(self.robot.dof)
             info.status = "failed"
-        clearances, past, info.task_error = self._clearance.tolist(), self._past[0], float(self._task_error[0])
+        clearances = [float(d[c].min(initial=np.inf)) for d, c in self._pairs]
+        past, info.task_error = self._past[0], float(self._task_error[0])
         if clearances:
             info.min_clearance = min(clearances)
         if info.status == "ok":

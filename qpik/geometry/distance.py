@@ -157,6 +157,10 @@ class ObstacleSet:
                 packed.append(_params(sh))
             except InputError as exc:
                 raise InputError(f"obstacles[{i}]: {exc}") from None
+        names = [sh.name for sh in self.shapes if sh.name]
+        twice = sorted({x for x in names if names.count(x) > 1})
+        if twice:
+            raise InputError(f"obstacles: names must be unique, {twice} given more than once")
         self.kinds: tuple[str, ...] = tuple(k for k, _ in packed)
         self.params: np.ndarray = np.concatenate([p for _, p in packed]) if packed else np.zeros(0)
         """All parameters in shape order (the compiled path's input)."""

@@ -16,7 +16,8 @@ evaluated on that branch, which is the branch's own optimum only for the best br
 Statuses: ``"optimal"`` (the best point found; :attr:`BestResult.certified` says whether it is
 proved global), ``"unreachable"`` (no branch reaches the pose at any parameter),
 ``"no feasible branch"`` (reachable, but not inside the limits and clear of the obstacles),
-``"solver failed"`` (a numerical failure, with the reason in :attr:`BestResult.message`).
+``"solver failed"`` (a numerical failure, or an answer that fails its own check at q: FK, limits,
+clearance; the reason in :attr:`BestResult.message`).
 Every result's q is a finite configuration: for a status other than ``"optimal"`` it is the
 fallback of :func:`least_violating` (its objective is +inf, :attr:`BestResult.violation` says how
 far it is from a solution). Outputs never hold NaN.
@@ -44,6 +45,8 @@ from qpik.robots.robot import Robot, as_robot
 from qpik.validate import finite_array, flag, number
 from qpik.validate import pose as check_pose
 
+VERIFY_TOL = 1e-9
+"""m and rad: an ``"optimal"`` answer's FK reaches the pose to this (:func:`_verify`)."""
 STATUSES = ("optimal", "unreachable", "no feasible branch", "solver failed")
 METHODS = ("auto", "levelset", "search", "ipopt")
 VIOLATION_SAMPLES = 720
@@ -336,9 +339,33 @@ def solve_best(
             results = [least_violating(scene, i, None, "solver failed", why) for i in range(len(T))]
     elapsed = scene.watch.stop() / len(T)  # the clock stops while functions are built (Scene.build_search)
     quantity = obj.quantity
+    for r, Tk in zip(results, T):
+        _verify(robot, Tk, r, obs, d_safe)
     for r in results:
         r.time, r.quantity = elapsed, quantity
     return BestResults(results, n) if batched else results[0]
+
+
+def _verify(robot: Robot, T: np.ndarray, r: BestResult, obstacles: ObstacleSet, d_safe: float) -> None:
+    """An ``"optimal"`` result is measured at its q: FK reaches T (:data:`VERIFY_TOL`), every joint inside its
+    limits, clearance ≥ d_safe over the pairs :mod:`qpik.contacts` checks; one that fails becomes
+    ``"solver failed"`` naming the check."""
+    if r.status != "optimal":
+        return
+    from qpik.contacts import capsule_clearance
+    from qpik.sim.log import tracking_errors
+
+    pos, rot = tracking_errors(robot.fk(r.q), T)
+    fails = []
+    if not (pos <= VERIFY_TOL and rot <= VERIFY_TOL):
+        fails.append(f"FK misses the pose by {float(pos):.2e} m, {float(rot):.2e} rad")
+    if np.any(r.q < robot.q_min) or np.any(r.q > robot.q_max):
+        fails.append("a joint is outside its limits")
+    if len(obstacles) and float(capsule_clearance(robot, r.q[None], obstacles)[0]) < d_safe - 1e-9:
+        fails.append(f"clearance below d_s = {d_safe:g} m")
+    if fails:
+        r.status, r.objective, r.certified, r.gap = "solver failed", math.inf, False, math.inf
+        r.message = "the answer fails its check: " + "; ".join(fails)
 
 
 def _rows(sm, branches) -> list[int]:

@@ -58,9 +58,10 @@ class FullResult:
     """The answer of :func:`solve_full`.
 
     Attributes:
-        status: ``"optimal"`` (reached the pose; with an objective, the best start's local
-            minimum), ``"unreachable"`` (no start reached it), ``"solver failed"`` (IPOPT failed from
-            every start; the reason in ``message``).
+        status: ``"optimal"`` (reached the pose, inside the limits and clear of the obstacles, checked at q;
+            with an objective, the best start's local minimum), ``"unreachable"`` (proved: an arm with a
+            closed form whose exact feasible set at the pose is empty), ``"not found"`` (no start reached it;
+            nothing proved), ``"solver failed"`` (IPOPT failed from every start; the reason in ``message``).
         q: (n,) configuration, rad (the start's end point with the smallest pose error if not reached;
             the first start, clipped into the limits, if the solver failed).
         objective: the objective at q (0 for a pure IK; +inf if the solver failed).
@@ -157,7 +158,7 @@ def solve_full(
         d_safe: m.
         starts: with an objective, starts solved (the best one that reaches the pose wins; more
             if none has reached it yet). A pure IK stops at the first that reaches it.
-        max_starts: most starts tried before giving up (``"unreachable"``).
+        max_starts: most starts tried before giving up (``"not found"``, or ``"unreachable"`` when proved).
         seed: seed of the random starts.
 
     Raises:
@@ -206,11 +207,23 @@ def solve_full(
         return FullResult("solver failed", q, np.inf, np.inf, np.inf, np.inf, tried, iters, elapsed,
                           f"every start failed ({failure})")  # fmt: skip
     q, value, kkt, clear = best
-    status = "optimal" if best_err < REACHED else "unreachable"
-    msg = (
-        "" if status == "optimal" else f"no start reached the pose (smallest error {best_err:.3g} after {tried} starts)"
-    )
-    return FullResult(status, q, value, best_err, kkt, clear, tried, iters, elapsed, msg)
+    inside = bool(np.all(q >= robot.q_min) and np.all(q <= robot.q_max))
+    if best_err < REACHED and inside and clear >= d_safe - 1e-9:
+        return FullResult("optimal", q, value, best_err, kkt, clear, tried, iters, elapsed, "")
+    msg = f"no start reached the pose (smallest error {best_err:.3g} after {tried} starts)"
+    if best_err < REACHED:
+        msg = f"the best point found fails its check: {'clearance' if inside else 'joint limits'}"
+    return FullResult(_not_found(robot, T), q, value, best_err, kkt, clear, tried, iters, elapsed, msg)
+
+
+def _not_found(robot: Robot, T: np.ndarray) -> str:
+    """``"unreachable"`` when proved (a closed form's exact feasible set at T is empty), else ``"not found"``."""
+    if robot.closed_form is None:
+        return "not found"
+    from qpik.analytic import feasible_intervals
+
+    fi = feasible_intervals(robot, T)
+    return "not found" if any(fi.intervals) else "unreachable"
 
 
 def _starts(robot: Robot, T: np.ndarray, first: np.ndarray, seed: int):

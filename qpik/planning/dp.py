@@ -39,8 +39,6 @@ from qpik.planning.grid import Grid, Layers
 
 CHUNK = 32
 """Waypoints whose states are evaluated per call of :meth:`Grid.layers`."""
-BLOCK = 256
-"""Source states per block when every pair of two waypoints is checked (:meth:`_Step.full`)."""
 
 
 @dataclass
@@ -64,10 +62,14 @@ class Transitions:
 
 @dataclass
 class Failure:
-    """Why no continuous plan exists: the first waypoint that cannot be reached and why (words)."""
+    """Why the DP found no plan: the first waypoint that cannot be reached and why (words).
+
+    ``kind``: ``"infeasible"`` when the exact feasible set of that waypoint is empty (no branch reaches the
+    pose inside the joint limits at any parameter: a proof), ``"grid"`` otherwise (only the grid failed)."""
 
     waypoint: int
     reason: str
+    kind: str = "grid"
 
 
 @dataclass
@@ -133,7 +135,7 @@ def solve(grid: Grid, tr: Transitions, window: int, fewest: bool) -> DPResult:
     V = np.where(ok0, tr.point[0] * f0, np.inf)
     J = np.zeros((B, G), np.int64)
     vel = np.zeros((B, G, q0.shape[-1])) if tr.a_max is not None else None
-    failure = None if ok0.any() else Failure(0, _empty(grid, layers, 0))
+    failure = None if ok0.any() else _empty_failure(grid, layers, 0)
     last = N - 1 if failure is None else -1
     for k in range(N - 1 if failure is None else 0):
         qa, _, _ = layers(k)
@@ -142,6 +144,8 @@ def solve(grid: Grid, tr: Transitions, window: int, fewest: bool) -> DPResult:
         Vn, Jn, s = step.banded(V, J, offsets)
         if not np.isfinite(Vn).any() and okb.any():
             Vn, Jn, s = step.full(V, J)  # the band lost every state: every pair
+        elif okb.any():  # across branches too: they meet at the singular positions
+            Vn, Jn, s = _merge((Vn, Jn, s), step.full(V, J, cross=True))
         jump = np.zeros((B, G), bool)
         if fewest:
             Vn, Jn, s, jump = _jumps(V, J, Vn, Jn, s, okb, tr.point[k + 1] * fb)
@@ -212,35 +216,73 @@ class _Step:
                            Jn.ctypes.data, s.ctypes.data)  # fmt: skip
         return Vn, Jn, s
 
-    def full(self, V, J):
-        """Every reachable source state against every feasible destination (any branch), in blocks of
-        :data:`BLOCK` sources; also the pair that comes closest to the bounds (for :func:`_failure`):
-        ``(largest step over its bound, source flat index, destination flat index)``."""
+    def full(self, V, J, cross: bool = False):
+        """Every reachable source state against every feasible destination (any branch; ``cross``: of another
+        branch only): the pairs within the joint-step bounds are found by k-d trees (scipy's ``cKDTree``, L∞
+        metric on the moves scaled by their bounds; one tree per branch with ``cross``, so that branches far
+        apart are pruned at once), so the cost grows with the pairs that fit, not with all pairs. Also keeps
+        what :attr:`closest` needs."""
+        from scipy.spatial import cKDTree
+
         B, G = self.B, self.G
+        n = self.qa.shape[-1]
         best = (np.full((B, G), np.inf), np.zeros((B, G), np.int64), np.full((B, G), -1))
-        closest = (np.inf, -1, -1)
         live = np.flatnonzero(np.isfinite(V.reshape(-1)))
         dest = np.flatnonzero(self.okb.reshape(-1))
-        qa_all, qb = self.qa.reshape(B * G, -1), self.qb.reshape(B * G, -1)[dest]
-        for start in range(0, len(live), BLOCK):
-            src = live[start : start + BLOCK]
-            D = qb[None] - qa_all[src][:, None]  # (L, M, n)
-            ratio = (np.abs(D) / self.lim).max(axis=-1)
-            a, m = np.unravel_index(int(np.argmin(ratio)), ratio.shape)
-            if ratio[a, m] < closest[0]:
-                closest = (float(ratio[a, m]), int(src[a]), int(dest[m]))
-            flat = np.broadcast_to(src[:, None], D.shape[:-1])
-            c = np.full((len(src), B * G), np.inf)
-            c[:, dest] = self._cost(V, D, flat)
-            Jc = np.zeros((len(src), B * G), np.int64)
-            Jc[:, dest] = J.reshape(-1)[flat]
-            shape = (len(src), B, G)
-            cand = self._pick(c.reshape(shape), Jc.reshape(shape), np.broadcast_to(src[:, None, None], shape), 0)
-            better = (cand[1] < best[1]) | ((cand[1] == best[1]) & (cand[0] < best[0])) | ~np.isfinite(best[0])
-            better &= np.isfinite(cand[0])
-            best = tuple(np.where(better, x, y) for x, y in zip(cand, best))
-        self.closest = closest
-        return best
+        self._closest = None
+        if not len(live) or not len(dest):
+            return best
+        qa = self.qa.reshape(B * G, n)[live] / self.lim
+        tree = cKDTree(self.qb.reshape(B * G, n)[dest] / self.lim)
+        self._closest = (tree, qa, live, dest)
+        if cross:
+            src, dst = self._cross(live, dest)
+        else:
+            pairs = cKDTree(qa).sparse_distance_matrix(tree, 1.0 + 1e-12, p=np.inf, output_type="ndarray")
+            src, dst = live[pairs["i"]], dest[pairs["j"]]
+        if not len(src):
+            return best
+        D = self.qb.reshape(B * G, n)[dst] - self.qa.reshape(B * G, n)[src]
+        c = self._cost(V, D, src) + self.wp * self.fb.reshape(-1)[dst]
+        jumps = J.reshape(-1)[src]
+        keep = np.isfinite(c)
+        src, dst, c, jumps = src[keep], dst[keep], c[keep], jumps[keep]
+        order = np.lexsort((c, jumps, dst))  # per destination: fewest jumps, then least value
+        first = np.ones(len(order), bool)
+        first[1:] = dst[order][1:] != dst[order][:-1]
+        pick = order[first]
+        Vn, Jn, s = (x.reshape(-1).copy() for x in best)
+        Vn[dst[pick]], Jn[dst[pick]], s[dst[pick]] = c[pick], jumps[pick], src[pick]
+        return Vn.reshape(B, G), Jn.reshape(B, G), s.reshape(B, G)
+
+    def _cross(self, live: np.ndarray, dest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Flat (source, destination) pairs within the bounds whose branches differ."""
+        from scipy.spatial import cKDTree
+
+        n = self.qa.shape[-1]
+        rows_a, rows_b = live // self.G, dest // self.G
+        trees_a = {b: (live[rows_a == b], cKDTree(self.qa.reshape(-1, n)[live[rows_a == b]] / self.lim))
+                   for b in np.unique(rows_a)}  # fmt: skip
+        trees_b = {b: (dest[rows_b == b], cKDTree(self.qb.reshape(-1, n)[dest[rows_b == b]] / self.lim))
+                   for b in np.unique(rows_b)}  # fmt: skip
+        src, dst = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+        for a, (ia, ta) in trees_a.items():
+            for b, (ib, tb) in trees_b.items():
+                if a != b:
+                    pairs = ta.sparse_distance_matrix(tb, 1.0 + 1e-12, p=np.inf, output_type="ndarray")
+                    src.append(ia[pairs["i"]]), dst.append(ib[pairs["j"]])
+        return np.concatenate(src), np.concatenate(dst)
+
+    @property
+    def closest(self) -> tuple[float, int, int]:
+        """After :meth:`full`: the pair that comes closest to the bounds, ``(largest step over its bound, source
+        flat index, destination flat index)``."""
+        if self._closest is None:
+            return (np.inf, -1, -1)
+        tree, qa, live, dest = self._closest
+        ratio, m = tree.query(qa, k=1, p=np.inf)
+        a = int(np.argmin(ratio))
+        return (float(ratio[a]), int(live[a]), int(dest[m[a]]))
 
     def _pick(self, c, Jc, flat, axis: int):
         """Per destination (b, j), the candidate along ``axis`` of fewest jumps, then least value."""
@@ -254,6 +296,12 @@ class _Step:
         s = np.take_along_axis(np.broadcast_to(flat, c.shape), best, axis).squeeze(axis)
         live = np.isfinite(V)
         return V, np.where(live, Jmin.squeeze(axis), 0), np.where(live, s, -1)
+
+
+def _merge(a, b):
+    """Per destination, the better of two (V, J, source) candidates: fewest jumps, then least value."""
+    better = np.isfinite(b[0]) & (~np.isfinite(a[0]) | (b[1] < a[1]) | ((b[1] == a[1]) & (b[0] < a[0])))
+    return tuple(np.where(better, y, x) for x, y in zip(a, b))
 
 
 def _jumps(V, J, Vn, Jn, s, okb, fb):
@@ -294,23 +342,35 @@ def _empty(grid: Grid, layers: _Layers, k: int) -> str:
     """Why waypoint k has no feasible state (words)."""
     sym = "δ" if grid.param_name == "delta" else "ψ"
     if not grid.inside[k].any():
-        if not any(grid.intervals[k].intervals[b] for b in range(grid.rows)):
+        if _proved_empty(grid, k):
             return f"no branch reaches this pose with every joint inside its limits at any {sym}"
         return f"its feasible {sym} intervals hold no grid value (narrower than the grid step {grid.spacing:.3g} rad)"
     return (f"every configuration inside the joint limits is closer than d_s = {grid.d_safe:g} m to an obstacle"
             f" (at the {grid.G} grid values of {sym})")  # fmt: skip
 
 
+def _proved_empty(grid: Grid, k: int) -> bool:
+    """Whether the exact feasible intervals of waypoint k (every branch) are empty."""
+    return not any(grid.intervals[k].intervals[b] for b in range(grid.rows))
+
+
+def _empty_failure(grid: Grid, layers: _Layers, k: int) -> Failure:
+    """Waypoint k has no feasible grid state: a proof when its exact feasible set is empty."""
+    kind = "infeasible" if _proved_empty(grid, k) else "grid"
+    return Failure(k, _empty(grid, layers, k), kind)
+
+
 def _failure(grid: Grid, layers: _Layers, step: _Step, k: int, V: np.ndarray) -> Failure:
     """Why waypoint k + 1 cannot be reached from the states reachable at waypoint k (after :meth:`_Step.full`)."""
     if not step.okb.any():
-        return Failure(k + 1, _empty(grid, layers, k + 1))
+        return _empty_failure(grid, layers, k + 1)
     _, a, b = step.closest
     n = step.qa.shape[-1]
     d = np.abs(step.qb.reshape(-1, n)[b] - step.qa.reshape(-1, n)[a])
     j = int(np.argmax(d / step.lim))
-    return Failure(k + 1, f"no feasible configuration within the joint-step bounds of one reachable at waypoint {k}:"
-                          f" the smallest move needs joint {j + 1} to move {d[j]:.3g} rad"
+    return Failure(k + 1, f"the grid ({grid.G} values per branch) holds no state within the joint-step bounds of"
+                          f" one reachable at waypoint {k} (the grid failed; a motion between its values may exist):"
+                          f" the smallest move on the grid needs joint {j + 1} to move {d[j]:.3g} rad"
                           f" (bound {step.lim[j]:.3g} rad)")  # fmt: skip
 
 
@@ -322,7 +382,11 @@ def _library() -> ctypes.CDLL | None:
         return None
     dll = ctypes.CDLL(str(lib))
     fn = dll.qpik_dp_banded
-    fn.argtypes = [ctypes.c_longlong] * 4 + [ctypes.c_void_p] * 8 + [ctypes.c_double] * 2 + [
-        ctypes.c_void_p, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
+    fn.argtypes = (
+        [ctypes.c_longlong] * 4
+        + [ctypes.c_void_p] * 8
+        + [ctypes.c_double] * 2
+        + [ctypes.c_void_p, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
+    )
     fn.restype = None
     return dll

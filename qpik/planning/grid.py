@@ -39,12 +39,15 @@ from qpik.analytic import feasible_intervals, solver_for
 from qpik.analytic.intervals import FeasibleIntervals, wrap
 from qpik.build import shared_library
 from qpik.compiled import Compiled, NativeFunction, RowMap
+from qpik.contacts import capsule_pairs
 from qpik.errors import SolverError
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.selfmotion import MIRRORED
 from qpik.objectives import Context, Objective
 from qpik.robots.robot import Robot
 
+UNCHECKED = 1e6
+"""m added to the distance of a pair :mod:`qpik.contacts` leaves out (no motion changes it)."""
 ROW_CHUNKS = (64, 16)
 """Rows (waypoint, parameter value) per call of the compiled state function."""
 
@@ -172,9 +175,11 @@ class Grid:
         T, psi = ca.SX.sym("T", 4, 4), ca.SX.sym(self.param_name)
         p = ca.SX.sym("p", self.objective_params.size)
         q_ref = ca.SX.sym("q_ref", n)
-        prm = ca.SX.sym("obstacles", self.obstacles.params.size)
+        size = self.obstacles.params.size
+        prm = ca.SX.sym("obstacles", self.obstacle_input.size)  # the obstacles' parameters, then the pair mask
         Q, valid, _ = self.solver.casadi_function(T, psi)
-        contexts = [Context(robot, Q[b, :].T, q_ref, self.obstacles, prm) for b in range(self.rows)]
+        contexts = [Context(robot, Q[b, :].T, q_ref, self.obstacles, prm[:size]) for b in range(self.rows)]
+        unchecked = (1.0 - prm[size:]) * UNCHECKED  # a pair qpik.contacts leaves out counts as far away
         root, _ = self.clearance_sources
         out = []
         for b, ctx in enumerate(contexts):
@@ -182,10 +187,17 @@ class Grid:
             for j in range(n):
                 ok = ok * (ctx.q[j] >= robot.q_min[j]) * (ctx.q[j] <= robot.q_max[j])
             f = self.objective.expr(ctx, p) if self.objective is not None else ca.SX(0.0)
-            d = ca.mmin(ctx.distances) if len(self.obstacles) and root[b] == b else ca.SX(np.inf)
+            d = ca.mmin(ctx.distances + unchecked) if len(self.obstacles) and root[b] == b else ca.SX(np.inf)
             out.append(ca.vertcat(ctx.q, ok, f, d))
         name = f"plan_states_{self.solver.kind}_{robot.identifier}"
         return ca.Function(name, [T, psi, p, q_ref, prm], [ca.densify(ca.vertcat(*out))])
+
+    @cached_property
+    def obstacle_input(self) -> np.ndarray:
+        """The function's obstacle input: the obstacles' parameters, then per pair of :attr:`Context.distances`
+        (capsules a joint moves × obstacles) 1.0 if :mod:`qpik.contacts` checks it, else 0.0."""
+        mask = capsule_pairs(self.robot, self.obstacles)[~self.robot.fixed_capsules].ravel()
+        return np.concatenate([self.obstacles.params, mask.astype(float)])
 
     @cached_property
     def clearance_sources(self) -> tuple[np.ndarray, np.ndarray]:
@@ -240,7 +252,7 @@ class Grid:
         cols = np.swapaxes(self.poses[ks], 1, 2).reshape(len(ks), 16)
         out = np.empty((len(ks), n))
         for m, (T, value, b) in enumerate(zip(cols, self.values[index], rows)):
-            (row,) = call(T, np.array([value]), self.objective_params, self.q_ref, self.obstacles.params)
+            (row,) = call(T, np.array([value]), self.objective_params, self.q_ref, self.obstacle_input)
             out[m] = row[b * (n + 3) : b * (n + 3) + n]
         return out
 
@@ -276,7 +288,7 @@ class Grid:
         if self._native is not None:
             return self._native(cols, self.inside[k0:k1])
         (out,) = self._rows(np.repeat(cols, G, axis=0), np.tile(self.values, K), self.objective_params, self.q_ref,
-                            self.obstacles.params)  # fmt: skip
+                            self.obstacle_input)  # fmt: skip
         out = out.reshape(K, G, B, n + 3)
         root, shift = self.clearance_sources
         clear = out[:, (np.arange(G)[None, :] + shift[:, None]) % G, root[:, None], n + 2]  # (K, B, G)
@@ -296,7 +308,7 @@ class _NativeLayers:
         self.root, self.shift = (np.ascontiguousarray(x, np.int64) for x in grid.clearance_sources)
         self._clear, self._need = np.zeros((self.B, self.G)), np.zeros(self.G, np.uint8)
         fixed, psi, out = pre.args[0], row.args[2], row.res[0]  # fixed = [pose (16, set per waypoint), parameters]
-        fixed[16:] = np.concatenate([grid.objective_params, grid.q_ref, grid.obstacles.params])
+        fixed[16:] = np.concatenate([grid.objective_params, grid.q_ref, grid.obstacle_input])
         self._head = (*pre.addresses, *row.addresses, fixed.ctypes.data, psi.ctypes.data, out.ctypes.data)
 
     @classmethod

@@ -11,6 +11,10 @@ were found:
   (:func:`qpik.sim.build_scene`; the twin of a catalog arm, the model of a loaded one), within
   :data:`CLEARANCE_TOL`;
 - every continuous transition moves each joint by at most its bound.
+
+Both clearances are over the pairs :mod:`qpik.contacts` checks: a pair whose distance no joint motion
+changes (a base column standing on its table) is left out and reported in :attr:`Plan.facts`.
+A plan whose check fails is ``"failed"`` (kind ``"check"``), whatever made it (:func:`measure`).
 """
 
 from __future__ import annotations
@@ -24,12 +28,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from qpik.contacts import capsule_clearance, capsule_facts
 from qpik.errors import InputError
 from qpik.geometry.distance import ObstacleSet
-from qpik.objectives import clearance
 from qpik.robots.robot import Robot
 from qpik.sim.log import tracking_errors
-from qpik.validate import finite_array
+from qpik.validate import count, finite_array
 
 if TYPE_CHECKING:
     from qpik.planning.planner import Setup
@@ -49,6 +53,8 @@ class Check:
     name: str
     ok: bool
     text: str
+    waypoint: int = -1
+    """The first waypoint where it fails (-1: it holds, or it is not a per-waypoint figure)."""
 
 
 @dataclass
@@ -93,14 +99,22 @@ class Plan:
     Attributes:
         robot: the arm; poses: (N, 4, 4) the waypoints (base frame); times: (N,) s, or None.
         progress: (N,) path progress in [0, 1] (or the times, s, when given).
-        q: (K, n) the configuration at each planned waypoint, rad (K = N unless the plan failed).
+        q: (K, n) the configuration at each planned waypoint, rad (K = N unless the plan failed before the
+            last waypoint; a plan that fails a check keeps all its configurations).
         param: (K,) the redundancy parameter (δ or ψ, rad, wrapped) and branch: (K,) the public branch id
             of each configuration (both empty for an arm without a closed form).
         param_name: ``"delta"``, ``"psi"`` or ``""``.
-        status: ``"optimal"`` (the NLP improved the DP's plan), ``"dp"`` (the DP's plan: the NLP did not
-            improve it or was not run), ``"tracking"`` (the QP controller's run, refined by the NLP for an
-            arm without a closed form) or ``"failed"`` (see :attr:`failure`).
-        failure: the first waypoint that cannot be planned and why, or "".
+        status: ``"optimal"`` (the NLP improved the DP's plan, or refined the QP controller's run of an arm
+            without a closed form), ``"dp"`` (the DP's plan: the NLP did not improve it or was not run),
+            ``"tracking"`` (the QP controller's run of an arm without a closed form) or ``"failed"`` (see
+            :attr:`failure`). The same on every arm, and derived from the checks: a plan is not failed if and
+            only if every waypoint is planned and every one of its :attr:`checks` holds (:func:`measure`).
+        failure: the first waypoint that cannot be planned, or the check that fails and where, and why; or "".
+        failure_kind: ``"infeasible"`` (proved: no configuration of the exact feasible set at that waypoint),
+            ``"grid"`` (every waypoint has feasible configurations but the DP's grid, refined, found no
+            continuous transition: a motion may still exist), ``"check"`` (the computed plan fails one of its
+            own :attr:`checks`) or "" (not failed).
+        facts: the capsule–obstacle pairs left out of the checks (:mod:`qpik.contacts`), in words.
         least_violating: at that waypoint, the best the arm can do (a :class:`qpik.BestResult`'s summary), or "".
         reconfigurations: the waypoints k whose transition to k + 1 is a reconfiguration.
         cost: the objective J of the plan (of its planned waypoints), minimised (the joint motion plus the weighted
@@ -135,6 +149,8 @@ class Plan:
     dp_cost: float = np.inf
     failure: str = ""
     failure_waypoint: int = -1
+    failure_kind: str = ""
+    facts: list[str] = field(default_factory=list)
     least_violating: str = ""
     reconfigurations: list[int] = field(default_factory=list)
     margin: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -155,7 +171,7 @@ class Plan:
 
     @property
     def ok(self) -> bool:
-        """Every waypoint planned and every check holds."""
+        """Every waypoint planned and every check holds (then and only then the status is not ``"failed"``)."""
         return self.status != "failed" and all(c.ok for c in self.checks)
 
     @property
@@ -167,9 +183,10 @@ class Plan:
         return float(d[keep].sum())
 
     def summary(self) -> str:
-        """One line: status, waypoints, reconfigurations, the objective J (minimised)."""
+        """One line: status, waypoints, reconfigurations, the objective J (minimised); when failed, which check
+        or which waypoint and why."""
         if self.status == "failed":
-            return f"failed at waypoint {self.failure_waypoint}: {self.failure}"
+            return f"failed at waypoint {self.failure_waypoint} ({self.failure_kind}): {self.failure}"
         rec = f"{len(self.reconfigurations)} reconfiguration(s)" + (
             f" (after waypoints {', '.join(map(str, self.reconfigurations))})" if self.reconfigurations else ""
         )
@@ -226,11 +243,12 @@ class Plan:
         Args:
             v_max: (n,) joint speed limits, rad/s (default the robot's).
             a_max: (n,) joint acceleration limits, rad/s² (default 4 × v_max per second).
-            samples: samples per segment of the returned :class:`Trajectory`.
+            samples: samples per segment of the returned :class:`Trajectory` (an integer >= 2).
         """
         import toppra
         from toppra import constraint
 
+        samples = count(samples, "samples", 2)
         if self.status == "failed" or len(self.q) < 2:
             raise InputError("plan: only a plan of at least two planned waypoints can be retimed")
         n = self.robot.dof
@@ -268,9 +286,12 @@ class Plan:
 
 
 def measure(plan: Plan, mujoco: bool = True) -> None:
-    """Fill in the plan's per-waypoint figures and its :class:`Check` list (see the module docstring)."""
+    """Fill in the plan's per-waypoint figures and its :class:`Check` list (see the module docstring); a plan
+    that is not failed and whose check fails becomes ``"failed"`` (kind ``"check"``) at that check's first
+    failing waypoint: its status follows from its checks, whatever made it."""
     robot, q = plan.robot, plan.q
     K = len(q)
+    plan.facts = [str(f) for f in capsule_facts(robot, plan.obstacles)]
     if not K:
         plan.checks = []
         return
@@ -282,7 +303,7 @@ def measure(plan: Plan, mujoco: bool = True) -> None:
     plan.manipulability = np.asarray(robot.manipulability(q), float)
     obs = plan.obstacles
     if len(obs):
-        plan.clearance = clearance(robot, q, obs)  # a capsule no joint moves is left out, as in the planner
+        plan.clearance = capsule_clearance(robot, q, obs)  # the pairs qpik.contacts checks
         plan.clearance_mujoco = _mujoco_clearance(robot, obs, q) if mujoco else np.zeros(0)
     else:
         plan.clearance = plan.clearance_mujoco = np.full(K, np.inf)
@@ -290,25 +311,42 @@ def measure(plan: Plan, mujoco: bool = True) -> None:
     keep = np.ones(K - 1, bool)
     keep[[k for k in plan.reconfigurations if k < K - 1]] = False
     plan.max_step_ratio = float(steps[keep].max(initial=0.0))
-    worst_step = float((np.abs(np.diff(q, axis=0)) - plan.step_bound[: K - 1])[keep].max(initial=-np.inf))
-    viol = float(np.maximum(np.maximum(robot.q_min - q, q - robot.q_max), 0.0).max())
+    over = (np.abs(np.diff(q, axis=0)) - plan.step_bound[: K - 1]).max(axis=1)
+    over[~keep] = -np.inf
+    worst_step = float(over.max(initial=-np.inf))
+    outside = np.maximum(np.maximum(robot.q_min - q, q - robot.q_max), 0.0).max(axis=1)
+    viol = float(outside.max())
+    fk_bad = (pos > FK_TOL) | (rot > FK_TOL) | ~np.isfinite(pos) | ~np.isfinite(rot)
     checks = [
-        Check("fk", plan.fk_error[0] <= FK_TOL and plan.fk_error[1] <= FK_TOL,
+        Check("fk", not fk_bad.any(),
               f"FK reproduces every waypoint: max error {plan.fk_error[0]:.2e} m, {plan.fk_error[1]:.2e} rad"
-              f" (≤ {FK_TOL:g})"),
-        Check("limits", viol == 0.0, f"joint limits: max violation {viol:.3g} rad"),
+              f" (≤ {FK_TOL:g})", _first(fk_bad)),
+        Check("limits", viol == 0.0, f"joint limits: max violation {viol:.3g} rad", _first(outside > 0)),
         Check("step", worst_step <= STEP_TOL,
-              f"largest joint step {plan.max_step_ratio:.4g} × its bound (continuous transitions)"),
+              f"largest joint step {plan.max_step_ratio:.4g} × its bound (continuous transitions)",
+              _first(over > STEP_TOL)),
     ]  # fmt: skip
     if len(obs):
         c = float(plan.clearance.min())
         text = f"clearance (capsules): min {c * 1e3:.3f} mm vs d_s = {plan.d_safe * 1e3:g} mm"
-        checks.append(Check("clearance", c >= plan.d_safe - 1e-12, text))
+        close = plan.clearance < plan.d_safe - 1e-12
+        checks.append(Check("clearance", not close.any(), text, _first(close)))
         if mujoco:
             cm = float(plan.clearance_mujoco.min())
             text = f"clearance (MuJoCo mj_geomDistance on the arm's model): min {cm * 1e3:.3f} mm"
-            checks.append(Check("clearance_mujoco", cm >= plan.d_safe - CLEARANCE_TOL, text))
+            close = plan.clearance_mujoco < plan.d_safe - CLEARANCE_TOL
+            checks.append(Check("clearance_mujoco", not close.any(), text, _first(close)))
     plan.checks = checks
+    bad = next((c for c in checks if not c.ok), None)
+    if bad is not None and plan.status != "failed":
+        plan.status, plan.failure_kind, plan.failure_waypoint = "failed", "check", bad.waypoint
+        plan.failure = f"check {bad.name!r} fails (first at waypoint {bad.waypoint}): {bad.text}"
+
+
+def _first(bad: np.ndarray) -> int:
+    """The first index where ``bad`` holds, or -1."""
+    hit = np.flatnonzero(bad)
+    return int(hit[0]) if len(hit) else -1
 
 
 def _mujoco_clearance(robot: Robot, obstacles: ObstacleSet, q: np.ndarray) -> np.ndarray:
@@ -316,9 +354,10 @@ def _mujoco_clearance(robot: Robot, obstacles: ObstacleSet, q: np.ndarray) -> np
     from qpik.sim import build_scene
 
     scene = build_scene(robot, obstacles.shapes)
+    checked = scene.checked  # the pairs qpik.contacts checks
     out = np.empty((len(scene.link_geoms), len(scene.obstacle_geoms)))
     res = np.empty(len(q))
     for k, qk in enumerate(q):
         scene.kin.update(qk)
-        res[k] = scene.clearances(out).min()
+        res[k] = np.where(checked, scene.clearances(out), np.inf).min(initial=np.inf)
     return res

@@ -19,8 +19,13 @@ Arms without a closed form (``zheng7``, ``panda``): the QP controller tracks the
 model (:func:`track`, also the online baseline), and the same NLP over the joints, with the pose as
 an equality at every waypoint, refines its configurations at the waypoints.
 
+Where the grid finds no continuous plan but no waypoint's exact feasible set is empty, the DP is run
+again on grids :data:`REFINE` times finer in turn (near the shoulder and wrist singular positions the
+branch maps turn fast, and a continuous motion may pass between two grid values) before the plan is
+reported failed, of kind ``"grid"``; ``"infeasible"`` only when a waypoint's exact feasible set is empty.
+
 Every plan is measured (:func:`qpik.planning.plan.measure`): FK, joint limits, clearance with the
-capsules and with MuJoCo, joint steps.
+capsules and with MuJoCo, joint steps; a plan whose check fails is ``"failed"`` (kind ``"check"``).
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from qpik.analytic import feasible_intervals
-from qpik.errors import InputError
+from qpik.errors import InputError, UnreachableError
 from qpik.geometry.distance import ObstacleSet
 from qpik.objectives import Evaluator, Objective, ReferenceDistance, resolve
 from qpik.paths import TimedPath, WaypointPath
@@ -46,6 +51,16 @@ from qpik.validate import pose as check_pose
 RECONFIGURE = ("forbid", "fewest")
 WAYPOINTS = 101
 """Waypoints sampled from a timed path when no ``times`` are given."""
+MAX_WAYPOINTS = 10_000
+"""The most waypoints of one plan."""
+MAX_RESOLUTION = 16_384
+"""The largest ``resolution``."""
+MAX_STATES = 4_000_000
+"""The most grid values per branch over the whole path, waypoints × resolution (memory)."""
+REFINE = (4, 16)
+"""Factors of ``resolution`` at which the DP runs again when the grid alone failed (capped by the limits above)."""
+NEAR_MISS = 2.0
+"""A reconfiguration whose closest grid states need at most this many joint-step bounds is tried on finer grids."""
 IMPROVED = 1e-12
 """The NLP's answer replaces the DP's when its objective is lower by more than this (relative)."""
 TRACK_DT = 0.002
@@ -72,6 +87,8 @@ class Setup:
             duration = number(path.duration, "path.duration")
             if times is None:
                 count = int(number(waypoints, "waypoints", 2))
+                if count != waypoints or count > MAX_WAYPOINTS:
+                    raise InputError(f"waypoints: expected an integer in [2, {MAX_WAYPOINTS}], got {waypoints!r}")
                 times = np.linspace(0.0, duration, count)
             poses = np.asarray(path.pose(finite_array(times, "times", (None,))), float)
         else:
@@ -80,6 +97,8 @@ class Setup:
         if not batched or len(T) < 2:
             raise InputError(f"path: expected (N, 4, 4) poses with N >= 2 or a timed path, got shape {np.shape(T)}")
         N = len(T)
+        if N > MAX_WAYPOINTS:
+            raise InputError(f"path: at most {MAX_WAYPOINTS} waypoints, got {N}")
         self.poses = T
         if times is not None:
             times = finite_array(times, "times", (N,)).copy()
@@ -171,8 +190,9 @@ def plan_self_motion(
         d_safe: m. a_max: (n,) or a number, rad/s² (needs ``times``). q_ref: (n,) the reference of the
             ``"distance"`` objective, rad.
         resolution: parameter values per branch in the DP's grid (even, ≥ 8).
-        window: the largest parameter change (rad) between consecutive waypoints the DP searches (default:
-            the largest joint-step bound).
+        window: the largest parameter change (rad) between consecutive waypoints the DP searches on one branch
+            (default: three times the largest joint-step bound, since S-R-S: Σ_{j≤3} |Δq_j| ≥ |Δψ| allows a
+            change of up to three bounds); moves to another branch are searched whatever their size.
         branches: public branch ids the plan may use (None: all).
         refine: run the NLP after the DP.
         waypoints: samples of a timed path without ``times``.
@@ -192,9 +212,11 @@ def plan_self_motion(
     if setup.robot.closed_form is None:
         return _plan_joints(setup, flag(refine, "refine"), flag(mujoco, "mujoco"))
     res = int(number(resolution, "resolution", 8))
-    if res % 2 or res != resolution:
-        raise InputError(f"resolution: expected an even integer >= 8, got {resolution!r}")
-    w = float(setup.tr.step.max()) if window is None else number(window, "window")
+    if res % 2 or res != resolution or res > MAX_RESOLUTION:
+        raise InputError(f"resolution: expected an even integer in [8, {MAX_RESOLUTION}], got {resolution!r}")
+    if res * len(setup.poses) > MAX_STATES:
+        raise InputError(f"resolution: {res} values × {len(setup.poses)} waypoints exceeds {MAX_STATES:g}; use fewer")
+    w = 3.0 * float(setup.tr.step.max()) if window is None else number(window, "window")
     return _plan_closed_form(setup, res, w, branches, reconfigure == "fewest", flag(refine, "refine"),
                              flag(mujoco, "mujoco"))  # fmt: skip
 
@@ -204,19 +226,21 @@ def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fe
     watch = Stopwatch()  # the DP's time: its functions are built with the clock paused
     with watch.paused():
         feasible_intervals(setup.robot, setup.poses[0])  # the exact sets' functions, built on their first call
-    grid = Grid(setup.robot, setup.poses, setup.objective, setup.obstacles, setup.d_safe, resolution, setup.q_ref)
+    grid = _grid(setup, resolution, branches)
     with watch.paused():
         dp.build(grid)
-    if branches is not None:
-        ids = [int(b) for b in np.atleast_1d(finite_array(branches, "branches"))]
-        known = list(grid.solver.branch_ids)
-        bad = [b for b in ids if b not in known]
-        if bad:
-            raise InputError(f"branches: unknown branch id(s) {bad}; the branches are {known}")
-        keep = np.zeros(grid.rows, bool)
-        keep[[known.index(b) % grid.rows for b in ids]] = True
-        grid.inside &= keep[None, :, None]
     result = dp.solve(grid, setup.tr, int(np.ceil(window / grid.spacing)), fewest)
+    for factor in REFINE:  # only the grid failed: finer grids before giving up
+        finer = resolution * factor
+        too_big = finer > MAX_RESOLUTION or finer * len(setup.poses) > MAX_STATES
+        if too_big or not _grid_failed(grid, setup.tr, result, fewest):
+            break
+        with watch.paused():
+            fine = _grid(setup, finer, branches)
+            dp.build(fine)
+        again = dp.solve(fine, setup.tr, int(np.ceil(window / fine.spacing)), fewest)
+        if _better(again, result):
+            grid, result = fine, again
     t_dp = watch.stop()
     sym = grid.param_name
     if result.failure is not None:
@@ -225,6 +249,7 @@ def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fe
         continuous[[j for j in result.reconfigurations if j < k - 1]] = False
         cost = setup.cost(result.q[:k], continuous) if k else 0.0
         plan = setup.plan(result.q[:k], "failed", param_name=sym, failure=result.failure.reason, failure_waypoint=k,
+                          failure_kind=result.failure.kind,
                           least_violating=_least_violating(setup, k), timings={"dp": t_dp}, cost=cost,
                           dp_cost=cost, reconfigurations=[j for j in result.reconfigurations if j < k - 1])  # fmt: skip
         plan.branch, plan.param = _public(grid, result.rows[:k], result.index[:k])
@@ -254,6 +279,51 @@ def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fe
         if better.ok:
             return better
     return plan
+
+
+def _grid(setup: Setup, resolution: int, branches) -> Grid:
+    """The DP's grid of ``resolution`` values per branch, restricted to ``branches`` (public ids, or None)."""
+    grid = Grid(setup.robot, setup.poses, setup.objective, setup.obstacles, setup.d_safe, resolution, setup.q_ref)
+    if branches is not None:
+        ids = [int(b) for b in np.atleast_1d(finite_array(branches, "branches"))]
+        known = list(grid.solver.branch_ids)
+        bad = [b for b in ids if b not in known]
+        if bad:
+            raise InputError(f"branches: unknown branch id(s) {bad}; the branches are {known}")
+        keep = np.zeros(grid.rows, bool)
+        keep[[known.index(b) % grid.rows for b in ids]] = True
+        grid.inside &= keep[None, :, None]
+    return grid
+
+
+def _grid_failed(grid: Grid, tr: dp.Transitions, result: dp.DPResult, fewest: bool) -> bool:
+    """Whether a finer grid may do better: the grid alone failed (no proof), or with ``fewest`` a reconfiguration
+    between two waypoints whose closest feasible states are within :data:`NEAR_MISS` times the joint-step bound
+    (a finer grid may make it a continuous transition; far apart, none can)."""
+    if result.failure is not None:
+        return result.failure.kind == "grid"
+    return fewest and any(_closest_ratio(grid, tr, k) <= NEAR_MISS for k in result.reconfigurations)
+
+
+def _closest_ratio(grid: Grid, tr: dp.Transitions, k: int) -> float:
+    """min over feasible state pairs of waypoints k and k + 1 of max_j |Δq_j| / bound_j (k-d tree, L∞); inf when
+    above :data:`NEAR_MISS`."""
+    from scipy.spatial import cKDTree
+
+    layers = grid.layers(k, k + 2)
+    n = layers.q.shape[-1]
+    a, b = (layers.q[i][layers.ok[i]].reshape(-1, n) / tr.step[k] for i in (0, 1))
+    if not len(a) or not len(b):
+        return np.inf
+    return float(cKDTree(b).query(a, k=1, p=np.inf, distance_upper_bound=NEAR_MISS * (1 + 1e-9))[0].min())
+
+
+def _better(new: dp.DPResult, old: dp.DPResult) -> bool:
+    """Later failure, then fewer reconfigurations."""
+    a, b = (len(r.rows) if r.failure is None else r.failure.waypoint for r in (new, old))
+    if a != b:
+        return a > b
+    return len(new.reconfigurations) < len(old.reconfigurations)
 
 
 def _public(grid: Grid, rows: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -310,13 +380,26 @@ def _plan_joints(setup: Setup, refine: bool, mujoco: bool) -> Plan:
     """An arm without a closed form: the QP controller's tracking run, refined by the NLP over the joints."""
     from qpik.nlp import solve_ik
 
-    q0 = solve_ik(setup.robot, setup.poses[0], setup.robot.q_home)
+    try:
+        q0 = solve_ik(setup.robot, setup.poses[0], setup.robot.q_home)
+    except UnreachableError as exc:  # no proof without a closed form: the plan fails its FK check at waypoint 0
+        plan = setup.plan(
+            np.zeros((0, setup.robot.dof)),
+            "failed",
+            failure=f"check 'fk' fails at waypoint 0: {exc}",
+            failure_waypoint=0,
+            failure_kind="check",
+            label="QP controller (online)",
+        )
+        measure(plan, mujoco)
+        return plan
     watch = Stopwatch()
     q_track, _ = track(setup, q0, watch)
     timings = {"tracking": watch.stop()}
     continuous = np.ones(len(setup.poses) - 1, bool)
-    plan = setup.plan(q_track, "tracking", cost=setup.cost(q_track, continuous), timings=timings,
-                      label="QP controller (online)")
+    plan = setup.plan(
+        q_track, "tracking", cost=setup.cost(q_track, continuous), timings=timings, label="QP controller (online)"
+    )
     measure(plan, mujoco)
     if not refine:
         return plan
@@ -327,4 +410,3 @@ def _plan_joints(setup: Setup, refine: bool, mujoco: bool) -> Plan:
     refined = setup.plan(out.q, "optimal", cost=out.cost, timings=timings, label="NLP", dp_plan=plan)
     measure(refined, mujoco)
     return refined if refined.ok or not plan.ok else plan
-

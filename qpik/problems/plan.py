@@ -242,6 +242,7 @@ def _report(job: PlanJob, robot: Robot, out: Path) -> tuple[str, Plan, bool]:
     else:
         checks.append((f"path planned: failed at waypoint {plan.failure_waypoint}", False))
     lines += [f"- {'PASS' if ok else 'FAIL'}: {text}" for text, ok in checks]
+    lines += [f"- fact: {fact}" for fact in plan.facts]  # pairs no motion changes (qpik.contacts)
     verdict = all(ok for _, ok in checks)
     lines += ["", f"Overall: {'PASS' if verdict else 'FAIL'}", ""]
     files = []

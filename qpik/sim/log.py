@@ -49,6 +49,7 @@ class Summary:
         solve_time: mean, median, 99th percentile and max of the controller's solve time (s),
             empty when the policy reports none.
         statuses: count of each controller status, when the policy reports them.
+        facts: the link–obstacle pairs left out of the clearances (:mod:`qpik.contacts`), in words.
     """
 
     label: str
@@ -64,6 +65,7 @@ class Summary:
     max_velocity_ratio: float
     solve_time: dict[str, float] = field(default_factory=dict)
     statuses: dict[str, int] = field(default_factory=dict)
+    facts: tuple[str, ...] = ()
 
     def __str__(self) -> str:
         lines = [f"{self.label}:"]
@@ -76,6 +78,7 @@ class Summary:
         if self.min_clearance.size:
             per_link = ", ".join(f"{n} {d * 1e3:.1f}" for n, d in zip(self.link_names, self.min_clearance))
             lines.append(f"  min clearance (mm): {per_link}")
+        lines += [f"  not checked: {f}" for f in self.facts]
         lines.append(
             f"  joint limits: min margin {self.min_limit_margin:.4g} rad, max violation {self.max_limit_violation:.3g}"
             f" rad; max |v|/v_max {self.max_velocity_ratio:.3g}"
@@ -116,6 +119,9 @@ class SimLog:
         robot: an object the model was built from (a :class:`qpik.Robot` or the MJCF kinematics),
             used to redraw the run.
         obstacles: the obstacle shapes of the run (world frame).
+        checked: (L, O) bool, the pairs that count in :attr:`min_clearance` (:mod:`qpik.contacts`: not those
+            whose distance no joint motion changes), or ``None``: every pair.
+        facts: the pairs left out, each with its constant distance, in words.
     """
 
     t: np.ndarray
@@ -137,6 +143,8 @@ class SimLog:
     label: str = "run"
     robot: object = None
     obstacles: tuple = ()
+    checked: np.ndarray | None = None
+    facts: tuple[str, ...] = ()
 
     def __len__(self) -> int:
         return len(self.t)
@@ -151,10 +159,13 @@ class SimLog:
 
     @property
     def min_clearance(self) -> np.ndarray:
-        """(K, L) distance of each link to its nearest obstacle (m); (K, 0) without obstacles."""
+        """(K, L) distance of each link to its nearest obstacle over the checked pairs (m; inf for a link
+        without one); (K, 0) without obstacles."""
         if self.clearance.shape[2] == 0:
             return np.zeros(self.clearance.shape[:2])[:, :0]
-        return self.clearance.min(axis=2)
+        if self.checked is None:
+            return self.clearance.min(axis=2)
+        return np.where(self.checked[None], self.clearance, np.inf).min(axis=2)
 
     @property
     def limit_margin(self) -> np.ndarray:
@@ -194,4 +205,5 @@ class SimLog:
             max_velocity_ratio=ratio,
             solve_time=times,
             statuses={str(k): int(c) for k, c in zip(kinds, counts)},
+            facts=self.facts,
         )

@@ -27,10 +27,12 @@ import os
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import mujoco
 import numpy as np
 
+from qpik.contacts import geom_facts, geom_pairs
 from qpik.errors import InputError
 from qpik.geometry.distance import ObstacleSet
 from qpik.geometry.shapes import Shape
@@ -73,6 +75,12 @@ class Scene:
     obstacle_names: tuple[str, ...]
     obstacles: tuple[Shape, ...]
     robot: Robot | None = None
+
+    @cached_property
+    def checked(self) -> np.ndarray:
+        """(L, O) bool: the link-geom–obstacle pairs that are checked (:func:`qpik.contacts.geom_pairs`: not
+        those whose distance no joint motion changes, a base column on its table)."""
+        return geom_pairs(self)
 
     def clearances(self, out: np.ndarray) -> np.ndarray:
         """Signed distances (m) (L, O) of link to obstacle geoms at the current ``kin.data`` state."""
@@ -239,8 +247,10 @@ def simulate(
         raise InputError(f"q0: expected shape ({n},), got {q0.shape}")
     dt = float(finite_array(dt, "dt", ()))
     duration = float(finite_array(duration, "duration", ()))
-    if dt <= 0 or duration < 0:
-        raise InputError(f"dt must be > 0 and duration >= 0, got dt={dt}, duration={duration}")
+    if dt <= 0:
+        raise InputError(f"dt: must be > 0, got {dt}")
+    if duration <= 0 or duration < dt:
+        raise InputError(f"duration: must be > 0 and >= dt = {dt:g} s (one step at least), got {duration}")
     if isinstance(record_every, bool) or not isinstance(record_every, int | np.integer) or record_every < 1:
         raise InputError(f"record_every: must be an integer >= 1, got {record_every!r}")
     if target is not None and not hasattr(target, "pose"):
@@ -322,6 +332,8 @@ def simulate(
         label=label,
         robot=scene.robot if scene.robot is not None else kin,
         obstacles=scene.obstacles,
+        checked=scene.checked.copy(),
+        facts=tuple(str(f) for f in geom_facts(scene, scene.checked, log_clear[0])),
     )
 
 
