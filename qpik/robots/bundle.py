@@ -50,7 +50,7 @@ class RobotBundle:
     """
 
     def __init__(self, name: str, data: bytes, files: tuple[tuple[str, bytes], ...], model: str,
-                 packages: tuple[tuple[str, str], ...], source: tuple) -> None:  # fmt: skip
+                 packages: tuple[tuple[str, str], ...], source: tuple, local: Robot | None = None) -> None:  # fmt: skip
         self.name, self.data, self.files, self.model, self.packages, self.source = (
             name, data, files, model, packages, source,
         )  # fmt: skip
@@ -58,7 +58,7 @@ class RobotBundle:
         for rel, blob in files:
             digest.update(rel.encode() + b"\0" + hashlib.sha256(blob).digest())
         self.key = digest.hexdigest()
-        self._local: Robot | None = None  # the robot it was made from, in the process that made it (not pickled)
+        self._local = local  # the robot it was made from, in the process that made it (not pickled)
 
     def __getstate__(self) -> dict:
         return {k: v for k, v in self.__dict__.items() if k != "_local"}
@@ -80,12 +80,10 @@ class RobotBundle:
         """
         robot = as_robot(robot)
         if robot.name in CATALOG and robot.model is None and robot is catalog_robot(robot.name):
-            bundle = cls(robot.name, b"", (), "", (), ())
-        else:
-            data = pickle.dumps(dataclasses.replace(robot, model=None), protocol=pickle.HIGHEST_PROTOCOL)
-            bundle = cls("", data, *_model_files(robot.model)) if robot.model else cls("", data, (), "", (), ())
-        bundle._local = robot
-        return bundle
+            return cls(robot.name, b"", (), "", (), (), local=robot)
+        data = pickle.dumps(dataclasses.replace(robot, model=None), protocol=pickle.HIGHEST_PROTOCOL)
+        files = _model_files(robot.model) if robot.model else ((), "", (), ())
+        return cls("", data, *files, local=robot)
 
     def robot(self) -> Robot:
         """The Robot: in the process that made the bundle the robot itself, elsewhere the one this process keeps
