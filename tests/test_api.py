@@ -311,3 +311,10 @@ def test_what_the_compiled_call_does_not_take_gets_the_general_error(robot) -> N
             qpik.ik(robot, T, x)
     with pytest.raises(InputError, match="param"):
         qpik.ik(robot, T[None], np.array([True]))
+
+
+@pytest.mark.parametrize("param", [[0.1, [0.2]], [[0.1], [0.2, 0.3]]])
+def test_a_ragged_parameter_is_named(param):
+    robot = qpik.load_robot("iiwa14")
+    with pytest.raises(qpik.InputError, match="param"):
+        qpik.ik(robot, robot.fk(robot.q_home), param)

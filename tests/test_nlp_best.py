@@ -20,12 +20,12 @@ import qpik
 from qpik.analytic import solver_for
 from qpik.errors import InputError, NoClosedFormError
 from qpik.geometry import Sphere, distances
-from qpik.geometry.distance import ObstacleSet
 from qpik.nlp import BestResults, solve_best
-from qpik.nlp.scene import Scene
+from qpik.nlp.run import BestRun
 from qpik.nlp.search import Pieces, roots, sample, singular_ends
 from qpik.nlp.selfmotion import selfmotion_of
 from qpik.objectives import Evaluator, Expression, resolve
+from qpik.scene import Scene
 
 POSES = 500
 DENSE = 10_000
@@ -136,7 +136,9 @@ def test_sample_rows_equal_full_rows_and_derivatives_match_differences(name):
     sm = selfmotion_of(robot)
     T = _poses(robot, 20, 31)
     objective = resolve("smooth-margin") + 0.1 * resolve("smooth-clearance")
-    scene = Scene(robot, sm, objective, ObstacleSet(OBSTACLES), D_SAFE, T, np.zeros((len(T), robot.dof)))
+    scene = BestRun(
+        Scene.of(robot, OBSTACLES, d_safe=D_SAFE, objective=objective), sm, T, np.zeros((len(T), robot.dof))
+    )
     rng = np.random.default_rng(3)
     pose = np.repeat(np.arange(len(T)), 50)
     row, psi = rng.integers(0, sm.searched, len(pose)), rng.uniform(-np.pi, np.pi, len(pose))
@@ -159,7 +161,7 @@ def test_clearance_roots_are_met_faster_than_by_bisection(name):
     robot = qpik.load_robot(name)
     sm = selfmotion_of(robot)
     T = _poses(robot, 30, 41)
-    scene = Scene(robot, sm, resolve("margin"), ObstacleSet(OBSTACLES), D_SAFE, T, np.zeros((len(T), robot.dof)))
+    scene = BestRun(Scene.of(robot, OBSTACLES, d_safe=D_SAFE, objective="margin"), sm, T, np.zeros((len(T), robot.dof)))
     sets = [sm.solver.feasible_intervals(pose).intervals[: sm.searched] for pose in T]
     pieces = [(i, b, lo, hi) for i, fi in enumerate(sets) for b, s in enumerate(fi) for lo, hi in s]
     pose, row, lo, hi = (np.array(x) for x in zip(*pieces))
@@ -234,7 +236,7 @@ def test_statuses_and_the_least_violating_branch():
 @pytest.mark.parametrize("method", ["levelset", "search"])
 def test_a_numerical_failure_is_a_status(monkeypatch, method):
     """A compiled evaluation that fails (the level sets' rounds in Python, or the search) gives a status."""
-    import qpik.nlp.scene
+    import qpik.nlp.run
     from qpik.nlp import levelset
 
     robot = qpik.load_robot("iiwa14")
@@ -242,7 +244,7 @@ def test_a_numerical_failure_is_a_status(monkeypatch, method):
     def broken(self, pose, row, psi):
         raise RuntimeError("CasADi: evaluation failed")
 
-    monkeypatch.setattr(qpik.nlp.scene.Scene, "evaluate", broken)
+    monkeypatch.setattr(qpik.nlp.run.BestRun, "evaluate", broken)
     monkeypatch.setattr(levelset, "_native", lambda selfmotion: None)
     res = solve_best(robot, robot.fk(robot.q_home), method=method)
     assert res.status == "solver failed" and "evaluation failed" in res.message

@@ -19,10 +19,10 @@ from qpik.geometry import Sphere
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp import solve_best
 from qpik.nlp.certificate import certify
-from qpik.nlp.scene import Scene
+from qpik.nlp.run import BestRun
 from qpik.nlp.search import Pieces
 from qpik.nlp.selfmotion import selfmotion_of
-from qpik.objectives import resolve
+from qpik.scene import Scene
 
 POSES = 30
 OBSTACLES = [Sphere((0.35, 0.25, 0.6), 0.1), Sphere((0.3, -0.35, 0.45), 0.1)]
@@ -35,7 +35,7 @@ EXCESS = 0.005
 def _scene(robot, T, objective):
     sm = selfmotion_of(robot)
     obs = ObstacleSet(OBSTACLES)
-    scene = Scene(robot, sm, resolve(objective), obs, D_SAFE, T, np.zeros((len(T), robot.dof)))
+    scene = BestRun(Scene.of(robot, obs, d_safe=D_SAFE, objective=objective), sm, T, np.zeros((len(T), robot.dof)))
     pieces = []
     for i, pose in enumerate(T):
         fi = sm.solver.feasible_intervals(pose)

@@ -108,8 +108,13 @@ def ik(robot: Robot, pose: np.ndarray, param: float | np.ndarray, project: bool 
         par = param if type(param) is float else float(param)
         return IKSolutions(q, flags[0], flags[2], flags[1], solver.branch_array, par, solver.param_name)
     T, batched = check_pose(pose, "pose", project)
-    if type(param) is not float and np.asarray(param).dtype.kind == "b":
-        raise InputError(f"param: expected δ/ψ in rad, got {param!r}"[:200])
+    if type(param) is not float:
+        try:
+            kind = np.asarray(param).dtype.kind
+        except (ValueError, TypeError) as exc:  # a ragged sequence
+            raise InputError(f"param: cannot be read as a float array ({exc})"[:200]) from None
+        if kind == "b":
+            raise InputError(f"param: expected δ/ψ in rad, got {param!r}"[:200])
     if not batched:
         if type(param) is float and math.isfinite(param):
             par: float | np.ndarray = param  # the common case, without conversions

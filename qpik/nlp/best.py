@@ -37,11 +37,12 @@ from qpik.errors import InputError, NoClosedFormError
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.certificate import certify as prove
 from qpik.nlp.levelset import margin_weight, maximise
-from qpik.nlp.scene import Points, Scene, least_per_row
+from qpik.nlp.run import BestRun, Points, least_per_row
 from qpik.nlp.search import SAMPLE_STEP, Pieces, candidates, onto_limits, polish, sample, singular_ends, split
 from qpik.nlp.selfmotion import SelfMotion, selfmotion_of
-from qpik.objectives import Objective, Quantity, ReferenceDistance, clearance, resolve
-from qpik.robots.robot import Robot, as_robot
+from qpik.objectives import Objective, Quantity, ReferenceDistance, clearance
+from qpik.robots.robot import Robot
+from qpik.scene.scene import Scene, scene_of
 from qpik.validate import finite_array, flag, number
 from qpik.validate import pose as check_pose
 
@@ -250,14 +251,14 @@ class BestResults:
 
 
 def solve_best(
-    robot: Robot,
+    robot: Robot | Scene,
     pose: np.ndarray,
-    objective: Objective | str = "margin",
-    obstacles=(),
+    objective: Objective | str | None = None,
+    obstacles=None,
     q_ref: np.ndarray | None = None,
     project: bool = False,
     *,
-    d_safe: float = 0.02,
+    d_safe: float | None = None,
     certify: bool = True,
     tol: float = 1e-4,
     method: str = "auto",
@@ -266,15 +267,16 @@ def solve_best(
     """The best branch and δ/ψ for ``pose`` under ``objective``; see the module docstring.
 
     Args:
-        robot: an arm with a closed form (``nammoto7``: δ, ``iiwa14``: ψ).
+        robot: an arm with a closed form (``nammoto7``: δ, ``iiwa14``: ψ), or a :class:`~qpik.scene.Scene` of one
+            (then ``objective``, ``obstacles``, ``d_safe`` and a single ``q_ref`` are the scene's).
         pose: end-effector pose (4, 4) in the base frame, or a batch (N, 4, 4).
         objective: an :class:`~qpik.objectives.Objective` or a name of
-            :func:`qpik.objectives.resolve` (``"margin"``, ``"manipulability"``, ...).
-        obstacles: shapes of :mod:`qpik.geometry` (world frame): the constraint
+            :func:`qpik.objectives.resolve` (``"margin"``, ``"manipulability"``, ...); default: the margin.
+        obstacles: shapes of :mod:`qpik.geometry` (base frame): the constraint
             clearance ≥ ``d_safe`` for every link capsule, and the pairs of a clearance objective.
         q_ref: (n,) or (N, n) reference configuration, rad (the ``"distance"`` objective's).
         project: project a non-orthonormal rotation onto SO(3) instead of raising.
-        d_safe: the clearance constraint's distance, m (≥ 0).
+        d_safe: the clearance constraint's distance, m (≥ 0; default 0.02).
         certify: prove global optimality (:mod:`qpik.nlp.certificate`); the level sets prove their answers either
             way (their last call is the proof).
         tol: the certificate's tolerance, relative: it proves that no feasible point is better than the
@@ -294,7 +296,10 @@ def solve_best(
         InputError: NaN/inf or wrong shapes (the message names the argument), unknown objective
             or method.
     """
-    robot = as_robot(robot)
+    per_pose = q_ref is not None and np.ndim(q_ref) == 2
+    problem = scene_of(robot, obstacles, d_safe, objective, None if per_pose else q_ref).with_objective("margin")
+    robot, obj, obs, d_safe = problem.robot, problem.objective, problem.obstacles, problem.d_safe
+    q_ref = q_ref if per_pose else problem.q_ref
     if robot.closed_form is None:
         raise NoClosedFormError(
             f"{robot.name} has no closed-form IK, so no δ/ψ to search; use qpik.nlp.solve_full (7 joint variables)"
@@ -309,12 +314,9 @@ def solve_best(
         if ref.shape not in ((n,), (len(T), n)):
             raise InputError(f"q_ref: expected shape ({n},) or ({len(T)}, {n}), got {ref.shape}")
         ref = np.broadcast_to(ref, (len(T), n)).copy()
-    obj = resolve(objective)
     obj.params(robot)  # checks the parameters against the robot (e.g. a weight per joint)
     if q_ref is None and any(isinstance(o, ReferenceDistance) for _, o in obj.terms):
         raise InputError("q_ref: the distance objective needs a reference configuration q_ref")
-    obs = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
-    d_safe = number(d_safe, "d_safe")
     tol = number(tol, "tol")
     if tol <= 0:
         raise InputError(f"tol: must be > 0, got {tol}")
@@ -331,13 +333,13 @@ def solve_best(
     if not len(T):
         return BestResults([], n)
     with sm.solver.lock:  # the arm's compiled functions evaluate in buffers of their own: one thread at a time
-        scene = Scene(robot, sm, obj, obs, d_safe, T, ref)
+        scene = BestRun(problem, sm, T, ref)
         try:
             results = _solve(scene, certify, tol, method, rows, weight)
         except (RuntimeError, FloatingPointError, np.linalg.LinAlgError) as exc:  # a numerical failure: a status
             why = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
             results = [least_violating(scene, i, None, "solver failed", why) for i in range(len(T))]
-    elapsed = scene.watch.stop() / len(T)  # the clock stops while functions are built (Scene.build_search)
+    elapsed = scene.watch.stop() / len(T)  # the clock stops while functions are built (BestRun.build_search)
     quantity = obj.quantity
     for r, Tk in zip(results, T):
         _verify(robot, Tk, r, obs, d_safe)
@@ -390,7 +392,7 @@ def _rows(sm, branches) -> list[int]:
 
 
 def _solve(
-    scene: Scene, certify: bool, tol: float, method: str, rows: list[int], weight: float | None
+    scene: BestRun, certify: bool, tol: float, method: str, rows: list[int], weight: float | None
 ) -> list[BestResult]:
     sm = scene.selfmotion
     N, B = len(scene.poses), sm.searched
@@ -463,7 +465,7 @@ def _feasible_pieces(fis: dict, rows: list[int], poses: np.ndarray) -> Pieces:
     return pieces
 
 
-def _search(scene: Scene, pieces: Pieces, step: float, extra: Points | None = None) -> tuple[Points, np.ndarray]:
+def _search(scene: BestRun, pieces: Pieces, step: float, extra: Points | None = None) -> tuple[Points, np.ndarray]:
     """Sample, split and polish: the polished local minima and their polish rounds.
 
     Every (pose, branch row) with a feasible sample has its best discrete local minimum polished
@@ -493,7 +495,7 @@ def _search(scene: Scene, pieces: Pieces, step: float, extra: Points | None = No
     return onto_limits(scene, pol.point), pol.rounds
 
 
-def _count(scene: Scene, pts: Points) -> None:
+def _count(scene: BestRun, pts: Points) -> None:
     np.add.at(scene.counts, (pts.pose, pts.row), 1)
 
 
@@ -550,7 +552,7 @@ class _BestSoFar:
 
 
 def _answers(
-    scene: Scene,
+    scene: BestRun,
     best: _BestSoFar,
     searched: list[int],
     certified: np.ndarray,
@@ -591,7 +593,7 @@ def _columns(sm: SelfMotion, searched: tuple[int, ...]) -> list[tuple[int, int, 
 
 
 def least_violating(
-    scene: Scene, i: int, rows: BranchRows | None, status: str | None = None, message: str = ""
+    scene: BestRun, i: int, rows: BranchRows | None, status: str | None = None, message: str = ""
 ) -> BestResult:
     """The answer for pose i when the search has none: unreachable, or the least-violating configuration.
 

@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from qpik.nlp.scene import Points, Scene
+from qpik.nlp.run import BestRun, Points
 from qpik.nlp.search import Pieces
 from qpik.objectives import BoundFunction
 
@@ -66,7 +66,7 @@ NO_BOUND = "the objective has no lower bound (the manipulability, or an operatio
 class Certificate:
     """Per pose: ``certified`` (bool), ``bound`` (the smallest lower bound met; -inf if none), ``cells``
     examined, ``reason`` (why not certified, "" if certified) and the feasible test points better than
-    the answer (``better``, rows of :class:`Points` with values only: :meth:`Scene.values`)."""
+    the answer (``better``, rows of :class:`Points` with values only: :meth:`BestRun.values`)."""
 
     certified: np.ndarray
     bound: np.ndarray
@@ -145,7 +145,7 @@ def lower_bound(models: list[np.ndarray], sizes: tuple[int, ...], decide: np.nda
 
 
 def certify(
-    scene: Scene,
+    scene: BestRun,
     pieces: Pieces,
     best: np.ndarray,
     tol: np.ndarray,
@@ -226,7 +226,7 @@ def certify(
 
 
 def cell_bounds(
-    scene: Scene,
+    scene: BestRun,
     bounds: BoundFunction,
     pose: np.ndarray,
     row: np.ndarray,

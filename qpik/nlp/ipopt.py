@@ -20,7 +20,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from qpik.nlp.scene import Scene
+from qpik.nlp.run import BestRun
 from qpik.nlp.search import Pieces
 from qpik.objectives import Context
 
@@ -36,14 +36,14 @@ OPTIONS = {
 """IPOPT options of the per-branch NLPs."""
 
 
-def _solver(scene: Scene, b: int) -> tuple[ca.Function, ca.Function]:
+def _solver(scene: BestRun, b: int) -> tuple[ca.Function, ca.Function]:
     """``(nlpsol, start)`` of branch row b: ``start(T, ψ, p) -> [t (K,)]`` (the maxima at ψ, a start for t)."""
     robot, obs = scene.robot, scene.obstacles
     key = ("branch nlp", scene.objective.key(), obs.kinds, len(scene.params), b)
     return robot.cache.get(key, _build, scene, b)
 
 
-def _build(scene: Scene, b: int) -> tuple[ca.Function, ca.Function]:
+def _build(scene: BestRun, b: int) -> tuple[ca.Function, ca.Function]:
     robot, obs = scene.robot, scene.obstacles
     n = robot.dof
     T, psi = ca.SX.sym("T", 4, 4), ca.SX.sym("psi")
@@ -61,7 +61,7 @@ def _build(scene: Scene, b: int) -> tuple[ca.Function, ca.Function]:
     return solver, start
 
 
-def solve_pieces(scene: Scene, pieces: Pieces):
+def solve_pieces(scene: BestRun, pieces: Pieces):
     """IPOPT on every piece; returns ``(pose, row, ψ, q, f, iterations, clearance)`` arrays of the
     converged solutions (the argument order of the search's best-so-far table). The NLPs of the pieces' branch rows
     are built first, with the scene's clock paused."""

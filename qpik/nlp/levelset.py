@@ -52,7 +52,7 @@ from qpik.analytic.intervals import FeasibleIntervals, NativeSets, wrap
 from qpik.build import call_header, python_library
 from qpik.compiled import Kernel, NativeFunction
 from qpik.geometry.distance import ObstacleSet
-from qpik.nlp.scene import Points, Scene, least_per_row
+from qpik.nlp.run import BestRun, Points, least_per_row
 from qpik.nlp.search import END
 from qpik.nlp.selfmotion import SelfMotion
 from qpik.objectives import JointLimitMargin, Objective
@@ -108,7 +108,7 @@ class LevelSets:
     bound: np.ndarray
 
 
-def build(scene: Scene, rows: list[int]) -> None:
+def build(scene: BestRun, rows: list[int]) -> None:
     """Trace and compile, with the scene's clock paused, what :func:`maximise` calls for ``rows``: the C rounds, or
     else the sets under shrunk limits (by evaluating them at the first pose) and the self-motion."""
     sm = scene.selfmotion
@@ -119,7 +119,7 @@ def build(scene: Scene, rows: list[int]) -> None:
         sm.build(models=False)
 
 
-def maximise(scene: Scene, rows: list[int], weight: float) -> LevelSets:
+def maximise(scene: BestRun, rows: list[int], weight: float) -> LevelSets:
     """The rounds of the module docstring for every pose of ``scene`` over the branch rows ``rows``; f = −``weight``
     · μ. In C (``levelset.c``: the arm's feasible sets and its self-motion as C calls, one call per pose) where the
     arm has :meth:`~qpik.analytic.solver.AnalyticSolver.native_sets` and every row is searched; else in Python
@@ -165,7 +165,7 @@ def maximise(scene: Scene, rows: list[int], weight: float) -> LevelSets:
 
 
 def _margins(
-    scene: Scene, pose: np.ndarray, row: np.ndarray, psi: np.ndarray, weight: float
+    scene: BestRun, pose: np.ndarray, row: np.ndarray, psi: np.ndarray, weight: float
 ) -> tuple[Points, np.ndarray, np.ndarray]:
     """The points (M,) of branch rows ``row`` at ψ (rad, wrapped here) of the poses ``pose``, with μ and dμ/dψ there
     (−inf and NaN where the branch does not reach the pose)."""
@@ -174,7 +174,7 @@ def _margins(
     return pts, np.where(ok, -pts.f / weight, -np.inf), np.where(ok, -pts.df / weight, np.nan)
 
 
-def _climb(scene: Scene, pieces: _Pieces, top: np.ndarray, weight: float, out: LevelSets, round_: int) -> None:
+def _climb(scene: BestRun, pieces: _Pieces, top: np.ndarray, weight: float, out: LevelSets, round_: int) -> None:
     r"""Per pose, climbs the top of the piece that holds its round's best trial point (the first), before the level
     is raised: :data:`CLIMB` steps at most, each evaluating the crossing of the tangents of the two brackets (the
     best points with dμ/dψ > 0 and < 0; an end of the piece, where μ is the level, stands for a missing one, its
@@ -365,7 +365,7 @@ class _Native:
         self._width = self._rows * (robot.dof + 2) + 1  # per pose: mu (R), psi (R), q (R, n), the last level
         self._poses = np.zeros((0, 16))  # the call's buffers (:meth:`__call__`): poses, out (width), info (2 R + 1)
 
-    def __call__(self, scene: Scene, weight: float) -> LevelSets:
+    def __call__(self, scene: BestRun, weight: float) -> LevelSets:
         N, R = len(scene.poses), self._rows
         if len(self._poses) < N:  # the call's buffers, grown to the largest batch so far
             self._poses, self._out = np.zeros((N, 16)), np.zeros((N, self._width))

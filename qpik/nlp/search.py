@@ -3,13 +3,13 @@ r"""The 1-D search of :func:`qpik.solve_best`: sample, split at the clearance co
 For each pose, every branch's exact feasible set (:func:`qpik.feasible_intervals`) is a union
 of closed intervals of δ/ψ. On each:
 
-1. **Sample** ``f`` and ``c`` (:meth:`~qpik.nlp.scene.Scene.values`: no derivatives) every
+1. **Sample** ``f`` and ``c`` (:meth:`~qpik.nlp.run.BestRun.values`: no derivatives) every
    :data:`SAMPLE_STEP` rad or closer, both ends included, and more closely next to a singular end.
    All rows of a step, of every pose and branch, go through one compiled call.
 2. **Split** at the clearance constraint ``c ≥ 0``: a sign change of ``c`` between two samples
    is refined to its root (:func:`roots`: secant, Newton and bisection steps in a bracket),
    giving the feasible *pieces*. The brackets here and in the polish are evaluated with
-   ``f'`` and ``c'`` (:meth:`~qpik.nlp.scene.Scene.evaluate`).
+   ``f'`` and ``c'`` (:meth:`~qpik.nlp.run.BestRun.evaluate`).
 3. **Polish** the discrete local minima of the samples of each piece (:func:`polish`): a
    bracket ``a ≤ m ≤ b`` with ``f(m) ≤ f(a), f(b)`` shrinks around a local minimum. Each round
    tries, on the side where ``f'(m)`` descends, the root of the secant of ``f'`` (exact for a
@@ -35,7 +35,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from qpik.nlp.scene import Points, Scene
+from qpik.nlp.run import BestRun, Points
 
 SAMPLE_STEP = 0.1
 """Largest spacing (rad) of the samples of a feasible interval."""
@@ -97,12 +97,12 @@ def singular_ends(pieces: Pieces, pose: np.ndarray, row: np.ndarray, value: np.n
     return out
 
 
-def sample(scene: Scene, pieces: Pieces, step: float = SAMPLE_STEP) -> tuple[Points, np.ndarray]:
+def sample(scene: BestRun, pieces: Pieces, step: float = SAMPLE_STEP) -> tuple[Points, np.ndarray]:
     """Samples of every piece, at most ``step`` apart, from :data:`END` inside each end, and at :data:`ENDS` from
     each singular end: (points, piece (M,)).
 
     Points of one piece are consecutive and in increasing ψ. Only points where the branch reaches
-    the pose with a finite objective are kept. They carry values only (:meth:`~qpik.nlp.scene.Scene.values`:
+    the pose with a finite objective are kept. They carry values only (:meth:`~qpik.nlp.run.BestRun.values`:
     the derivatives are NaN); :func:`split` and :func:`candidates` evaluate the derivatives where they are used.
     """
     shrink = np.minimum(END, 0.5 * (pieces.hi - pieces.lo))
@@ -132,7 +132,7 @@ def sample(scene: Scene, pieces: Pieces, step: float = SAMPLE_STEP) -> tuple[Poi
     return (pts, piece) if keep.all() else (pts.take(keep), piece[keep])
 
 
-def roots(scene: Scene, left: Points, right: Points) -> Points:
+def roots(scene: BestRun, left: Points, right: Points) -> Points:
     """The root of c between each pair (left[i], right[i]) whose c differ in sign: its point on the feasible side.
 
     Bracketed iteration: the secant, a Newton step from the feasible end, a point just past it (across
@@ -180,7 +180,7 @@ class Polished:
     rounds: np.ndarray
 
 
-def polish(scene: Scene, a: Points, m: Points, b: Points) -> Polished:
+def polish(scene: BestRun, a: Points, m: Points, b: Points) -> Polished:
     """Shrink brackets ``a.ψ ≤ m.ψ ≤ b.ψ`` with ``f(m) ≤ f(a), f(b)`` to local minima (see the module docstring).
 
     ``a`` or ``b`` may equal ``m`` (a minimum at the end of a piece). Each round also probes
@@ -253,7 +253,7 @@ def polish(scene: Scene, a: Points, m: Points, b: Points) -> Polished:
     return Polished(scene.evaluate(pose, row, P[1]), rounds)
 
 
-def split(scene: Scene, pts: Points, piece: np.ndarray) -> tuple[Points, np.ndarray]:
+def split(scene: BestRun, pts: Points, piece: np.ndarray) -> tuple[Points, np.ndarray]:
     """The feasible runs of the samples under ``c ≥ 0``, with the roots of c inserted at their ends.
 
     Returns the points of the runs (consecutive, increasing ψ within a run) and their run index.
@@ -283,7 +283,7 @@ def split(scene: Scene, pts: Points, piece: np.ndarray) -> tuple[Points, np.ndar
     return all_pts, np.cumsum(start) - 1
 
 
-def candidates(scene: Scene, pts: Points, run: np.ndarray) -> tuple[Points, Points, Points]:
+def candidates(scene: BestRun, pts: Points, run: np.ndarray) -> tuple[Points, Points, Points]:
     """Brackets ``(a, m, b)`` of the discrete local minima of f along each run, the ones to polish, evaluated
     with their derivatives.
 
@@ -311,7 +311,7 @@ def candidates(scene: Scene, pts: Points, run: np.ndarray) -> tuple[Points, Poin
     return tuple(_derivatives(scene, pts, [a, chosen, b]))
 
 
-def _derivatives(scene: Scene, pts: Points, parts: list[np.ndarray]) -> list[Points]:
+def _derivatives(scene: BestRun, pts: Points, parts: list[np.ndarray]) -> list[Points]:
     """The rows ``parts`` (index arrays) of samples, evaluated with the derivatives in one call."""
     k = np.concatenate(parts)
     full = scene.evaluate(pts.pose[k], pts.row[k], pts.psi[k])
@@ -323,7 +323,7 @@ AT_LIMIT = 1e-7
 """A joint this close (rad) to a limit at a polished point is taken to be on it (:func:`onto_limits`)."""
 
 
-def onto_limits(scene: Scene, pts: Points) -> Points:
+def onto_limits(scene: BestRun, pts: Points) -> Points:
     r"""Polished points next to a joint limit, moved onto it where that lowers f.
 
     A minimum at the end of a feasible interval where a joint reaches its limit is found to the

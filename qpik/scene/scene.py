@@ -29,7 +29,7 @@ class Scene:
         robot: the arm.
         obstacles: the obstacles, packed once (:class:`~qpik.geometry.distance.ObstacleSet`; base frame, m).
         d_safe: the clearance every link capsule keeps from every obstacle, m (≥ 0).
-        objective: the cost minimised over the redundancy (:mod:`qpik.objectives`).
+        objective: the cost minimised over the redundancy (:mod:`qpik.objectives`), or None.
         q_ref: (n,) the reference configuration of a :class:`~qpik.objectives.ReferenceDistance` term and of
             the controller's posture task, rad (None: the arm's home configuration).
     """
@@ -37,7 +37,7 @@ class Scene:
     robot: Robot
     obstacles: ObstacleSet
     d_safe: float
-    objective: Objective
+    objective: Objective | None
     q_ref: np.ndarray | None
 
     @classmethod
@@ -47,7 +47,7 @@ class Scene:
         obstacles: Sequence[Shape] | ObstacleSet = (),
         *,
         d_safe: float = 0.02,
-        objective: Objective | str = "margin",
+        objective: Objective | str | None = None,
         q_ref: np.ndarray | None = None,
     ) -> Scene:
         """The scene of ``robot`` with the arguments checked (:class:`~qpik.errors.InputError` naming the one that
@@ -57,7 +57,8 @@ class Scene:
             robot: the arm (:func:`qpik.load_robot`).
             obstacles: shapes of :mod:`qpik.geometry` or an ObstacleSet (base frame, m).
             d_safe: clearance, m (finite, ≥ 0).
-            objective: an :class:`~qpik.objectives.Objective` or a name of :data:`qpik.objectives.NAMES`.
+            objective: an :class:`~qpik.objectives.Objective`, a name of :data:`qpik.objectives.NAMES`, or None
+                (none: each solver's own default, e.g. the joint-limit margin for :func:`qpik.solve_best`).
             q_ref: (n,) reference configuration, rad, or None.
         """
         robot = as_robot(robot)
@@ -66,7 +67,7 @@ class Scene:
         if q_ref is not None:
             q_ref = finite_array(q_ref, "q_ref", (robot.dof,)).copy()
             q_ref.flags.writeable = False
-        return cls(robot, packed, d_safe, resolve(objective), q_ref)
+        return cls(robot, packed, d_safe, None if objective is None else resolve(objective), q_ref)
 
     def __post_init__(self) -> None:
         if not isinstance(self.robot, Robot) or not isinstance(self.obstacles, ObstacleSet):
@@ -90,6 +91,10 @@ class Scene:
         """The number of (link capsule, obstacle) pairs kept apart: those of the capsules a joint moves."""
         return pair_count(self.robot, self.obstacles)
 
+    def with_objective(self, default: Objective | str) -> Scene:
+        """This scene, or with ``default`` as its objective when it has none."""
+        return self if self.objective is not None else self.replace(objective=default)
+
     @cached_property
     def evaluator(self) -> Evaluator:
         """The objective and the clearances at many configurations (compiled once per robot and form)."""
@@ -105,3 +110,27 @@ class Scene:
         """(M,) the smallest distance of the pairs (:attr:`pairs`) at configurations q (M, n), m; inf without any."""
         q = finite_array(q, "q", (None, self.robot.dof))
         return clearance(self.robot, q, self.obstacles)
+
+
+def scene_of(
+    robot: Robot | Scene,
+    obstacles: Sequence[Shape] | ObstacleSet | None = None,
+    d_safe: float | None = None,
+    objective: Objective | str | None = None,
+    q_ref: np.ndarray | None = None,
+) -> Scene:
+    """The scene a public call works in: ``robot`` itself when it is a :class:`Scene` (then none of the other
+    arguments may be given: they are the scene's), else :meth:`Scene.of` of them (defaults: no obstacles,
+    d_safe 0.02 m, no objective, no q_ref).
+
+    Raises:
+        InputError: a piece given both in the scene and as an argument (named), or a bad piece.
+    """
+    if isinstance(robot, Scene):
+        given = {"obstacles": obstacles, "d_safe": d_safe, "objective": objective, "q_ref": q_ref}
+        for name, value in given.items():
+            if value is not None:
+                raise InputError(f"{name}: given twice, in the Scene and here; use scene.replace({name}=...)")
+        return robot
+    return Scene.of(robot, () if obstacles is None else obstacles, d_safe=0.02 if d_safe is None else d_safe,
+                    objective=objective, q_ref=q_ref)  # fmt: skip

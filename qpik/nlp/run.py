@@ -1,6 +1,6 @@
 r"""What one :func:`qpik.solve_best` call evaluates: poses, objective, obstacles, and the 1-D functions of δ/ψ.
 
-A :class:`Scene` evaluates, for rows (pose i, branch row b, parameter ψ), everything the
+A :class:`BestRun` evaluates, for rows (pose i, branch row b, parameter ψ), everything the
 search and the certificate need, from two compiled functions: the self-motion
 (:class:`~qpik.nlp.selfmotion.SelfMotion`: q, dq/dψ) and the objective
 (:class:`~qpik.objectives.Evaluator`: f, ∇f, the capsule–obstacle distances):
@@ -19,10 +19,9 @@ from functools import cached_property
 import numpy as np
 
 from qpik.build import concurrently
-from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.selfmotion import SelfMotion, columns
-from qpik.objectives import BoundFunction, Evaluator, Objective, bound_function
-from qpik.robots.robot import Robot
+from qpik.objectives import BoundFunction, Evaluator, bound_function
+from qpik.scene.scene import Scene
 from qpik.stopwatch import Stopwatch
 
 
@@ -71,7 +70,7 @@ def least_per_row(pose: np.ndarray, row: np.ndarray, f: np.ndarray) -> np.ndarra
     return order[first]
 
 
-class Scene:
+class BestRun:
     """The data of one solve and the evaluation of rows (see the module docstring).
 
     Attributes:
@@ -82,27 +81,16 @@ class Scene:
             (:meth:`build_search`, :meth:`build_certificate`).
 
     Args:
-        robot: the arm (with a closed form).
-        selfmotion: its :class:`SelfMotion`.
-        objective: the cost to minimise.
-        obstacles: the obstacles (clearance constraint, and the objective's pairs).
-        d_safe: the clearance constraint's d_s, m.
+        scene: the arm (with a closed form), the obstacles (clearance constraint, and the objective's pairs),
+            d_s (m) and the objective (:class:`~qpik.scene.Scene`, with an objective).
+        selfmotion: the arm's :class:`SelfMotion`.
         poses: (N, 4, 4) end-effector poses.
         q_ref: (N, n) reference configurations, rad.
     """
 
-    def __init__(
-        self,
-        robot: Robot,
-        selfmotion: SelfMotion,
-        objective: Objective,
-        obstacles: ObstacleSet,
-        d_safe: float,
-        poses: np.ndarray,
-        q_ref: np.ndarray,
-    ):
-        self.robot, self.selfmotion, self.objective = robot, selfmotion, objective
-        self.obstacles, self.d_safe = obstacles, float(d_safe)
+    def __init__(self, scene: Scene, selfmotion: SelfMotion, poses: np.ndarray, q_ref: np.ndarray):
+        self.robot, self.selfmotion, self.objective = scene.robot, selfmotion, scene.objective
+        self.obstacles, self.d_safe = scene.obstacles, scene.d_safe
         self.poses, self.q_ref = poses, q_ref
         self.columns = columns(poses)
         self.evaluations = 0
