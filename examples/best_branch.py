@@ -43,5 +43,5 @@ check = crosscheck(robot, pose, "smooth-margin", obstacles=[ball], d_safe=0.03)
 print(check.report())
 
 # 3. the picture
-path = save(objective_map(robot, pose, "margin", [ball], result=best, d_safe=0.03), out / "best_branch.png")
+path = save(objective_map(qpik.Scene.of(robot, [ball], d_safe=0.03), pose, best), out / "best_branch.png")
 print("plot written to", path)

@@ -35,11 +35,11 @@ from qpik.control.controller import Controller
 from qpik.control.limits import ConfigurationLimit, ObstacleLimit
 from qpik.control.tasks import DampingTask, FrameTask, ObjectiveTask
 from qpik.errors import InputError
-from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.best import BestResult, solve_best
 from qpik.nlp.full import FullResult, solve_full
-from qpik.objectives import Objective, resolve
-from qpik.robots.robot import Robot, as_robot
+from qpik.objectives import Objective
+from qpik.robots.robot import Robot
+from qpik.scene.scene import Scene, scene_of
 from qpik.validate import count, single_pose
 
 FRAME_WEIGHT = 1e8
@@ -108,23 +108,24 @@ class CrossCheck:
 
 
 def crosscheck(
-    robot: Robot,
+    robot: Robot | Scene,
     pose: np.ndarray,
-    objective: Objective | str = "smooth-margin",
-    obstacles=(),
+    objective: Objective | str | None = None,
+    obstacles=None,
     q_ref: np.ndarray | None = None,
     *,
-    d_safe: float = 0.02,
+    d_safe: float | None = None,
     random_starts: int = 0,
     seed: int = 0,
 ) -> CrossCheck:
     """Solve (a), (b), (c) of the module docstring for ``pose`` and compare them.
 
     Args:
-        robot: an arm with a closed form.
+        robot: an arm with a closed form, or a :class:`~qpik.scene.Scene` of one (then ``objective``,
+            ``obstacles``, ``q_ref`` and ``d_safe`` are the scene's).
         pose: (4, 4) end-effector pose, base frame.
-        objective: a smooth objective (or its name).
-        obstacles: shapes (world frame), with the clearance constraint ≥ ``d_safe`` (m).
+        objective: a smooth objective (or its name); default: the smooth margin.
+        obstacles: shapes (base frame), with the clearance constraint ≥ ``d_safe`` (m; default 0.02).
         q_ref: (n,) reference configuration, rad (a ``"distance"`` objective's).
         random_starts: also run the full-joint NLP from this many random configurations
             (seeded with ``seed``) and report how often it reaches (a)'s optimum.
@@ -132,20 +133,19 @@ def crosscheck(
     Raises:
         InputError: a non-smooth objective (the QP needs its gradient), bad input (naming the argument).
     """
-    robot = as_robot(robot)
+    scene = scene_of(robot, obstacles, d_safe, objective, q_ref).with_objective("smooth-margin")
+    robot, obj = scene.robot, scene.objective
     pose = single_pose(pose, "pose")
     random_starts, seed = count(random_starts, "random_starts"), count(seed, "seed")
-    obj = resolve(objective)
     if not obj.smooth:
         raise InputError(
             f"objective: the cross-check needs a smooth objective (its gradient is the QP's task), got {obj.name}"
         )
-    obs = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
-    best = solve_best(robot, pose, obj, obs, q_ref, d_safe=d_safe, certify=False)
+    best = solve_best(scene, pose, certify=False)
     if best.status != "optimal":
         return CrossCheck(best, None, None, np.inf, np.inf, np.inf, np.inf, applicable=False)
-    full = solve_full(robot, pose, obj, obs, q_ref, q0=best.q, d_safe=d_safe, starts=1, max_starts=1)
-    velocity, qp_status = _qp_step(robot, pose, obj, obs, q_ref, best.q, d_safe)
+    full = solve_full(scene, pose, q0=best.q, starts=1, max_starts=1)
+    velocity, qp_status = _qp_step(scene, pose, best.q)
     q_gap = float(np.abs(full.q - best.q).max())
     f_gap = float(abs(full.objective - best.objective))
     speed = float(np.abs(velocity).max())
@@ -168,15 +168,16 @@ def crosscheck(
         hits = 0
         for _ in range(random_starts):
             q0 = rng.uniform(robot.q_min, robot.q_max)
-            r = solve_full(robot, pose, obj, obs, q_ref, q0=q0, d_safe=d_safe, starts=1, max_starts=1)
+            r = solve_full(scene, pose, q0=q0, starts=1, max_starts=1)
             hits += r.status == "optimal" and r.objective <= best.objective + TOL_F
         out.random_starts, out.random_rate = random_starts, hits / random_starts
     return out
 
 
-def _qp_step(robot, pose, obj, obs, q_ref, q, d_safe) -> tuple[np.ndarray, str]:
+def _qp_step(scene: Scene, pose: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, str]:
     """(c): one step of the QP controller at q (daqp, exact) with the target, f as a task, limits and dampers:
     its velocity (n,), rad/s, and the step's status (``"failed"``: no QP solution, v = 0)."""
+    robot, obj, obs, q_ref, d_safe = scene.robot, scene.objective, scene.obstacles, scene.q_ref, scene.d_safe
     dt = 0.01
     tasks = [
         FrameTask(pose, 1.0 / dt, 1.0 / dt, FRAME_WEIGHT, FRAME_WEIGHT),

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from qpik.cli.args import Subcommands, add_robot, floats, robot_from_args
 from qpik.cli.ik import add_pose, pose_from_args
+from qpik.scene import Scene
 
 
 def register(sub: Subcommands) -> None:
@@ -66,8 +67,8 @@ def _run(args: argparse.Namespace) -> int:
         if s.size != 4:
             raise InputError(f"--sphere: expected x,y,z,radius (4 numbers), got {s.size}")
         obstacles.append(Sphere(s[:3], s[3]))
-    best = solve_best(robot, T, args.objective, obstacles, args.q_ref, d_safe=args.d_safe, certify=not args.no_certify,
-                      tol=args.tol, method=args.method)  # fmt: skip
+    scene = Scene.of(robot, obstacles, d_safe=args.d_safe, objective=args.objective, q_ref=args.q_ref)
+    best = solve_best(scene, T, certify=not args.no_certify, tol=args.tol, method=args.method)
     p = np.array2string(T[:3, 3], precision=4)
     extra = f", {len(obstacles)} obstacle(s), d_s = {args.d_safe:g} m" if obstacles else ""
     print(f"{robot.name}: {best.quantity.goal} at p = {p} m{extra}")
@@ -79,6 +80,6 @@ def _run(args: argparse.Namespace) -> int:
         from qpik.plots import save
         from qpik.plots.objective import objective_map
 
-        save(objective_map(robot, T, args.objective, obstacles, args.q_ref, best, args.d_safe), args.plot)
+        save(objective_map(scene, T, best), args.plot)
         print(f"{best.quantity.name} against the redundancy parameter written to {args.plot}")
     return 0 if best.status in ("optimal", "no feasible branch", "unreachable") else 2

@@ -21,6 +21,7 @@ from qpik.plots import save
 from qpik.plots.objective import objective_map
 from qpik.problems import find_problem, load
 from qpik.robots.catalog import load_robot
+from qpik.scene import Scene
 
 TITLE = "Best branch and δ/ψ (certified NLP)"
 D_SAFE = 0.03  # m
@@ -36,7 +37,7 @@ def run(out: Path) -> None:
           " obstacles")  # fmt: skip
     print(best.table())
     print(best.summary())
-    path = save(objective_map(robot, pose, "margin", obstacles, result=best, d_safe=D_SAFE), folder / "iiwa_margin.png")
+    path = save(objective_map(Scene.of(robot, obstacles, d_safe=D_SAFE), pose, best), folder / "iiwa_margin.png")
     print(f"the margin against ψ for every branch: {path}")
 
     nammoto = load_robot("nammoto7")
@@ -45,7 +46,7 @@ def run(out: Path) -> None:
     print(f"\n{nammoto.name}: {best.quantity.goal}, over the 16 branches in δ")
     print(best.table())
     print(best.summary())
-    path = save(objective_map(nammoto, target, "margin", result=best), folder / "nammoto_margin.png")
+    path = save(objective_map(Scene.of(nammoto), target, best), folder / "nammoto_margin.png")
     print(f"the margin against δ for every branch: {path}")
 
     print("\ncross-validation (smooth joint-limit margin, iiwa14 target of the reach problem):")

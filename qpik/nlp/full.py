@@ -33,9 +33,10 @@ import numpy as np
 from qpik.errors import InputError
 from qpik.geometry.distance import ObstacleSet
 from qpik.lie import pose_error, pose_error_expr
-from qpik.objectives import Context, Objective, ReferenceDistance, resolve
-from qpik.robots.robot import Robot, as_robot
-from qpik.validate import count, finite_array, joint_vector, number
+from qpik.objectives import Context, Objective, ReferenceDistance
+from qpik.robots.robot import Robot
+from qpik.scene.scene import Scene, scene_of
+from qpik.validate import count, joint_vector
 from qpik.validate import pose as check_pose
 
 REACHED = 1e-9
@@ -131,15 +132,15 @@ def full_nlp(robot: Robot, objective: Objective | None, obstacles: ObstacleSet) 
 
 
 def solve_full(
-    robot: Robot,
+    robot: Robot | Scene,
     pose: np.ndarray,
     objective: Objective | str | None = None,
-    obstacles=(),
+    obstacles=None,
     q_ref: np.ndarray | None = None,
     q0: np.ndarray | None = None,
     project: bool = False,
     *,
-    d_safe: float = 0.02,
+    d_safe: float | None = None,
     starts: int = 8,
     max_starts: int = 30,
     seed: int = 0,
@@ -147,7 +148,8 @@ def solve_full(
     """Minimise ``objective`` over q with ``fk(q) = pose`` (see the module docstring).
 
     Args:
-        robot: any arm of the catalog.
+        robot: any arm, or a :class:`~qpik.scene.Scene` of one (then ``objective``, ``obstacles``, ``q_ref`` and
+            ``d_safe`` are the scene's).
         pose: (4, 4) end-effector pose, base frame.
         objective: an :class:`~qpik.objectives.Objective`, a name of :func:`qpik.objectives.resolve`, or
             None for a pure IK.
@@ -155,7 +157,7 @@ def solve_full(
         q_ref: (n,) reference configuration, rad (the ``"distance"`` objective's).
         q0: (n,) or (S, n) first start(s), rad.
         project: project a non-orthonormal rotation onto SO(3) instead of raising.
-        d_safe: m.
+        d_safe: m (≥ 0; default 0.02).
         starts: with an objective, starts solved (the best one that reaches the pose wins; more
             if none has reached it yet). A pure IK stops at the first that reaches it.
         max_starts: most starts tried before giving up (``"not found"``, or ``"unreachable"`` when proved).
@@ -164,17 +166,15 @@ def solve_full(
     Raises:
         InputError: NaN/inf or wrong shapes (naming the argument).
     """
-    robot = as_robot(robot)
+    scene = scene_of(robot, obstacles, d_safe, objective, q_ref)
+    robot, obj, obs, d_safe, q_ref = scene.robot, scene.objective, scene.obstacles, scene.d_safe, scene.q_ref
     T = check_pose(pose, "pose", project)[0]
     if T.ndim != 2:
         raise InputError(f"pose: solve_full takes one pose (4, 4), got {T.shape}")
     n = robot.dof
-    obj = None if objective is None else resolve(objective)
     if obj is not None and q_ref is None and any(isinstance(o, ReferenceDistance) for _, o in obj.terms):
         raise InputError("q_ref: the distance objective needs a reference configuration q_ref")
-    ref = np.zeros(n) if q_ref is None else finite_array(q_ref, "q_ref", (n,))
-    obs = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
-    d_safe = number(d_safe, "d_safe")
+    ref = np.zeros(n) if q_ref is None else q_ref
     starts, max_starts, seed = count(starts, "starts", 1), count(max_starts, "max_starts", 1), count(seed, "seed")
     first = np.zeros((0, n)) if q0 is None else np.atleast_2d(joint_vector(q0, n, "q0")[0])
     nlp = full_nlp(robot, obj, obs)

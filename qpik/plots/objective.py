@@ -14,40 +14,33 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from qpik.analytic.api import feasible_intervals, ik
-from qpik.geometry.distance import ObstacleSet
+from qpik.errors import InputError
 from qpik.nlp.best import BestResult, solve_best
-from qpik.objectives import Evaluator, Objective, resolve
 from qpik.plots.closed_form import PI, branch_colors, feasible_panel, symbol
-from qpik.robots.robot import Robot
+from qpik.scene import Scene
 
 OPTIMUM_GID = "optimum"  # gid of the star at the answer (for readers of the figure)
 
 
 def objective_map(
-    robot: Robot,
-    pose: np.ndarray,
-    objective: Objective | str = "margin",
-    obstacles=(),
-    q_ref: np.ndarray | None = None,
-    result: BestResult | None = None,
-    d_safe: float = 0.02,
-    num: int = 1441,
-    title: str | None = None,
+    scene: Scene, pose: np.ndarray, result: BestResult | None = None, num: int = 1441, title: str | None = None
 ) -> Figure:
     """The objective against δ/ψ for every branch, the feasible sets shaded, the optimum marked.
 
     Args:
-        robot: an arm with a closed form.
+        scene: the arm (with a closed form), its obstacles, d_safe, objective (default: the margin) and q_ref
+            (:class:`~qpik.scene.Scene`), as :func:`qpik.solve_best` takes them.
         pose: (4, 4) end-effector pose, base frame.
-        objective, obstacles, q_ref, d_safe: as for :func:`qpik.solve_best`.
         result: the answer to mark (default: :func:`qpik.solve_best` of the same problem).
         num: parameter samples over [−π, π] for the curves.
         title: figure title (default: robot, objective and the answer).
     """
-    obj = resolve(objective)
-    obs = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
+    if not isinstance(scene, Scene):
+        raise InputError(f"scene: expected a qpik.Scene (Scene.of(robot, obstacles, ...)), got {type(scene).__name__}")
+    scene = scene.with_objective("margin")
+    robot, obj, q_ref, d_safe = scene.robot, scene.objective, scene.q_ref, scene.d_safe
     if result is None:
-        result = solve_best(robot, pose, obj, obs, q_ref, d_safe=d_safe)
+        result = solve_best(scene, pose)
     psi = np.linspace(-PI, PI, num)
     sols = ik(robot, np.broadcast_to(np.asarray(pose, float), (num, 4, 4)), psi)
     fi = feasible_intervals(robot, pose)
@@ -57,7 +50,7 @@ def objective_map(
     f = np.full(ok.shape, np.nan)
     clear = np.full(ok.shape, True)
     if ok.any():
-        values, _, d, _ = Evaluator(robot, obj, obs)(sols.q[ok], q_ref)
+        values, _, d, _ = scene.evaluator(sols.q[ok], q_ref)
         f[ok] = values
         if d.shape[1]:
             clear[ok] = d.min(axis=1) >= d_safe
