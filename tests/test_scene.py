@@ -65,3 +65,20 @@ def test_the_evaluator_is_the_objective_of_the_scene():
     f, grad, _, _ = scene.evaluator(q, q_ref)
     assert np.allclose(f, 0.5 * ((q - q_ref) ** 2).sum(axis=1), atol=1e-12)
     assert np.allclose(grad, q - q_ref, atol=1e-12)
+
+
+def test_the_solvers_take_the_scene_or_its_pieces_never_both():
+    """solve_best and plan_self_motion give the same answers from a Scene as from the same pieces as arguments;
+    a piece given both ways is named."""
+    scene = Scene.of(IIWA, SHAPES[:1], d_safe=0.03, objective="smooth-margin")
+    pose = IIWA.fk(IIWA.q_home + 0.2)
+    a = qpik.solve_best(scene, pose)
+    b = qpik.solve_best(IIWA, pose, "smooth-margin", SHAPES[:1], d_safe=0.03)
+    assert a.status == b.status and np.allclose(a.q, b.q, atol=1e-12) and a.objective == b.objective
+    path = IIWA.fk(IIWA.q_home + np.linspace(0.0, 0.3, 6)[:, None] * np.eye(7)[1])
+    p, r = qpik.plan_self_motion(scene, path, mujoco=False), qpik.plan_self_motion(
+        IIWA, path, "smooth-margin", SHAPES[:1], d_safe=0.03, mujoco=False)  # fmt: skip
+    assert p.status == r.status and np.allclose(p.q, r.q, atol=1e-12)
+    for name, value in (("objective", "margin"), ("obstacles", []), ("d_safe", 0.05)):
+        with pytest.raises(InputError, match=f"{name}: given twice"):
+            qpik.solve_best(scene, pose, **{name: value})

@@ -36,14 +36,14 @@ import numpy as np
 
 from qpik.analytic import feasible_intervals
 from qpik.errors import InputError, UnreachableError
-from qpik.geometry.distance import ObstacleSet
-from qpik.objectives import Evaluator, Objective, ReferenceDistance, resolve
+from qpik.objectives import Evaluator, Objective, ReferenceDistance
 from qpik.paths import TimedPath, WaypointPath
 from qpik.planning import dp
 from qpik.planning.grid import Grid
 from qpik.planning.plan import Plan, Profile, measure
 from qpik.planning.refine import PathNLP
-from qpik.robots.robot import Robot, as_robot
+from qpik.robots.robot import Robot
+from qpik.scene.scene import Scene, scene_of
 from qpik.stopwatch import Stopwatch
 from qpik.validate import finite_array, flag, number
 from qpik.validate import pose as check_pose
@@ -79,9 +79,8 @@ class Setup:
         tr: the transition bounds (:class:`~qpik.planning.dp.Transitions`).
     """
 
-    def __init__(self, robot, path, objective, obstacles, times, max_joint_step, d_safe, a_max, q_ref, waypoints,
-                 project):  # fmt: skip
-        self.robot = robot = as_robot(robot)
+    def __init__(self, scene: Scene, path, times, max_joint_step, a_max, waypoints, project):
+        self.robot = robot = scene.robot
         n = robot.dof
         if isinstance(path, TimedPath) and not isinstance(path, np.ndarray):
             duration = number(path.duration, "path.duration")
@@ -126,15 +125,11 @@ class Setup:
         point[:-1] += 0.5 * delta
         point[1:] += 0.5 * delta
         self.tr = dp.Transitions(lim, 1.0 / delta, point, dt, acc)
-        if objective is not None and not isinstance(objective, Objective | str):
-            raise InputError(f"objective: expected None, an Objective or a name, got {type(objective).__name__}")
-        self.objective = None if objective is None else resolve(objective)
-        self.obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
-        self.d_safe = number(d_safe, "d_safe")
-        if q_ref is None and self.objective is not None and any(isinstance(o, ReferenceDistance)
-                                                                 for _, o in self.objective.terms):  # fmt: skip
+        self.objective, self.obstacles, self.d_safe = scene.objective, scene.obstacles, scene.d_safe
+        if scene.q_ref is None and self.objective is not None and any(isinstance(o, ReferenceDistance)
+                                                                      for _, o in self.objective.terms):  # fmt: skip
             raise InputError("q_ref: the distance objective needs a reference configuration q_ref")
-        self.q_ref = np.zeros(n) if q_ref is None else finite_array(q_ref, "q_ref", (n,)).copy()
+        self.q_ref = np.zeros(n) if scene.q_ref is None else scene.q_ref
 
     def plan(self, q: np.ndarray, status: str, **kw) -> Plan:
         """A :class:`Plan` of configurations q (K, n) on these waypoints, measured."""
@@ -154,15 +149,15 @@ class Setup:
 
 
 def plan_self_motion(
-    robot: Robot,
+    robot: Robot | Scene,
     path: np.ndarray | TimedPath,
     objective: Objective | str | None = None,
-    obstacles: Sequence = (),
+    obstacles: Sequence | None = None,
     times: np.ndarray | None = None,
     max_joint_step: float | np.ndarray = 0.1,
     reconfigure: str = "forbid",
     *,
-    d_safe: float = 0.02,
+    d_safe: float | None = None,
     a_max: float | np.ndarray | None = None,
     q_ref: np.ndarray | None = None,
     resolution: int = 720,
@@ -176,7 +171,8 @@ def plan_self_motion(
     """Plan the joint motion along an end-effector path (see the module docstring).
 
     Args:
-        robot: the arm.
+        robot: the arm, or a :class:`~qpik.scene.Scene` of it (then ``objective``, ``obstacles``, ``d_safe`` and
+            ``q_ref`` are the scene's).
         path: waypoints (N, 4, 4) (end-effector poses, base frame) or a timed path
             (:class:`qpik.paths.TimedPath`, sampled at ``times`` or at ``waypoints`` even times).
         objective: the point objective (:mod:`qpik.objectives`: an Objective or a name), integrated along
@@ -187,8 +183,8 @@ def plan_self_motion(
         max_joint_step: the largest move of any joint between consecutive waypoints, rad (a number or (n,)).
         reconfigure: ``"forbid"`` (report the first waypoint with no continuous continuation) or
             ``"fewest"`` (the fewest reconfigurations, then the least J).
-        d_safe: m. a_max: (n,) or a number, rad/s² (needs ``times``). q_ref: (n,) the reference of the
-            ``"distance"`` objective, rad.
+        d_safe: m (≥ 0; default 0.02). a_max: (n,) or a number, rad/s² (needs ``times``).
+        q_ref: (n,) the reference of the ``"distance"`` objective, rad.
         resolution: parameter values per branch in the DP's grid (even, ≥ 8).
         window: the largest parameter change (rad) between consecutive waypoints the DP searches on one branch
             (default: three times the largest joint-step bound, since S-R-S: Σ_{j≤3} |Δq_j| ≥ |Δψ| allows a
@@ -206,7 +202,10 @@ def plan_self_motion(
     Raises:
         InputError: bad arguments (naming them).
     """
-    setup = Setup(robot, path, objective, obstacles, times, max_joint_step, d_safe, a_max, q_ref, waypoints, project)
+    if objective is not None and not isinstance(objective, Objective | str):
+        raise InputError(f"objective: expected None, an Objective or a name, got {type(objective).__name__}")
+    scene = scene_of(robot, obstacles, d_safe, objective, q_ref)
+    setup = Setup(scene, path, times, max_joint_step, a_max, waypoints, project)
     if not isinstance(reconfigure, str) or reconfigure not in RECONFIGURE:
         raise InputError(f"reconfigure: expected one of {RECONFIGURE}, got {reconfigure!r}")
     if setup.robot.closed_form is None:
