@@ -66,8 +66,6 @@ settings.register_profile("explore", derandomize=False)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "reproducible"))
 
 
-
-
 def matrix_function(name: str = "f") -> ca.Function:
     """Non-symmetric matrix and vector in; matrix, vector and row out: catches row/column-major mix-ups."""
     A = ca.SX.sym("A", 2, 3)

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import qpik
-from qpik.analytic.api import solver_for
+from qpik.analytic.api import closed_form_for
 from qpik.errors import InputError, NoClosedFormError, QpikError, RotationError
 from qpik.fastcall import extension
 
@@ -272,7 +272,7 @@ def test_every_scalar_type_gives_the_float_answer_through_one_path(seed: int, na
     x = SCALAR_KINDS[kind](v)
     want = qpik.ik(robot, T, float(x))
     assert np.abs(robot.fk(want.q[want.valid]) - T).max(initial=0.0) < 1e-9  # the reference reaches the pose
-    solver = solver_for(robot)
+    solver = closed_form_for(robot)
     fresh = solver.fresh_one
     calls = []
 

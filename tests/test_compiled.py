@@ -49,13 +49,13 @@ def test_native_code_equals_the_virtual_machine_and_can_be_turned_off(monkeypatc
 
     import qpik
     from qpik import build
-    from qpik.analytic import solver_for
+    from qpik.analytic import closed_form_for
 
     if shutil.which("cc") is None or build.compiler() is None:
         pytest.skip("no C compiler, or QPIK_NATIVE=0: native() falls back to the virtual machine by design")
     monkeypatch.setenv("QPIK_CACHE", str(tmp_path))
     robot = qpik.load_robot("nammoto7")
-    f = solver_for(robot).casadi_function  # the largest single-pose function: 16 IK branches
+    f = closed_form_for(robot).casadi_function  # the largest single-pose function: 16 IK branches
     fast = Compiled(f)
     assert fast.fn is not f and fast.fn.name() == f.name()  # an external (compiled) function
     assert list(tmp_path.glob(f"{f.name()}_*.so"))  # cached on disk

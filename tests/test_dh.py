@@ -144,6 +144,7 @@ def random_q_plain(dof: int, n: int) -> np.ndarray:
     """(n, dof) angles uniform in [-π, π) for chains that are not in the catalog."""
     return np.random.default_rng(7).uniform(-np.pi, np.pi, (n, dof))
 
+
 def test_modified_and_standard_conventions_agree_on_a_shared_arm():
     """A planar 3R arm written in both conventions has the same FK (independent of qpik's tables)."""
     lengths = (0.3, 0.2, 0.1)

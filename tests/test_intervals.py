@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import qpik
-from qpik.analytic import solver_for
+from qpik.analytic import closed_form_for
 from qpik.analytic.intervals import SAME, FeasibleIntervals, gaps, merge, shift, shrunk_limits, wrap
 
 PROBE = np.linspace(-np.pi, np.pi, 20_001)
@@ -74,27 +74,27 @@ def test_contains_and_measure():
     assert abs(fi.measure(1) - 2.5) < 1e-15
 
 
-# ---- Assembler: both paths (C, numpy) against the IK at each gap's midpoint ----------------------------
+# ---- SetAssembler: both paths (C, numpy) against the IK at each gap's midpoint ----------------------------
 
 
 def _assemblers():
-    """nammoto7's solver and its Assembler of rows 1–8 with the sets moved by π: the C path (result lists built by
+    """nammoto7's solver and its SetAssembler of rows 1–8 with the sets moved by π: the C path (result lists built by
     the compiled extension, or in Python) and the numpy path."""
     import qpik
     from qpik.analytic import intervals
-    from qpik.analytic.api import solver_for
+    from qpik.analytic.api import closed_form_for
 
-    solver = solver_for(qpik.load_robot("nammoto7"))
-    native = intervals.Assembler(solver, rows=8, shift=True)
+    solver = closed_form_for(qpik.load_robot("nammoto7"))
+    native = intervals.SetAssembler(solver, rows=8, shift=True)
     real, intervals._library = intervals._library, lambda: None
     try:
-        numpy_path = intervals.Assembler(solver, rows=8, shift=True)
+        numpy_path = intervals.SetAssembler(solver, rows=8, shift=True)
     finally:
         intervals._library = real
     assert numpy_path._native is None
     real_extension, intervals.extension = intervals.extension, lambda: None
     try:
-        python_lists = intervals.Assembler(solver, rows=8, shift=True)
+        python_lists = intervals.SetAssembler(solver, rows=8, shift=True)
     finally:
         intervals.extension = real_extension
     paths = {"numpy": numpy_path}
@@ -172,7 +172,7 @@ def test_native_sets_with_a_region_are_the_sets_without_it(name):
     m1 (which hold them) equal the sets computed without a region, on every row; a region that misses the sets
     empties them (the gaps outside it are not evaluated, so the region is the caller's promise)."""
     robot = qpik.load_robot(name)
-    sets = solver_for(robot).native_sets()
+    sets = closed_form_for(robot).native_sets()
     if sets is None:
         pytest.skip("no native feasible sets here (no compiler)")
     call = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p)(sets.function)

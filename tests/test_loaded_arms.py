@@ -120,4 +120,3 @@ def test_solve_ik_reaches_random_poses(key):
         T_goal, T = mujoco_poses(robot, np.stack([q_goal, q]), model)
         reached += np.linalg.norm(pose_error(T_goal, T)) < 1e-9
     assert reached >= 999
-

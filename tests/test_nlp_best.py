@@ -17,7 +17,7 @@ import pytest
 from conftest import random_q
 
 import qpik
-from qpik.analytic import solver_for
+from qpik.analytic import closed_form_for
 from qpik.errors import InputError, NoClosedFormError
 from qpik.geometry import Sphere, distances
 from qpik.nlp import BestResults, solve_best
@@ -45,7 +45,7 @@ def _margin(robot, q):
 
 def _dense(robot, T, num=DENSE, block=10):
     """For each pose: (q (num, B, n), within limits (num, B)) of every branch at ``num`` parameters, in blocks."""
-    solver = solver_for(robot)
+    solver = closed_form_for(robot)
     psi = np.linspace(-np.pi, np.pi, num, endpoint=False)
     for start in range(0, len(T), block):
         Tb = T[start : start + block]

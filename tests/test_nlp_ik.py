@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 import qpik
 from qpik.errors import InputError, NoClosedFormError, RotationError, UnreachableError
 from qpik.lie import pose_error
-from qpik.nlp.ik import ATTEMPT_ITERS, IKSolver, residual_expr, solve_ik, solver_for
+from qpik.nlp.ik import ATTEMPT_ITERS, IKSolver, ik_solver_for, residual_expr, solve_ik
 
 ARMS = ("nammoto7", "iiwa14", "zheng7", "panda")
 CLOSED_FORM = ("nammoto7", "iiwa14")
@@ -67,7 +67,7 @@ def test_closed_form_keeps_the_start_parameter_or_takes_the_nearer_end_of_its_ga
     robot = qpik.load_robot(name)
     q_goal, q0 = random_q(robot, 2, seed)
     T = robot.fk(q_goal)
-    res = solver_for(robot).solve(T, q0)
+    res = ik_solver_for(robot).solve(T, q0)
     assert res.status == "ok" and res.method == "closed form"
     assert _errors(robot, res.q[None], T[None])[0] < 1e-9 and robot.within_limits(res.q)
     param0, branch0 = qpik.redundancy_parameter(robot, q0)
@@ -122,7 +122,7 @@ def test_residual_jacobian_by_finite_differences(name: str) -> None:
 def test_stalled_attempts_stop_early_and_restarts_are_seeded(name: str) -> None:
     """A pose out of reach: every attempt stalls; each stops well before ATTEMPT_ITERS, the budget holds."""
     robot = qpik.load_robot(name)
-    solver = solver_for(robot)
+    solver = ik_solver_for(robot)
     res = solver.solve(_far_pose(robot), robot.q_home, max_iters=800)
     assert res.status == "not found" and res.residual > 1.0 and np.isfinite(res.q).all()
     assert robot.within_limits(res.q)
@@ -156,7 +156,7 @@ def test_reachable_only_outside_the_limits_is_unreachable() -> None:
     robot = qpik.load_robot("iiwa14")
     q = robot.q_home.copy()
     q[3] = -2.5  # rad, past the limit -2.094
-    res = solver_for(robot).solve(robot.fk(q), robot.q_home)
+    res = ik_solver_for(robot).solve(robot.fk(q), robot.q_home)
     assert res.status == "unreachable" and res.residual > 1e-3 and robot.within_limits(res.q)
     with pytest.raises(UnreachableError, match="no configuration inside the joint limits"):
         solve_ik(robot, robot.fk(q), robot.q_home)

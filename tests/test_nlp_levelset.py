@@ -11,7 +11,7 @@ import pytest
 from conftest import random_q
 
 import qpik
-from qpik.analytic import solver_for
+from qpik.analytic import closed_form_for
 from qpik.errors import InputError
 from qpik.geometry import Sphere
 from qpik.nlp import levelset, solve_best
@@ -55,7 +55,7 @@ def test_the_answer_tops_its_super_level_set(name):
     """μ* the answer's margin: the feasible sets with the limits shrunk by μ* + 1e-7 are empty on every branch,
     and those shrunk by μ* − 1e-7 hold the answer's δ/ψ on its branch."""
     robot = qpik.load_robot(name)
-    solver = solver_for(robot)
+    solver = closed_form_for(robot)
     T = _poses(robot, 25, 6)
     for k, res in enumerate(solve_best(robot, T)):
         mu = -res.objective
@@ -70,7 +70,7 @@ def test_poses_the_level_sets_leave_go_to_the_search(monkeypatch):
     as dense sampling (3,000 values × every branch)."""
     monkeypatch.setattr(levelset, "MAX_ROUNDS", 1)
     robot = qpik.load_robot("nammoto7")
-    solver = solver_for(robot)
+    solver = closed_form_for(robot)
     T = _poses(robot, 12, 7)
     results = solve_best(robot, T, method="levelset")
     psi = np.linspace(-np.pi, np.pi, 3000, endpoint=False)

@@ -11,14 +11,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import qpik
-from qpik.analytic.api import solver_for
+from qpik.analytic.api import closed_form_for
 from qpik.analytic.intervals import shrunk_limits, wrap
 from qpik.analytic.offset_shoulder_intervals import DeltaIntervals
 from qpik.problems import load as load_problem
 
 ROOT = Path(__file__).resolve().parents[1]
 ROBOT = qpik.load_robot("nammoto7")
-SOLVER = solver_for(ROBOT)
+SOLVER = closed_form_for(ROBOT)
 
 
 def pose_error(T: np.ndarray, T_ref: np.ndarray) -> np.ndarray:
@@ -261,7 +261,7 @@ LISTS_IN_PYTHON = _lists_in_python()
 @given(SEEDS)
 def test_one_c_call_agrees_with_its_steps(seed):
     """The C path in one call (qpik_delta_sets; its lists built by the compiled extension or in Python) gives the
-    sets of its steps taken one by one: :meth:`DeltaIntervals.breakpoints`, then the Assembler; with a margin too."""
+    sets of its steps taken one by one: :meth:`DeltaIntervals.breakpoints`, then the SetAssembler; with a margin too."""
     native = DeltaIntervals(SOLVER)
     if native._fixed.native is None:
         pytest.skip("no C compiler: the numpy path only (test_feasible_intervals_exact_without_a_c_compiler)")
@@ -277,7 +277,7 @@ def test_one_c_call_agrees_with_its_steps(seed):
 
 def test_feasible_intervals_exact_without_a_c_compiler(monkeypatch):
     """With no C compiler (no cc, or QPIK_NATIVE=0) the wrist roots come from eigenvalues and the gaps are
-    classified in numpy (:class:`qpik.analytic.intervals.Assembler`): the same sets."""
+    classified in numpy (:class:`qpik.analytic.intervals.SetAssembler`): the same sets."""
     from qpik.analytic import intervals, offset_shoulder_intervals, polyroots
     from qpik.analytic.offset_shoulder_intervals import DeltaIntervals
 
@@ -322,7 +322,7 @@ def _margin_sweep_check(T: np.ndarray, margin: float, fi, n_delta: int = 20000, 
     """Dense sampling of δ: samples inside a set are valid with a margin of at least ``margin`` (to 1e-9); valid
     samples with a margin above ``margin`` + 1e-6 are inside the set (both away from its ends)."""
     d = np.linspace(-np.pi, np.pi, n_delta)
-    q, valid, _, _ = solver_for(robot).solve_batch(np.broadcast_to(T, (n_delta, 4, 4)), d)
+    q, valid, _, _ = closed_form_for(robot).solve_batch(np.broadcast_to(T, (n_delta, 4, 4)), d)
     mu = _joint_margin(q, robot)  # (n_delta, 16)
     for k in range(16):
         inside, far = fi.contains(k + 1, d), _far_from_ends(fi.intervals[k], d)

@@ -12,7 +12,7 @@ import qpik
 from qpik.geometry import Sphere
 from qpik.planning.baselines import constant_parameter
 from qpik.plots import save
-from qpik.plots.plan import joint_trajectories, render_plan, selfmotion_map
+from qpik.plots.plan import joint_trajectories, plan_map, render_plan
 from qpik.render import unavailable_reason
 
 IIWA = qpik.load_robot("iiwa14")
@@ -24,8 +24,8 @@ def plan():
     return qpik.plan_self_motion(IIWA, T, obstacles=[Sphere((0.45, 0.35, 0.7), 0.08)], max_joint_step=0.2)
 
 
-def test_selfmotion_map_draws_the_plan_on_its_branch_over_the_feasible_states(plan, tmp_path):
-    fig = selfmotion_map(plan)
+def test_plan_map_draws_the_plan_on_its_branch_over_the_feasible_states(plan, tmp_path):
+    fig = plan_map(plan)
     axes = [ax for ax in fig.axes if ax.images]
     assert len(axes) == 8
     panel = axes[int(plan.branch[0])]  # iiwa14: branch b is grid row b
@@ -68,7 +68,7 @@ def test_the_map_draws_the_baselines_and_every_figure_names_its_marks(plan):
     name every line, marker and shading."""
     b = int(plan.branch[0])
     base = constant_parameter(plan, 0.3, b, mujoco=False)
-    fig = selfmotion_map(plan, others=[base])
+    fig = plan_map(plan, others=[base])
     panel = [ax for ax in fig.axes if ax.images][b]
     (line,) = [ln for ln in panel.get_lines() if ln.get_label() == base.label]
     assert line.get_linestyle() == "--" and np.allclose(np.asarray(line.get_ydata(), float), 0.3)

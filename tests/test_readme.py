@@ -35,7 +35,7 @@ BLOCKS = [
 
 def test_readme_opens_with_the_two_setup_commands_and_ci_runs_the_test_one() -> None:
     first_block = re.search(r"```bash\n(.*?)```", README, re.S).group(1).strip().splitlines()
-    assert first_block == ['pip install . && qpik demo', 'pip install -e ".[test]" && pytest']
+    assert first_block == ["pip install . && qpik demo", 'pip install -e ".[test]" && pytest']
     ci = (ROOT / ".ci" / "run").read_text()
     assert 'pip install -e ".[test]" && pytest' in ci
 

@@ -17,14 +17,14 @@ from hypothesis import given, settings
 from ssik.prebuilt.kuka import iiwa14_ik
 
 import qpik
-from qpik.analytic.api import solver_for
+from qpik.analytic.api import closed_form_for
 from qpik.errors import NoClosedFormError
 from qpik.robots.dh import DHChain
 
 BATCH = 2000
 PROPERTY = settings(max_examples=5, deadline=None)
 ROBOT = qpik.load_robot("iiwa14")
-SOLVER = solver_for(ROBOT)
+SOLVER = closed_form_for(ROBOT)
 PROBLEM = Path(__file__).resolve().parents[1] / "problems" / "shimizu2008_iiwa.toml"
 
 

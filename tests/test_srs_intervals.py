@@ -15,11 +15,11 @@ from conftest import SEEDS, random_q
 from hypothesis import given, settings
 
 import qpik
-from qpik.analytic.api import solver_for
+from qpik.analytic.api import closed_form_for
 from qpik.analytic.srs_intervals import PsiIntervals
 
 ROBOT = qpik.load_robot("iiwa14")
-SOLVER = solver_for(ROBOT)
+SOLVER = closed_form_for(ROBOT)
 SAMPLES = 10_000
 EDGE = 1e-6  # samples this close to a boundary may go either way
 
@@ -77,7 +77,7 @@ def test_intervals_match_dense_sampling(seed):
 
 
 def test_intervals_exact_without_a_c_compiler(monkeypatch):
-    """With no C compiler the gaps are classified in numpy (:class:`qpik.analytic.intervals.Assembler`): same sets."""
+    """With no C compiler the gaps are classified in numpy (:class:`~qpik.analytic.intervals.SetAssembler`)."""
     from qpik.analytic import intervals, srs_intervals
     from qpik.analytic.srs_intervals import PsiIntervals
 
@@ -140,7 +140,7 @@ def joint_limit_margin(robot: qpik.Robot, q: np.ndarray) -> np.ndarray:
 def check_margin(robot: qpik.Robot, fi, T: np.ndarray, margin: float, psi: np.ndarray) -> None:
     """The sets of T at ``margin`` against the closed form at the arm angles ``psi``: a sample inside a set (off its
     ends) is valid with μ >= margin; a valid sample with μ > margin lies in the set."""
-    solver = solver_for(robot)
+    solver = closed_form_for(robot)
     Q, valid, _, _ = solver.solve_batch(np.broadcast_to(T, (psi.size, 4, 4)), psi)  # (M, 8, 7), (M, 8)
     mu = joint_limit_margin(robot, Q)  # (M, 8)
     for k in range(8):
@@ -173,7 +173,7 @@ def without_compiler():
     with pytest.MonkeyPatch.context() as mp:
         for module in (intervals, srs_intervals):
             mp.setattr(module, "_library", lambda: None)
-        out = [PsiIntervals(solver_for(robot)) for robot in (ROBOT, ASYMMETRIC)]
+        out = [PsiIntervals(closed_form_for(robot)) for robot in (ROBOT, ASYMMETRIC)]
         assert all(x._fixed.native is None and x._shrunk.native is None and x._assemble._native is None for x in out)
     return out
 
@@ -188,7 +188,7 @@ def test_sets_with_a_margin_match_dense_sampling(seed, without_compiler):
     for robot, numpy_path in zip((ROBOT, ASYMMETRIC), without_compiler):
         for T in poses_for(robot, seed, 6):
             margin = float(rng.uniform(0.0, rng.choice([0.05, 0.8])))
-            fi = solver_for(robot).feasible_intervals(T, margin)
+            fi = closed_form_for(robot).feasible_intervals(T, margin)
             psi = rng.uniform(-np.pi, np.pi, MARGIN_SAMPLES)
             check_margin(robot, fi, T, margin, psi)
             other = numpy_path(T, margin)
@@ -204,7 +204,7 @@ def test_no_set_above_the_elbows_margin(seed, without_compiler):
     both paths."""
     rng = np.random.default_rng(seed)
     for robot, numpy_path in zip((ROBOT, ASYMMETRIC), without_compiler):
-        solver = solver_for(robot)
+        solver = closed_form_for(robot)
         for T in poses_for(robot, seed, 6):
             sol = solver.solve_one(T, 0.0)
             if not sol.valid.any():
@@ -285,11 +285,11 @@ def same_sets(a, b) -> None:
 
 
 def test_one_c_call_agrees_with_the_numpy_path(without_compiler):
-    """qpik_psi_sets against the breakpoint function and the numpy Assembler: both arms, 150 poses each (uniform,
+    """qpik_psi_sets against the breakpoint function and the numpy SetAssembler: both arms, 150 poses each (uniform,
     near a limit, singular, unreachable), margin 0 and a random margin in (0, 1.1) (above 1 every set is empty)."""
     rng = np.random.default_rng(11)
     for robot, numpy_path in zip((ROBOT, ASYMMETRIC), without_compiler):
-        c_path = PsiIntervals(solver_for(robot))
+        c_path = PsiIntervals(closed_form_for(robot))
         if c_path._fixed.native is None:
             pytest.skip("no C compiler: the numpy path only (test_intervals_exact_without_a_c_compiler)")
         poses = np.concatenate([poses_for(robot, 12, 120), singular_poses(robot, 13, 20)])
@@ -314,7 +314,7 @@ def test_native_sets_called_through_ctypes(robot, without_compiler):
 
     from qpik.analytic.intervals import shrunk_limits
 
-    solver = solver_for(robot)
+    solver = closed_form_for(robot)
     sets = solver.native_sets()
     if sets is None:
         pytest.skip("no C compiler")

@@ -29,7 +29,7 @@ def symbol(param_name: str) -> str:
     return SYMBOL.get(param_name, param_name)
 
 
-def solver_for(robot: Robot) -> AnalyticSolver:
+def closed_form_for(robot: Robot) -> AnalyticSolver:
     """The closed-form solver of ``robot`` (cached per robot object).
 
     Raises:
@@ -101,7 +101,7 @@ def ik(robot: Robot, pose: np.ndarray, param: float | np.ndarray, project: bool 
 
     An unreachable pose gives ``valid = False`` rows, never an exception.
     """
-    solver = solver_for(robot)
+    solver = closed_form_for(robot)
     if project is False and (fast := solver.fresh_one) is not None and (out := fast(pose, param)) is not None:
         # a single pose and one real δ/ψ (a float, an int, a numpy scalar or a 0-d array), checked in C
         q, flags = out  # flags (3, B): valid, singular, within limits (indexing beats unpacking the rows)
@@ -146,7 +146,7 @@ def redundancy_parameter(robot: Robot, q: np.ndarray) -> tuple[float | np.ndarra
 
     ``q`` may be given unwrapped (any ``q + 2πk``): it is wrapped to (−π, π] first, as ``ik`` returns it.
     """
-    solver = solver_for(robot)
+    solver = closed_form_for(robot)
     qa, batched = joint_vector(q, robot.dof)
     with solver.lock:
         param, branch = solver.parameter(wrap(np.atleast_2d(qa)))
@@ -162,7 +162,7 @@ def feasible_intervals(robot: Robot, pose: np.ndarray, project: bool = False, ma
     :math:`\rho_j = (u_j - l_j)/2` instead: the set where the joint-limit margin
     (:class:`qpik.objectives.JointLimitMargin`) is at least m (empty for m > 1).
     """
-    solver = solver_for(robot)
+    solver = closed_form_for(robot)
     T, batched = check_pose(pose, "pose", project)
     if batched:
         raise InputError("pose: feasible_intervals takes one pose (4, 4)")

@@ -1,4 +1,4 @@
-"""Feasible redundancy-parameter sets: types and the shared interval assembly (:class:`Assembler`).
+"""Feasible redundancy-parameter sets: types and the shared interval assembly (:class:`SetAssembler`).
 
 A solver finds, analytically, every parameter value where something can
 change for a branch: a joint reaching a limit, a joint jumping (wrap or a
@@ -122,7 +122,7 @@ class ParameterSets(Protocol):
     def native_sets(self) -> NativeSets | None: ...
 
 
-class Assembler:
+class SetAssembler:
     """Feasible sets and singular values of a solver's first ``rows`` branches, from breakpoints.
 
     One evaluation of the branches (the compiled IK with its limit test, ``flags``
@@ -183,7 +183,7 @@ class Assembler:
 
 
 class _NativeSets:
-    """:class:`Assembler`'s C path: ``qpik_circle_sets`` (``intervals.c``) calling the IK's generated C; its
+    """:class:`SetAssembler`'s C path: ``qpik_circle_sets`` (``intervals.c``) calling the IK's generated C; its
     arrays become lists by :func:`list_maker`'s function."""
 
     def __init__(

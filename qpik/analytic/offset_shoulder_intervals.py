@@ -59,13 +59,13 @@ robot's limits' function.
 Squaring (θ3 and the σ product) and the ±acos of c add spurious candidates; they
 only split a gap in two, and merging the gaps joins it again. Rows 9–16 are rows 1–8
 shifted by π, so only rows 1–8 are classified: one evaluation of those 8 branches
-at every gap midpoint (:class:`qpik.analytic.intervals.Assembler`), and
+at every gap midpoint (:class:`qpik.analytic.intervals.SetAssembler`), and
 rows 9–16's sets are rows 1–8's moved by π.
 
 With a C compiler all of it is one C call (``offset_shoulder_intervals.c``, compiled with
 ``polyroots.c`` and ``intervals.c``): the breakpoint function, the wrist roots, the common-root
 test and the classification of the gaps, with no numpy in between; without one, the same
-steps run in numpy (:meth:`DeltaIntervals.breakpoints`, then the Assembler).
+steps run in numpy (:meth:`DeltaIntervals.breakpoints`, then the SetAssembler).
 """
 
 from __future__ import annotations
@@ -80,7 +80,7 @@ import casadi as ca
 import numpy as np
 
 from qpik import symbolic as sy
-from qpik.analytic.intervals import ArmSetsCall, Assembler, FeasibleIntervals, Interval, NativeSets, shrunk_limits
+from qpik.analytic.intervals import ArmSetsCall, FeasibleIntervals, Interval, NativeSets, SetAssembler, shrunk_limits
 from qpik.analytic.intervals import c_source as intervals_source
 from qpik.analytic.polyroots import FLAGS as POLYROOTS_FLAGS
 from qpik.analytic.polyroots import ROOM, trig_roots
@@ -118,7 +118,7 @@ class DeltaIntervals:
         self.levels = [solver.levels(j) for j in range(solver.robot.dof)]  # in the table's angles
         self._limits = (np.asarray(solver.robot.q_min, float), np.asarray(solver.robot.q_max, float))
         self._fixed = self._compile("os_breakpoints", [], self.levels)
-        self._assemble = Assembler(solver, rows=8, shift=True)
+        self._assemble = SetAssembler(solver, rows=8, shift=True)
 
     @cached_property
     def _shrunk(self) -> _Breakpoints:
@@ -320,7 +320,7 @@ class _DeltaSets(ctypes.Structure):
 class _NativeDelta(ArmSetsCall):
     """:class:`DeltaIntervals` in one C call (``qpik_delta_sets``, ``offset_shoulder_intervals.c``): the
     breakpoint function's and the IK's generated C, :func:`~qpik.analytic.polyroots.trig_roots`' root finder and
-    the :class:`~qpik.analytic.intervals.Assembler`'s gap classification."""
+    the :class:`~qpik.analytic.intervals.SetAssembler`'s gap classification."""
 
     ROWS = 8
 

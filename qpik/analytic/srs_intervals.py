@@ -22,7 +22,7 @@ For one pose every joint of a branch is a function of ψ built from
   (:meth:`PsiIntervals.fixed_joints_within`; at a margin above the elbow's this is the common case).
 
 θ is continuous in ψ between consecutive roots and crosses no limit there, so
-the roots are all the breakpoints: :class:`qpik.analytic.intervals.Assembler`
+the roots are all the breakpoints: :class:`qpik.analytic.intervals.SetAssembler`
 classifies each gap by one evaluation of every branch at its midpoint (the
 compiled IK itself with its in-limits test); the breakpoints of all branches are pooled, since a breakpoint
 that changes nothing only splits a gap. The equations are formed and solved, and the singular values
@@ -41,7 +41,7 @@ With a C compiler the sets are one C call (``srs_intervals.c``, compiled with ``
 function and the classification of the gaps by the IK, which reads the same pose and limit buffers, with no numpy in
 between (:meth:`PsiIntervals.native_sets` hands it to C code that calls it in a loop); the singular values are
 then read from the breakpoint function's output. Without one, the same steps run in numpy (the compiled breakpoint
-function, then the Assembler).
+function, then the SetAssembler).
 
 The singular values listed per branch are the ψ where :math:`|M_{22}| = 1` for
 the shoulder or the wrist (θ2 or θ6 = 0 or π): the maximum :math:`c + \sqrt{a^2+b^2}`
@@ -65,7 +65,15 @@ import numpy as np
 
 from qpik import symbolic as sy
 from qpik.analytic import trig
-from qpik.analytic.intervals import ArmSetsCall, Assembler, FeasibleIntervals, Interval, NativeSets, shrunk_limits, wrap
+from qpik.analytic.intervals import (
+    ArmSetsCall,
+    FeasibleIntervals,
+    Interval,
+    NativeSets,
+    SetAssembler,
+    shrunk_limits,
+    wrap,
+)
 from qpik.analytic.intervals import c_source as intervals_source
 from qpik.analytic.srs_geometry import arm_setup, branch_signs
 from qpik.build import python_library
@@ -122,9 +130,9 @@ class PsiIntervals:
         return self._compile("srs_breakpoints_margin", [lo, hi], levels)
 
     @cached_property
-    def _assemble(self) -> Assembler:
+    def _assemble(self) -> SetAssembler:
         """The gaps' classification of the path without the one C call."""
-        return Assembler(self._solver, rows=len(self.branch))
+        return SetAssembler(self._solver, rows=len(self.branch))
 
     def _compile(self, name: str, inputs: list[ca.SX], levels: list[JointLevels]) -> _Breakpoints:
         """The breakpoint function ``name`` of the pose T (4, 4) and ``inputs`` (the symbols of ``levels``):
@@ -268,7 +276,7 @@ class _PsiSets(ctypes.Structure):
 
 class _NativePsi(ArmSetsCall):
     """:class:`PsiIntervals` in one C call (``qpik_psi_sets``, ``srs_intervals.c``): the breakpoint function's and
-    the IK's generated C and the :class:`~qpik.analytic.intervals.Assembler`'s gap classification."""
+    the IK's generated C and the :class:`~qpik.analytic.intervals.SetAssembler`'s gap classification."""
 
     def __init__(self, dll: ctypes.CDLL, breaks: NativeFunction, ik: NativeFunction, rows: int):
         n_breaks, n_sing = breaks.res[0].size, breaks.res[1].size

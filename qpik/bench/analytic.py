@@ -34,7 +34,7 @@ import argparse
 
 import numpy as np
 
-from qpik.analytic.api import feasible_intervals, ik, redundancy_parameter, solver_for, symbol
+from qpik.analytic.api import closed_form_for, feasible_intervals, ik, redundancy_parameter, symbol
 from qpik.bench import Row, time_calls, time_interleaved
 from qpik.robots.catalog import load_robot
 
@@ -99,7 +99,7 @@ def _arm_rows(name: str, repeat: int, ref: str | None) -> list[Row]:
     ti = time_calls(
         _cycle(lambda c: feasible_intervals(robot, c[0]), cases), max(10, repeat // (2 * BLOCK)), warmup=3, block=BLOCK
     )
-    sym = symbol(solver_for(robot).param_name)
+    sym = symbol(closed_form_for(robot).param_name)
     ratio = float(np.median(single["numpy"]) / np.median(t1))
     return [
         _row(f"qpik.ik, 1 pose ({name})", t1, ref, PAPER_NOTE if name == "nammoto7" else ""),

@@ -84,10 +84,19 @@ def run(args: argparse.Namespace) -> list[Row]:
                     page.close()
             p95 = float(np.percentile(t, 95))
             within = int(np.sum(t <= BUDGET))
-            what = ("numerical IK" if robot.closed_form is None
-                    else f"{len(viewer.state.branches)} branches, feasible sets, solve_best {viewer.state.best.method}")
+            what = (
+                "numerical IK"
+                if robot.closed_form is None
+                else f"{len(viewer.state.branches)} branches, feasible sets, solve_best {viewer.state.best.method}"
+            )
             seen = "a page open in headless Chromium" if page is not None else f"no page ({why})"
-            rows.append(Row(f"{label}: pose → scene", float(np.median(t)), p99=float(np.percentile(t, 99)),
-                            worst=float(t.max()),
-                            note=f"p95 {p95 * 1e3:.1f} ms; {within}/{len(t)} ≤ {BUDGET * 1e3:.0f} ms; {what}; {seen}"))
+            rows.append(
+                Row(
+                    f"{label}: pose → scene",
+                    float(np.median(t)),
+                    p99=float(np.percentile(t, 99)),
+                    worst=float(t.max()),
+                    note=f"p95 {p95 * 1e3:.1f} ms; {within}/{len(t)} ≤ {BUDGET * 1e3:.0f} ms; {what}; {seen}",
+                )
+            )
     return rows

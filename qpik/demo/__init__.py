@@ -25,8 +25,10 @@ def run_all(out: Path, only: list[str] | None = None) -> None:
     out.mkdir(parents=True, exist_ok=True)
     cache, cc = cache_dir(), compiler()
     if cc and not any(cache.glob("*.so")):
-        print(f"first run: qpik compiles its functions with {cc} as they are first used (about 5 min on"
-              f" 2 cores), cached in {cache}; later runs take about half a minute")
+        print(
+            f"first run: qpik compiles its functions with {cc} as they are first used (about 5 min on"
+            f" 2 cores), cached in {cache}; later runs take about half a minute"
+        )
     reason = unavailable_reason()
     if reason:
         print(f"pictures of the arms skipped: {reason} (tables and plots still follow)")

@@ -44,8 +44,10 @@ def _table4(out: Path) -> None:
     how = branch_pictures(robot, sols, out / "closed_form_branches_nammoto7.png")
     _print_groups(robot, sols)
     files.append(
-        (out / "closed_form_branches_nammoto7.png", f"the 16 poses of Table 4 (Nammoto & Kosuge 2012, Fig. 10; {how}),"
-                                                    " one picture per placement of the links")
+        (
+            out / "closed_form_branches_nammoto7.png",
+            f"the 16 poses of Table 4 (Nammoto & Kosuge 2012, Fig. 10; {how}), one picture per placement of the links",
+        )
     )
     _print_files(files)
 
@@ -107,8 +109,15 @@ def _pz_sweep(out: Path) -> None:
     path = out / "closed_form_pz_sweep.png"
     title = "nammoto7, branch 1: joint angles against p_z (limits: qpik's catalog; the paper gives none)"
     save(sweep_figure(robot, pz, curves, "p_z [m]", title), path)
-    _print_files([(path, "joint angles of branch 1 against p_z at δ = 0 and 0.70 (Nammoto & Kosuge 2012 Figs. 15/16),"
-                         " θ6's limits dashed, × outside them")])
+    _print_files(
+        [
+            (
+                path,
+                "joint angles of branch 1 against p_z at δ = 0 and 0.70 (Nammoto & Kosuge 2012 Figs. 15/16),"
+                " θ6's limits dashed, × outside them",
+            )
+        ]
+    )
 
 
 def _branch1(problem) -> list[tuple[float, np.ndarray, np.ndarray]]:
@@ -143,9 +152,11 @@ def theta6_verdict(facts: list, limit: float) -> str:
         return f"{lowered} and keeps it inside its limit of {limit:.2f} rad at every p_z: choosing δ avoids the limit"
     spans = ", ".join(f"{a:.2f} to {b:.2f} m" for a, b in runs1)
     neither = "neither constant δ keeps" if runs0 else f"only δ = {d0:.2f} keeps"
-    return (f"{lowered}, but that is still past the catalog's limit of {limit:.2f} rad"
-            f" ({np.degrees(limit):.0f}°, qpik's choice: the paper gives no limits) for p_z from {spans}:"
-            f" {neither} θ6 inside it")
+    return (
+        f"{lowered}, but that is still past the catalog's limit of {limit:.2f} rad"
+        f" ({np.degrees(limit):.0f}°, qpik's choice: the paper gives no limits) for p_z from {spans}:"
+        f" {neither} θ6 inside it"
+    )
 
 
 def _print_files(files: list[tuple[Path, str]]) -> None:

@@ -16,7 +16,7 @@ import numpy as np
 from qpik.planning import plan_self_motion
 from qpik.planning.baselines import constant_parameter
 from qpik.plots import save
-from qpik.plots.plan import joint_trajectories, render_plan, selfmotion_map
+from qpik.plots.plan import joint_trajectories, plan_map, render_plan
 from qpik.problems import find_problem, load
 from qpik.problems.plan import plan_problem, waypoints
 
@@ -36,7 +36,7 @@ def run(out: Path) -> None:
     baselines = [constant_parameter(plan, d, sweep.solver["baseline_branch"], mujoco=False) for d in sweep.params]
     for p in (plan, *baselines):
         print(f"  {p.label:28} {int(np.sum(p.margin < 0)):>28} {length(p.q):>17.3f}")
-    save(selfmotion_map(plan, others=baselines), folder / "nammoto_sweep_map.png")
+    save(plan_map(plan, others=baselines), folder / "nammoto_sweep_map.png")
     save(joint_trajectories(plan, baselines), folder / "nammoto_sweep_joints.png")
     print(f"  nammoto_sweep_joints.png, nammoto_sweep_map.png: the plan and the {len(baselines)} constant-δ baselines")
 
@@ -49,6 +49,6 @@ def run(out: Path) -> None:
     print(f"reconfigure='fewest': {fewest.summary()}")
     for check in fewest.checks:
         print(f"  {'PASS' if check.ok else 'FAIL'}: {check.text}")
-    save(selfmotion_map(fewest), folder / "iiwa_reconfiguration_map.png")
+    save(plan_map(fewest), folder / "iiwa_reconfiguration_map.png")
     strip = render_plan(fewest, folder / "iiwa_reconfiguration_strip.png")
     print(f"pictures: {folder}/ (self-motion maps, joints" + (", image strip)" if strip else ")"))

@@ -38,7 +38,7 @@ from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.certificate import certify as prove
 from qpik.nlp.levelset import margin_weight, maximise
 from qpik.nlp.run import BestRun, Points, least_per_row
-from qpik.nlp.search import SAMPLE_STEP, Pieces, candidates, onto_limits, polish, sample, singular_ends, split
+from qpik.nlp.search import SAMPLE_STEP, Pieces, candidates, onto_limits, polish_minima, sample, singular_ends, split
 from qpik.nlp.selfmotion import SelfMotion, selfmotion_of
 from qpik.objectives import Objective, Quantity, ReferenceDistance, clearance
 from qpik.robots.robot import Robot
@@ -489,7 +489,7 @@ def _search(scene: BestRun, pieces: Pieces, step: float, extra: Points | None = 
         return runs, np.zeros(0, int)
     a, m, b = candidates(scene, runs, run)
     before = scene.evaluations
-    pol = polish(scene, a, m, b)
+    pol = polish_minima(scene, a, m, b)
     share = (scene.evaluations - before) / max(len(m), 1)
     np.add.at(scene.counts, (m.pose, m.row), np.round(share).astype(int))
     return onto_limits(scene, pol.point), pol.rounds

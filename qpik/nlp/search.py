@@ -10,7 +10,7 @@ of closed intervals of δ/ψ. On each:
    is refined to its root (:func:`roots`: secant, Newton and bisection steps in a bracket),
    giving the feasible *pieces*. The brackets here and in the polish are evaluated with
    ``f'`` and ``c'`` (:meth:`~qpik.nlp.run.BestRun.evaluate`).
-3. **Polish** the discrete local minima of the samples of each piece (:func:`polish`): a
+3. **Polish** the discrete local minima of the samples of each piece (:func:`polish_minima`): a
    bracket ``a ≤ m ≤ b`` with ``f(m) ≤ f(a), f(b)`` shrinks around a local minimum. Each round
    tries, on the side where ``f'(m)`` descends, the root of the secant of ``f'`` (exact for a
    quadratic), the crossing of the tangents at the two ends (exact at a kink of the epigraph
@@ -49,9 +49,9 @@ SINGULAR_END = 1e-7
 PSI_TOL = 1e-13
 r"""A bracket narrower than this (rad, relative to :math:`1 + |\psi|`) has converged."""
 NOISE = 1e-15
-"""Relative rounding of an objective value: values closer than this count as equal in :func:`polish`."""
+"""Relative rounding of an objective value: values closer than this count as equal in :func:`polish_minima`."""
 MAX_ROUNDS = 60
-"""Most rounds of :func:`polish` or :func:`roots`."""
+"""Most rounds of :func:`polish_minima` or :func:`roots`."""
 POLISHED_PER_BRANCH = 1
 """Candidates polished per (pose, branch): its best discrete local minima."""
 POLISHED_PER_POSE = 4
@@ -180,7 +180,7 @@ class Polished:
     rounds: np.ndarray
 
 
-def polish(scene: BestRun, a: Points, m: Points, b: Points) -> Polished:
+def polish_minima(scene: BestRun, a: Points, m: Points, b: Points) -> Polished:
     """Shrink brackets ``a.ψ ≤ m.ψ ≤ b.ψ`` with ``f(m) ≤ f(a), f(b)`` to local minima (see the module docstring).
 
     ``a`` or ``b`` may equal ``m`` (a minimum at the end of a piece). Each round also probes

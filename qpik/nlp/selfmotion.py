@@ -25,7 +25,7 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
-from qpik.analytic import solver_for
+from qpik.analytic import closed_form_for
 from qpik.build import concurrently
 from qpik.compiled import Compiled, RowMap
 from qpik.enclosure import taylor_function
@@ -50,7 +50,7 @@ class SelfMotion:
 
     def __init__(self, robot: Robot):
         self.robot = robot
-        self.solver = solver_for(robot)
+        self.solver = closed_form_for(robot)
         self.branch_ids = np.array(self.solver.branch_ids)
         self.searched = MIRRORED.get(self.solver.kind, self.solver.n_branches)
         self.whole_turn = bool(np.any(np.asarray(robot.q_max) - np.asarray(robot.q_min) >= 2.0 * np.pi))

@@ -35,7 +35,7 @@ import casadi as ca
 import numpy as np
 
 from qpik import symbolic as sy
-from qpik.analytic import feasible_intervals, solver_for
+from qpik.analytic import closed_form_for, feasible_intervals
 from qpik.analytic.intervals import FeasibleIntervals, wrap
 from qpik.build import shared_library
 from qpik.compiled import Compiled, NativeFunction, RowMap
@@ -98,7 +98,7 @@ class Grid:
     ):
         self.robot, self.poses, self.objective = robot, poses, objective
         self.obstacles, self.d_safe, self.q_ref = obstacles, float(d_safe), q_ref
-        self.solver = solver_for(robot)
+        self.solver = closed_form_for(robot)
         self.G = int(resolution)
         self.values = -np.pi + (np.arange(self.G) + 0.5) * (2.0 * np.pi / self.G)
         self.rows = MIRRORED.get(self.solver.kind, self.solver.n_branches)

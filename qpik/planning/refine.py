@@ -113,7 +113,7 @@ class Refined:
 
 
 @dataclass
-class Problem:
+class PathProblem:
     """One NLP of :class:`PathNLP`: ``min f(x) s.t. lbg ≤ g(x) ≤ ubg`` over x = [vec(z); vec(t)] (CasADi MX).
 
     Attributes:
@@ -300,7 +300,7 @@ class PathNLP:
                 acc.append(x)
         return (*(ca.horzcat(*x) for x in (Q, Qp, Qpp, Hp)), grads, ca.horzcat(*cost_t), values)
 
-    def _derivatives(self, nlp: Problem, near: np.ndarray, sizes: list[int]) -> tuple[ca.Function, ca.Function]:
+    def _derivatives(self, nlp: PathProblem, near: np.ndarray, sizes: list[int]) -> tuple[ca.Function, ca.Function]:
         """IPOPT's ``grad_f`` ``(x, p) -> (f, ∇f)`` and ``jac_g`` ``(x, p) -> (g, ∂g/∂x)`` of a closed-form arm,
         assembled from :meth:`_curvature`'s first derivatives: q_k depends on ψ_k alone, so the rows of waypoint
         k's pieces and distances hold ψ_k, D_k holds ψ_k and ψ_{k+1}, an acceleration row three neighbours."""
@@ -426,8 +426,8 @@ class PathNLP:
         motion = ca.sum2(ca.sum1(D * D) * ca.DM(self.tr.motion * self.continuous).T)
         return motion + ca.sum2(cost_pt * ca.DM(self.tr.point).T)
 
-    def problem(self, near: np.ndarray) -> Problem:
-        """The NLP with the clearance constraints of the waypoints ``near`` (N,) (see :class:`Problem`)."""
+    def problem(self, near: np.ndarray) -> PathProblem:
+        """The NLP with the clearance constraints of the waypoints ``near`` (N,) (see :class:`PathProblem`)."""
         tr = self.tr
         z, t, Q, cost_pt, E, others = self._graph(near)
         D = Q[:, 1:] - Q[:, :-1]  # (n, N-1)
@@ -447,7 +447,7 @@ class PathNLP:
             both = self.continuous[1:] & self.continuous[:-1]
             bound = np.where(both[:, None], np.outer(0.5 * (tr.dt[1:] + tr.dt[:-1]), tr.a_max), np.inf)
             g_parts.append(ca.vec(V[:, 1:] - V[:, :-1])), lbg.append(-bound.ravel()), ubg.append(bound.ravel())
-        nlp = Problem(z, t, ca.vertcat(ca.vec(z), ca.vec(t)), f, ca.vertcat(*g_parts), np.concatenate(lbg),
+        nlp = PathProblem(z, t, ca.vertcat(ca.vec(z), ca.vec(t)), f, ca.vertcat(*g_parts), np.concatenate(lbg),
                       np.concatenate(ubg))  # fmt: skip
         if self.grid is not None:
             sizes = [part.numel() for part in g_parts]

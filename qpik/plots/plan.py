@@ -1,6 +1,6 @@
 """Figures of a self-motion plan (:func:`qpik.plan_self_motion`), on matplotlib ``Figure`` objects.
 
-- :func:`selfmotion_map`: the parameter (vertical) against path progress (horizontal), one panel per
+- :func:`plan_map`: the parameter (vertical) against path progress (horizontal), one panel per
   branch, the infeasible states shaded (outside the joint limits or closer than d_s to an obstacle, as
   the DP's grid saw them), the DP's profile (dots), the plan's (line) and its baselines' (dashed) drawn on the
   branch they use;
@@ -34,7 +34,7 @@ SHADE = ListedColormap([(0.78, 0.78, 0.78, 1.0), (1.0, 1.0, 1.0, 0.0)])
 """Infeasible states grey, feasible ones clear."""
 
 
-def selfmotion_map(plan: Plan, title: str | None = None, others: Sequence[Plan] = ()) -> Figure:
+def plan_map(plan: Plan, title: str | None = None, others: Sequence[Plan] = ()) -> Figure:
     """The self-motion map of ``plan`` (a closed-form plan with a DP profile) and, dashed, of the plans ``others``
     (baselines on the same waypoints); see the module docstring."""
     prof = plan.profile

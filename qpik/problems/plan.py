@@ -38,7 +38,7 @@ from qpik.planning import Plan, plan_self_motion
 from qpik.planning.baselines import constant_parameter, online
 from qpik.planning.many import detach
 from qpik.plots import save
-from qpik.plots.plan import joint_trajectories, render_plan, selfmotion_map
+from qpik.plots.plan import joint_trajectories, plan_map, render_plan
 from qpik.problems.runners import runner
 from qpik.problems.schema import Problem
 from qpik.robots.bundle import RobotBundle
@@ -255,7 +255,7 @@ def _report(job: PlanJob, robot: Robot, out: Path) -> tuple[str, Plan, bool]:
         strip = render_plan(plan, out / f"{name}_strip.png")
         files.append(strip.name if strip is not None else "(no image strip: it needs OpenGL)")
     if plan.profile is not None:
-        save(selfmotion_map(plan, others=others), out / f"{name}_map.png")
+        save(plan_map(plan, others=others), out / f"{name}_map.png")
         files.append(f"{name}_map.png")
     lines.append("Files: " + ", ".join(files))
     return "\n".join(lines), plan, verdict

@@ -80,10 +80,7 @@ def manipulability_gradient_expr(J: list[list[Scalar]], H: list[list[list[Scalar
         total: Scalar = 0.0
         for i in range(rows):
             G.append(
-                [
-                    sy.mul(sy.sub(H[k][i][j], sy.lin(*((R[t][i], G[t][j]) for t in range(i)))), inv[i])
-                    for j in range(n)
-                ]
+                [sy.mul(sy.sub(H[k][i][j], sy.lin(*((R[t][i], G[t][j]) for t in range(i)))), inv[i]) for j in range(n)]
             )
             total = sy.add(total, sy.lin(*zip(Q[i], G[i])))
         grad.append(m * total)

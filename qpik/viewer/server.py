@@ -299,9 +299,9 @@ class Viewer:
         self._arm = self._add_arm("/arm", None, 1.0)
         self._best = self._add_arm("/best", BEST, 0.45, visible=False)
         closed = robot.closed_form is not None
-        from qpik.analytic.api import solver_for
+        from qpik.analytic.api import closed_form_for
 
-        self._branch_ids = solver_for(robot).branch_array.tolist() if closed else []
+        self._branch_ids = closed_form_for(robot).branch_array.tolist() if closed else []
         self._ghosts = [self._add_arm(f"/ghost{b}", WITHIN, GHOST_OPACITY, visible=False) for b in self._branch_ids]
         self._ghost_colour = [WITHIN] * len(self._ghosts)
         self._labels = [scene.add_label(f"/ghost{b}/label", f"b{b}", visible=False) for b in self._branch_ids]

@@ -18,7 +18,7 @@ from qpik.analytic import FeasibleIntervals, IKSolutions, feasible_intervals, ik
 from qpik.geometry.distance import Distances, ObstacleSet, distances
 from qpik.nlp import BestResult, solve_best
 from qpik.nlp.ik import IKResult
-from qpik.nlp.ik import solver_for as ik_solver
+from qpik.nlp.ik import ik_solver_for as ik_solver
 from qpik.robots.robot import Robot
 
 
