@@ -108,7 +108,7 @@ def test_placo_peer_steps_toward_the_target_within_its_limits():
     """The placo step of the controller bench is a working controller: from the scene's start, 300 closed-loop
     steps bring the end effector (by qpik's FK) closer to the target, every velocity within the robot's limits."""
     from qpik.bench.controller import DT, _placo_step, scene
-    from qpik.robots.catalog import load_robot
+    from qpik.robots.loader import load_robot
 
     robot = load_robot("iiwa14")
     q, target, _ = scene(robot, robot.q_home)

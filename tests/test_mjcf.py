@@ -8,7 +8,8 @@ import pytest
 from conftest import SEEDS, mujoco_poses, random_robot
 from hypothesis import given, settings
 
-from qpik.robots.catalog import CATALOG, load_robot
+from qpik.robots.catalog import CATALOG
+from qpik.robots.loader import load_robot
 from qpik.robots.robot import Robot
 
 ARMS = sorted(CATALOG)

@@ -10,7 +10,8 @@ from conftest import SEEDS, fd, fd_geometric_jacobian, random_q
 from hypothesis import given, settings
 
 from qpik.errors import InputError
-from qpik.robots.catalog import CATALOG, load_robot
+from qpik.robots.catalog import CATALOG
+from qpik.robots.loader import load_robot
 from qpik.robots.mujoco_backend import MjKinematics
 
 ARMS = sorted(CATALOG)

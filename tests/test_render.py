@@ -12,7 +12,7 @@ from PIL import Image
 
 from qpik.errors import InputError
 from qpik.render import RenderUnavailable, render_configurations
-from qpik.robots.catalog import load_robot
+from qpik.robots.loader import load_robot
 from qpik.robots.mujoco_backend import MjKinematics
 
 SIZE = (96, 80)

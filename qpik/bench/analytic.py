@@ -36,7 +36,7 @@ import numpy as np
 
 from qpik.analytic.api import closed_form_for, feasible_intervals, ik, redundancy_parameter, symbol
 from qpik.bench import Row, time_calls, time_interleaved
-from qpik.robots.catalog import load_robot
+from qpik.robots.loader import load_robot
 
 BLOCK = 20
 """The single-pose rows (one pose, feasible intervals, the locked-joint rows): each sample is a block of this many

@@ -20,7 +20,7 @@ import numpy as np
 from qpik.bench import Row
 from qpik.planning.many import plan_many
 from qpik.planning.planner import plan_self_motion
-from qpik.robots.catalog import load_robot
+from qpik.robots.loader import load_robot
 
 TITLE = "Batches: qpik.plan_many, 200 iiwa14 paths of 6 waypoints (plans per second in the notes)"
 PATHS = 200

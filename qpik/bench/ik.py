@@ -45,7 +45,7 @@ from qpik.bench import Row, fmt_time
 from qpik.errors import UnreachableError
 from qpik.lie import pose_error
 from qpik.nlp.ik import solve_ik
-from qpik.robots.catalog import load_robot
+from qpik.robots.loader import load_robot
 from qpik.robots.robot import Robot
 
 ARMS = ("iiwa14", "panda", "zheng7", "nammoto7")

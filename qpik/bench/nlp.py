@@ -43,7 +43,7 @@ from qpik.geometry.shapes import Sphere
 from qpik.lie import pose_error
 from qpik.nlp import solve_best, solve_full
 from qpik.nlp.full import REACHED
-from qpik.robots.catalog import load_robot
+from qpik.robots.loader import load_robot
 
 TITLE = "NLP: best branch and δ/ψ (solve_best) and the full-joint NLP"
 SSIK = "ssik iiwa14_ik.solve (16 ψ × 8 branches)"

@@ -21,7 +21,7 @@ from qpik.bench import Row
 from qpik.geometry.shapes import Capsule
 from qpik.planning import plan_self_motion
 from qpik.problems.paths import wipe
-from qpik.robots.catalog import load_robot
+from qpik.robots.loader import load_robot
 
 TITLE = "Self-motion planning: 1,000-waypoint iiwa14 path, 720 ψ values × 8 branches (qpik.plan_self_motion)"
 WAYPOINTS = 1000

@@ -44,7 +44,7 @@ def drag(robot, count: int = POSES) -> np.ndarray:
 
 def _arms() -> list[tuple[str, object, tuple, str]]:
     from qpik.problems import find_problem, load
-    from qpik.robots.catalog import load_robot
+    from qpik.robots.loader import load_robot
 
     iiwa, problem = load_robot("iiwa14"), load(find_problem("iiwa_obstacle_reach"))
     arms = [("iiwa14", iiwa, (), ""), ("iiwa14 + ball and table", iiwa, problem.obstacles, ""),

@@ -20,7 +20,7 @@ from qpik.nlp import solve_best
 from qpik.plots import save
 from qpik.plots.objective import objective_map
 from qpik.problems import find_problem, load
-from qpik.robots.catalog import load_robot
+from qpik.robots.loader import load_robot
 from qpik.scene import Scene
 
 TITLE = "Best branch and δ/ψ (certified NLP)"

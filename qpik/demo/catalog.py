@@ -6,7 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from qpik.robots.catalog import CATALOG, load_robot
+from qpik.robots.catalog import CATALOG
+from qpik.robots.loader import load_robot
 from qpik.robots.robot import Robot
 
 TITLE = "Catalog"

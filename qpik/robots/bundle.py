@@ -23,8 +23,7 @@ import threading
 from pathlib import Path
 
 from qpik.errors import InputError
-from qpik.robots.catalog import CATALOG
-from qpik.robots.catalog import load_robot as catalog_robot
+from qpik.robots.catalog import CATALOG, catalog_robot
 from qpik.robots.loader import ModelSource
 from qpik.robots.model_files import PACKAGE, resolve_mesh
 from qpik.robots.robot import Robot, as_robot

@@ -125,12 +125,12 @@ CATALOG: dict[str, Callable[[], Robot]] = {
     "zheng7": zheng7,
     "panda": panda,
 }
-"""The catalog arms by name, each with the function that builds its :class:`Robot` (``qpik.load_robot(name)``)."""
+"""The catalog arms by name, each with the function that builds its :class:`Robot` (:func:`catalog_robot`)."""
 
 _cache: dict[str, Robot] = {}
 
 
-def load_robot(name: str) -> Robot:
+def catalog_robot(name: str) -> Robot:
     """A built-in arm by name: ``"nammoto7"``, ``"iiwa14"``, ``"zheng7"`` or ``"panda"``.
 
     The same object is returned on every call (robots are immutable).

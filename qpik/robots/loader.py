@@ -63,8 +63,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from qpik.errors import InputError, UnknownRobotError
-from qpik.robots.catalog import CATALOG
-from qpik.robots.catalog import load_robot as catalog_robot
+from qpik.robots.catalog import CATALOG, catalog_robot
 from qpik.robots.chain import Joint, SerialChain
 from qpik.robots.limits import arm_limits
 from qpik.robots.model_files import UrdfJoint, is_urdf, read_spec, urdf_joints
