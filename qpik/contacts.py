@@ -48,13 +48,20 @@ def constant(d: np.ndarray) -> np.ndarray:
 
 
 def capsule_pairs(robot, obstacles) -> np.ndarray:
-    """(C, O) bool: which capsule–obstacle pairs of ``robot`` (a :class:`qpik.Robot`) are checked."""
+    """(C, O) bool, read-only: which capsule–obstacle pairs of ``robot`` (a :class:`qpik.Robot`) are checked
+    (found once per robot and obstacle geometry: ``robot.cache``)."""
     obs = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
-    C = len(robot.capsules)
+    return robot.cache.get(("capsule pairs", obs.kinds, obs.params.tobytes()), _capsule_pairs, robot, obs)
+
+
+def _capsule_pairs(robot, obs: ObstacleSet) -> np.ndarray:
     if not len(obs):
-        return np.zeros((C, 0), bool)
-    d = distances(robot.capsule_segments(probes(robot.q_min, robot.q_max)), robot.capsule_radii, obs).d
-    return ~constant(d)
+        out = np.zeros((len(robot.capsules), 0), bool)
+    else:
+        out = ~constant(distances(robot.capsule_segments(probes(robot.q_min, robot.q_max)), robot.capsule_radii,
+                                  obs).d)  # fmt: skip
+    out.flags.writeable = False
+    return out
 
 
 def capsule_clearance(robot, q: np.ndarray, obstacles) -> np.ndarray:

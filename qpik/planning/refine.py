@@ -60,9 +60,10 @@ import numpy as np
 
 from qpik.analytic.intervals import wrap
 from qpik.build import native
+from qpik.contacts import capsule_clearance, capsule_pairs
 from qpik.geometry.distance import ObstacleSet
 from qpik.lie import log_expr
-from qpik.objectives import Context, Objective, clearance, pair_count
+from qpik.objectives import Context, Objective, pair_count
 from qpik.planning.dp import Transitions
 from qpik.planning.grid import Grid
 from qpik.robots.robot import Robot
@@ -381,13 +382,13 @@ class PathNLP:
         inward = INSIDE if self.grid is not None else 0.0
         lo, hi = np.atleast_2d(lo) + inward, np.atleast_2d(hi) - inward
         z = np.clip(z0, lo, hi)
-        near = clearance(self.robot, self._q(z), self.obstacles) < self.d_safe + NEAR
+        near = capsule_clearance(self.robot, self._q(z), self.obstacles) < self.d_safe + NEAR
         start_cost, iterations = None, 0
         for _ in range(ROUNDS):
             z, cost0, its, status = self._solve(z, lo, hi, near, watch)
             start_cost = cost0 if start_cost is None else start_cost
             iterations += its
-            grow = (clearance(self.robot, self._q(z), self.obstacles) < self.d_safe + INSIDE) & ~near
+            grow = (capsule_clearance(self.robot, self._q(z), self.obstacles) < self.d_safe + INSIDE) & ~near
             if not grow.any():
                 break
             near |= grow
@@ -435,10 +436,13 @@ class PathNLP:
         n_d = pair_count(self.robot, self.obstacles)
         n_eq = 0 if self.grid is not None else 6
         g_parts, lbg, ubg = [ca.vec(E)], [np.full(E.numel(), -np.inf)], [np.zeros(E.numel())]
+        # the pairs qpik.contacts leaves out (a base column on its table) constrain nothing
+        floor = np.where(capsule_pairs(self.robot, self.obstacles)[~self.robot.fixed_capsules].ravel(),
+                         self.d_safe + INSIDE, -np.inf)  # fmt: skip
         for a, b, g in others:
             d = n_d if near[a] else 0
             g_parts.append(ca.vec(g))
-            lbg.append(np.tile(np.r_[np.full(d, self.d_safe + INSIDE), np.zeros(n_eq)], b - a))
+            lbg.append(np.tile(np.r_[floor[:d], np.zeros(n_eq)], b - a))
             ubg.append(np.tile(np.r_[np.full(d, np.inf), np.zeros(n_eq)], b - a))
         step = np.where(self.continuous[:, None], tr.step, np.inf)  # (N-1, n)
         g_parts.append(ca.vec(D)), lbg.append(-step.ravel()), ubg.append(step.ravel())
