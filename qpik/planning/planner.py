@@ -168,7 +168,7 @@ def plan_self_motion(
     project: bool = False,
     mujoco: bool = True,
 ) -> Plan:
-    """Plan the joint motion along an end-effector path (see the module docstring).
+    r"""Plan the joint motion along an end-effector path (see the module docstring).
 
     Args:
         robot: the arm, or a :class:`~qpik.scene.Scene` of it (then ``objective``, ``obstacles``, ``d_safe`` and
@@ -187,7 +187,8 @@ def plan_self_motion(
         q_ref: (n,) the reference of the ``"distance"`` objective, rad.
         resolution: parameter values per branch in the DP's grid (even, ≥ 8).
         window: the largest parameter change (rad) between consecutive waypoints the DP searches on one branch
-            (default: three times the largest joint-step bound, since S-R-S: Σ_{j≤3} |Δq_j| ≥ |Δψ| allows a
+            (default: three times the largest joint-step bound: on an S-R-S arm
+            :math:`\sum_{j \le 3} |\Delta q_j| \ge |\Delta\psi|` allows a
             change of up to three bounds); moves to another branch are searched whatever their size.
         branches: public branch ids the plan may use (None: all).
         refine: run the NLP after the DP.
