@@ -18,6 +18,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -202,15 +203,32 @@ def native_library(*fns: ca.Function) -> Path | None:
 
 
 def concurrently(*builds: Callable[[], object]) -> None:
-    """Run ``builds`` (functions that compile, e.g. :meth:`qpik.compiled.RowMap.build`) in threads, one per core:
-    while one waits for its compiler, another traces or compiles; CasADi's own calls keep the interpreter's lock,
-    so they run one at a time. The first exception is raised once all have finished."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    with ThreadPoolExecutor(max_workers=max(1, min(len(builds), os.cpu_count() or 1))) as pool:
-        futures = [pool.submit(build) for build in builds]
+    """Run ``builds`` (functions that compile, e.g. :meth:`qpik.compiled.RowMap.build`) on the worker threads of
+    this process, one per core: while one waits for its compiler, another traces or compiles; CasADi's own calls
+    keep the interpreter's lock, so they run one at a time. Called from a worker thread, or with one build, the
+    builds run in the caller's thread. The first exception is raised once all have finished."""
+    if len(builds) < 2 or getattr(_WORKER, "inside", False):
+        for build in builds:
+            build()
+        return
+    futures = [_pool().submit(_as_worker, build) for build in builds]
     for future in futures:
         future.result()
+
+
+_WORKER = threading.local()
+
+
+def _as_worker(build: Callable[[], object]) -> object:
+    _WORKER.inside = True
+    return build()
+
+
+@cache
+def _pool():
+    from concurrent.futures import ThreadPoolExecutor
+
+    return ThreadPoolExecutor(max_workers=max(2, os.cpu_count() or 1), thread_name_prefix="qpik-build")
 
 
 def native(fn: ca.Function) -> ca.Function:

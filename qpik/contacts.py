@@ -72,7 +72,10 @@ def capsule_clearance(robot, q: np.ndarray, obstacles) -> np.ndarray:
     mask = capsule_pairs(robot, obs)
     if not mask.any():
         return np.full(len(q), np.inf)
-    d = distances(robot.capsule_segments(q), robot.capsule_radii, obs).d  # (M, C, O)
+    if len(q) == 1:  # one configuration: the compiled kinematics and distances
+        d = distances(robot.capsule_segments(q[0]), robot.capsule_radii, obs).d[None]
+    else:
+        d = distances(robot.capsule_segments(q), robot.capsule_radii, obs).d  # (M, C, O)
     return np.where(mask[None], d, np.inf).reshape(len(q), -1).min(axis=1)
 
 

@@ -145,11 +145,14 @@ class Robot:
 
     def capsule_segments(self, q: np.ndarray) -> np.ndarray:
         """Base-frame end points of every capsule: (C, 2, 3); batched (N, C, 2, 3), m."""
-        q, batched = joint_vector(q, self.dof)
-        Q = q if batched else q[None]
-        segs = self.capsule_segments_expr(self.chain.frames_expr([Q[:, i] for i in range(self.dof)], sy.NUMPY))
-        out = np.stack([np.stack([sy.stack(list(p), sy.NUMPY, (len(Q),)) for p in ab], axis=-2) for ab in segs], -3)
-        return out if batched else out[0]
+        F = self.chain.frames(q)  # (..., n+2, 4, 4): compiled for one configuration
+        if not self.capsules:
+            return np.zeros((*F.shape[:-3], 0, 2, 3))
+        links = [c.link for c in self.capsules]
+        ends = np.array([[c.p0, c.p1] for c in self.capsules], dtype=float)  # (C, 2, 3), link frames
+        G = np.take(F, links, axis=-3)  # (..., C, 4, 4): the capsules' links
+        R, t = G[..., :3, :3], G[..., :3, 3]
+        return np.einsum("...cij,cej->...cei", R, ends) + t[..., None, :]
 
     @cached_property
     def fixed_capsules(self) -> np.ndarray:
