@@ -285,6 +285,8 @@ class Controller:
                 raise SolverError(f"{self.solver.name}: no solution ({sol.status})")
             v = np.zeros(self.robot.dof)
             info.status = "failed"
+        for lim in self.limits:
+            lim.observe(v)
         clearances, past, info.task_error = summary.clearance.tolist(), summary.past[0], float(summary.task_error[0])
         if clearances:
             info.min_clearance = min(clearances)

@@ -33,6 +33,7 @@ from qpik.errors import InfeasibleError, InputError
 from qpik.validate import finite_array, number
 
 if TYPE_CHECKING:
+    from qpik.geometry.distance import ObstacleSet
     from qpik.geometry.shapes import Shape
     from qpik.robots.robot import Robot
 
@@ -47,6 +48,10 @@ class Limit(Traced):
 
         The default accepts any robot and dt.
         """
+        return None
+
+    def observe(self, v: np.ndarray) -> None:
+        """Called by the controller with each step's command ``v`` (n,), rad/s (the default keeps nothing)."""
         return None
 
     def parameters(self, s: SymState) -> Blocks:
@@ -264,6 +269,7 @@ class ObstacleLimit(RowLimit):
             raise InfeasibleError("ObstacleLimit: need d_safe + buffer < d_influence")
         if self.xi <= 0 or self.buffer < 0:
             raise InputError("ObstacleLimit: need xi > 0 and buffer >= 0")
+        self.velocities = np.zeros((len(self.obstacles), 6))
 
     def check(self, robot: Robot, dt: float) -> None:
         if self.xi * dt > self.d_influence - self.d_safe - self.buffer:
@@ -283,10 +289,15 @@ class ObstacleLimit(RowLimit):
         return [f"obstacle {names[o]} / link{robot.capsules[c].link}{ends[e]}" for c, o, e in layout]
 
     def param_layout(self, n: int) -> Layout:
-        return Layout(d_influence=(), d_safe=(), xi=())
+        return Layout(d_influence=(), d_safe=(), xi=(), velocities=(len(self.obstacles), 6))
 
-    def param_values(self) -> dict[str, float]:
-        return {"d_influence": self.d_influence, "d_safe": self.d_safe + self.buffer, "xi": self.xi}
+    def param_values(self) -> dict[str, object]:
+        return {
+            "d_influence": self.d_influence,
+            "d_safe": self.d_safe + self.buffer,
+            "xi": self.xi,
+            "velocities": self.velocities,
+        }
 
     def structure(self) -> tuple:
         return (self.obstacles.kinds,)
@@ -295,16 +306,84 @@ class ObstacleLimit(RowLimit):
         """Signed distances (C·O,) of every capsule–obstacle pair, m (SX)."""
         return s.distances(self.obstacles)
 
+    def set_velocities(self, velocities: np.ndarray) -> None:
+        """Set the obstacles' velocities (O, 6) ``[v; ω]``, m/s and rad/s, world frame, ω about each shape's
+        reference point (a sphere's centre, a capsule's ``p0``, a box's centre; a half-space's origin)."""
+        self.velocities = finite_array(velocities, "velocities", (len(self.obstacles), 6)).copy()
+
+    def move(self, shapes: Sequence[Shape], dt: float | None = None, velocities: np.ndarray | None = None) -> None:
+        """Move the obstacles to ``shapes`` (the same families in the same order; the rows keep their form).
+
+        With ``velocities`` (O, 6) they are set as in :meth:`set_velocities`; else, with ``dt`` (s, the time
+        since the last poses), the linear velocity of each reference point is estimated by the difference
+        (angular velocity 0); with neither, the velocities are kept.
+        """
+        from qpik.geometry.distance import ObstacleSet
+
+        new = ObstacleSet(shapes)
+        if new.kinds != self.obstacles.kinds:
+            raise InputError("move: shapes must keep the obstacles' families and order")
+        if velocities is not None:
+            self.set_velocities(velocities)
+        elif dt is not None:
+            dt = number(dt, "dt", minimum=None)
+            if dt <= 0:
+                raise InputError("dt: must be > 0")
+            v = np.zeros((len(new), 6))
+            v[:, :3] = (_reference_points(new) - _reference_points(self.obstacles)) / dt
+            self.velocities = v
+        self.obstacles.params[:] = new.params  # read by the compiled step at every call
+
+    def approach_expr(self, s: SymState, p: Blocks) -> ca.SX:
+        r"""Per row, the obstacle's speed toward the link :math:`n^T (v_o + \omega_o \times (p_{obs} - c_o))` (R,),
+        m/s, with the pair's normal and obstacle witness point (for the two rows of a separating plane, the
+        plane's own motion)."""
+        w = s.witnesses(self.obstacles)
+        refs = _reference_points(self.obstacles, s.obstacle_params(self.obstacles))
+        O = len(self.obstacles)
+        out = []
+        for c, o, _ in s.kin.damper_layout(self.obstacles.kinds):
+            k = c * O + o
+            n, p_obs = w.normal[3 * k : 3 * k + 3], w.p_obs[3 * k : 3 * k + 3]
+            vel = p.velocities[o, :3].T + ca.cross(p.velocities[o, 3:].T, p_obs - refs[o])
+            out.append(ca.dot(n, vel))
+        return ca.vertcat(*out) if out else ca.SX(0, 1)
+
     def expr(self, s: SymState, p: Blocks, lb: ca.SX, ub: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
         # every row (fixed shape, from the step's compiled kinematics); rows beyond d_i get l = -inf
         A = s.damper_rows(self.obstacles)
         h = s.damper_heights(self.obstacles)
-        d_i, ds, xi = p.d_influence, p.d_safe, p.xi
-        m = A.shape[0]
-        lower = (-xi / (d_i - ds)) * (h - ds)
-        # inside d_s + δ (lower > 0): ask for at most half of what the box widened to v = 0 can give
-        lo0, hi0 = ca.repmat(ca.fmin(lb, 0.0).T, m, 1), ca.repmat(ca.fmax(ub, 0.0).T, m, 1)
-        reach = ca.sum2(ca.fmax(A * lo0, A * hi0))
-        moved = ca.sum2(ca.fabs(A)) > 1e-12  # a row no joint moves is left out
-        lower = ca.if_else(ca.logic_and(h < d_i, moved), ca.fmin(lower, 0.5 * reach), -ca.inf)
-        return A, lower, ca.SX(m, 1) + ca.inf
+        lower = damper_lower(A, h, p.d_influence, p.d_safe, p.xi, lb, ub, self.approach_expr(s, p))
+        return A, lower, ca.SX(A.shape[0], 1) + ca.inf
+
+
+def _reference_points(obstacles: ObstacleSet, symbolic: ca.SX | None = None) -> list | np.ndarray:
+    """Each obstacle's reference point: (O, 3) numbers, or with the packed parameters ``symbolic`` a list of
+    (3,) SX (a half-space's is the origin)."""
+    from qpik.geometry.distance import PARAMS
+
+    prm = obstacles.params if symbolic is None else symbolic
+    out, start = [], 0
+    for kind in obstacles.kinds:
+        zero = np.zeros(3) if symbolic is None else ca.SX.zeros(3)
+        out.append(zero if kind == "halfspace" else prm[start : start + 3])
+        start += PARAMS[kind]
+    return np.array(out, dtype=float).reshape(-1, 3) if symbolic is None else out
+
+
+def damper_lower(
+    A: ca.SX, h: ca.SX, d_i: ca.SX, ds: ca.SX, xi: ca.SX, lb: ca.SX, ub: ca.SX, approach: ca.SX | float = 0.0
+) -> ca.SX:
+    r"""Lower bounds (m,) of velocity-damper rows ``A v ≥ l`` (A (m, n), heights h (m,), m, box ``lb ≤ v ≤ ub``):
+    :math:`l = -\xi (h - d_s)/(d_i - d_s) + \text{approach}` where :math:`h < d_i` and a joint moves the row,
+    else −∞ (``approach`` (m,): the other body's speed toward this one along the row, m/s).
+
+    A demand to separate (l > 0) is capped at half of what the box widened to contain ``v = 0`` can give,
+    :math:`\max_{v \in B_0} a^T v` (see :class:`ObstacleLimit`).
+    """
+    m = A.shape[0]
+    lower = (-xi / (d_i - ds)) * (h - ds) + approach
+    lo0, hi0 = ca.repmat(ca.fmin(lb, 0.0).T, m, 1), ca.repmat(ca.fmax(ub, 0.0).T, m, 1)
+    reach = ca.sum2(ca.fmax(A * lo0, A * hi0))
+    moved = ca.sum2(ca.fabs(A)) > 1e-12  # a row no joint moves is left out
+    return ca.if_else(ca.logic_and(h < d_i, moved), ca.fmin(lower, 0.5 * reach), -ca.inf)
