@@ -165,51 +165,56 @@ class BrakingLimit(BoxLimit):
 
     Stepping :math:`q_{k+1} = q + v\,dt` and then braking by :math:`\bar a\,dt` per step covers at most
     :math:`v^2/(2\bar a)` more
-    (:math:`\sum_{i \ge 1} (v - i\bar a\,dt)^+\,dt \le (v - \bar a\,dt/2)^2/(2\bar a)`),
-    so with the gap :math:`g = q_{max} - \mu - q \ge 0`:
+    (:math:`\sum_{i \ge 1} (v - i\bar a\,dt)^+\,dt \le (v - \bar a\,dt/2)^2/(2\bar a)`);
+    with a jerk limit :math:`\bar j` the deceleration needs up to :math:`\tau = \bar a/\bar j` to build up,
+    covering at most :math:`v\tau` more. So with the gap :math:`g = q_{max} - \mu - q \ge 0`:
 
-    .. math::  v\,dt + \frac{v^2}{2\bar a} \le g
-        \iff v \le \bar a\left(-dt + \sqrt{dt^2 + 2g/\bar a}\right)
+    .. math::  v\,(dt + \tau) + \frac{v^2}{2\bar a} \le g
+        \iff v \le \bar a\left(-(dt + \tau) + \sqrt{(dt + \tau)^2 + 2g/\bar a}\right)
 
-    and the mirror image at :math:`q_{min} + \mu`. Recursively feasible with :class:`AccelerationLimit`:
-    if the last command met it, :math:`v = v_{k-1} - \bar a\,dt` (or 0) meets it again
-    (:math:`q + v_{k-1}^2/(2\bar a) - \bar a\,dt^2/2 \le q_{max} - \mu`). Past the limit (g < 0) the bound is
-    :math:`g/dt < 0`, as :class:`~qpik.control.limits.ConfigurationLimit`: move back (as fast as the
-    caps allow).
+    and the mirror image at :math:`q_{min} + \mu`. Recursively feasible with :class:`AccelerationLimit`
+    alone (τ = 0): if the last command met it, :math:`v = v_{k-1} - \bar a\,dt` (or 0) meets it again
+    (:math:`q + v_{k-1}^2/(2\bar a) - \bar a\,dt^2/2 \le q_{max} - \mu`). With the jerk, the τ term is a
+    conservative allowance, not a proof. Past the limit (g < 0) the bound is :math:`g/dt < 0`, as
+    :class:`~qpik.control.limits.ConfigurationLimit`: move back (as fast as the caps allow).
 
     Args:
         a_max: (n,) :math:`\bar a`, rad/s², > 0 (None: ``robot.a_max``).
+        j_max: (n,) :math:`\bar j`, rad/s³, > 0, for τ (None: ``robot.j_max`` if it has one, else τ = 0).
         margin: μ ≥ 0, rad.
     """
 
     name = "braking"
 
-    def __init__(self, a_max: np.ndarray | None = None, margin: float = 0.0):
+    def __init__(self, a_max: np.ndarray | None = None, j_max: np.ndarray | None = None, margin: float = 0.0):
         self.a_max = None if a_max is None else finite_array(a_max, "BrakingLimit.a_max", (None,)).copy()
+        self.j_max = None if j_max is None else finite_array(j_max, "BrakingLimit.j_max", (None,)).copy()
         self.margin = number(margin, "BrakingLimit.margin")
         self._values: dict[str, np.ndarray] = {}
 
     def check(self, robot: Robot, dt: float) -> None:
         a = _limits(self.a_max, robot.a_max, robot, "BrakingLimit.a_max")
+        has_jerk = self.j_max is not None or robot.j_max is not None
+        tau = a / _limits(self.j_max, robot.j_max, robot, "BrakingLimit.j_max") if has_jerk else np.zeros(robot.dof)
         lo, hi = robot.q_min + self.margin, robot.q_max - self.margin
         if np.any(lo > hi):
             raise InfeasibleError("BrakingLimit: empty joint range (q_min + margin > q_max - margin)")
-        self._values = {"lo": lo, "hi": hi, "a_max": a}
+        self._values = {"lo": lo, "hi": hi, "a_max": a, "tau": tau}
 
     def structure(self) -> tuple:
         return ()
 
     def param_layout(self, n: int) -> Layout:
-        return Layout(lo=n, hi=n, a_max=n)
+        return Layout(lo=n, hi=n, a_max=n, tau=n)
 
     def param_values(self) -> dict[str, np.ndarray]:
         return self._values
 
     def expr(self, s: SymState, p: Blocks) -> tuple[ca.SX, ca.SX]:
-        dt, a = s.dt, p.a_max
+        a, lead = p.a_max, s.dt + p.tau
 
         def bound(gap: ca.SX) -> ca.SX:
-            brake = a * (-dt + ca.sqrt(dt * dt + 2.0 * ca.fmax(gap, 0.0) / a))
-            return ca.if_else(gap >= 0.0, brake, gap / dt)
+            brake = a * (-lead + ca.sqrt(lead * lead + 2.0 * ca.fmax(gap, 0.0) / a))
+            return ca.if_else(gap >= 0.0, brake, gap / s.dt)
 
         return -bound(s.q - p.lo), bound(p.hi - s.q)
