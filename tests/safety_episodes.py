@@ -36,7 +36,7 @@ from qpik.sim.self_distance import SelfDistances, allowed_links
 
 FAMILIES = ("fold", "sphere", "limit")
 DT = 0.002
-STEPS = 250
+STEPS = 500
 D_SAFE_SELF, D_SAFE_OBS, D_INFLUENCE_OBS = 0.01, 0.02, 0.10
 TOL = 1e-4  # m, distances
 REL = 1e-6  # relative, limits
@@ -66,6 +66,8 @@ class Outcome:
     acceleration: int = 0
     jerk: int = 0
     nan: int = 0
+    min_self: float = np.inf  # m, smallest measured self-distance of a checked pair
+    min_obstacle: float = np.inf  # m, smallest link–sphere clearance
     statuses: set = field(default_factory=set)
 
 
@@ -144,7 +146,8 @@ def run_episode(ep: Episode, off: str | None = None, steps: int = STEPS) -> Outc
         if isinstance(lim, AccelerationLimit | JerkLimit):
             lim.reset(ep.v0, ep.v0)
     obstacle = next(lim for lim in lims if isinstance(lim, ObstacleLimit))
-    obstacle.set_velocities([np.r_[ep.velocity, 0.0, 0.0, 0.0]])
+    known = off != "moving"  # "moving": the damper is not told the sphere moves
+    obstacle.set_velocities([np.r_[ep.velocity * known, 0.0, 0.0, 0.0]])
     # MuJoCo measures: the model's own geoms, the pairs the controller checks (allowed pairs left out)
     checker = SelfCollisionLimit(d_safe=D_SAFE_SELF)
     checker.check(robot, DT)
@@ -168,6 +171,8 @@ def run_episode(ep: Episode, off: str | None = None, steps: int = STEPS) -> Outc
         mujoco.mj_kinematics(model, data)
         d_self = selfd.measure(data)
         d_obs = float(scene.clearances(clear).min())
+        out.min_self = min(out.min_self, float(d_self.min(initial=np.inf)))
+        out.min_obstacle = min(out.min_obstacle, d_obs)
         above_self = d_self >= D_SAFE_SELF if above_self is None else above_self | (d_self >= D_SAFE_SELF)
         low = above_self & (d_self < D_SAFE_SELF - TOL)
         if low.any():
@@ -178,7 +183,7 @@ def run_episode(ep: Episode, off: str | None = None, steps: int = STEPS) -> Outc
         if k == steps:
             break
         if t < ep.moving_for + DT:
-            obstacle.move([Sphere(center=centre, radius=0.05)])
+            obstacle.move([Sphere(center=centre, radius=0.05)])  # its velocity is set above
             if t >= ep.moving_for:
                 obstacle.set_velocities(np.zeros((1, 6)))
         v = ctrl.step(q)

@@ -63,6 +63,7 @@ class BoxLimit(Limit, ABC):
     """Bounds ``lb ≤ v ≤ ub`` (n,) on the joint velocity (rad/s)."""
 
     cap: bool = False  # cap boxes (velocity limits) clip every other box
+    rank: int = 0  # caps clip in increasing rank, the last wins: jerk (-2), acceleration (-1), velocity (0)
 
     @abstractmethod
     def expr(self, s: SymState, p: Blocks) -> tuple[ca.SX, ca.SX]:

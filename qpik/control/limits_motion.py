@@ -6,20 +6,23 @@ The controller commands ``v_k`` (n,), rad/s, every ``dt`` seconds; the commands 
 keeps them and is told each command by :meth:`~qpik.control.limits.Limit.observe` (the controller
 calls it after every step; before the first, the arm is taken at rest, or :meth:`reset` sets it).
 
-- :class:`AccelerationLimit` and :class:`JerkLimit` are *cap* boxes around the last command (the
-  final box of the QP lies in the last cap, :mod:`qpik.control.limits`): put them after
-  :class:`~qpik.control.limits.VelocityLimit`, the jerk last.
+- :class:`AccelerationLimit` and :class:`JerkLimit` are *cap* boxes around the last command. Caps clip
+  the box in increasing :attr:`~qpik.control.limits.BoxLimit.rank` and the last wins: the jerk first,
+  then the acceleration, then :class:`~qpik.control.limits.VelocityLimit`. Where they conflict the velocity
+  limit is kept, then the acceleration: a jerk box extrapolates the last two commands, and if it won it
+  could carry the velocity away.
 - :class:`BrakingLimit` bounds the position so that the arm can still stop before a limit at the
   acceleration limit (Flacco, Kröger, De Luca and Khatib, 2015, eq. 17, in discrete time).
 
-Consistency (the final box never leaves the velocity and acceleration limits while the past commands
-met them): the acceleration box :math:`[v_{k-1} - \bar a\,dt,\ v_{k-1} + \bar a\,dt]` meets the velocity
-box since :math:`|v_{k-1}| \le \bar v`; the jerk box is centred on :math:`v_{k-1} + a_{k-1} dt`, inside
-the acceleration box since :math:`|a_{k-1}| \le \bar a`, so clipping into it keeps the result in the
-acceleration box. The jerk box may leave the velocity box at full speed while still accelerating;
-:class:`JerkLimit` therefore also bounds the acceleration so that it can fall to zero (at the jerk
-limit) before the velocity limit: :math:`v + a\,|a| / (2\bar j) \le \bar v` (the same braking, one
-derivative up).
+Consistency: clipping an interval that lies in one box into a second box that meets the first gives an
+interval in both. The acceleration box :math:`[v_{k-1} - \bar a\,dt,\ v_{k-1} + \bar a\,dt]` meets the
+velocity box since :math:`|v_{k-1}| \le \bar v`, so the final box meets the velocity and acceleration
+limits whenever the last command did. The jerk box is centred on :math:`v_{k-1} + a_{k-1} dt`, inside the
+acceleration box since :math:`|a_{k-1}| \le \bar a`; it may leave the velocity box at full speed while
+still accelerating, so :class:`JerkLimit` also bounds the acceleration so that it can fall to zero (at the
+jerk limit) before the velocity limit: :math:`v + a\,|a| / (2\bar j) \le \bar v` (the same braking, one
+derivative up). The jerk is the limit given up first (a conflict with a position bound that needs a
+faster stop, for example).
 """
 
 from __future__ import annotations
@@ -91,6 +94,7 @@ class AccelerationLimit(_History):
     """
 
     name = "acceleration"
+    rank = -1
 
     def __init__(self, a_max: np.ndarray | None = None):
         super().__init__(a_max)
@@ -119,7 +123,7 @@ class JerkLimit(_History):
     :math:`a \le \bar j\,(-dt + \sqrt{dt^2 + 2 (\bar v - v_{k-1})/\bar j})` in discrete time
     (the velocity gained while the acceleration falls by :math:`\bar j\,dt` per step is at most
     :math:`a^2/(2\bar j)`, as :class:`BrakingLimit` one derivative down). Where the jerk box and this
-    bound do not meet, the jerk box wins (a cap).
+    bound do not meet, the jerk box wins within this limit (and the acceleration and velocity caps after it).
 
     Args:
         j_max: (n,) limits :math:`\bar j`, rad/s³, > 0 (None: ``robot.j_max``, from the catalog).
@@ -127,6 +131,7 @@ class JerkLimit(_History):
     """
 
     name = "jerk"
+    rank = -2
     depth = 2
 
     def __init__(self, j_max: np.ndarray | None = None, v_max: np.ndarray | None = None):

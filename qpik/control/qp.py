@@ -114,7 +114,8 @@ class Assembler:
         self.dt = float(dt)
         self.tasks = tuple(tasks)
         self.boxes = tuple(lim for lim in limits if isinstance(lim, BoxLimit) and not lim.cap)
-        self.caps = tuple(lim for lim in limits if isinstance(lim, BoxLimit) and lim.cap)
+        caps = [lim for lim in limits if isinstance(lim, BoxLimit) and lim.cap]
+        self.caps = tuple(sorted(caps, key=lambda lim: lim.rank))  # the highest rank clips last and wins
         self.row_limits = tuple(lim for lim in limits if isinstance(lim, RowLimit))
         m = sum(lim.size(robot) for lim in self.row_limits)
         self.m = m
