@@ -7,8 +7,9 @@ caller may turn one off (``off``):
 
 - ``fold``: the target is the pose of a point on the arm's own base column, shoulder or forearm capsule
   (the hand is pulled into the arm);
-- ``sphere``: a sphere starts 5–15 cm beyond d_i from a point of a moving link and moves toward it at
-  0.05–0.5 m/s for 0.3 s, then stops (the target: hold the start pose);
+- ``sphere``: a sphere (radius 5 cm) starts 0–5 cm beyond d_i from a point of a moving link and moves
+  toward it at 0.1–0.5 m/s until it would be 5 cm inside the link, then stops (the target: hold the start
+  pose);
 - ``limit``: the arm starts at full speed (its velocity limit) toward a joint limit, at the braking
   distance plus 0–20 % from it (the target: hold the start pose).
 
@@ -25,8 +26,15 @@ import mujoco
 import numpy as np
 
 import qpik
-from qpik.control import ConfigurationLimit, Controller, DampingTask, FrameTask, ObstacleLimit, PostureTask
-from qpik.control import VelocityLimit
+from qpik.control import (
+    ConfigurationLimit,
+    Controller,
+    DampingTask,
+    FrameTask,
+    ObstacleLimit,
+    PostureTask,
+    VelocityLimit,
+)
 from qpik.control.limits_motion import AccelerationLimit, BrakingLimit, JerkLimit
 from qpik.control.self_collision import SelfCollisionLimit
 from qpik.geometry import Sphere
@@ -42,6 +50,7 @@ TOL = 1e-4  # m, distances
 REL = 1e-6  # relative, limits
 LOADED_A_MAX, LOADED_J_MAX = 10.0, 5000.0  # rad/s², rad/s³ given for loaded arms (their files have none)
 PARK = np.array([3.0, 3.0, 3.0])  # m: the sphere out of the way
+SPHERE_RADIUS = 0.05
 
 
 @dataclass
@@ -103,10 +112,11 @@ def make_episode(robot: qpik.Robot, seed: int, family: str | None = None) -> Epi
         point = seg[c, 0] + rng.random() * (seg[c, 1] - seg[c, 0])
         u = rng.normal(size=3)
         u /= np.linalg.norm(u)
-        speed = rng.uniform(0.05, 0.5)
-        radius = 0.05
-        start = point + u * (robot.capsules[c].radius + radius + D_INFLUENCE_OBS + rng.uniform(0.05, 0.15))
-        velocity, moving = -u * speed, 0.3
+        speed = rng.uniform(0.1, 0.5)
+        contact = robot.capsules[c].radius + SPHERE_RADIUS
+        gap = D_INFLUENCE_OBS + rng.uniform(0.0, 0.05)
+        start = point + u * (contact + gap)
+        velocity, moving = -u * speed, (gap + 0.05) / speed  # it would end 5 cm inside the link
     else:
         j = int(rng.integers(robot.dof))
         vmax, a = robot.v_max[j], a_max(robot)[j]
@@ -136,9 +146,10 @@ def limits(robot: qpik.Robot, obstacles: list, off: str | None = None) -> list:
     return out
 
 
-def run_episode(ep: Episode, off: str | None = None, steps: int = STEPS) -> Outcome:
+def run_episode(ep: Episode, off: str | None = None) -> Outcome:
     robot = ep.robot
-    sphere = Sphere(center=ep.start, radius=0.05)
+    steps = max(STEPS, int(ep.moving_for / DT) + 150)
+    sphere = Sphere(center=ep.start, radius=SPHERE_RADIUS)
     lims = limits(robot, [sphere], off)
     tasks = [FrameTask(ep.target, 50.0, 50.0), PostureTask(ep.q0, 1.0, 1e-3), DampingTask(1e-4)]
     ctrl = Controller(robot, tasks, lims, dt=DT)
@@ -183,7 +194,7 @@ def run_episode(ep: Episode, off: str | None = None, steps: int = STEPS) -> Outc
         if k == steps:
             break
         if t < ep.moving_for + DT:
-            obstacle.move([Sphere(center=centre, radius=0.05)])  # its velocity is set above
+            obstacle.move([Sphere(center=centre, radius=SPHERE_RADIUS)])  # its velocity is set above
             if t >= ep.moving_for:
                 obstacle.set_velocities(np.zeros((1, 6)))
         v = ctrl.step(q)

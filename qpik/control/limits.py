@@ -379,12 +379,17 @@ def damper_lower(
     :math:`l = -\xi (h - d_s)/(d_i - d_s) + \text{approach}` where :math:`h < d_i` and a joint moves the row,
     else −∞ (``approach`` (m,): the other body's speed toward this one along the row, m/s).
 
-    A demand to separate (l > 0) is capped at half of what the box widened to contain ``v = 0`` can give,
-    :math:`\max_{v \in B_0} a^T v` (see :class:`ObstacleLimit`).
+    A demand to separate (l > 0) is capped at the larger of half of what the box widened to contain ``v = 0``
+    can give, :math:`\tfrac12 \max_{v \in B_0} a^T v` (see :class:`ObstacleLimit`), and what the box itself
+    can give less half its half-width along the row, :math:`\max_{v \in B} a^T v - \tfrac14 \sum_j |a_j| (ub_j -
+    lb_j)`. The two agree for a box symmetric about 0; the second lets a narrow box around the last command
+    (:class:`~qpik.control.limits_motion.AccelerationLimit`) grow the separating speed by half its width per
+    step, where half of a reach measured from ``v = 0`` would hold it at about one step's change.
     """
     m = A.shape[0]
     lower = (-xi / (d_i - ds)) * (h - ds) + approach
-    lo0, hi0 = ca.repmat(ca.fmin(lb, 0.0).T, m, 1), ca.repmat(ca.fmax(ub, 0.0).T, m, 1)
-    reach = ca.sum2(ca.fmax(A * lo0, A * hi0))
+    LB, UB = ca.repmat(lb.T, m, 1), ca.repmat(ub.T, m, 1)
+    reach0 = ca.sum2(ca.fmax(A * ca.fmin(LB, 0.0), A * ca.fmax(UB, 0.0)))
+    reach = ca.sum2(ca.fmax(A * LB, A * UB)) - 0.25 * ca.sum2(ca.fabs(A) * (UB - LB))
     moved = ca.sum2(ca.fabs(A)) > 1e-12  # a row no joint moves is left out
-    return ca.if_else(ca.logic_and(h < d_i, moved), ca.fmin(lower, 0.5 * reach), -ca.inf)
+    return ca.if_else(ca.logic_and(h < d_i, moved), ca.fmin(lower, ca.fmax(0.5 * reach0, reach)), -ca.inf)
