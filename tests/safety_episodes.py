@@ -51,6 +51,7 @@ REL = 1e-6  # relative, limits
 LOADED_A_MAX, LOADED_J_MAX = 10.0, 5000.0  # rad/s², rad/s³ given for loaded arms (their files have none)
 PARK = np.array([3.0, 3.0, 3.0])  # m: the sphere out of the way
 SPHERE_RADIUS = 0.05
+BRAKE = 1.0  # m/s², the dampers' braking profile beyond d_i
 
 
 @dataclass
@@ -140,9 +141,9 @@ def limits(robot: qpik.Robot, obstacles: list, off: str | None = None) -> list:
         out.append(AccelerationLimit(a_max(robot)))
     if off != "jerk":
         out.append(JerkLimit(j_max(robot)))
-    out.append(ObstacleLimit(obstacles, D_INFLUENCE_OBS, D_SAFE_OBS, xi=0.5))
+    out.append(ObstacleLimit(obstacles, D_INFLUENCE_OBS, D_SAFE_OBS, xi=0.5, brake=BRAKE))
     if off != "self":
-        out.append(SelfCollisionLimit(d_safe=D_SAFE_SELF))
+        out.append(SelfCollisionLimit(d_safe=D_SAFE_SELF, brake=BRAKE))
     return out
 
 

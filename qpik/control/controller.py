@@ -237,7 +237,13 @@ class Controller:
         error = ca.SX(np.nan)
         if self.frame_task is not None:
             error = ca.norm_2(self.frame_task.error_expr(s, s.params_of(self.frame_task)))
-        return {"clearance": ca.vertcat(*clearance), "past": past > 0, "task_error": error}
+        return {
+            "clearance": ca.vertcat(*clearance),
+            "past": past > 0,
+            "task_error": error,
+            "cap_lo": s.caps[0],
+            "cap_hi": s.caps[1],
+        }
 
     def step(self, q: np.ndarray, target: np.ndarray | None = None, twist: np.ndarray | None = None) -> np.ndarray:
         """One control step: the joint velocity v (n,), rad/s, for configuration ``q`` (n,), rad.
@@ -264,7 +270,7 @@ class Controller:
         if not sol.found:
             forced = (qp.lb > 0.0) | (qp.ub < 0.0)
             if forced.any():  # the return from past a limit conflicts with the rows: safety wins
-                qp, yielding = yielding_qp(qp, forced), True
+                qp, yielding = yielding_qp(qp, forced, summary.cap_lo, summary.cap_hi), True
                 sol = exact.solve(qp)
         if not sol.found and (qp.l > 0).any():  # separating rows conflict: ask less of them, down to no approach
             separating = qp.l > 0.0
@@ -360,20 +366,23 @@ def _check_ranges(limits: Sequence[ConfigurationLimit]) -> None:
         )
 
 
-def yielding_qp(qp: QP, forced: np.ndarray) -> QP:
+def yielding_qp(
+    qp: QP, forced: np.ndarray, cap_lo: np.ndarray | float = -np.inf, cap_hi: np.ndarray | float = np.inf
+) -> QP:
     r"""The QP of step 3 of the failure policy (module docstring), as a new QP.
 
     ``forced`` (n,) bool marks the joints whose box excludes ``v = 0`` (past a position
-    limit). Their bounds are widened to contain 0 (``lb ← min(lb, 0)``, ``ub ← max(ub, 0)``:
-    they may stop but not move further out), and the cost gains
+    limit, or an acceleration box that excludes 0). Their bounds are widened toward 0 within the caps' own
+    box ``[cap_lo, cap_hi]`` (``lb ← max(min(lb, 0), cap_lo)``, ``ub ← min(max(ub, 0), cap_hi)``: they
+    may stop, where the acceleration limit lets them, but not move further out), and the cost gains
     :math:`w (v_j - r_j)^2` toward the velocity :math:`r_j` the box demanded (its bound
     nearer to 0), ``w`` = :data:`YIELD_WEIGHT` × (1 + max diag P): the return comes first,
     the tasks after it; every row is kept.
     """
     out = qp.copy()
     r = np.where(qp.lb > 0.0, qp.lb, qp.ub)
-    np.minimum(out.lb, 0.0, out=out.lb)
-    np.maximum(out.ub, 0.0, out=out.ub)
+    out.lb[:] = np.maximum(np.minimum(out.lb, 0.0), cap_lo)
+    out.ub[:] = np.minimum(np.maximum(out.ub, 0.0), cap_hi)
     w = YIELD_WEIGHT * (1.0 + float(np.abs(np.diagonal(qp.P)).max()))
     idx = np.flatnonzero(forced)
     out.P[idx, idx] += 2.0 * w

@@ -247,6 +247,16 @@ class ObstacleLimit(RowLimit):
         d_safe: :math:`d_s`, m (< d_influence).
         xi: ξ, m/s (> 0).
         buffer: δ, m (≥ 0).
+        brake: α, m/s² (None: off): with acceleration limits, rows beyond d_i slow an approach so that it
+            reaches d_i at ξ (:func:`damper_lower`).
+
+    Moving obstacles: an obstacle moving at :math:`v_o` and :math:`\omega_o` (:meth:`set_velocities`, or
+    estimated from its poses by :meth:`move`) closes the row's height at :math:`n^T v_o(p_{obs})`, so the
+    row is :math:`n^T (J_p v - v_o(p_{obs})) \ge -\xi (h - d_s)/(d_i - d_s)`. It holds while the arm can move
+    that part away at the obstacle's speed, :math:`\max_{v \in B} n^T J_p v \ge n^T v_o` within the box B of
+    the velocity (and acceleration) limits; when it cannot, the row asks what the box allows (the least-bad
+    motion: the fastest retreat the limits permit), the clearance falls, and the status says so:
+    ``"recovering"`` inside d_s, ``"penetrating"`` at d < 0.
     """
 
     name = "obstacle"
@@ -258,6 +268,7 @@ class ObstacleLimit(RowLimit):
         d_safe: float = 0.02,
         xi: float = 0.5,
         buffer: float = 1e-3,
+        brake: float | None = None,
     ):
         from qpik.geometry.distance import ObstacleSet
 
@@ -271,6 +282,7 @@ class ObstacleLimit(RowLimit):
         if self.xi <= 0 or self.buffer < 0:
             raise InputError("ObstacleLimit: need xi > 0 and buffer >= 0")
         self.velocities = np.zeros((len(self.obstacles), 6))
+        self.brake = None if brake is None else number(brake, "brake")
 
     def check(self, robot: Robot, dt: float) -> None:
         if self.xi * dt > self.d_influence - self.d_safe - self.buffer:
@@ -301,7 +313,7 @@ class ObstacleLimit(RowLimit):
         }
 
     def structure(self) -> tuple:
-        return (self.obstacles.kinds,)
+        return (self.obstacles.kinds, self.brake)
 
     def distances_expr(self, s: SymState) -> ca.SX:
         """Signed distances (C·O,) of every capsule–obstacle pair, m (SX)."""
@@ -354,7 +366,7 @@ class ObstacleLimit(RowLimit):
         # every row (fixed shape, from the step's compiled kinematics); rows beyond d_i get l = -inf
         A = s.damper_rows(self.obstacles)
         h = s.damper_heights(self.obstacles)
-        lower = damper_lower(A, h, p.d_influence, p.d_safe, p.xi, lb, ub, self.approach_expr(s, p))
+        lower = damper_lower(A, h, p.d_influence, p.d_safe, p.xi, lb, ub, self.approach_expr(s, p), s.caps, self.brake)
         return A, lower, ca.SX(A.shape[0], 1) + ca.inf
 
 
@@ -373,23 +385,48 @@ def _reference_points(obstacles: ObstacleSet, symbolic: ca.SX | None = None) -> 
 
 
 def damper_lower(
-    A: ca.SX, h: ca.SX, d_i: ca.SX, ds: ca.SX, xi: ca.SX, lb: ca.SX, ub: ca.SX, approach: ca.SX | float = 0.0
+    A: ca.SX,
+    h: ca.SX,
+    d_i: ca.SX,
+    ds: ca.SX,
+    xi: ca.SX,
+    lb: ca.SX,
+    ub: ca.SX,
+    approach: ca.SX | float = 0.0,
+    caps: tuple[ca.SX, ca.SX] | None = None,
+    brake: ca.SX | None = None,
 ) -> ca.SX:
     r"""Lower bounds (m,) of velocity-damper rows ``A v ≥ l`` (A (m, n), heights h (m,), m, box ``lb ≤ v ≤ ub``):
     :math:`l = -\xi (h - d_s)/(d_i - d_s) + \text{approach}` where :math:`h < d_i` and a joint moves the row,
     else −∞ (``approach`` (m,): the other body's speed toward this one along the row, m/s).
 
-    A demand to separate (l > 0) is capped at the larger of half of what the box widened to contain ``v = 0``
-    can give, :math:`\tfrac12 \max_{v \in B_0} a^T v` (see :class:`ObstacleLimit`), and what the box itself
-    can give less half its half-width along the row, :math:`\max_{v \in B} a^T v - \tfrac14 \sum_j |a_j| (ub_j -
-    lb_j)`. The two agree for a box symmetric about 0; the second lets a narrow box around the last command
+    The bound is capped so that each row alone can be met in the box widened toward ``v = 0`` within the
+    caps' own box ``caps`` (:math:`B_0`: the velocity, acceleration and jerk limits; without ``caps``,
+    widened to contain 0): at the larger of :math:`r_0 - \tfrac12 |r_0|` with
+    :math:`r_0 = \max_{v \in B_0} a^T v` (half of it when :math:`r_0 \ge 0`, see :class:`ObstacleLimit`) and
+    :math:`\max_{v \in B} a^T v - \tfrac14 \sum_j |a_j| (ub_j - lb_j)`. The two agree for a box symmetric
+    about 0; the second lets a narrow box around the last command
     (:class:`~qpik.control.limits_motion.AccelerationLimit`) grow the separating speed by half its width per
-    step, where half of a reach measured from ``v = 0`` would hold it at about one step's change.
+    step. Where the caps cannot stop an approach in time the row asks only what they allow (the clearance may
+    then fall below :math:`d_s`; the acceleration and jerk limits are kept).
+
+    With ``brake`` α (m/s², a deceleration along the row that the acceleration limits can give), rows beyond
+    :math:`d_i` apply too, with the braking profile :math:`\dot h \ge -\xi - \sqrt{2\alpha (h - d_i)}`: an
+    approach is slowed early enough to reach :math:`d_i` at ξ (the damper assumes an arm that can stop at
+    once; with acceleration limits it cannot).
     """
     m = A.shape[0]
     lower = (-xi / (d_i - ds)) * (h - ds) + approach
+    lo0, hi0 = ca.fmin(lb, 0.0), ca.fmax(ub, 0.0)
+    if caps is not None:
+        lo0, hi0 = ca.fmax(lo0, caps[0]), ca.fmin(hi0, caps[1])
     LB, UB = ca.repmat(lb.T, m, 1), ca.repmat(ub.T, m, 1)
-    reach0 = ca.sum2(ca.fmax(A * ca.fmin(LB, 0.0), A * ca.fmax(UB, 0.0)))
+    reach0 = ca.sum2(ca.fmax(A * ca.repmat(lo0.T, m, 1), A * ca.repmat(hi0.T, m, 1)))
     reach = ca.sum2(ca.fmax(A * LB, A * UB)) - 0.25 * ca.sum2(ca.fabs(A) * (UB - LB))
+    cap = ca.fmax(reach0 - 0.5 * ca.fabs(reach0), reach)
     moved = ca.sum2(ca.fabs(A)) > 1e-12  # a row no joint moves is left out
-    return ca.if_else(ca.logic_and(h < d_i, moved), ca.fmin(lower, ca.fmax(0.5 * reach0, reach)), -ca.inf)
+    near = h < d_i
+    if brake is not None:
+        lower = ca.if_else(near, lower, -xi - ca.sqrt(2.0 * brake * ca.fmax(h - d_i, 0.0)) + approach)
+        near = h == h  # every row applies
+    return ca.if_else(ca.logic_and(near, moved), ca.fmin(lower, cap), -ca.inf)

@@ -89,6 +89,8 @@ class SelfCollisionLimit(RowLimit):
         d_safe: :math:`d_s`, m (< d_influence).
         xi: ξ, m/s (> 0), the largest approach speed, at :math:`d_i`.
         buffer: δ, m (≥ 0), added to d_s in the rows.
+        brake: α, m/s² (None: off): with acceleration limits, rows beyond d_i slow an approach so that it
+            reaches d_i at ξ (:func:`~qpik.control.limits.damper_lower`).
     """
 
     name = "self"
@@ -101,6 +103,7 @@ class SelfCollisionLimit(RowLimit):
         d_safe: float = 0.01,
         xi: float = 0.5,
         buffer: float = 1e-3,
+        brake: float | None = None,
     ):
         self.allowed = None if allowed is None else frozenset(allowed)
         self.srdf = srdf
@@ -112,6 +115,7 @@ class SelfCollisionLimit(RowLimit):
             raise InfeasibleError("SelfCollisionLimit: need d_safe + buffer < d_influence")
         if self.xi <= 0 or self.buffer < 0:
             raise InputError("SelfCollisionLimit: need xi > 0 and buffer >= 0")
+        self.brake = None if brake is None else number(brake, "brake")
         self._checked: tuple[Pair, ...] = ()
 
     def pairs(self, robot: Robot) -> tuple[Pair, ...]:
@@ -134,7 +138,7 @@ class SelfCollisionLimit(RowLimit):
         return [f"self link{caps[c].link} / link{caps[e].link}" for c, e in self.pairs(robot)]
 
     def structure(self) -> tuple:
-        return (self._checked,)
+        return (self._checked, self.brake)
 
     def param_layout(self, n: int) -> Layout:
         return Layout(d_influence=(), d_safe=(), xi=())
@@ -153,7 +157,7 @@ class SelfCollisionLimit(RowLimit):
             return ca.SX(0, s.n), ca.SX(0, 1), ca.SX(0, 1)
         A = ca.vertcat(*[ca.horzcat(*row) for _, row in found])
         h = ca.vertcat(*[d for d, _ in found])
-        lower = damper_lower(A, h, p.d_influence, p.d_safe, p.xi, lb, ub)
+        lower = damper_lower(A, h, p.d_influence, p.d_safe, p.xi, lb, ub, caps=s.caps, brake=self.brake)
         return A, lower, ca.SX(A.shape[0], 1) + ca.inf
 
     def distances(self, robot: Robot, q: np.ndarray) -> np.ndarray:

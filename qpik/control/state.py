@@ -302,6 +302,8 @@ class SymState:
         pose: (4, 4) end-effector pose; J: (6, n) geometric Jacobian ``[v; ω]`` (SX, world frame).
         inputs: ``[(symbol, value)]`` of every input beyond ``q``: ``value(state)`` gives its
             numbers (state: a numeric :class:`State` or None in the controller).
+        caps: ``(lo, hi)`` (n,) SX, the box of the cap limits alone (velocity, acceleration, jerk), which
+            every command must stay in; set by the controller's assembler before the rows (None elsewhere).
     """
 
     def __init__(self, kin: Kinematics, q: ca.SX, dt: ca.SX, base: ca.SX, pairs_of):
@@ -312,6 +314,7 @@ class SymState:
         self._pairs_of = pairs_of
         self._pairs: dict[ObstacleSet, Blocks] = {}
         self.inputs: list = []
+        self.caps: tuple[ca.SX, ca.SX] | None = None  # the caps' own box (n,) each, set by the assembler
         self._owned: dict[int, Blocks] = {}
         self.packed: dict[ObstacleSet, ca.SX] = {}  # the obstacles' packed parameters, where declared
 
