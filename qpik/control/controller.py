@@ -42,6 +42,7 @@ import numpy as np
 
 from qpik.control.limits import ConfigurationLimit, Limit, ObstacleLimit, VelocityLimit
 from qpik.control.qp import QP, Assembler
+from qpik.control.self_collision import SelfCollisionLimit
 from qpik.control.solvers import Solver, get_solver
 from qpik.control.state import SymState
 from qpik.control.tasks import DampingTask, FrameTask, ManipulabilityTask, PostureTask, Task
@@ -73,6 +74,9 @@ class StepInfo:
             ``"obstacle sphere0 / link4"``, ...).
         min_clearance: smallest capsule–obstacle signed distance, m, over the capsules a joint moves
             (inf without obstacles).
+        min_self_distance: smallest signed distance, m, of the pairs a
+            :class:`~qpik.control.self_collision.SelfCollisionLimit` checks (inf without one); below its d_s
+            the status is ``"recovering"``, below 0 ``"penetrating"``.
         relaxation: 0 if the QP was solved as built; else the part of the separating rows'
             demand that was dropped (3/4, 15/16, or 1: only approach is forbidden, which
             ``v = 0`` meets) when they conflicted (failure policy, step 4).
@@ -85,6 +89,7 @@ class StepInfo:
 
     status: str = "ok"
     min_clearance: float = np.inf
+    min_self_distance: float = np.inf
     relaxation: float = 0.0
     task_error: float = np.nan
     solver_status: str = ""
@@ -164,6 +169,8 @@ class Controller:
         self.raise_on_failure = raise_on_failure
         self.frame_task = next((t for t in self.tasks if isinstance(t, FrameTask)), None)
         self.obstacle_limits = tuple(lim for lim in self.limits if isinstance(lim, ObstacleLimit))
+        self.self_limits = tuple(lim for lim in self.limits if isinstance(lim, SelfCollisionLimit))
+        self._d_safe_self = [lim.d_safe for lim in self.self_limits]
         self.config_limits = tuple(lim for lim in self.limits if isinstance(lim, ConfigurationLimit))
         self.caps = tuple(lim for lim in self.limits if isinstance(lim, VelocityLimit))
         # one compiled call per step: the QP and the step's summary (_summary)
@@ -224,7 +231,9 @@ class Controller:
         smallest capsule–obstacle distance (m; inf without pairs) over the capsules a joint moves
         (:attr:`~qpik.robots.robot.Robot.fixed_capsules` are left out); ``past``, 1.0 if q is past a
         :class:`ConfigurationLimit`'s range (else 0.0); ``task_error``, the norm of the first
-        :class:`FrameTask`'s pose error ``[m; rad]`` (nan without one)."""
+        :class:`FrameTask`'s pose error ``[m; rad]`` (nan without one); ``own``, per
+        :class:`~qpik.control.self_collision.SelfCollisionLimit` its smallest checked self-distance (m);
+        ``cap_lo``, ``cap_hi``, the caps' own box (n,) each, rad/s (the yielding QP stays in it)."""
         clearance = []
         for lim in self.obstacle_limits:
             moving = np.repeat(~self.robot.fixed_capsules, len(lim.obstacles))  # pair (c, o) at c·O + o
@@ -241,6 +250,9 @@ class Controller:
             "clearance": ca.vertcat(*clearance),
             "past": past > 0,
             "task_error": error,
+            "own": ca.vertcat(
+                *[ca.mmin(d) if (d := lim.distances_expr(s)).numel() else ca.inf for lim in self.self_limits]
+            ),
             "cap_lo": s.caps[0],
             "cap_hi": s.caps[1],
         }
@@ -296,12 +308,15 @@ class Controller:
         clearances, past, info.task_error = summary.clearance.tolist(), summary.past[0], float(summary.task_error[0])
         if clearances:
             info.min_clearance = min(clearances)
+        own = summary.own.tolist()
+        if own:
+            info.min_self_distance = min(own)
         if info.status == "ok":
             if yielding:
                 info.status = "yielding"
-            elif info.min_clearance < 0.0:
+            elif min(info.min_clearance, info.min_self_distance) < 0.0:
                 info.status = "penetrating"
-            elif past or any(d < ds for d, ds in zip(clearances, self._d_safe)):
+            elif past or any(d < ds for d, ds in zip(clearances + own, self._d_safe + self._d_safe_self)):
                 info.status = "recovering"
         info.total_time = time.perf_counter() - t0
         self.last = info
