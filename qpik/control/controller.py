@@ -196,6 +196,7 @@ class Controller:
         d_influence: float = 0.10,
         d_safe: float = 0.02,
         xi: float = 0.5,
+        self_collision: bool = True,
     ) -> Controller:
         """A controller with the usual tasks and limits.
 
@@ -203,7 +204,10 @@ class Controller:
         :class:`PostureTask` toward ``q_ref`` (default ``robot.q_home``, gain 1/s),
         :class:`ManipulabilityTask`, :class:`DampingTask`. Limits:
         :class:`ConfigurationLimit` (``margin``), :class:`VelocityLimit` (the robot's) and,
-        with ``obstacles``, :class:`ObstacleLimit` (``d_influence``, ``d_safe`` in m, ``xi`` in m/s).
+        with ``obstacles``, :class:`ObstacleLimit` (``d_influence``, ``d_safe`` in m, ``xi`` in m/s), and with
+        ``self_collision`` (the default) :class:`~qpik.control.self_collision.SelfCollisionLimit` (its defaults:
+        the pairs of non-adjacent links less those always in collision or never within 5 cm over 10,000
+        seeded configurations, d_s = 1 cm, d_i = 6 cm).
         """
         robot = as_robot(robot)
         tasks: list[Task] = [
@@ -216,6 +220,8 @@ class Controller:
         obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
         if len(obstacles):
             limits.append(ObstacleLimit(obstacles, d_influence, d_safe, xi))
+        if self_collision and len(robot.capsules) > 2:
+            limits.append(SelfCollisionLimit())
         return cls(robot, tasks, limits, solver=solver, dt=dt)
 
     def set_posture(self, q_ref: np.ndarray) -> None:
