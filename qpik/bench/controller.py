@@ -160,8 +160,13 @@ def run(args: argparse.Namespace) -> list[Row]:
         loaded = load_robot(packaged_model(LOADED))
     except InputError as exc:
         print(f"qpik bench controller: {exc}; rows left out")
-        return rows
-    return rows + _arm_rows(loaded, home, "URDF iiwa: ", repeat)
+        from qpik.bench.controller_self import rows as fold_rows
+
+        return rows + fold_rows(repeat)
+    rows += _arm_rows(loaded, home, "URDF iiwa: ", repeat)
+    from qpik.bench.controller_self import rows as fold_rows  # it imports this module's scene
+
+    return rows + fold_rows(repeat)
 
 
 def _arm_rows(robot, home: np.ndarray, prefix: str, repeat: int, obstacles: bool = True) -> list[Row]:
@@ -284,11 +289,11 @@ def _closed_loop(step, q0: np.ndarray):
     return call
 
 
-def _mink_step(robot, target, spheres, solver):
+def _mink_step(robot, target, spheres, solver, extra_pairs: tuple = ()):
     """mink's control step on the robot's MuJoCo model with the same tasks, weights and limits as qpik's defaults.
 
     Its collision rows are the model's collision geoms on links 4–7 (the twin's capsules; a loaded arm's
-    meshes) against the spheres.
+    meshes) against the spheres, and ``extra_pairs`` (mink's ``(geoms, geoms)`` groups, e.g. self pairs).
     """
     scene_ = build_scene(robot, spheres)
     model = scene_.kin.model
@@ -319,7 +324,7 @@ def _mink_step(robot, target, spheres, solver):
     vel = {name: robot.v_max[j] for j, name in enumerate(robot.joint_names)}
     links = _links(model, robot)
     arm_geoms = [int(g) for g in scene_.link_geoms if links[int(model.geom_bodyid[g])] in LINKS]
-    pairs = [(arm_geoms, [int(g) for g in scene_.obstacle_geoms])]
+    pairs = [(arm_geoms, [int(g) for g in scene_.obstacle_geoms]), *extra_pairs]
     limits = [mink.ConfigurationLimit(model), mink.VelocityLimit(model, vel)]
     if spheres:
         limits.append(

@@ -347,6 +347,19 @@ class ObstacleLimit(RowLimit):
             self.velocities = v
         self.obstacles.params[:] = new.params  # read by the compiled step at every call
 
+    def translate(self, o: int, point: np.ndarray, velocity: np.ndarray) -> None:
+        """Move obstacle ``o`` (a sphere, capsule or box) rigidly so that its reference point (a sphere's centre,
+        a capsule's ``p0``, a box's centre) is ``point`` (3,), m, moving at ``velocity`` (6,) ``[v; ω]``: the
+        cheap update of one moving obstacle in a control loop (no shape is rebuilt)."""
+        from qpik.geometry.distance import PARAMS
+
+        kinds = self.obstacles.kinds
+        if not 0 <= o < len(kinds) or kinds[o] == "halfspace":
+            raise InputError(f"translate: obstacle {o} is not a sphere, capsule or box of this limit")
+        start = sum(PARAMS[k] for k in kinds[:o])
+        self.obstacles.params[start : start + 3] = finite_array(point, "point", (3,))
+        self.velocities[o] = finite_array(velocity, "velocity", (6,))
+
     def approach_expr(self, s: SymState, p: Blocks) -> ca.SX:
         r"""Per row, the obstacle's speed toward the link :math:`n^T (v_o + \omega_o \times (p_{obs} - c_o))` (R,),
         m/s, with the pair's normal and obstacle witness point (for the two rows of a separating plane, the
