@@ -51,6 +51,9 @@ Its tasks have no gain (each asks Δq to close the whole error), so its closed l
 differently; the row times the same call, a full step from q. placo has no sphere obstacles to
 express the scene with obstacles, so it is not in those rows. qpik + osqp's ratio in that scene
 is against placo.
+
+Last, the rows ``fold + moving sphere: ...`` (:mod:`qpik.bench.controller_self`): self-collision pairs of a
+folding motion and a moving sphere, qpik beside mink with the same self pairs on the same model.
 """
 
 from __future__ import annotations
@@ -219,8 +222,16 @@ def _arm_rows(robot, home: np.ndarray, prefix: str, repeat: int, obstacles: bool
 
 
 def _controller(robot, target, spheres, solver) -> Controller:
-    return Controller.for_robot(
-        robot, target=target, obstacles=spheres, dt=DT, solver=solver, d_influence=D_INFLUENCE, d_safe=D_SAFE, xi=XI
+    return Controller.for_robot(  # like for like with mink's rows: no self pairs (the fold scene has them)
+        robot,
+        target=target,
+        obstacles=spheres,
+        dt=DT,
+        solver=solver,
+        d_influence=D_INFLUENCE,
+        d_safe=D_SAFE,
+        xi=XI,
+        self_collision=False,
     )
 
 
@@ -300,7 +311,7 @@ def _mink_step(robot, target, spheres, solver, extra_pairs: tuple = ()):
     adr = scene_.kin.qpos_adr
     conf = mink.Configuration(model)
     qpos = model.qpos0.copy()  # joints that are not the arm's (fingers) stay at their reference
-    ctrl = Controller.for_robot(robot)  # only to read the same default weights
+    ctrl = Controller.for_robot(robot, self_collision=False)  # only to read the same default weights
     frame_task, posture, manip, damping = ctrl.tasks
     # qpik's cost w‖·‖² over v ⇔ mink's ½‖c(·)‖² over Δq = v dt with c = sqrt(2 w)·…, gains·dt
     frame = mink.FrameTask(
