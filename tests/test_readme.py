@@ -35,7 +35,7 @@ BLOCKS = [
 
 def test_readme_opens_with_the_two_setup_commands_and_ci_runs_the_test_one() -> None:
     first_block = re.search(r"```bash\n(.*?)```", README, re.S).group(1).strip().splitlines()
-    assert first_block == ['pip install . && qpik demo', 'pip install -e ".[test]" && pytest']
+    assert first_block == ["pip install . && qpik demo", 'pip install -e ".[test]" && pytest']
     ci = (ROOT / ".ci" / "run").read_text()
     assert 'pip install -e ".[test]" && pytest' in ci
 
@@ -55,6 +55,11 @@ def check_qp_controller(ns: dict) -> None:
     # solve_ik reached its target (FK, independent of the controller)
     assert np.abs(robot.fk(ns["q_star"]) - ns["target"]).max() < 1e-9
     assert ns["v"].shape == (7,) and np.all(np.abs(ns["v"]) <= robot.v_max + 1e-9)
+    # from rest, the first command of the arm with acceleration limits is within one step of them
+    panda = ns["panda"]
+    assert np.all(np.abs(ns["v_safe"]) <= panda.a_max * 0.002 + 1e-12) and np.isfinite(
+        ns["safe"].last.min_self_distance
+    )
 
 
 def check_nlp(ns: dict) -> None:
