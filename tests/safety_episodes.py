@@ -141,7 +141,7 @@ def limits(robot: qpik.Robot, obstacles: list, off: str | None = None) -> list:
         out.append(AccelerationLimit(a_max(robot)))
     if off != "jerk":
         out.append(JerkLimit(j_max(robot)))
-    out.append(ObstacleLimit(obstacles, D_INFLUENCE_OBS, D_SAFE_OBS, xi=0.5, brake=BRAKE))
+    out.append(ObstacleLimit(obstacles, D_INFLUENCE_OBS, D_SAFE_OBS, xi=0.5, brake=BRAKE, moving=True))
     if off != "self":
         out.append(SelfCollisionLimit(d_safe=D_SAFE_SELF, brake=BRAKE))
     return out

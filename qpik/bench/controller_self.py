@@ -60,7 +60,12 @@ def _qpik_step(robot: Robot, target, spheres, solver: str):
     ctrl = Controller.for_robot(
         robot, target=target, obstacles=spheres, dt=DT, solver=solver, d_influence=D_INFLUENCE, d_safe=D_SAFE, xi=XI
     )
-    obstacle = next(lim for lim in ctrl.limits if isinstance(lim, ObstacleLimit))
+    limits = [
+        ObstacleLimit(spheres, D_INFLUENCE, D_SAFE, XI, moving=True) if isinstance(lim, ObstacleLimit) else lim
+        for lim in ctrl.limits
+    ]
+    ctrl = Controller(robot, ctrl.tasks, limits, solver=solver, dt=DT)
+    obstacle = next(lim for lim in limits if isinstance(lim, ObstacleLimit))
     moving = spheres[0]
     count = [0]
 

@@ -249,6 +249,8 @@ class ObstacleLimit(RowLimit):
         buffer: δ, m (≥ 0).
         brake: α, m/s² (None: off): with acceleration limits, rows beyond d_i slow an approach so that it
             reaches d_i at ξ (:func:`damper_lower`).
+        moving: the rows take the obstacles' velocities (:meth:`set_velocities`, :meth:`move`,
+            :meth:`translate`); off, the obstacles are taken as standing still and the rows cost less.
 
     Moving obstacles: an obstacle moving at :math:`v_o` and :math:`\omega_o` (:meth:`set_velocities`, or
     estimated from its poses by :meth:`move`) closes the row's height at :math:`n^T v_o(p_{obs})`, so the
@@ -269,6 +271,7 @@ class ObstacleLimit(RowLimit):
         xi: float = 0.5,
         buffer: float = 1e-3,
         brake: float | None = None,
+        moving: bool = False,
     ):
         from qpik.geometry.distance import ObstacleSet
 
@@ -281,6 +284,7 @@ class ObstacleLimit(RowLimit):
             raise InfeasibleError("ObstacleLimit: need d_safe + buffer < d_influence")
         if self.xi <= 0 or self.buffer < 0:
             raise InputError("ObstacleLimit: need xi > 0 and buffer >= 0")
+        self.moving = bool(moving)
         self.velocities = np.zeros((len(self.obstacles), 6))
         self.brake = None if brake is None else number(brake, "brake")
 
@@ -302,18 +306,19 @@ class ObstacleLimit(RowLimit):
         return [f"obstacle {names[o]} / link{robot.capsules[c].link}{ends[e]}" for c, o, e in layout]
 
     def param_layout(self, n: int) -> Layout:
-        return Layout(d_influence=(), d_safe=(), xi=(), velocities=(len(self.obstacles), 6))
+        moving = {"velocities": (len(self.obstacles), 6)} if self.moving else {}
+        return Layout(d_influence=(), d_safe=(), xi=(), **moving)
 
     def param_values(self) -> dict[str, object]:
         return {
             "d_influence": self.d_influence,
             "d_safe": self.d_safe + self.buffer,
             "xi": self.xi,
-            "velocities": self.velocities,
+            **({"velocities": self.velocities} if self.moving else {}),
         }
 
     def structure(self) -> tuple:
-        return (self.obstacles.kinds, self.brake)
+        return (self.obstacles.kinds, self.brake, self.moving)
 
     def distances_expr(self, s: SymState) -> ca.SX:
         """Signed distances (C·O,) of every capsule–obstacle pair, m (SX)."""
@@ -322,6 +327,7 @@ class ObstacleLimit(RowLimit):
     def set_velocities(self, velocities: np.ndarray) -> None:
         """Set the obstacles' velocities (O, 6) ``[v; ω]``, m/s and rad/s, world frame, ω about each shape's
         reference point (a sphere's centre, a capsule's ``p0``, a box's centre; a half-space's origin)."""
+        self._need_moving()
         self.velocities = finite_array(velocities, "velocities", (len(self.obstacles), 6)).copy()
 
     def move(self, shapes: Sequence[Shape], dt: float | None = None, velocities: np.ndarray | None = None) -> None:
@@ -342,6 +348,7 @@ class ObstacleLimit(RowLimit):
             dt = number(dt, "dt", minimum=None)
             if dt <= 0:
                 raise InputError("dt: must be > 0")
+            self._need_moving()
             v = np.zeros((len(new), 6))
             v[:, :3] = (_reference_points(new) - _reference_points(self.obstacles)) / dt
             self.velocities = v
@@ -358,7 +365,12 @@ class ObstacleLimit(RowLimit):
             raise InputError(f"translate: obstacle {o} is not a sphere, capsule or box of this limit")
         start = sum(PARAMS[k] for k in kinds[:o])
         self.obstacles.params[start : start + 3] = finite_array(point, "point", (3,))
+        self._need_moving()
         self.velocities[o] = finite_array(velocity, "velocity", (6,))
+
+    def _need_moving(self) -> None:
+        if not self.moving:
+            raise InputError("ObstacleLimit: give moving=True to use obstacle velocities (the rows' form is fixed)")
 
     def approach_expr(self, s: SymState, p: Blocks) -> ca.SX:
         r"""Per row, the obstacle's speed toward the link :math:`n^T (v_o + \omega_o \times (p_{obs} - c_o))` (R,),
@@ -379,7 +391,8 @@ class ObstacleLimit(RowLimit):
         # every row (fixed shape, from the step's compiled kinematics); rows beyond d_i get l = -inf
         A = s.damper_rows(self.obstacles)
         h = s.damper_heights(self.obstacles)
-        lower = damper_lower(A, h, p.d_influence, p.d_safe, p.xi, lb, ub, self.approach_expr(s, p), s.caps, self.brake)
+        approach = self.approach_expr(s, p) if self.moving else 0.0
+        lower = damper_lower(A, h, p.d_influence, p.d_safe, p.xi, lb, ub, approach, s.caps, self.brake)
         return A, lower, ca.SX(A.shape[0], 1) + ca.inf
 
 
