@@ -41,6 +41,8 @@ EXPECTED = {
         "qpik + daqp",
         "qpik + proxqp",
         "qpik + quadprog",
+        "fold + moving sphere: qpik + osqp",
+        "fold + moving sphere: mink + daqp",
     ],
     "ik": [
         "iiwa14: qpik.solve_ik (closed form)",
@@ -93,9 +95,14 @@ def test_bench_prints_every_row(name):
     if name == "ik":  # every row gives p95 and the success rate, checked by FK
         assert all("p95" in row.note and "success" in row.note for row in rows)
     if name == "controller":  # the worst step, also as the best of the replays, is printed for every row
-        assert all("best of 3 replays" in row.note for row in rows)
+        spheres = [row for row in rows if not row.label.startswith("fold")]  # the fold rows: self pairs, below
+        assert all("best of 3 replays" in row.note for row in spheres)
         # with obstacles, every row says how often its library's obstacle rows bind
-        assert all("binding" in row.note for row in rows if not row.label.startswith("no obstacles"))
+        assert all("binding" in row.note for row in spheres if not row.label.startswith("no obstacles"))
+        # the fold rows say what each side computes
+        assert all(
+            "self pairs" in row.note and "standing still" in row.note for row in rows if row.label.startswith("fold")
+        )
     if name == "analytic":  # the numpy scalar rows give their ratio to the float call of the same run
         assert all("numpy scalar / float: " in row.note for row in rows if "numpy.float64" in row.label)
     if name == "view":  # every arm's 100 drag updates were timed, with their p95 against the 50 ms budget

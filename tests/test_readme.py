@@ -55,6 +55,11 @@ def check_qp_controller(ns: dict) -> None:
     # solve_ik reached its target (FK, independent of the controller)
     assert np.abs(robot.fk(ns["q_star"]) - ns["target"]).max() < 1e-9
     assert ns["v"].shape == (7,) and np.all(np.abs(ns["v"]) <= robot.v_max + 1e-9)
+    # from rest, the first command of the arm with acceleration limits is within one step of them
+    panda = ns["panda"]
+    assert np.all(np.abs(ns["v_safe"]) <= panda.a_max * 0.002 + 1e-12) and np.isfinite(
+        ns["safe"].last.min_self_distance
+    )
 
 
 def check_nlp(ns: dict) -> None:

@@ -51,6 +51,9 @@ Its tasks have no gain (each asks Δq to close the whole error), so its closed l
 differently; the row times the same call, a full step from q. placo has no sphere obstacles to
 express the scene with obstacles, so it is not in those rows. qpik + osqp's ratio in that scene
 is against placo.
+
+Last, the rows ``fold + moving sphere: ...`` (:mod:`qpik.bench.controller_self`): self-collision pairs of a
+folding motion and a moving sphere, qpik beside mink with the same self pairs on the same model.
 """
 
 from __future__ import annotations
@@ -160,8 +163,13 @@ def run(args: argparse.Namespace) -> list[Row]:
         loaded = load_robot(packaged_model(LOADED))
     except InputError as exc:
         print(f"qpik bench controller: {exc}; rows left out")
-        return rows
-    return rows + _arm_rows(loaded, home, "URDF iiwa: ", repeat)
+        from qpik.bench.controller_self import rows as fold_rows
+
+        return rows + fold_rows(repeat)
+    rows += _arm_rows(loaded, home, "URDF iiwa: ", repeat)
+    from qpik.bench.controller_self import rows as fold_rows  # it imports this module's scene
+
+    return rows + fold_rows(repeat)
 
 
 def _arm_rows(robot, home: np.ndarray, prefix: str, repeat: int, obstacles: bool = True) -> list[Row]:
@@ -214,8 +222,16 @@ def _arm_rows(robot, home: np.ndarray, prefix: str, repeat: int, obstacles: bool
 
 
 def _controller(robot, target, spheres, solver) -> Controller:
-    return Controller.for_robot(
-        robot, target=target, obstacles=spheres, dt=DT, solver=solver, d_influence=D_INFLUENCE, d_safe=D_SAFE, xi=XI
+    return Controller.for_robot(  # like for like with mink's rows: no self pairs (the fold scene has them)
+        robot,
+        target=target,
+        obstacles=spheres,
+        dt=DT,
+        solver=solver,
+        d_influence=D_INFLUENCE,
+        d_safe=D_SAFE,
+        xi=XI,
+        self_collision=False,
     )
 
 
@@ -284,18 +300,18 @@ def _closed_loop(step, q0: np.ndarray):
     return call
 
 
-def _mink_step(robot, target, spheres, solver):
+def _mink_step(robot, target, spheres, solver, extra_pairs: tuple = ()):
     """mink's control step on the robot's MuJoCo model with the same tasks, weights and limits as qpik's defaults.
 
     Its collision rows are the model's collision geoms on links 4–7 (the twin's capsules; a loaded arm's
-    meshes) against the spheres.
+    meshes) against the spheres, and ``extra_pairs`` (mink's ``(geoms, geoms)`` groups, e.g. self pairs).
     """
     scene_ = build_scene(robot, spheres)
     model = scene_.kin.model
     adr = scene_.kin.qpos_adr
     conf = mink.Configuration(model)
     qpos = model.qpos0.copy()  # joints that are not the arm's (fingers) stay at their reference
-    ctrl = Controller.for_robot(robot)  # only to read the same default weights
+    ctrl = Controller.for_robot(robot, self_collision=False)  # only to read the same default weights
     frame_task, posture, manip, damping = ctrl.tasks
     # qpik's cost w‖·‖² over v ⇔ mink's ½‖c(·)‖² over Δq = v dt with c = sqrt(2 w)·…, gains·dt
     frame = mink.FrameTask(
@@ -319,7 +335,7 @@ def _mink_step(robot, target, spheres, solver):
     vel = {name: robot.v_max[j] for j, name in enumerate(robot.joint_names)}
     links = _links(model, robot)
     arm_geoms = [int(g) for g in scene_.link_geoms if links[int(model.geom_bodyid[g])] in LINKS]
-    pairs = [(arm_geoms, [int(g) for g in scene_.obstacle_geoms])]
+    pairs = [(arm_geoms, [int(g) for g in scene_.obstacle_geoms]), *extra_pairs]
     limits = [mink.ConfigurationLimit(model), mink.VelocityLimit(model, vel)]
     if spheres:
         limits.append(

@@ -33,6 +33,7 @@ from qpik.errors import InfeasibleError, InputError
 from qpik.validate import finite_array, number
 
 if TYPE_CHECKING:
+    from qpik.geometry.distance import ObstacleSet
     from qpik.geometry.shapes import Shape
     from qpik.robots.robot import Robot
 
@@ -49,6 +50,10 @@ class Limit(Traced):
         """
         return None
 
+    def observe(self, v: np.ndarray) -> None:
+        """Called by the controller with each step's command ``v`` (n,), rad/s (the default keeps nothing)."""
+        return None
+
     def parameters(self, s: SymState) -> Blocks:
         """This limit's parameters declared as inputs of ``s`` (SX blocks of :meth:`param_layout`)."""
         return s.params_of(self)
@@ -58,6 +63,7 @@ class BoxLimit(Limit, ABC):
     """Bounds ``lb ≤ v ≤ ub`` (n,) on the joint velocity (rad/s)."""
 
     cap: bool = False  # cap boxes (velocity limits) clip every other box
+    rank: int = 0  # caps clip in increasing rank, the last wins: jerk (-2), acceleration (-1), velocity (0)
 
     @abstractmethod
     def expr(self, s: SymState, p: Blocks) -> tuple[ca.SX, ca.SX]:
@@ -240,6 +246,18 @@ class ObstacleLimit(RowLimit):
         d_safe: :math:`d_s`, m (< d_influence).
         xi: ξ, m/s (> 0).
         buffer: δ, m (≥ 0).
+        brake: α, m/s² (None: off): with acceleration limits, rows beyond d_i slow an approach so that it
+            reaches d_i at ξ (:func:`damper_lower`).
+        moving: the rows take the obstacles' velocities (:meth:`set_velocities`, :meth:`move`,
+            :meth:`translate`); off, the obstacles are taken as standing still and the rows cost less.
+
+    Moving obstacles: an obstacle moving at :math:`v_o` and :math:`\omega_o` (:meth:`set_velocities`, or
+    estimated from its poses by :meth:`move`) closes the row's height at :math:`n^T v_o(p_{obs})`, so the
+    row is :math:`n^T (J_p v - v_o(p_{obs})) \ge -\xi (h - d_s)/(d_i - d_s)`. It holds while the arm can move
+    that part away at the obstacle's speed, :math:`\max_{v \in B} n^T J_p v \ge n^T v_o` within the box B of
+    the velocity (and acceleration) limits; when it cannot, the row asks what the box allows (the least-bad
+    motion: the fastest retreat the limits permit), the clearance falls, and the status says so:
+    ``"recovering"`` inside d_s, ``"penetrating"`` at d < 0.
     """
 
     name = "obstacle"
@@ -251,6 +269,8 @@ class ObstacleLimit(RowLimit):
         d_safe: float = 0.02,
         xi: float = 0.5,
         buffer: float = 1e-3,
+        brake: float | None = None,
+        moving: bool = False,
     ):
         from qpik.geometry.distance import ObstacleSet
 
@@ -263,6 +283,9 @@ class ObstacleLimit(RowLimit):
             raise InfeasibleError("ObstacleLimit: need d_safe + buffer < d_influence")
         if self.xi <= 0 or self.buffer < 0:
             raise InputError("ObstacleLimit: need xi > 0 and buffer >= 0")
+        self.moving = bool(moving)
+        self.velocities = np.zeros((len(self.obstacles), 6))
+        self.brake = None if brake is None else number(brake, "brake")
 
     def check(self, robot: Robot, dt: float) -> None:
         if self.xi * dt > self.d_influence - self.d_safe - self.buffer:
@@ -282,28 +305,153 @@ class ObstacleLimit(RowLimit):
         return [f"obstacle {names[o]} / link{robot.capsules[c].link}{ends[e]}" for c, o, e in layout]
 
     def param_layout(self, n: int) -> Layout:
-        return Layout(d_influence=(), d_safe=(), xi=())
+        moving = {"velocities": (len(self.obstacles), 6)} if self.moving else {}
+        return Layout(d_influence=(), d_safe=(), xi=(), **moving)
 
-    def param_values(self) -> dict[str, float]:
-        return {"d_influence": self.d_influence, "d_safe": self.d_safe + self.buffer, "xi": self.xi}
+    def param_values(self) -> dict[str, object]:
+        return {
+            "d_influence": self.d_influence,
+            "d_safe": self.d_safe + self.buffer,
+            "xi": self.xi,
+            **({"velocities": self.velocities} if self.moving else {}),
+        }
 
     def structure(self) -> tuple:
-        return (self.obstacles.kinds,)
+        return (self.obstacles.kinds, self.brake, self.moving)
 
     def distances_expr(self, s: SymState) -> ca.SX:
         """Signed distances (C·O,) of every capsule–obstacle pair, m (SX)."""
         return s.distances(self.obstacles)
 
+    def set_velocities(self, velocities: np.ndarray) -> None:
+        """Set the obstacles' velocities (O, 6) ``[v; ω]``, m/s and rad/s, world frame, ω about each shape's
+        reference point (a sphere's centre, a capsule's ``p0``, a box's centre; a half-space's origin)."""
+        self._need_moving()
+        self.velocities = finite_array(velocities, "velocities", (len(self.obstacles), 6)).copy()
+
+    def move(self, shapes: Sequence[Shape], dt: float | None = None, velocities: np.ndarray | None = None) -> None:
+        """Move the obstacles to ``shapes`` (the same families in the same order; the rows keep their form).
+
+        With ``velocities`` (O, 6) they are set as in :meth:`set_velocities`; else, with ``dt`` (s, the time
+        since the last poses), the linear velocity of each reference point is estimated by the difference
+        (angular velocity 0); with neither, the velocities are kept.
+        """
+        from qpik.geometry.distance import ObstacleSet
+
+        new = ObstacleSet(shapes)
+        if new.kinds != self.obstacles.kinds:
+            raise InputError("move: shapes must keep the obstacles' families and order")
+        if velocities is not None:
+            self.set_velocities(velocities)
+        elif dt is not None:
+            dt = number(dt, "dt", minimum=None)
+            if dt <= 0:
+                raise InputError("dt: must be > 0")
+            self._need_moving()
+            v = np.zeros((len(new), 6))
+            v[:, :3] = (_reference_points(new) - _reference_points(self.obstacles)) / dt
+            self.velocities = v
+        self.obstacles.params[:] = new.params  # read by the compiled step at every call
+
+    def translate(self, o: int, point: np.ndarray, velocity: np.ndarray) -> None:
+        """Move obstacle ``o`` (a sphere, capsule or box) rigidly so that its reference point (a sphere's centre,
+        a capsule's ``p0``, a box's centre) is ``point`` (3,), m, moving at ``velocity`` (6,) ``[v; ω]``: the
+        cheap update of one moving obstacle in a control loop (no shape is rebuilt)."""
+        from qpik.geometry.distance import PARAMS
+
+        kinds = self.obstacles.kinds
+        if not 0 <= o < len(kinds) or kinds[o] == "halfspace":
+            raise InputError(f"translate: obstacle {o} is not a sphere, capsule or box of this limit")
+        start = sum(PARAMS[k] for k in kinds[:o])
+        self.obstacles.params[start : start + 3] = finite_array(point, "point", (3,))
+        self._need_moving()
+        self.velocities[o] = finite_array(velocity, "velocity", (6,))
+
+    def _need_moving(self) -> None:
+        if not self.moving:
+            raise InputError("ObstacleLimit: give moving=True to use obstacle velocities (the rows' form is fixed)")
+
+    def approach_expr(self, s: SymState, p: Blocks) -> ca.SX:
+        r"""Per row, the obstacle's speed toward the link :math:`n^T (v_o + \omega_o \times (p_{obs} - c_o))` (R,),
+        m/s, with the pair's normal and obstacle witness point (for the two rows of a separating plane, the
+        plane's own motion)."""
+        w = s.witnesses(self.obstacles)
+        refs = _reference_points(self.obstacles, s.obstacle_params(self.obstacles))
+        O = len(self.obstacles)
+        out = []
+        for c, o, _ in s.kin.damper_layout(self.obstacles.kinds):
+            k = c * O + o
+            n, p_obs = w.normal[3 * k : 3 * k + 3], w.p_obs[3 * k : 3 * k + 3]
+            vel = p.velocities[o, :3].T + ca.cross(p.velocities[o, 3:].T, p_obs - refs[o])
+            out.append(ca.dot(n, vel))
+        return ca.vertcat(*out) if out else ca.SX(0, 1)
+
     def expr(self, s: SymState, p: Blocks, lb: ca.SX, ub: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
         # every row (fixed shape, from the step's compiled kinematics); rows beyond d_i get l = -inf
         A = s.damper_rows(self.obstacles)
         h = s.damper_heights(self.obstacles)
-        d_i, ds, xi = p.d_influence, p.d_safe, p.xi
-        m = A.shape[0]
-        lower = (-xi / (d_i - ds)) * (h - ds)
-        # inside d_s + δ (lower > 0): ask for at most half of what the box widened to v = 0 can give
-        lo0, hi0 = ca.repmat(ca.fmin(lb, 0.0).T, m, 1), ca.repmat(ca.fmax(ub, 0.0).T, m, 1)
-        reach = ca.sum2(ca.fmax(A * lo0, A * hi0))
-        moved = ca.sum2(ca.fabs(A)) > 1e-12  # a row no joint moves is left out
-        lower = ca.if_else(ca.logic_and(h < d_i, moved), ca.fmin(lower, 0.5 * reach), -ca.inf)
-        return A, lower, ca.SX(m, 1) + ca.inf
+        approach = self.approach_expr(s, p) if self.moving else 0.0
+        lower = damper_lower(A, h, p.d_influence, p.d_safe, p.xi, lb, ub, approach, s.caps, self.brake)
+        return A, lower, ca.SX(A.shape[0], 1) + ca.inf
+
+
+def _reference_points(obstacles: ObstacleSet, symbolic: ca.SX | None = None) -> list | np.ndarray:
+    """Each obstacle's reference point: (O, 3) numbers, or with the packed parameters ``symbolic`` a list of
+    (3,) SX (a half-space's is the origin)."""
+    from qpik.geometry.distance import PARAMS
+
+    prm = obstacles.params if symbolic is None else symbolic
+    out, start = [], 0
+    for kind in obstacles.kinds:
+        zero = np.zeros(3) if symbolic is None else ca.SX.zeros(3)
+        out.append(zero if kind == "halfspace" else prm[start : start + 3])
+        start += PARAMS[kind]
+    return np.array(out, dtype=float).reshape(-1, 3) if symbolic is None else out
+
+
+def damper_lower(
+    A: ca.SX,
+    h: ca.SX,
+    d_i: ca.SX,
+    ds: ca.SX,
+    xi: ca.SX,
+    lb: ca.SX,
+    ub: ca.SX,
+    approach: ca.SX | float = 0.0,
+    caps: tuple[ca.SX, ca.SX] | None = None,
+    brake: ca.SX | None = None,
+) -> ca.SX:
+    r"""Lower bounds (m,) of velocity-damper rows ``A v ≥ l`` (A (m, n), heights h (m,), m, box ``lb ≤ v ≤ ub``):
+    :math:`l = -\xi (h - d_s)/(d_i - d_s) + \text{approach}` where :math:`h < d_i` and a joint moves the row,
+    else −∞ (``approach`` (m,): the other body's speed toward this one along the row, m/s).
+
+    The bound is capped so that each row alone can be met in the box widened toward ``v = 0`` within the
+    caps' own box ``caps`` (:math:`B_0`: the velocity, acceleration and jerk limits; without ``caps``,
+    widened to contain 0): at the larger of :math:`r_0 - \tfrac12 |r_0|` with
+    :math:`r_0 = \max_{v \in B_0} a^T v` (half of it when :math:`r_0 \ge 0`, see :class:`ObstacleLimit`) and
+    :math:`\max_{v \in B} a^T v - \tfrac14 \sum_j |a_j| (ub_j - lb_j)`. The two agree for a box symmetric
+    about 0; the second lets a narrow box around the last command
+    (:class:`~qpik.control.limits_motion.AccelerationLimit`) grow the separating speed by half its width per
+    step. Where the caps cannot stop an approach in time the row asks only what they allow (the clearance may
+    then fall below :math:`d_s`; the acceleration and jerk limits are kept).
+
+    With ``brake`` α (m/s², a deceleration along the row that the acceleration limits can give), rows beyond
+    :math:`d_i` apply too, with the braking profile :math:`\dot h \ge -\xi - \sqrt{2\alpha (h - d_i)}`: an
+    approach is slowed early enough to reach :math:`d_i` at ξ (the damper assumes an arm that can stop at
+    once; with acceleration limits it cannot).
+    """
+    m = A.shape[0]
+    lower = (-xi / (d_i - ds)) * (h - ds) + approach
+    lo0, hi0 = ca.fmin(lb, 0.0), ca.fmax(ub, 0.0)
+    if caps is not None:
+        lo0, hi0 = ca.fmax(lo0, caps[0]), ca.fmin(hi0, caps[1])
+    LB, UB = ca.repmat(lb.T, m, 1), ca.repmat(ub.T, m, 1)
+    reach0 = ca.sum2(ca.fmax(A * ca.repmat(lo0.T, m, 1), A * ca.repmat(hi0.T, m, 1)))
+    reach = ca.sum2(ca.fmax(A * LB, A * UB)) - 0.25 * ca.sum2(ca.fabs(A) * (UB - LB))
+    cap = ca.fmax(reach0 - 0.5 * ca.fabs(reach0), reach)
+    moved = ca.sum2(ca.fabs(A)) > 1e-12  # a row no joint moves is left out
+    near = h < d_i
+    if brake is not None:
+        lower = ca.if_else(near, lower, -xi - ca.sqrt(2.0 * brake * ca.fmax(h - d_i, 0.0)) + approach)
+        near = h == h  # every row applies
+    return ca.if_else(ca.logic_and(near, moved), ca.fmin(lower, cap), -ca.inf)

@@ -113,7 +113,8 @@ class Assembler:
         self.dt = float(dt)
         self.tasks = tuple(tasks)
         self.boxes = tuple(lim for lim in limits if isinstance(lim, BoxLimit) and not lim.cap)
-        self.caps = tuple(lim for lim in limits if isinstance(lim, BoxLimit) and lim.cap)
+        caps = [lim for lim in limits if isinstance(lim, BoxLimit) and lim.cap]
+        self.caps = tuple(sorted(caps, key=lambda lim: lim.rank))  # the highest rank clips last and wins
         self.row_limits = tuple(lim for lim in limits if isinstance(lim, RowLimit))
         m = sum(lim.size(robot) for lim in self.row_limits)
         self.m = m
@@ -162,9 +163,12 @@ class Assembler:
         for lim in self.boxes:
             lo, hi = lim.expr(s, lim.parameters(s))
             lb, ub = ca.fmax(lb, lo), ca.fmin(ub, hi)
+        clo, chi = ca.SX.zeros(n) - ca.inf, ca.SX.zeros(n) + ca.inf
         for lim in self.caps:
             lo, hi = lim.expr(s, lim.parameters(s))
             lb, ub = ca.fmin(ca.fmax(lb, lo), hi), ca.fmin(ca.fmax(ub, lo), hi)
+            clo, chi = ca.fmin(ca.fmax(clo, lo), hi), ca.fmin(ca.fmax(chi, lo), hi)
+        s.caps = (clo, chi)
         A, lo, hi = [ca.SX(0, n)], [ca.SX(0, 1)], [ca.SX(0, 1)]
         for lim in self.row_limits:
             Ai, li, ui = lim.expr(s, lim.parameters(s), lb, ub)

@@ -302,6 +302,8 @@ class SymState:
         pose: (4, 4) end-effector pose; J: (6, n) geometric Jacobian ``[v; ω]`` (SX, world frame).
         inputs: ``[(symbol, value)]`` of every input beyond ``q``: ``value(state)`` gives its
             numbers (state: a numeric :class:`State` or None in the controller).
+        caps: ``(lo, hi)`` (n,) SX, the box of the cap limits alone (velocity, acceleration, jerk), which
+            every command must stay in; set by the controller's assembler before the rows (None elsewhere).
     """
 
     def __init__(self, kin: Kinematics, q: ca.SX, dt: ca.SX, base: ca.SX, pairs_of):
@@ -312,7 +314,9 @@ class SymState:
         self._pairs_of = pairs_of
         self._pairs: dict[ObstacleSet, Blocks] = {}
         self.inputs: list = []
+        self.caps: tuple[ca.SX, ca.SX] | None = None  # the caps' own box (n,) each, set by the assembler
         self._owned: dict[int, Blocks] = {}
+        self.packed: dict[ObstacleSet, ca.SX] = {}  # the obstacles' packed parameters, where declared
 
     @classmethod
     def of(cls, kin: Kinematics, q: ca.SX, dt: ca.SX, trace: bool = True) -> SymState:
@@ -328,6 +332,7 @@ class SymState:
 
         def pairs_of(s: SymState, obstacles: ObstacleSet) -> ca.SX:
             prm = s.parameter(len(obstacles.params), lambda state: obstacles.params)
+            s.packed[obstacles] = prm
             if trace:
                 return kin.pairs_expr(frames, obstacles.kinds, prm)
             return ca.SX.sym("pairs", kin.pair_layout(obstacles.kinds).size)
@@ -381,6 +386,22 @@ class SymState:
 
         pairs = self._entry(obstacles).pairs
         return PAIR.symbols(pairs, count=pairs.numel() // PAIR.size).d
+
+    def witnesses(self, obstacles: ObstacleSet) -> Blocks:
+        """Every pair's :data:`~qpik.geometry.distance.PAIR` fields, pair ``(c, o)`` at record ``k = c·O + o``: each
+        field one column record by record (``normal[3k : 3k + 3]``: unit normal from the obstacle to the capsule)."""
+        from qpik.geometry.distance import PAIR
+
+        pairs = self._entry(obstacles).pairs
+        return PAIR.symbols(pairs, count=pairs.numel() // PAIR.size)
+
+    def obstacle_params(self, obstacles: ObstacleSet) -> ca.SX:
+        """The packed parameters of ``obstacles`` (:attr:`~qpik.geometry.distance.ObstacleSet.params`) as an input."""
+        self._entry(obstacles)
+        prm = self.packed.get(obstacles)
+        if prm is None:
+            prm = self.packed[obstacles] = self.parameter(len(obstacles.params), lambda state: obstacles.params)
+        return prm
 
     def damper_rows(self, obstacles: ObstacleSet) -> ca.SX:
         """Rows (R, n) as in :meth:`State.damper_rows`."""

@@ -20,6 +20,10 @@ DEG = PI / 180.0
 
 IIWA_Q_MAX = np.array([170, 120, 170, 120, 170, 120, 175]) * DEG
 IIWA_V_MAX = np.array([85, 85, 100, 75, 130, 135, 135]) * DEG
+# KUKA's iiwa data sheet gives no joint acceleration or jerk limits: these are chosen, at Franka's
+# values for the like joints (below), and every controller limit can override them.
+IIWA_A_MAX = np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0])
+IIWA_J_MAX = np.array([7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0])
 
 
 def nammoto7() -> Robot:
@@ -42,6 +46,8 @@ def nammoto7() -> Robot:
         q_min=-q_max,
         q_max=q_max,
         v_max=IIWA_V_MAX.copy(),
+        a_max=IIWA_A_MAX.copy(),
+        j_max=IIWA_J_MAX.copy(),
         q_home=np.array([0.0, -0.5, 0.0, -0.6, 0.0, 0.8, 0.0]),
         capsules=default_capsules(chain, (0.06, 0.06, 0.055, 0.05, 0.05, 0.045, 0.04)),
         closed_form="offset_shoulder",
@@ -63,6 +69,8 @@ def iiwa14() -> Robot:
         q_min=-IIWA_Q_MAX,
         q_max=IIWA_Q_MAX.copy(),
         v_max=IIWA_V_MAX.copy(),
+        a_max=IIWA_A_MAX.copy(),
+        j_max=IIWA_J_MAX.copy(),
         q_home=np.array([0.0, 0.5, 0.0, -1.2, 0.0, 0.9, 0.0]),
         capsules=default_capsules(chain, (0.08, 0.08, 0.07, 0.07, 0.065, 0.06, 0.05)),
         closed_form="srs",
@@ -87,6 +95,8 @@ def zheng7() -> Robot:
         q_min=-q_max,
         q_max=q_max,
         v_max=IIWA_V_MAX.copy(),
+        a_max=IIWA_A_MAX.copy(),
+        j_max=IIWA_J_MAX.copy(),
         q_home=np.array([0.0, 1.0472, -0.5236, -2.0944, 0.0, 1.5708, -1.5708]),
         capsules=default_capsules(chain, (0.07, 0.06, 0.055, 0.05, 0.05, 0.045, 0.04)),
         closed_form=None,
@@ -112,6 +122,8 @@ def panda() -> Robot:
         q_min=np.array([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973]),
         q_max=np.array([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973]),
         v_max=np.array([2.1750, 2.1750, 2.1750, 2.1750, 2.6100, 2.6100, 2.6100]),
+        a_max=np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0]),  # Franka's robot and interface specifications
+        j_max=np.array([7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0]),
         q_home=np.array([0.0, -PI / 4, 0.0, -3 * PI / 4, 0.0, PI / 2, PI / 4]),
         capsules=default_capsules(chain, (0.07, 0.07, 0.065, 0.065, 0.06, 0.055, 0.05)),
         closed_form=None,

@@ -65,6 +65,8 @@ class Robot:
             or None for a catalog arm (whose MuJoCo model is the twin).
         canonical: for a closed form found in a loaded chain (:func:`qpik.robots.recognize.recognize`),
             the catalog-form DH table and the joint map to it; None when ``chain`` is that table itself.
+        a_max, j_max: joint acceleration (rad/s²) and jerk (rad/s³) limits, shape (n,), or None where no
+            source gives them (:mod:`qpik.control.limits_motion` then needs them given).
         cache: what is built once for this robot (:class:`~qpik.robots.cache.RobotCache`), freed with it.
     """
 
@@ -80,6 +82,8 @@ class Robot:
     notes: str = field(default="", compare=False)
     model: ModelSource | None = field(default=None, compare=False)
     canonical: Canonical | None = field(default=None, compare=False)
+    a_max: np.ndarray | None = field(default=None, compare=False)
+    j_max: np.ndarray | None = field(default=None, compare=False)
     cache: RobotCache = field(default_factory=RobotCache, init=False, repr=False, compare=False)
 
     @property

@@ -1,0 +1,124 @@
+"""Bench rows: a control step with self-collision pairs and a moving sphere, qpik beside mink, same model.
+
+Scene: the iiwa14 twin from the spheres scene of :mod:`qpik.bench.controller`, its target moved
+:data:`FOLD` of the way from the hand toward the arm's own shoulder (a folding motion: the forearm and the hand
+come toward the upper arm and the base column), and the first sphere moving at :data:`SPEED` m/s along y,
+back and forth (a triangle wave of amplitude :data:`AMPLITUDE` m).
+
+- qpik: :meth:`Controller.for_robot` (self-collision on, its default pair list:
+  :func:`qpik.robots.self_pairs.default_allowed` leaves out the pairs always in collision or never within
+  5 cm), and the sphere's velocity given to its damper (:meth:`ObstacleLimit.translate`);
+- mink: ``CollisionAvoidanceLimit`` over the same capsule pairs (the twin's geoms ``link<k>_capsule``)
+  and links 4–7 against the spheres; mink has no moving-obstacle term, so the sphere's geom is moved in
+  its model each step and its damper treats it as standing still.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from qpik.bench import Row, time_interleaved
+from qpik.bench.controller import D_INFLUENCE, D_SAFE, DT, HOT, XI, _closed_loop, _mink_step, scene
+from qpik.control import Controller, ObstacleLimit
+from qpik.control.self_collision import SelfCollisionLimit
+from qpik.geometry.shapes import Sphere
+from qpik.robots.catalog import load_robot
+from qpik.robots.robot import Robot
+from qpik.sim.run import build_scene
+
+FOLD = 0.6
+"""The target's position: this fraction of the way from the hand to the shoulder."""
+SPEED, AMPLITUDE = 0.2, 0.1
+"""m/s and m: the moving sphere."""
+
+
+def fold_scene(robot: Robot) -> tuple[np.ndarray, np.ndarray, list[Sphere]]:
+    """Start (n,), rad, the folding target (4, 4) and the four spheres (see the module docstring)."""
+    q0, target, spheres = scene(robot, robot.q_home)
+    target = robot.fk(q0)
+    shoulder = robot.capsule_segments(q0)[1, 0]
+    target[:3, 3] += FOLD * (shoulder - target[:3, 3])
+    return q0, target, spheres
+
+
+def offset(k: int) -> float:
+    """The moving sphere's y offset (m) at step k (triangle wave)."""
+    period = 4 * AMPLITUDE / SPEED
+    phase = (k * DT) % period / period
+    return AMPLITUDE * (4 * phase if phase < 0.25 else 2 - 4 * phase if phase < 0.75 else 4 * phase - 4)
+
+
+def velocity(k: int) -> float:
+    """The moving sphere's y velocity (m/s) at step k."""
+    period = 4 * AMPLITUDE / SPEED
+    phase = (k * DT) % period / period
+    return SPEED if phase < 0.25 or phase >= 0.75 else -SPEED
+
+
+def _qpik_step(robot: Robot, target, spheres, solver: str):
+    ctrl = Controller.for_robot(
+        robot, target=target, obstacles=spheres, dt=DT, solver=solver, d_influence=D_INFLUENCE, d_safe=D_SAFE, xi=XI
+    )
+    limits = [
+        ObstacleLimit(spheres, D_INFLUENCE, D_SAFE, XI, moving=True) if isinstance(lim, ObstacleLimit) else lim
+        for lim in ctrl.limits
+    ]
+    ctrl = Controller(robot, ctrl.tasks, limits, solver=solver, dt=DT)
+    obstacle = next(lim for lim in limits if isinstance(lim, ObstacleLimit))
+    moving = spheres[0]
+    count = [0]
+
+    def step(q):
+        k = count[0]
+        count[0] += 1
+        obstacle.translate(0, moving.center + np.array([0.0, offset(k), 0.0]), np.array([0, velocity(k), 0, 0, 0, 0]))
+        return ctrl.step(q)
+
+    return step, ctrl
+
+
+def _mink_self_step(robot: Robot, target, spheres, solver: str, pairs):
+    """mink's step with its collision rows over the self ``pairs`` too; the first sphere's geom moved each step."""
+    model = build_scene(robot, spheres).kin.model  # the same model _mink_step builds: geom ids agree
+    geom = {
+        c: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"link{cap.link}_capsule")
+        for c, cap in enumerate(robot.capsules)
+    }
+    step, _, conf = _mink_step(robot, target, spheres, solver, tuple(([geom[c]], [geom[e]]) for c, e in pairs))
+    ball = mujoco.mj_name2id(conf.model, mujoco.mjtObj.mjOBJ_GEOM, "obstacles/0")
+    centre = conf.model.geom_pos[ball].copy()
+    count = [0]
+
+    def moved(q):
+        conf.model.geom_pos[ball] = centre + np.array([0.0, offset(count[0]), 0.0])
+        count[0] += 1
+        return step(q)
+
+    return moved
+
+
+def rows(repeat: int) -> list[Row]:
+    """The scene's rows: qpik + osqp, qpik + daqp and mink + daqp (median, p99, worst per step, s)."""
+    robot = load_robot("iiwa14")
+    q0, target, spheres = fold_scene(robot)
+    checker = SelfCollisionLimit()
+    checker.check(robot, DT)
+    pairs = checker.pairs(robot)
+    steps, refs = {}, {}
+    for solver in ("osqp", "daqp"):
+        step, _ = _qpik_step(robot, target, spheres, solver)
+        steps[f"fold + moving sphere: qpik + {solver}"] = _closed_loop(step, q0)
+        refs[f"fold + moving sphere: qpik + {solver}"] = "fold + moving sphere: mink + daqp"
+    steps["fold + moving sphere: mink + daqp"] = _closed_loop(
+        _mink_self_step(robot, target, spheres, "daqp", pairs), q0
+    )
+    times = time_interleaved(steps, max(2, repeat // HOT), warmup=50, block=HOT)
+    note = (
+        f"{len(pairs)} self pairs (qpik's default list) + 4 spheres, one moving at {SPEED} m/s; "
+        "qpik's damper is given its velocity, mink's treats it as standing still"
+    )
+    out = []
+    for label, t in times.items():
+        out.append(Row(label, float(np.median(t)), refs.get(label), float(np.percentile(t, 99)), float(t.max()), note))
+    return out

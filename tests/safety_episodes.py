@@ -1,0 +1,214 @@
+"""Seeded closed-loop episodes of the controller with self-collision, a moving sphere and motion limits,
+judged on MuJoCo's measurements (``mj_geomDistance`` between the model's own geoms, not qpik's code).
+
+One episode (:func:`make_episode`, everything drawn from ``default_rng(seed)``): an arm (the catalog's four,
+or a loaded arm), one of three families, and a controller with every limit (:func:`limits`), of which the
+caller may turn one off (``off``):
+
+- ``fold``: the target is the pose of a point on the arm's own base column, shoulder or forearm capsule
+  (the hand is pulled into the arm);
+- ``sphere``: a sphere (radius 5 cm) starts 0–5 cm beyond d_i from a point of a moving link and moves
+  toward it at 0.1–0.5 m/s until it would be 5 cm inside the link, then stops (the target: hold the start
+  pose);
+- ``limit``: the arm starts at full speed (its velocity limit) toward a joint limit, at the braking
+  distance plus 0–20 % from it (the target: hold the start pose).
+
+:func:`run_episode` integrates ``q ← q + v dt`` and measures, at every step, the self-distances of the
+non-adjacent collision geoms that the controller does not leave out (:class:`qpik.sim.self_distance.SelfDistances`)
+and the link–sphere clearances, and counts position, velocity, acceleration and jerk violations.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+import qpik
+from qpik.control import (
+    ConfigurationLimit,
+    Controller,
+    DampingTask,
+    FrameTask,
+    ObstacleLimit,
+    PostureTask,
+    VelocityLimit,
+)
+from qpik.control.limits_motion import AccelerationLimit, BrakingLimit, JerkLimit
+from qpik.control.self_collision import SelfCollisionLimit
+from qpik.geometry import Sphere
+from qpik.robots.self_pairs import candidate_pairs
+from qpik.sim import build_scene
+from qpik.sim.self_distance import SelfDistances, allowed_links
+
+FAMILIES = ("fold", "sphere", "limit")
+DT = 0.002
+STEPS = 500
+D_SAFE_SELF, D_SAFE_OBS, D_INFLUENCE_OBS = 0.01, 0.02, 0.10
+TOL = 1e-4  # m, distances
+REL = 1e-6  # relative, limits
+LOADED_A_MAX, LOADED_J_MAX = 10.0, 5000.0  # rad/s², rad/s³ given for loaded arms (their files have none)
+PARK = np.array([3.0, 3.0, 3.0])  # m: the sphere out of the way
+SPHERE_RADIUS = 0.05
+BRAKE = 1.0  # m/s², the dampers' braking profile beyond d_i
+
+
+@dataclass
+class Episode:
+    seed: int
+    robot: qpik.Robot
+    family: str
+    q0: np.ndarray
+    v0: np.ndarray
+    target: np.ndarray
+    start: np.ndarray  # sphere centre at t = 0 (m)
+    velocity: np.ndarray  # m/s
+    moving_for: float  # s
+
+
+@dataclass
+class Outcome:
+    self_violation: float = 0.0  # m below d_s - TOL of a pair once above d_s
+    obstacle_violation: float = 0.0
+    position: int = 0
+    velocity: int = 0
+    acceleration: int = 0
+    jerk: int = 0
+    nan: int = 0
+    min_self: float = np.inf  # m, smallest measured self-distance of a checked pair
+    min_obstacle: float = np.inf  # m, smallest link–sphere clearance
+    statuses: set = field(default_factory=set)
+
+
+def a_max(robot: qpik.Robot) -> np.ndarray:
+    return robot.a_max if robot.a_max is not None else np.full(robot.dof, LOADED_A_MAX)
+
+
+def j_max(robot: qpik.Robot) -> np.ndarray:
+    return robot.j_max if robot.j_max is not None else np.full(robot.dof, LOADED_J_MAX)
+
+
+def make_episode(robot: qpik.Robot, seed: int, family: str | None = None) -> Episode:
+    rng = np.random.default_rng(seed)
+    family = family or FAMILIES[seed % len(FAMILIES)]
+    lo, hi = np.maximum(robot.q_min, -np.pi), np.minimum(robot.q_max, np.pi)
+    sc = SelfCollisionLimit()
+    sc.check(robot, DT)
+    for _ in range(200):  # a start with every checked pair beyond d_i of the self rows
+        q0 = lo + (hi - lo) * (0.2 + 0.6 * rng.random(robot.dof))
+        if np.all(sc.distances(robot, q0) > sc.d_influence):
+            break
+    v0, start, velocity, moving = np.zeros(robot.dof), PARK.copy(), np.zeros(3), 0.0
+    target = robot.fk(q0)
+    seg = robot.capsule_segments(q0)
+    moving_caps = np.flatnonzero(~robot.fixed_capsules)
+    if family == "fold":
+        c = int(rng.choice([0, 1, len(robot.capsules) // 2]))  # base column, shoulder, forearm
+        point = seg[c, 0] + rng.random() * (seg[c, 1] - seg[c, 0])
+        target = target.copy()
+        target[:3, 3] = point
+    elif family == "sphere":
+        c = int(rng.choice(moving_caps[moving_caps >= len(robot.capsules) // 2]))
+        point = seg[c, 0] + rng.random() * (seg[c, 1] - seg[c, 0])
+        u = rng.normal(size=3)
+        u /= np.linalg.norm(u)
+        speed = rng.uniform(0.1, 0.5)
+        contact = robot.capsules[c].radius + SPHERE_RADIUS
+        gap = D_INFLUENCE_OBS + rng.uniform(0.0, 0.05)
+        start = point + u * (contact + gap)
+        velocity, moving = -u * speed, (gap + 0.05) / speed  # it would end 5 cm inside the link
+    else:
+        j = int(rng.integers(robot.dof))
+        vmax, a = robot.v_max[j], a_max(robot)[j]
+        tau = a / j_max(robot)[j]
+        room = (vmax * vmax / (2 * a) + vmax * (DT + tau)) * (1.0 + 0.2 * rng.random()) + 1e-3
+        up = rng.random() < 0.5
+        q0 = q0.copy()
+        q0[j] = robot.q_max[j] - room if up else robot.q_min[j] + room
+        v0[j] = vmax if up else -vmax
+        target = robot.fk(q0)
+    return Episode(seed, robot, family, q0, v0, target, start, velocity, moving)
+
+
+def limits(robot: qpik.Robot, obstacles: list, off: str | None = None) -> list:
+    """Every limit, the one named ``off`` left out (``"braking"`` keeps the plain position limit)."""
+    out = [ConfigurationLimit()]
+    if off != "braking":
+        out.append(BrakingLimit(a_max(robot), j_max(robot)))
+    out.append(VelocityLimit())
+    if off != "acceleration":
+        out.append(AccelerationLimit(a_max(robot)))
+    if off != "jerk":
+        out.append(JerkLimit(j_max(robot)))
+    out.append(ObstacleLimit(obstacles, D_INFLUENCE_OBS, D_SAFE_OBS, xi=0.5, brake=BRAKE, moving=True))
+    if off != "self":
+        out.append(SelfCollisionLimit(d_safe=D_SAFE_SELF, brake=BRAKE))
+    return out
+
+
+def run_episode(ep: Episode, off: str | None = None) -> Outcome:
+    robot = ep.robot
+    steps = max(STEPS, int(ep.moving_for / DT) + 150)
+    sphere = Sphere(center=ep.start, radius=SPHERE_RADIUS)
+    lims = limits(robot, [sphere], off)
+    tasks = [FrameTask(ep.target, 50.0, 50.0), PostureTask(ep.q0, 1.0, 1e-3), DampingTask(1e-4)]
+    ctrl = Controller(robot, tasks, lims, dt=DT)
+    for lim in lims:
+        if isinstance(lim, AccelerationLimit | JerkLimit):
+            lim.reset(ep.v0, ep.v0)
+    obstacle = next(lim for lim in lims if isinstance(lim, ObstacleLimit))
+    known = off != "moving"  # "moving": the damper is not told the sphere moves
+    obstacle.set_velocities([np.r_[ep.velocity * known, 0.0, 0.0, 0.0]])
+    # MuJoCo measures: the model's own geoms, the pairs the controller checks (allowed pairs left out)
+    checker = SelfCollisionLimit(d_safe=D_SAFE_SELF)
+    checker.check(robot, DT)
+    allowed = set(candidate_pairs(robot)) - set(checker.pairs(robot))
+    scene = build_scene(robot, [sphere])
+    model, data = scene.kin.model, scene.kin.data
+    selfd = SelfDistances(model, robot.joint_names, allowed_links(robot, allowed))
+    qadr = [model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n)] for n in robot.joint_names]
+    sphere_geom = int(scene.obstacle_geoms[0])
+    out = Outcome()
+    q, v1, v2 = ep.q0.copy(), ep.v0.copy(), ep.v0.copy()
+    vmax, amax, jmax = robot.v_max, a_max(robot), j_max(robot)
+    above_self = None
+    above_obs = False
+    clear = np.empty((len(scene.link_geoms), 1))
+    for k in range(steps + 1):
+        t = k * DT
+        centre = ep.start + ep.velocity * min(t, ep.moving_for)
+        model.geom_pos[sphere_geom] = centre
+        data.qpos[qadr] = q
+        mujoco.mj_kinematics(model, data)
+        d_self = selfd.measure(data)
+        d_obs = float(scene.clearances(clear).min())
+        out.min_self = min(out.min_self, float(d_self.min(initial=np.inf)))
+        out.min_obstacle = min(out.min_obstacle, d_obs)
+        above_self = d_self >= D_SAFE_SELF if above_self is None else above_self | (d_self >= D_SAFE_SELF)
+        low = above_self & (d_self < D_SAFE_SELF - TOL)
+        if low.any():
+            out.self_violation = max(out.self_violation, float(np.max(D_SAFE_SELF - d_self[low])))
+        above_obs |= d_obs >= D_SAFE_OBS
+        if above_obs and d_obs < D_SAFE_OBS - TOL:
+            out.obstacle_violation = max(out.obstacle_violation, D_SAFE_OBS - d_obs)
+        if k == steps:
+            break
+        if t < ep.moving_for + DT:
+            obstacle.move([Sphere(center=centre, radius=SPHERE_RADIUS)])  # its velocity is set above
+            if t >= ep.moving_for:
+                obstacle.set_velocities(np.zeros((1, 6)))
+        v = ctrl.step(q)
+        out.statuses.add(ctrl.last.status)
+        if not np.all(np.isfinite(v)):
+            out.nan += 1
+            v = np.zeros(robot.dof)
+        a, a1 = (v - v1) / DT, (v1 - v2) / DT
+        out.velocity += int(np.any(np.abs(v) > vmax * (1 + REL)))
+        out.acceleration += int(np.any(np.abs(a) > amax * (1 + REL)))
+        out.jerk += int(np.any(np.abs(a - a1) / DT > jmax * (1 + REL)))
+        q = q + v * DT
+        span = robot.q_max - robot.q_min
+        out.position += int(np.any((q < robot.q_min - REL * span) | (q > robot.q_max + REL * span)))
+        v2, v1 = v1, v
+    return out
