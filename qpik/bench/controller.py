@@ -63,95 +63,42 @@ import tempfile
 import warnings
 from pathlib import Path
 
-import mink
 import numpy as np
-from mink.tasks.task import BaseTask, Objective
 
 from qpik.bench import Row, fmt_time, import_peer, time_interleaved
+from qpik.bench.loop import (
+    D_INFLUENCE,
+    D_SAFE,
+    DT,
+    HOT,
+    XI,
+    closed_loop,
+    full_q,
+    mink_step,
+    scene,
+)
 from qpik.control import Controller
 from qpik.control.solvers import available
 from qpik.control.solvers.osqp import REUSED
 from qpik.errors import InputError
-from qpik.geometry.distance import distances
-from qpik.geometry.shapes import Sphere
 from qpik.robots.loader import load_robot
 from qpik.robots.packaged import packaged_model
-from qpik.sim.run import build_scene
 
-HOT = 50
-"""Both scenes are timed hot: each sample is a block of this many consecutive steps of one library (the issue's
-"hot" figures), the blocks of the libraries interleaved; the worst and CPU columns are then of such blocks."""
 TITLE = (
     "Controller: one control step (iiwa14 twin, then the pybullet iiwa URDF; frame + posture + manipulability; "
     f"hot: interleaved blocks of {HOT} steps)"
 )
 LOADED = "pybullet/iiwa"
 """The arm loaded from another package's URDF (:mod:`qpik.robots.packaged`) whose rows follow iiwa14's."""
-DT = 1e-3
 REPLAYS = 3
 """The closed loops are run this many times from the same start; the "best of replays" worst step takes,
 for every step, its least thread CPU time over the replays (a host stall rarely hits the same step
 twice), then the largest over the steps: the cost of the slowest step itself."""
-D_INFLUENCE, D_SAFE, XI = 0.10, 0.02, 0.5
-LINKS = (4, 5, 6, 7)
-LIFT = 0.25
-"""m: the target is this far above the start pose (see :func:`scene`)."""
-RADIUS, GAP, SIDE = 0.05, 0.04, 0.06
-"""m: the spheres' radius, their start clearance to the arm, their offset to either side of the arm's plane."""
 QPIK_OSQP = "qpik + osqp (persistent, active set reused)"
 MINK_OSQP = "mink + osqp (rebuilt each call)"
 PLACO = "placo (pinocchio + qpmad, QP formed each call)"
 """The OSQP pair compares a persistent OSQP, which most steps answer from the previous step's active set, with
 OSQP rebuilt each call (mink through qpsolvers); the daqp pair is the like-for-like one."""
-
-
-class MinkManipulabilityTask(BaseTask):
-    r"""Manipulability ascent for mink: the linear cost :math:`-w\,\nabla m^T \Delta q` (Δq = v dt).
-
-    ∇m comes from the chain's kinematic Hessian (the MuJoCo model has the same kinematics),
-    so both libraries get the same term; ``w`` is per Δq, i.e. qpik's weight times dt. The arm's
-    joints are at ``qpos_adr`` of the model (hinges: the same addresses in qpos and in v).
-    """
-
-    def __init__(self, robot, weight: float, qpos_adr: np.ndarray):
-        self.robot = robot
-        self.weight = weight
-        self.qpos_adr = qpos_adr
-
-    def compute_qp_objective(self, configuration: mink.Configuration) -> Objective:
-        nv = configuration.model.nv
-        grad = np.zeros(nv)
-        grad[self.qpos_adr] = self.robot.manipulability_gradient(configuration.q[self.qpos_adr])  # hinges: qpos = dof
-        return Objective(np.zeros((nv, nv)), -self.weight * grad)
-
-
-def scene(robot, q0: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[Sphere]]:
-    """Start configuration ``q0`` (n,), rad (the iiwa14's home for both arms: elbow and wrist bent), target pose
-    and the spheres: the arm pressed up against obstacles.
-
-    The target is :data:`LIFT` m above the start pose; four spheres of radius :data:`RADIUS` sit above
-    the elbow (link 4) and the wrist (link 6), :data:`SIDE` m to either side of the arm's plane, each
-    raised until its nearest capsule is :data:`GAP` m away. The straight way to the target runs through
-    them, so the arm approaches and then presses against them: obstacle rows bind in (almost) every step.
-    """
-    q0 = np.array(q0, dtype=float)
-    target = robot.fk(q0)
-    target[:3, 3] += (0.0, 0.0, LIFT)
-    seg = robot.capsule_segments(q0)
-    radii = robot.capsule_radii
-    links = np.array([cap.link for cap in robot.capsules])
-    spheres = []
-    for k in (4, 6):
-        base = seg[links == k].reshape(-1, 3).mean(axis=0)
-        for side in (1.0, -1.0):
-            offset = np.array((0.0, side * SIDE, 0.0))
-            lo, hi = 0.0, 1.0  # height above the link, m: bisection on the clearance (it grows with the height)
-            for _ in range(40):
-                z = 0.5 * (lo + hi)
-                ball = Sphere(base + offset + (0, 0, z), RADIUS)
-                lo, hi = (z, hi) if distances(seg, radii, [ball]).d.min() < GAP else (lo, z)
-            spheres.append(Sphere(base + offset + (0, 0, hi), RADIUS, name=f"ball{k}{'+' if side > 0 else '-'}"))
-    return q0, target, spheres
 
 
 def run(args: argparse.Namespace) -> list[Row]:
@@ -190,13 +137,13 @@ def _arm_rows(robot, home: np.ndarray, prefix: str, repeat: int, obstacles: bool
     for _ in range(REPLAYS):  # the same closed loops from the same start, each time with fresh solvers
         steps, refs, ctrls = {}, {}, {}
         for solver, label in (("osqp", MINK_OSQP), ("daqp", "mink + daqp")):
-            steps[prefix + label] = _closed_loop(_mink_step(robot, target, spheres, solver)[0], q0)
+            steps[prefix + label] = closed_loop(mink_step(robot, target, spheres, solver)[0], q0)
         if placo is not None:
-            steps[prefix + PLACO] = _closed_loop(placo, q0)
+            steps[prefix + PLACO] = closed_loop(placo, q0)
         for solver, ref in peers:
             label = prefix + (QPIK_OSQP if solver == "osqp" else f"qpik + {solver}")
             ctrls[label] = _controller(robot, target, spheres, solver)
-            steps[label], refs[label] = _closed_loop(ctrls[label].step, q0), prefix + ref
+            steps[label], refs[label] = closed_loop(ctrls[label].step, q0), prefix + ref
         with warnings.catch_warnings():  # qpsolvers warns on every dense matrix mink hands to OSQP
             warnings.simplefilter("ignore")
             cpu: dict[str, np.ndarray] = {}
@@ -240,7 +187,7 @@ def _binding(robot, q0, target, spheres, steps: int) -> dict[str, str]:
     qpik's active obstacle rows (:attr:`StepInfo.active`), and mink's CollisionAvoidanceLimit rows with
     ``h − G Δq ≤ 1e-9`` (at their bound), as a mean per step and the largest used fraction of mink's bound."""
     ctrl = _controller(robot, target, spheres, "daqp")
-    step, limit, conf = _mink_step(robot, target, spheres, "daqp")
+    step, limit, conf = mink_step(robot, target, spheres, "daqp")
     q, qm, active, bound, used = q0.copy(), q0.copy(), [], [], 0.0
     for _ in range(steps):
         q += ctrl.step(q) * DT
@@ -248,7 +195,7 @@ def _binding(robot, q0, target, spheres, steps: int) -> dict[str, str]:
         v = step(qm)
         G, h = limit.compute_qp_inequalities(conf, DT)
         if G is not None and len(h):
-            Gdq = G @ (v * DT if len(v) == G.shape[1] else _full(conf, v * DT, robot))
+            Gdq = G @ (v * DT if len(v) == G.shape[1] else full_q(conf, v * DT, robot))
             bound.append(set(np.flatnonzero(h - Gdq <= 1e-9).tolist()))
             with np.errstate(divide="ignore", invalid="ignore"):
                 frac = np.where(np.abs(h) > 0, Gdq / np.abs(h), 0.0)
@@ -280,76 +227,6 @@ def _share(what: str, rows: list[set]) -> str:
         f"{what} binding: {n.mean():.1f} per step (at most {n.max()}), in {np.mean(n > 0):.0%} of steps; "
         f"{distinct} different rows over the run"
     )
-
-
-def _full(conf, dq: np.ndarray, robot) -> np.ndarray:
-    """The arm's Δq (n,) placed in the model's velocity vector (nv,) (a loaded model may have more joints)."""
-    model = conf.model
-    out = np.zeros(model.nv)
-    out[[model.jnt_dofadr[model.joint(j).id] for j in robot.joint_names]] = dq
-    return out
-
-
-def _closed_loop(step, q0: np.ndarray):
-    """A no-argument callable: one control step at the current q, then ``q ← q + v dt``."""
-    q = q0.copy()
-
-    def call():
-        q[:] += step(q) * DT
-
-    return call
-
-
-def _mink_step(robot, target, spheres, solver, extra_pairs: tuple = ()):
-    """mink's control step on the robot's MuJoCo model with the same tasks, weights and limits as qpik's defaults.
-
-    Its collision rows are the model's collision geoms on links 4–7 (the twin's capsules; a loaded arm's
-    meshes) against the spheres, and ``extra_pairs`` (mink's ``(geoms, geoms)`` groups, e.g. self pairs).
-    """
-    scene_ = build_scene(robot, spheres)
-    model = scene_.kin.model
-    adr = scene_.kin.qpos_adr
-    conf = mink.Configuration(model)
-    qpos = model.qpos0.copy()  # joints that are not the arm's (fingers) stay at their reference
-    ctrl = Controller.for_robot(robot, self_collision=False)  # only to read the same default weights
-    frame_task, posture, manip, damping = ctrl.tasks
-    # qpik's cost w‖·‖² over v ⇔ mink's ½‖c(·)‖² over Δq = v dt with c = sqrt(2 w)·…, gains·dt
-    frame = mink.FrameTask(
-        robot.site,
-        "site",
-        position_cost=np.sqrt(frame_task.weight[0]),
-        orientation_cost=np.sqrt(frame_task.weight[3]),
-        gain=min(1.0, frame_task.gain[0] * DT),
-    )
-    frame.set_target(mink.SE3.from_matrix(target))
-    post = mink.PostureTask(model, cost=np.sqrt(posture.weight), gain=posture.gain * DT)
-    reference = qpos.copy()
-    reference[adr] = posture.q_ref
-    post.set_target(reference)
-    tasks = [
-        frame,
-        post,
-        mink.DampingTask(model, cost=np.sqrt(damping.weight)),
-        MinkManipulabilityTask(robot, manip.weight * DT, adr),
-    ]
-    vel = {name: robot.v_max[j] for j, name in enumerate(robot.joint_names)}
-    links = _links(model, robot)
-    arm_geoms = [int(g) for g in scene_.link_geoms if links[int(model.geom_bodyid[g])] in LINKS]
-    pairs = [(arm_geoms, [int(g) for g in scene_.obstacle_geoms]), *extra_pairs]
-    limits = [mink.ConfigurationLimit(model), mink.VelocityLimit(model, vel)]
-    if spheres:
-        limits.append(
-            mink.CollisionAvoidanceLimit(
-                model, pairs, minimum_distance_from_collisions=D_SAFE, collision_detection_distance=D_INFLUENCE
-            )
-        )
-
-    def step(q):
-        qpos[adr] = q
-        conf.update(qpos)
-        return mink.solve_ik(conf, tasks, DT, solver=solver, limits=limits)[scene_.kin.dof_adr]
-
-    return step, limits[-1], conf
 
 
 def _placo_step(robot, target):
@@ -399,12 +276,3 @@ def _placo_step(robot, target):
         return solver.solve(False)[v_at] / DT
 
     return step
-
-
-def _links(model, robot) -> dict[int, int]:
-    """body id -> the link k (1..n) of the last arm joint above it, 0 above joint 1."""
-    joint_body = {int(model.joint(name).bodyid[0]): k for k, name in enumerate(robot.joint_names, start=1)}
-    out = {0: 0}
-    for b in range(1, model.nbody):  # parents come first in MuJoCo's body order
-        out[b] = joint_body.get(b, out[int(model.body_parentid[b])])
-    return out

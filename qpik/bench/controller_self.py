@@ -19,11 +19,11 @@ import mujoco
 import numpy as np
 
 from qpik.bench import Row, time_interleaved
-from qpik.bench.controller import D_INFLUENCE, D_SAFE, DT, HOT, XI, _closed_loop, _mink_step, scene
+from qpik.bench.loop import D_INFLUENCE, D_SAFE, DT, HOT, XI, closed_loop, mink_step, scene
 from qpik.control import Controller, ObstacleLimit
 from qpik.control.self_collision import SelfCollisionLimit
 from qpik.geometry.shapes import Sphere
-from qpik.robots.catalog import load_robot
+from qpik.robots.loader import load_robot
 from qpik.robots.robot import Robot
 from qpik.sim.run import build_scene
 
@@ -80,12 +80,12 @@ def _qpik_step(robot: Robot, target, spheres, solver: str):
 
 def _mink_self_step(robot: Robot, target, spheres, solver: str, pairs):
     """mink's step with its collision rows over the self ``pairs`` too; the first sphere's geom moved each step."""
-    model = build_scene(robot, spheres).kin.model  # the same model _mink_step builds: geom ids agree
+    model = build_scene(robot, spheres).kin.model  # the same model mink_step builds: geom ids agree
     geom = {
         c: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"link{cap.link}_capsule")
         for c, cap in enumerate(robot.capsules)
     }
-    step, _, conf = _mink_step(robot, target, spheres, solver, tuple(([geom[c]], [geom[e]]) for c, e in pairs))
+    step, _, conf = mink_step(robot, target, spheres, solver, tuple(([geom[c]], [geom[e]]) for c, e in pairs))
     ball = mujoco.mj_name2id(conf.model, mujoco.mjtObj.mjOBJ_GEOM, "obstacles/0")
     centre = conf.model.geom_pos[ball].copy()
     count = [0]
@@ -108,11 +108,9 @@ def rows(repeat: int) -> list[Row]:
     steps, refs = {}, {}
     for solver in ("osqp", "daqp"):
         step, _ = _qpik_step(robot, target, spheres, solver)
-        steps[f"fold + moving sphere: qpik + {solver}"] = _closed_loop(step, q0)
+        steps[f"fold + moving sphere: qpik + {solver}"] = closed_loop(step, q0)
         refs[f"fold + moving sphere: qpik + {solver}"] = "fold + moving sphere: mink + daqp"
-    steps["fold + moving sphere: mink + daqp"] = _closed_loop(
-        _mink_self_step(robot, target, spheres, "daqp", pairs), q0
-    )
+    steps["fold + moving sphere: mink + daqp"] = closed_loop(_mink_self_step(robot, target, spheres, "daqp", pairs), q0)
     times = time_interleaved(steps, max(2, repeat // HOT), warmup=50, block=HOT)
     note = (
         f"{len(pairs)} self pairs (qpik's default list) + 4 spheres, one moving at {SPEED} m/s; "
