@@ -6,7 +6,7 @@ Run:  python examples/best_branch.py [OUTPUT_FOLDER]
    intervals for the largest joint-limit margin, keeping every link 3 cm from an obstacle,
    and proves that no other arm angle of any branch does better (the certificate).
 2. The full-joint NLP (IPOPT over all 7 joints, pose as a constraint) started at that answer
-   stays there; the QP controller started there does not move (qpik.crosscheck).
+   stays there; the QP controller started there does not move (qpik.checks.crosscheck).
 3. A plot of the margin (maximised: qpik minimises −margin) against the arm angle for every branch goes to OUTPUT_FOLDER
    (default: qpik-out/examples).
 """
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 import qpik
-from qpik.crosscheck import crosscheck
+from qpik.checks.crosscheck import crosscheck
 from qpik.geometry import Sphere
 from qpik.plots import save
 from qpik.plots.objective import objective_map

@@ -25,7 +25,7 @@ import numpy as np
 import qpik
 from qpik.geometry import HalfSpace, Sphere
 from qpik.plots.runs import plot_log, render_strip
-from qpik.render import unavailable_reason
+from qpik.render.pictures import unavailable_reason
 from qpik.sim import simulate
 
 DT = 0.002  # s, control period (and integration step)

@@ -28,7 +28,7 @@ import numpy as np
 import qpik
 from qpik.geometry import Sphere
 from qpik.plots.runs import plot_log, render_strip
-from qpik.render import unavailable_reason
+from qpik.render.pictures import unavailable_reason
 from qpik.robots.packaged import packaged_model
 from qpik.sim import simulate
 

@@ -40,7 +40,7 @@ from qpik.control import (
     VelocityLimit,
     get_solver,
 )
-from qpik.errors import SolverError
+from qpik.core.errors import SolverError
 from qpik.geometry import Sphere
 from qpik.robots.mjcf import to_mjcf
 
@@ -53,7 +53,7 @@ COST_P, COST_O, GAIN, COST_Q, GAIN_Q, COST_D = 1.0, 0.5, 0.1, 0.1, 0.1, 0.01
 # other exact solvers, installed separately).
 BACKENDS = ("osqp", "daqp", "proxqp", "quadprog", "clarabel", "piqp", "highs", "qpoases")
 # Interior-point backends stop at their default tolerances (clarabel: ~1e-5 rad/s off here); these
-# are the tolerances tests/test_solvers.py uses.
+# are the tolerances tests/control/test_solvers.py uses.
 OPTIONS = {
     "clarabel": {"tol_gap_abs": 1e-11, "tol_gap_rel": 1e-11, "tol_feas": 1e-11},
     "piqp": {"eps_abs": 1e-12, "eps_rel": 1e-12, "eps_duality_gap_abs": 1e-12, "eps_duality_gap_rel": 1e-12},
@@ -83,7 +83,7 @@ def main(out: Path) -> None:
 
     # The tasks in qpik's terms. mink minimises ½ Σ ‖c_i (J_i Δq + g_i e_i)‖² over Δq = v·dt with the
     # body-frame SE(3) error; divided by dt²/2 that is qpik's weights c², gains g/dt and error="se3"
-    # (the derivation is in tests/test_controller.py).
+    # (the derivation is in tests/control/test_controller.py).
     tasks = [
         FrameTask(target, GAIN / DT, GAIN / DT, COST_P**2, COST_O**2, error="se3"),
         PostureTask(robot.q_home, GAIN_Q / DT, COST_Q**2),

@@ -73,8 +73,10 @@ def main(out: Path) -> None:
     # MuJoCo pictures of the twin when OpenGL works here, else matplotlib stick figures
     how = branch_pictures(robot, sols, out / "branches.png")
     print(f"\nwrote {out / 'branches.csv'} (q of every branch, full precision)")
-    print(f"wrote {out / 'branches.png'} (the 16 poses, one picture per placement of the links,"
-          f" {'MuJoCo' if how == 'render' else 'stick figures'})")
+    print(
+        f"wrote {out / 'branches.png'} (the 16 poses, one picture per placement of the links,"
+        f" {'MuJoCo' if how == 'render' else 'stick figures'})"
+    )
 
 
 if __name__ == "__main__":

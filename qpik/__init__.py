@@ -2,18 +2,18 @@
 
 # ruff: noqa: E402 (the GL backend is chosen before any module imports mujoco)
 
-from qpik.glbackend import choose_backend as _choose_backend
+from qpik.render.gl import choose_backend as _choose_backend
 
-_choose_backend()  # before any qpik module imports mujoco: see qpik.glbackend
+_choose_backend()  # before any qpik module imports mujoco: see qpik.render.gl
 
 from typing import TYPE_CHECKING
 
-from qpik.lazy import exports
+from qpik.core.lazy import exports
 
 if TYPE_CHECKING:
     from qpik.analytic import FeasibleIntervals, IKSolutions, feasible_intervals, ik, redundancy_parameter
     from qpik.control import Controller, StepInfo
-    from qpik.errors import (
+    from qpik.core.errors import (
         InfeasibleError,
         InputError,
         NoClosedFormError,
@@ -33,13 +33,13 @@ if TYPE_CHECKING:
     from qpik.scene import Scene
     from qpik.viewer import view
 
-# every name is imported on first use (qpik.lazy): `import qpik` loads none of the heavy dependencies
+# every name is imported on first use (qpik.core.lazy): `import qpik` loads none of the heavy dependencies
 __getattr__, __dir__ = exports(
     __name__,
     {
         "qpik.analytic": ("FeasibleIntervals", "IKSolutions", "feasible_intervals", "ik", "redundancy_parameter"),
         "qpik.control": ("Controller", "StepInfo"),
-        "qpik.errors": (
+        "qpik.core.errors": (
             "InfeasibleError",
             "InputError",
             "NoClosedFormError",

@@ -51,9 +51,9 @@ from hypothesis import settings
 from hypothesis import strategies as st
 
 import qpik  # first: it chooses MuJoCo's GL backend before any test module imports mujoco
+from qpik.core.validate import project_to_so3
 from qpik.robots.dh import DHChain
 from qpik.robots.robot import Robot, default_capsules
-from qpik.validate import project_to_so3
 
 ARMS = ("nammoto7", "iiwa14", "zheng7", "panda")
 SEEDS = st.integers(min_value=0, max_value=2**32 - 1)
@@ -75,7 +75,7 @@ def matrix_function(name: str = "f") -> ca.Function:
 
 def packaged(key: str) -> Path:
     """A model file of another package (qpik.robots.packaged); skips when the test extra is missing."""
-    from qpik.errors import InputError
+    from qpik.core.errors import InputError
     from qpik.robots.packaged import packaged_model
 
     try:

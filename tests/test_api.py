@@ -12,8 +12,8 @@ from hypothesis import strategies as st
 
 import qpik
 from qpik.analytic.api import closed_form_for
-from qpik.errors import InputError, NoClosedFormError, QpikError, RotationError
-from qpik.fastcall import extension
+from qpik.core.errors import InputError, NoClosedFormError, QpikError, RotationError
+from qpik.native.fastcall import extension
 
 CLOSED_FORM = ("nammoto7", "iiwa14")
 
@@ -92,18 +92,19 @@ def test_redundancy_parameter_of_one_configuration_inverts_ik(seed: int, name: s
         sols = qpik.ik(robot, robot.fk(q), param)
         k = list(sols.branch).index(branch)
         assert np.abs(robot.fk(sols.q[k]) - robot.fk(q)).max() < 1e-9
-        assert np.abs(np.remainder(sols.q[k] - q + np.pi, 2 * np.pi) - np.pi).max() < 1e-8  # the same joints
+        if np.linalg.svd(robot.jacobian(q), compute_uv=False)[-1] > 1e-4:  # the joints are unique off singularities
+            assert np.abs(np.remainder(sols.q[k] - q + np.pi, 2 * np.pi) - np.pi).max() < 1e-8  # the same joints
 
 
 def test_every_error_type_is_exported() -> None:
     import inspect
 
-    import qpik.errors
+    import qpik.core.errors
 
-    types = {name for name, obj in inspect.getmembers(qpik.errors, inspect.isclass) if issubclass(obj, QpikError)}
+    types = {name for name, obj in inspect.getmembers(qpik.core.errors, inspect.isclass) if issubclass(obj, QpikError)}
     assert types >= {"SolverError", "ProblemFileError", "RenderUnavailable", "InfeasibleError"}
     assert types <= set(qpik.__all__)
-    assert all(getattr(qpik, name) is getattr(qpik.errors, name) for name in types)
+    assert all(getattr(qpik, name) is getattr(qpik.core.errors, name) for name in types)
 
 
 @pytest.mark.parametrize("solver, arm", [("OffsetShoulderSolver", "iiwa14"), ("SRSSolver", "nammoto7")])

@@ -23,9 +23,9 @@ from hypothesis import strategies as st
 import qpik
 from qpik import control, geometry
 from qpik import objectives as objs
+from qpik.checks.crosscheck import crosscheck
 from qpik.control import clik
 from qpik.control.solvers import get_solver
-from qpik.crosscheck import crosscheck
 from qpik.nlp import BestResult, solve_full
 from qpik.objectives import JointLimitMargin, Manipulability
 from qpik.problems import load

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import qpik
-from qpik.contacts import capsule_pairs
+from qpik.geometry.contacts import capsule_pairs
 from qpik.geometry.distance import ObstacleSet, distances
 from qpik.geometry.shapes import Sphere
 
@@ -40,7 +40,7 @@ def _arm(name: str):
             pytest.skip(f"{path} is not installed")
         try:
             return qpik.load_robot(path, **kw)
-        except qpik.errors.QpikError as exc:
+        except qpik.core.errors.QpikError as exc:
             pytest.skip(f"{name} does not load here: {exc}")
     return qpik.load_robot(name)
 
@@ -157,7 +157,7 @@ def test_no_ik_result_whose_check_fails_is_optimal(arm):
 
 def test_crosscheck_reports_a_qp_failure(monkeypatch):
     """A failed QP step returns v = 0, which would pass check (c): the cross-check names the failure instead."""
-    import qpik.crosscheck as cc
+    import qpik.checks.crosscheck as cc
 
     robot = qpik.load_robot("iiwa14")
     pose = robot.fk(robot.q_home + 0.2)

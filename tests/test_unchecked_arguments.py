@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import qpik
-from qpik.errors import InputError
+from qpik.core.errors import InputError
 from qpik.geometry.distance import ObstacleSet
 from qpik.geometry.shapes import Sphere
 from qpik.planning.planner import MAX_RESOLUTION, MAX_WAYPOINTS
@@ -59,6 +59,6 @@ def test_planner_caps_waypoints_and_resolution(plan):
         qpik.plan_self_motion(IIWA, T, resolution=1e8, mujoco=False)
     with pytest.raises(InputError, match="path"):
         qpik.plan_self_motion(IIWA, np.repeat(T[:1], MAX_WAYPOINTS + 1, axis=0), mujoco=False)
-    path = qpik.paths.WaypointPath(T, np.linspace(0.0, 1.0, len(T)))
+    path = qpik.geometry.paths.WaypointPath(T, np.linspace(0.0, 1.0, len(T)))
     with pytest.raises(InputError, match="waypoints"):
         qpik.plan_self_motion(IIWA, path, waypoints=3_000_000, mujoco=False)

@@ -10,10 +10,10 @@ import numpy as np
 
 from qpik.analytic.intervals import FeasibleIntervals, wrap
 from qpik.analytic.solver import AnalyticSolver
-from qpik.errors import InputError, NoClosedFormError
+from qpik.core.errors import InputError, NoClosedFormError
+from qpik.core.validate import finite_array, joint_vector, number
+from qpik.core.validate import pose as check_pose
 from qpik.robots.robot import Robot, as_robot
-from qpik.validate import finite_array, joint_vector, number
-from qpik.validate import pose as check_pose
 
 _SOLVERS = {  # family -> (solver, its feasible sets), each as (module, class)
     "offset_shoulder": (("qpik.analytic.offset_shoulder", "OffsetShoulderSolver"),

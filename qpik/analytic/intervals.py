@@ -21,12 +21,12 @@ from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from qpik import symbolic as sy
-from qpik.build import call_header, shared_library
-from qpik.compiled import Compiled, NativeFunction
-from qpik.errors import InputError, SolverError
-from qpik.fastcall import extension
-from qpik.validate import finite_array, number
+from qpik.algebra import symbolic as sy
+from qpik.core.errors import InputError, SolverError
+from qpik.core.validate import finite_array, number
+from qpik.native.build import call_header, shared_library
+from qpik.native.compiled import Compiled, NativeFunction
+from qpik.native.fastcall import extension
 
 if TYPE_CHECKING:
     from qpik.robots.robot import Robot
@@ -98,7 +98,7 @@ def shrunk_limits(q_min: np.ndarray, q_max: np.ndarray, margin: float) -> tuple[
 
 
 def wrap(x: np.ndarray | float) -> np.ndarray:
-    """Wrap angles (rad, any shape) to (-pi, pi]: :meth:`qpik.symbolic.Ops.wrap` on a float array."""
+    """Wrap angles (rad, any shape) to (-pi, pi]: :meth:`qpik.algebra.symbolic.Ops.wrap` on a float array."""
     return sy.NUMPY.wrap(np.asarray(x, dtype=float))
 
 
@@ -131,7 +131,7 @@ class SetAssembler:
     :func:`merge`). With ``shift``, the sets moved by π follow as rows ``rows..2 rows``
     (:func:`shift`). With a C compiler this runs in ``intervals.c``, which calls the IK's
     generated C directly (a gap costs one IK evaluation, no Python), and the compiled
-    extension turns its arrays into the result lists (:mod:`qpik.fastcall`, ``circle_lists``;
+    extension turns its arrays into the result lists (:mod:`qpik.native.fastcall`, ``circle_lists``;
     in Python without the extension); without a compiler,
     in numpy over :meth:`~qpik.analytic.solver.AnalyticSolver.flags_many`. Both paths
     are checked against dense sampling in the tests.
@@ -272,7 +272,7 @@ class ArmSetsCall:
     ``srs_intervals.c``) over its breakpoint function's and its checked IK's generated C (:meth:`functions`) and
     buffers allocated once.
 
-    The struct gets ``breakpoints``, ``ik`` (their :class:`~qpik.compiled.Kernel`), ``param`` (the IK's parameter
+    The struct gets ``breakpoints``, ``ik`` (their :class:`~qpik.native.compiled.Kernel`), ``param`` (the IK's parameter
     buffer), the addresses of ``arrays`` (its buffer fields by name, with the region's of :class:`NativeSets` added)
     and ``fields`` (its other fields). The arrays become lists by :func:`list_maker`'s function (:attr:`lists`).
     """
@@ -339,7 +339,7 @@ def check_sets(m: int, name: str) -> None:
 
 def list_maker() -> Callable[..., tuple[list[list[Interval]], list[list[float]]]]:
     """What turns the output arrays of ``circle_sets`` (``intervals.c``) into lists: the compiled extension's
-    ``circle_lists`` (:mod:`qpik.fastcall`) when there is one, else :func:`python_lists` (same arguments)."""
+    ``circle_lists`` (:mod:`qpik.native.fastcall`) when there is one, else :func:`python_lists` (same arguments)."""
     ext = extension()
     return python_lists if ext is None else ext.circle_lists
 

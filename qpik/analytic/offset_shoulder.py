@@ -67,12 +67,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from qpik import symbolic as sy
+from qpik.algebra import symbolic as sy
+from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
 from qpik.analytic.solver import AnalyticSolver, Branches
 from qpik.analytic.trig import EPS, angle, flip, solve_cos_sin_cs
-from qpik.errors import NoClosedFormError
+from qpik.core.errors import NoClosedFormError
 from qpik.robots.recognize import PATTERNS
-from qpik.symbolic import Mat, Ops, Scalar, Vec
 
 if TYPE_CHECKING:
     from qpik.analytic.intervals import ParameterSets

@@ -79,17 +79,17 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 
-from qpik import symbolic as sy
+from qpik.algebra import symbolic as sy
+from qpik.algebra.symbolic import Ops, Scalar
 from qpik.analytic.intervals import ArmSetsCall, FeasibleIntervals, Interval, NativeSets, SetAssembler, shrunk_limits
 from qpik.analytic.intervals import c_source as intervals_source
 from qpik.analytic.polyroots import FLAGS as POLYROOTS_FLAGS
 from qpik.analytic.polyroots import ROOM, trig_roots
 from qpik.analytic.polyroots import c_source as polyroots_source
 from qpik.analytic.trig import EPS, acos2
-from qpik.build import python_library
-from qpik.compiled import Compiled, Kernel, NativeFunction
-from qpik.errors import QpikError
-from qpik.symbolic import Ops, Scalar
+from qpik.core.errors import QpikError
+from qpik.native.build import python_library
+from qpik.native.compiled import Compiled, Kernel, NativeFunction
 
 if TYPE_CHECKING:
     from qpik.analytic.offset_shoulder import OffsetShoulderSolver

@@ -29,7 +29,7 @@ the bracket and H either changes sign in it (one root) or moves away from zero i
 (no root, and :math:`|H|` above the bound at the extremum too), the bracket's ends serve instead.
 Eigenvalues of companion matrices (``numpy.linalg.eigvals``) would cost several times
 more per ``qpik.feasible_intervals`` call (see ``qpik bench analytic``). The C source is
-compiled once by the system compiler (:func:`qpik.build.shared_library`); without
+compiled once by the system compiler (:func:`qpik.native.build.shared_library`); without
 one (or with ``QPIK_NATIVE=0``) the roots of H come from ``numpy``'s companion
 eigenvalues instead, every eigenvalue within ``EIG_IMAG`` of the real axis counting
 as real; that path resolves a double root only to about √ε (1e-8 rad), the C path to 1e-9 rad
@@ -47,8 +47,8 @@ from pathlib import Path
 
 import numpy as np
 
-from qpik.build import shared_library
-from qpik.errors import InputError
+from qpik.core.errors import InputError
+from qpik.native.build import shared_library
 
 EIG_IMAG = 1e-7
 r"""Eigenvalue path: :math:`|\operatorname{Im} t|` below which an eigenvalue counts as real."""
@@ -57,7 +57,7 @@ MAX_DEGREE = 16
 
 
 FLAGS = ("-funroll-loops",)
-"""Compiler flags of a library holding ``polyroots.c`` (besides :data:`qpik.build.CFLAGS`): its short loops over
+"""Compiler flags of a library holding ``polyroots.c`` (besides :data:`qpik.native.build.CFLAGS`): its short loops over
 the coefficients unrolled, about 10 % faster."""
 
 

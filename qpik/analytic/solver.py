@@ -1,12 +1,12 @@
 """Common machinery of the closed-form solvers.
 
 A solver (:class:`AnalyticSolver` subclass) writes its algorithm once, in
-:meth:`AnalyticSolver.branches`, against :mod:`qpik.symbolic`. This base class
+:meth:`AnalyticSolver.branches`, against :mod:`qpik.algebra.symbolic`. This base class
 turns that one source into
 
 - a CasADi function ``q(T, param)`` of all branches, for exact derivatives (NLP);
 - that function plus the joint-limit test, compiled to machine code
-  (:func:`qpik.build.native`), for one pose (:meth:`AnalyticSolver.solve_one`)
+  (:func:`qpik.native.build.native`), for one pose (:meth:`AnalyticSolver.solve_one`)
   and mapped over chunks of parameters for a sweep of one pose
   (:meth:`AnalyticSolver.solve_many`, the feasible intervals);
 - a numpy evaluation over a batch of poses and parameters
@@ -32,10 +32,10 @@ from typing import TYPE_CHECKING, NamedTuple
 import casadi as ca
 import numpy as np
 
-from qpik import symbolic as sy
-from qpik.compiled import Compiled
-from qpik.errors import NoClosedFormError
-from qpik.symbolic import Mat, Ops, Scalar, Vec
+from qpik.algebra import symbolic as sy
+from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
+from qpik.core.errors import NoClosedFormError
+from qpik.native.compiled import Compiled
 
 SWEEP_CHUNKS = (32, 8)
 """Parameters per call of the compiled sweeps of :meth:`AnalyticSolver.solve_many`: the large one while
@@ -251,7 +251,7 @@ class AnalyticSolver(ABC):
     @cached_property
     def fresh_one(self):
         """``fresh(T, param) -> (q (B, n), flags (3, B) bool)`` of all branches through the compiled extension
-        (:meth:`qpik.fastcall.Kernel.fresh`: T (4, 4) checked as a pose and param as one finite real number in C,
+        (:meth:`qpik.native.fastcall.Kernel.fresh`: T (4, 4) checked as a pose and param as one finite real number in C,
         flags ``valid, singular, within_limits``), None for arguments it does not take; None without the
         extension."""
         one, B, n = self._one, self.n_branches, self.robot.dof

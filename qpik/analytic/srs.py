@@ -92,9 +92,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from qpik import symbolic as sy
+from qpik.algebra import symbolic as sy
+from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
 from qpik.analytic.solver import AnalyticSolver, Branches
-from qpik.symbolic import Mat, Ops, Scalar, Vec
 
 if TYPE_CHECKING:
     from qpik.analytic.intervals import ParameterSets

@@ -9,12 +9,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from qpik import symbolic as sy
+from qpik.algebra import symbolic as sy
+from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
 from qpik.analytic import trig
 from qpik.analytic.trig import EPS
-from qpik.errors import NoClosedFormError
+from qpik.core.errors import NoClosedFormError
 from qpik.robots.recognize import PATTERNS
-from qpik.symbolic import Mat, Ops, Scalar, Vec
 
 if TYPE_CHECKING:
     from qpik.robots.dh import DHChain

@@ -63,7 +63,8 @@ from typing import TYPE_CHECKING, NamedTuple
 import casadi as ca
 import numpy as np
 
-from qpik import symbolic as sy
+from qpik.algebra import symbolic as sy
+from qpik.algebra.symbolic import Scalar
 from qpik.analytic import trig
 from qpik.analytic.intervals import (
     ArmSetsCall,
@@ -76,9 +77,8 @@ from qpik.analytic.intervals import (
 )
 from qpik.analytic.intervals import c_source as intervals_source
 from qpik.analytic.srs_geometry import arm_setup, branch_signs
-from qpik.build import python_library
-from qpik.compiled import Compiled, Kernel, NativeFunction
-from qpik.symbolic import Scalar
+from qpik.native.build import python_library
+from qpik.native.compiled import Compiled, Kernel, NativeFunction
 
 if TYPE_CHECKING:
     from qpik.analytic.srs import SRSSolver

@@ -1,7 +1,7 @@
 r"""Trigonometric kernel (Sabharwal 2021): atan2 everywhere, no division that can blow up.
 
 Every function works on Python floats, numpy arrays (element-wise) and CasADi
-symbols through an :class:`qpik.symbolic.Ops` backend, and returns both roots
+symbols through an :class:`qpik.algebra.symbolic.Ops` backend, and returns both roots
 plus a flag saying whether the equation is solvable. When it is not, the
 roots are still finite (the argument of the square root is clamped), so no
 NaN ever reaches a caller.
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from qpik.symbolic import Ops, Scalar
+from qpik.algebra.symbolic import Ops, Scalar
 
 EPS = 1e-12
 

@@ -80,7 +80,7 @@ from qpik.bench.loop import (
 from qpik.control import Controller
 from qpik.control.solvers import available
 from qpik.control.solvers.osqp import REUSED
-from qpik.errors import InputError
+from qpik.core.errors import InputError
 from qpik.robots.loader import load_robot
 from qpik.robots.packaged import packaged_model
 

@@ -41,9 +41,9 @@ from collections.abc import Callable
 
 import numpy as np
 
+from qpik.algebra.lie import pose_error
 from qpik.bench import Row, fmt_time
-from qpik.errors import UnreachableError
-from qpik.lie import pose_error
+from qpik.core.errors import UnreachableError
 from qpik.nlp.ik import solve_ik
 from qpik.robots.loader import load_robot
 from qpik.robots.robot import Robot

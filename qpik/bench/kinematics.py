@@ -36,7 +36,7 @@ import mujoco
 import numpy as np
 
 from qpik.bench import Row, import_peer, time_calls, time_interleaved
-from qpik.errors import InputError
+from qpik.core.errors import InputError
 from qpik.robots.loader import load_robot
 from qpik.robots.packaged import packaged_model
 from qpik.robots.robot import Robot

@@ -38,9 +38,9 @@ import argparse
 
 import numpy as np
 
+from qpik.algebra.lie import pose_error
 from qpik.bench import Row
 from qpik.geometry.shapes import Sphere
-from qpik.lie import pose_error
 from qpik.nlp import solve_best, solve_full
 from qpik.nlp.full import REACHED
 from qpik.robots.loader import load_robot

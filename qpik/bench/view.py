@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 from qpik.bench import Row
-from qpik.errors import QpikError
+from qpik.core.errors import QpikError
 
 TITLE = "Viewer update: target pose received → scene messages sent (qpik view, 100 scripted drag poses)"
 POSES = 100

@@ -14,7 +14,7 @@ import os
 import pkgutil
 import sys
 
-from qpik.errors import QpikError
+from qpik.core.errors import QpikError
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -68,7 +68,7 @@ def add_robot(parser: argparse.ArgumentParser, required: bool = True) -> None:
 def robot_from_args(args: argparse.Namespace):
     """The :class:`qpik.Robot` named by the :func:`add_robot` options."""
     from qpik import load_robot
-    from qpik.errors import InputError
+    from qpik.core.errors import InputError
 
     options = {k: getattr(args, k) for k in ("base", "tip", "joints") if getattr(args, k) is not None}
     if args.package:
@@ -85,7 +85,7 @@ def robot_from_args(args: argparse.Namespace):
 
 def whole(values: np.ndarray, option: str) -> list[int]:
     """The numbers of ``option`` as integers; :class:`InputError` if one is not a whole number."""
-    from qpik.errors import InputError
+    from qpik.core.errors import InputError
 
     if np.any(values != np.round(values)):
         raise InputError(f"{option}: expected whole numbers, got {values.tolist()}")
@@ -94,7 +94,7 @@ def whole(values: np.ndarray, option: str) -> list[int]:
 
 def at_least_one(value: int, option: str) -> int:
     """``value`` if it is >= 1, else :class:`InputError` naming ``option``."""
-    from qpik.errors import InputError
+    from qpik.core.errors import InputError
 
     if value < 1:
         raise InputError(f"{option}: must be >= 1, got {value}")

@@ -25,7 +25,7 @@ def register(sub: Subcommands) -> None:
 def _run(args: argparse.Namespace) -> int:
     from qpik.bench import BENCHES, render
     from qpik.cli.args import at_least_one
-    from qpik.errors import InputError
+    from qpik.core.errors import InputError
 
     unknown = sorted(set(args.which) - set(BENCHES))
     if unknown:

@@ -52,9 +52,9 @@ def _run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from qpik import solve_best
-    from qpik.errors import InputError
+    from qpik.core.errors import InputError
+    from qpik.core.validate import pose as check_pose
     from qpik.geometry import Sphere
-    from qpik.validate import pose as check_pose
 
     robot = robot_from_args(args)
     T, _ = check_pose(pose_from_args(args, robot), "pose", args.project)

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from qpik.cli.args import Subcommands, add_robot, floats, robot_from_args
-from qpik.errors import InputError
+from qpik.core.errors import InputError
 
 
 def register(sub: Subcommands) -> None:
@@ -65,8 +65,8 @@ def pose_from_args(args: argparse.Namespace, robot) -> np.ndarray:
 def _run(args: argparse.Namespace) -> int:
     from qpik import feasible_intervals, ik, redundancy_parameter
     from qpik.analytic.api import symbol
+    from qpik.core.validate import pose as check_pose
     from qpik.problems.ik import branch_table
-    from qpik.validate import pose as check_pose
 
     robot = robot_from_args(args)
     T, _ = check_pose(pose_from_args(args, robot), "pose", args.project)

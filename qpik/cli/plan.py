@@ -43,7 +43,7 @@ def _problems(names: list[str]) -> tuple[list, list[str]]:
     Raises:
         InputError: a folder without a plan file; a file named on its own that is not of kind ``plan``.
     """
-    from qpik.errors import InputError, ProblemFileError
+    from qpik.core.errors import InputError, ProblemFileError
     from qpik.problems import find_problem, load, problem_files
 
     problems, bad = [], []
@@ -76,7 +76,7 @@ def _problems(names: list[str]) -> tuple[list, list[str]]:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from qpik.errors import InputError
+    from qpik.core.errors import InputError
     from qpik.planning.batch import JobFailure, run_batch
     from qpik.problems.plan import check_names, plan_job, solve
 

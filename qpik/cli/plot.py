@@ -32,10 +32,10 @@ def register(sub: Subcommands) -> None:
 
 def _run(args: argparse.Namespace) -> int:
     from qpik import ik
-    from qpik.errors import InputError
+    from qpik.core.errors import InputError
+    from qpik.core.validate import pose as check_pose
     from qpik.plots import save
     from qpik.plots.closed_form import branch_pictures, selfmotion_map
-    from qpik.validate import pose as check_pose
 
     param = args.param
     if args.problem:

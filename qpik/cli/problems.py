@@ -17,7 +17,7 @@ def register(sub: Subcommands) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from qpik.errors import ProblemFileError
+    from qpik.core.errors import ProblemFileError
     from qpik.problems import load, problem_files, problems_folder
 
     folder = args.folder or problems_folder()

@@ -28,8 +28,8 @@ def register(sub: Subcommands) -> None:
 def _run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from qpik.errors import InputError
-    from qpik.render import RenderUnavailable, render_configurations
+    from qpik.core.errors import InputError
+    from qpik.render.pictures import RenderUnavailable, render_configurations
 
     robot = robot_from_args(args)
     bad = [q.shape[0] for q in args.q or () if q.shape != (robot.dof,)]

@@ -34,7 +34,7 @@ def register(sub: Subcommands) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from qpik.errors import InputError
+    from qpik.core.errors import InputError
     from qpik.viewer import view
 
     if args.arm is not None and args.robot is not None and args.arm != args.robot:

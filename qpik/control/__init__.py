@@ -11,6 +11,7 @@ Public API::
 CLIK baselines with the same ``step`` interface are in :mod:`qpik.control.clik`.
 """
 
+from qpik.algebra.lie import pose_error, so3_log
 from qpik.control.clik import CLIK, DampedLeastSquares, GradientProjection, PseudoInverseCLIK, VelocityOnly
 from qpik.control.controller import Controller, StepInfo
 from qpik.control.limits import BoxLimit, ConfigurationLimit, Limit, ObstacleLimit, RowLimit, VelocityLimit
@@ -25,7 +26,6 @@ from qpik.control.tasks import (
     PostureTask,
     Task,
 )
-from qpik.lie import pose_error, so3_log
 
 __all__ = [
     "CLIK",

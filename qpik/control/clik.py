@@ -26,12 +26,12 @@ import time
 
 import numpy as np
 
+from qpik.algebra.lie import pose_error
 from qpik.control.controller import StepInfo
 from qpik.control.state import State
-from qpik.errors import InputError
-from qpik.lie import pose_error
+from qpik.core.errors import InputError
+from qpik.core.validate import finite_array, joint_vector, number, single_pose
 from qpik.robots.robot import as_robot
-from qpik.validate import finite_array, joint_vector, number, single_pose
 
 
 class CLIK:

@@ -28,7 +28,7 @@ Failure policy (never raises in the loop unless ``raise_on_failure=True``):
    the motion (see :class:`~qpik.control.limits.ObstacleLimit`) creep closer;
 5. otherwise the step returns ``v = 0`` (the arm holds still: never further past a limit,
    never toward an obstacle) with ``last.status == "failed"`` — or raises
-   :class:`~qpik.errors.SolverError` with ``raise_on_failure=True``.
+   :class:`~qpik.core.errors.SolverError` with ``raise_on_failure=True``.
 """
 
 from __future__ import annotations
@@ -40,17 +40,17 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from qpik.contacts import capsule_pairs
 from qpik.control.limits import ConfigurationLimit, Limit, ObstacleLimit, VelocityLimit
 from qpik.control.qp import QP, Assembler
 from qpik.control.self_collision import SelfCollisionLimit
 from qpik.control.solvers import Solver, get_solver
 from qpik.control.state import SymState
 from qpik.control.tasks import DampingTask, FrameTask, ManipulabilityTask, PostureTask, Task
-from qpik.errors import InfeasibleError, InputError, SolverError
+from qpik.core.errors import InfeasibleError, InputError, SolverError
+from qpik.core.validate import joint_vector, number
+from qpik.geometry.contacts import capsule_pairs
 from qpik.geometry.distance import ObstacleSet
 from qpik.robots.robot import as_robot
-from qpik.validate import joint_vector, number
 
 FALLBACK = "daqp"  # exact active-set solver tried when the main solver reports no solution
 ACTIVE_TOL = 1e-7  # rad/s (box) and row units: a constraint within this of its bound is reported active
@@ -73,7 +73,7 @@ class StepInfo:
             hold, the first of failed, yielding, penetrating, recovering is reported.
         active: names of the constraints at their bound (``"joint3 position upper"``,
             ``"obstacle sphere0 / link4"``, ...).
-        min_clearance: smallest capsule–obstacle signed distance, m, over the pairs :mod:`qpik.contacts`
+        min_clearance: smallest capsule–obstacle signed distance, m, over the pairs :mod:`qpik.geometry.contacts`
             checks (not those whose distance no joint motion changes: a base column on its table;
             inf without such pairs).
         min_self_distance: smallest signed distance, m, of the pairs a
@@ -244,7 +244,8 @@ class Controller:
         """The step's summary, computed in the compiled call: ``pairs<k>``, per :class:`ObstacleLimit` k the
         distances (m) of its capsule–obstacle pairs over the capsules a joint moves
         (:attr:`~qpik.robots.robot.Robot.fixed_capsules` are left out; :meth:`step` keeps the pairs
-        :mod:`qpik.contacts` checks); ``past``, 1.0 if q is past a :class:`ConfigurationLimit`'s range (else 0.0);
+        :mod:`qpik.geometry.contacts` checks); ``past``, 1.0 if q is past a :class:`ConfigurationLimit`'s range
+        (else 0.0);
         ``task_error``, the norm of the first :class:`FrameTask`'s pose error ``[m; rad]`` (nan without one);
         ``own``, per :class:`~qpik.control.self_collision.SelfCollisionLimit` its smallest checked self-distance
         (m); ``cap_lo``, ``cap_hi``, the caps' own box (n,) each, rad/s (the yielding QP stays in it)."""

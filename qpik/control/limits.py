@@ -28,9 +28,9 @@ import casadi as ca
 import numpy as np
 
 from qpik.control.state import State, SymState, Traced, evaluate, kinematics_of
+from qpik.core.errors import InfeasibleError, InputError
 from qpik.core.layout import Blocks, Layout
-from qpik.errors import InfeasibleError, InputError
-from qpik.validate import finite_array, number
+from qpik.core.validate import finite_array, number
 
 if TYPE_CHECKING:
     from qpik.geometry.distance import ObstacleSet

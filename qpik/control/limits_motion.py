@@ -34,9 +34,9 @@ import numpy as np
 
 from qpik.control.limits import BoxLimit
 from qpik.control.state import SymState
+from qpik.core.errors import InfeasibleError, InputError
 from qpik.core.layout import Blocks, Layout
-from qpik.errors import InfeasibleError, InputError
-from qpik.validate import finite_array, number
+from qpik.core.validate import finite_array, number
 
 if TYPE_CHECKING:
     from qpik.robots.robot import Robot

@@ -28,12 +28,12 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from qpik.build import native_library
-from qpik.compiled import Compiled
 from qpik.control.limits import BoxLimit, Limit, RowLimit
 from qpik.control.state import SymState, kinematics_of
 from qpik.control.tasks import Task
 from qpik.core.layout import Blocks, Layout
+from qpik.native.build import native_library
+from qpik.native.compiled import Compiled
 
 REGULARIZATION = 1e-12
 
@@ -91,7 +91,7 @@ class Assembler:
     every box (intersected, then clipped into the caps) and every row limit's
     ``(A, l, u)`` (given the final box) are traced into ONE CasADi function
     ``q, p -> [P, c, lb, ub, A, l, u, extra]`` (flat, row-major), compiled to machine code
-    (:mod:`qpik.compiled`); ``p`` stacks dt and the parameters of the tasks, limits and
+    (:mod:`qpik.native.compiled`); ``p`` stacks dt and the parameters of the tasks, limits and
     obstacles (read from the objects every step, so changing a target never recompiles).
     The compiled function is shared by controllers of the same structure.
 

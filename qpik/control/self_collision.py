@@ -26,13 +26,13 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 
-from qpik import symbolic as sy
+from qpik.algebra import symbolic as sy
 from qpik.control.limits import RowLimit, damper_lower
 from qpik.control.state import SymState
+from qpik.core.errors import InfeasibleError, InputError
 from qpik.core.layout import Blocks, Layout
-from qpik.errors import InfeasibleError, InputError
+from qpik.core.validate import number
 from qpik.robots.self_pairs import Pair, candidate_pairs, default_allowed
-from qpik.validate import number
 
 if TYPE_CHECKING:
     from qpik.robots.robot import Robot

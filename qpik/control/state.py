@@ -1,7 +1,7 @@
 r"""The kinematic state of one control step, computed once and shared by every task and limit.
 
 :class:`State` evaluates, for a configuration ``q`` and the obstacles of the controller,
-ONE natively compiled CasADi function (:class:`Kinematics`, :mod:`qpik.compiled`) traced
+ONE natively compiled CasADi function (:class:`Kinematics`, :mod:`qpik.native.compiled`) traced
 from the expression builders of the other layers — nothing here re-derives them:
 
 - the frames (:meth:`~qpik.robots.chain.SerialChain.frames_expr`), the end-effector pose and the
@@ -32,13 +32,13 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 
-from qpik import symbolic as sy
-from qpik.compiled import Compiled
+from qpik.algebra import symbolic as sy
+from qpik.core.errors import InputError
 from qpik.core.layout import Blocks, Layout
-from qpik.errors import InputError
+from qpik.core.validate import joint_vector, number
+from qpik.native.compiled import Compiled
 from qpik.robots.manipulability import hessian_rows, jacobian_rows, manipulability_gradient_expr
 from qpik.robots.robot import as_robot
-from qpik.validate import joint_vector, number
 
 if TYPE_CHECKING:
     from qpik.geometry.distance import Distances, ObstacleSet

@@ -6,7 +6,7 @@ Every task adds :math:`\tfrac12 v^T P_i v + c_i^T v` to the cost
 :math:`P_i = 2 A^T W A`, :math:`c_i = -2 A^T W b` (the constant is dropped).
 
 Pose errors are world-frame by default: :func:`pose_error` gives
-:math:`e = [p^* - p;\ \log(R^* R^T)]` (m; rad; :mod:`qpik.lie`), the quantity that the geometric
+:math:`e = [p^* - p;\ \log(R^* R^T)]` (m; rad; :mod:`qpik.algebra.lie`), the quantity that the geometric
 Jacobian's rows ``[v; ω]`` change at first order: :math:`\dot e = \dot x^*_d - J \dot q`.
 ``FrameTask(error="se3")`` uses the body-frame SE(3) error of mink/pink instead,
 :math:`e = \log(T^{-1} T^*)` (:func:`se3_log_expr`, :func:`se3_ljacinv_expr`).
@@ -20,14 +20,14 @@ from typing import Literal
 import casadi as ca
 import numpy as np
 
+from qpik.algebra.lie import pose_error_expr, se3_ljacinv_expr, se3_log_expr
 from qpik.control.state import State, SymState, Traced, evaluate
+from qpik.core.errors import InputError
 from qpik.core.layout import Blocks, Layout
-from qpik.errors import InputError
+from qpik.core.validate import finite_array, number, single_pose
 from qpik.geometry.distance import ObstacleSet
-from qpik.lie import pose_error_expr, se3_ljacinv_expr, se3_log_expr
 from qpik.objectives import Context, Objective, resolve
 from qpik.robots.robot import as_robot
-from qpik.validate import finite_array, number, single_pose
 
 
 class Task(Traced, ABC):
@@ -258,7 +258,7 @@ class ObjectiveTask(Task):
     freedom, as :class:`ManipulabilityTask` does for −m. ∇f is CasADi's exact derivative of the
     objective's expression (for capsule–obstacle distances, :math:`n^T J_p` at the closest points,
     :class:`qpik.objectives.Context`). At a minimum of f over the self-motion, ∇f lies in the row
-    space of J, so with a dominant frame task the step is 0 (:mod:`qpik.crosscheck` checks this).
+    space of J, so with a dominant frame task the step is 0 (:mod:`qpik.checks.crosscheck` checks this).
 
     Parameters: w, the objective's parameters, q_ref (n), the obstacles' parameters.
 

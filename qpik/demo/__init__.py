@@ -19,8 +19,8 @@ def run_all(out: Path, only: list[str] | None = None) -> None:
     Without OpenGL one line says that the pictures of the arms are skipped; the
     tables and the matplotlib plots are made all the same.
     """
-    from qpik.build import cache_dir, compiler
-    from qpik.render import unavailable_reason
+    from qpik.native.build import cache_dir, compiler
+    from qpik.render.pictures import unavailable_reason
 
     out.mkdir(parents=True, exist_ok=True)
     cache, cc = cache_dir(), compiler()

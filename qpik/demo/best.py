@@ -5,7 +5,7 @@
    link capsule 3 cm from both (certified), the per-branch table and a plot of the margin
    against ψ for every branch (the margin itself: qpik minimises −margin).
 2. The joint-limit margin on ``nammoto7``'s 16 branches in δ for a pose of a random configuration.
-3. The cross-validation of :mod:`qpik.crosscheck` on one pose: closed form + 1-D search,
+3. The cross-validation of :mod:`qpik.checks.crosscheck` on one pose: closed form + 1-D search,
    full-joint NLP from its answer, QP controller at its answer.
 """
 
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from qpik.crosscheck import crosscheck
+from qpik.checks.crosscheck import crosscheck
 from qpik.nlp import solve_best
 from qpik.plots import save
 from qpik.plots.objective import objective_map

@@ -29,7 +29,7 @@ def limits_text(robot: Robot) -> str:
 
 
 def run(out: Path) -> None:
-    from qpik.render import render_configurations, unavailable_reason
+    from qpik.render.pictures import render_configurations, unavailable_reason
 
     robots = [load_robot(name) for name in CATALOG]
     header = f"{'arm':9} {'closed form':18} {'DH':9} {'reach':>7}  joint limits (deg)"

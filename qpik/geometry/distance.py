@@ -33,12 +33,12 @@ the same ``nᵀ J_p`` because they differ by ``−r n`` and ``nᵀ (ω × n) = 0
 The velocity-damper row is then ``nᵀ J_p v ≥ −ξ (d − d_s)/(d_i − d_s)``.
 
 The kernels (:mod:`qpik.geometry.segment`) are written once in the scalar
-algebra of :mod:`qpik.symbolic` and run two ways. A list of shapes (or a batch
+algebra of :mod:`qpik.algebra.symbolic` and run two ways. A list of shapes (or a batch
 of configurations) goes through numpy, vectorised over capsules × obstacles of
 each kernel family (a sphere is the segment–segment kernel with a point). An
 :class:`ObstacleSet` packed once and called with one (C, 2, 3) set of segments
 goes through a CasADi function traced from the same kernels and evaluated via
-:class:`qpik.compiled.Compiled` — the 1 kHz path.
+:class:`qpik.native.compiled.Compiled` — the 1 kHz path.
 """
 
 from __future__ import annotations
@@ -50,13 +50,13 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from qpik.compiled import Compiled
+from qpik.algebra.symbolic import CASADI, NUMPY, Mat, Ops, Scalar, Vec, matvec, transpose, vadd, vscale, vsub
+from qpik.core.errors import InputError
 from qpik.core.layout import Layout
-from qpik.errors import InputError
+from qpik.core.validate import bounded, finite_array
 from qpik.geometry.segment import segment_box, segment_capsule, segment_halfspace
 from qpik.geometry.shapes import Box, Capsule, HalfSpace, Shape, Sphere
-from qpik.symbolic import CASADI, NUMPY, Mat, Ops, Scalar, Vec, matvec, transpose, vadd, vscale, vsub
-from qpik.validate import bounded, finite_array
+from qpik.native.compiled import Compiled
 
 Kernel = tuple[Scalar, Scalar, Vec, Vec]
 
@@ -104,7 +104,7 @@ def pair_expr(
     a: Vec, b: Vec, radius: Scalar, kind: str, params: Sequence[Scalar], ops: Ops
 ) -> tuple[Scalar, Vec, Vec, Vec, Scalar]:
     """``(d, p_link, p_obs, normal, s)`` (fields of :class:`Distances`) of the capsule ``a``–``b``, ``radius``
-    to one obstacle of family ``kind`` with parameters ``params`` (:data:`PARAMS`), in :mod:`qpik.symbolic`.
+    to one obstacle of family ``kind`` with parameters ``params`` (:data:`PARAMS`), in :mod:`qpik.algebra.symbolic`.
 
     Scalars broadcast (the numpy path evaluates all capsules × obstacles of a family at once).
     """

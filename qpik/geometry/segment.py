@@ -1,6 +1,6 @@
 """Closed-form closest points of a segment to a segment, a box and a half-space.
 
-Written once in the scalar algebra of :mod:`qpik.symbolic`: a scalar is a
+Written once in the scalar algebra of :mod:`qpik.algebra.symbolic`: a scalar is a
 numpy array (a batch of pairs, element-wise) or a CasADi ``SX`` (traced into a
 compiled function for the 1 kHz path, or differentiated in an NLP). Vectors
 are 3-tuples of scalars; there is no branching on data, only ``ops.where``.
@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from itertools import combinations, pairwise
 
-from qpik.symbolic import Ops, Scalar, Vec, cross, dot, vadd, vscale, vsub
+from qpik.algebra.symbolic import Ops, Scalar, Vec, cross, dot, vadd, vscale, vsub
 
 TINY2 = 1e-24
 """Squared length (m²) under which a segment counts as a point, or a distance as zero."""

@@ -21,8 +21,8 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from qpik import validate
-from qpik.errors import InputError
+from qpik.core import validate
+from qpik.core.errors import InputError
 
 OBSTACLE_RGBA = "1 0 0 0.35"
 """Default colour of obstacle geoms: semi-transparent red."""

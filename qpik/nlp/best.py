@@ -33,7 +33,9 @@ from functools import cached_property, lru_cache
 import numpy as np
 
 from qpik.analytic.intervals import wrap
-from qpik.errors import InputError, NoClosedFormError
+from qpik.core.errors import InputError, NoClosedFormError
+from qpik.core.validate import finite_array, flag, number
+from qpik.core.validate import pose as check_pose
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.certificate import certify as prove
 from qpik.nlp.levelset import margin_weight, maximise
@@ -43,8 +45,6 @@ from qpik.nlp.selfmotion import SelfMotion, selfmotion_of
 from qpik.objectives import Objective, Quantity, ReferenceDistance, clearance
 from qpik.robots.robot import Robot
 from qpik.scene.scene import Scene, scene_of
-from qpik.validate import finite_array, flag, number
-from qpik.validate import pose as check_pose
 
 VERIFY_TOL = 1e-9
 """m and rad: an ``"optimal"`` answer's FK reaches the pose to this (:func:`_verify`)."""
@@ -350,11 +350,11 @@ def solve_best(
 
 def _verify(robot: Robot, T: np.ndarray, r: BestResult, obstacles: ObstacleSet, d_safe: float) -> None:
     """An ``"optimal"`` result is measured at its q: FK reaches T (:data:`VERIFY_TOL`), every joint inside its
-    limits, clearance ≥ d_safe over the pairs :mod:`qpik.contacts` checks; one that fails becomes
+    limits, clearance ≥ d_safe over the pairs :mod:`qpik.geometry.contacts` checks; one that fails becomes
     ``"solver failed"`` naming the check."""
     if r.status != "optimal":
         return
-    from qpik.contacts import capsule_clearance
+    from qpik.geometry.contacts import capsule_clearance
     from qpik.sim.log import tracking_errors
 
     pos, rot = tracking_errors(robot.fk(r.q), T)
@@ -600,7 +600,7 @@ def least_violating(
     Every branch's closed form (numpy, :meth:`~qpik.analytic.solver.AnalyticSolver.solve_batch`) at
     :data:`VIOLATION_SAMPLES` parameters. If no branch reaches the pose, the status is
     ``"unreachable"`` and q is the configuration (the closed form clamps what it cannot reach) whose
-    pose error (:func:`qpik.lie.pose_error`) has the smallest norm, its norm the violation. Otherwise
+    pose error (:func:`qpik.algebra.lie.pose_error`) has the smallest norm, its norm the violation. Otherwise
     ``"no feasible branch"``: inside the limits but never clear of the obstacles, the configuration
     with the largest clearance (violation d_s minus it, m); else the one least outside the limits
     (rad). ``status`` replaces the status (a solver failure keeps this configuration as its q).

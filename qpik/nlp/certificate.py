@@ -11,7 +11,7 @@ the analytic limit crossings):
    (:meth:`~qpik.nlp.selfmotion.SelfMotion.models`: with :math:`t = (\psi - \psi_{mid})/h`, every
    joint lies within :math:`c + s\,t \pm r` and within [lo, hi] for every ψ of the cell), composed
    with the Taylor models of the objective's split and of the capsule–obstacle distances
-   (:class:`qpik.objectives.BoundFunction`), gives :func:`lower_bound`: a convex piecewise-linear
+   (:class:`qpik.scene.bounds.BoundFunction`), gives :func:`lower_bound`: a convex piecewise-linear
    function of t below f on the whole cell, whose minimum over [−1, 1] is the cell's bound. Its
    error is second order in the cell's width (the slopes carry the correlation that a plain
    interval extension loses), so kinks (where the epigraph terms switch) and smooth minima are
@@ -33,7 +33,7 @@ What the proof assumes: the feasible intervals are exact (up to :data:`qpik.anal
 ±π is a breakpoint); the Taylor models are evaluated in round-to-nearest arithmetic (their bounds
 may be off by a few units in the last place, far below ε); the objective is
 :attr:`~qpik.objectives.Objective.bounded` and every operation of it has a Taylor-model rule
-(:func:`qpik.enclosure.taylor_function`; otherwise it is never certified, and the reason says so:
+(:func:`qpik.algebra.enclosure.taylor_function`; otherwise it is never certified, and the reason says so:
 the manipulability, a user expression without rules).
 """
 
@@ -45,7 +45,7 @@ import numpy as np
 
 from qpik.nlp.run import BestRun, Points
 from qpik.nlp.search import Pieces
-from qpik.objectives import BoundFunction
+from qpik.scene.bounds import BoundFunction
 
 FIRST_CELL = 0.4
 """Width (rad) of the first cells."""
@@ -79,7 +79,7 @@ def lower_bound(models: list[np.ndarray], sizes: tuple[int, ...], decide: np.nda
     r"""(M,): a lower bound of :math:`\min_{t \in [-1, 1]} \ell_s(t) + \sum_k w_k \max_i \ell_{k,i}(t)` per row.
 
     ``models``: ``[centre, slope, radius, lo, hi]`` of the values
-    ``[s, w_1..w_K, h_1 (m_1), ..., h_K (m_K), ...]`` (each (M, L); :class:`~qpik.objectives.BoundFunction`),
+    ``[s, w_1..w_K, h_1 (m_1), ..., h_K (m_K), ...]`` (each (M, L); :class:`~qpik.scene.bounds.BoundFunction`),
     ``sizes``: (m_1..m_K). Each :math:`\ell(t) = \max(lo, c + s\,t - r)` lies below its value, so the
     function is below f; it is convex and piecewise linear. Its minimum is bracketed by bisection on
     the sign of a subgradient, and bounded from below by the crossing of the supporting lines at the

@@ -7,7 +7,7 @@ r"""The full-joint NLP: minimise an objective over the 7 joints with the pose as
     h_{k,i}(q) \le t_k,\quad d_{c,o}(q) \ge d_s,\quad q_{min} \le q \le q_{max}
 
 (the objective's split in epigraph form, :class:`qpik.objectives.Split`; the world-frame pose
-error :func:`qpik.lie.pose_error_expr`, differentiable at its solution; the capsule–obstacle distances of
+error :func:`qpik.algebra.lie.pose_error_expr`, differentiable at its solution; the capsule–obstacle distances of
 :mod:`qpik.geometry.distance`), solved by IPOPT (``casadi.nlpsol``, exact derivatives). It
 works for every arm, with or without a closed form. ``objective=None`` is a pure IK (the
 feasibility problem).
@@ -30,14 +30,14 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from qpik.errors import InputError
+from qpik.algebra.lie import pose_error, pose_error_expr
+from qpik.core.errors import InputError
+from qpik.core.validate import count, joint_vector
+from qpik.core.validate import pose as check_pose
 from qpik.geometry.distance import ObstacleSet
-from qpik.lie import pose_error, pose_error_expr
 from qpik.objectives import Context, Objective, ReferenceDistance
 from qpik.robots.robot import Robot
 from qpik.scene.scene import Scene, scene_of
-from qpik.validate import count, joint_vector
-from qpik.validate import pose as check_pose
 
 REACHED = 1e-9
 """A configuration reaches the pose when ‖[p* − p; log(R* Rᵀ)]‖ (m and rad together) is below this."""

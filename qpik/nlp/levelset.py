@@ -49,9 +49,9 @@ from pathlib import Path
 import numpy as np
 
 from qpik.analytic.intervals import FeasibleIntervals, NativeSets, wrap
-from qpik.build import call_header, python_library
-from qpik.compiled import Kernel, NativeFunction
 from qpik.geometry.distance import ObstacleSet
+from qpik.native.build import call_header, python_library
+from qpik.native.compiled import Kernel, NativeFunction
 from qpik.nlp.run import BestRun, Points, least_per_row
 from qpik.nlp.search import END
 from qpik.nlp.selfmotion import SelfMotion

@@ -3,7 +3,7 @@ r"""What one :func:`qpik.solve_best` call evaluates: poses, objective, obstacles
 A :class:`BestRun` evaluates, for rows (pose i, branch row b, parameter ψ), everything the
 search and the certificate need, from two compiled functions: the self-motion
 (:class:`~qpik.nlp.selfmotion.SelfMotion`: q, dq/dψ) and the objective
-(:class:`~qpik.objectives.Evaluator`: f, ∇f, the capsule–obstacle distances):
+(:class:`~qpik.scene.evaluator.Evaluator`: f, ∇f, the capsule–obstacle distances):
 
 - the objective :math:`f(\psi) = f(q_b(\psi))` and :math:`f'(\psi) = \nabla f \cdot dq_b/d\psi`;
 - the clearance constraint :math:`c(\psi) = \min_{k,o} d_{k,o}(q_b(\psi)) - d_s` (+∞ without
@@ -18,11 +18,12 @@ from functools import cached_property
 
 import numpy as np
 
-from qpik.build import concurrently
+from qpik.core.stopwatch import Stopwatch
+from qpik.native.build import concurrently
 from qpik.nlp.selfmotion import SelfMotion, columns
-from qpik.objectives import BoundFunction, Evaluator, bound_function
+from qpik.scene.bounds import BoundFunction, bound_function
+from qpik.scene.evaluator import Evaluator
 from qpik.scene.scene import Scene
-from qpik.stopwatch import Stopwatch
 
 
 @dataclass
@@ -148,7 +149,7 @@ class BestRun:
 
     def values(self, pose: np.ndarray, row: np.ndarray, psi: np.ndarray) -> Points:
         """:meth:`evaluate` without the derivatives (``dq``, ``df`` and ``dc`` are NaN): less work per
-        row (:meth:`~qpik.nlp.selfmotion.SelfMotion.values`, :meth:`~qpik.objectives.Evaluator.value_rows`), for
+        row (:meth:`~qpik.nlp.selfmotion.SelfMotion.values`, :meth:`~qpik.scene.evaluator.Evaluator.value_rows`), for
         the samples of the search; f, c and d are the same numbers as :meth:`evaluate`'s (the same expressions)."""
         pose, row, psi = np.asarray(pose, int), np.asarray(row, int), np.asarray(psi, float)
         if not len(psi):
@@ -162,7 +163,7 @@ class BestRun:
         return Points(pose, row, psi, q, np.full(q.shape, np.nan), valid, f, nan, c, nan, d)
 
     def bound_rows(self, bounds: BoundFunction, *q_model: np.ndarray) -> list[np.ndarray]:
-        """The Taylor models of the values of ``bounds`` (:class:`~qpik.objectives.BoundFunction`) for rows of
+        """The Taylor models of the values of ``bounds`` (:class:`~qpik.scene.bounds.BoundFunction`) for rows of
         q's models ``centre, slope, radius, lo, hi`` (M, n each) and their poses (M,): ``[centre, slope,
         radius, lo, hi]``, each (M, L)."""
         c, s, r, lo, hi, pose = q_model

@@ -1,7 +1,7 @@
 r"""The self-motion of a closed-form arm for one pose: q(δ/ψ), dq/dδ and Taylor models of q over ranges.
 
 For each branch b of :meth:`~qpik.analytic.solver.AnalyticSolver.casadi_function`, two
-row functions (:class:`~qpik.compiled.RowMap`, one row = a pose and a parameter or a range):
+row functions (:class:`~qpik.native.compiled.RowMap`, one row = a pose and a parameter or a range):
 
 - :meth:`SelfMotion.points`: ``q_b(T, ψ)`` (n,), its exact derivative ``dq_b/dψ`` (CasADi)
   and whether the branch reaches the pose (:meth:`SelfMotion.point_function`); the branch is
@@ -10,7 +10,7 @@ row functions (:class:`~qpik.compiled.RowMap`, one row = a pose and a parameter 
 - :meth:`SelfMotion.models`: for a range [lo, hi] of ψ, the Taylor model of ``q_b(T, ψ)`` in
   :math:`t = (\psi - \psi_{mid})/h` (h the half width): centre, slope, radius and bounds (n each) such
   that every q over the range lies within them (:meth:`SelfMotion.taylor_function`,
-  :func:`qpik.enclosure.taylor_function` of the same closed form); a switch over the branches too.
+  :func:`qpik.algebra.enclosure.taylor_function` of the same closed form); a switch over the branches too.
 
 Offset-shoulder arms have 16 branches, but branch k + 8 at δ is branch k at δ + π
 (Nammoto & Kosuge 2012, eq. 7: θ1[2] = θ1[1] + π with the rest following), so only the
@@ -25,16 +25,16 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
+from qpik.algebra.enclosure import taylor_function
 from qpik.analytic import closed_form_for
-from qpik.build import concurrently
-from qpik.compiled import Compiled, RowMap
-from qpik.enclosure import taylor_function
+from qpik.native.build import concurrently
+from qpik.native.compiled import Compiled, RowMap
 from qpik.robots.robot import Robot
 
 MIRRORED = {"offset_shoulder": 8}
 """Closed-form families whose branches k + half at a parameter are branch k at the parameter + π: half."""
 CHUNKS = (128, 8)
-"""Rows per call of the compiled self-motion functions (:class:`~qpik.compiled.RowMap`)."""
+"""Rows per call of the compiled self-motion functions (:class:`~qpik.native.compiled.RowMap`)."""
 MODEL_CHUNKS = (16, 16)
 """The same for the Taylor models: one size, since they take seconds to compile."""
 
@@ -78,7 +78,7 @@ class SelfMotion:
 
     def taylor_function(self, b: int) -> ca.Function:
         """Branch row b: the Taylor model of q over a range of ψ, ``(T, ψ centre, ψ slope, 0, lo, hi) ->
-        (centre, slope, radius, lo, hi)`` of q (n each) (:func:`qpik.enclosure.taylor_function`)."""
+        (centre, slope, radius, lo, hi)`` of q (n each) (:func:`qpik.algebra.enclosure.taylor_function`)."""
         T, psi, Q, _ = self._symbols
         fn = ca.Function(f"selfmotion_q_{self.solver.kind}_{b}", [T, psi], [ca.densify(Q[b, :].T)])
         return taylor_function(fn, [1], name=f"selfmotion_taylor_{self.solver.kind}_{b}")
@@ -106,7 +106,7 @@ class SelfMotion:
 
     def builds(self, models: bool = True) -> list[Callable[[], None]]:
         """The compiles of what :meth:`points` and :meth:`values` (and with ``models`` :meth:`models`, last) call,
-        at every call size, to run now (:func:`qpik.build.concurrently`): later calls only evaluate."""
+        at every call size, to run now (:func:`qpik.native.build.concurrently`): later calls only evaluate."""
         return [m.build for m in (self._point_map, self._value_map, *([self._model_map] if models else []))]
 
     def build(self, models: bool = True, point_call: bool = False) -> None:

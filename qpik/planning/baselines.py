@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from qpik.analytic import ik
-from qpik.errors import InputError
+from qpik.core.errors import InputError
 from qpik.planning.plan import Plan, measure
 from qpik.planning.planner import Setup, track
 

@@ -31,7 +31,7 @@ from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import Any
 
-from qpik.errors import InputError
+from qpik.core.errors import InputError
 
 CONNECT = "10s"
 """How long to wait for a Dask scheduler."""

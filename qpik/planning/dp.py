@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from qpik.build import shared_library
+from qpik.native.build import shared_library
 from qpik.planning.grid import Grid, Layers
 
 CHUNK = 32
@@ -376,7 +376,7 @@ def _failure(grid: Grid, layers: _Layers, step: _Step, k: int, V: np.ndarray) ->
 
 @cache
 def _library() -> ctypes.CDLL | None:
-    """``dp.c`` compiled (cached on disk by :func:`qpik.build.shared_library`), or None without a compiler."""
+    """``dp.c`` compiled (cached on disk by :func:`qpik.native.build.shared_library`), or None without a compiler."""
     lib = shared_library("qpik_dp", Path(__file__).with_name("dp.c").read_bytes())
     if lib is None:
         return None

@@ -20,7 +20,7 @@ Per feasible state the compiled row function (one row = a waypoint and a paramet
 branch at once) gives q (n,), the point objective f(q) (:mod:`qpik.objectives`) and the smallest
 capsule–obstacle distance (m). With a C compiler one loop in C (``grid.c``) calls its generated C for
 the rows where some branch is inside its feasible set and writes the states in place; without one,
-:class:`qpik.compiled.RowMap` evaluates every row and numpy sorts them.
+:class:`qpik.native.compiled.RowMap` evaluates every row and numpy sorts them.
 """
 
 from __future__ import annotations
@@ -34,20 +34,20 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from qpik import symbolic as sy
+from qpik.algebra import symbolic as sy
 from qpik.analytic import closed_form_for, feasible_intervals
 from qpik.analytic.intervals import FeasibleIntervals, wrap
-from qpik.build import shared_library
-from qpik.compiled import Compiled, NativeFunction, RowMap
-from qpik.contacts import capsule_pairs
-from qpik.errors import SolverError
+from qpik.core.errors import SolverError
+from qpik.geometry.contacts import capsule_pairs
 from qpik.geometry.distance import ObstacleSet
+from qpik.native.build import shared_library
+from qpik.native.compiled import Compiled, NativeFunction, RowMap
 from qpik.nlp.selfmotion import MIRRORED
 from qpik.objectives import Context, Objective
 from qpik.robots.robot import Robot
 
 UNCHECKED = 1e6
-"""m added to the distance of a pair :mod:`qpik.contacts` leaves out (no motion changes it)."""
+"""m added to the distance of a pair :mod:`qpik.geometry.contacts` leaves out (no motion changes it)."""
 ROW_CHUNKS = (64, 16)
 """Rows (waypoint, parameter value) per call of the compiled state function."""
 
@@ -179,7 +179,7 @@ class Grid:
         prm = ca.SX.sym("obstacles", self.obstacle_input.size)  # the obstacles' parameters, then the pair mask
         Q, valid, _ = self.solver.casadi_function(T, psi)
         contexts = [Context(robot, Q[b, :].T, q_ref, self.obstacles, prm[:size]) for b in range(self.rows)]
-        unchecked = (1.0 - prm[size:]) * UNCHECKED  # a pair qpik.contacts leaves out counts as far away
+        unchecked = (1.0 - prm[size:]) * UNCHECKED  # a pair qpik.geometry.contacts leaves out counts as far away
         root, _ = self.clearance_sources
         out = []
         for b, ctx in enumerate(contexts):
@@ -195,7 +195,7 @@ class Grid:
     @cached_property
     def obstacle_input(self) -> np.ndarray:
         """The function's obstacle input: the obstacles' parameters, then per pair of :attr:`Context.distances`
-        (capsules a joint moves × obstacles) 1.0 if :mod:`qpik.contacts` checks it, else 0.0."""
+        (capsules a joint moves × obstacles) 1.0 if :mod:`qpik.geometry.contacts` checks it, else 0.0."""
         mask = capsule_pairs(self.robot, self.obstacles)[~self.robot.fixed_capsules].ravel()
         return np.concatenate([self.obstacles.params, mask.astype(float)])
 
@@ -339,7 +339,7 @@ class _NativeLayers:
 
 @cache
 def _library() -> ctypes.CDLL | None:
-    """``grid.c`` compiled (cached on disk by :func:`qpik.build.shared_library`), or None without a compiler."""
+    """``grid.c`` compiled (cached on disk by :func:`qpik.native.build.shared_library`), or None without a compiler."""
     lib = shared_library("qpik_plan_layers", Path(__file__).with_name("grid.c").read_bytes())
     if lib is None:
         return None

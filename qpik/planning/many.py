@@ -15,14 +15,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from qpik.errors import InputError, QpikError
+from qpik.core.errors import InputError, QpikError
+from qpik.core.validate import finite_array, flag, number
 from qpik.geometry.distance import ObstacleSet
 from qpik.planning.batch import JobFailure, run_batch
 from qpik.planning.plan import Plan
 from qpik.planning.planner import WAYPOINTS, plan_self_motion
 from qpik.robots.bundle import RobotBundle
 from qpik.robots.robot import Robot, as_robot
-from qpik.validate import finite_array, flag, number
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -83,7 +83,7 @@ def plan_many(
     Args:
         robot: the arm (a catalog arm, a loaded model: its files are read here and sent to the workers, or a chain).
         paths: waypoints (N, 4, 4) each (end-effector poses, base frame, m), or timed paths
-            (:class:`qpik.paths.TimedPath`, sampled here at ``times`` or at ``waypoints`` even times).
+            (:class:`qpik.geometry.paths.TimedPath`, sampled here at ``times`` or at ``waypoints`` even times).
         objective, obstacles: as :func:`qpik.plan_self_motion`'s, the same for every path.
         client: None (this machine), a ``distributed.Client``, or a Dask scheduler's address (``"tcp://host:8786"``).
         workers: without a client, local processes (default: one per CPU; 1: in this process).

@@ -12,7 +12,7 @@ were found:
   :data:`CLEARANCE_TOL`;
 - every continuous transition moves each joint by at most its bound.
 
-Both clearances are over the pairs :mod:`qpik.contacts` checks: a pair whose distance no joint motion
+Both clearances are over the pairs :mod:`qpik.geometry.contacts` checks: a pair whose distance no joint motion
 changes (a base column standing on its table) is left out and reported in :attr:`Plan.facts`.
 A plan whose check fails is ``"failed"`` (kind ``"check"``), whatever made it (:func:`measure`).
 """
@@ -28,12 +28,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from qpik.contacts import capsule_clearance, capsule_facts
-from qpik.errors import InputError
+from qpik.core.errors import InputError
+from qpik.core.validate import count, finite_array
+from qpik.geometry.contacts import capsule_clearance, capsule_facts
 from qpik.geometry.distance import ObstacleSet
 from qpik.robots.robot import Robot
 from qpik.sim.log import tracking_errors
-from qpik.validate import count, finite_array
 
 if TYPE_CHECKING:
     from qpik.planning.planner import Setup
@@ -114,7 +114,7 @@ class Plan:
             ``"grid"`` (every waypoint has feasible configurations but the DP's grid, refined, found no
             continuous transition: a motion may still exist), ``"check"`` (the computed plan fails one of its
             own :attr:`checks`) or "" (not failed).
-        facts: the capsule–obstacle pairs left out of the checks (:mod:`qpik.contacts`), in words.
+        facts: the capsule–obstacle pairs left out of the checks (:mod:`qpik.geometry.contacts`), in words.
         least_violating: at that waypoint, the best the arm can do (a :class:`qpik.BestResult`'s summary), or "".
         reconfigurations: the waypoints k whose transition to k + 1 is a reconfiguration.
         cost: the objective J of the plan (of its planned waypoints), minimised (the joint motion plus the weighted
@@ -127,7 +127,7 @@ class Plan:
         step_bound: (N-1, n) the largest move of each joint allowed between waypoints, rad.
         d_safe: m. checks: the :class:`Check` list. profile: the DP's :class:`Profile` (closed form only).
         timings: seconds per stage (``"dp"``, ``"nlp"``, ``"tracking"``), each without building and compiling its
-            functions (:class:`qpik.stopwatch.Stopwatch`).
+            functions (:class:`qpik.core.stopwatch.Stopwatch`).
         label: what made it (``"NLP"``, ``"DP"``, a baseline's name).
         dp_plan: the DP's own plan, when the NLP replaced it. setup: the checked inputs (waypoints, weights,
             bounds) the plan was made for.
@@ -303,7 +303,7 @@ def measure(plan: Plan, mujoco: bool = True) -> None:
     plan.manipulability = np.asarray(robot.manipulability(q), float)
     obs = plan.obstacles
     if len(obs):
-        plan.clearance = capsule_clearance(robot, q, obs)  # the pairs qpik.contacts checks
+        plan.clearance = capsule_clearance(robot, q, obs)  # the pairs qpik.geometry.contacts checks
         plan.clearance_mujoco = _mujoco_clearance(robot, obs, q) if mujoco else np.zeros(0)
     else:
         plan.clearance = plan.clearance_mujoco = np.full(K, np.inf)
@@ -354,7 +354,7 @@ def _mujoco_clearance(robot: Robot, obstacles: ObstacleSet, q: np.ndarray) -> np
     from qpik.sim import build_scene
 
     scene = build_scene(robot, obstacles.shapes)
-    checked = scene.checked  # the pairs qpik.contacts checks
+    checked = scene.checked  # the pairs qpik.geometry.contacts checks
     out = np.empty((len(scene.link_geoms), len(scene.obstacle_geoms)))
     res = np.empty(len(q))
     for k, qk in enumerate(q):

@@ -35,18 +35,19 @@ from collections.abc import Sequence
 import numpy as np
 
 from qpik.analytic import feasible_intervals
-from qpik.errors import InputError, UnreachableError
-from qpik.objectives import Evaluator, Objective, ReferenceDistance
-from qpik.paths import TimedPath, WaypointPath
+from qpik.core.errors import InputError, UnreachableError
+from qpik.core.stopwatch import Stopwatch
+from qpik.core.validate import finite_array, flag, number
+from qpik.core.validate import pose as check_pose
+from qpik.geometry.paths import TimedPath, WaypointPath
+from qpik.objectives import Objective, ReferenceDistance
 from qpik.planning import dp
 from qpik.planning.grid import Grid
 from qpik.planning.plan import Plan, Profile, measure
 from qpik.planning.refine import PathNLP
 from qpik.robots.robot import Robot
+from qpik.scene.evaluator import Evaluator
 from qpik.scene.scene import Scene, scene_of
-from qpik.stopwatch import Stopwatch
-from qpik.validate import finite_array, flag, number
-from qpik.validate import pose as check_pose
 
 RECONFIGURE = ("forbid", "fewest")
 WAYPOINTS = 101
@@ -174,7 +175,7 @@ def plan_self_motion(
         robot: the arm, or a :class:`~qpik.scene.Scene` of it (then ``objective``, ``obstacles``, ``d_safe`` and
             ``q_ref`` are the scene's).
         path: waypoints (N, 4, 4) (end-effector poses, base frame) or a timed path
-            (:class:`qpik.paths.TimedPath`, sampled at ``times`` or at ``waypoints`` even times).
+            (:class:`qpik.geometry.paths.TimedPath`, sampled at ``times`` or at ``waypoints`` even times).
         objective: the point objective (:mod:`qpik.objectives`: an Objective or a name), integrated along
             the path; None: joint motion only.
         obstacles: shapes (world frame): every link capsule stays ≥ ``d_safe`` from each.
@@ -349,7 +350,7 @@ def track(setup: Setup, q0: np.ndarray, watch: Stopwatch | None = None):
     waypoint (N, n) and the :class:`~qpik.sim.SimLog`. ``watch``: paused while the controller and the MuJoCo
     model are built, so that it times the run.
 
-    The path is :class:`qpik.paths.WaypointPath` through the waypoints at their ``times`` (without times:
+    The path is :class:`qpik.geometry.paths.WaypointPath` through the waypoints at their ``times`` (without times:
     at the speeds of :data:`TRACK_SPEED`), the controller :meth:`qpik.Controller.for_robot` with the
     obstacles and ``d_safe``, its posture reference ``q0``, at :data:`TRACK_DT`.
     """

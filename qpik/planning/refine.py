@@ -21,7 +21,7 @@ inside its limits there, the branch reaches the pose), so the bounds on ψ_k kee
 
 Arms without a closed form: the variables are the joints :math:`q_k` themselves (bounded by the
 limits), with the pose as an equality at every waypoint, :math:`[p_k^* - p(q_k);\ \log(R_k^* R(q_k)^T)] = 0`
-(:func:`qpik.lie.log_expr`), the same objective and constraints.
+(:func:`qpik.algebra.lie.log_expr`), the same objective and constraints.
 
 Sparse by construction: the per-waypoint closed form (or pose error), objective and distances are
 one CasADi ``Function`` mapped over the waypoints of each run of one branch row (``Function.map``),
@@ -58,16 +58,16 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from qpik.algebra.lie import log_expr
 from qpik.analytic.intervals import wrap
-from qpik.build import native
-from qpik.contacts import capsule_clearance, capsule_pairs
+from qpik.core.stopwatch import Stopwatch
+from qpik.geometry.contacts import capsule_clearance, capsule_pairs
 from qpik.geometry.distance import ObstacleSet
-from qpik.lie import log_expr
+from qpik.native.build import native
 from qpik.objectives import Context, Objective, pair_count
 from qpik.planning.dp import Transitions
 from qpik.planning.grid import Grid
 from qpik.robots.robot import Robot
-from qpik.stopwatch import Stopwatch
 
 OPTIONS = {
     "ipopt.print_level": 0,
@@ -86,7 +86,7 @@ at the start."""
 ROUNDS = 3
 """Solves of the NLP at most, each with the waypoints that came near an obstacle in the one before."""
 NATIVE_WAYPOINTS = 200
-"""Waypoints from which the per-waypoint curvature function runs as machine code (:func:`qpik.build.native`,
+"""Waypoints from which the per-waypoint curvature function runs as machine code (:func:`qpik.native.build.native`,
 compiled once per arm, branch row and objective, cached on disk); shorter paths use CasADi's virtual machine."""
 INSIDE = 1e-8
 """rad and m: the NLP keeps ψ this far inside its feasible interval (whose ends are exact to 1e-9 rad) and the
@@ -436,7 +436,7 @@ class PathNLP:
         n_d = pair_count(self.robot, self.obstacles)
         n_eq = 0 if self.grid is not None else 6
         g_parts, lbg, ubg = [ca.vec(E)], [np.full(E.numel(), -np.inf)], [np.zeros(E.numel())]
-        # the pairs qpik.contacts leaves out (a base column on its table) constrain nothing
+        # the pairs qpik.geometry.contacts leaves out (a base column on its table) constrain nothing
         floor = np.where(capsule_pairs(self.robot, self.obstacles)[~self.robot.fixed_capsules].ravel(),
                          self.d_safe + INSIDE, -np.inf)  # fmt: skip
         for a, b, g in others:

@@ -11,7 +11,7 @@ r"""Pictures of the closed form: every function returns a matplotlib ``Figure`` 
 - :func:`stick_overlay` — configurations overlaid in 3-D and projected on the
   x-y plane (Nammoto & Kosuge 2012, Figs. 12/13).
 - :func:`branch_pictures` — the branch poses as a PNG, rendered by
-  :mod:`qpik.render` when OpenGL is available, else by :func:`stick_grid`.
+  :mod:`qpik.render.pictures` when OpenGL is available, else by :func:`stick_grid`.
 
 Stick figures join the origins of the DH frames ``[base, frame_1..frame_n, ee]``
 (``Robot.frames``); lengths in metres, world (base) frame.
@@ -374,8 +374,8 @@ def branch_pictures(
 
     Branches that put every link at the same place (such as a wrist flip θ5 + π, −θ6, θ7 + π) share a picture,
     titled with their ids (and those outside the joint limits); the caption says how their joint angles differ
-    (:func:`flip_lines`). Drawn by :func:`qpik.render.render_configurations` (MuJoCo, needs OpenGL), else as stick
-    figures (:func:`stick_points`). Returns ``"render"``, ``"sticks"`` (what was used) or ``"none"`` (no branch
+    (:func:`flip_lines`). Drawn by :func:`qpik.render.pictures.render_configurations` (MuJoCo, needs OpenGL), else
+    as stick figures (:func:`stick_points`). Returns ``"render"``, ``"sticks"`` (what was used) or ``"none"`` (no branch
     reaches the pose: the PNG says so).
     """
     keep = sols.valid if only_valid else np.ones(len(sols), bool)
@@ -395,7 +395,7 @@ def branch_pictures(
         out = [str(ids[k]) for k in g if not inside[k]]
         titles.append(("branches " if len(g) > 1 else "branch ") + ", ".join(str(ids[k]) for k in g)
                       + (f"\n({', '.join(out)} outside the joint limits)" if out else ""))  # fmt: skip
-    from qpik.render import RenderUnavailable, render_configurations
+    from qpik.render.pictures import RenderUnavailable, render_configurations
 
     size = (480, 400)
     try:

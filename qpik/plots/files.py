@@ -7,14 +7,14 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
-from qpik.errors import InputError
+from qpik.core.errors import InputError
 
 
 def save(fig: Figure, path: str | os.PathLike, dpi: int = 110) -> Path:
     """Write ``fig`` at ``path`` (parent folders are made) and return the path.
 
     The format is the file name's: ``.png`` (or another format matplotlib writes, e.g.
-    ``.pdf``, ``.svg``); any other suffix raises :class:`~qpik.errors.InputError`. The
+    ``.pdf``, ``.svg``); any other suffix raises :class:`~qpik.core.errors.InputError`. The
     figure is drawn on its own canvas: no pyplot state and no display are used, and the
     caller's matplotlib backend is left as it is.
     """

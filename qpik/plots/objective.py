@@ -14,7 +14,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from qpik.analytic.api import feasible_intervals, ik
-from qpik.errors import InputError
+from qpik.core.errors import InputError
 from qpik.nlp.best import BestResult, solve_best
 from qpik.plots.closed_form import PI, branch_colors, feasible_panel, symbol
 from qpik.scene import Scene

@@ -25,10 +25,10 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
 from qpik.analytic.intervals import wrap
-from qpik.errors import InputError
+from qpik.core.errors import InputError
 from qpik.planning.plan import Plan
 from qpik.plots.closed_form import legend_entries, symbol
-from qpik.render import RenderUnavailable, render_configurations
+from qpik.render.pictures import RenderUnavailable, render_configurations
 
 SHADE = ListedColormap([(0.78, 0.78, 0.78, 1.0), (1.0, 1.0, 1.0, 0.0)])
 """Infeasible states grey, feasible ones clear."""

@@ -1,7 +1,7 @@
 """Pictures of closed-loop runs: multi-panel PNGs of a :class:`SimLog`, overlays of several, snapshot strips.
 
 Figures are drawn on :class:`matplotlib.figure.Figure` objects (no pyplot state,
-no display needed). Snapshots go through :mod:`qpik.render`.
+no display needed). Snapshots go through :mod:`qpik.render.pictures`.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from qpik.plots.files import save
-from qpik.render import Camera, RenderUnavailable, render_configurations
+from qpik.render.pictures import Camera, RenderUnavailable, render_configurations
 from qpik.robots.robot import Robot
 from qpik.sim.log import SimLog
 
@@ -73,7 +73,7 @@ def render_strip(
     :math:`\sum \lVert q_{k+1} - q_k \rVert`), so a motion that settles early is
     not drawn as a row of identical pictures; in up to 3 columns.
     Returns the path, or ``None`` when no OpenGL context can be made
-    (:func:`qpik.render.unavailable_reason` says why).
+    (:func:`qpik.render.pictures.unavailable_reason` says why).
     """
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(log.q, axis=0), axis=1))])
     if arc[-1] > 0:

@@ -1,6 +1,6 @@
 """Problem files (``problems/*.toml``): loading, named paths, and the runners of ``qpik run``."""
 
-from qpik.paths import TargetPath
+from qpik.geometry.paths import TargetPath
 from qpik.problems.paths import PATHS, path_formula
 from qpik.problems.runners import RUNNERS, get_runner, run_problem, runner
 from qpik.problems.schema import (

@@ -37,7 +37,7 @@ from qpik.analytic import feasible_intervals, redundancy_parameter
 from qpik.analytic.intervals import wrap
 from qpik.control.clik import PseudoInverseCLIK, VelocityOnly
 from qpik.control.controller import Controller
-from qpik.errors import ProblemFileError, UnreachableError
+from qpik.core.errors import ProblemFileError, UnreachableError
 from qpik.geometry import distances
 from qpik.nlp import BestResult, solve_best
 from qpik.objectives import Clearance, JointLimitMargin, Objective

@@ -31,7 +31,7 @@ import numpy as np
 
 from qpik.analytic.api import IKSolutions, ik, redundancy_parameter, symbol
 from qpik.analytic.intervals import wrap
-from qpik.errors import ProblemFileError
+from qpik.core.errors import ProblemFileError
 from qpik.problems.runners import runner
 from qpik.robots.robot import Robot
 

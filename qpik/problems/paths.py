@@ -1,6 +1,6 @@
 r"""Named end-effector paths for ``[target] path = "..."`` in problem files.
 
-A path is a time-parametrised target (:class:`qpik.paths.TargetPath`): ``pose(t)`` (4, 4) and the
+A path is a time-parametrised target (:class:`qpik.geometry.paths.TargetPath`): ``pose(t)`` (4, 4) and the
 feed-forward ``twist(t)`` ``[v; ω]`` (6,), both in the base frame,
 for ``0 <= t <= duration`` (s). Both accept a scalar ``t`` or an array ``t``
 (K,), which gives (K, 4, 4) and (K, 6).
@@ -33,10 +33,10 @@ from typing import Any
 
 import numpy as np
 
-from qpik.errors import InputError
-from qpik.paths import TargetPath
+from qpik.core.errors import InputError
+from qpik.core.validate import finite_array
+from qpik.geometry.paths import TargetPath
 from qpik.robots.robot import Robot
-from qpik.validate import finite_array
 
 PathBuilder = Callable[[Robot, dict[str, Any]], TargetPath]
 PATHS: dict[str, PathBuilder] = {}

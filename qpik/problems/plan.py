@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from qpik.errors import InputError, ProblemFileError
+from qpik.core.errors import InputError, ProblemFileError
 from qpik.geometry.shapes import Shape
 from qpik.objectives import resolve
 from qpik.planning import Plan, plan_self_motion
@@ -242,7 +242,7 @@ def _report(job: PlanJob, robot: Robot, out: Path) -> tuple[str, Plan, bool]:
     else:
         checks.append((f"path planned: failed at waypoint {plan.failure_waypoint}", False))
     lines += [f"- {'PASS' if ok else 'FAIL'}: {text}" for text, ok in checks]
-    lines += [f"- fact: {fact}" for fact in plan.facts]  # pairs no motion changes (qpik.contacts)
+    lines += [f"- fact: {fact}" for fact in plan.facts]  # pairs no motion changes (qpik.geometry.contacts)
     verdict = all(ok for _, ok in checks)
     lines += ["", f"Overall: {'PASS' if verdict else 'FAIL'}", ""]
     files = []

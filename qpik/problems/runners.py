@@ -20,7 +20,7 @@ import importlib
 from collections.abc import Callable
 from pathlib import Path
 
-from qpik.errors import QpikError
+from qpik.core.errors import QpikError
 from qpik.problems.schema import Problem
 
 Runner = Callable[[Problem, Path], str]

@@ -65,7 +65,7 @@ one (a typo such as ``d_saef`` is never ignored), and :attr:`Problem.solver` hol
 key of the kind (the file's value or the default).
 
 All positions and obstacle data are in the robot's base frame, metres. Errors
-raise :class:`qpik.errors.ProblemFileError` naming the file and the field.
+raise :class:`qpik.core.errors.ProblemFileError` naming the file and the field.
 """
 
 from __future__ import annotations
@@ -80,15 +80,15 @@ from typing import Any, Literal
 
 import numpy as np
 
-from qpik.errors import InputError, ProblemFileError, UnknownRobotError
+from qpik.core.errors import InputError, ProblemFileError, UnknownRobotError
+from qpik.core.validate import finite_array
+from qpik.core.validate import pose as check_pose
+from qpik.geometry.paths import TargetPath
 from qpik.geometry.shapes import Shape, shape_from_spec
 from qpik.objectives import NAMES as OBJECTIVE_NAMES
-from qpik.paths import TargetPath
 from qpik.problems.paths import PATHS
 from qpik.robots.loader import load_robot
 from qpik.robots.robot import Robot
-from qpik.validate import finite_array
-from qpik.validate import pose as check_pose
 
 Kind = Literal["ik", "track", "reach", "plan"]
 KINDS: tuple[str, ...] = ("ik", "track", "reach", "plan")
@@ -195,7 +195,7 @@ class Problem:
         poses: target poses (N, 4, 4), base frame, or ``None`` for a path target.
         q_targets: (N, 7) configurations the poses were made from (target forms
             ``q`` and ``random``), else ``None``.
-        path: the :class:`~qpik.paths.TargetPath` of form ``path``, else ``None``.
+        path: the :class:`~qpik.geometry.paths.TargetPath` of form ``path``, else ``None``.
         params: redundancy parameter values (M,) in rad, or ``None``.
         obstacles: the obstacle shapes (:mod:`qpik.geometry`, world frame), built by
             :func:`qpik.geometry.shape_from_spec`; an obstacle without a ``name`` is

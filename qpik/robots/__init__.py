@@ -2,7 +2,7 @@
 
 from typing import TYPE_CHECKING
 
-from qpik.lazy import exports
+from qpik.core.lazy import exports
 
 if TYPE_CHECKING:
     from qpik.robots.catalog import CATALOG

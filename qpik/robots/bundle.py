@@ -9,7 +9,7 @@ folder of the worker's own (never its working folder), which lives as long as th
 deleted when it ends. The robot is kept per process, keyed by the bundle's content hash (:attr:`RobotBundle.key`):
 every task of one worker on the same arm uses the same Robot object, so the robot's CasADi functions, compiled
 code and closed-form solver (cached per Robot object) are built once per worker process, not once per task; the
-native libraries themselves are cached on disk per machine (:func:`qpik.compiled.cache_dir`).
+native libraries themselves are cached on disk per machine (:func:`qpik.native.compiled.cache_dir`).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import tempfile
 import threading
 from pathlib import Path
 
-from qpik.errors import InputError
+from qpik.core.errors import InputError
 from qpik.robots.catalog import CATALOG, catalog_robot
 from qpik.robots.loader import ModelSource
 from qpik.robots.model_files import PACKAGE, resolve_mesh

@@ -15,7 +15,7 @@ volume :math:`\pi R^2 |b - a| + \tfrac43 \pi R^3` is minimised:
 
 This is a multi-start local search, not a proof of global optimality: on nearly round
 point clouds, where many axes give almost the same volume, it can end within about 1 % of
-the best capsule found by sampling axes (``tests/test_capsule_fit.py``).
+the best capsule found by sampling axes (``tests/robots/test_capsule_fit.py``).
 
 Used by :mod:`qpik.robots.loader` to give each link of a loaded model the capsule of its
 collision geometry; the result is checked to contain every ball in the tests.

@@ -11,7 +11,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from qpik.errors import UnknownRobotError
+from qpik.core.errors import UnknownRobotError
 from qpik.robots.dh import DHChain
 from qpik.robots.robot import Robot, default_capsules
 

@@ -10,9 +10,9 @@ motion :math:`M_k = R_z` (revolute, rad) or :math:`T_z` (prismatic, m). A DH tab
 to fill these in (:class:`qpik.robots.dh.DHChain`); a MuJoCo model is another
 (:mod:`qpik.robots.loader`, where :math:`S_k = I` and link frame *k* is the joint frame).
 
-The expressions are written once in :mod:`qpik.symbolic` and evaluated three ways: numpy
+The expressions are written once in :mod:`qpik.algebra.symbolic` and evaluated three ways: numpy
 over a batch, CasADi symbols, and a compiled CasADi function for one configuration (the
-fast path, :mod:`qpik.compiled`). Constant 0 and ±1 entries fold away while tracing, so
+fast path, :mod:`qpik.native.compiled`). Constant 0 and ±1 entries fold away while tracing, so
 an identity ``pre`` or ``post`` costs nothing.
 
 A joint may be coupled (a URDF mimic joint): :math:`q_k = m\,q_i` for an independent joint *i*
@@ -36,17 +36,17 @@ from typing import Literal
 import casadi as ca
 import numpy as np
 
-from qpik import symbolic as sy
-from qpik.compiled import Compiled
-from qpik.errors import InputError
+from qpik.algebra import symbolic as sy
+from qpik.algebra.symbolic import Frame, Ops, Scalar
+from qpik.core.errors import InputError
+from qpik.core.validate import flag, joint_vector, number, single_pose
+from qpik.native.compiled import Compiled
 from qpik.robots.manipulability import (
     hessian_rows,
     jacobian_rows,
     manipulability_gradient_expr,
     manipulability_gradient_from,
 )
-from qpik.symbolic import Frame, Ops, Scalar
-from qpik.validate import flag, joint_vector, number, single_pose
 
 JointKind = Literal["revolute", "prismatic"]
 ZERO_VEC = (0.0, 0.0, 0.0)
@@ -93,7 +93,7 @@ class Joint:
             object.__setattr__(self, "mimic", (int(i), number(m, "Joint.mimic multiplier", minimum=None)))
 
     def motion(self, q: Scalar, ops: Ops) -> Frame:
-        """:math:`M(q + o)` as a :mod:`qpik.symbolic` frame."""
+        """:math:`M(q + o)` as a :mod:`qpik.algebra.symbolic` frame."""
         x = sy.add(q, self.offset)
         if self.kind == "prismatic":
             return sy.frame_of(np.eye(4))[0], (0.0, 0.0, x)
@@ -200,7 +200,7 @@ class SerialChain:
     # ---- the one definition -------------------------------------------------
 
     def frames_expr(self, q: list[Scalar], ops: Ops) -> list[Frame]:
-        """Frames 0..n and the end-effector, as :mod:`qpik.symbolic` frames.
+        """Frames 0..n and the end-effector, as :mod:`qpik.algebra.symbolic` frames.
 
         Returns ``len(joints) + 2`` frames: ``[base, frame_1, ..., frame_n, ee]`` (n + 2 without mimic joints);
         ``q`` has :attr:`dof` entries.
@@ -328,7 +328,7 @@ class SerialChain:
 
     @cached_property
     def _fresh(self) -> dict:
-        """``name -> fresh(q)`` of the compiled extension (:meth:`qpik.fastcall.Kernel.fresh`: q checked in C,
+        """``name -> fresh(q)`` of the compiled extension (:meth:`qpik.native.fastcall.Kernel.fresh`: q checked in C,
         new row-major outputs; None for any q it does not take), or ``name -> None`` without the extension."""
         return _LazyFresh(self._compiled)
 

@@ -15,7 +15,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from qpik.errors import InputError
+from qpik.core.errors import InputError
 
 SUFFIXES = (".dae",)
 """Mesh file suffixes (any case) converted by :func:`as_stl`."""
@@ -34,7 +34,7 @@ def as_stl(path: Path) -> Path:
     Raises:
         InputError: the file cannot be read as COLLADA or holds no triangles, or the cache cannot be written.
     """
-    from qpik.build import cache_dir
+    from qpik.native.build import cache_dir
 
     data = path.read_bytes()
     key = hashlib.sha256(VERSION + data).hexdigest()[:40]

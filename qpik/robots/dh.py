@@ -21,10 +21,10 @@ from typing import Literal
 
 import numpy as np
 
-from qpik import symbolic as sy
-from qpik.errors import InputError
+from qpik.algebra import symbolic as sy
+from qpik.core.errors import InputError
+from qpik.core.validate import bounded, finite_array
 from qpik.robots.chain import Joint, SerialChain
-from qpik.validate import bounded, finite_array
 
 Convention = Literal["standard", "modified"]
 

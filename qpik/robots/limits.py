@@ -1,6 +1,6 @@
 """The arm joints' position and velocity limits from a model file, checked, never silently rewritten.
 
-A limit the file gives is used as given, or refused with an :class:`~qpik.errors.InputError` naming
+A limit the file gives is used as given, or refused with an :class:`~qpik.core.errors.InputError` naming
 the joint and the attribute:
 
 - a position limit that is NaN or infinite, or ``lower > upper``;
@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from qpik.errors import InputError
+from qpik.core.errors import InputError
 
 if TYPE_CHECKING:
     import mujoco

@@ -62,14 +62,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from qpik.errors import InputError, UnknownRobotError
+from qpik.core.errors import InputError, UnknownRobotError
+from qpik.core.validate import finite_array, flag
 from qpik.robots.catalog import CATALOG, catalog_robot
 from qpik.robots.chain import Joint, SerialChain
 from qpik.robots.limits import arm_limits
 from qpik.robots.model_files import UrdfJoint, is_urdf, read_spec, urdf_joints
 from qpik.robots.recognize import recognize
 from qpik.robots.robot import LinkCapsule, Robot
-from qpik.validate import finite_array, flag
 
 if TYPE_CHECKING:
     import mujoco

@@ -1,6 +1,6 @@
 r"""Yoshikawa's manipulability :math:`m = \sqrt{\det(J J^T)}` and its gradient, in the scalar algebra.
 
-Written once against :mod:`qpik.symbolic`, so that the chains (:mod:`qpik.robots.chain`)
+Written once against :mod:`qpik.algebra.symbolic`, so that the chains (:mod:`qpik.robots.chain`)
 evaluate it on numpy batches and trace it into their compiled functions.
 """
 
@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from qpik import symbolic as sy
-from qpik.symbolic import Scalar
+from qpik.algebra import symbolic as sy
+from qpik.algebra.symbolic import Scalar
 
 DEGENERATE = 1e-16
 r"""A QR pivot :math:`R_{ii}` of :math:`J^T` with :math:`R_{ii}^2` below this times :math:`\mathrm{tr}(J J^T)` counts

@@ -29,7 +29,7 @@ from xml.sax.saxutils import quoteattr
 import mujoco
 import numpy as np
 
-from qpik.errors import InputError
+from qpik.core.errors import InputError
 
 if TYPE_CHECKING:
     from qpik.robots.chain import Joint

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from qpik.errors import InputError
+from qpik.core.errors import InputError
 from qpik.robots.collada import as_stl, is_collada
 
 if TYPE_CHECKING:

@@ -32,8 +32,8 @@ import mink
 import mujoco
 import numpy as np
 
-from qpik.errors import InputError
-from qpik.validate import finite_array, joint_vector
+from qpik.core.errors import InputError
+from qpik.core.validate import finite_array, joint_vector
 
 if TYPE_CHECKING:
     from qpik.robots.robot import Robot

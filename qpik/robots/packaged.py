@@ -24,7 +24,7 @@ import importlib.util
 import sysconfig
 from pathlib import Path
 
-from qpik.errors import InputError
+from qpik.core.errors import InputError
 
 PACKAGED = {
     "pybullet/iiwa": ("pybullet", "kuka_iiwa/model.urdf"),

@@ -15,12 +15,12 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from qpik import symbolic as sy
-from qpik.errors import InputError
+from qpik.algebra import symbolic as sy
+from qpik.algebra.symbolic import Frame, Vec
+from qpik.core.errors import InputError
+from qpik.core.validate import joint_vector, number
 from qpik.robots.cache import RobotCache
 from qpik.robots.chain import SerialChain
-from qpik.symbolic import Frame, Vec
-from qpik.validate import joint_vector, number
 
 if TYPE_CHECKING:
     import mujoco
@@ -138,7 +138,7 @@ class Robot:
         """Base-frame end points ``(a, b)`` of every capsule from the frames of :meth:`SerialChain.frames_expr`.
 
         Capsule ``c`` is ``self.capsules[c]``: ``a = R_k p0 + t_k``, ``b = R_k p1 + t_k`` with
-        ``(R_k, t_k)`` the world pose of its link ``k``. Written in :mod:`qpik.symbolic`
+        ``(R_k, t_k)`` the world pose of its link ``k``. Written in :mod:`qpik.algebra.symbolic`
         (numpy batches or CasADi symbols).
         """
         out = []

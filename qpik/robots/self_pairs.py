@@ -19,8 +19,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from qpik import symbolic as sy
-from qpik.errors import InputError
+from qpik.algebra import symbolic as sy
+from qpik.core.errors import InputError
 
 if TYPE_CHECKING:
     from qpik.robots.robot import Robot

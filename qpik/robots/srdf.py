@@ -12,7 +12,7 @@ import os
 import xml.etree.ElementTree as ET
 from typing import TYPE_CHECKING
 
-from qpik.errors import InputError
+from qpik.core.errors import InputError
 
 if TYPE_CHECKING:
     from qpik.robots.robot import Robot

@@ -24,7 +24,7 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from qpik.errors import InputError
+from qpik.core.errors import InputError
 
 if TYPE_CHECKING:
     from qpik.robots.robot import Robot

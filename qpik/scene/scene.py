@@ -9,19 +9,21 @@ from functools import cached_property
 
 import numpy as np
 
-from qpik.errors import InputError
+from qpik.core.errors import InputError
+from qpik.core.validate import finite_array, number
 from qpik.geometry.distance import ObstacleSet
 from qpik.geometry.shapes import Shape
-from qpik.objectives import BoundFunction, Evaluator, Objective, bound_function, clearance, pair_count, resolve
+from qpik.objectives import Objective, clearance, pair_count, resolve
 from qpik.robots.robot import Robot, as_robot
-from qpik.validate import finite_array, number
+from qpik.scene.bounds import BoundFunction, bound_function
+from qpik.scene.evaluator import Evaluator
 
 
 @dataclass(frozen=True, eq=False)
 class Scene:
     """What a problem is about, checked and converted once (:meth:`of`), then handed to every solver.
 
-    :func:`qpik.solve_best`, :func:`qpik.nlp.solve_full`, :func:`qpik.crosscheck.crosscheck`,
+    :func:`qpik.solve_best`, :func:`qpik.nlp.solve_full`, :func:`qpik.checks.crosscheck.crosscheck`,
     :func:`qpik.plan_self_motion`, :meth:`qpik.Controller.for_scene` and :func:`qpik.plots.objective.objective_map`
     take it, so the arm, the obstacles and the objective mean the same to all of them.
 
@@ -50,7 +52,7 @@ class Scene:
         objective: Objective | str | None = None,
         q_ref: np.ndarray | None = None,
     ) -> Scene:
-        """The scene of ``robot`` with the arguments checked (:class:`~qpik.errors.InputError` naming the one that
+        """The scene of ``robot`` with the arguments checked (:class:`~qpik.core.errors.InputError` naming the one that
         is not right) and the obstacles packed.
 
         Args:

@@ -2,17 +2,17 @@
 
 from typing import TYPE_CHECKING
 
-from qpik.lazy import exports
+from qpik.core.lazy import exports
 
 if TYPE_CHECKING:
-    from qpik.paths import TimedPath
+    from qpik.geometry.paths import TimedPath
     from qpik.sim.log import SimLog, Summary, tracking_errors
     from qpik.sim.run import Scene, build_scene, follow, simulate
 
 __getattr__, __dir__ = exports(
     __name__,
     {
-        "qpik.paths": ("TimedPath",),
+        "qpik.geometry.paths": ("TimedPath",),
         "qpik.sim.log": ("SimLog", "Summary", "tracking_errors"),
         "qpik.sim.run": ("Scene", "build_scene", "follow", "simulate"),
     },

@@ -49,7 +49,7 @@ class Summary:
         solve_time: mean, median, 99th percentile and max of the controller's solve time (s),
             empty when the policy reports none.
         statuses: count of each controller status, when the policy reports them.
-        facts: the link–obstacle pairs left out of the clearances (:mod:`qpik.contacts`), in words.
+        facts: the link–obstacle pairs left out of the clearances (:mod:`qpik.geometry.contacts`), in words.
     """
 
     label: str
@@ -119,7 +119,7 @@ class SimLog:
         robot: an object the model was built from (a :class:`qpik.Robot` or the MJCF kinematics),
             used to redraw the run.
         obstacles: the obstacle shapes of the run (world frame).
-        checked: (L, O) bool, the pairs that count in :attr:`min_clearance` (:mod:`qpik.contacts`: not those
+        checked: (L, O) bool, the pairs that count in :attr:`min_clearance` (:mod:`qpik.geometry.contacts`: not those
             whose distance no joint motion changes), or ``None``: every pair.
         facts: the pairs left out, each with its constant distance, in words.
     """

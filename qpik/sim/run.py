@@ -32,15 +32,15 @@ from functools import cached_property
 import mujoco
 import numpy as np
 
-from qpik.contacts import geom_facts, geom_pairs
-from qpik.errors import InputError
+from qpik.core.errors import InputError
+from qpik.core.validate import finite_array, joint_vector, single_pose
+from qpik.geometry.contacts import geom_facts, geom_pairs
 from qpik.geometry.distance import ObstacleSet
+from qpik.geometry.paths import TimedPath
 from qpik.geometry.shapes import Shape
-from qpik.paths import TimedPath
 from qpik.robots.mujoco_backend import MjKinematics
 from qpik.robots.robot import Robot
 from qpik.sim.log import SimLog
-from qpik.validate import finite_array, joint_vector, single_pose
 
 DISTMAX = 10.0
 """Distances (m) beyond this are reported as this value by ``mj_geomDistance``."""
@@ -78,7 +78,7 @@ class Scene:
 
     @cached_property
     def checked(self) -> np.ndarray:
-        """(L, O) bool: the link-geom–obstacle pairs that are checked (:func:`qpik.contacts.geom_pairs`: not
+        """(L, O) bool: the link-geom–obstacle pairs that are checked (:func:`qpik.geometry.contacts.geom_pairs`: not
         those whose distance no joint motion changes, a base column on its table)."""
         return geom_pairs(self)
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from typing import TYPE_CHECKING
 
-from qpik.errors import ViewerError
+from qpik.core.errors import ViewerError
 
 if TYPE_CHECKING:
     import numpy as np

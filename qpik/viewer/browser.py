@@ -18,7 +18,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from qpik.errors import InputError, ViewerError
+from qpik.core.errors import InputError, ViewerError
 
 EXECUTABLES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 ARGS = (

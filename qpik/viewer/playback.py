@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from qpik.errors import InputError
+from qpik.core.errors import InputError
 from qpik.planning.plan import Plan
 from qpik.robots.robot import Robot
 from qpik.sim.log import SimLog

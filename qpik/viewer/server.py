@@ -33,12 +33,12 @@ import numpy as np
 import viser
 
 from qpik.analytic.intervals import wrap
-from qpik.errors import InputError, ViewerError
+from qpik.core.errors import InputError, ViewerError
+from qpik.core.validate import number
+from qpik.core.validate import pose as check_pose
 from qpik.geometry.distance import ObstacleSet
 from qpik.objectives import NAMES
 from qpik.robots.robot import Robot, as_robot
-from qpik.validate import number
-from qpik.validate import pose as check_pose
 from qpik.viewer.chart import feasible_chart
 from qpik.viewer.geometry import ArmGeometry, Part, capsule_part, rotation, shape_part, wxyz
 from qpik.viewer.playback import Track, as_track

@@ -10,13 +10,13 @@
 
 Every solver returns a :class:`Solution` and never raises on a failed solve
 (``found=False`` with a status); a solver that is not installed raises
-:class:`~qpik.errors.SolverError` from :func:`get_solver`.
+:class:`~qpik.core.errors.SolverError` from :func:`get_solver`.
 """
 
 from __future__ import annotations
 
 from qpik.control.solvers.base import Solution, Solver
-from qpik.errors import SolverError
+from qpik.core.errors import SolverError
 
 
 def available() -> tuple[str, ...]:

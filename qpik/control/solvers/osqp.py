@@ -46,7 +46,7 @@ from scipy.linalg import lapack
 
 from qpik.control.qp import QP
 from qpik.control.solvers.base import Solution, Solver
-from qpik.fastcall import build
+from qpik.native.fastcall import build
 
 DEFAULTS: dict[str, object] = {
     "eps_abs": 1e-5,
@@ -164,7 +164,8 @@ class OSQPSolver(Solver):
 
 @cache
 def _compiled_polish():
-    """:func:`polish` in C (``polish.c``, the same steps; :func:`qpik.fastcall.build`), or None without a compiler."""
+    """:func:`polish` in C (``polish.c``, the same steps; :func:`qpik.native.fastcall.build`), or None without a
+    compiler."""
     module = build("qpik_polish", Path(__file__).with_name("polish.c"))
     return None if module is None else module.polish
 

@@ -3,13 +3,13 @@ r"""ProxQP (proxsuite's dense solver) called directly: ``solver="proxqp"``.
 ProxQP solves :math:`\min \tfrac12 x^T H x + g^T x` s.t. :math:`l \le C x \le u`,
 :math:`l_{box} \le x \le u_{box}`; the QP goes in as it is: ``H = P``, ``g = c``, ``C = A``
 (every row, ``±inf`` where absent) and the box natively. proxsuite is in the ``test``
-extra only: without it ``get_solver("proxqp")`` raises :class:`~qpik.errors.SolverError`.
+extra only: without it ``get_solver("proxqp")`` raises :class:`~qpik.core.errors.SolverError`.
 
 Every step starts afresh (``init`` on one object per shape, equality-constrained initial
 guess) with :data:`DEFAULTS`. A step reports a solution only if ProxQP says
 ``PROXQP_SOLVED``; an infeasible QP ends at ``max_iter`` (or ``PROXQP_PRIMAL_INFEASIBLE``)
 with no solution, and the controller falls back to DAQP. Measured on the 480 QPs of
-``tests/test_solvers.py`` (relaxed steps included), against DAQP:
+``tests/control/test_solvers.py`` (relaxed steps included), against DAQP:
 
 - ``eps_primal_inf = 1e-10`` (default 1e-4): on degenerate QPs (a separating row at its
   bound, most joints at their velocity bound) the proximal method may stall, x moving
@@ -35,7 +35,7 @@ import numpy as np
 
 from qpik.control.qp import QP
 from qpik.control.solvers.base import Solution, Solver
-from qpik.errors import SolverError
+from qpik.core.errors import SolverError
 
 try:
     from proxsuite import proxqp

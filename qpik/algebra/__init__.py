@@ -1,0 +1,1 @@
+"""The maths under the kinematics: one scalar algebra for numpy and CasADi, SO(3)/SE(3), Taylor models."""

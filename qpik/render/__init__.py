@@ -1,0 +1,1 @@
+"""Offscreen pictures of the arms through MuJoCo (outside the maths packages)."""

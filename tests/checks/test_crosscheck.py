@@ -1,0 +1,66 @@
+"""qpik.checks.crosscheck: closed form + 1-D search, full-joint NLP and QP controller agree on seeded random poses.
+
+(a) is checked against dense sampling in tests/nlp/test_nlp_best.py; here (b) and (c) must confirm it
+(same q to 1e-6 rad, same objective to 1e-8, KKT residual ≤ 1e-8, QP velocity ≤ 1e-6 rad/s), with
+and without obstacles, and a deliberately wrong (a) must be caught.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import random_q
+
+import qpik
+from qpik.checks.crosscheck import crosscheck
+from qpik.core.errors import InputError
+from qpik.geometry import Sphere
+from qpik.nlp.best import BestResult
+
+OBSTACLES = [Sphere((0.35, 0.25, 0.6), 0.1), Sphere((0.3, -0.35, 0.45), 0.1)]
+
+
+@pytest.mark.parametrize("name", ["iiwa14", "nammoto7"])
+@pytest.mark.parametrize("objective, obstacles", [("smooth-margin", ()), ("distance", ()), ("smooth-margin", OBSTACLES),
+                                                  ("manipulability", OBSTACLES)])  # fmt: skip
+def test_three_way_agreement(name, objective, obstacles):
+    robot = qpik.load_robot(name)
+    T = robot.fk(random_q(robot, 25, 31))
+    checks = [crosscheck(robot, pose, objective, obstacles, q_ref=robot.q_home) for pose in T]
+    applicable = [c for c in checks if c.applicable]
+    assert len(applicable) >= 20
+    for c in applicable:
+        assert c.passed, c.report()
+        assert c.q_gap <= 1e-6 and c.f_gap <= 1e-8 and c.kkt <= 1e-8 and c.speed <= 1e-6
+
+
+def test_a_wrong_answer_is_reported(monkeypatch):
+    """(a) moved off its optimum along the self-motion: (b) and (c) disagree, and the report says so."""
+    import qpik.checks.crosscheck as cc
+
+    robot = qpik.load_robot("iiwa14")
+    pose = robot.fk(random_q(robot, 1, 32)[0])
+    honest = cc.solve_best
+
+    def off(*args, **kwargs):
+        best = honest(*args, **kwargs)
+        q = qpik.ik(robot, pose, best.param + 0.05).q[list(qpik.ik(robot, pose, 0.0).branch).index(best.branch)]
+        return BestResult(best.status, best.branch, best.param + 0.05, q, best.objective, param_name=best.param_name)
+
+    monkeypatch.setattr(cc, "solve_best", off)
+    check = crosscheck(robot, pose, "smooth-margin")
+    assert not check.passed and check.failures
+    assert "DISAGREE" in check.report()
+
+
+def test_random_starts_rate_and_bad_input():
+    robot = qpik.load_robot("iiwa14")
+    pose = robot.fk(random_q(robot, 1, 33)[0])
+    check = crosscheck(robot, pose, "smooth-margin", random_starts=4)
+    assert check.random_starts == 4 and 0.0 <= check.random_rate <= 1.0
+    assert "random starts" in check.report()
+    with pytest.raises(InputError, match="smooth"):
+        crosscheck(robot, pose, "margin")
+    unreachable = np.eye(4)
+    unreachable[:3, 3] = (3.0, 0.0, 0.0)
+    assert not crosscheck(robot, unreachable).applicable

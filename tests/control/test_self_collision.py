@@ -1,0 +1,130 @@
+"""Self-collision rows, the allowed pairs (default list, SRDF), MuJoCo's self-distances, and the motion limits."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import qpik
+from qpik.control import State
+from qpik.control.limits_motion import AccelerationLimit, BrakingLimit, JerkLimit
+from qpik.control.self_collision import SelfCollisionLimit, checked_pairs
+from qpik.core.errors import InputError
+from qpik.robots.self_pairs import candidate_pairs, default_allowed, pair_distances
+from qpik.robots.srdf import disabled_links, link_names, read_disabled
+from qpik.sim.self_distance import SelfDistances
+
+
+@pytest.fixture(scope="module")
+def panda() -> qpik.Robot:
+    return qpik.load_robot("panda")
+
+
+def test_rows_are_the_rate_of_the_self_distance(panda) -> None:
+    """Row · v = d/dt of the capsule–capsule distance (central differences), for every checked pair."""
+    lim = SelfCollisionLimit(allowed=frozenset(), d_influence=10.0)  # every candidate pair, every row on
+    rng = np.random.default_rng(3)
+    pairs = checked_pairs(panda, frozenset())
+    for _ in range(5):
+        q = panda.q_min + (panda.q_max - panda.q_min) * (0.2 + 0.6 * rng.random(7))
+        v = rng.normal(size=7)
+        state = State(panda, q, 1e-3)
+        A, _, _ = lim.rows(state, -np.full(7, 10.0), np.full(7, 10.0))
+        eps = 1e-6
+        fd = (pair_distances(panda, q + eps * v, pairs) - pair_distances(panda, q - eps * v, pairs))[0] / (2 * eps)
+        np.testing.assert_allclose(A @ v, fd, atol=1e-5)
+
+
+def test_damper_bound_at_the_safety_distance(panda) -> None:
+    lim = SelfCollisionLimit(allowed=frozenset(), d_influence=10.0, d_safe=0.01, xi=0.5, buffer=0.0)
+    q = panda.q_home
+    state = State(panda, q, 1e-3)
+    A, lower, upper = lim.rows(state, -panda.v_max, panda.v_max)
+    d = lim.distances(panda, q)
+    moved = np.abs(A).sum(axis=1) > 1e-12  # a row no joint moves is left out (-inf)
+    assert moved.sum() >= 8 and np.all(np.isneginf(lower[~moved]))
+    want = -0.5 * (d - 0.01) / (10.0 - 0.01)
+    separating = want > 0  # capped at what the box allows: at most the demand
+    np.testing.assert_allclose(lower[moved & ~separating], want[moved & ~separating], atol=1e-12)
+    assert np.all(lower[moved & separating] <= want[moved & separating] + 1e-12)
+    assert np.all(np.isinf(upper))
+
+
+def test_default_allowed_pairs_are_always_or_never_in_collision(panda) -> None:
+    allowed = default_allowed(panda)
+    assert default_allowed(panda) is allowed  # cached on the robot
+    pairs = candidate_pairs(panda)
+    rng = np.random.default_rng(11)  # other samples than the list's
+    lo, hi = panda.q_min, panda.q_max
+    d = pair_distances(panda, lo + (hi - lo) * rng.random((2000, 7)), pairs)
+    for k, p in enumerate(pairs):
+        if p in allowed:
+            assert np.all(d[:, k] < 0.0) or np.all(d[:, k] > 0.0), p
+    kept = [k for k, p in enumerate(pairs) if p not in allowed]
+    assert kept and any(np.any(d[:, k] < 0.05) for k in kept)  # the checked pairs do come close
+
+
+SRDF = """<robot name="panda">
+  <disable_collisions link1="link1" link2="link3" reason="Never"/>
+  <disable_collisions link1="link7" link2="link1" reason="Never"/>
+  <disable_collisions link1="hand" link2="link1" reason="Never"/>
+</robot>"""
+
+
+def test_srdf_pairs_are_left_out(panda) -> None:
+    assert link_names(panda) == tuple(f"link{k}" for k in range(1, 8))
+    assert frozenset(("link1", "link3")) in read_disabled(SRDF)
+    assert disabled_links(panda, SRDF) == {(1, 3), (1, 7)}
+    pairs = checked_pairs(panda, srdf=SRDF)
+    links = {(panda.capsules[c].link, panda.capsules[e].link) for c, e in pairs}
+    assert (1, 3) not in links and (1, 7) not in links and (1, 5) in links
+    with pytest.raises(InputError, match="srdf"):
+        read_disabled("<robot><disable_collisions link1='a'/></robot>")
+
+
+def test_mujoco_self_distances_agree_with_the_capsules(panda) -> None:
+    """On the twin (geoms = qpik's capsules) MuJoCo's mj_geomDistance gives qpik's capsule distances."""
+    import mujoco
+
+    model = panda.mj_model()
+    data = mujoco.MjData(model)
+    measured = SelfDistances(model, panda.joint_names)
+    assert len(measured.pairs) == len(candidate_pairs(panda))
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        q = panda.q_min + (panda.q_max - panda.q_min) * rng.random(7)
+        data.qpos[:7] = q
+        mujoco.mj_kinematics(model, data)
+        got = measured.measure(data)
+        caps = {(panda.capsules[c].link, panda.capsules[e].link): (c, e) for c, e in candidate_pairs(panda)}
+        want = pair_distances(panda, q, [caps[tuple(k)] for k in measured.links])[0]
+        np.testing.assert_allclose(got, want, atol=1e-6)
+
+
+def test_motion_limits_bound_acceleration_jerk_and_braking(panda) -> None:
+    dt = 0.002
+    acc, jerk, brake = AccelerationLimit(), JerkLimit(), BrakingLimit(j_max=np.full(7, 1e12))
+    q = panda.q_home.copy()
+    for lim in (acc, jerk, brake):
+        lim.check(panda, dt)
+    v1, v2 = np.full(7, 0.5), np.full(7, 0.4)
+    acc.reset(v1)
+    jerk.reset(v1, v2)
+    state = State(panda, q, dt)
+    lo, hi = acc.bounds(state)
+    np.testing.assert_allclose(hi - v1, panda.a_max * dt)
+    np.testing.assert_allclose(v1 - lo, panda.a_max * dt)
+    lo, hi = jerk.bounds(state)
+    assert np.all(hi <= 2 * v1 - v2 + panda.j_max * dt * dt + 1e-12)
+    assert np.all(lo >= 2 * v1 - v2 - panda.j_max * dt * dt - 1e-12)
+    # braking: at the bound, one step then full deceleration ends at the limit (dense check, joint 1)
+    _, hi = brake.bounds(state)
+    a, pos, vel = panda.a_max[0], q[0] + hi[0] * dt, hi[0]
+    while vel > 0:
+        vel = max(vel - a * dt, 0.0)
+        pos += vel * dt
+    assert pos <= panda.q_max[0] + 1e-9
+    assert pos > panda.q_max[0] - 0.05  # and the bound is not far from tight
+    acc.observe(np.zeros(7))
+    lo, hi = acc.bounds(state)
+    np.testing.assert_allclose(hi, panda.a_max * dt)

@@ -1,0 +1,69 @@
+"""qpik.nlp.certificate: it refutes false claims and proves true ones, with obstacles.
+
+A claim is a value f* per pose; the certificate proves that no feasible δ/ψ is below f* − tol.
+Soundness: claiming the search's answer + 0.005 is false (the answer itself is feasible and better),
+so the certificate must refuse it on every pose, and refuse it by finding a feasible point that
+beats the claim (the cell holding the answer can never be dropped by a sound bound). Completeness
+(the bounds are tight enough to be useful): the search's answer, which tests/nlp/test_nlp_best.py
+checks against dense sampling, is proved on most poses, with the clearance constraint active.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import random_q
+
+import qpik
+from qpik.geometry import Sphere
+from qpik.geometry.distance import ObstacleSet
+from qpik.nlp import solve_best
+from qpik.nlp.certificate import certify
+from qpik.nlp.run import BestRun
+from qpik.nlp.search import Pieces
+from qpik.nlp.selfmotion import selfmotion_of
+from qpik.scene import Scene
+
+POSES = 30
+OBSTACLES = [Sphere((0.35, 0.25, 0.6), 0.1), Sphere((0.3, -0.35, 0.45), 0.1)]
+D_SAFE = 0.02
+TOL = 1e-4
+EXCESS = 0.005
+"""How far above the answer the false claims are (50 tol)."""
+
+
+def _scene(robot, T, objective):
+    sm = selfmotion_of(robot)
+    obs = ObstacleSet(OBSTACLES)
+    scene = BestRun(Scene.of(robot, obs, d_safe=D_SAFE, objective=objective), sm, T, np.zeros((len(T), robot.dof)))
+    pieces = []
+    for i, pose in enumerate(T):
+        fi = sm.solver.feasible_intervals(pose)
+        pieces += [(i, b, a, c) for b in range(sm.searched) for a, c in fi.intervals[b]]
+    pose, row, lo, hi = (np.array(x) for x in zip(*pieces))
+    return scene, Pieces(pose.astype(int), row.astype(int), lo.astype(float), hi.astype(float))
+
+
+@pytest.mark.parametrize("focused", [False, True])
+@pytest.mark.parametrize(("name", "objective"), [("iiwa14", "margin"), ("nammoto7", "clearance")])
+def test_false_claims_are_refuted_and_true_ones_proved(name, objective, focused):
+    """With ``focused``, each pose's first cell at a random (branch row, ψ) is cut finer from the start: another
+    partition of the same sets, so the verdicts stand."""
+    robot = qpik.load_robot(name)
+    T = robot.fk(random_q(robot, POSES, 21))
+    res = solve_best(robot, T, objective, OBSTACLES, d_safe=D_SAFE, certify=False)
+    ok = np.flatnonzero([r.status == "optimal" for r in res])
+    assert len(ok) >= 0.8 * POSES
+    f = np.array([r.objective for r in res])[ok]
+    scene, pieces = _scene(robot, T[ok], objective)
+    tol = TOL * np.maximum(1.0, np.abs(f))
+    rng = np.random.default_rng(3)
+    sm = selfmotion_of(robot)
+    focus = (rng.integers(0, sm.searched, len(ok)), rng.uniform(-np.pi, np.pi, len(ok))) if focused else None
+    false = certify(scene, pieces, f + EXCESS, tol, np.arange(len(ok)), focus)
+    assert not false.certified.any()
+    assert false.better is not None and set(false.better.pose.tolist()) == set(range(len(ok)))
+    assert np.all(false.better.f < (f + EXCESS - tol)[false.better.pose])
+    true = certify(scene, pieces, f, tol, np.arange(len(ok)), focus)
+    assert true.certified.mean() >= 0.8, [r for r, c in zip(true.reason, true.certified) if not c]
+    assert np.all(f[true.certified] - true.bound[true.certified] <= tol[true.certified])

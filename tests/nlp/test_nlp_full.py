@@ -1,0 +1,119 @@
+"""qpik.nlp.solve_full: the full-joint NLP reaches seeded random reachable poses (FK-checked) on every arm.
+
+Poses are fk of configurations drawn uniformly inside the limits; the answers are checked by
+the DH forward kinematics and the limits, independently of the NLP; with an objective, the
+answer's KKT residual is recomputed and compared with a dense-sampled closed-form optimum.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import pytest
+from conftest import random_q
+
+import qpik
+from qpik.algebra.lie import pose_error
+from qpik.core.errors import InputError
+from qpik.geometry import Sphere, distances
+from qpik.nlp import solve_best, solve_full
+from qpik.nlp.full import REACHED
+
+
+@pytest.mark.parametrize("name", ["zheng7", "panda"])
+def test_reaches_every_seeded_pose(name):
+    """The issue asks ≥ 99.9 %; on this seeded set of 150 poses that means all of them."""
+    robot = qpik.load_robot(name)
+    T = robot.fk(random_q(robot, 150, 21))
+    starts = random_q(robot, 150, 22)
+    for k in range(len(T)):
+        res = solve_full(robot, T[k], q0=starts[k], seed=k)
+        assert res.status == "optimal", (k, res.message)
+        assert np.linalg.norm(pose_error(T[k], robot.fk(res.q))) < REACHED
+        assert robot.within_limits(res.q)
+
+
+@pytest.mark.parametrize("name", ["iiwa14", "zheng7"])
+def test_objective_and_obstacles(name):
+    robot = qpik.load_robot(name)
+    T = robot.fk(random_q(robot, 4, 23))
+    ball = [Sphere((0.4, 0.2, 0.7), 0.08)]
+    for k in range(len(T)):
+        res = solve_full(robot, T[k], "smooth-margin", ball, starts=3, d_safe=0.02)
+        assert res.status == "optimal"
+        np.testing.assert_allclose(robot.fk(res.q), T[k], atol=1e-9)
+        moving = ~robot.fixed_capsules  # the clearance of the capsules a joint moves
+        d = distances(robot.capsule_segments(res.q)[moving], robot.capsule_radii[moving], ball).d
+        assert d.min() >= 0.02 - 1e-8 and res.clearance == pytest.approx(d.min(), abs=1e-12)
+        assert res.kkt <= 1e-8
+
+
+def test_from_the_closed_form_optimum_it_stays_there():
+    """Started at solve_best's answer (a smooth objective), the 7-variable NLP keeps it: same q and f."""
+    robot = qpik.load_robot("nammoto7")
+    for q in random_q(robot, 3, 24):
+        T = robot.fk(q)
+        best = solve_best(robot, T, "smooth-margin", certify=False)
+        full = solve_full(robot, T, "smooth-margin", q0=best.q, starts=1, max_starts=1)
+        assert full.status == "optimal" and full.kkt <= 1e-8
+        assert np.abs(full.q - best.q).max() <= 1e-6
+        assert abs(full.objective - best.objective) <= 1e-8
+
+
+def test_the_pose_error_is_the_log_and_differentiable_at_zero():
+    """qpik.algebra.lie.pose_error_expr (the NLP's equality) has finite derivatives at its solution, equal to finite
+    differences, and its value is scipy's rotation vector."""
+    import casadi as ca
+    from scipy.spatial.transform import Rotation
+
+    from qpik.algebra.lie import pose_error_expr
+
+    C = ca.SX.sym("C", 3, 4)
+    T = np.eye(4)
+    fn = ca.Function("e", [C], [ca.jacobian(pose_error_expr(ca.SX(T), C), C), pose_error_expr(ca.SX(T), C)])
+    u = np.array([0.6, -0.48, 0.64])
+    for angle in (0.0, 1e-9, 1e-4, 0.3, 2.0, 3.1):
+        Ct = np.hstack([Rotation.from_rotvec(-angle * u).as_matrix(), np.zeros((3, 1))])  # R* Rᵀ = exp(angle u)
+        J, e = (np.asarray(x) for x in fn(Ct))
+        np.testing.assert_allclose(e.ravel()[3:], angle * u, atol=1e-12)
+        assert np.isfinite(J).all()
+    # at the solution: d e / d C against central differences along rotations (C = exp(ε k) Rᵀ... of the identity)
+    J = np.asarray(fn(np.hstack([np.eye(3), np.zeros((3, 1))]))[0])
+    for k in np.eye(3):
+        h = 1e-6
+        plus = np.hstack([Rotation.from_rotvec(h * k).as_matrix(), np.zeros((3, 1))])
+        minus = np.hstack([Rotation.from_rotvec(-h * k).as_matrix(), np.zeros((3, 1))])
+        fd = (np.asarray(fn(plus)[1]) - np.asarray(fn(minus)[1])).ravel() / (2 * h)
+        lin = J @ ((plus - minus).ravel(order="F") / (2 * h))
+        np.testing.assert_allclose(lin, fd, atol=1e-8)
+
+
+def test_unreachable_and_bad_input():
+    robot = qpik.load_robot("panda")
+    far = np.eye(4)
+    far[:3, 3] = (2.0, 0.0, 0.5)
+    res = solve_full(robot, far, max_starts=3)
+    assert res.status == "not found" and res.pose_error > 0.5 and res.starts == 3
+    with pytest.raises(InputError, match="pose"):
+        solve_full(robot, np.full((4, 4), np.nan))
+    with pytest.raises(InputError, match="pose"):
+        solve_full(robot, np.stack([far, far]))
+    with pytest.raises(InputError, match="q0"):
+        solve_full(robot, far, q0=np.zeros(5))
+    with pytest.raises(InputError, match="q_ref"):
+        solve_full(robot, far, "distance")
+
+
+def test_threads_sharing_an_nlp_get_the_answers_of_one_thread() -> None:
+    """Four threads calling ``solve_full`` on one robot at once get exactly what one thread gets (IPOPT's memory
+    is the cached NLP's: each solve holds its lock; without it, concurrent solves crash inside CasADi)."""
+    robot = qpik.load_robot("zheng7")
+    T = robot.fk(np.random.default_rng(9).uniform(robot.q_min, robot.q_max, (8, robot.dof)))
+
+    def answers(k: int) -> list:
+        return [solve_full(robot, T[i]).q.tolist() for i in range(k, len(T), 4)]
+
+    serial = [answers(k) for k in range(4)]
+    with ThreadPoolExecutor(4) as pool:
+        assert list(pool.map(answers, range(4))) == serial
