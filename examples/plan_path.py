@@ -19,7 +19,7 @@ import numpy as np
 
 from qpik.planning.baselines import constant_parameter
 from qpik.plots import save
-from qpik.plots.plan import joint_trajectories, render_plan, selfmotion_map
+from qpik.plots.plan import joint_trajectories, plan_map, render_plan
 from qpik.problems import find_problem, load
 from qpik.problems.plan import plan_problem, waypoints
 
@@ -64,7 +64,7 @@ print(
 
 # 3. files
 plan.to_csv(out / "iiwa_wiping_plan.csv")
-save(selfmotion_map(plan), out / "iiwa_wiping_map.png")
+save(plan_map(plan), out / "iiwa_wiping_map.png")
 save(joint_trajectories(plan), out / "iiwa_wiping_joints.png")
 strip = render_plan(plan, out / "iiwa_wiping_strip.png")
 print(

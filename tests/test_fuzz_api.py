@@ -29,6 +29,7 @@ from qpik.control.solvers import get_solver
 from qpik.nlp import BestResult, solve_full
 from qpik.objectives import JointLimitMargin, Manipulability
 from qpik.problems import load
+from qpik.scene.evaluator import Evaluator
 from qpik.sim import SimLog, simulate
 
 IIWA, NAMMOTO, PANDA = (qpik.load_robot(n) for n in ("iiwa14", "nammoto7", "panda"))
@@ -224,7 +225,7 @@ def _objectives(smooth, sharpness, cap, weights, weight, fn):
     terms = [objs.JointLimitMargin(smooth, sharpness), objs.Clearance(cap, smooth, sharpness),
              objs.ReferenceDistance(weights), objs.Manipulability(smooth), objs.Expression(fn, smooth)]  # fmt: skip
     total = terms[0] + weight * terms[1] + terms[2] + weight * terms[3] + terms[4]
-    ev = objs.Evaluator(IIWA, total, SHAPES[:1])  # every example has a new expression: CasADi's VM, no compiling
+    ev = Evaluator(IIWA, total, SHAPES[:1])  # every example has a new expression: CasADi's VM, no compiling
     out = ev.function()(IIWA.q_home, ev.params, IIWA.q_home + 0.1, ev.obstacles.params)
     return np.asarray(out).ravel()
 

@@ -98,7 +98,7 @@ def test_a_bad_file_is_reported_and_the_others_run_a_fail_and_a_raising_job_exit
     assert any(ln.startswith("good: PASS: ") for ln in lines) and any(
         ln.startswith("fails: FAIL: failed") for ln in lines
     )
-    assert "raises: error: InputError: resolution: expected an even integer >= 8, got 9" in lines
+    assert any(ln.startswith("raises: error: InputError: resolution: expected an even integer in [8, ") for ln in lines)
     assert "broken.toml: not valid TOML" in captured.err and "raises.toml: InputError: resolution" in captured.err
     assert "2 file(s) not planned" in captured.err
     assert sorted(p.name for p in out.iterdir()) == ["fails", "good"]

@@ -123,7 +123,7 @@ def test_a_raising_job_and_a_killed_worker_lose_no_other_result(cluster, client_
     cluster.kill_worker(0)
     stdout, stderr = run.communicate(timeout=600)
     assert run.returncode == 1, stderr
-    assert "raises: error: InputError: resolution: expected an even integer >= 8, got 9" in stdout
+    assert "raises: error: InputError: resolution: expected an even integer in [8, " in stdout
     assert "files/raises.toml: InputError: resolution" in stderr and "1 file(s) not planned" in stderr
     names = {"small", "zheng7_plan", "iiwa_model_plan", *(f"more{k}" for k in range(8))}
     assert {p.name for p in out.iterdir()} == names
