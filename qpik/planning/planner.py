@@ -298,11 +298,12 @@ def _grid(setup: Setup, resolution: int, branches) -> Grid:
 
 
 def _grid_failed(grid: Grid, tr: dp.Transitions, result: dp.DPResult, fewest: bool) -> bool:
-    """Whether a finer grid may do better: the grid alone failed (no proof), or with ``fewest`` a reconfiguration
-    between two waypoints whose closest feasible states are within :data:`NEAR_MISS` times the joint-step bound
-    (a finer grid may make it a continuous transition; far apart, none can)."""
+    """Whether a finer grid may do better: a transition the grid alone failed (no proof), or with ``fewest`` a
+    reconfiguration, between two waypoints whose closest feasible states are within :data:`NEAR_MISS` times the
+    joint-step bound (a finer grid may make it a continuous transition; far apart, none can)."""
     if result.failure is not None:
-        return result.failure.kind == "grid"
+        k = result.failure.waypoint
+        return result.failure.kind == "grid" and k > 0 and _closest_ratio(grid, tr, k - 1) <= NEAR_MISS
     return fewest and any(_closest_ratio(grid, tr, k) <= NEAR_MISS for k in result.reconfigurations)
 
 
