@@ -24,7 +24,7 @@ import numpy as np
 from qpik.bench import Row
 from qpik.core.errors import QpikError
 
-TITLE = "Viewer update: target pose received → scene messages sent (qpik view, 100 scripted drag poses)"
+TITLE = "Viewer update: target pose received → scene messages sent (qpik view, scripted drag poses)"
 POSES = 100
 BUDGET = 0.050  # s per update, the target
 
@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> list[Row]:
             with Viewer(robot, obstacles=obstacles, port=0) as viewer:
                 viewer.wait()
                 page = open_page(chromium, viewer, (1280, 800)) if chromium is not None else None
-                for pose in drag(robot):
+                for pose in drag(robot, min(POSES, args.repeat)):
                     viewer.receive(pose, time.perf_counter())
                 t = np.array(viewer.latencies)
                 if page is not None:

@@ -58,7 +58,7 @@ MAX_RESOLUTION = 16_384
 """The largest ``resolution``."""
 MAX_STATES = 4_000_000
 """The most grid values per branch over the whole path, waypoints × resolution (memory)."""
-REFINE = (4, 16)
+REFINE = (4,)
 """Factors of ``resolution`` at which the DP runs again when the grid alone failed (capped by the limits above)."""
 NEAR_MISS = 2.0
 """A reconfiguration whose closest grid states need at most this many joint-step bounds is tried on finer grids."""
