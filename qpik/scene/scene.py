@@ -24,8 +24,8 @@ class Scene:
     """What a problem is about, checked and converted once (:meth:`of`), then handed to every solver.
 
     :func:`qpik.solve_best`, :func:`qpik.nlp.solve_full`, :func:`qpik.checks.crosscheck.crosscheck`,
-    :func:`qpik.plan_self_motion`, :meth:`qpik.Controller.for_scene` and :func:`qpik.plots.objective.objective_map`
-    take it, so the arm, the obstacles and the objective mean the same to all of them.
+    :func:`qpik.plan_self_motion` and :func:`qpik.plots.objective.objective_map` take it, so the arm, the
+    obstacles and the objective mean the same to all of them.
 
     Attributes:
         robot: the arm.
