@@ -94,12 +94,6 @@ class Layout:
         column = self.pack(**parts)
         return [column[i] for i in range(column.numel())]
 
-    def numbers(self, **parts: Any) -> np.ndarray:
-        """A new numeric buffer (size,) of the parts (arrays or numbers of the blocks' shapes)."""
-        if set(parts) != set(self._shapes):
-            raise ValueError(f"numbers: expected the blocks {list(self._shapes)}, got {list(parts)}")
-        return self.packer()(parts).copy()
-
     def packer(self) -> Callable[[Mapping[str, Any]], np.ndarray]:
         """A function writing parts by name (arrays or numbers of the blocks' shapes) into one buffer of this
         layout and returning it: the same buffer every call, overwritten by the next (a control loop's

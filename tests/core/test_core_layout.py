@@ -17,14 +17,14 @@ BLOCKS = st.dictionaries(st.from_regex(r"[a-z]{1,6}", fullmatch=True), SHAPES, m
 @settings(max_examples=60, deadline=None, database=None)
 @given(blocks=BLOCKS, seed=st.integers(0, 2**16), lead=st.sampled_from([(), (3,), (2, 2)]))
 def test_packed_blocks_come_back_by_name(blocks, seed, lead):
-    """pack (CasADi, row-major) -> evaluate -> views gives every part back; numbers() agrees with pack."""
+    """pack (CasADi, row-major) -> evaluate -> views gives every part back; packer() agrees with pack."""
     layout = Layout(**blocks)
     rng = np.random.default_rng(seed)
     parts = {k: rng.normal(size=shape) for k, shape in blocks.items()}
     flat = np.asarray(ca.evalf(layout.pack(**{k: ca.DM(v) if v.ndim <= 2 else v for k, v in parts.items()})))
     flat = flat.reshape(-1)
     assert flat.shape == (layout.size,) == (sum(v.size for v in parts.values()),)
-    assert np.array_equal(flat, layout.numbers(**parts))
+    assert np.array_equal(flat, layout.packer()(parts))
     stacked = np.broadcast_to(flat, (*lead, layout.size))
     for k, v in layout.views(stacked).items():
         assert v.shape == (*lead, *blocks[k]) and np.array_equal(v, np.broadcast_to(parts[k], v.shape))
