@@ -205,8 +205,10 @@ def native_library(*fns: ca.Function) -> Path | None:
 def concurrently(*builds: Callable[[], object]) -> None:
     """Run ``builds`` (functions that compile, e.g. :meth:`qpik.native.compiled.RowMap.build`) on the worker threads of
     this process, one per core: while one waits for its compiler, another traces or compiles; CasADi's own calls
-    keep the interpreter's lock, so they run one at a time. Called from a worker thread, or with one build, the
-    builds run in the caller's thread. The first exception is raised once all have finished."""
+    keep the interpreter's lock, so they run one at a time. A build that is the method of an object already
+    ``built`` (:attr:`qpik.native.compiled.RowMap.built`) is left out. Called from a worker thread, or with one build
+    left, the builds run in the caller's thread. The first exception is raised once all have finished."""
+    builds = tuple(b for b in builds if not getattr(getattr(b, "__self__", None), "built", False))
     if len(builds) < 2 or getattr(_WORKER, "inside", False):
         for build in builds:
             build()

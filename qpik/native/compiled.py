@@ -188,6 +188,11 @@ class RowMap:
             maps[size] = (call, ins, [r.reshape(size, -1) for r in call.results])
         return maps
 
+    @property
+    def built(self) -> bool:
+        """Whether the maps are compiled (:meth:`build` would return at once)."""
+        return "_maps" in self.__dict__
+
     def build(self) -> None:
         """Compile the maps now (else on the first call): a solve that starts its clock after this times
         evaluations, never a compile."""

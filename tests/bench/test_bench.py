@@ -74,6 +74,7 @@ EXPECTED = {
         "iiwa14 + ball and table: pose → scene",
         "panda (numerical IK): pose → scene",
         "URDF pybullet kuka_iiwa: pose → scene",
+        "URDF pybullet kuka_iiwa, bent: pose → scene",
     ],
 }
 
@@ -106,7 +107,9 @@ def test_bench_prints_every_row(name):
     if name == "analytic":  # the numpy scalar rows give their ratio to the float call of the same run
         assert all("numpy scalar / float: " in row.note for row in rows if "numpy.float64" in row.label)
     if name == "view":  # every arm's drag updates were timed, with their p95 against the 50 ms budget
-        assert all("p95" in row.note and "/20 ≤ 50 ms" in row.note for row in rows)
+        assert all("p95" in row.note and "/20 ≤ 50 ms" in row.note and "/20 poses reached" in row.note for row in rows)
+        bent = next(row for row in rows if row.label.startswith("URDF pybullet kuka_iiwa, bent"))
+        assert "20/20 poses reached" in bent.note  # the bent drag stays in reach
     if name == "plan":  # the planned path passes every check, and the quoted peer says it is quoted
         assert "all checks hold" in rows[1].note and "quoted, not measured" in rows[0].note
 

@@ -222,6 +222,13 @@ def test_statuses_and_the_least_violating_branch():
     # q: the closed form's nearest configuration (stretched toward the pose), its pose error the violation
     reach = np.linalg.norm(robot.fk(res.q)[:3, 3] - far[:3, 3])
     assert np.isfinite(res.q).all() and res.violation >= reach > 0.5
+    # ... and no closed-form configuration on a dense grid of ψ comes closer
+    psi = np.linspace(-np.pi, np.pi, 2000, endpoint=False)
+    Q = closed_form_for(robot).solve_batch(np.broadcast_to(far, (len(psi), 4, 4)), psi).q.reshape(-1, robot.dof)
+    T = np.stack([robot.fk(q) for q in Q])
+    angle = np.arccos(np.clip((np.einsum("ij,mij->m", far[:3, :3], T[:, :3, :3]) - 1) / 2, -1, 1))
+    dense = np.sqrt(((T[:, :3, 3] - far[:3, 3]) ** 2).sum(axis=1) + angle**2).min()
+    assert res.violation <= dense + 1e-6
     assert all(b.q is None and b.param is None and b.objective == np.inf for b in res.branches)
     # the elbow (q4, which no arm angle changes) beyond its limit: reachable, no branch feasible
     q = np.array([0.3, 0.5, 0.0, 2.5, 0.2, 0.5, 0.0])
