@@ -345,7 +345,8 @@ class SerialChain:
         q, batched = joint_vector(q, self.dof)
         if not batched:
             return self._compiled["fk"].copies(q)[0]
-        if fast is not None and len(q) and None not in (rows := [fast(row) for row in np.ascontiguousarray(q)]):
+        rows = [] if fast is None else [fast(row) for row in np.ascontiguousarray(q)]
+        if rows and all(out is not None for out in rows):
             return np.stack([out[0] for out in rows])  # the compiled pose, row by row: faster than numpy's batch
         return _frame_to_np(self._batch(q)[-1], len(q))
 
