@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from qpik import Controller
+from qpik import Controller, ControllerOptions
 from qpik.control.clik import PseudoInverseCLIK, VelocityOnly
 from qpik.plots.runs import plot_comparison
 from qpik.problems import find_problem, load
@@ -50,11 +50,9 @@ def main(out: Path) -> None:
             robot,
             dt=dt,
             q_ref=q0,
-            position_gain=GAIN,
-            orientation_gain=GAIN,
-            posture_weight=1e-5,
-            manipulability_weight=0.0,
-            damping=1e-8,
+            options=ControllerOptions(
+                position_gain=GAIN, orientation_gain=GAIN, posture_weight=1e-5, manipulability_weight=0.0, damping=1e-8
+            ),
         ),
         "PD CLIK, eq. (18)": PseudoInverseCLIK(robot, GAIN, GAIN, dt=dt),
         "velocity-only, Fig. 3a": VelocityOnly(robot, dt=dt),

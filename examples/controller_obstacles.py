@@ -52,9 +52,9 @@ def main(out: Path) -> None:
 
     def controller(obs):
         """Frame task (gains 1/s), weak posture pull toward q_home, joint limits, dampers for ``obs``."""
-        gains = dict(position_gain=10.0, orientation_gain=10.0, posture_weight=1e-5, manipulability_weight=0.0)
-        damper = dict(d_safe=D_SAFE, d_influence=D_INFLUENCE, xi=XI)
-        return qpik.Controller.for_robot(robot, target=target, obstacles=obs, dt=DT, **gains, **damper)
+        options = qpik.ControllerOptions(position_gain=10.0, orientation_gain=10.0, posture_weight=1e-5,
+                                         manipulability_weight=0.0, d_influence=D_INFLUENCE, xi=XI)  # fmt: skip
+        return qpik.Controller.for_robot(robot, target=target, obstacles=obs, dt=DT, d_safe=D_SAFE, options=options)
 
     # Closed loop on the twin from the home configuration, a record every 5 steps (10 ms). The
     # obstacles are in the MuJoCo scene of both runs; only the first controller knows them.

@@ -58,8 +58,9 @@ def main(out: Path) -> None:
 
     def controller(obstacles):
         return qpik.Controller.for_robot(
-            panda, target=target, obstacles=obstacles, dt=DT, d_safe=D_SAFE, d_influence=D_INFLUENCE
-        )
+            panda, target=target, obstacles=obstacles, dt=DT, d_safe=D_SAFE,
+            options=qpik.ControllerOptions(d_influence=D_INFLUENCE),
+        )  # fmt: skip
 
     scene = dict(obstacles=[ball], target=target, record_every=5, d_safe=D_SAFE)
     log = simulate(panda, controller([ball]), q0, DURATION, DT, label="with obstacle limit", **scene)

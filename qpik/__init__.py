@@ -12,7 +12,7 @@ from qpik.core.lazy import exports
 
 if TYPE_CHECKING:
     from qpik.analytic import FeasibleIntervals, IKSolutions, feasible_intervals, ik, redundancy_parameter
-    from qpik.control import Controller, StepInfo
+    from qpik.control import Controller, ControllerOptions, StepInfo
     from qpik.core.errors import (
         InfeasibleError,
         InputError,
@@ -38,7 +38,7 @@ __getattr__, __dir__ = exports(
     __name__,
     {
         "qpik.analytic": ("FeasibleIntervals", "IKSolutions", "feasible_intervals", "ik", "redundancy_parameter"),
-        "qpik.control": ("Controller", "StepInfo"),
+        "qpik.control": ("Controller", "ControllerOptions", "StepInfo"),
         "qpik.core.errors": (
             "InfeasibleError",
             "InputError",
@@ -67,6 +67,7 @@ __all__ = [
     "CATALOG",
     "BestResult",
     "Controller",
+    "ControllerOptions",
     "DHChain",
     "FeasibleIntervals",
     "IKSolutions",

@@ -129,3 +129,20 @@ def test_no_import_circle():
             visit(v)
     assert sum(len(g) for g in graph.values()) > 300  # the graph was read
     assert not circles, circles
+
+
+MAX_PARAMETERS = 8
+
+
+def test_no_function_takes_more_than_eight_parameters():
+    """Parameters that travel together are one value (a :class:`~qpik.scene.Scene`, an options dataclass), so no
+    function of qpik takes more than :data:`MAX_PARAMETERS` (``self`` and ``cls`` not counted)."""
+    found = []
+    for name, tree in trees():
+        for node in ast.walk(tree):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                a = node.args
+                names = [x.arg for x in a.posonlyargs + a.args + a.kwonlyargs if x.arg not in ("self", "cls")]
+                if len(names) > MAX_PARAMETERS:
+                    found.append(f"{name}:{node.lineno} {node.name} {len(names)}")
+    assert not found, found

@@ -181,7 +181,7 @@ def _bad_specs() -> st.SearchStrategy:
 
 def _controller(robot, target, obstacles, solver, gain, dt, q):
     ctrl = qpik.Controller.for_robot(robot, target=target, obstacles=obstacles, solver=solver,
-                                     position_gain=gain, dt=dt)  # fmt: skip
+                                     options=qpik.ControllerOptions(position_gain=gain), dt=dt)  # fmt: skip
     v = ctrl.step(q)
     return v, ctrl.last
 

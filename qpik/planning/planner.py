@@ -356,13 +356,15 @@ def track(setup: Setup, q0: np.ndarray, watch: Stopwatch | None = None):
     obstacles and ``d_safe``, its posture reference ``q0``, at :data:`TRACK_DT`.
     """
     from qpik.control.controller import Controller
+    from qpik.control.options import ControllerOptions
     from qpik.sim import build_scene, simulate
 
     times = setup.times if setup.times is not None else _nominal_times(setup.poses)
     path = WaypointPath(setup.poses, times)
     with (watch or Stopwatch()).paused():
+        options = ControllerOptions(manipulability_weight=0.0)
         ctrl = Controller.for_robot(setup.robot, obstacles=setup.obstacles, dt=TRACK_DT, q_ref=q0,
-                                    d_safe=setup.d_safe, manipulability_weight=0.0)  # fmt: skip
+                                    d_safe=setup.d_safe, options=options)  # fmt: skip
         scene = build_scene(setup.robot, setup.obstacles.shapes)
     log = simulate(scene, ctrl, q0, path.duration, TRACK_DT, target=path, label="QP controller (online)")
     at = np.clip(np.round((times - times[0]) / TRACK_DT).astype(int), 0, len(log.q) - 1)

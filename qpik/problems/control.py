@@ -37,6 +37,7 @@ from qpik.analytic import feasible_intervals, redundancy_parameter
 from qpik.analytic.intervals import wrap
 from qpik.control.clik import PseudoInverseCLIK, VelocityOnly
 from qpik.control.controller import Controller
+from qpik.control.options import ControllerOptions
 from qpik.core.errors import ProblemFileError, UnreachableError
 from qpik.geometry import distances
 from qpik.nlp import BestResult, solve_best
@@ -82,15 +83,11 @@ def track_runs(problem: Problem) -> list[SimLog]:
     duration = path.duration if s["duration"] is None else s["duration"]
     q0 = robot.q_home if path.q0 is None else path.q0
     gains = _settings(problem)
-    qp = Controller.for_robot(
-        robot,
-        dt=dt,
-        q_ref=q0,
-        posture_weight=s["posture_weight"],
-        manipulability_weight=s["manipulability_weight"],
-        damping=s["damping"],
+    options = ControllerOptions(
+        posture_weight=s["posture_weight"], manipulability_weight=s["manipulability_weight"], damping=s["damping"],
         **gains,
-    )
+    )  # fmt: skip
+    qp = Controller.for_robot(robot, dt=dt, q_ref=q0, options=options)
     policies = {
         "QP (OSQP)": qp,
         "PD CLIK, eq. (18)": PseudoInverseCLIK(robot, dt=dt, **gains),
@@ -188,11 +185,7 @@ def reach_runs(problem: Problem) -> ReachRuns:
         raise UnreachableError(
             f"{robot.name}: no arm angle of branch {start_branch} reaches the target ({ref.summary()})"
         )
-    kwargs = dict(
-        target=pose,
-        dt=dt,
-        q_ref=ref.q,
-        d_safe=d_safe,
+    options = ControllerOptions(
         d_influence=d_influence,
         xi=xi,
         posture_weight=s["posture_weight"],
@@ -200,6 +193,7 @@ def reach_runs(problem: Problem) -> ReachRuns:
         damping=s["damping"],
         **_settings(problem),
     )
+    kwargs = dict(target=pose, dt=dt, q_ref=ref.q, d_safe=d_safe, options=options)
     every = max(1, round(0.01 / dt))
     logs = []
     for label, obs in (("QP with obstacle limit", obstacles), ("QP without obstacle limit", ())):
