@@ -28,7 +28,7 @@ from qpik import Controller, ControllerOptions
 from qpik.control.clik import PseudoInverseCLIK, VelocityOnly
 from qpik.plots.runs import plot_comparison
 from qpik.problems import find_problem, load
-from qpik.sim import simulate
+from qpik.sim import SimOptions, simulate
 
 DURATION = 4.0  # s
 TRANSIENT = 1.0  # s: errors are compared after this (the file's [expected] transient)
@@ -58,7 +58,7 @@ def main(out: Path) -> None:
         "velocity-only, Fig. 3a": VelocityOnly(robot, dt=dt),
     }
     logs = [
-        simulate(robot, ctrl, q0, DURATION, dt, target=path, record_every=10, label=label)
+        simulate(robot, ctrl, q0, DURATION, dt, target=path, options=SimOptions(record_every=10, label=label))
         for label, ctrl in controllers.items()
     ]
 

@@ -26,8 +26,8 @@ if TYPE_CHECKING:
         UnreachableError,
         ViewerError,
     )
-    from qpik.nlp import BestResult, solve_best, solve_ik
-    from qpik.planning import Plan, plan_self_motion
+    from qpik.nlp import BestOptions, BestResult, solve_best, solve_ik
+    from qpik.planning import Plan, PlanOptions, plan_self_motion
     from qpik.planning.many import PlanningError, plan_many
     from qpik.robots import CATALOG, DHChain, Joint, LinkCapsule, Robot, SerialChain, load_robot
     from qpik.scene import Scene
@@ -52,8 +52,8 @@ __getattr__, __dir__ = exports(
             "UnreachableError",
             "ViewerError",
         ),
-        "qpik.nlp": ("BestResult", "solve_best", "solve_ik"),
-        "qpik.planning": ("Plan", "plan_self_motion"),
+        "qpik.nlp": ("BestOptions", "BestResult", "solve_best", "solve_ik"),
+        "qpik.planning": ("Plan", "PlanOptions", "plan_self_motion"),
         "qpik.planning.many": ("PlanningError", "plan_many"),
         "qpik.robots": ("CATALOG", "DHChain", "Joint", "LinkCapsule", "Robot", "SerialChain", "load_robot"),
         "qpik.scene": ("Scene",),
@@ -65,6 +65,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "CATALOG",
+    "BestOptions",
     "BestResult",
     "Controller",
     "ControllerOptions",
@@ -77,6 +78,7 @@ __all__ = [
     "LinkCapsule",
     "NoClosedFormError",
     "Plan",
+    "PlanOptions",
     "PlanningError",
     "ProblemFileError",
     "QpikError",

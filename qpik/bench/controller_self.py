@@ -24,8 +24,8 @@ from qpik.control import Controller, ControllerOptions, ObstacleLimit
 from qpik.control.self_collision import SelfCollisionLimit
 from qpik.geometry.shapes import Sphere
 from qpik.robots.loader import load_robot
+from qpik.robots.mujoco_scene import build_scene
 from qpik.robots.robot import Robot
-from qpik.sim.run import build_scene
 
 FOLD = 0.6
 """The target's position: this fraction of the way from the hand to the shoulder."""

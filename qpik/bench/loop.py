@@ -9,7 +9,7 @@ from mink.tasks.task import BaseTask, Objective
 from qpik.control import Controller, ControllerOptions
 from qpik.geometry.distance import distances
 from qpik.geometry.shapes import Sphere
-from qpik.sim.run import build_scene
+from qpik.robots.mujoco_scene import build_scene
 
 HOT = 50
 """Both scenes are timed hot: each sample is a block of this many consecutive steps of one library (the issue's

@@ -41,11 +41,12 @@ from qpik.control.options import ControllerOptions
 from qpik.core.errors import ProblemFileError, UnreachableError
 from qpik.geometry import distances
 from qpik.nlp import BestResult, solve_best
+from qpik.nlp.options import BestOptions
 from qpik.objectives import Clearance, JointLimitMargin, Objective
 from qpik.plots.runs import plot_comparison, plot_log, render_strip
 from qpik.problems.runners import runner
 from qpik.problems.schema import Problem
-from qpik.sim import SimLog, Summary, simulate
+from qpik.sim import SimLog, SimOptions, Summary, simulate
 
 SINGULAR_FRACTION = 0.01
 """A track report flags a singular passage when the manipulability falls below this fraction of its start."""
@@ -94,7 +95,10 @@ def track_runs(problem: Problem) -> list[SimLog]:
         "velocity-only, Fig. 3a": VelocityOnly(robot, dt=dt),
     }
     every = max(1, round(0.01 / dt))
-    return [simulate(robot, c, q0, duration, dt, target=path, record_every=every, label=k) for k, c in policies.items()]
+    return [
+        simulate(robot, c, q0, duration, dt, target=path, options=SimOptions(record_every=every, label=k))
+        for k, c in policies.items()
+    ]
 
 
 @runner("track")
@@ -180,7 +184,14 @@ def reach_runs(problem: Problem) -> ReachRuns:
     d_safe, d_influence, xi = s["d_safe"], s["d_influence"], s["xi"]
     q0 = robot.q_home
     start_branch = redundancy_parameter(robot, q0)[1]
-    ref = solve_best(robot, pose, reach_objective(d_influence), obstacles, d_safe=d_safe, branches=[start_branch])
+    ref = solve_best(
+        robot,
+        pose,
+        reach_objective(d_influence),
+        obstacles,
+        d_safe=d_safe,
+        options=BestOptions(branches=[start_branch]),
+    )
     if ref.status != "optimal":
         raise UnreachableError(
             f"{robot.name}: no arm angle of branch {start_branch} reaches the target ({ref.summary()})"
@@ -198,8 +209,18 @@ def reach_runs(problem: Problem) -> ReachRuns:
     logs = []
     for label, obs in (("QP with obstacle limit", obstacles), ("QP without obstacle limit", ())):
         ctrl = Controller.for_robot(robot, obstacles=obs, **kwargs)
-        logs.append(simulate(robot, ctrl, q0, duration, dt, obstacles=obstacles, target=pose,
-                             record_every=every, d_safe=d_safe, label=label))  # fmt: skip
+        logs.append(
+            simulate(
+                robot,
+                ctrl,
+                q0,
+                duration,
+                dt,
+                obstacles=obstacles,
+                target=pose,
+                options=SimOptions(record_every=every, d_safe=d_safe, label=label),
+            )
+        )
     return ReachRuns(ref, int(start_branch), logs[0], logs[1], d_safe, d_influence, xi)
 
 

@@ -22,6 +22,7 @@ from qpik.control import (
 )
 from qpik.geometry.distance import distances
 from qpik.geometry.shapes import Sphere
+from qpik.nlp.options import BestOptions
 
 
 def _mink_v(robot, q, target, dt, cost_p, cost_o, gain, posture, limits):
@@ -305,7 +306,7 @@ def test_set_posture_takes_the_nlp_answer():
     """The controller's posture reference is the answer of qpik.solve_best: the QP then settles on it."""
     robot = qpik.load_robot("iiwa14")
     target = robot.fk(robot.q_home + 0.2)
-    best = qpik.solve_best(robot, target, certify=False)
+    best = qpik.solve_best(robot, target, options=BestOptions(certify=False))
     ctrl = Controller.for_robot(robot, target=target, dt=0.01,
                                 options=ControllerOptions(posture_weight=1e-2, manipulability_weight=0.0))  # fmt: skip
     ctrl.set_posture(best.q)

@@ -78,7 +78,7 @@ def test_a_plan_with_acceleration_limits_keeps_them():
     T = IIWA.fk(IIWA.q_home + np.linspace(0.0, 1.0, 12)[:, None] * np.full(7, 0.2))
     times = np.linspace(0.0, 3.0, 12)
     a_max = np.full(7, 2.0)
-    plan = qpik.plan_self_motion(IIWA, T, times=times, a_max=a_max, mujoco=False)
+    plan = qpik.plan_self_motion(IIWA, T, times=times, options=qpik.PlanOptions(a_max=a_max, mujoco=False))
     assert plan.ok and plan.status in ("optimal", "dp")
     dt = np.diff(times)
     v = np.diff(plan.q, axis=0) / dt[:, None]

@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 pytest.importorskip("viser", reason="viser is not installed (pip install 'qpik[view]')")
 
 import qpik
-from qpik.sim import simulate
+from qpik.sim import SimOptions, simulate
 from qpik.viewer import ViewerError
 from qpik.viewer.server import Viewer, port_free
 
@@ -91,8 +91,15 @@ def test_playback_of_a_simulation_log_shows_its_configurations():
     robot = qpik.load_robot("iiwa14")
     target = robot.fk(robot.q_home)
     target[:3, 3] += (0.0, 0.1, 0.0)
-    log = simulate(robot, qpik.Controller.for_robot(robot, target=target, dt=0.01), robot.q_home, 0.3, dt=0.01,
-                   target=target, progress=False)  # fmt: skip
+    log = simulate(
+        robot,
+        qpik.Controller.for_robot(robot, target=target, dt=0.01),
+        robot.q_home,
+        0.3,
+        dt=0.01,
+        target=target,
+        options=SimOptions(progress=False),
+    )
     with Viewer(robot, port=0, play=log) as viewer:
         for k in (0, len(log) // 2, len(log) - 1):
             viewer.seek(k)
