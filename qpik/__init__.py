@@ -32,6 +32,7 @@ if TYPE_CHECKING:
     from qpik.robots import CATALOG, DHChain, Joint, LinkCapsule, Robot, SerialChain, load_robot
     from qpik.scene import Scene
     from qpik.viewer import view
+    from qpik.viewer.options import ViewOptions
 
 # every name is imported on first use (qpik.core.lazy): `import qpik` loads none of the heavy dependencies
 __getattr__, __dir__ = exports(
@@ -58,6 +59,7 @@ __getattr__, __dir__ = exports(
         "qpik.robots": ("CATALOG", "DHChain", "Joint", "LinkCapsule", "Robot", "SerialChain", "load_robot"),
         "qpik.scene": ("Scene",),
         "qpik.viewer": ("view",),
+        "qpik.viewer.options": ("ViewOptions",),
     },
 )
 
@@ -91,6 +93,7 @@ __all__ = [
     "StepInfo",
     "UnknownRobotError",
     "UnreachableError",
+    "ViewOptions",
     "ViewerError",
     "feasible_intervals",
     "ik",

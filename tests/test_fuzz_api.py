@@ -188,7 +188,9 @@ def _controller(robot, target, obstacles, solver, gain, dt, q):
 
 
 def _view(robot, target, obstacles, objective, d_safe):
-    viewer = qpik.view(robot, target, obstacles, objective, d_safe=d_safe, port=0, block=False)
+    viewer = qpik.view(
+        robot, target, obstacles, objective, d_safe=d_safe, options=qpik.ViewOptions(port=0, block=False)
+    )
     viewer.close()
     return viewer.state.q
 
