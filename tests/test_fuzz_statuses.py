@@ -19,15 +19,17 @@ from qpik.geometry.contacts import capsule_pairs
 from qpik.geometry.distance import ObstacleSet, distances
 from qpik.geometry.shapes import Sphere
 from qpik.nlp.options import BestOptions, FullOptions
+from qpik.robots.model_files import MeshOptions
 
 _SITE = Path(np.__file__).resolve().parents[1]
 ROBOTS = _SITE / "cmeel.prefix/share/example-robot-data/robots"
 THIRD_PARTY = {
     "erd_panda": (ROBOTS / "panda_description/urdf/panda.urdf", {}),
-    "erd_xarm7": (ROBOTS / "xarm_description/urdf/xarm7.urdf", {"collision_only": True}),
+    "erd_xarm7": (ROBOTS / "xarm_description/urdf/xarm7.urdf", {"meshes": MeshOptions(collision_only=True)}),
     "pybullet_panda": (_SITE / "pybullet_data/franka_panda/panda.urdf", {}),
     "tiago_pro_left": (ROBOTS / "tiago_pro_description/robots/tiago_pro.urdf",
-                       {"collision_only": True, "base": "torso_lift_link", "tip": "arm_left_7_link"}),
+                       {"meshes": MeshOptions(collision_only=True), "base": "torso_lift_link",
+                        "tip": "arm_left_7_link"}),
 }  # fmt: skip
 SUCCESS = {"optimal", "dp", "tracking"}
 PER_ARM = 25

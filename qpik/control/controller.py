@@ -369,8 +369,10 @@ class Controller:
             InputError: NaN or wrong shapes.
         """
         from qpik.nlp.ik import solve_ik
+        from qpik.nlp.options import IKOptions
 
-        return solve_ik(self.robot, pose, q0, tol=tol, max_iters=max_iters, max_time=max_time, seed=seed)
+        options = IKOptions(max_iters=max_iters, max_time=max_time, seed=seed)
+        return solve_ik(self.robot, pose, q0, tol=tol, options=options)
 
 
 def _items(items: Sequence, kind: type, name: str) -> tuple:

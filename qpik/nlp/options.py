@@ -1,11 +1,18 @@
-"""The solver settings of :func:`qpik.solve_best` and :func:`qpik.nlp.solve_full`, one value each."""
+"""The solver settings of :func:`qpik.solve_best`, :func:`qpik.nlp.solve_full` and :func:`qpik.solve_ik`, one value
+each."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
+
+MAX_ITERS = 3000
+"""Default budget of Levenberg–Marquardt iterations over all attempts (a few ms; spent in whole chunks)."""
+
+Method = Literal["closed form", "levenberg-marquardt"]
 
 
 @dataclass(frozen=True)
@@ -49,3 +56,24 @@ class FullOptions:
     starts: int = 8
     max_starts: int = 30
     seed: int = 0
+
+
+@dataclass(frozen=True)
+class IKOptions:
+    """The budget and method of :func:`qpik.solve_ik` (each checked by it, :class:`~qpik.core.errors.InputError`
+    naming the field).
+
+    Attributes:
+        max_iters: budget of Levenberg–Marquardt iterations over all attempts (spent in whole chunks of
+            :data:`qpik.nlp.ik.CHUNK`, so up to CHUNK − 1 more).
+        max_time: budget in seconds (wall clock, checked between attempts), or None; with it the answer may depend
+            on the machine's speed.
+        seed: seed of the restarts (the answer is reproducible for a given seed and iteration budget).
+        method: ``"closed form"`` (the default where ``robot.closed_form`` is set) or ``"levenberg-marquardt"``
+            (the default elsewhere, and possible on every arm); None: the default.
+    """
+
+    max_iters: int = MAX_ITERS
+    max_time: float | None = None
+    seed: int = 0
+    method: Method | None = None
