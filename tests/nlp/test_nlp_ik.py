@@ -194,8 +194,11 @@ def test_bad_input() -> None:
         with pytest.raises(InputError, match=r"^q0"):
             solve_ik(robot, T, wrong)
     for kwargs in ({"tol": 0.0}, {"tol": np.nan}, {"max_iters": 0}, {"max_time": -1.0}, {"method": "newton"}):
+        args = kwargs if "tol" in kwargs else {"options": IKOptions(**kwargs)}
         with pytest.raises(InputError, match=rf"^{next(iter(kwargs))}"):
-            solve_ik(robot, T, robot.q_home, **kwargs)
+            solve_ik(robot, T, robot.q_home, **args)
+    with pytest.raises(InputError, match=r"^options"):
+        solve_ik(robot, T, robot.q_home, options={"seed": 1})
     with pytest.raises(NoClosedFormError, match=r"^method"):
         solve_ik(robot, T, robot.q_home, options=IKOptions(method="closed form"))
     skew = T.copy()
