@@ -518,13 +518,15 @@ def test_problem_loader(tmp_path_factory, line, new):
 
 def test_every_public_name_is_fuzzed_or_a_type():
     """Each callable of qpik.__all__, qpik.geometry and qpik.control is in the table or is a plain type
-    (errors, records, bases): a new public function has to be added here."""
+    (errors, records, bases, options whose fields the calls above fuzz): a new public function has to be added
+    here."""
     covered = " ".join(c.name for c in CASES + SLOW_CASES)
     plain = {"QpikError", "InputError", "RotationError", "UnknownRobotError", "NoClosedFormError", "ProblemFileError",
              "UnreachableError", "InfeasibleError", "SolverError", "RenderUnavailable", "ViewerError", "StepInfo",
              "LinkCapsule", "Robot", "IKSolutions", "FeasibleIntervals", "CATALOG", "Shape", "Distances",
              "PairDistance", "QP", "Solution", "Solver", "Task", "Limit", "BoxLimit", "RowLimit", "CLIK",
-             "Plan", "PlanningError"}  # fmt: skip
+             "Plan", "PlanningError", "BestOptions", "ControllerOptions", "PlanOptions",
+             "ViewOptions"}  # fmt: skip
     names = {*qpik.__all__, *geometry.__all__, *control.__all__}
     tasks_and_limits = {"FrameTask", "PostureTask", "ManipulabilityTask", "DampingTask", "ConfigurationLimit",
                         "VelocityLimit", "ObstacleLimit", "PseudoInverseCLIK", "DampedLeastSquares",

@@ -42,7 +42,8 @@ def peers(request):
     continuous = np.ones(N - 1, bool)
     continuous[5] = False  # a reconfiguration: no motion term, no step or acceleration bound there
     rows = np.array([0, 0, 0, 0, 0, 0, 2, 2, 2])
-    nlp = PathNLP(IIWA, T, objective, obstacles, 0.01, tr, continuous, IIWA.q_home, grid, rows)
+    scene = qpik.Scene.of(IIWA, obstacles, d_safe=0.01, objective=objective, q_ref=IIWA.q_home)
+    nlp = PathNLP(scene, T, tr, continuous, grid, rows)
     near = np.array([0, 1, 1, 0, 1, 1, 1, 0, 0], bool)
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(refine, "NATIVE_WAYPOINTS", 0 if compiled else N + 1)
