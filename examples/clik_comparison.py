@@ -24,11 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-from qpik import Controller
+from qpik import Controller, ControllerOptions
 from qpik.control.clik import PseudoInverseCLIK, VelocityOnly
 from qpik.plots.runs import plot_comparison
 from qpik.problems import find_problem, load
-from qpik.sim import simulate
+from qpik.sim import SimOptions, simulate
 
 DURATION = 4.0  # s
 TRANSIENT = 1.0  # s: errors are compared after this (the file's [expected] transient)
@@ -50,17 +50,15 @@ def main(out: Path) -> None:
             robot,
             dt=dt,
             q_ref=q0,
-            position_gain=GAIN,
-            orientation_gain=GAIN,
-            posture_weight=1e-5,
-            manipulability_weight=0.0,
-            damping=1e-8,
+            options=ControllerOptions(
+                position_gain=GAIN, orientation_gain=GAIN, posture_weight=1e-5, manipulability_weight=0.0, damping=1e-8
+            ),
         ),
         "PD CLIK, eq. (18)": PseudoInverseCLIK(robot, GAIN, GAIN, dt=dt),
         "velocity-only, Fig. 3a": VelocityOnly(robot, dt=dt),
     }
     logs = [
-        simulate(robot, ctrl, q0, DURATION, dt, target=path, record_every=10, label=label)
+        simulate(robot, ctrl, q0, DURATION, dt, target=path, options=SimOptions(record_every=10, label=label))
         for label, ctrl in controllers.items()
     ]
 

@@ -26,7 +26,7 @@ import qpik
 from qpik.geometry import HalfSpace, Sphere
 from qpik.plots.runs import plot_log, render_strip
 from qpik.render.pictures import unavailable_reason
-from qpik.sim import simulate
+from qpik.sim import SimOptions, simulate
 
 DT = 0.002  # s, control period (and integration step)
 DURATION = 3.0  # s
@@ -52,15 +52,31 @@ def main(out: Path) -> None:
 
     def controller(obs):
         """Frame task (gains 1/s), weak posture pull toward q_home, joint limits, dampers for ``obs``."""
-        gains = dict(position_gain=10.0, orientation_gain=10.0, posture_weight=1e-5, manipulability_weight=0.0)
-        damper = dict(d_safe=D_SAFE, d_influence=D_INFLUENCE, xi=XI)
-        return qpik.Controller.for_robot(robot, target=target, obstacles=obs, dt=DT, **gains, **damper)
+        options = qpik.ControllerOptions(position_gain=10.0, orientation_gain=10.0, posture_weight=1e-5,
+                                         manipulability_weight=0.0, d_influence=D_INFLUENCE, xi=XI)  # fmt: skip
+        return qpik.Controller.for_robot(robot, target=target, obstacles=obs, dt=DT, d_safe=D_SAFE, options=options)
 
     # Closed loop on the twin from the home configuration, a record every 5 steps (10 ms). The
     # obstacles are in the MuJoCo scene of both runs; only the first controller knows them.
-    scene = dict(obstacles=obstacles, target=target, record_every=5, d_safe=D_SAFE)
-    log = simulate(robot, controller(obstacles), robot.q_home, DURATION, DT, label="with obstacle limit", **scene)
-    free = simulate(robot, controller(()), robot.q_home, DURATION, DT, label="without obstacle limit", **scene)
+    scene = dict(obstacles=obstacles, target=target)
+    log = simulate(
+        robot,
+        controller(obstacles),
+        robot.q_home,
+        DURATION,
+        DT,
+        **scene,
+        options=SimOptions(record_every=5, d_safe=D_SAFE, label="with obstacle limit"),
+    )
+    free = simulate(
+        robot,
+        controller(()),
+        robot.q_home,
+        DURATION,
+        DT,
+        **scene,
+        options=SimOptions(record_every=5, d_safe=D_SAFE, label="without obstacle limit"),
+    )
 
     s = log.summary()
     print(f"iiwa14 from q_home to p* = {target[:3, 3]} m (tool down), {DURATION:g} s at dt = {DT:g} s")

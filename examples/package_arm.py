@@ -30,7 +30,7 @@ from qpik.geometry import Sphere
 from qpik.plots.runs import plot_log, render_strip
 from qpik.render.pictures import unavailable_reason
 from qpik.robots.packaged import packaged_model
-from qpik.sim import simulate
+from qpik.sim import SimOptions, simulate
 
 DT = 0.002  # s, control period (and integration step)
 DURATION = 3.0  # s
@@ -58,12 +58,29 @@ def main(out: Path) -> None:
 
     def controller(obstacles):
         return qpik.Controller.for_robot(
-            panda, target=target, obstacles=obstacles, dt=DT, d_safe=D_SAFE, d_influence=D_INFLUENCE
-        )
+            panda, target=target, obstacles=obstacles, dt=DT, d_safe=D_SAFE,
+            options=qpik.ControllerOptions(d_influence=D_INFLUENCE),
+        )  # fmt: skip
 
-    scene = dict(obstacles=[ball], target=target, record_every=5, d_safe=D_SAFE)
-    log = simulate(panda, controller([ball]), q0, DURATION, DT, label="with obstacle limit", **scene)
-    free = simulate(panda, controller(()), q0, DURATION, DT, label="without obstacle limit", **scene)
+    scene = dict(obstacles=[ball], target=target)
+    log = simulate(
+        panda,
+        controller([ball]),
+        q0,
+        DURATION,
+        DT,
+        **scene,
+        options=SimOptions(record_every=5, d_safe=D_SAFE, label="with obstacle limit"),
+    )
+    free = simulate(
+        panda,
+        controller(()),
+        q0,
+        DURATION,
+        DT,
+        **scene,
+        options=SimOptions(record_every=5, d_safe=D_SAFE, label="without obstacle limit"),
+    )
 
     print(f"\nfrom Franka's ready pose to p* = {np.round(target[:3, 3], 4)} m, {DURATION:g} s at dt = {DT:g} s")
     for run in (log, free):

@@ -26,7 +26,8 @@ from qpik.viewer import ViewerError
 def main(out: Path) -> None:
     problem = load(find_problem("iiwa_obstacle_reach"))
     robot, start = problem.robot, problem.poses[0]
-    viewer = qpik.view(robot, start, problem.obstacles, "margin", d_safe=0.03, port=0, block=False)
+    viewer = qpik.view(robot, start, problem.obstacles, "margin", d_safe=0.03,
+                       options=qpik.ViewOptions(port=0, block=False))  # fmt: skip
     try:
         viewer.wait()  # the first pose's certificate
         print(f"viewer of {robot.name} at {viewer.url}, {len(viewer.obstacles)} obstacles")

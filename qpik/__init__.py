@@ -12,7 +12,7 @@ from qpik.core.lazy import exports
 
 if TYPE_CHECKING:
     from qpik.analytic import FeasibleIntervals, IKSolutions, feasible_intervals, ik, redundancy_parameter
-    from qpik.control import Controller, StepInfo
+    from qpik.control import Controller, ControllerOptions, StepInfo
     from qpik.core.errors import (
         InfeasibleError,
         InputError,
@@ -26,19 +26,20 @@ if TYPE_CHECKING:
         UnreachableError,
         ViewerError,
     )
-    from qpik.nlp import BestResult, solve_best, solve_ik
-    from qpik.planning import Plan, plan_self_motion
+    from qpik.nlp import BestOptions, BestResult, solve_best, solve_ik
+    from qpik.planning import Plan, PlanOptions, plan_self_motion
     from qpik.planning.many import PlanningError, plan_many
     from qpik.robots import CATALOG, DHChain, Joint, LinkCapsule, Robot, SerialChain, load_robot
     from qpik.scene import Scene
     from qpik.viewer import view
+    from qpik.viewer.options import ViewOptions
 
 # every name is imported on first use (qpik.core.lazy): `import qpik` loads none of the heavy dependencies
 __getattr__, __dir__ = exports(
     __name__,
     {
         "qpik.analytic": ("FeasibleIntervals", "IKSolutions", "feasible_intervals", "ik", "redundancy_parameter"),
-        "qpik.control": ("Controller", "StepInfo"),
+        "qpik.control": ("Controller", "ControllerOptions", "StepInfo"),
         "qpik.core.errors": (
             "InfeasibleError",
             "InputError",
@@ -52,12 +53,13 @@ __getattr__, __dir__ = exports(
             "UnreachableError",
             "ViewerError",
         ),
-        "qpik.nlp": ("BestResult", "solve_best", "solve_ik"),
-        "qpik.planning": ("Plan", "plan_self_motion"),
+        "qpik.nlp": ("BestOptions", "BestResult", "solve_best", "solve_ik"),
+        "qpik.planning": ("Plan", "PlanOptions", "plan_self_motion"),
         "qpik.planning.many": ("PlanningError", "plan_many"),
         "qpik.robots": ("CATALOG", "DHChain", "Joint", "LinkCapsule", "Robot", "SerialChain", "load_robot"),
         "qpik.scene": ("Scene",),
         "qpik.viewer": ("view",),
+        "qpik.viewer.options": ("ViewOptions",),
     },
 )
 
@@ -65,8 +67,10 @@ __version__ = "0.1.0"
 
 __all__ = [
     "CATALOG",
+    "BestOptions",
     "BestResult",
     "Controller",
+    "ControllerOptions",
     "DHChain",
     "FeasibleIntervals",
     "IKSolutions",
@@ -76,6 +80,7 @@ __all__ = [
     "LinkCapsule",
     "NoClosedFormError",
     "Plan",
+    "PlanOptions",
     "PlanningError",
     "ProblemFileError",
     "QpikError",
@@ -88,6 +93,7 @@ __all__ = [
     "StepInfo",
     "UnknownRobotError",
     "UnreachableError",
+    "ViewOptions",
     "ViewerError",
     "feasible_intervals",
     "ik",

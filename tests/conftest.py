@@ -53,6 +53,7 @@ from hypothesis import strategies as st
 import qpik  # first: it chooses MuJoCo's GL backend before any test module imports mujoco
 from qpik.core.validate import project_to_so3
 from qpik.robots.dh import DHChain
+from qpik.robots.model_files import MeshOptions
 from qpik.robots.robot import Robot, default_capsules
 
 ARMS = ("nammoto7", "iiwa14", "zheng7", "panda")
@@ -89,7 +90,7 @@ MODELS: dict[str, Callable[[], tuple[Path, dict]]] = {
     "pybullet_panda": lambda: (packaged("pybullet/panda"), {}),
     "erd_panda": lambda: (packaged("erd/panda"), {}),
     "erd_xarm7": lambda: (packaged("erd/xarm7"), {}),
-    "robosuite_iiwa": lambda: (MODEL_DIR / "robosuite_iiwa/robot.xml", {"collision_only": True}),
+    "robosuite_iiwa": lambda: (MODEL_DIR / "robosuite_iiwa/robot.xml", {"meshes": MeshOptions(collision_only=True)}),
     "pusher": lambda: (MODEL_DIR / "gymnasium_pusher/pusher_v5.xml", {"tip": "tips_arm"}),
 }
 _loaded: dict[str, qpik.Robot] = {}

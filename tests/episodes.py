@@ -29,7 +29,7 @@ from functools import cache
 import numpy as np
 
 import qpik
-from qpik.control import Controller
+from qpik.control import Controller, ControllerOptions
 from qpik.geometry import Box, Capsule, HalfSpace, Sphere, distances
 from qpik.sim import simulate
 
@@ -297,8 +297,7 @@ def run_episode(ep: Episode) -> Outcome:
         dt=ep.dt,
         solver=ep.solver,
         d_safe=D_SAFE,
-        d_influence=D_INFLUENCE,
-        self_collision=False,
+        options=ControllerOptions(d_influence=D_INFLUENCE, self_collision=False),
     )
     log = simulate(robot, ctrl, ep.q0, ep.steps * ep.dt, ep.dt, obstacles=ep.obstacles, target=ep.target)
     excess = np.maximum(np.maximum(log.q - robot.q_max, robot.q_min - log.q), 0.0)

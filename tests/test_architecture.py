@@ -129,3 +129,66 @@ def test_no_import_circle():
             visit(v)
     assert sum(len(g) for g in graph.values()) > 300  # the graph was read
     assert not circles, circles
+
+
+MAX_PARAMETERS = 8
+
+
+def test_no_function_takes_more_than_eight_parameters():
+    """Parameters that travel together are one value (a :class:`~qpik.scene.Scene`, an options dataclass), so no
+    function of qpik takes more than :data:`MAX_PARAMETERS` (``self`` and ``cls`` not counted)."""
+    found = []
+    for name, tree in trees():
+        for node in ast.walk(tree):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                a = node.args
+                names = [x.arg for x in a.posonlyargs + a.args + a.kwonlyargs if x.arg not in ("self", "cls")]
+                if len(names) > MAX_PARAMETERS:
+                    found.append(f"{name}:{node.lineno} {node.name} {len(names)}")
+    assert not found, found
+
+
+MATHS = ("planning", "nlp", "analytic", "control", "core", "algebra", "geometry")
+"""The maths stack: what it computes never depends on how it is shown or run."""
+APPLICATIONS = ("qpik.sim", "qpik.viewer", "qpik.plots", "qpik.render", "qpik.cli")
+
+
+def qpik_imports(tree: ast.Module) -> set[str]:
+    """Every qpik module ``tree`` names in an import statement: at module level, inside functions (lazy) and under
+    ``if TYPE_CHECKING:``; ``from qpik import x`` counts as ``qpik.x``."""
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out.update(a.name for a in node.names if a.name.startswith("qpik"))
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").startswith("qpik"):
+            out.add(node.module)
+            out.update(f"{node.module}.{a.name}" for a in node.names)
+    return out
+
+
+def test_the_maths_stack_imports_no_application():
+    found = sorted(
+        f"{name}: {target}"
+        for name, tree in trees()
+        if name.split("/")[0] in MATHS
+        for target in qpik_imports(tree)
+        if any(target == app or target.startswith(app + ".") for app in APPLICATIONS)
+    )
+    assert not found, found
+
+
+def test_core_imports_only_core():
+    """``qpik.core`` is the bottom layer: errors, validation, layouts, the lazy loader, the stopwatch."""
+    found = sorted(
+        f"{name}: {target}"
+        for name, tree in trees()
+        if name.startswith("core/")
+        for target in qpik_imports(tree)
+        if not (target == "qpik.core" or target.startswith("qpik.core."))
+    )
+    assert not found, found
+
+
+def test_the_import_checks_see_a_lazy_import():
+    tree = ast.parse("def f():\n    from qpik.sim.log import x\n    import qpik.viewer\n")
+    assert {"qpik.sim.log", "qpik.sim.log.x", "qpik.viewer"} <= qpik_imports(tree)

@@ -27,6 +27,7 @@ from qpik.checks.crosscheck import crosscheck
 from qpik.control import clik
 from qpik.control.solvers import get_solver
 from qpik.nlp import BestResult, solve_full
+from qpik.nlp.options import BestOptions, FullOptions
 from qpik.objectives import JointLimitMargin, Manipulability
 from qpik.problems import load
 from qpik.scene.evaluator import Evaluator
@@ -181,13 +182,15 @@ def _bad_specs() -> st.SearchStrategy:
 
 def _controller(robot, target, obstacles, solver, gain, dt, q):
     ctrl = qpik.Controller.for_robot(robot, target=target, obstacles=obstacles, solver=solver,
-                                     position_gain=gain, dt=dt)  # fmt: skip
+                                     options=qpik.ControllerOptions(position_gain=gain), dt=dt)  # fmt: skip
     v = ctrl.step(q)
     return v, ctrl.last
 
 
 def _view(robot, target, obstacles, objective, d_safe):
-    viewer = qpik.view(robot, target, obstacles, objective, d_safe=d_safe, port=0, block=False)
+    viewer = qpik.view(
+        robot, target, obstacles, objective, d_safe=d_safe, options=qpik.ViewOptions(port=0, block=False)
+    )
     viewer.close()
     return viewer.state.q
 
@@ -208,14 +211,21 @@ def _serial_chain(post, offset, kind, tool):
 def _solve_best(robot, pose, objective, obstacles, d_safe):
     from qpik.nlp.best import STATUSES, BestResults
 
-    best = qpik.solve_best(robot, pose, objective, obstacles, d_safe=d_safe, certify=False)
+    best = qpik.solve_best(robot, pose, objective, obstacles, d_safe=d_safe, options=BestOptions(certify=False))
     results = list(best) if isinstance(best, BestResults) else [best]  # a batch of poses is a batch of answers
     assert all(r.status in STATUSES for r in results)
     return results
 
 
 def _solve_full(robot, pose, objective, obstacles, q0, d_safe, starts, seed):
-    res = solve_full(robot, pose, objective, obstacles, q0=q0, d_safe=d_safe, starts=starts, max_starts=2, seed=seed)
+    res = solve_full(
+        robot,
+        pose,
+        objective,
+        obstacles,
+        d_safe=d_safe,
+        options=FullOptions(q0=q0, starts=starts, max_starts=2, seed=seed),
+    )
     assert res.status in ("optimal", "unreachable", "not found", "solver failed")
     return res
 
@@ -282,16 +292,24 @@ def _clik(kind, robot, gain, dt, q, target):
 
 
 def _plan(robot, path, objective, obstacles, step, reconfigure):
-    return qpik.plan_self_motion(robot, path, objective, obstacles, max_joint_step=step, reconfigure=reconfigure,
-                                 resolution=36, refine=False, mujoco=False)  # fmt: skip
+    return qpik.plan_self_motion(
+        robot,
+        path,
+        objective,
+        obstacles,
+        options=qpik.PlanOptions(
+            max_joint_step=step, reconfigure=reconfigure, resolution=36, refine=False, mujoco=False
+        ),
+    )
 
 
 PLAN_PATH = IIWA.fk(IIWA.q_home + np.linspace(0.0, 0.2, 4)[:, None])
 
 
 def _plan_many(robot, paths, obstacles, workers, errors):
-    return qpik.plan_many(robot, paths, obstacles=obstacles, workers=workers, errors=errors, progress=False,
-                          resolution=36, refine=False, mujoco=False)  # fmt: skip
+    scene = qpik.Scene.of(robot, obstacles) if isinstance(robot, qpik.Robot) else robot
+    return qpik.plan_many(scene, paths, qpik.PlanOptions(resolution=36, refine=False, mujoco=False), workers=workers,
+                          errors=errors, progress=False)  # fmt: skip
 
 
 def _intervals(robot, pose, branch, value):
@@ -500,13 +518,15 @@ def test_problem_loader(tmp_path_factory, line, new):
 
 def test_every_public_name_is_fuzzed_or_a_type():
     """Each callable of qpik.__all__, qpik.geometry and qpik.control is in the table or is a plain type
-    (errors, records, bases): a new public function has to be added here."""
+    (errors, records, bases, options whose fields the calls above fuzz): a new public function has to be added
+    here."""
     covered = " ".join(c.name for c in CASES + SLOW_CASES)
     plain = {"QpikError", "InputError", "RotationError", "UnknownRobotError", "NoClosedFormError", "ProblemFileError",
              "UnreachableError", "InfeasibleError", "SolverError", "RenderUnavailable", "ViewerError", "StepInfo",
              "LinkCapsule", "Robot", "IKSolutions", "FeasibleIntervals", "CATALOG", "Shape", "Distances",
              "PairDistance", "QP", "Solution", "Solver", "Task", "Limit", "BoxLimit", "RowLimit", "CLIK",
-             "Plan", "PlanningError"}  # fmt: skip
+             "Plan", "PlanningError", "BestOptions", "ControllerOptions", "PlanOptions",
+             "ViewOptions"}  # fmt: skip
     names = {*qpik.__all__, *geometry.__all__, *control.__all__}
     tasks_and_limits = {"FrameTask", "PostureTask", "ManipulabilityTask", "DampingTask", "ConfigurationLimit",
                         "VelocityLimit", "ObstacleLimit", "PseudoInverseCLIK", "DampedLeastSquares",

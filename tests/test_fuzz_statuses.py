@@ -18,15 +18,18 @@ import qpik
 from qpik.geometry.contacts import capsule_pairs
 from qpik.geometry.distance import ObstacleSet, distances
 from qpik.geometry.shapes import Sphere
+from qpik.nlp.options import BestOptions, FullOptions
+from qpik.robots.model_files import MeshOptions
 
 _SITE = Path(np.__file__).resolve().parents[1]
 ROBOTS = _SITE / "cmeel.prefix/share/example-robot-data/robots"
 THIRD_PARTY = {
     "erd_panda": (ROBOTS / "panda_description/urdf/panda.urdf", {}),
-    "erd_xarm7": (ROBOTS / "xarm_description/urdf/xarm7.urdf", {"collision_only": True}),
+    "erd_xarm7": (ROBOTS / "xarm_description/urdf/xarm7.urdf", {"meshes": MeshOptions(collision_only=True)}),
     "pybullet_panda": (_SITE / "pybullet_data/franka_panda/panda.urdf", {}),
     "tiago_pro_left": (ROBOTS / "tiago_pro_description/robots/tiago_pro.urdf",
-                       {"collision_only": True, "base": "torso_lift_link", "tip": "arm_left_7_link"}),
+                       {"meshes": MeshOptions(collision_only=True), "base": "torso_lift_link",
+                        "tip": "arm_left_7_link"}),
 }  # fmt: skip
 SUCCESS = {"optimal", "dp", "tracking"}
 PER_ARM = 25
@@ -99,7 +102,9 @@ def test_no_plan_whose_check_fails_is_a_success(arm):
         # track, so it is tested on zheng7 alone (the test below)
         T, obstacles = _case(robot, 1000 * ARMS.index(arm) + seed, far=closed)
         refine = seed % 5 == 0  # without a closed form only the NLP's plans follow the path exactly
-        plan = qpik.plan_self_motion(robot, T, obstacles=obstacles, refine=refine, mujoco=False)
+        plan = qpik.plan_self_motion(
+            robot, T, obstacles=obstacles, options=qpik.PlanOptions(refine=refine, mujoco=False)
+        )
         statuses.append(plan.status)
         own = all(c.ok for c in plan.checks) and len(plan.q) == len(T)
         assert (plan.status in SUCCESS) == own, (seed, plan.summary())
@@ -117,7 +122,7 @@ def test_an_unreachable_waypoint_on_a_fallback_arm_fails_its_fk_check():
     robot = qpik.load_robot("zheng7")
     T, _ = _case(robot, 7)
     T[3, :3, 3] *= 3.0  # out of reach
-    plan = qpik.plan_self_motion(robot, T, mujoco=False)
+    plan = qpik.plan_self_motion(robot, T, options=qpik.PlanOptions(mujoco=False))
     assert plan.status == "failed" and plan.failure_kind == "check" and not plan.ok
     assert "'fk'" in plan.failure and "fk" in plan.summary()
 
@@ -145,10 +150,10 @@ def test_no_ik_result_whose_check_fails_is_optimal(arm):
         T, obstacles = _case(robot, 5000 + seed)
         pose = T[N // 2]
         if robot.closed_form is not None:
-            best = solve_best(robot, pose, "margin", obstacles, certify=False)
+            best = solve_best(robot, pose, "margin", obstacles, options=BestOptions(certify=False))
             assert best.status in {"optimal", "unreachable", "no feasible branch", "solver failed"}
             assert (best.status == "optimal") <= _pose_ok(robot, best.q, pose, obstacles, 0.02), best.summary()
-        full = solve_full(robot, pose, None, obstacles, max_starts=4)
+        full = solve_full(robot, pose, None, obstacles, options=FullOptions(max_starts=4))
         assert full.status in {"optimal", "unreachable", "not found", "solver failed"}
         assert (full.status == "optimal") <= _pose_ok(robot, full.q, pose, obstacles, 0.02), full.message
         if full.status == "unreachable":

@@ -18,7 +18,7 @@ IIWA = qpik.load_robot("iiwa14")
 @pytest.fixture(scope="module")
 def plan():
     T = IIWA.fk(IIWA.q_home + np.linspace(0, 1, 6)[:, None] * np.full(7, 0.1))
-    return qpik.plan_self_motion(IIWA, T, refine=False, mujoco=False)
+    return qpik.plan_self_motion(IIWA, T, options=qpik.PlanOptions(refine=False, mujoco=False))
 
 
 @pytest.mark.parametrize("samples", [0, 1, -5, 2.5, True, "3"])
@@ -54,11 +54,11 @@ def test_duplicate_obstacle_names_are_rejected():
 def test_planner_caps_waypoints_and_resolution(plan):
     T = plan.poses
     with pytest.raises(InputError, match="resolution"):
-        qpik.plan_self_motion(IIWA, T, resolution=MAX_RESOLUTION + 2, mujoco=False)
+        qpik.plan_self_motion(IIWA, T, options=qpik.PlanOptions(resolution=MAX_RESOLUTION + 2, mujoco=False))
     with pytest.raises(InputError, match="resolution"):
-        qpik.plan_self_motion(IIWA, T, resolution=1e8, mujoco=False)
+        qpik.plan_self_motion(IIWA, T, options=qpik.PlanOptions(resolution=1e8, mujoco=False))
     with pytest.raises(InputError, match="path"):
-        qpik.plan_self_motion(IIWA, np.repeat(T[:1], MAX_WAYPOINTS + 1, axis=0), mujoco=False)
+        qpik.plan_self_motion(IIWA, np.repeat(T[:1], MAX_WAYPOINTS + 1, axis=0), options=qpik.PlanOptions(mujoco=False))
     path = qpik.geometry.paths.WaypointPath(T, np.linspace(0.0, 1.0, len(T)))
     with pytest.raises(InputError, match="waypoints"):
-        qpik.plan_self_motion(IIWA, path, waypoints=3_000_000, mujoco=False)
+        qpik.plan_self_motion(IIWA, path, options=qpik.PlanOptions(waypoints=3_000_000, mujoco=False))

@@ -165,3 +165,17 @@ def pose_error(target: np.ndarray, current: np.ndarray) -> np.ndarray:
         InputError: a pose that is not a (4, 4) homogeneous pose with a rotation block (``qpik.core.validate.pose``).
     """
     return _numeric("pose_error")(single_pose(target, "target"), single_pose(current, "current"))[0].copy()
+
+
+def rotation_angle(R: np.ndarray) -> np.ndarray:
+    """Angle (rad, in [0, π]) of rotation matrices R (..., 3, 3)."""
+    s = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
+    return np.arctan2(np.linalg.norm(s, axis=-1), np.trace(R, axis1=-2, axis2=-1) - 1.0)
+
+
+def tracking_errors(pose: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    r"""Position error :math:`\lVert p_d - p \rVert` (m) and orientation error :math:`\angle(R_d^\top R)` (rad, in
+    [0, π], :func:`rotation_angle`) of poses (..., 4, 4) against targets (..., 4, 4)."""
+    e_pos = np.linalg.norm(target[..., :3, 3] - pose[..., :3, 3], axis=-1)
+    M = np.swapaxes(target[..., :3, :3], -1, -2) @ pose[..., :3, :3]
+    return e_pos, rotation_angle(M)

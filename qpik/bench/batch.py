@@ -19,12 +19,13 @@ import numpy as np
 
 from qpik.bench import Row
 from qpik.planning.many import plan_many
+from qpik.planning.options import PlanOptions
 from qpik.planning.planner import plan_self_motion
 from qpik.robots.loader import load_robot
 
 TITLE = "Batches: qpik.plan_many, 200 iiwa14 paths of 6 waypoints (plans per second in the notes)"
 PATHS = 200
-OPTIONS = {"resolution": 72, "mujoco": False}
+OPTIONS = PlanOptions(resolution=72, mujoco=False)
 
 
 def paths(count: int = PATHS) -> list[np.ndarray]:
@@ -45,15 +46,15 @@ def run(args: argparse.Namespace) -> list[Row]:
     count = PATHS if full else PATHS // 10
     sizes = (1, 2, 4) if full else (1, 2)
     robot, todo = load_robot("iiwa14"), paths(count)
-    plan_self_motion(robot, todo[0], **OPTIONS)  # compiles and caches
+    plan_self_motion(robot, todo[0], options=OPTIONS)  # compiles and caches
     here = "in this process"
     rows = []
     start = time.perf_counter()
-    plans = plan_many(robot, todo, workers=1, progress=False, **OPTIONS)
+    plans = plan_many(robot, todo, workers=1, progress=False, options=OPTIONS)
     rows.append(_row(here, time.perf_counter() - start, count, None, plans))
     for n in sizes[1:]:
         start = time.perf_counter()
-        plans = plan_many(robot, todo, workers=n, progress=False, **OPTIONS)
+        plans = plan_many(robot, todo, workers=n, progress=False, options=OPTIONS)
         rows.append(_row(f"{n} local processes", time.perf_counter() - start, count, here, plans))
     try:
         from dask.distributed import Client, LocalCluster
@@ -63,6 +64,6 @@ def run(args: argparse.Namespace) -> list[Row]:
         cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
         with cluster, Client(cluster) as client:
             start = time.perf_counter()
-            plans = plan_many(robot, todo, client=client, progress=False, **OPTIONS)
+            plans = plan_many(robot, todo, client=client, progress=False, options=OPTIONS)
             rows.append(_row(f"Dask LocalCluster, {n} worker(s)", time.perf_counter() - start, count, here, plans))
     return rows

@@ -77,7 +77,7 @@ from qpik.bench.loop import (
     mink_step,
     scene,
 )
-from qpik.control import Controller
+from qpik.control import Controller, ControllerOptions
 from qpik.control.solvers import available
 from qpik.control.solvers.osqp import REUSED
 from qpik.core.errors import InputError
@@ -175,10 +175,8 @@ def _controller(robot, target, spheres, solver) -> Controller:
         obstacles=spheres,
         dt=DT,
         solver=solver,
-        d_influence=D_INFLUENCE,
         d_safe=D_SAFE,
-        xi=XI,
-        self_collision=False,
+        options=ControllerOptions(d_influence=D_INFLUENCE, xi=XI, self_collision=False),
     )
 
 

@@ -20,12 +20,12 @@ import numpy as np
 
 from qpik.bench import Row, time_interleaved
 from qpik.bench.loop import D_INFLUENCE, D_SAFE, DT, HOT, XI, closed_loop, mink_step, scene
-from qpik.control import Controller, ObstacleLimit
+from qpik.control import Controller, ControllerOptions, ObstacleLimit
 from qpik.control.self_collision import SelfCollisionLimit
 from qpik.geometry.shapes import Sphere
 from qpik.robots.loader import load_robot
+from qpik.robots.mujoco_scene import build_scene
 from qpik.robots.robot import Robot
-from qpik.sim.run import build_scene
 
 FOLD = 0.6
 """The target's position: this fraction of the way from the hand to the shoulder."""
@@ -58,8 +58,9 @@ def velocity(k: int) -> float:
 
 def _qpik_step(robot: Robot, target, spheres, solver: str):
     ctrl = Controller.for_robot(
-        robot, target=target, obstacles=spheres, dt=DT, solver=solver, d_influence=D_INFLUENCE, d_safe=D_SAFE, xi=XI
-    )
+        robot, target=target, obstacles=spheres, dt=DT, solver=solver, d_safe=D_SAFE,
+        options=ControllerOptions(d_influence=D_INFLUENCE, xi=XI),
+    )  # fmt: skip
     limits = [
         ObstacleLimit(spheres, D_INFLUENCE, D_SAFE, XI, moving=True) if isinstance(lim, ObstacleLimit) else lim
         for lim in ctrl.limits

@@ -45,6 +45,7 @@ from qpik.algebra.lie import pose_error
 from qpik.bench import Row, fmt_time
 from qpik.core.errors import UnreachableError
 from qpik.nlp.ik import solve_ik
+from qpik.nlp.options import IKOptions
 from qpik.robots.loader import load_robot
 from qpik.robots.robot import Robot
 
@@ -139,7 +140,7 @@ def _reached(robot: Robot, q: np.ndarray, target: np.ndarray) -> bool:
 def _qpik(robot: Robot) -> Solve:
     def solve(target: np.ndarray, q0: np.ndarray, i: int) -> np.ndarray | None:
         try:
-            return solve_ik(robot, target, q0, tol=TOL, seed=i)
+            return solve_ik(robot, target, q0, tol=TOL, options=IKOptions(seed=i))
         except UnreachableError:
             return None
 

@@ -6,10 +6,10 @@ import mink
 import numpy as np
 from mink.tasks.task import BaseTask, Objective
 
-from qpik.control import Controller
+from qpik.control import Controller, ControllerOptions
 from qpik.geometry.distance import distances
 from qpik.geometry.shapes import Sphere
-from qpik.sim.run import build_scene
+from qpik.robots.mujoco_scene import build_scene
 
 HOT = 50
 """Both scenes are timed hot: each sample is a block of this many consecutive steps of one library (the issue's
@@ -101,7 +101,8 @@ def mink_step(robot, target, spheres, solver, extra_pairs: tuple = ()):
     adr = scene_.kin.qpos_adr
     conf = mink.Configuration(model)
     qpos = model.qpos0.copy()  # joints that are not the arm's (fingers) stay at their reference
-    ctrl = Controller.for_robot(robot, self_collision=False)  # only to read the same default weights
+    # only to read the same default weights
+    ctrl = Controller.for_robot(robot, options=ControllerOptions(self_collision=False))
     frame_task, posture, manip, damping = ctrl.tasks
     # qpik's cost w‖·‖² over v ⇔ mink's ½‖c(·)‖² over Δq = v dt with c = sqrt(2 w)·…, gains·dt
     frame = mink.FrameTask(

@@ -43,6 +43,7 @@ from qpik.bench import Row
 from qpik.geometry.shapes import Sphere
 from qpik.nlp import solve_best, solve_full
 from qpik.nlp.full import REACHED
+from qpik.nlp.options import FullOptions
 from qpik.robots.loader import load_robot
 
 TITLE = "NLP: best branch and δ/ψ (solve_best) and the full-joint NLP"
@@ -143,11 +144,11 @@ def _full_rows(name: str, n: int) -> list[Row]:
     starts = rng.uniform(robot.q_min, robot.q_max, (n, robot.dof))
     T = robot.fk(Q)
     mink_solve = _mink(robot)
-    solve_full(robot, T[0], q0=starts[0])
+    solve_full(robot, T[0], options=FullOptions(q0=starts[0]))
     out = {"qpik": ([], []), "mink": ([], [])}
     for k in range(n):
         t0 = time.perf_counter()
-        res = solve_full(robot, T[k], q0=starts[k], seed=k, max_starts=MAX_STARTS)
+        res = solve_full(robot, T[k], options=FullOptions(q0=starts[k], seed=k, max_starts=MAX_STARTS))
         out["qpik"][0].append(time.perf_counter() - t0)
         out["qpik"][1].append(res.status == "optimal" and robot.within_limits(res.q))
         t0 = time.perf_counter()

@@ -19,7 +19,7 @@ import numpy as np
 
 from qpik.bench import Row
 from qpik.geometry.shapes import Capsule
-from qpik.planning import plan_self_motion
+from qpik.planning import PlanOptions, plan_self_motion
 from qpik.problems.paths import wipe
 from qpik.robots.loader import load_robot
 
@@ -45,11 +45,12 @@ def run(args: argparse.Namespace) -> list[Row]:
     T, times = path(count)
     repeat = 3 if full else 1
     runs = {"obstacle": [], "free": []}
-    plan_self_motion(robot, T, obstacles=[POST], times=times, mujoco=False)  # compiles and caches
-    plan_self_motion(robot, T, times=times, refine=False, mujoco=False)
+    checked, dp_only = PlanOptions(mujoco=False), PlanOptions(refine=False, mujoco=False)
+    plan_self_motion(robot, T, obstacles=[POST], times=times, options=checked)  # compiles and caches
+    plan_self_motion(robot, T, times=times, options=dp_only)
     for _ in range(repeat):
-        runs["obstacle"].append(plan_self_motion(robot, T, obstacles=[POST], times=times, mujoco=False))
-        runs["free"].append(plan_self_motion(robot, T, times=times, refine=False, mujoco=False))
+        runs["obstacle"].append(plan_self_motion(robot, T, obstacles=[POST], times=times, options=checked))
+        runs["free"].append(plan_self_motion(robot, T, times=times, options=dp_only))
     last = runs["obstacle"][-1]
     dp = np.median([p.timings["dp"] for p in runs["obstacle"]])
     nlp = np.median([p.timings["nlp"] for p in runs["obstacle"]])

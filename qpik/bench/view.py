@@ -68,6 +68,7 @@ def _arms() -> list[tuple[str, object, tuple, np.ndarray | None, str]]:
 def run(args: argparse.Namespace) -> list[Row]:
     from qpik.viewer import ViewerError
     from qpik.viewer.browser import browser, open_page
+    from qpik.viewer.options import ViewOptions
     from qpik.viewer.server import Viewer
 
     rows = []
@@ -80,7 +81,7 @@ def run(args: argparse.Namespace) -> list[Row]:
             if robot is None:
                 rows[-1].note += f"; {label} left out: {missing}"
                 continue
-            with Viewer(robot, obstacles=obstacles, port=0) as viewer:
+            with Viewer(robot, obstacles=obstacles, options=ViewOptions(port=0)) as viewer:
                 viewer.wait()
                 page = open_page(chromium, viewer, (1280, 800)) if chromium is not None else None
                 reached = 0

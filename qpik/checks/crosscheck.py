@@ -38,6 +38,7 @@ from qpik.core.errors import InputError
 from qpik.core.validate import count, single_pose
 from qpik.nlp.best import BestResult, solve_best
 from qpik.nlp.full import FullResult, solve_full
+from qpik.nlp.options import BestOptions, FullOptions
 from qpik.objectives import Objective
 from qpik.robots.robot import Robot
 from qpik.scene.scene import Scene, scene_of
@@ -141,10 +142,10 @@ def crosscheck(
         raise InputError(
             f"objective: the cross-check needs a smooth objective (its gradient is the QP's task), got {obj.name}"
         )
-    best = solve_best(scene, pose, certify=False)
+    best = solve_best(scene, pose, options=BestOptions(certify=False))
     if best.status != "optimal":
         return CrossCheck(best, None, None, np.inf, np.inf, np.inf, np.inf, applicable=False)
-    full = solve_full(scene, pose, q0=best.q, starts=1, max_starts=1)
+    full = solve_full(scene, pose, options=FullOptions(q0=best.q, starts=1, max_starts=1))
     velocity, qp_status = _qp_step(scene, pose, best.q)
     q_gap = float(np.abs(full.q - best.q).max())
     f_gap = float(abs(full.objective - best.objective))
@@ -168,7 +169,7 @@ def crosscheck(
         hits = 0
         for _ in range(random_starts):
             q0 = rng.uniform(robot.q_min, robot.q_max)
-            r = solve_full(scene, pose, q0=q0, starts=1, max_starts=1)
+            r = solve_full(scene, pose, options=FullOptions(q0=q0, starts=1, max_starts=1))
             hits += r.status == "optimal" and r.objective <= best.objective + TOL_F
         out.random_starts, out.random_rate = random_starts, hits / random_starts
     return out

@@ -69,17 +69,20 @@ def robot_from_args(args: argparse.Namespace):
     """The :class:`qpik.Robot` named by the :func:`add_robot` options."""
     from qpik import load_robot
     from qpik.core.errors import InputError
+    from qpik.robots.model_files import MeshOptions
 
     options = {k: getattr(args, k) for k in ("base", "tip", "joints") if getattr(args, k) is not None}
     if args.package:
         bad = [p for p in args.package if "=" not in p]
         if bad:
             raise InputError(f"--package: expected NAME=DIR, got {bad[0]!r}")
-        options["package_map"] = dict(p.split("=", 1) for p in args.package)
-    if args.collision_only:
-        options["collision_only"] = True
-    if getattr(args, "allow_outside", False):
-        options["allow_outside"] = True
+    meshes = MeshOptions(
+        package_map=dict(p.split("=", 1) for p in args.package) if args.package else None,
+        collision_only=bool(args.collision_only),
+        allow_outside=bool(getattr(args, "allow_outside", False)),
+    )
+    if meshes != MeshOptions():
+        options["meshes"] = meshes
     return load_robot(args.robot, **options)
 
 

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from qpik.cli.args import Subcommands, add_robot, floats, robot_from_args
 from qpik.cli.ik import add_pose, pose_from_args
+from qpik.nlp.options import BestOptions
 from qpik.scene import Scene
 
 
@@ -68,7 +69,7 @@ def _run(args: argparse.Namespace) -> int:
             raise InputError(f"--sphere: expected x,y,z,radius (4 numbers), got {s.size}")
         obstacles.append(Sphere(s[:3], s[3]))
     scene = Scene.of(robot, obstacles, d_safe=args.d_safe, objective=args.objective, q_ref=args.q_ref)
-    best = solve_best(scene, T, certify=not args.no_certify, tol=args.tol, method=args.method)
+    best = solve_best(scene, T, options=BestOptions(certify=not args.no_certify, tol=args.tol, method=args.method))
     p = np.array2string(T[:3, 3], precision=4)
     extra = f", {len(obstacles)} obstacle(s), d_s = {args.d_safe:g} m" if obstacles else ""
     print(f"{robot.name}: {best.quantity.goal} at p = {p} m{extra}")

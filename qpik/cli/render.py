@@ -29,7 +29,7 @@ def _run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from qpik.core.errors import InputError
-    from qpik.render.pictures import RenderUnavailable, render_configurations
+    from qpik.render.pictures import RenderUnavailable, Tiles, render_configurations
 
     robot = robot_from_args(args)
     bad = [q.shape[0] for q in args.q or () if q.shape != (robot.dof,)]
@@ -42,7 +42,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.cols is not None:
         at_least_one(args.cols, "--cols")
     try:
-        render_configurations(robot, qs, args.out, cols=args.cols, size=size, overlay=args.overlay)
+        render_configurations(robot, qs, args.out, tiles=Tiles(cols=args.cols, size=size, overlay=args.overlay))
     except RenderUnavailable as exc:  # the one line of qpik.cli.main, exit code 2
         raise RenderUnavailable(f"nothing drawn, no OpenGL: {exc}") from None
     print(f"wrote {args.out} ({len(qs)} configuration{'s' if len(qs) > 1 else ''} of {robot.name})")

@@ -9,6 +9,7 @@ the plan file (``*_plan.npz``) of ``qpik plan``, ``--live`` starts the QP contro
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 from qpik.cli.args import Subcommands, add_robot, floats, robot_from_args, whole
@@ -36,6 +37,7 @@ def register(sub: Subcommands) -> None:
 def _run(args: argparse.Namespace) -> int:
     from qpik.core.errors import InputError
     from qpik.viewer import view
+    from qpik.viewer.options import ViewOptions
 
     if args.arm is not None and args.robot is not None and args.arm != args.robot:
         raise InputError(f"ROBOT: given twice, {args.arm!r} and --robot {args.robot!r}")
@@ -59,12 +61,14 @@ def _run(args: argparse.Namespace) -> int:
     if args.screenshot is not None and args.screenshot.suffix.lower() != ".png":
         raise InputError(f"--screenshot: the picture is PNG, so the name must end in .png: {args.screenshot}")
     replaced = args.screenshot is not None and args.screenshot.exists()
-    common = dict(d_safe=args.d_safe, play=args.play, live=args.live, host=args.host, port=args.port)
+    options = ViewOptions(live=args.live, host=args.host, port=args.port, block=False)
+    common = dict(d_safe=args.d_safe, play=args.play)
     if args.screenshot is not None:
-        view(robot, target, obstacles, args.objective, block=False, screenshot=args.screenshot, size=size, **common)
+        shot = dataclasses.replace(options, screenshot=args.screenshot, size=size)
+        view(robot, target, obstacles, args.objective, options=shot, **common)
         print(f"wrote {args.screenshot} ({size[0]}x{size[1]}, {robot.name}){' (replaced)' if replaced else ''}")
         return 0
-    viewer = view(robot, target, obstacles, args.objective, block=False, **common)
+    viewer = view(robot, target, obstacles, args.objective, options=options, **common)
     print(f"qpik view: {robot.name} at {viewer.url} (Ctrl-C stops; from another machine: "
           f"ssh -L {viewer.port}:localhost:{viewer.port} THIS_HOST)", flush=True)  # fmt: skip
     viewer.serve_forever()

@@ -15,6 +15,7 @@ from qpik.algebra.lie import pose_error, so3_log
 from qpik.control.clik import CLIK, DampedLeastSquares, GradientProjection, PseudoInverseCLIK, VelocityOnly
 from qpik.control.controller import Controller, StepInfo
 from qpik.control.limits import BoxLimit, ConfigurationLimit, Limit, ObstacleLimit, RowLimit, VelocityLimit
+from qpik.control.options import ControllerOptions
 from qpik.control.qp import QP
 from qpik.control.solvers import Solution, Solver, get_solver
 from qpik.control.state import State
@@ -33,6 +34,7 @@ __all__ = [
     "BoxLimit",
     "ConfigurationLimit",
     "Controller",
+    "ControllerOptions",
     "DampedLeastSquares",
     "DampingTask",
     "FrameTask",

@@ -41,6 +41,7 @@ import casadi as ca
 import numpy as np
 
 from qpik.control.limits import ConfigurationLimit, Limit, ObstacleLimit, VelocityLimit
+from qpik.control.options import ControllerOptions
 from qpik.control.qp import QP, Assembler
 from qpik.control.self_collision import SelfCollisionLimit
 from qpik.control.solvers import Solver, get_solver
@@ -49,8 +50,8 @@ from qpik.control.tasks import DampingTask, FrameTask, ManipulabilityTask, Postu
 from qpik.core.errors import InfeasibleError, InputError, SolverError
 from qpik.core.validate import joint_vector, number
 from qpik.geometry.contacts import capsule_pairs
-from qpik.geometry.distance import ObstacleSet
 from qpik.robots.robot import as_robot
+from qpik.scene.scene import Scene
 
 FALLBACK = "daqp"  # exact active-set solver tried when the main solver reports no solution
 ACTIVE_TOL = 1e-7  # rad/s (box) and row units: a constraint within this of its bound is reported active
@@ -191,44 +192,54 @@ class Controller:
         robot,
         target: np.ndarray | None = None,
         obstacles: Sequence = (),
+        *,
         dt: float = 0.001,
         solver: str | Solver = "osqp",
         q_ref: np.ndarray | None = None,
-        position_gain: float = 50.0,
-        orientation_gain: float = 50.0,
-        posture_weight: float = 1e-3,
-        manipulability_weight: float = 1e-3,
-        damping: float = 1e-4,
-        margin: float = 0.0,
-        d_influence: float = 0.10,
         d_safe: float = 0.02,
-        xi: float = 0.5,
-        self_collision: bool = True,
+        options: ControllerOptions | None = None,
     ) -> Controller:
-        """A controller with the usual tasks and limits.
+        """:meth:`for_scene` of ``Scene.of(robot, obstacles, d_safe=d_safe, q_ref=q_ref)``."""
+        return cls.for_scene(Scene.of(robot, obstacles, d_safe=d_safe, q_ref=q_ref), target, dt=dt, solver=solver,
+                             options=options)  # fmt: skip
 
-        Tasks: :class:`FrameTask` (``target``, gains in 1/s, weights 1 per m² and 0.1 per rad²),
-        :class:`PostureTask` toward ``q_ref`` (default ``robot.q_home``, gain 1/s),
-        :class:`ManipulabilityTask`, :class:`DampingTask`. Limits:
-        :class:`ConfigurationLimit` (``margin``), :class:`VelocityLimit` (the robot's) and,
-        with ``obstacles``, :class:`ObstacleLimit` (``d_influence``, ``d_safe`` in m, ``xi`` in m/s), and with
-        ``self_collision`` (the default) :class:`~qpik.control.self_collision.SelfCollisionLimit` (its defaults:
-        the pairs of non-adjacent links less those always in collision or never within 5 cm over 10,000
-        seeded configurations, d_s = 1 cm, d_i = 6 cm).
+    @classmethod
+    def for_scene(
+        cls,
+        scene: Scene,
+        target: np.ndarray | None = None,
+        *,
+        dt: float = 0.001,
+        solver: str | Solver = "osqp",
+        options: ControllerOptions | None = None,
+    ) -> Controller:
+        """A controller with the usual tasks and limits for the scene's arm, obstacles, d_safe and q_ref.
+
+        Tasks: :class:`FrameTask` (``target`` (4, 4), base frame; gains in 1/s, weights 1 per m² and 0.1 per
+        rad²), :class:`PostureTask` toward the scene's ``q_ref`` (default ``robot.q_home``, gain 1/s),
+        :class:`ManipulabilityTask`, :class:`DampingTask`. Limits: :class:`ConfigurationLimit`,
+        :class:`VelocityLimit` (the robot's) and, with obstacles, :class:`ObstacleLimit` (``d_safe`` of the
+        scene), and with ``options.self_collision`` :class:`~qpik.control.self_collision.SelfCollisionLimit`
+        (its defaults: the pairs of non-adjacent links less those always in collision or never within 5 cm over
+        10,000 seeded configurations, d_s = 1 cm, d_i = 6 cm). ``dt``: the control period, s. The gains, weights
+        and margins are ``options`` (:class:`~qpik.control.options.ControllerOptions`; default its defaults).
         """
-        robot = as_robot(robot)
+        if not isinstance(scene, Scene):
+            raise InputError(f"scene: expected a Scene (qpik.Scene.of), got {type(scene).__name__}")
+        o = ControllerOptions() if options is None else options
+        if not isinstance(o, ControllerOptions):
+            raise InputError(f"options: expected ControllerOptions, got {type(options).__name__}")
+        robot = scene.robot
         tasks: list[Task] = [
-            FrameTask(target, position_gain, orientation_gain),
-            PostureTask(robot.q_home if q_ref is None else q_ref, 1.0, number(posture_weight, "posture_weight")),
-            ManipulabilityTask(number(manipulability_weight, "manipulability_weight")),
-            DampingTask(number(damping, "damping")),
+            FrameTask(target, o.position_gain, o.orientation_gain),
+            PostureTask(scene.reference, 1.0, number(o.posture_weight, "posture_weight")),
+            ManipulabilityTask(number(o.manipulability_weight, "manipulability_weight")),
+            DampingTask(number(o.damping, "damping")),
         ]
-        limits: list[Limit] = [ConfigurationLimit(margin), VelocityLimit()]
-        d_safe = number(d_safe, "d_safe")  # m, >= 0
-        obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
-        if len(obstacles):
-            limits.append(ObstacleLimit(obstacles, d_influence, d_safe, xi))
-        if self_collision and len(robot.capsules) > 2:
+        limits: list[Limit] = [ConfigurationLimit(o.margin), VelocityLimit()]
+        if len(scene.obstacles):
+            limits.append(ObstacleLimit(scene.obstacles, o.d_influence, scene.d_safe, o.xi))
+        if o.self_collision and len(robot.capsules) > 2:
             limits.append(SelfCollisionLimit())
         return cls(robot, tasks, limits, solver=solver, dt=dt)
 
@@ -358,8 +369,10 @@ class Controller:
             InputError: NaN or wrong shapes.
         """
         from qpik.nlp.ik import solve_ik
+        from qpik.nlp.options import IKOptions
 
-        return solve_ik(self.robot, pose, q0, tol=tol, max_iters=max_iters, max_time=max_time, seed=seed)
+        options = IKOptions(max_iters=max_iters, max_time=max_time, seed=seed)
+        return solve_ik(self.robot, pose, q0, tol=tol, options=options)
 
 
 def _items(items: Sequence, kind: type, name: str) -> tuple:

@@ -391,7 +391,7 @@ class ObstacleLimit(RowLimit):
         A = s.damper_rows(self.obstacles)
         h = s.damper_heights(self.obstacles)
         approach = self.approach_expr(s, p) if self.moving else 0.0
-        lower = damper_lower(A, h, p.d_influence, p.d_safe, p.xi, lb, ub, approach, s.caps, self.brake)
+        lower = damper_lower(A, h, p, lb, ub, approach, s.caps, self.brake)
         return A, lower, ca.SX(A.shape[0], 1) + ca.inf
 
 
@@ -412,9 +412,7 @@ def _reference_points(obstacles: ObstacleSet, symbolic: ca.SX | None = None) -> 
 def damper_lower(
     A: ca.SX,
     h: ca.SX,
-    d_i: ca.SX,
-    ds: ca.SX,
-    xi: ca.SX,
+    gains,
     lb: ca.SX,
     ub: ca.SX,
     approach: ca.SX | float = 0.0,
@@ -423,7 +421,9 @@ def damper_lower(
 ) -> ca.SX:
     r"""Lower bounds (m,) of velocity-damper rows ``A v ≥ l`` (A (m, n), heights h (m,), m, box ``lb ≤ v ≤ ub``):
     :math:`l = -\xi (h - d_s)/(d_i - d_s) + \text{approach}` where :math:`h < d_i` and a joint moves the row,
-    else −∞ (``approach`` (m,): the other body's speed toward this one along the row, m/s).
+    else −∞ (``approach`` (m,): the other body's speed toward this one along the row, m/s). ``gains``: the
+    limit's parameters (:meth:`~qpik.control.state.SymState.params_of`), :math:`d_i` ``d_influence`` and
+    :math:`d_s` ``d_safe`` (m), ξ ``xi`` (m/s).
 
     The bound is capped so that each row alone can be met in the box widened toward ``v = 0`` within the
     caps' own box ``caps`` (:math:`B_0`: the velocity, acceleration and jerk limits; without ``caps``,
@@ -441,6 +441,7 @@ def damper_lower(
     once; with acceleration limits it cannot).
     """
     m = A.shape[0]
+    d_i, ds, xi = gains.d_influence, gains.d_safe, gains.xi
     lower = (-xi / (d_i - ds)) * (h - ds) + approach
     lo0, hi0 = ca.fmin(lb, 0.0), ca.fmax(ub, 0.0)
     if caps is not None:

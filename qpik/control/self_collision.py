@@ -157,7 +157,7 @@ class SelfCollisionLimit(RowLimit):
             return ca.SX(0, s.n), ca.SX(0, 1), ca.SX(0, 1)
         A = ca.vertcat(*[ca.horzcat(*row) for _, row in found])
         h = ca.vertcat(*[d for d, _ in found])
-        lower = damper_lower(A, h, p.d_influence, p.d_safe, p.xi, lb, ub, caps=s.caps, brake=self.brake)
+        lower = damper_lower(A, h, p, lb, ub, caps=s.caps, brake=self.brake)
         return A, lower, ca.SX(A.shape[0], 1) + ca.inf
 
     def distances(self, robot: Robot, q: np.ndarray) -> np.ndarray:

@@ -1,13 +1,16 @@
 """Input checking shared by every public function.
 
 All checks raise :class:`qpik.core.errors.InputError` (a ``ValueError``) with a
-message that names the argument.
+message that names the argument. A compiled extension may install checks in C for the common inputs (one
+float64 joint vector, one float64 pose: :func:`install_checks`, done by :mod:`qpik.native.fastcall` when it
+loads); an input they do not accept takes the general path, which decides.
 """
 
 from __future__ import annotations
 
 import math
-from functools import cache
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -21,6 +24,29 @@ far from orthonormal is not one, and raises :class:`RotationError`)."""
 MAX_LENGTH = 1e6
 """m: positions and lengths beyond this are rejected (their squares, and the feasible-interval
 polynomials of degree 8 in them, would lose every digit or overflow float64)."""
+
+
+@dataclass
+class CompiledChecks:
+    """The checks in C that :func:`joint_vector` and :func:`pose` try first (None: not installed).
+
+    Attributes:
+        vector_ok: ``vector_ok(q, n)``: True when q is a finite float64 vector (n,).
+        pose_ok: ``pose_ok(T)``: True when T is a finite float64 (4, 4) pose that :func:`pose` accepts without
+            projection.
+    """
+
+    vector_ok: Callable[[object, int], bool] | None = None
+    pose_ok: Callable[[object], bool] | None = None
+
+
+COMPILED = CompiledChecks()
+
+
+def install_checks(vector_ok: Callable[[object, int], bool], pose_ok: Callable[[object], bool]) -> None:
+    """Make :func:`joint_vector` and :func:`pose` try ``vector_ok`` and ``pose_ok`` first (see
+    :class:`CompiledChecks`)."""
+    COMPILED.vector_ok, COMPILED.pose_ok = vector_ok, pose_ok
 
 
 def finite_array(x: object, name: str, shape: tuple[int | None, ...] | None = None) -> np.ndarray:
@@ -110,7 +136,7 @@ def flag(x: object, name: str) -> bool:
 
 def joint_vector(q: object, dof: int, name: str = "q") -> tuple[np.ndarray, bool]:
     """Check a joint vector ``(dof,)`` or batch ``(N, dof)``; return it and whether it is batched."""
-    if (check := _vector_check()) is not None and check(q, dof):  # one float64 vector, checked in C
+    if (check := COMPILED.vector_ok) is not None and check(q, dof):  # one float64 vector, checked in C
         return q, False
     arr = finite_array(q, name)
     if arr.ndim == 1 and arr.shape[0] == dof:
@@ -159,9 +185,7 @@ def pose(T: object, name: str = "pose", project: bool = False) -> tuple[np.ndarr
     The last row must be ``[0, 0, 0, 1]`` (within 1e-12); positions within
     :data:`MAX_LENGTH` m. Returns a new array and whether it is batched.
     """
-    if (
-        project is False and (check := _pose_check()) is not None and check(T)
-    ):  # one pose, checked in C (qpik.native.fastcall)
+    if project is False and (check := COMPILED.pose_ok) is not None and check(T):  # one pose, checked in C
         return T.copy(), False
     project = flag(project, "project")
     arr = np.array(finite_array(T, name), dtype=float)  # a copy: projection writes into it
@@ -201,24 +225,6 @@ def single_pose(T: object, name: str = "pose", project: bool = False) -> np.ndar
 
 
 _LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
-
-
-@cache
-def _vector_check():
-    """The compiled extension's ``vector_ok`` (:mod:`qpik.native.fastcall`), or None without it."""
-    from qpik.native.fastcall import extension
-
-    mod = extension()
-    return None if mod is None else mod.vector_ok
-
-
-@cache
-def _pose_check():
-    """The compiled extension's ``pose_ok`` (:mod:`qpik.native.fastcall`), or None without it."""
-    from qpik.native.fastcall import extension
-
-    mod = extension()
-    return None if mod is None else mod.pose_ok
 
 
 def _last_row_defect(T: np.ndarray) -> float:

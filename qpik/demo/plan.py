@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from qpik.planning import plan_self_motion
+from qpik.planning import PlanOptions, plan_self_motion
 from qpik.planning.baselines import constant_parameter
 from qpik.plots import save
 from qpik.plots.plan import joint_trajectories, plan_map, render_plan
@@ -42,8 +42,8 @@ def run(out: Path) -> None:
 
     problem = load(find_problem("iiwa_reconfiguration_plan"))
     poses, times = waypoints(problem)
-    forbid = plan_self_motion(problem.robot, poses, None, problem.obstacles, times, problem.solver["max_joint_step"],
-                              "forbid", refine=False, mujoco=False)  # fmt: skip
+    options = PlanOptions(max_joint_step=problem.solver["max_joint_step"], refine=False, mujoco=False)
+    forbid = plan_self_motion(problem.robot, poses, None, problem.obstacles, times=times, options=options)
     print(f"\n{problem.robot.name} wiping past a post, reconfigure='forbid': {forbid.summary()}")
     fewest = plan_problem(problem)
     print(f"reconfigure='fewest': {fewest.summary()}")

@@ -92,8 +92,8 @@ def capsule_facts(robot, obstacles) -> list[Fact]:
 
 
 def geom_pairs(scene) -> np.ndarray:
-    """(L, O) bool: which link-geom–obstacle pairs of a :class:`qpik.sim.Scene` are checked (distances by
-    MuJoCo's ``mj_geomDistance``); the scene's state is restored."""
+    """(L, O) bool: which link-geom–obstacle pairs of a :class:`qpik.robots.mujoco_scene.MjScene` are checked
+    (distances by MuJoCo's ``mj_geomDistance``); the scene's state is restored."""
     L, O = len(scene.link_geoms), len(scene.obstacle_geoms)
     if not L * O:
         return np.ones((L, O), bool)

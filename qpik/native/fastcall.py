@@ -6,8 +6,8 @@ extension's :class:`Kernel` holds the generated function's entry point (from the
 library :mod:`qpik.native.compiled` built) with its work arrays and numpy buffers, copies the
 arguments in C, checks them there where asked (finite, a pose's rotation orthonormal) and
 returns new arrays or writes into the caller's (see ``fastcall.c``). Its module functions check
-inputs in C (``pose_ok``, ``vector_ok``: :mod:`qpik.core.validate`) and turn the arrays of the feasible-set
-C code into Python lists (``circle_lists``: :class:`qpik.analytic.intervals.Assembler`).
+inputs in C (``pose_ok``, ``vector_ok``, installed into :mod:`qpik.core.validate` when it loads) and turn the
+arrays of the feasible-set C code into Python lists (``circle_lists``: :class:`qpik.analytic.intervals.Assembler`).
 
 The extension is compiled once by the system C compiler against this Python's and numpy's
 headers and cached with the other libraries (:func:`qpik.native.build.shared_library`). Without
@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from qpik.core.errors import InputError
+from qpik.core.validate import install_checks
 from qpik.native.build import compiler, entry_point, shared_library
 
 if TYPE_CHECKING:
@@ -52,6 +53,7 @@ def extension() -> ModuleType | None:
     module = build("qpik_fastcall", Path(__file__).with_name("fastcall.c"))
     if module is not None:
         module.set_input_error(InputError)
+        install_checks(module.vector_ok, module.pose_ok)
     return module
 
 

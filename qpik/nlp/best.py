@@ -39,6 +39,7 @@ from qpik.core.validate import pose as check_pose
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.certificate import certify as prove
 from qpik.nlp.levelset import margin_weight, maximise
+from qpik.nlp.options import BestOptions
 from qpik.nlp.run import BestRun, Points, least_per_row
 from qpik.nlp.search import SAMPLE_STEP, Pieces, candidates, onto_limits, polish_minima, sample, singular_ends, split
 from qpik.nlp.selfmotion import SelfMotion, selfmotion_of
@@ -259,10 +260,7 @@ def solve_best(
     project: bool = False,
     *,
     d_safe: float | None = None,
-    certify: bool = True,
-    tol: float = 1e-4,
-    method: str = "auto",
-    branches=None,
+    options: BestOptions | None = None,
 ) -> BestResult | BestResults:
     """The best branch and δ/ψ for ``pose`` under ``objective``; see the module docstring.
 
@@ -277,16 +275,8 @@ def solve_best(
         q_ref: (n,) or (N, n) reference configuration, rad (the ``"distance"`` objective's).
         project: project a non-orthonormal rotation onto SO(3) instead of raising.
         d_safe: the clearance constraint's distance, m (≥ 0; default 0.02).
-        certify: prove global optimality (:mod:`qpik.nlp.certificate`); the level sets prove their answers either
-            way (their last call is the proof).
-        tol: the certificate's tolerance, relative: it proves that no feasible point is better than the
-            answer by more than ``tol · max(1, |f|)``.
-        method: ``"levelset"`` (the exact super-level sets of the margin, :mod:`qpik.nlp.levelset`: the plain
-            margin objective without obstacles only), ``"search"`` (sampling and polish), ``"ipopt"`` (IPOPT
-            from every interval), or ``"auto"``: ``"levelset"`` where it applies, else ``"search"``.
-        branches: public ids of the branches to search (None: all), e.g. the branch of the
-            current configuration (:func:`qpik.redundancy_parameter`), which a continuous motion
-            keeps unless it passes a singular configuration.
+        options: the certificate, its tolerance, the method and the branches searched
+            (:class:`~qpik.nlp.options.BestOptions`; default its defaults).
 
     Returns:
         A :class:`BestResult`, or :class:`BestResults` for a batch.
@@ -296,6 +286,10 @@ def solve_best(
         InputError: NaN/inf or wrong shapes (the message names the argument), unknown objective
             or method.
     """
+    options = BestOptions() if options is None else options
+    if not isinstance(options, BestOptions):
+        raise InputError(f"options: expected BestOptions, got {type(options).__name__}")
+    certify, tol, method, branches = options.certify, options.tol, options.method, options.branches
     per_pose = q_ref is not None and np.ndim(q_ref) == 2
     problem = scene_of(robot, obstacles, d_safe, objective, None if per_pose else q_ref).with_objective("margin")
     robot, obj, obs, d_safe = problem.robot, problem.objective, problem.obstacles, problem.d_safe
@@ -354,8 +348,8 @@ def _verify(robot: Robot, T: np.ndarray, r: BestResult, obstacles: ObstacleSet, 
     ``"solver failed"`` naming the check."""
     if r.status != "optimal":
         return
+    from qpik.algebra.lie import tracking_errors
     from qpik.geometry.contacts import capsule_clearance
-    from qpik.sim.log import tracking_errors
 
     pos, rot = tracking_errors(robot.fk(r.q), T)
     fails = []

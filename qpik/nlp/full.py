@@ -35,6 +35,7 @@ from qpik.core.errors import InputError
 from qpik.core.validate import count, joint_vector
 from qpik.core.validate import pose as check_pose
 from qpik.geometry.distance import ObstacleSet
+from qpik.nlp.options import FullOptions
 from qpik.objectives import Context, Objective, ReferenceDistance
 from qpik.robots.robot import Robot
 from qpik.scene.scene import Scene, scene_of
@@ -137,13 +138,10 @@ def solve_full(
     objective: Objective | str | None = None,
     obstacles=None,
     q_ref: np.ndarray | None = None,
-    q0: np.ndarray | None = None,
     project: bool = False,
     *,
     d_safe: float | None = None,
-    starts: int = 8,
-    max_starts: int = 30,
-    seed: int = 0,
+    options: FullOptions | None = None,
 ) -> FullResult:
     """Minimise ``objective`` over q with ``fk(q) = pose`` (see the module docstring).
 
@@ -155,17 +153,18 @@ def solve_full(
             None for a pure IK.
         obstacles: shapes (world frame): clearance ≥ ``d_safe`` for every link capsule.
         q_ref: (n,) reference configuration, rad (the ``"distance"`` objective's).
-        q0: (n,) or (S, n) first start(s), rad.
         project: project a non-orthonormal rotation onto SO(3) instead of raising.
         d_safe: m (≥ 0; default 0.02).
-        starts: with an objective, starts solved (the best one that reaches the pose wins; more
-            if none has reached it yet). A pure IK stops at the first that reaches it.
-        max_starts: most starts tried before giving up (``"not found"``, or ``"unreachable"`` when proved).
-        seed: seed of the random starts.
+        options: the first start(s) q0, the number of starts and the seed (:class:`~qpik.nlp.options.FullOptions`;
+            default its defaults).
 
     Raises:
         InputError: NaN/inf or wrong shapes (naming the argument).
     """
+    options = FullOptions() if options is None else options
+    if not isinstance(options, FullOptions):
+        raise InputError(f"options: expected FullOptions, got {type(options).__name__}")
+    q0, starts, max_starts, seed = options.q0, options.starts, options.max_starts, options.seed
     scene = scene_of(robot, obstacles, d_safe, objective, q_ref)
     robot, obj, obs, d_safe, q_ref = scene.robot, scene.objective, scene.obstacles, scene.d_safe, scene.q_ref
     T = check_pose(pose, "pose", project)[0]
@@ -256,21 +255,24 @@ def _solve_from(nlp: FullNLP, q_start: np.ndarray, p: np.ndarray) -> tuple:
         n_g = nlp.solver.size1_out("g")
         lbg = np.concatenate([np.zeros(nlp.n_eq), np.full(n_g - nlp.n_eq, -np.inf)])
         ubg = np.zeros(n_g)
-        sol = nlp.solver(x0=x0, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        bounds = {"lbx": lbx, "ubx": ubx, "lbg": lbg, "ubg": ubg}
+        sol = nlp.solver(x0=x0, p=p, **bounds)
         iters = int(nlp.solver.stats().get("iter_count", 0))
         x = np.asarray(sol["x"]).ravel()
         q = np.clip(x[: robot.dof], robot.q_min, robot.q_max)
         T = np.asarray(p[:16]).reshape(4, 4).T
         err = float(np.linalg.norm(pose_error(T, robot.fk(q))))
         value, clear = (float(v) for v in nlp.value(q, p))
-        kkt = kkt_residual(
-            nlp, x, p, np.asarray(sol["lam_g"]).ravel(), np.asarray(sol["lam_x"]).ravel(), lbx, ubx, lbg, ubg
-        )
+        kkt = kkt_residual(nlp, p, sol, bounds)
         return q, value, err, iters, kkt, clear
 
 
-def kkt_residual(nlp: FullNLP, x, p, lam_g, lam_x, lbx, ubx, lbg, ubg) -> float:
-    """∞-norm of the Lagrangian's gradient, the constraint violation and the complementarity at x."""
+def kkt_residual(nlp: FullNLP, p: np.ndarray, sol: dict, bounds: dict[str, np.ndarray]) -> float:
+    """∞-norm of the Lagrangian's gradient, the constraint violation and the complementarity at IPOPT's answer
+    ``sol`` (``x``, ``lam_g``, ``lam_x``) of ``nlp`` with parameters ``p`` and ``bounds`` (``lbx``, ``ubx``, ``lbg``,
+    ``ubg``)."""
+    x, lam_g, lam_x = (np.asarray(sol[k]).ravel() for k in ("x", "lam_g", "lam_x"))
+    lbx, ubx, lbg, ubg = (bounds[k] for k in ("lbx", "ubx", "lbg", "ubg"))
     grad, g = (np.asarray(v).ravel() for v in nlp.kkt_terms(x, p, lam_g, lam_x))
     viol = np.maximum(np.maximum(lbg - g, g - ubg), 0.0)
     viol_x = np.maximum(np.maximum(lbx - x, x - ubx), 0.0)

@@ -59,6 +59,7 @@ from qpik.core.errors import InputError, NoClosedFormError, UnreachableError
 from qpik.core.validate import finite_array, joint_vector
 from qpik.core.validate import pose as check_pose
 from qpik.native.compiled import Compiled
+from qpik.nlp.options import MAX_ITERS, IKOptions, Method
 
 if TYPE_CHECKING:
     from qpik.analytic.intervals import Interval
@@ -80,12 +81,9 @@ PASSES = 2
 """Linear solves per iteration: the free step, then the step with the joints that crossed a limit held there."""
 PERTURB = 0.3
 """Standard deviation (rad) of the perturbation of the best configuration, every third restart."""
-MAX_ITERS = 3000
-"""Default budget of Levenberg–Marquardt iterations over all attempts (a few ms; spent in whole chunks)."""
 EDGE = 1e-7
 """How far (rad of δ/ψ) inside a feasible interval the closed-form answer is taken when the nearest point is an end."""
 
-Method = Literal["closed form", "levenberg-marquardt"]
 Status = Literal["ok", "unreachable", "not found"]
 
 
@@ -353,11 +351,8 @@ def solve_ik(
     q0: np.ndarray,
     *,
     tol: float = TOL,
-    max_iters: int = MAX_ITERS,
-    max_time: float | None = None,
-    seed: int = 0,
     project: bool = False,
-    method: Method | None = None,
+    options: IKOptions | None = None,
 ) -> np.ndarray:
     """A configuration q (n,), rad, inside the joint limits, with the end-effector at ``pose``.
 
@@ -369,14 +364,9 @@ def solve_ik(
         pose: (4, 4) target pose of the end-effector, base frame.
         q0: (n,) start configuration, rad (clipped into the limits where the iteration starts from it).
         tol: the answer has ‖[p* − p; log(R* Rᵀ)]‖ ≤ tol (m and rad together).
-        max_iters: budget of Levenberg–Marquardt iterations over all attempts (spent in whole chunks of
-            :data:`CHUNK`, so up to CHUNK − 1 more).
-        max_time: budget in seconds (wall clock, checked between attempts), or None; with it the answer
-            may depend on the machine's speed.
-        seed: seed of the restarts (the answer is reproducible for a given seed and iteration budget).
         project: project a non-orthonormal rotation onto SO(3) instead of raising :class:`qpik.RotationError`.
-        method: ``"closed form"`` (the default where ``robot.closed_form`` is set) or
-            ``"levenberg-marquardt"`` (the default elsewhere, and possible on every arm).
+        options: the iteration and time budget, the seed and the method (:class:`~qpik.nlp.options.IKOptions`;
+            default its defaults).
 
     Returns:
         q (n,), rad, with every joint in ``[q_min, q_max]``.
@@ -387,8 +377,11 @@ def solve_ik(
         InputError: NaN/inf, wrong shapes, a bad tol, budget or method.
         NoClosedFormError: ``method="closed form"`` for an arm without one.
     """
+    o = IKOptions() if options is None else options
+    if not isinstance(o, IKOptions):
+        raise InputError(f"options: expected IKOptions, got {type(options).__name__}")
     res = ik_solver_for(robot).solve(
-        pose, q0, tol=tol, max_iters=max_iters, max_time=max_time, seed=seed, project=project, method=method
+        pose, q0, tol=tol, max_iters=o.max_iters, max_time=o.max_time, seed=o.seed, project=project, method=o.method
     )
     if res.status == "unreachable":
         raise UnreachableError(

@@ -3,8 +3,8 @@
 - :func:`constant_parameter`: one closed-form branch at one constant δ/ψ along the whole path (Nammoto &
   Kosuge 2012, Figs. 15 and 16: δ = 0 and δ = 0.70; ψ = 0 for the iiwa). Where the branch does not reach a
   waypoint at that value its configuration misses the pose, which the FK check shows.
-- :func:`online`: the QP controller tracking the same waypoints on the MuJoCo model from the plan's first
-  configuration (:func:`qpik.planning.planner.track`).
+- :func:`online`: the QP controller tracking the same waypoints from the plan's first configuration
+  (:func:`qpik.planning.track.track`).
 
 The DP-only plan is :attr:`Plan.dp_plan <qpik.planning.plan.Plan.dp_plan>` (or the plan itself when the NLP
 did not replace it).
@@ -17,7 +17,8 @@ import numpy as np
 from qpik.analytic import ik
 from qpik.core.errors import InputError
 from qpik.planning.plan import Plan, measure
-from qpik.planning.planner import Setup, track
+from qpik.planning.planner import Setup
+from qpik.planning.track import track
 
 
 def _setup(plan: Plan) -> Setup:
@@ -48,7 +49,7 @@ def online(plan: Plan, mujoco: bool = True) -> Plan:
     setup = _setup(plan)
     if not len(plan.q):
         raise InputError("plan: no planned configuration to start from")
-    q, _ = track(setup, plan.q[0])
+    q = track(setup, plan.q[0])
     out = setup.plan(q, "baseline", cost=setup.cost(q, np.ones(len(q) - 1, bool)), label="QP controller (online)")
     measure(out, mujoco)
     return out

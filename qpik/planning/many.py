@@ -9,25 +9,23 @@ without its robot (:func:`detach`) and gets the caller's robot object again (:fu
 
 from __future__ import annotations
 
-import inspect
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from qpik.core.errors import InputError, QpikError
-from qpik.core.validate import finite_array, flag, number
-from qpik.geometry.distance import ObstacleSet
+from qpik.core.validate import flag, number
 from qpik.planning.batch import JobFailure, run_batch
+from qpik.planning.options import PlanOptions
 from qpik.planning.plan import Plan
-from qpik.planning.planner import WAYPOINTS, plan_self_motion
+from qpik.planning.planner import plan_self_motion
 from qpik.robots.bundle import RobotBundle
-from qpik.robots.robot import Robot, as_robot
+from qpik.robots.robot import Robot
+from qpik.scene.scene import Scene
 
 if TYPE_CHECKING:
     from distributed import Client
-
-    from qpik.objectives import Objective
 
 
 class PlanningError(QpikError):
@@ -65,39 +63,41 @@ def attach(plan: Plan, robot: Robot) -> Plan:
 
 
 def plan_many(
-    robot: Robot,
+    robot: Robot | Scene,
     paths: Sequence[Any],
+    options: PlanOptions | None = None,
     *,
-    objective: Objective | str | None = None,
-    obstacles: Sequence = (),
     client: Client | str | None = None,
     workers: int | None = None,
     errors: str = "raise",
     retries: int = 0,
     progress: bool = True,
-    **options: Any,
 ) -> list[Plan | JobFailure]:
     """:func:`qpik.plan_self_motion` of ``robot`` along every path of ``paths``: one :class:`~qpik.planning.plan.Plan`
     per path, in their order (the same plans as a loop, computed in parallel).
 
     Args:
-        robot: the arm (a catalog arm, a loaded model: its files are read here and sent to the workers, or a chain).
+        robot: the arm (a catalog arm, a loaded model: its files are read here and sent to the workers, or a chain),
+            or a :class:`~qpik.scene.Scene` of it: the objective, obstacles, d_safe and q_ref of every path.
         paths: waypoints (N, 4, 4) each (end-effector poses, base frame, m), or timed paths
-            (:class:`qpik.geometry.paths.TimedPath`, sampled here at ``times`` or at ``waypoints`` even times).
-        objective, obstacles: as :func:`qpik.plan_self_motion`'s, the same for every path.
+            (:class:`qpik.geometry.paths.TimedPath`, sampled here at ``options.waypoints`` even times).
+        options: :func:`qpik.plan_self_motion`'s (:class:`~qpik.planning.options.PlanOptions`), the same for every
+            path.
         client: None (this machine), a ``distributed.Client``, or a Dask scheduler's address (``"tcp://host:8786"``).
         workers: without a client, local processes (default: one per CPU; 1: in this process).
         errors: ``"raise"``: :class:`PlanningError` listing every path that could not be planned (after the others
             ran); ``"keep"``: its :class:`~qpik.planning.batch.JobFailure` (``index``, ``error``) in its place.
         retries: Dask's: a job that raises runs again this many times (a worker that dies is handled by Dask).
         progress: a progress bar on stderr.
-        **options: the other keyword arguments of :func:`qpik.plan_self_motion` (``max_joint_step``,
-            ``reconfigure``, ``d_safe``, ``resolution``, ``mujoco``, ...).
 
     Raises:
         InputError: bad arguments (naming them). PlanningError: see ``errors``.
     """
-    robot = as_robot(robot)
+    scene = robot if isinstance(robot, Scene) else Scene.of(robot)
+    robot = scene.robot
+    options = PlanOptions() if options is None else options
+    if not isinstance(options, PlanOptions):
+        raise InputError(f"options: expected PlanOptions, got {type(options).__name__}")
     if not isinstance(errors, str) or errors not in ("raise", "keep"):
         raise InputError(f"errors: expected 'raise' or 'keep', got {errors!r}")
     progress = flag(progress, "progress")
@@ -107,15 +107,10 @@ def plan_many(
         paths = list(paths)
     except TypeError:
         raise InputError(f"paths: expected a sequence of paths, got {type(paths).__name__}") from None
-    allowed = set(inspect.signature(plan_self_motion).parameters) - {"robot", "path", "objective", "obstacles"}
-    unknown = sorted(set(options) - allowed)
-    if unknown:
-        raise InputError(f"{unknown[0]}: not an option of plan_self_motion (they are: {', '.join(sorted(allowed))})")
-    times = options.pop("times", None)
-    count = options.pop("waypoints", None)
-    items = [_sampled(p, times, count, f"paths[{i}]") for i, p in enumerate(paths)]
-    obstacles = ObstacleSet(obstacles).shapes  # checked here, once, rather than in every job
-    context = (RobotBundle.of(robot), objective, obstacles, options)
+    items = [_sampled(p, options.waypoints, f"paths[{i}]") for i, p in enumerate(paths)]
+    pieces = {"objective": scene.objective, "obstacles": scene.obstacles.shapes, "d_safe": scene.d_safe,
+              "q_ref": scene.q_ref, "options": options}  # fmt: skip
+    context = (RobotBundle.of(robot), pieces)
     if client is None and workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
                                                    or workers < 1):  # fmt: skip
         raise InputError(f"workers: expected an integer >= 1, got {workers!r}")
@@ -130,20 +125,19 @@ def plan_many(
     return out  # type: ignore[return-value]
 
 
-def _sampled(path: Any, times: Any, count: Any, name: str) -> tuple[Any, np.ndarray | None]:
-    """``(waypoints, times)`` of one path: a timed path is sampled here (its functions need not pickle)."""
+def _sampled(path: Any, count: Any, name: str) -> tuple[Any, np.ndarray | None]:
+    """``(waypoints, times)`` of one path: a timed path is sampled here at ``count`` even times (its functions need
+    not pickle); waypoints have no times."""
     if isinstance(path, np.ndarray | list | tuple):
-        return np.asarray(path, float) if isinstance(path, list | tuple) else path, times
+        return np.asarray(path, float) if isinstance(path, list | tuple) else path, None
     if not hasattr(path, "pose") or not hasattr(path, "duration"):
         raise InputError(f"{name}: expected (N, 4, 4) waypoints or a timed path, got {type(path).__name__}")
-    if times is None:
-        duration = number(path.duration, f"{name}.duration")
-        times = np.linspace(0.0, duration, int(number(WAYPOINTS if count is None else count, "waypoints", 2)))
-    times = finite_array(times, "times", (None,))
+    duration = number(path.duration, f"{name}.duration")
+    times = np.linspace(0.0, duration, int(number(count, "waypoints", 2)))
     return np.asarray(path.pose(times), float), times
 
 
 def _plan_one(context: tuple, item: tuple) -> Plan:
-    bundle, objective, obstacles, options = context
+    bundle, pieces = context
     poses, times = item
-    return detach(plan_self_motion(bundle.robot(), poses, objective, obstacles, times, **options))
+    return detach(plan_self_motion(bundle.robot(), poses, times=times, **pieces))

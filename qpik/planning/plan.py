@@ -8,7 +8,7 @@ were found:
 - every joint inside its limits (violation 0);
 - clearance ≥ d_s with the link capsules (:func:`qpik.geometry.distances`) and with MuJoCo's
   ``mj_geomDistance`` between the collision geoms of the arm's MuJoCo model and the obstacles
-  (:func:`qpik.sim.build_scene`; the twin of a catalog arm, the model of a loaded one), within
+  (:func:`qpik.robots.mujoco_scene.build_scene`; the twin of a catalog arm, the model of a loaded one), within
   :data:`CLEARANCE_TOL`;
 - every continuous transition moves each joint by at most its bound.
 
@@ -28,12 +28,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from qpik.algebra.lie import tracking_errors
 from qpik.core.errors import InputError
 from qpik.core.validate import count, finite_array
 from qpik.geometry.contacts import capsule_clearance, capsule_facts
 from qpik.geometry.distance import ObstacleSet
 from qpik.robots.robot import Robot
-from qpik.sim.log import tracking_errors
 
 if TYPE_CHECKING:
     from qpik.planning.planner import Setup
@@ -351,7 +351,7 @@ def _first(bad: np.ndarray) -> int:
 
 def _mujoco_clearance(robot: Robot, obstacles: ObstacleSet, q: np.ndarray) -> np.ndarray:
     """(K,) the smallest distance between the collision geoms of the arm's MuJoCo model and the obstacles, m."""
-    from qpik.sim import build_scene
+    from qpik.robots.mujoco_scene import build_scene
 
     scene = build_scene(robot, obstacles.shapes)
     checked = scene.checked  # the pairs qpik.geometry.contacts checks

@@ -15,8 +15,8 @@ Closed-form arms (``nammoto7`` in δ, ``iiwa14`` in ψ, and loaded arms of those
 
 Every configuration is the closed form at its waypoint, so the path is followed exactly.
 
-Arms without a closed form (``zheng7``, ``panda``): the QP controller tracks the path on the MuJoCo
-model (:func:`track`, also the online baseline), and the same NLP over the joints, with the pose as
+Arms without a closed form (``zheng7``, ``panda``): the QP controller tracks the path
+(:func:`qpik.planning.track.track`, also the online baseline), and the same NLP over the joints, with the pose as
 an equality at every waypoint, refines its configurations at the waypoints.
 
 Where the grid finds no continuous plan but no waypoint's exact feasible set is empty, the DP is run
@@ -26,6 +26,8 @@ reported failed, of kind ``"grid"``; ``"infeasible"`` only when a waypoint's exa
 
 Every plan is measured (:func:`qpik.planning.plan.measure`): FK, joint limits, clearance with the
 capsules and with MuJoCo, joint steps; a plan whose check fails is ``"failed"`` (kind ``"check"``).
+
+How it plans (joint-step bounds, grid, NLP, checks) is one :class:`~qpik.planning.options.PlanOptions`.
 """
 
 from __future__ import annotations
@@ -39,19 +41,20 @@ from qpik.core.errors import InputError, UnreachableError
 from qpik.core.stopwatch import Stopwatch
 from qpik.core.validate import finite_array, flag, number
 from qpik.core.validate import pose as check_pose
-from qpik.geometry.paths import TimedPath, WaypointPath
+from qpik.geometry.paths import TimedPath
+from qpik.nlp.options import BestOptions
 from qpik.objectives import Objective, ReferenceDistance
 from qpik.planning import dp
 from qpik.planning.grid import Grid
+from qpik.planning.options import PlanOptions
 from qpik.planning.plan import Plan, Profile, measure
 from qpik.planning.refine import PathNLP
+from qpik.planning.track import track
 from qpik.robots.robot import Robot
 from qpik.scene.evaluator import Evaluator
 from qpik.scene.scene import Scene, scene_of
 
 RECONFIGURE = ("forbid", "fewest")
-WAYPOINTS = 101
-"""Waypoints sampled from a timed path when no ``times`` are given."""
 MAX_WAYPOINTS = 10_000
 """The most waypoints of one plan."""
 MAX_RESOLUTION = 16_384
@@ -64,24 +67,23 @@ NEAR_MISS = 2.0
 """A reconfiguration whose closest grid states need at most this many joint-step bounds is tried on finer grids."""
 IMPROVED = 1e-12
 """The NLP's answer replaces the DP's when its objective is lower by more than this (relative)."""
-TRACK_DT = 0.002
-"""s: control period of the QP controller's tracking run."""
-TRACK_SPEED = (0.1, 0.5)
-"""m/s and rad/s: the end-effector speeds at which an untimed path is tracked by the QP controller."""
 
 
 class Setup:
     """The checked inputs of one planning call: waypoints, progress, transition bounds and weights.
 
     Attributes:
-        robot, objective, obstacles: the arm, the objective (or None) and the obstacles (an ObstacleSet).
+        scene: the problem's scene; robot, objective, obstacles: the arm, the objective (or None) and the obstacles
+            (an ObstacleSet).
         poses, times, progress: the waypoints (N, 4, 4), their times (N,) s or None, and progress (N,).
         d_safe, q_ref: the safety distance (m) and the posture reference (n,), rad.
         tr: the transition bounds (:class:`~qpik.planning.dp.Transitions`).
     """
 
-    def __init__(self, scene: Scene, path, times, max_joint_step, a_max, waypoints, project):
+    def __init__(self, scene: Scene, path, times, options: PlanOptions):
+        self.scene = scene
         self.robot = robot = scene.robot
+        waypoints, max_joint_step, a_max = options.waypoints, options.max_joint_step, options.a_max
         n = robot.dof
         if isinstance(path, TimedPath) and not isinstance(path, np.ndarray):
             duration = number(path.duration, "path.duration")
@@ -93,7 +95,7 @@ class Setup:
             poses = np.asarray(path.pose(finite_array(times, "times", (None,))), float)
         else:
             poses = path
-        T, batched = check_pose(poses, "path", flag(project, "project"))
+        T, batched = check_pose(poses, "path", flag(options.project, "project"))
         if not batched or len(T) < 2:
             raise InputError(f"path: expected (N, 4, 4) poses with N >= 2 or a timed path, got shape {np.shape(T)}")
         N = len(T)
@@ -154,20 +156,11 @@ def plan_self_motion(
     path: np.ndarray | TimedPath,
     objective: Objective | str | None = None,
     obstacles: Sequence | None = None,
-    times: np.ndarray | None = None,
-    max_joint_step: float | np.ndarray = 0.1,
-    reconfigure: str = "forbid",
     *,
+    times: np.ndarray | None = None,
     d_safe: float | None = None,
-    a_max: float | np.ndarray | None = None,
     q_ref: np.ndarray | None = None,
-    resolution: int = 720,
-    window: float | None = None,
-    branches: Sequence[int] | None = None,
-    refine: bool = True,
-    waypoints: int = WAYPOINTS,
-    project: bool = False,
-    mujoco: bool = True,
+    options: PlanOptions | None = None,
 ) -> Plan:
     r"""Plan the joint motion along an end-effector path (see the module docstring).
 
@@ -180,22 +173,11 @@ def plan_self_motion(
             the path; None: joint motion only.
         obstacles: shapes (world frame): every link capsule stays ≥ ``d_safe`` from each.
         times: (N,) strictly increasing times, s: the motion term becomes ∫‖q̇‖² dt, the joint steps are
-            also bounded by the velocity limits (and ``a_max``).
-        max_joint_step: the largest move of any joint between consecutive waypoints, rad (a number or (n,)).
-        reconfigure: ``"forbid"`` (report the first waypoint with no continuous continuation) or
-            ``"fewest"`` (the fewest reconfigurations, then the least J).
-        d_safe: m (≥ 0; default 0.02). a_max: (n,) or a number, rad/s² (needs ``times``).
+            also bounded by the velocity limits (and ``options.a_max``).
+        d_safe: m (≥ 0; default 0.02).
         q_ref: (n,) the reference of the ``"distance"`` objective, rad.
-        resolution: parameter values per branch in the DP's grid (even, ≥ 8).
-        window: the largest parameter change (rad) between consecutive waypoints the DP searches on one branch
-            (default: three times the largest joint-step bound: on an S-R-S arm
-            :math:`\sum_{j \le 3} |\Delta q_j| \ge |\Delta\psi|` allows a
-            change of up to three bounds); moves to another branch are searched whatever their size.
-        branches: public branch ids the plan may use (None: all).
-        refine: run the NLP after the DP.
-        waypoints: samples of a timed path without ``times``.
-        project: project non-orthonormal rotations of the waypoints onto SO(3).
-        mujoco: also measure the clearance with MuJoCo (:mod:`qpik.planning.plan`).
+        options: joint-step bounds, reconfigurations, the DP's grid, the NLP and the checks
+            (:class:`~qpik.planning.options.PlanOptions`; default its defaults).
 
     Returns:
         A :class:`~qpik.planning.plan.Plan` (``status == "failed"`` with the waypoint and the reason when
@@ -206,20 +188,24 @@ def plan_self_motion(
     """
     if objective is not None and not isinstance(objective, Objective | str):
         raise InputError(f"objective: expected None, an Objective or a name, got {type(objective).__name__}")
+    options = PlanOptions() if options is None else options
+    if not isinstance(options, PlanOptions):
+        raise InputError(f"options: expected PlanOptions, got {type(options).__name__}")
     scene = scene_of(robot, obstacles, d_safe, objective, q_ref)
-    setup = Setup(scene, path, times, max_joint_step, a_max, waypoints, project)
+    setup = Setup(scene, path, times, options)
+    reconfigure, resolution, window = options.reconfigure, options.resolution, options.window
     if not isinstance(reconfigure, str) or reconfigure not in RECONFIGURE:
         raise InputError(f"reconfigure: expected one of {RECONFIGURE}, got {reconfigure!r}")
+    refine, mujoco = flag(options.refine, "refine"), flag(options.mujoco, "mujoco")
     if setup.robot.closed_form is None:
-        return _plan_joints(setup, flag(refine, "refine"), flag(mujoco, "mujoco"))
+        return _plan_joints(setup, refine, mujoco)
     res = int(number(resolution, "resolution", 8))
     if res % 2 or res != resolution or res > MAX_RESOLUTION:
         raise InputError(f"resolution: expected an even integer in [8, {MAX_RESOLUTION}], got {resolution!r}")
     if res * len(setup.poses) > MAX_STATES:
         raise InputError(f"resolution: {res} values × {len(setup.poses)} waypoints exceeds {MAX_STATES:g}; use fewer")
     w = 3.0 * float(setup.tr.step.max()) if window is None else number(window, "window")
-    return _plan_closed_form(setup, res, w, branches, reconfigure == "fewest", flag(refine, "refine"),
-                             flag(mujoco, "mujoco"))  # fmt: skip
+    return _plan_closed_form(setup, res, w, options.branches, reconfigure == "fewest", refine, mujoco)
 
 
 def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fewest: bool, refine: bool,
@@ -266,8 +252,7 @@ def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fe
     measure(plan, mujoco)
     if not refine:
         return plan
-    nlp = PathNLP(setup.robot, setup.poses, setup.objective, setup.obstacles, setup.d_safe, setup.tr, continuous,
-                  setup.q_ref, grid, result.rows)  # fmt: skip
+    nlp = PathNLP(setup.scene, setup.poses, setup.tr, continuous, grid, result.rows)
     out = nlp.solve(grid.values[result.index])
     plan.timings["nlp"] = out.time
     if out.cost < result.cost - IMPROVED * max(1.0, abs(result.cost)):
@@ -342,40 +327,10 @@ def _least_violating(setup: Setup, k: int) -> str:
     """What :func:`qpik.solve_best` says about waypoint k: unreachable, or the least-violating branch."""
     from qpik.nlp import solve_best
 
-    best = solve_best(setup.robot, setup.poses[k], "margin", setup.obstacles, d_safe=setup.d_safe, certify=False)
+    best = solve_best(
+        setup.robot, setup.poses[k], "margin", setup.obstacles, d_safe=setup.d_safe, options=BestOptions(certify=False)
+    )
     return best.summary()
-
-
-def track(setup: Setup, q0: np.ndarray, watch: Stopwatch | None = None):
-    """The QP controller tracking the waypoints on the MuJoCo model from ``q0``: its configuration at each
-    waypoint (N, n) and the :class:`~qpik.sim.SimLog`. ``watch``: paused while the controller and the MuJoCo
-    model are built, so that it times the run.
-
-    The path is :class:`qpik.geometry.paths.WaypointPath` through the waypoints at their ``times`` (without times:
-    at the speeds of :data:`TRACK_SPEED`), the controller :meth:`qpik.Controller.for_robot` with the
-    obstacles and ``d_safe``, its posture reference ``q0``, at :data:`TRACK_DT`.
-    """
-    from qpik.control.controller import Controller
-    from qpik.sim import build_scene, simulate
-
-    times = setup.times if setup.times is not None else _nominal_times(setup.poses)
-    path = WaypointPath(setup.poses, times)
-    with (watch or Stopwatch()).paused():
-        ctrl = Controller.for_robot(setup.robot, obstacles=setup.obstacles, dt=TRACK_DT, q_ref=q0,
-                                    d_safe=setup.d_safe, manipulability_weight=0.0)  # fmt: skip
-        scene = build_scene(setup.robot, setup.obstacles.shapes)
-    log = simulate(scene, ctrl, q0, path.duration, TRACK_DT, target=path, label="QP controller (online)")
-    at = np.clip(np.round((times - times[0]) / TRACK_DT).astype(int), 0, len(log.q) - 1)
-    return log.q[at], log
-
-
-def _nominal_times(poses: np.ndarray) -> np.ndarray:
-    """Times (s) that move the end effector at :data:`TRACK_SPEED` between waypoints (at least one control period)."""
-    from qpik.sim.log import tracking_errors
-
-    dp_, dr = tracking_errors(poses[1:], poses[:-1])
-    dt = np.maximum(np.maximum(dp_ / TRACK_SPEED[0], dr / TRACK_SPEED[1]), TRACK_DT)
-    return np.concatenate([[0.0], np.cumsum(dt)])
 
 
 def _plan_joints(setup: Setup, refine: bool, mujoco: bool) -> Plan:
@@ -396,7 +351,7 @@ def _plan_joints(setup: Setup, refine: bool, mujoco: bool) -> Plan:
         measure(plan, mujoco)
         return plan
     watch = Stopwatch()
-    q_track, _ = track(setup, q0, watch)
+    q_track = track(setup, q0, watch)
     timings = {"tracking": watch.stop()}
     continuous = np.ones(len(setup.poses) - 1, bool)
     plan = setup.plan(
@@ -405,8 +360,7 @@ def _plan_joints(setup: Setup, refine: bool, mujoco: bool) -> Plan:
     measure(plan, mujoco)
     if not refine:
         return plan
-    nlp = PathNLP(setup.robot, setup.poses, setup.objective, setup.obstacles, setup.d_safe, setup.tr, continuous,
-                  setup.q_ref)  # fmt: skip
+    nlp = PathNLP(setup.scene, setup.poses, setup.tr, continuous)
     out = nlp.solve(q_track)
     timings["nlp"] = out.time
     refined = setup.plan(out.q, "optimal", cost=out.cost, timings=timings, label="NLP", dp_plan=plan)

@@ -62,12 +62,11 @@ from qpik.algebra.lie import log_expr
 from qpik.analytic.intervals import wrap
 from qpik.core.stopwatch import Stopwatch
 from qpik.geometry.contacts import capsule_clearance, capsule_pairs
-from qpik.geometry.distance import ObstacleSet
 from qpik.native.build import native
-from qpik.objectives import Context, Objective, pair_count
+from qpik.objectives import Context, pair_count
 from qpik.planning.dp import Transitions
 from qpik.planning.grid import Grid
-from qpik.robots.robot import Robot
+from qpik.scene.scene import Scene
 
 OPTIONS = {
     "ipopt.print_level": 0,
@@ -164,36 +163,32 @@ class PathNLP:
     whole problem too (the constraints left out are inactive there).
 
     Args:
-        robot: the arm.
+        scene: the arm, the point objective (or None), the obstacles, d_safe (m) and the objective's reference
+            configuration q_ref (n,), rad (zeros without one: then no term reads it).
         poses: (N, 4, 4) waypoints, base frame.
-        objective: the point objective, or None.
-        obstacles: the obstacles (packed); d_safe: m.
         tr: the transition bounds and weights.
         continuous: (N-1,) whether transition k is continuous (not a reconfiguration).
-        q_ref: (n,) the objective's reference configuration, rad.
         grid: for a closed-form arm, the DP's grid (solver, feasible intervals) and ``rows`` (N,) its
             branch rows; None: the joints are the variables.
     """
 
     def __init__(
         self,
-        robot: Robot,
+        scene: Scene,
         poses: np.ndarray,
-        objective: Objective | None,
-        obstacles: ObstacleSet,
-        d_safe: float,
         tr: Transitions,
         continuous: np.ndarray,
-        q_ref: np.ndarray,
         grid: Grid | None = None,
         rows: np.ndarray | None = None,
     ):
-        self.robot, self.poses, self.objective, self.obstacles = robot, poses, objective, obstacles
-        self.d_safe, self.tr, self.q_ref, self.grid = float(d_safe), tr, q_ref, grid
+        self.robot = robot = scene.robot
+        self.poses, self.objective, self.obstacles = poses, scene.objective, scene.obstacles
+        self.q_ref = np.zeros(robot.dof) if scene.q_ref is None else scene.q_ref
+        self.d_safe, self.tr, self.grid = scene.d_safe, tr, grid
         self.continuous = np.asarray(continuous, bool)
         N, n = len(poses), robot.dof
         self.rows = np.zeros(N, int) if rows is None else np.asarray(rows, int)
-        self.p_obj = np.zeros(0) if objective is None else objective.params(robot)
+        self.p_obj = np.zeros(0) if self.objective is None else self.objective.params(robot)
         self.n = n
         self.width = 1 if grid is not None else n  # variables per waypoint
         self._points: dict[tuple[int, bool], ca.Function] = {}

@@ -395,11 +395,11 @@ def branch_pictures(
         out = [str(ids[k]) for k in g if not inside[k]]
         titles.append(("branches " if len(g) > 1 else "branch ") + ", ".join(str(ids[k]) for k in g)
                       + (f"\n({', '.join(out)} outside the joint limits)" if out else ""))  # fmt: skip
-    from qpik.render.pictures import RenderUnavailable, render_configurations
+    from qpik.render.pictures import RenderUnavailable, Tiles, render_configurations
 
     size = (480, 400)
     try:
-        image = render_configurations(robot, reps, None, cols=len(reps), size=size)
+        image = render_configurations(robot, reps, None, tiles=Tiles(cols=len(reps), size=size))
         tiles, how = [image[:, k * size[0] : (k + 1) * size[0]] for k in range(len(reps))], "render"
     except RenderUnavailable:
         tiles, how = None, "sticks"

@@ -28,7 +28,7 @@ from qpik.analytic.intervals import wrap
 from qpik.core.errors import InputError
 from qpik.planning.plan import Plan
 from qpik.plots.closed_form import legend_entries, symbol
-from qpik.render.pictures import RenderUnavailable, render_configurations
+from qpik.render.pictures import RenderUnavailable, Tiles, render_configurations
 
 SHADE = ListedColormap([(0.78, 0.78, 0.78, 1.0), (1.0, 1.0, 1.0, 0.0)])
 """Infeasible states grey, feasible ones clear."""
@@ -139,8 +139,13 @@ def render_plan(
     labels = [f"waypoint {i}" + (f", t = {plan.progress[i]:.2f} {unit}" if unit else "") for i in idx]
     extra = [replace(o, name=None).to_mjcf_geom() for o in plan.obstacles.shapes]
     try:
-        render_configurations(plan.robot, plan.q[idx], path, cols=min(3, len(idx)), size=size, labels=labels,
-                              extra_worldbody=extra)  # fmt: skip
+        render_configurations(
+            plan.robot,
+            plan.q[idx],
+            path,
+            extra_worldbody=extra,
+            tiles=Tiles(cols=min(3, len(idx)), size=size, labels=labels),
+        )
     except RenderUnavailable:
         return None
     return Path(path)

@@ -15,7 +15,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from qpik.plots.files import save
-from qpik.render.pictures import Camera, RenderUnavailable, render_configurations
+from qpik.render.pictures import Camera, RenderUnavailable, Tiles, render_configurations
 from qpik.robots.robot import Robot
 from qpik.sim.log import SimLog
 
@@ -89,10 +89,17 @@ def render_strip(
     try:
         if isinstance(log.robot, Robot):
             extra = [replace(o, name=None).to_mjcf_geom() for o in log.obstacles] + marks  # names may repeat
-            render_configurations(log.robot, log.q[idx], path, cols=cols, size=size, camera=camera,
-                                  labels=labels, extra_worldbody=extra)  # fmt: skip
+            render_configurations(
+                log.robot,
+                log.q[idx],
+                path,
+                extra_worldbody=extra,
+                tiles=Tiles(cols=cols, size=size, camera=camera, labels=labels),
+            )
         else:  # an MJCF arm: its model already holds the obstacles
-            render_configurations(log.robot, log.q[idx], path, cols=cols, size=size, camera=camera, labels=labels)
+            render_configurations(
+                log.robot, log.q[idx], path, tiles=Tiles(cols=cols, size=size, camera=camera, labels=labels)
+            )
     except RenderUnavailable:
         return None
     return Path(path)

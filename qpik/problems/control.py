@@ -37,14 +37,16 @@ from qpik.analytic import feasible_intervals, redundancy_parameter
 from qpik.analytic.intervals import wrap
 from qpik.control.clik import PseudoInverseCLIK, VelocityOnly
 from qpik.control.controller import Controller
+from qpik.control.options import ControllerOptions
 from qpik.core.errors import ProblemFileError, UnreachableError
 from qpik.geometry import distances
 from qpik.nlp import BestResult, solve_best
+from qpik.nlp.options import BestOptions
 from qpik.objectives import Clearance, JointLimitMargin, Objective
 from qpik.plots.runs import plot_comparison, plot_log, render_strip
 from qpik.problems.runners import runner
 from qpik.problems.schema import Problem
-from qpik.sim import SimLog, Summary, simulate
+from qpik.sim import SimLog, SimOptions, Summary, simulate
 
 SINGULAR_FRACTION = 0.01
 """A track report flags a singular passage when the manipulability falls below this fraction of its start."""
@@ -82,22 +84,21 @@ def track_runs(problem: Problem) -> list[SimLog]:
     duration = path.duration if s["duration"] is None else s["duration"]
     q0 = robot.q_home if path.q0 is None else path.q0
     gains = _settings(problem)
-    qp = Controller.for_robot(
-        robot,
-        dt=dt,
-        q_ref=q0,
-        posture_weight=s["posture_weight"],
-        manipulability_weight=s["manipulability_weight"],
-        damping=s["damping"],
+    options = ControllerOptions(
+        posture_weight=s["posture_weight"], manipulability_weight=s["manipulability_weight"], damping=s["damping"],
         **gains,
-    )
+    )  # fmt: skip
+    qp = Controller.for_robot(robot, dt=dt, q_ref=q0, options=options)
     policies = {
         "QP (OSQP)": qp,
         "PD CLIK, eq. (18)": PseudoInverseCLIK(robot, dt=dt, **gains),
         "velocity-only, Fig. 3a": VelocityOnly(robot, dt=dt),
     }
     every = max(1, round(0.01 / dt))
-    return [simulate(robot, c, q0, duration, dt, target=path, record_every=every, label=k) for k, c in policies.items()]
+    return [
+        simulate(robot, c, q0, duration, dt, target=path, options=SimOptions(record_every=every, label=k))
+        for k, c in policies.items()
+    ]
 
 
 @runner("track")
@@ -183,16 +184,19 @@ def reach_runs(problem: Problem) -> ReachRuns:
     d_safe, d_influence, xi = s["d_safe"], s["d_influence"], s["xi"]
     q0 = robot.q_home
     start_branch = redundancy_parameter(robot, q0)[1]
-    ref = solve_best(robot, pose, reach_objective(d_influence), obstacles, d_safe=d_safe, branches=[start_branch])
+    ref = solve_best(
+        robot,
+        pose,
+        reach_objective(d_influence),
+        obstacles,
+        d_safe=d_safe,
+        options=BestOptions(branches=[start_branch]),
+    )
     if ref.status != "optimal":
         raise UnreachableError(
             f"{robot.name}: no arm angle of branch {start_branch} reaches the target ({ref.summary()})"
         )
-    kwargs = dict(
-        target=pose,
-        dt=dt,
-        q_ref=ref.q,
-        d_safe=d_safe,
+    options = ControllerOptions(
         d_influence=d_influence,
         xi=xi,
         posture_weight=s["posture_weight"],
@@ -200,12 +204,23 @@ def reach_runs(problem: Problem) -> ReachRuns:
         damping=s["damping"],
         **_settings(problem),
     )
+    kwargs = dict(target=pose, dt=dt, q_ref=ref.q, d_safe=d_safe, options=options)
     every = max(1, round(0.01 / dt))
     logs = []
     for label, obs in (("QP with obstacle limit", obstacles), ("QP without obstacle limit", ())):
         ctrl = Controller.for_robot(robot, obstacles=obs, **kwargs)
-        logs.append(simulate(robot, ctrl, q0, duration, dt, obstacles=obstacles, target=pose,
-                             record_every=every, d_safe=d_safe, label=label))  # fmt: skip
+        logs.append(
+            simulate(
+                robot,
+                ctrl,
+                q0,
+                duration,
+                dt,
+                obstacles=obstacles,
+                target=pose,
+                options=SimOptions(record_every=every, d_safe=d_safe, label=label),
+            )
+        )
     return ReachRuns(ref, int(start_branch), logs[0], logs[1], d_safe, d_influence, xi)
 
 

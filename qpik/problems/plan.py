@@ -34,7 +34,7 @@ import numpy as np
 from qpik.core.errors import InputError, ProblemFileError
 from qpik.geometry.shapes import Shape
 from qpik.objectives import resolve
-from qpik.planning import Plan, plan_self_motion
+from qpik.planning import Plan, PlanOptions, plan_self_motion
 from qpik.planning.baselines import constant_parameter, online
 from qpik.planning.many import detach
 from qpik.plots import save
@@ -156,9 +156,10 @@ def _plan(job: PlanJob, robot: Robot, mujoco: bool = True) -> Plan:
     objective = None if s["objective"] == "none" else resolve(s["objective"]) * s["objective_weight"]
     a_max = s["a_max"] if job.times is not None else None
     branches = None if s["branch"] is None else [s["branch"]]
-    return plan_self_motion(robot, job.poses, objective, job.obstacles, job.times, s["max_joint_step"],
-                            s["reconfigure"], d_safe=s["d_safe"], a_max=a_max, resolution=s["resolution"],
-                            mujoco=mujoco, branches=branches)  # fmt: skip
+    options = PlanOptions(max_joint_step=s["max_joint_step"], reconfigure=s["reconfigure"], a_max=a_max,
+                          resolution=s["resolution"], branches=branches, mujoco=mujoco)  # fmt: skip
+    return plan_self_motion(robot, job.poses, objective, job.obstacles, times=job.times, d_safe=s["d_safe"],
+                            options=options)  # fmt: skip
 
 
 def plan_problem(problem: Problem, mujoco: bool = True) -> Plan:

@@ -88,6 +88,7 @@ from qpik.geometry.shapes import Shape, shape_from_spec
 from qpik.objectives import NAMES as OBJECTIVE_NAMES
 from qpik.problems.paths import PATHS
 from qpik.robots.loader import load_robot
+from qpik.robots.model_files import MeshOptions
 from qpik.robots.robot import Robot
 
 Kind = Literal["ik", "track", "reach", "plan"]
@@ -460,15 +461,18 @@ class _Reader:
                 if not isinstance(joints, list):
                     raise self.fail("robot.joints", f"expected a list of joint names, got {type(joints).__name__}")
                 kwargs["joints"] = [self.text(j, "robot.joints") for j in joints]
+            meshes = {}
             if "collision_only" in tbl:
                 if not isinstance(tbl["collision_only"], bool):
                     raise self.fail("robot.collision_only", "expected true or false")
-                kwargs["collision_only"] = tbl["collision_only"]
+                meshes["collision_only"] = tbl["collision_only"]
             if "package_map" in tbl:
                 pmap = self.free(tbl["package_map"], "robot.package_map")
-                kwargs["package_map"] = {
+                meshes["package_map"] = {
                     k: str(self.file.parent / self.text(v, "robot.package_map")) for k, v in pmap.items()
                 }
+            if meshes:
+                kwargs["meshes"] = MeshOptions(**meshes)
         try:
             robot = load_robot(target, **kwargs)
         except (UnknownRobotError, InputError) as exc:

@@ -54,16 +54,32 @@ class Camera:
     lookat: tuple[float, float, float] | None = None
 
 
+@dataclass(frozen=True)
+class Tiles:
+    """How :func:`render_configurations` lays out its picture (each checked by it,
+    :class:`~qpik.core.errors.InputError` naming the field).
+
+    Attributes:
+        cols: tiles per row, ≥ 1 (None: ``ceil(sqrt(K))``).
+        size: tile (width, height), pixels (whole, ≥ 16 each).
+        camera: the view; None: one fixed view that fits all K configurations, so that tiles compare.
+        overlay: draw all configurations in one tile: the first opaque, the others translucent.
+        labels: one text per tile, drawn in its top-left corner (None: none).
+    """
+
+    cols: int | None = None
+    size: tuple[int, int] = (480, 400)
+    camera: Camera | None = None
+    overlay: bool = False
+    labels: Sequence[str] | None = None
+
+
 def render_configurations(
     arm: Robot | MjKinematics,
     qs: np.ndarray,
     path: str | os.PathLike | None = None,
     *,
-    cols: int | None = None,
-    size: tuple[int, int] = (480, 400),
-    camera: Camera | None = None,
-    overlay: bool = False,
-    labels: Sequence[str] | None = None,
+    tiles: Tiles | None = None,
     extra_worldbody: Sequence[str] = (),
 ) -> np.ndarray:
     """Draw configurations of an arm and (optionally) write them as one PNG.
@@ -72,13 +88,7 @@ def render_configurations(
         arm: a :class:`Robot` (its MJCF twin is drawn) or an :class:`MjKinematics` arm.
         qs: joint vectors, (n,) or (K, n).
         path: PNG file to write, ``.png`` (parent folders are made); ``None`` writes nothing.
-        cols: tiles per row, ≥ 1 (default ``ceil(sqrt(K))``).
-        size: tile (width, height) in pixels.
-        camera: the view; by default one fixed view that fits all K configurations,
-            so that tiles compare.
-        overlay: draw all configurations in one tile: the first opaque, the
-            others translucent.
-        labels: one text per tile, drawn in its top-left corner.
+        tiles: columns, tile size, camera, overlay and labels (:class:`Tiles`; default its defaults).
         extra_worldbody: MJCF elements added to the twin's ``<worldbody>``
             (obstacles); only for a :class:`Robot`.
 
@@ -93,6 +103,10 @@ def render_configurations(
         InputError: bad ``qs``, ``size``, ``cols``, ``labels``, ``path`` (not ``.png``), or
             ``extra_worldbody`` with an MjKinematics arm.
     """
+    tiles = Tiles() if tiles is None else tiles
+    if not isinstance(tiles, Tiles):
+        raise InputError(f"tiles: expected Tiles, got {type(tiles).__name__}")
+    cols, size, camera, overlay, labels = tiles.cols, tiles.size, tiles.camera, tiles.overlay, tiles.labels
     if isinstance(arm, Robot):
         kin = MjKinematics.from_robot(arm, extra_worldbody)
     elif extra_worldbody:

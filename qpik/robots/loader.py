@@ -67,7 +67,7 @@ from qpik.core.validate import finite_array, flag
 from qpik.robots.catalog import CATALOG, catalog_robot
 from qpik.robots.chain import Joint, SerialChain
 from qpik.robots.limits import arm_limits
-from qpik.robots.model_files import UrdfJoint, is_urdf, read_spec, urdf_joints
+from qpik.robots.model_files import MeshOptions, UrdfJoint, is_urdf, read_spec, urdf_joints
 from qpik.robots.recognize import recognize
 from qpik.robots.robot import LinkCapsule, Robot
 
@@ -220,11 +220,9 @@ def load_robot(
     tip: str | None = None,
     joints: Sequence[str] | None = None,
     ee: np.ndarray | None = None,
-    package_map: Mapping[str, str | os.PathLike] | None = None,
-    collision_only: bool = False,
     q_home: np.ndarray | None = None,
     name: str | None = None,
-    allow_outside: bool = False,
+    meshes: MeshOptions | None = None,
 ) -> Robot:
     """A catalog arm by name, or the arm of an MJCF or URDF file.
 
@@ -240,12 +238,10 @@ def load_robot(
             the path from base to tip. Other joints on the path are locked at their reference.
         ee: (4, 4) end-effector frame in the tip's frame (default identity), m.
             Mimic joints on the chain (URDF ``<mimic>``) are coupled to their leader, not arm joints of their own.
-        package_map: ``{package: folder}`` for ``package://`` mesh paths (default: found
-            from the file's own folders).
-        collision_only: leave out visual geoms and their meshes (for models shipped without them).
         q_home: (n,) home configuration, rad (default from the model, see the module docstring).
         name: the robot's name (default the model's name; any text: ``robot.identifier`` is its C-safe form).
-        allow_outside: read mesh files outside their package root (absolute paths, ``..`` out of it).
+        meshes: how the meshes are read: ``package_map``, ``collision_only``, ``allow_outside``
+            (:class:`~qpik.robots.model_files.MeshOptions`; default its defaults).
 
     Raises:
         UnknownRobotError: neither a catalog name nor an existing file; a name that looks like a file
@@ -260,9 +256,9 @@ def load_robot(
             f"path_or_name: expected a catalog name or a file path, got {type(path_or_name).__name__}"
         )
     text = os.fspath(path_or_name)
-    options = (base, tip, joints, ee, package_map, q_home, name)
+    options = (base, tip, joints, ee, q_home, name, meshes)
     if text in CATALOG:
-        if any(o is not None for o in options) or collision_only or allow_outside:
+        if any(o is not None for o in options):
             raise InputError(f"load_robot: {text!r} is a catalog arm; the options are for model files")
         return catalog_robot(text)
     path = Path(text)
@@ -274,8 +270,11 @@ def load_robot(
         raise UnknownRobotError(f"{text!r}: {what} (the catalog's arms: {known})")
     if name is not None and not isinstance(name, str):
         raise InputError(f"name: expected a string, got {type(name).__name__}")
-    pmap = {k: os.fspath(v) for k, v in (package_map or {}).items()}
-    allow_outside = flag(allow_outside, "allow_outside")
+    meshes = MeshOptions() if meshes is None else meshes
+    if not isinstance(meshes, MeshOptions):
+        raise InputError(f"meshes: expected MeshOptions, got {type(meshes).__name__}")
+    pmap = {k: os.fspath(v) for k, v in (meshes.package_map or {}).items()}
+    collision_only, allow_outside = meshes.collision_only, flag(meshes.allow_outside, "allow_outside")
     urdf = urdf_joints(path) if is_urdf(path) else None
     model, notes = _compile(path, pmap, collision_only, allow_outside)
     tree = _Tree(model)

@@ -13,7 +13,7 @@
 - Mesh paths stay inside their root: a ``package://`` path inside its package's folder, any
   other inside the model's package (the nearest folder above the model holding a ``package.xml``,
   else the model's own folder); absolute paths and ``..`` steps out of it are refused unless
-  ``allow_outside=True`` (symbolic links inside the package are followed).
+  ``MeshOptions(allow_outside=True)`` (symbolic links inside the package are followed).
 - The XML is read without a document type: a file declaring entities (``<!DOCTYPE ... [<!ENTITY``,
   the "billion laughs") is refused before any parser expands them (:func:`parse_xml`).
 - URDF ``<limit velocity=...>`` is not kept by MuJoCo, and it silently drops invalid limits:
@@ -40,6 +40,21 @@ PACKAGE = "package://"
 MIN_MASS = 1e-9
 """Mass (kg) and inertia (kg m²) given to bodies with less (MuJoCo rejects massless moving bodies; qpik
 uses the kinematics only)."""
+
+
+@dataclass(frozen=True)
+class MeshOptions:
+    """How :func:`qpik.load_robot` reads a model file's meshes.
+
+    Attributes:
+        package_map: ``{package: folder}`` for ``package://`` mesh paths (None: found from the file's own folders).
+        collision_only: leave out visual geoms and their meshes (for models shipped without them).
+        allow_outside: read mesh files outside their package root (absolute paths, ``..`` out of it).
+    """
+
+    package_map: Mapping[str, str | os.PathLike] | None = None
+    collision_only: bool = False
+    allow_outside: bool = False
 
 
 def is_urdf(path: Path) -> bool:
@@ -193,7 +208,7 @@ def resolve_mesh(
     the model file with ``A.name == NAME`` and ``A/rest`` present, or with ``A/NAME/rest`` present;
     it must lie inside that package folder. Other names: relative to the model's folder and its
     ``meshdir``, as MuJoCo reads them; they must lie inside :func:`package_root` of the model.
-    ``allow_outside=True`` lifts both confinements (and allows absolute paths).
+    ``MeshOptions(allow_outside=True)`` lifts both confinements (and allows absolute paths).
 
     Raises:
         InputError: the file is not found (the message says where it was looked for), or it is
@@ -208,7 +223,10 @@ def resolve_mesh(
             candidates.append((up / name, rest))
     else:
         if os.path.isabs(file) and not allow_outside:
-            raise InputError(f"{model.name}: mesh {file!r} is an absolute path; pass allow_outside=True to read it")
+            raise InputError(
+                f"{model.name}: mesh {file!r} is an absolute path;"
+                " pass meshes=MeshOptions(allow_outside=True) to read it"
+            )
         root = package_root(model)
         candidates = [
             (root, os.path.relpath(folder / meshdir / file, root)),
@@ -219,13 +237,16 @@ def resolve_mesh(
         if c.is_file():
             if not allow_outside and not _lexically_inside(c, root):
                 raise InputError(
-                    f"{model.name}: mesh {file!r} lies outside its root {str(root)!r}; allow_outside=True reads it"
+                    f"{model.name}: mesh {file!r} lies outside its root {str(root)!r};"
+                    " meshes=MeshOptions(allow_outside=True) reads it"
                 )
             return c
-    hint = f"; give package_map={{{name!r}: folder}}" if file.startswith(PACKAGE) else ""
+    hint = f"; give meshes=MeshOptions(package_map={{{name!r}: folder}})" if file.startswith(PACKAGE) else ""
     first = candidates[0][0] / candidates[0][1]
     where = f" (looked in {first.parent}" + (f" and {len(candidates) - 1} more places" if len(candidates) > 1 else "")
-    raise InputError(f"{model.name}: mesh {file!r} not found{where}){hint}; or load with collision_only=True")
+    raise InputError(
+        f"{model.name}: mesh {file!r} not found{where}){hint}; or load with meshes=MeshOptions(collision_only=True)"
+    )
 
 
 def _lexically_inside(path: Path, root: Path) -> bool:

@@ -6,16 +6,20 @@ from qpik.core.lazy import exports
 
 if TYPE_CHECKING:
     from qpik.geometry.paths import TimedPath
-    from qpik.sim.log import SimLog, Summary, tracking_errors
-    from qpik.sim.run import Scene, build_scene, follow, simulate
+    from qpik.robots.mujoco_scene import MjScene, build_scene
+    from qpik.sim.log import SimLog, Summary
+    from qpik.sim.options import SimOptions
+    from qpik.sim.run import follow, simulate
 
 __getattr__, __dir__ = exports(
     __name__,
     {
         "qpik.geometry.paths": ("TimedPath",),
-        "qpik.sim.log": ("SimLog", "Summary", "tracking_errors"),
-        "qpik.sim.run": ("Scene", "build_scene", "follow", "simulate"),
+        "qpik.robots.mujoco_scene": ("MjScene", "build_scene"),
+        "qpik.sim.log": ("SimLog", "Summary"),
+        "qpik.sim.options": ("SimOptions",),
+        "qpik.sim.run": ("follow", "simulate"),
     },
 )
 
-__all__ = ["Scene", "SimLog", "Summary", "TimedPath", "build_scene", "follow", "simulate", "tracking_errors"]
+__all__ = ["MjScene", "SimLog", "SimOptions", "Summary", "TimedPath", "build_scene", "follow", "simulate"]

@@ -19,18 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-
-def rotation_angle(R: np.ndarray) -> np.ndarray:
-    """Angle (rad, in [0, π]) of rotation matrices R (..., 3, 3)."""
-    s = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
-    return np.arctan2(np.linalg.norm(s, axis=-1), np.trace(R, axis1=-2, axis2=-1) - 1.0)
-
-
-def tracking_errors(pose: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Position error (m) and orientation error (rad) of poses (..., 4, 4) against targets (..., 4, 4)."""
-    e_pos = np.linalg.norm(target[..., :3, 3] - pose[..., :3, 3], axis=-1)
-    M = np.swapaxes(target[..., :3, :3], -1, -2) @ pose[..., :3, :3]
-    return e_pos, rotation_angle(M)
+from qpik.algebra.lie import tracking_errors
 
 
 @dataclass

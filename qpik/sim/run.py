@@ -26,149 +26,28 @@ from __future__ import annotations
 import os
 import sys
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
-from functools import cached_property
 
 import mujoco
 import numpy as np
 
 from qpik.core.errors import InputError
 from qpik.core.validate import finite_array, joint_vector, single_pose
-from qpik.geometry.contacts import geom_facts, geom_pairs
-from qpik.geometry.distance import ObstacleSet
+from qpik.geometry.contacts import geom_facts
 from qpik.geometry.paths import TimedPath
 from qpik.geometry.shapes import Shape
-from qpik.robots.mujoco_backend import MjKinematics
+from qpik.robots.mujoco_scene import MjScene, build_scene
 from qpik.robots.robot import Robot
 from qpik.sim.log import SimLog
+from qpik.sim.options import SimOptions
 
-DISTMAX = 10.0
-"""Distances (m) beyond this are reported as this value by ``mj_geomDistance``."""
 MAX_STEPS = 1e8
 """Most steps of one run (``duration / dt``)."""
 MAX_RECORDS = 10**6
 """Most records of one log (``steps / record_every``): each holds the clearance of every link–obstacle pair."""
-OBSTACLE_PREFIX = "obstacles/"
 
 
 Target = np.ndarray | TimedPath | None
 PolicyFn = Callable[[float, np.ndarray], np.ndarray]
-
-
-@dataclass
-class Scene:
-    """An arm model with obstacle geoms, and the geom pairs whose distance is logged.
-
-    Attributes:
-        kin: the arm's kinematics on the model with obstacles.
-        link_geoms, link_names: ids and names of the arm's collision geoms (L,); an unnamed geom is
-            ``<body>/geom<id>``.
-        obstacle_geoms, obstacle_names: ids of the obstacle geoms and the obstacles' names (O,).
-        obstacles: the obstacle shapes (world frame).
-        robot: the :class:`Robot` when the model is its own (twin or loaded model), else ``None``.
-    """
-
-    kin: MjKinematics
-    link_geoms: np.ndarray
-    link_names: tuple[str, ...]
-    obstacle_geoms: np.ndarray
-    obstacle_names: tuple[str, ...]
-    obstacles: tuple[Shape, ...]
-    robot: Robot | None = None
-
-    @cached_property
-    def checked(self) -> np.ndarray:
-        """(L, O) bool: the link-geom–obstacle pairs that are checked (:func:`qpik.geometry.contacts.geom_pairs`: not
-        those whose distance no joint motion changes, a base column on its table)."""
-        return geom_pairs(self)
-
-    def clearances(self, out: np.ndarray) -> np.ndarray:
-        """Signed distances (m) (L, O) of link to obstacle geoms at the current ``kin.data`` state."""
-        m, d = self.kin.model, self.kin.data
-        for i, gl in enumerate(self.link_geoms):
-            for j, go in enumerate(self.obstacle_geoms):
-                out[i, j] = mujoco.mj_geomDistance(m, d, int(gl), int(go), DISTMAX, None)
-        return out
-
-
-def build_scene(
-    arm: Robot | str | os.PathLike,
-    obstacles: Sequence[Shape] = (),
-    *,
-    joint_names: Sequence[str] | None = None,
-    site: str = "ee",
-    link_geoms: Sequence[str] | None = None,
-) -> Scene:
-    """The model of ``arm`` with ``obstacles`` as world geoms.
-
-    Args:
-        arm: a :class:`Robot` (its MuJoCo model: the MJCF twin of a catalog arm, the model of a
-            loaded one), an MJCF string or an MJCF file path.
-        obstacles: shapes in the world frame (the robot's base frame: its MuJoCo model is moved so that they are the
-            same, :mod:`qpik.robots.loader`); each becomes geom ``obstacles/<i>``.
-        joint_names, site: the arm's joints and end-effector site (an MJCF arm;
-            the twin uses ``joint1..7`` and ``ee``).
-        link_geoms: the arm geoms whose clearance is logged; default: every geom
-            that can collide (``contype`` or ``conaffinity`` non-zero) on a
-            moving body — the capsules ``link<k>_capsule`` of the twin, a loaded arm's own
-            collision geoms (its capsules are drawn but do not collide).
-    """
-    robot = arm if isinstance(arm, Robot) else None
-    if robot is not None:
-        spec = robot.mj_spec()
-        joint_names, site = robot.joint_names, robot.site
-    else:
-        spec = _mjcf_spec(arm)
-    obstacles = ObstacleSet(obstacles).shapes  # checks that each is a shape (InputError naming it)
-    if obstacles:
-        geoms = "".join(replace(o, name=str(i)).to_mjcf_geom() for i, o in enumerate(obstacles))
-        child = mujoco.MjSpec.from_string(f'<mujoco><worldbody><body name="all">{geoms}</body></worldbody></mujoco>')
-        spec.worldbody.add_frame().attach_body(child.body("all"), OBSTACLE_PREFIX, "")
-    model = spec.compile()
-    kin = MjKinematics(model, site, joint_names, robot.model.mimic if robot is not None and robot.model else ())
-    if link_geoms is None:
-        moving = model.body_weldid[model.geom_bodyid] != 0
-        collides = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
-        link_ids = np.flatnonzero(moving & collides)
-    else:
-        link_ids = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, g) for g in link_geoms], dtype=int)
-        if np.any(link_ids < 0):
-            missing = [g for g, i in zip(link_geoms, link_ids) if i < 0]
-            raise InputError(f"link_geoms: {missing} are not geoms of the model")
-    obstacle_ids = np.array(
-        [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"{OBSTACLE_PREFIX}{i}") for i in range(len(obstacles))],
-        dtype=int,
-    )
-    return Scene(
-        kin=kin,
-        link_geoms=link_ids,
-        link_names=tuple(
-            model.geom(int(g)).name or f"{model.body(int(model.geom_bodyid[g])).name}/geom{g}" for g in link_ids
-        ),
-        obstacle_geoms=obstacle_ids,
-        obstacle_names=tuple(o.name or f"obstacle{i}" for i, o in enumerate(obstacles)),
-        obstacles=obstacles,
-        robot=robot,
-    )
-
-
-def _mjcf_spec(arm: object) -> mujoco.MjSpec:
-    """The MjSpec of an MJCF string or file; :class:`InputError` for anything else or MJCF that MuJoCo rejects."""
-    if isinstance(arm, str) and arm.lstrip().startswith("<"):
-        load, what = mujoco.MjSpec.from_string, "MJCF string"
-    elif isinstance(arm, str | os.PathLike) and os.path.isfile(arm):
-        load, what = mujoco.MjSpec.from_file, f"MJCF file {os.fspath(arm)}"
-        arm = os.fspath(arm)
-    elif isinstance(arm, str):
-        raise InputError(
-            f"arm: {arm!r} is neither an MJCF string nor a file (a catalog arm: pass qpik.load_robot({arm!r}))"
-        )
-    else:
-        raise InputError(f"arm: expected a qpik.Robot, an MJCF string or a file path, got {type(arm).__name__}")
-    try:
-        return load(arm)
-    except ValueError as exc:  # MuJoCo's parser
-        raise InputError(f"arm: {what} rejected by MuJoCo: {exc}") from None
 
 
 def follow(controller: object, target: Target) -> PolicyFn:
@@ -200,46 +79,41 @@ def target_pose(target: Target, t: float) -> np.ndarray | None:
 
 
 def simulate(
-    arm: Robot | str | os.PathLike | Scene,
+    arm: Robot | str | os.PathLike | MjScene,
     policy: PolicyFn | object,
     q0: np.ndarray,
     duration: float,
     dt: float = 0.001,
     obstacles: Sequence[Shape] = (),
     target: Target = None,
-    record_every: int = 1,
     *,
-    joint_names: Sequence[str] | None = None,
-    site: str = "ee",
-    v_max: np.ndarray | None = None,
-    d_safe: float | None = None,
-    label: str = "run",
-    progress: bool | None = None,
+    options: SimOptions | None = None,
 ) -> SimLog:
     """Run ``policy`` in closed loop for ``duration`` seconds and log it.
 
     Args:
-        arm: a :class:`Robot` (MJCF twin), an MJCF string or path (with
-            ``joint_names`` and ``site``), or a ready :class:`Scene`.
+        arm: a :class:`Robot` (MJCF twin), an MJCF string or path (its hinge joints, site ``ee``), or a ready
+            :class:`~qpik.robots.mujoco_scene.MjScene` (:func:`~qpik.robots.mujoco_scene.build_scene` of any MJCF
+            arm with its joint names and site).
         policy: ``policy(t, q) -> v`` (rad/s, (n,)), or an object with
             ``step(q) -> v`` — a controller, given ``target`` through :func:`follow`.
         q0: initial configuration (n,) (rad).
         duration: simulated time (s); ``round(duration / dt)`` steps are taken.
         dt: integration step (s).
-        obstacles: shapes (world frame, which is the robot's base frame) added to the model (ignored for a Scene).
+        obstacles: shapes (world frame, which is the robot's base frame) added to the model (ignored for an MjScene).
         target: a pose (4, 4), a :class:`TimedPath` (``pose(t)``, ``twist(t)``) or
             ``None``; logged, and handed to a controller.
-        record_every: log every this many steps (and always the last state); at most
-            :data:`MAX_RECORDS` records, :data:`MAX_STEPS` steps.
-        v_max: velocity limits (rad/s) (n,) for the summary; default the robot's.
-        d_safe: safety distance (m) to mark on plots.
-        label: a name for plots and summaries.
-        progress: show a tqdm bar; default: when stderr is a terminal.
+        options: what is recorded (every how many steps), the summary's velocity limits, the d_safe marked on
+            plots, the label and the progress bar (:class:`~qpik.sim.options.SimOptions`; default its defaults).
 
     Returns:
         A :class:`SimLog` with ``1 + ceil(N / record_every)`` records, N the number of steps.
     """
-    scene = arm if isinstance(arm, Scene) else build_scene(arm, obstacles, joint_names=joint_names, site=site)
+    options = SimOptions() if options is None else options
+    if not isinstance(options, SimOptions):
+        raise InputError(f"options: expected SimOptions, got {type(options).__name__}")
+    record_every, v_max, d_safe, label = options.record_every, options.v_max, options.d_safe, options.label
+    scene = arm if isinstance(arm, MjScene) else build_scene(arm, obstacles)
     kin, model, data = scene.kin, scene.kin.model, scene.kin.data
     n = kin.dof
     q0, batched = joint_vector(q0, n, "q0")
@@ -281,7 +155,7 @@ def simulate(
     q = q0.copy()
     kin.update(q)
 
-    bar = _progress_bar(steps + 1, progress, label)
+    bar = _progress_bar(steps + 1, options.progress, label)
     r = 0
     for k in range(steps + 1):
         t = k * dt

@@ -7,10 +7,10 @@
 
 from __future__ import annotations
 
-import os
 from typing import TYPE_CHECKING
 
 from qpik.core.errors import ViewerError
+from qpik.viewer.options import ViewOptions
 
 if TYPE_CHECKING:
     import numpy as np
@@ -29,13 +29,7 @@ def view(
     *,
     d_safe: float = 0.02,
     play=None,
-    live: bool = False,
-    host: str = "127.0.0.1",
-    port: int = 8080,
-    dt: float = 0.002,
-    block: bool = True,
-    screenshot: str | os.PathLike | None = None,
-    size: tuple[int, int] = (1280, 800),
+    options: ViewOptions | None = None,
 ) -> Viewer:
     """Show ``robot`` in a web page at ``http://HOST:PORT``.
 
@@ -47,17 +41,11 @@ def view(
         d_safe: m, the clearance kept by :func:`qpik.solve_best` and by the controller in live mode.
         play: a :class:`qpik.Plan`, a :class:`qpik.sim.SimLog` or the ``*_plan.npz`` file of ``qpik plan`` to
             play back with a time slider.
-        live: start with the QP controller tracking the target.
-        host, port: where the server listens; the default serves this machine only (from another machine,
-            forward the port: ``ssh -L 8080:localhost:8080 HOST``). Port 0 takes any free port.
-        dt: s, the controller's period in live mode.
-        block: serve until Ctrl-C (then stop the server); else return the running viewer at once.
-        screenshot: write a PNG of the page, rendered by a headless browser (:mod:`qpik.viewer.browser`),
-            to this path, then stop the server and return.
-        size: (width, height) of the screenshot in pixels.
+        options: live mode and its period, the address, blocking and a screenshot
+            (:class:`~qpik.viewer.options.ViewOptions`; default its defaults: http://127.0.0.1:8080, blocking).
 
     Returns:
-        The :class:`~qpik.viewer.server.Viewer` (stopped if ``block`` or ``screenshot``).
+        The :class:`~qpik.viewer.server.Viewer` (stopped if ``options.block`` or ``options.screenshot``).
 
     Raises:
         ViewerError: viser is not installed, the port is taken, or (with ``screenshot``) no browser.
@@ -69,12 +57,13 @@ def view(
         if exc.name is not None and exc.name.split(".")[0] == "viser":
             raise ViewerError(VIEW_EXTRA) from None
         raise
-    viewer = Viewer(robot, target, obstacles, objective, d_safe, play, live, host, port, dt)
-    if screenshot is not None:
+    options = ViewOptions() if options is None else options
+    viewer = Viewer(robot, target, obstacles, objective, d_safe=d_safe, play=play, options=options)
+    if options.screenshot is not None:
         try:
-            viewer.screenshot(screenshot, size)
+            viewer.screenshot(options.screenshot, options.size)
         finally:
             viewer.close()
-    elif block:
+    elif options.block:
         viewer.serve_forever()
     return viewer

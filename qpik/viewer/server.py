@@ -41,6 +41,7 @@ from qpik.objectives import NAMES
 from qpik.robots.robot import Robot, as_robot
 from qpik.viewer.chart import feasible_chart
 from qpik.viewer.geometry import ArmGeometry, Part, capsule_part, rotation, shape_part, wxyz
+from qpik.viewer.options import ViewOptions
 from qpik.viewer.playback import Track, as_track
 from qpik.viewer.state import ViewState, solve_view
 
@@ -75,9 +76,8 @@ class Viewer:
         objective: a name of :data:`qpik.objectives.NAMES`, :func:`qpik.solve_best`'s objective.
         d_safe: m, the clearance :func:`qpik.solve_best` and the controller keep.
         play: a :class:`qpik.Plan`, a :class:`qpik.sim.SimLog` or a plan file to play back.
-        live: start with the controller tracking the target.
-        host, port: where the server listens (port 0: any free port).
-        dt: s, the controller's period in live mode.
+        options: live mode, the controller's period (s) in it, and the address
+            (:class:`~qpik.viewer.options.ViewOptions`; default its defaults).
 
     Raises:
         ViewerError: the port is taken.
@@ -90,13 +90,15 @@ class Viewer:
         target: np.ndarray | None = None,
         obstacles=(),
         objective: str = "margin",
+        *,
         d_safe: float = 0.02,
         play=None,
-        live: bool = False,
-        host: str = "127.0.0.1",
-        port: int = 8080,
-        dt: float = 0.002,
+        options: ViewOptions | None = None,
     ):
+        options = ViewOptions() if options is None else options
+        if not isinstance(options, ViewOptions):
+            raise InputError(f"options: expected ViewOptions, got {type(options).__name__}")
+        live, host, port, dt = options.live, options.host, options.port, options.dt
         self.robot = robot = as_robot(robot)
         self.obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
         if not isinstance(objective, str) or objective not in NAMES:

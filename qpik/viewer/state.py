@@ -19,6 +19,7 @@ from qpik.geometry.distance import Distances, ObstacleSet, distances
 from qpik.nlp import BestResult, solve_best
 from qpik.nlp.ik import IKResult
 from qpik.nlp.ik import ik_solver_for as ik_solver
+from qpik.nlp.options import BestOptions
 from qpik.robots.robot import Robot
 
 
@@ -75,7 +76,7 @@ def solve_view(
         branches = ik(robot, pose, param_)
         intervals = feasible_intervals(robot, pose)
         q_ref = seed if objective == "distance" else None
-        best = solve_best(robot, pose, objective, obstacles, q_ref, d_safe=d_safe, certify=certify)
+        best = solve_best(robot, pose, objective, obstacles, q_ref, d_safe=d_safe, options=BestOptions(certify=certify))
         q, numerical = best.q, None
     clearance = distances(robot.capsule_segments(q), robot.capsule_radii, obstacles) if len(obstacles) else None
     return ViewState(np.asarray(pose, dtype=float), param_, branches, intervals, best, numerical, q, clearance,

@@ -13,6 +13,7 @@ import qpik
 from qpik.control import (
     ConfigurationLimit,
     Controller,
+    ControllerOptions,
     DampingTask,
     FrameTask,
     PostureTask,
@@ -21,6 +22,7 @@ from qpik.control import (
 )
 from qpik.geometry.distance import distances
 from qpik.geometry.shapes import Sphere
+from qpik.nlp.options import BestOptions
 
 
 def _mink_v(robot, q, target, dt, cost_p, cost_o, gain, posture, limits):
@@ -194,8 +196,29 @@ def test_bad_parameters_raise_at_construction(kwargs, name):
     """NaN, negative or infinite gains and weights, and wrong types, are refused when the controller is built
     (they used to give v = 0 with "failed", or an OSQP exception from step)."""
     robot = qpik.load_robot("iiwa14")
+    own = {k: v for k, v in kwargs.items() if k in ("d_safe", "dt", "solver")}
+    options = ControllerOptions(**{k: v for k, v in kwargs.items() if k not in own})
     with pytest.raises(qpik.InputError, match=name):
-        Controller.for_robot(robot, target=robot.fk(robot.q_home), obstacles=[Sphere((1, 1, 1), 0.1)], **kwargs)
+        Controller.for_robot(
+            robot, target=robot.fk(robot.q_home), obstacles=[Sphere((1, 1, 1), 0.1)], options=options, **own
+        )
+
+
+def test_options_must_be_controller_options():
+    robot = qpik.load_robot("iiwa14")
+    with pytest.raises(qpik.InputError, match="options"):
+        Controller.for_robot(robot, options={"position_gain": 1.0})
+
+
+def test_for_scene_builds_the_scene_s_limits_and_posture():
+    robot = qpik.load_robot("iiwa14")
+    q_ref = robot.q_home + 0.1
+    scene = qpik.Scene.of(robot, [Sphere((1, 1, 1), 0.1)], d_safe=0.03, q_ref=q_ref)
+    ctrl = Controller.for_scene(scene, robot.fk(robot.q_home), options=ControllerOptions(d_influence=0.2))
+    assert np.array_equal(ctrl.tasks[1].q_ref, q_ref)
+    assert ctrl.obstacle_limits[0].d_safe == 0.03 and ctrl.obstacle_limits[0].d_influence == 0.2
+    with pytest.raises(qpik.InputError, match="scene"):
+        Controller.for_scene(robot)
 
 
 @pytest.mark.parametrize(
@@ -283,8 +306,9 @@ def test_set_posture_takes_the_nlp_answer():
     """The controller's posture reference is the answer of qpik.solve_best: the QP then settles on it."""
     robot = qpik.load_robot("iiwa14")
     target = robot.fk(robot.q_home + 0.2)
-    best = qpik.solve_best(robot, target, certify=False)
-    ctrl = Controller.for_robot(robot, target=target, posture_weight=1e-2, manipulability_weight=0.0, dt=0.01)
+    best = qpik.solve_best(robot, target, options=BestOptions(certify=False))
+    ctrl = Controller.for_robot(robot, target=target, dt=0.01,
+                                options=ControllerOptions(posture_weight=1e-2, manipulability_weight=0.0))  # fmt: skip
     ctrl.set_posture(best.q)
     assert np.array_equal(ctrl.tasks[1].q_ref, best.q)
     q = best.q.copy()

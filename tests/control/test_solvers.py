@@ -147,10 +147,10 @@ def test_polish_completes_any_guess_exactly(recorded, guess):
             want = ref.solve(qp).x
             Abar, lo, hi = _stacked(qp)
             x, y = _guess(qp, want, guess)
-            got = polish(qp.P, qp.c, Abar, lo, hi, x, y, max_steps=100)
+            got = polish(qp.P, qp.c, Abar, lo, hi, (x, y), max_steps=100)
             assert got is not None
             np.testing.assert_allclose(got, want, atol=1e-8)
-            steps_needed += polish(qp.P, qp.c, Abar, lo, hi, np.zeros(qp.n), y, max_steps=0) is None
+            steps_needed += polish(qp.P, qp.c, Abar, lo, hi, (np.zeros(qp.n), y), max_steps=0) is None
     assert guess != "none" or steps_needed > 50  # the cold start really exercised the steps
 
 
@@ -172,7 +172,7 @@ def test_compiled_polish_equals_daqp(recorded, guess):
             got = compiled(qp.P, qp.c, np.ascontiguousarray(Abar.T), lo, hi, x, y, 1e-9, 100)
             assert got is not None
             np.testing.assert_allclose(got, want, atol=1e-8)
-            none = polish(qp.P, qp.c, Abar, lo, hi, np.zeros(qp.n), y, max_steps=0) is None
+            none = polish(qp.P, qp.c, Abar, lo, hi, (np.zeros(qp.n), y), max_steps=0) is None
             cold = compiled(qp.P, qp.c, np.ascontiguousarray(Abar.T), lo, hi, np.zeros(qp.n), y, 1e-9, 0)
             assert none == (cold is None)
 
@@ -183,7 +183,7 @@ def test_polish_rejects_an_infeasible_qp():
     Abar = np.vstack((np.eye(robot_n), A))
     lo = np.r_[-np.ones(robot_n) * 5, 1.0, -np.inf]
     hi = np.r_[np.ones(robot_n) * 5, np.inf, -1.0]
-    assert polish(np.eye(robot_n), np.zeros(robot_n), Abar, lo, hi, np.zeros(robot_n), np.zeros(len(lo))) is None
+    assert polish(np.eye(robot_n), np.zeros(robot_n), Abar, lo, hi, (np.zeros(robot_n), np.zeros(len(lo)))) is None
 
 
 class _Impossible(RowLimit):

@@ -36,7 +36,9 @@ def test_iiwa_on_a_table_through_its_base_column_plans_and_reports_the_fact():
     robot = qpik.load_robot("iiwa14")
     q0 = np.array([0.3, 0.5, 0.2, -1.2, 0.1, 0.8, 0.0])
     T = _line(robot, q0, np.full(7, 0.15), 12)
-    plan = qpik.plan_self_motion(robot, T, obstacles=[TABLE], refine=False)  # MuJoCo check included
+    plan = qpik.plan_self_motion(
+        robot, T, obstacles=[TABLE], options=qpik.PlanOptions(refine=False)
+    )  # MuJoCo check included
     assert plan.ok and plan.status == "dp", plan.summary()
     names = {c.name for c in plan.checks}
     assert {"clearance", "clearance_mujoco"} <= names
@@ -65,7 +67,9 @@ def test_nammoto7_on_a_table_the_controller_does_not_say_penetrating():
 def test_nammoto7_on_a_table_plans_its_turning_base_column_is_a_fact():
     robot = qpik.load_robot("nammoto7")
     T = _line(robot, robot.q_home, np.full(7, 0.1), 8)
-    plan = qpik.plan_self_motion(robot, T, obstacles=[TABLE], refine=False)  # MuJoCo check included
+    plan = qpik.plan_self_motion(
+        robot, T, obstacles=[TABLE], options=qpik.PlanOptions(refine=False)
+    )  # MuJoCo check included
     assert plan.ok, plan.summary()
     assert any("touches table" in f for f in plan.facts)
 
@@ -76,5 +80,5 @@ def test_nammoto7_on_a_table_the_path_nlp_refines_its_plan():
     the margin (4e-4 better)."""
     robot = qpik.load_robot("nammoto7")
     T = _line(robot, robot.q_home, np.full(7, 0.1), 8)
-    plan = qpik.plan_self_motion(robot, T, "smooth-margin", [TABLE], mujoco=False)
+    plan = qpik.plan_self_motion(robot, T, "smooth-margin", [TABLE], options=qpik.PlanOptions(mujoco=False))
     assert plan.ok and plan.label == "NLP" and plan.cost < plan.dp_cost - 1e-4, plan.summary()

@@ -10,7 +10,7 @@ from conftest import SEEDS, matrix_function
 from hypothesis import given, settings
 
 import qpik
-from qpik.core.validate import single_pose
+from qpik.core.validate import COMPILED, joint_vector, single_pose
 from qpik.native.compiled import Compiled
 from qpik.native.fastcall import extension
 
@@ -71,6 +71,17 @@ def test_into_writes_the_callers_arrays():
         kernel.into((np.empty(2), np.empty((3, 3)), np.empty(3)), A, x)
     with pytest.raises(qpik.InputError, match="out"):
         kernel.into((np.empty(2), np.empty((3, 3), order="F"), np.empty((1, 3))), A, x)
+
+
+def test_the_extension_installs_its_checks_into_validate():
+    """core sits below native: the extension hands validate its C checks when it loads, and they decide the common
+    inputs (a vector the C check refuses still reaches the general path, which names it)."""
+    ext = extension()
+    assert COMPILED.vector_ok is ext.vector_ok and COMPILED.pose_ok is ext.pose_ok
+    q = np.arange(7.0)
+    assert ext.vector_ok(q, 7) and joint_vector(q, 7)[0] is q
+    with pytest.raises(qpik.InputError, match="q: "):
+        joint_vector(np.array([0.0, np.nan, 0.0]), 3)
 
 
 @settings(max_examples=50, deadline=None)

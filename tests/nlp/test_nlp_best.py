@@ -21,6 +21,7 @@ from qpik.analytic import closed_form_for
 from qpik.core.errors import InputError, NoClosedFormError
 from qpik.geometry import Sphere, distances
 from qpik.nlp import BestResults, solve_best
+from qpik.nlp.options import BestOptions
 from qpik.nlp.run import BestRun
 from qpik.nlp.search import Pieces, roots, sample, singular_ends
 from qpik.nlp.selfmotion import selfmotion_of
@@ -78,7 +79,7 @@ def test_margin_is_global_on_500_poses_with_and_without_obstacles(name):
     robot = qpik.load_robot(name)
     T = _poses(robot, POSES, 11)
     free = solve_best(robot, T)
-    blocked = solve_best(robot, T, "margin", OBSTACLES, d_safe=D_SAFE, certify=False)
+    blocked = solve_best(robot, T, "margin", OBSTACLES, d_safe=D_SAFE, options=BestOptions(certify=False))
     assert isinstance(free, BestResults) and len(free) == POSES
     clearance = Evaluator(robot, resolve("margin"), OBSTACLES)
     certified = 0
@@ -117,7 +118,9 @@ def test_other_objectives_against_dense_samples(name, objective):
     robot = qpik.load_robot(name)
     T = _poses(robot, 25, 13)
     obstacles = OBSTACLES if "clearance" in objective else ()
-    results = solve_best(robot, T, objective, obstacles, q_ref=robot.q_home, d_safe=D_SAFE, certify=False)
+    results = solve_best(
+        robot, T, objective, obstacles, q_ref=robot.q_home, d_safe=D_SAFE, options=BestOptions(certify=False)
+    )
     ev = Evaluator(robot, resolve(objective), obstacles)
     for k, ((q, ok), res) in enumerate(zip(_dense(robot, T, num=3000), results)):
         f, _, d, _ = ev(q[ok], robot.q_home)
@@ -207,8 +210,8 @@ def test_ipopt_per_branch_reaches_no_better_optimum(name):
     robot = qpik.load_robot(name)
     T = _poses(robot, 4, 14)
     for k in range(len(T)):
-        search = solve_best(robot, T[k], certify=False)
-        ipopt = solve_best(robot, T[k], certify=False, method="ipopt")
+        search = solve_best(robot, T[k], options=BestOptions(certify=False))
+        ipopt = solve_best(robot, T[k], options=BestOptions(certify=False, method="ipopt"))
         _check_answer(robot, T[k], ipopt)
         assert search.objective <= ipopt.objective + 1e-9
 
@@ -254,7 +257,7 @@ def test_a_numerical_failure_is_a_status(monkeypatch, method):
 
     monkeypatch.setattr(qpik.nlp.run.BestRun, "evaluate", broken)
     monkeypatch.setattr(levelset, "_native", lambda selfmotion: None)
-    res = solve_best(robot, robot.fk(robot.q_home), method=method)
+    res = solve_best(robot, robot.fk(robot.q_home), options=BestOptions(method=method))
     assert res.status == "solver failed" and "evaluation failed" in res.message
 
 
@@ -276,7 +279,7 @@ def test_bad_input_names_the_argument():
     with pytest.raises(InputError, match="d_safe"):
         solve_best(robot, T, d_safe=np.inf)
     with pytest.raises(InputError, match="branches"):
-        solve_best(robot, T, branches=[9])
+        solve_best(robot, T, options=BestOptions(branches=[9]))
     with pytest.raises(InputError, match="obstacles"):
         solve_best(robot, T, obstacles=["ball"])
     with pytest.raises(NoClosedFormError):
@@ -287,7 +290,7 @@ def test_branch_table_restriction_and_mirrored_branches():
     robot = qpik.load_robot("nammoto7")
     q = np.array([0.57, -0.96, -1.91, -2.01, 1.3, 1.21, 0.46])
     T = robot.fk(q)
-    res = solve_best(robot, T, certify=False)
+    res = solve_best(robot, T, options=BestOptions(certify=False))
     rows = {b.branch: b for b in res.branches}
     # the table, built when first read: the best branch's row holds the answer, the times share the pose's
     assert rows[res.branch].objective == res.objective and rows[res.branch].param == pytest.approx(res.param)
@@ -298,7 +301,7 @@ def test_branch_table_restriction_and_mirrored_branches():
             np.testing.assert_allclose(rows[k].q, rows[k + 8].q)
             assert np.angle(np.exp(1j * (rows[k + 8].param - rows[k].param - np.pi))) == pytest.approx(0, abs=1e-12)
     own = qpik.redundancy_parameter(robot, q)[1]
-    only = solve_best(robot, T, branches=[own], certify=False)
+    only = solve_best(robot, T, options=BestOptions(branches=[own], certify=False))
     assert only.branch in (own, own + 8 if own <= 8 else own - 8)
     assert [b.searched for b in only.branches].count(True) == 2
     assert "skipped" in only.table() and only.objective >= res.objective - 1e-12
@@ -366,7 +369,7 @@ def test_the_margin_is_reported_as_itself_and_the_table_shows_it():
         robot = qpik.load_robot(name)
         T = _poses(robot, 3, 31)
         for method in ("levelset", "search"):
-            results = solve_best(robot, T, "margin", method=method)
+            results = solve_best(robot, T, "margin", options=BestOptions(method=method))
             for res in results:
                 margin = -_margin(robot, res.q)
                 assert res.reported > 0 and res.reported == pytest.approx(margin, abs=1e-12)
@@ -418,7 +421,7 @@ def test_the_time_is_the_solve_not_the_building_of_its_functions(monkeypatch, me
     robot = CATALOG["iiwa14"]()  # a new object: none of its functions is built yet
     T = _poses(robot, 2, 41)
     start = time.perf_counter()
-    results = solve_best(robot, T, objective, obstacles, method=method, certify=method != "ipopt")
+    results = solve_best(robot, T, objective, obstacles, options=BestOptions(method=method, certify=method != "ipopt"))
     wall = time.perf_counter() - start
     assert built and watches  # the call built functions, and timed its solve
     assert not [b for b in built if b[0]], "a function was built while the clock ran"

@@ -19,6 +19,7 @@ from qpik.geometry import Sphere
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp import solve_best
 from qpik.nlp.certificate import certify
+from qpik.nlp.options import BestOptions
 from qpik.nlp.run import BestRun
 from qpik.nlp.search import Pieces
 from qpik.nlp.selfmotion import selfmotion_of
@@ -51,7 +52,7 @@ def test_false_claims_are_refuted_and_true_ones_proved(name, objective, focused)
     partition of the same sets, so the verdicts stand."""
     robot = qpik.load_robot(name)
     T = robot.fk(random_q(robot, POSES, 21))
-    res = solve_best(robot, T, objective, OBSTACLES, d_safe=D_SAFE, certify=False)
+    res = solve_best(robot, T, objective, OBSTACLES, d_safe=D_SAFE, options=BestOptions(certify=False))
     ok = np.flatnonzero([r.status == "optimal" for r in res])
     assert len(ok) >= 0.8 * POSES
     f = np.array([r.objective for r in res])[ok]

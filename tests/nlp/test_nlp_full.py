@@ -19,6 +19,7 @@ from qpik.core.errors import InputError
 from qpik.geometry import Sphere, distances
 from qpik.nlp import solve_best, solve_full
 from qpik.nlp.full import REACHED
+from qpik.nlp.options import BestOptions, FullOptions
 
 
 @pytest.mark.parametrize("name", ["zheng7", "panda"])
@@ -28,7 +29,7 @@ def test_reaches_every_seeded_pose(name):
     T = robot.fk(random_q(robot, 150, 21))
     starts = random_q(robot, 150, 22)
     for k in range(len(T)):
-        res = solve_full(robot, T[k], q0=starts[k], seed=k)
+        res = solve_full(robot, T[k], options=FullOptions(q0=starts[k], seed=k))
         assert res.status == "optimal", (k, res.message)
         assert np.linalg.norm(pose_error(T[k], robot.fk(res.q))) < REACHED
         assert robot.within_limits(res.q)
@@ -40,7 +41,7 @@ def test_objective_and_obstacles(name):
     T = robot.fk(random_q(robot, 4, 23))
     ball = [Sphere((0.4, 0.2, 0.7), 0.08)]
     for k in range(len(T)):
-        res = solve_full(robot, T[k], "smooth-margin", ball, starts=3, d_safe=0.02)
+        res = solve_full(robot, T[k], "smooth-margin", ball, d_safe=0.02, options=FullOptions(starts=3))
         assert res.status == "optimal"
         np.testing.assert_allclose(robot.fk(res.q), T[k], atol=1e-9)
         moving = ~robot.fixed_capsules  # the clearance of the capsules a joint moves
@@ -54,8 +55,8 @@ def test_from_the_closed_form_optimum_it_stays_there():
     robot = qpik.load_robot("nammoto7")
     for q in random_q(robot, 3, 24):
         T = robot.fk(q)
-        best = solve_best(robot, T, "smooth-margin", certify=False)
-        full = solve_full(robot, T, "smooth-margin", q0=best.q, starts=1, max_starts=1)
+        best = solve_best(robot, T, "smooth-margin", options=BestOptions(certify=False))
+        full = solve_full(robot, T, "smooth-margin", options=FullOptions(q0=best.q, starts=1, max_starts=1))
         assert full.status == "optimal" and full.kkt <= 1e-8
         assert np.abs(full.q - best.q).max() <= 1e-6
         assert abs(full.objective - best.objective) <= 1e-8
@@ -93,14 +94,14 @@ def test_unreachable_and_bad_input():
     robot = qpik.load_robot("panda")
     far = np.eye(4)
     far[:3, 3] = (2.0, 0.0, 0.5)
-    res = solve_full(robot, far, max_starts=3)
+    res = solve_full(robot, far, options=FullOptions(max_starts=3))
     assert res.status == "not found" and res.pose_error > 0.5 and res.starts == 3
     with pytest.raises(InputError, match="pose"):
         solve_full(robot, np.full((4, 4), np.nan))
     with pytest.raises(InputError, match="pose"):
         solve_full(robot, np.stack([far, far]))
     with pytest.raises(InputError, match="q0"):
-        solve_full(robot, far, q0=np.zeros(5))
+        solve_full(robot, far, options=FullOptions(q0=np.zeros(5)))
     with pytest.raises(InputError, match="q_ref"):
         solve_full(robot, far, "distance")
 

@@ -17,6 +17,7 @@ import qpik
 from qpik.algebra.lie import pose_error
 from qpik.core.errors import InputError, NoClosedFormError, RotationError, UnreachableError
 from qpik.nlp.ik import ATTEMPT_ITERS, IKSolver, ik_solver_for, residual_expr, solve_ik
+from qpik.nlp.options import IKOptions
 
 ARMS = ("nammoto7", "iiwa14", "zheng7", "panda")
 CLOSED_FORM = ("nammoto7", "iiwa14")
@@ -51,7 +52,7 @@ def test_reaches_random_reachable_poses(name: str, method: str | None) -> None:
     found = []
     for i in range(POSES):
         with contextlib.suppress(UnreachableError):  # counted as a failure
-            found.append((i, solve_ik(robot, targets[i], starts[i], seed=i, method=method)))
+            found.append((i, solve_ik(robot, targets[i], starts[i], options=IKOptions(seed=i, method=method))))
     assert len(found) >= 0.999 * POSES
     idx = np.array([i for i, _ in found])
     qs = np.array([q for _, q in found])
@@ -145,7 +146,7 @@ def test_unreachable_pose(name: str) -> None:
     robot = qpik.load_robot(name)
     far = _far_pose(robot)
     with pytest.raises(UnreachableError, match="pose error"):
-        solve_ik(robot, far, robot.q_home, max_iters=200)
+        solve_ik(robot, far, robot.q_home, options=IKOptions(max_iters=200))
     res = IKSolver(robot).solve(far, robot.q_home, max_iters=200)
     assert res.status == ("unreachable" if robot.closed_form else "not found")
     assert np.isfinite(res.residual) and res.residual > 1.0 and robot.within_limits(res.q)
@@ -169,7 +170,7 @@ def test_controller_solve_ik_delegates(name: str) -> None:
     target = robot.fk(random_q(robot, 1, seed=30)[0])
     q0 = random_q(robot, 1, seed=31)[0]
     got = ctrl.solve_ik(q0, target, seed=7)
-    np.testing.assert_array_equal(got, solve_ik(robot, target, q0, seed=7))
+    np.testing.assert_array_equal(got, solve_ik(robot, target, q0, options=IKOptions(seed=7)))
     assert _errors(robot, got[None], target[None])[0] < 1e-9
     assert not any(isinstance(v, qpik.Controller) for v in vars(ctrl).values())  # no hidden second controller
 
@@ -193,10 +194,13 @@ def test_bad_input() -> None:
         with pytest.raises(InputError, match=r"^q0"):
             solve_ik(robot, T, wrong)
     for kwargs in ({"tol": 0.0}, {"tol": np.nan}, {"max_iters": 0}, {"max_time": -1.0}, {"method": "newton"}):
+        args = kwargs if "tol" in kwargs else {"options": IKOptions(**kwargs)}
         with pytest.raises(InputError, match=rf"^{next(iter(kwargs))}"):
-            solve_ik(robot, T, robot.q_home, **kwargs)
+            solve_ik(robot, T, robot.q_home, **args)
+    with pytest.raises(InputError, match=r"^options"):
+        solve_ik(robot, T, robot.q_home, options={"seed": 1})
     with pytest.raises(NoClosedFormError, match=r"^method"):
-        solve_ik(robot, T, robot.q_home, method="closed form")
+        solve_ik(robot, T, robot.q_home, options=IKOptions(method="closed form"))
     skew = T.copy()
     skew[:3, :3] *= 1.001
     with pytest.raises(RotationError):

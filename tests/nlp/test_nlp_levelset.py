@@ -15,6 +15,7 @@ from qpik.analytic import closed_form_for
 from qpik.core.errors import InputError
 from qpik.geometry import Sphere
 from qpik.nlp import levelset, solve_best
+from qpik.nlp.options import BestOptions
 from qpik.nlp.selfmotion import selfmotion_of
 from qpik.objectives import JointLimitMargin
 
@@ -36,8 +37,8 @@ def test_levelset_meets_the_search_and_its_certificate(name):
     search's certified lower bound, and prove it on nearly every pose with the gap ε."""
     robot = qpik.load_robot(name)
     T = _poses(robot, 60, 5)
-    fast = solve_best(robot, T, method="levelset")
-    slow = solve_best(robot, T, method="search")
+    fast = solve_best(robot, T, options=BestOptions(method="levelset"))
+    slow = solve_best(robot, T, options=BestOptions(method="search"))
     for k, (a, b) in enumerate(zip(fast, slow)):
         assert a.status == b.status == "optimal", (k, a.summary(), b.summary())
         assert a.objective <= b.objective + 1e-8, (k, a.objective, b.objective)
@@ -72,7 +73,7 @@ def test_poses_the_level_sets_leave_go_to_the_search(monkeypatch):
     robot = qpik.load_robot("nammoto7")
     solver = closed_form_for(robot)
     T = _poses(robot, 12, 7)
-    results = solve_best(robot, T, method="levelset")
+    results = solve_best(robot, T, options=BestOptions(method="levelset"))
     psi = np.linspace(-np.pi, np.pi, 3000, endpoint=False)
     for k, res in enumerate(results):
         sol = solver.solve_batch(np.repeat(T[k : k + 1], len(psi), axis=0), psi)
@@ -88,16 +89,16 @@ def test_weight_and_methods():
     robot = qpik.load_robot("iiwa14")
     T = _poses(robot, 1, 8)[0]
     one = solve_best(robot, T)
-    three = solve_best(robot, T, 3.0 * JointLimitMargin(), method="levelset")
+    three = solve_best(robot, T, 3.0 * JointLimitMargin(), options=BestOptions(method="levelset"))
     assert three.objective == pytest.approx(3.0 * one.objective, abs=1e-12)
     np.testing.assert_allclose(three.q, one.q, atol=1e-9)
     assert three.gap == pytest.approx(3.0 * levelset.EPS, rel=1e-6)
     with pytest.raises(InputError, match="method"):
-        solve_best(robot, T, method="levelset", obstacles=[Sphere((0.4, 0.3, 0.5), 0.05)])
+        solve_best(robot, T, obstacles=[Sphere((0.4, 0.3, 0.5), 0.05)], options=BestOptions(method="levelset"))
     with pytest.raises(InputError, match="method"):
-        solve_best(robot, T, "smooth-margin", method="levelset")
+        solve_best(robot, T, "smooth-margin", options=BestOptions(method="levelset"))
     with pytest.raises(InputError, match="method"):
-        solve_best(robot, T, method="bisection")
+        solve_best(robot, T, options=BestOptions(method="bisection"))
     assert one.method == "levelset"
     assert solve_best(robot, T, obstacles=[Sphere((2.0, 2.0, 2.0), 0.05)]).method == "search"
 

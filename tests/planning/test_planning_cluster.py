@@ -97,10 +97,10 @@ def test_plan_many_on_the_cluster_equals_a_loop(cluster):
     robot = qpik.load_robot("iiwa14")
     rng = np.random.default_rng(1)
     paths = [robot.fk(robot.q_home + rng.uniform(-0.3, 0.3, 7) + np.linspace(0, 0.15, 5)[:, None]) for _ in range(50)]
-    options = {"resolution": 72, "mujoco": False}
-    plans = qpik.plan_many(robot, paths, client=cluster.address, progress=False, **options)
+    options = qpik.PlanOptions(resolution=72, mujoco=False)
+    plans = qpik.plan_many(robot, paths, options, client=cluster.address, progress=False)
     for path, plan in zip(paths, plans, strict=True):
-        alone = qpik.plan_self_motion(robot, path, **options)
+        alone = qpik.plan_self_motion(robot, path, options=options)
         assert plan.robot is robot and plan.status == alone.status and plan.cost == pytest.approx(alone.cost, 1e-12)
         assert np.abs(plan.q - alone.q).max() <= 1e-12
 

@@ -16,17 +16,17 @@ from qpik.robots.packaged import packaged_model
 ROBOT = qpik.load_robot("iiwa14")
 RNG = np.random.default_rng(1)
 PATHS = [ROBOT.fk(ROBOT.q_home + RNG.uniform(-0.3, 0.3, 7) + np.linspace(0, 0.15, 5)[:, None]) for _ in range(50)]
-OPTIONS = {"resolution": 72, "mujoco": False}
+OPTIONS = qpik.PlanOptions(resolution=72, mujoco=False)
 
 
 @pytest.fixture(scope="module")
 def loop():
-    return [qpik.plan_self_motion(ROBOT, path, **OPTIONS) for path in PATHS]
+    return [qpik.plan_self_motion(ROBOT, path, options=OPTIONS) for path in PATHS]
 
 
 @pytest.mark.parametrize("workers", [1, 2])
 def test_plan_many_equals_a_loop(loop, workers):
-    plans = qpik.plan_many(ROBOT, PATHS, workers=workers, progress=False, **OPTIONS)
+    plans = qpik.plan_many(ROBOT, PATHS, workers=workers, progress=False, options=OPTIONS)
     assert len(plans) == len(PATHS)
     for plan, alone in zip(plans, loop, strict=True):
         assert plan.robot is ROBOT and plan.setup.robot is ROBOT
@@ -38,11 +38,11 @@ def test_failures_are_per_path():
     bad = PATHS[1].copy()
     bad[2, 0, 0] = 5.0  # not a rotation: that path's job raises
     paths = [PATHS[0], bad, PATHS[2]]
-    kept = qpik.plan_many(ROBOT, paths, workers=1, errors="keep", progress=False, **OPTIONS)
+    kept = qpik.plan_many(ROBOT, paths, workers=1, errors="keep", progress=False, options=OPTIONS)
     assert isinstance(kept[1], JobFailure) and kept[1].index == 1 and "RotationError" in kept[1].error
     assert kept[0].ok and kept[2].ok
     with pytest.raises(qpik.PlanningError, match=r"1 path\(s\) could not be planned: path 1: RotationError") as info:
-        qpik.plan_many(ROBOT, paths, workers=1, progress=False, **OPTIONS)
+        qpik.plan_many(ROBOT, paths, workers=1, progress=False, options=OPTIONS)
     assert [f.index for f in info.value.failures] == [1]
 
 
@@ -51,7 +51,7 @@ def test_failures_are_per_path():
     [
         ({"errors": "ignore"}, "errors: expected 'raise' or 'keep'"),
         ({"workers": 0}, "workers: expected an integer >= 1"),
-        ({"resolutoin": 72}, "resolutoin: not an option of plan_self_motion"),
+        ({"options": {"resolution": 72}}, "options: expected PlanOptions"),
         ({"paths": PATHS[0]}, "paths: expected a sequence of paths, got one path"),
         ({"paths": [3]}, r"paths\[0\]: expected \(N, 4, 4\) waypoints or a timed path"),
         ({"robot": "iiwa14"}, "robot: expected a qpik.Robot"),

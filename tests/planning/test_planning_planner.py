@@ -12,6 +12,7 @@ import pytest
 import qpik
 from qpik.geometry import Sphere
 from qpik.geometry.paths import WaypointPath
+from qpik.nlp.options import BestOptions
 
 IIWA, NAMMOTO, ZHENG = (qpik.load_robot(n) for n in ("iiwa14", "nammoto7", "zheng7"))
 
@@ -24,7 +25,7 @@ def _line(robot, q0, dq, N):
 def test_an_unreachable_waypoint_is_reported_with_which_and_why():
     T = _line(IIWA, IIWA.q_home, np.full(7, 0.2), 12)
     T[7, :3, 3] = (2.0, 0.0, 0.5)  # 2 m away: beyond the arm's reach
-    plan = qpik.plan_self_motion(IIWA, T, mujoco=False)
+    plan = qpik.plan_self_motion(IIWA, T, options=qpik.PlanOptions(mujoco=False))
     assert plan.status == "failed" and plan.failure_waypoint == 7 and len(plan.q) == 7
     assert "no branch reaches this pose" in plan.failure and plan.least_violating.startswith("unreachable")
     F = IIWA.fk(plan.q)  # the planned prefix is right
@@ -41,18 +42,18 @@ def test_a_waypoint_with_an_empty_feasible_set_gives_the_least_violating_option(
     q = np.array([0.1, 0.5, 0.1, -0.3, 0.1, 0.6, 0.1])
     T = _line(IIWA, q, np.full(7, 0.05), 10)
     T[4] = IIWA.fk(np.array([0.1, 0.5, 0.1, -2.0, 0.1, 0.6, 0.1]))
-    plan = qpik.plan_self_motion(tight, T, max_joint_step=0.3, mujoco=False)
+    plan = qpik.plan_self_motion(tight, T, options=qpik.PlanOptions(max_joint_step=0.3, mujoco=False))
     assert plan.status == "failed" and plan.failure_waypoint == 4
     assert "inside its limits" in plan.failure
     assert plan.least_violating.startswith("no feasible branch: least violating is branch")
-    best = qpik.solve_best(tight, T[4], certify=False)
+    best = qpik.solve_best(tight, T[4], options=BestOptions(certify=False))
     assert best.status == "no feasible branch" and best.violation > 0
 
 
 def test_obstacle_blocking_every_configuration_is_named():
     T = _line(IIWA, IIWA.q_home, np.full(7, 0.1), 6)
     hand = T[3, :3, 3]
-    plan = qpik.plan_self_motion(IIWA, T, obstacles=[Sphere(hand, 0.05)], mujoco=False)
+    plan = qpik.plan_self_motion(IIWA, T, obstacles=[Sphere(hand, 0.05)], options=qpik.PlanOptions(mujoco=False))
     assert plan.status == "failed" and plan.failure_waypoint == 0  # the ball covers the hand everywhere near it
     assert "closer than d_s" in plan.failure
 
@@ -64,15 +65,21 @@ def test_obstacle_blocking_every_configuration_is_named():
 ])  # fmt: skip
 def test_bad_arguments_raise_input_errors_naming_them(bad, match):
     T = _line(IIWA, IIWA.q_home, np.full(7, 0.1), 5)
+    own = {k: v for k, v in bad.items() if k in ("times", "objective", "d_safe")}
+    options = qpik.PlanOptions(**{k: v for k, v in bad.items() if k not in own})
     with pytest.raises(qpik.InputError, match=match):
-        qpik.plan_self_motion(IIWA, T, **bad)
+        qpik.plan_self_motion(IIWA, T, options=options, **own)
     with pytest.raises(qpik.InputError, match="path"):
         qpik.plan_self_motion(IIWA, T[0])
+    with pytest.raises(qpik.InputError, match="options"):
+        qpik.plan_self_motion(IIWA, T, options={"resolution": 72})
 
 
 def test_retimed_plan_keeps_the_velocity_and_acceleration_limits_and_its_path():
     T = _line(NAMMOTO, NAMMOTO.q_home, np.array([0.3, 0.2, -0.2, 0.3, 0.2, -0.3, 0.4]), 30)
-    plan = qpik.plan_self_motion(NAMMOTO, T, "smooth-margin", max_joint_step=0.2, mujoco=False)
+    plan = qpik.plan_self_motion(
+        NAMMOTO, T, "smooth-margin", options=qpik.PlanOptions(max_joint_step=0.2, mujoco=False)
+    )
     assert plan.ok
     v, a = NAMMOTO.v_max, 3.0 * NAMMOTO.v_max
     traj = plan.retime(v, a, samples=400)
@@ -105,7 +112,7 @@ def test_the_plan_files_hold_the_plan(tmp_path):
 def test_a_timed_path_is_sampled_and_its_times_bound_the_steps():
     T = _line(IIWA, IIWA.q_home, np.full(7, 0.3), 5)
     path = WaypointPath(T, np.array([0.0, 1.0, 2.0, 3.0, 4.0]))
-    plan = qpik.plan_self_motion(IIWA, path, waypoints=41, mujoco=False)
+    plan = qpik.plan_self_motion(IIWA, path, options=qpik.PlanOptions(waypoints=41, mujoco=False))
     assert len(plan.q) == 41 and plan.times is not None and plan.ok
     assert np.all(plan.step_bound <= IIWA.v_max * 0.1 + 1e-15)
     assert np.abs(IIWA.fk(plan.q) - path.pose(np.linspace(0, 4, 41))).max() < 1e-9
@@ -147,8 +154,9 @@ def test_the_stage_times_count_no_building_of_functions(monkeypatch):
     robot = CATALOG["iiwa14"]()  # a new object: none of its functions is built yet
     T = _line(robot, robot.q_home, np.full(7, 0.15), 8)
     start = time.perf_counter()
-    plan = qpik.plan_self_motion(robot, T, "margin", [Sphere((0.5, 0.4, 0.9), 0.05)], max_joint_step=0.2,
-                                 mujoco=False)  # fmt: skip
+    plan = qpik.plan_self_motion(
+        robot, T, "margin", [Sphere((0.5, 0.4, 0.9), 0.05)], options=qpik.PlanOptions(max_joint_step=0.2, mujoco=False)
+    )
     wall = time.perf_counter() - start
     assert plan.status in ("optimal", "dp") and {"dp", "nlp"} <= set(plan.timings)
     assert built and watches and not any(built), "a function was built while a stage's clock ran"

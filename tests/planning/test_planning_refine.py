@@ -42,7 +42,8 @@ def peers(request):
     continuous = np.ones(N - 1, bool)
     continuous[5] = False  # a reconfiguration: no motion term, no step or acceleration bound there
     rows = np.array([0, 0, 0, 0, 0, 0, 2, 2, 2])
-    nlp = PathNLP(IIWA, T, objective, obstacles, 0.01, tr, continuous, IIWA.q_home, grid, rows)
+    scene = qpik.Scene.of(IIWA, obstacles, d_safe=0.01, objective=objective, q_ref=IIWA.q_home)
+    nlp = PathNLP(scene, T, tr, continuous, grid, rows)
     near = np.array([0, 1, 1, 0, 1, 1, 1, 0, 0], bool)
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(refine, "NATIVE_WAYPOINTS", 0 if compiled else N + 1)
@@ -78,7 +79,7 @@ def test_a_plan_with_acceleration_limits_keeps_them():
     T = IIWA.fk(IIWA.q_home + np.linspace(0.0, 1.0, 12)[:, None] * np.full(7, 0.2))
     times = np.linspace(0.0, 3.0, 12)
     a_max = np.full(7, 2.0)
-    plan = qpik.plan_self_motion(IIWA, T, times=times, a_max=a_max, mujoco=False)
+    plan = qpik.plan_self_motion(IIWA, T, times=times, options=qpik.PlanOptions(a_max=a_max, mujoco=False))
     assert plan.ok and plan.status in ("optimal", "dp")
     dt = np.diff(times)
     v = np.diff(plan.q, axis=0) / dt[:, None]

@@ -34,7 +34,7 @@ def _continuous(plan) -> bool:
 @pytest.mark.parametrize("seed", range(20))
 def test_singular_crossings_plan_at_the_default_settings(seed):
     T, _ = _crossing(seed)
-    plan = qpik.plan_self_motion(IIWA, T, refine=False, mujoco=False)
+    plan = qpik.plan_self_motion(IIWA, T, options=qpik.PlanOptions(refine=False, mujoco=False))
     assert plan.ok, plan.summary()
     assert np.abs(IIWA.fk(plan.q) - T).max() < 1e-9
     assert np.all(plan.q >= IIWA.q_min) and np.all(plan.q <= IIWA.q_max)
@@ -44,7 +44,7 @@ def test_singular_crossings_plan_at_the_default_settings(seed):
 @pytest.mark.parametrize("seed", [4, 19])
 def test_fewest_reports_no_reconfiguration_where_a_continuous_motion_exists(seed):
     T, _ = _crossing(seed)
-    plan = qpik.plan_self_motion(IIWA, T, reconfigure="fewest", refine=False, mujoco=False)
+    plan = qpik.plan_self_motion(IIWA, T, options=qpik.PlanOptions(reconfigure="fewest", refine=False, mujoco=False))
     assert plan.ok and _continuous(plan), plan.summary()
 
 
@@ -52,14 +52,16 @@ def test_fewest_when_no_transition_fits_reconfigures_at_every_waypoint():
     g = np.random.default_rng(1)
     lo, hi = np.maximum(IIWA.q_min, -2.5), np.minimum(IIWA.q_max, 2.5)
     Q = lo + (hi - lo) * (0.1 + 0.8 * g.random((30, 7)))
-    plan = qpik.plan_self_motion(IIWA, IIWA.fk(Q), reconfigure="fewest", refine=False, mujoco=False)
+    plan = qpik.plan_self_motion(
+        IIWA, IIWA.fk(Q), options=qpik.PlanOptions(reconfigure="fewest", refine=False, mujoco=False)
+    )
     assert plan.ok and plan.reconfigurations == list(range(29)), plan.summary()
     assert np.abs(IIWA.fk(plan.q) - IIWA.fk(Q)).max() < 1e-9
 
 
 def test_a_grid_failure_is_not_called_infeasible():
     T, _ = _crossing(0, n=6)  # 0.2 rad per step against a 0.01 rad bound: the grid fails, nothing is proved
-    plan = qpik.plan_self_motion(IIWA, T, max_joint_step=0.01, refine=False, mujoco=False)
+    plan = qpik.plan_self_motion(IIWA, T, options=qpik.PlanOptions(max_joint_step=0.01, refine=False, mujoco=False))
     assert plan.status == "failed" and plan.failure_kind == "grid"
     assert "the grid failed" in plan.failure and "(grid)" in plan.summary()
 
@@ -67,5 +69,5 @@ def test_a_grid_failure_is_not_called_infeasible():
 def test_an_empty_feasible_set_is_infeasible():
     T, _ = _crossing(0, n=6)
     T[3, :3, 3] = (2.0, 0.0, 0.5)  # 2 m away: beyond reach
-    plan = qpik.plan_self_motion(IIWA, T, max_joint_step=0.5, refine=False, mujoco=False)
+    plan = qpik.plan_self_motion(IIWA, T, options=qpik.PlanOptions(max_joint_step=0.5, refine=False, mujoco=False))
     assert plan.status == "failed" and plan.failure_kind == "infeasible" and plan.failure_waypoint == 3

@@ -10,6 +10,7 @@ from legends import missing_labels, unexplained
 import qpik
 from qpik.geometry import Sphere
 from qpik.nlp import solve_best
+from qpik.nlp.options import BestOptions
 from qpik.plots.objective import OPTIMUM_GID, objective_map
 from qpik.scene import Scene
 
@@ -23,7 +24,7 @@ def _margin(robot, q):
 def test_star_at_the_answer_and_curves_from_the_closed_form():
     robot = qpik.load_robot("iiwa14")
     pose = robot.fk(np.random.default_rng(2).uniform(0.7 * robot.q_min, 0.7 * robot.q_max))
-    best = solve_best(robot, pose, certify=False)
+    best = solve_best(robot, pose, options=BestOptions(certify=False))
     fig = objective_map(Scene.of(robot), pose, best, num=181)
     top, bottom = fig.axes[:2]
     stars = [ln for ln in top.lines if ln.get_gid() == OPTIMUM_GID]
@@ -53,7 +54,7 @@ def test_every_line_and_marker_is_in_the_legend_with_obstacles():
     robot = qpik.load_robot("iiwa14")
     pose = robot.fk(np.array([0.1, 0.9, 0.2, -1.2, 0.3, 0.8, 0.1]))
     ball = Sphere(robot.frames(np.array([0.1, 0.9, 0.2, -1.2, 0.3, 0.8, 0.1]))[4, :3, 3] + [0.1, 0.0, 0.0], 0.06)
-    best = solve_best(robot, pose, "margin", [ball], d_safe=0.03, certify=False)
+    best = solve_best(robot, pose, "margin", [ball], d_safe=0.03, options=BestOptions(certify=False))
     fig = objective_map(Scene.of(robot, [ball], d_safe=0.03), pose, best, num=181)
     top = fig.axes[0]
     assert any(ln.get_linestyle() == ":" and len(ln.get_xdata()) for ln in top.lines)  # the ball is close somewhere

@@ -21,7 +21,9 @@ IIWA = qpik.load_robot("iiwa14")
 @pytest.fixture(scope="module")
 def plan():
     T = IIWA.fk(IIWA.q_home + np.linspace(0.0, 1.0, 15)[:, None] * np.array([0.4, 0.2, -0.3, 0.3, 0.2, -0.2, 0.3]))
-    return qpik.plan_self_motion(IIWA, T, obstacles=[Sphere((0.45, 0.35, 0.7), 0.08)], max_joint_step=0.2)
+    return qpik.plan_self_motion(
+        IIWA, T, obstacles=[Sphere((0.45, 0.35, 0.7), 0.08)], options=qpik.PlanOptions(max_joint_step=0.2)
+    )
 
 
 def test_plan_map_draws_the_plan_on_its_branch_over_the_feasible_states(plan, tmp_path):

@@ -8,14 +8,22 @@ from legends import missing_labels, unexplained
 import qpik
 from qpik.geometry import Sphere
 from qpik.plots import runs
-from qpik.sim import simulate
+from qpik.sim import SimOptions, simulate
 
 
 def test_the_run_figures_name_every_mark(monkeypatch, tmp_path):
     robot = qpik.load_robot("iiwa14")
     target = robot.fk(robot.q_home + 0.1)
-    log = simulate(robot, lambda t, q: np.full(robot.dof, 0.2), robot.q_home, 0.05, 0.01,
-                   obstacles=[Sphere((0.5, 0.3, 0.6), 0.08)], target=target, d_safe=0.03)  # fmt: skip
+    log = simulate(
+        robot,
+        lambda t, q: np.full(robot.dof, 0.2),
+        robot.q_home,
+        0.05,
+        0.01,
+        obstacles=[Sphere((0.5, 0.3, 0.6), 0.08)],
+        target=target,
+        options=SimOptions(d_safe=0.03),
+    )
     figures = []
     monkeypatch.setattr(runs, "save", lambda fig, path, dpi=100: figures.append(fig))
     runs.plot_log(log, tmp_path / "log.png")

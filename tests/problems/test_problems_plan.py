@@ -108,8 +108,14 @@ def test_the_reconfiguration_case_needs_one_stop_and_forbid_says_where_and_why(p
     problem, plan = plans["iiwa_reconfiguration_plan"]
     assert len(plan.reconfigurations) == int(problem.expected["reconfigurations"])
     poses, times = waypoints(problem)
-    forbid = qpik.plan_self_motion(problem.robot, poses, None, problem.obstacles, times, 0.1, "forbid",
-                                   refine=False, mujoco=False)  # fmt: skip
+    forbid = qpik.plan_self_motion(
+        problem.robot,
+        poses,
+        None,
+        problem.obstacles,
+        times=times,
+        options=qpik.PlanOptions(max_joint_step=0.1, reconfigure="forbid", refine=False, mujoco=False),
+    )
     assert forbid.status == "failed" and 0 < forbid.failure_waypoint < len(poses)
     assert "joint" in forbid.failure and len(forbid.q) == forbid.failure_waypoint
 

@@ -65,10 +65,10 @@ ctypes.util.find_library = lambda name: None
 import os, io, contextlib
 import qpik, mujoco
 print("MUJOCO_GL", os.environ.get("MUJOCO_GL"))
-from qpik.render.pictures import RenderUnavailable, render_configurations
+from qpik.render.pictures import RenderUnavailable, Tiles, render_configurations
 robot = qpik.load_robot("iiwa14")
 try:
-    render_configurations(robot, robot.q_home, size=(32, 32))
+    render_configurations(robot, robot.q_home, tiles=Tiles(size=(32, 32)))
     print("RENDERED")
 except RenderUnavailable as exc:
     print("UNAVAILABLE", exc)
@@ -102,9 +102,9 @@ def test_with_a_gl_library_the_backend_renders() -> None:
         pytest.skip("no OSMesa or EGL library on this machine")
     code = (
         "import os, qpik, mujoco\n"
-        "from qpik.render.pictures import render_configurations\n"
+        "from qpik.render.pictures import Tiles, render_configurations\n"
         "r = qpik.load_robot('iiwa14')\n"
-        "img = render_configurations(r, r.q_home, size=(32, 32))\n"
+        "img = render_configurations(r, r.q_home, tiles=Tiles(size=(32, 32)))\n"
         "print(os.environ['MUJOCO_GL'], img.std() > 1)\n"
     )
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)

@@ -16,7 +16,7 @@ from conftest import model_robot, mujoco_poses
 import qpik
 from qpik.algebra.lie import pose_error
 from qpik.geometry import Sphere, distances
-from qpik.sim import simulate
+from qpik.sim import SimOptions, simulate
 
 CONTROLLED = ("pybullet_iiwa", "robosuite_iiwa", "erd_panda", "pybullet_panda", "erd_xarm7")
 DT = 0.002
@@ -51,8 +51,9 @@ def test_reach_past_an_obstacle(key):
     q0, qt, ball = reach_scene(robot, 0)
     target = robot.fk(qt)
     # the obstacle dampers are under test, not the self pairs of the fitted capsules (#24's open work)
-    ctrl = qpik.Controller.for_robot(robot, target=target, obstacles=[ball], dt=DT, d_safe=D_SAFE, self_collision=False)
-    log = simulate(robot, ctrl, q0, 4.0, DT, obstacles=[ball], target=target, record_every=5)
+    ctrl = qpik.Controller.for_robot(robot, target=target, obstacles=[ball], dt=DT, d_safe=D_SAFE,
+                                     options=qpik.ControllerOptions(self_collision=False))  # fmt: skip
+    log = simulate(robot, ctrl, q0, 4.0, DT, obstacles=[ball], target=target, options=SimOptions(record_every=5))
     assert np.linalg.norm(pose_error(target, log.ee[-1])) < 5e-3  # the posture task's pull stays ~1e-3
     assert np.all((log.q >= robot.q_min) & (log.q <= robot.q_max))
     assert np.all(np.abs(log.v) <= robot.v_max + 1e-9)
@@ -95,8 +96,11 @@ def test_track_a_circle_beside_an_obstacle(key):
         if distances(robot.capsule_segments(q0), robot.capsule_radii, [ball]).d.min() > 0.06:
             break
     path = Circle(robot.fk(q0))
-    ctrl = qpik.Controller.for_robot(robot, path.pose(0.0), [ball], DT, q_ref=q0, d_safe=D_SAFE, self_collision=False)
-    log = simulate(robot, ctrl, q0, path.duration, DT, obstacles=[ball], target=path, record_every=5)
+    ctrl = qpik.Controller.for_robot(robot, path.pose(0.0), [ball], dt=DT, q_ref=q0, d_safe=D_SAFE,
+                                     options=qpik.ControllerOptions(self_collision=False))  # fmt: skip
+    log = simulate(
+        robot, ctrl, q0, path.duration, DT, obstacles=[ball], target=path, options=SimOptions(record_every=5)
+    )
     pos, _ = log.errors
     assert pos[log.t > 0.5].max() < 1e-3
     assert np.all((log.q >= robot.q_min) & (log.q <= robot.q_max))

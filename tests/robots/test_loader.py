@@ -15,6 +15,7 @@ from conftest import MODEL_DIR, fd, fd_geometric_jacobian, model_robot, mujoco_p
 
 import qpik
 from qpik.core.errors import InputError, UnknownRobotError
+from qpik.robots.model_files import MeshOptions
 from qpik.robots.mujoco_backend import MjKinematics
 
 
@@ -133,9 +134,9 @@ def test_site_tip_and_ee_offset():
     path = MODEL_DIR / "robosuite_iiwa/robot.xml"
     ee = np.eye(4)
     ee[:3, 3] = (0.0, 0.0, 0.1)
-    robot = qpik.load_robot(path, tip="right_center", collision_only=True)  # a site on link_1
+    robot = qpik.load_robot(path, tip="right_center", meshes=MeshOptions(collision_only=True))  # a site on link_1
     assert robot.dof == 1
-    longer = qpik.load_robot(path, collision_only=True, ee=ee)
+    longer = qpik.load_robot(path, meshes=MeshOptions(collision_only=True), ee=ee)
     plain = model_robot("robosuite_iiwa")
     Q = random_q(plain, 20, 6)
     np.testing.assert_allclose(longer.fk(Q), plain.fk(Q) @ ee, atol=1e-12)
@@ -144,7 +145,7 @@ def test_site_tip_and_ee_offset():
 def test_package_paths_resolve_against_a_package_map(tmp_path):
     erd = model_robot("erd_panda").model.path
     share = erd.parents[4]  # .../share, holding example-robot-data/
-    robot = qpik.load_robot(erd, package_map={"example-robot-data": share / "example-robot-data"})
+    robot = qpik.load_robot(erd, meshes=MeshOptions(package_map={"example-robot-data": share / "example-robot-data"}))
     np.testing.assert_allclose(robot.fk(robot.q_home), model_robot("erd_panda").fk(robot.q_home), atol=1e-15)
     bad = tmp_path / "arm.urdf"
     bad.write_text(_URDF.format(geom='<mesh filename="package://nowhere/link.stl"/>'))

@@ -16,7 +16,7 @@ from qpik.core.errors import InputError
 from qpik.robots.collada import as_stl
 from qpik.robots.limits import CONTINUOUS_LIMIT, DEFAULT_VELOCITY
 from qpik.robots.mujoco_backend import MjKinematics
-from qpik.sim import simulate
+from qpik.sim import SimOptions, simulate
 
 MIMIC = MODEL_DIR / "mimic_arm/mimic_arm.urdf"
 COLLADA_ARMS = {  # key: (packaged model, options)
@@ -42,8 +42,9 @@ def test_collada_arms_load_and_run_the_controller(key):
     q0 = mid + 0.15 * span * np.random.default_rng(0).uniform(-1, 1, robot.dof)
     target = robot.fk(q0 + 0.15)
     # the loading is under test, not the self pairs of the fitted capsules (their default list is #24's open work)
-    ctrl = qpik.Controller.for_robot(robot, target=target, dt=0.01, self_collision=False)
-    log = simulate(robot, ctrl, q0, 2.0, 0.01, target=target, record_every=10)
+    options = qpik.ControllerOptions(self_collision=False)
+    ctrl = qpik.Controller.for_robot(robot, target=target, dt=0.01, options=options)
+    log = simulate(robot, ctrl, q0, 2.0, 0.01, target=target, options=SimOptions(record_every=10))
     assert np.linalg.norm(log.ee[0, :3, 3] - target[:3, 3]) > 0.1
     assert np.linalg.norm(log.ee[-1, :3, 3] - target[:3, 3]) < 1e-3  # the posture task's pull stays ~1e-4
     np.testing.assert_allclose(log.ee, robot.fk(log.q), atol=1e-10)  # MuJoCo's site, base frame, equals FK

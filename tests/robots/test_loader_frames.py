@@ -11,6 +11,7 @@ import pytest
 from conftest import MODEL_DIR, packaged, random_q
 
 import qpik
+from qpik.robots.model_files import MeshOptions
 from qpik.robots.mujoco_backend import MjKinematics
 
 pin = pytest.importorskip("pinocchio")
@@ -28,7 +29,7 @@ def arm(key: str) -> tuple[qpik.Robot, object, str, str]:
     if key not in _robots:
         path = packaged(model)
         _robots[key] = (
-            qpik.load_robot(path, base=base, tip=tip, collision_only=True),
+            qpik.load_robot(path, base=base, tip=tip, meshes=MeshOptions(collision_only=True)),
             pin.buildModelFromUrdf(str(path)),
         )
     robot, pmodel = _robots[key]

@@ -14,6 +14,7 @@ import pytest
 
 import qpik
 from qpik.core.errors import InputError, QpikError
+from qpik.robots.model_files import MeshOptions
 
 LINK = '<link name="{0}"><collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision></link>'
 
@@ -174,7 +175,7 @@ def test_outside_meshes_load_with_the_flag(tmp_path):
         path.write_text(mesh_urdf(name))
         with pytest.raises(InputError, match="allow_outside=True"):
             qpik.load_robot(path)
-        robot = qpik.load_robot(path, allow_outside=True)
+        robot = qpik.load_robot(path, meshes=MeshOptions(allow_outside=True))
         assert robot.capsules[0].radius == pytest.approx(0.5 * float(np.linalg.norm((0.1, 0.1))), rel=0.05)
     (tmp_path / "pkg" / "meshes").mkdir()
     trimesh.creation.box((0.1, 0.1, 0.2)).export(tmp_path / "pkg" / "meshes" / "inside.stl")

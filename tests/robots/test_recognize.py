@@ -14,6 +14,7 @@ from conftest import MODEL_DIR, model_robot, mujoco_poses, random_q
 
 import qpik
 from qpik.core.errors import NoClosedFormError
+from qpik.robots.model_files import MeshOptions
 from qpik.robots.recognize import recognize
 
 
@@ -72,7 +73,9 @@ def modified_iiwa(tmp_path) -> qpik.Robot:
         text = head + f'name="{name}"' + tail[:end].replace(old, new) + tail[end:]
     path = tmp_path / "iiwa_modified.xml"
     path.write_text(text)
-    return qpik.load_robot(path, collision_only=True, allow_outside=True)  # its meshdir is the original folder
+    return qpik.load_robot(
+        path, meshes=MeshOptions(collision_only=True, allow_outside=True)
+    )  # its meshdir is the original folder
 
 
 @pytest.fixture(scope="module")

@@ -76,8 +76,12 @@ def test_the_solvers_take_the_scene_or_its_pieces_never_both():
     b = qpik.solve_best(IIWA, pose, "smooth-margin", SHAPES[:1], d_safe=0.03)
     assert a.status == b.status and np.allclose(a.q, b.q, atol=1e-12) and a.objective == b.objective
     path = IIWA.fk(IIWA.q_home + np.linspace(0.0, 0.3, 6)[:, None] * np.eye(7)[1])
-    p, r = qpik.plan_self_motion(scene, path, mujoco=False), qpik.plan_self_motion(
-        IIWA, path, "smooth-margin", SHAPES[:1], d_safe=0.03, mujoco=False)  # fmt: skip
+    p, r = (
+        qpik.plan_self_motion(scene, path, options=qpik.PlanOptions(mujoco=False)),
+        qpik.plan_self_motion(
+            IIWA, path, "smooth-margin", SHAPES[:1], d_safe=0.03, options=qpik.PlanOptions(mujoco=False)
+        ),
+    )
     assert p.status == r.status and np.allclose(p.q, r.q, atol=1e-12)
     for name, value in (("objective", "margin"), ("obstacles", []), ("d_safe", 0.05)):
         with pytest.raises(InputError, match=f"{name}: given twice"):

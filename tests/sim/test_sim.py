@@ -18,7 +18,7 @@ from qpik.algebra.lie import so3_log
 from qpik.core.errors import InputError
 from qpik.geometry import Box, Capsule, HalfSpace, Sphere, distances
 from qpik.plots.runs import plot_comparison, plot_log
-from qpik.sim import build_scene, simulate
+from qpik.sim import SimOptions, build_scene, simulate
 
 IIWA = qpik.load_robot("iiwa14")
 SCENE = (
@@ -46,7 +46,7 @@ def test_clearance_agrees_with_closed_form(seed):
     rng = np.random.default_rng(seed)
     q0 = rng.uniform(IIWA.q_min, IIWA.q_max) * 0.5
     v = rng.uniform(-0.6, 0.6, 7)
-    log = simulate(IIWA, constant(v), q0, 2.0, 0.002, obstacles=SCENE, record_every=25)
+    log = simulate(IIWA, constant(v), q0, 2.0, 0.002, obstacles=SCENE, options=SimOptions(record_every=25))
     segs = IIWA.capsule_segments(log.q)  # (K, C, 2, 3)
     closed = np.stack([distances(s, IIWA.capsule_radii, SCENE).d for s in segs])
     assert log.clearance.shape == closed.shape == (len(log), 7, 4)
@@ -60,7 +60,7 @@ def test_clearance_agrees_with_closed_form(seed):
 def test_constant_velocity_integrates_exactly():
     v = np.array([0.1, -0.2, 0.3, 0.1, 0.0, 0.2, -0.1])
     T, dt = 1.3, 0.001
-    log = simulate(IIWA, constant(v), IIWA.q_home, T, dt, record_every=7)
+    log = simulate(IIWA, constant(v), IIWA.q_home, T, dt, options=SimOptions(record_every=7))
     np.testing.assert_allclose(log.q[-1], IIWA.q_home + v * T, rtol=0, atol=1e-12)
     assert log.t[0] == 0.0 and log.t[-1] == pytest.approx(T)
     assert len(log) == 1 + -(-1300 // 7)  # every 7th step and the last one
@@ -78,10 +78,10 @@ def test_logged_pose_and_manipulability_match_dh():
 
 
 def test_any_mjcf_arm_with_joint_names():
-    """An MJCF string with joint names and site runs the same as the twin."""
+    """The scene of an MJCF string with joint names and site runs the same as the twin."""
     v = np.array([0.2, 0.1, -0.1, 0.3, 0.2, -0.2, 0.1])
-    log = simulate(IIWA.to_mjcf(), constant(v), IIWA.q_home, 0.5, 0.01, obstacles=SCENE[:1],
-                   joint_names=[f"joint{k}" for k in range(1, 8)], site="ee")  # fmt: skip
+    scene = build_scene(IIWA.to_mjcf(), SCENE[:1], joint_names=[f"joint{k}" for k in range(1, 8)], site="ee")
+    log = simulate(scene, constant(v), IIWA.q_home, 0.5, 0.01)
     twin = simulate(IIWA, constant(v), IIWA.q_home, 0.5, 0.01, obstacles=SCENE[:1])
     np.testing.assert_allclose(log.ee, twin.ee, atol=1e-12)
     np.testing.assert_allclose(log.clearance, twin.clearance, atol=1e-12)
@@ -136,7 +136,7 @@ def test_bad_inputs():
     with pytest.raises(InputError, match="dt"):
         simulate(IIWA, constant(np.zeros(7)), IIWA.q_home, 0.1, 0.0)
     with pytest.raises(InputError, match="record_every"):
-        simulate(IIWA, constant(np.zeros(7)), IIWA.q_home, 0.1, 0.01, record_every=0)
+        simulate(IIWA, constant(np.zeros(7)), IIWA.q_home, 0.1, 0.01, options=SimOptions(record_every=0))
 
 
 def test_scene_reuse():
@@ -154,8 +154,17 @@ def _non_blank(path) -> bool:
 def test_plots_are_written(tmp_path):
     v = np.array([0.1, -0.2, 0.3, 0.1, 0.0, 0.2, -0.1])
     target = IIWA.fk(IIWA.q_home)
-    a = simulate(IIWA, constant(v), IIWA.q_home, 1.0, 0.01, obstacles=SCENE, target=target, d_safe=0.03, label="a")
-    b = simulate(IIWA, constant(-v), IIWA.q_home, 1.0, 0.01, target=target, label="b")
+    a = simulate(
+        IIWA,
+        constant(v),
+        IIWA.q_home,
+        1.0,
+        0.01,
+        obstacles=SCENE,
+        target=target,
+        options=SimOptions(d_safe=0.03, label="a"),
+    )
+    b = simulate(IIWA, constant(-v), IIWA.q_home, 1.0, 0.01, target=target, options=SimOptions(label="b"))
     for path in (plot_log(a, tmp_path / "a.png"), plot_log(b, tmp_path / "b.png"),
                  plot_comparison([a, b], tmp_path / "ab.png", title="a vs b")):  # fmt: skip
         assert path.is_file() and _non_blank(path)

@@ -37,7 +37,9 @@ def chromium():
 @pytest.fixture(scope="module")
 def scene(chromium):
     problem = load(find_problem("iiwa_obstacle_reach"))
-    viewer = Viewer(problem.robot, target=problem.poses[0], obstacles=problem.obstacles, port=0)
+    viewer = Viewer(
+        problem.robot, target=problem.poses[0], obstacles=problem.obstacles, options=qpik.ViewOptions(port=0)
+    )
     viewer.wait()
     messages: list = []
     page = open_page(chromium, viewer, SIZE, messages)

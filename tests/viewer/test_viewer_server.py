@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 pytest.importorskip("viser", reason="viser is not installed (pip install 'qpik[view]')")
 
 import qpik
-from qpik.sim import simulate
+from qpik.sim import SimOptions, simulate
 from qpik.viewer import ViewerError
 from qpik.viewer.server import Viewer, port_free
 
@@ -38,7 +38,7 @@ def _arm_at(viewer: Viewer, q: np.ndarray) -> None:
 
 @pytest.fixture(scope="module")
 def iiwa():
-    with Viewer(qpik.load_robot("iiwa14"), port=0) as viewer:
+    with Viewer(qpik.load_robot("iiwa14"), options=qpik.ViewOptions(port=0)) as viewer:
         viewer.wait()
         yield viewer
 
@@ -91,9 +91,16 @@ def test_playback_of_a_simulation_log_shows_its_configurations():
     robot = qpik.load_robot("iiwa14")
     target = robot.fk(robot.q_home)
     target[:3, 3] += (0.0, 0.1, 0.0)
-    log = simulate(robot, qpik.Controller.for_robot(robot, target=target, dt=0.01), robot.q_home, 0.3, dt=0.01,
-                   target=target, progress=False)  # fmt: skip
-    with Viewer(robot, port=0, play=log) as viewer:
+    log = simulate(
+        robot,
+        qpik.Controller.for_robot(robot, target=target, dt=0.01),
+        robot.q_home,
+        0.3,
+        dt=0.01,
+        target=target,
+        options=SimOptions(progress=False),
+    )
+    with Viewer(robot, play=log, options=qpik.ViewOptions(port=0)) as viewer:
         for k in (0, len(log) // 2, len(log) - 1):
             viewer.seek(k)
             _arm_at(viewer, log.q[k])
@@ -108,4 +115,4 @@ def test_a_taken_port_is_named():
         port = other.getsockname()[1]
         assert not port_free("127.0.0.1", port)
         with pytest.raises(ViewerError, match=f"port {port} is taken"):
-            Viewer(qpik.load_robot("panda"), port=port)
+            Viewer(qpik.load_robot("panda"), options=qpik.ViewOptions(port=port))

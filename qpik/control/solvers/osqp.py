@@ -154,7 +154,7 @@ class OSQPSolver(Solver):
         """:func:`polish` (in C where it compiles) of the current QP from the guess of ``(x, y)``."""
         if (compiled := _compiled_polish()) is not None:
             return compiled(qp.P, qp.c, self._AbarT, self._l, self._u, x, y, POLISH_TOL, MAX_POLISH_STEPS)
-        return polish(qp.P, qp.c, self._Abar, self._l, self._u, x, y, POLISH_TOL, MAX_POLISH_STEPS)
+        return polish(qp.P, qp.c, self._Abar, self._l, self._u, (x, y), POLISH_TOL, MAX_POLISH_STEPS)
 
     def _refresh(self, qp: QP) -> None:
         """Give OSQP the current P and Ā (it refactors its KKT matrix)."""
@@ -176,12 +176,12 @@ def polish(
     Abar: np.ndarray,
     lo: np.ndarray,
     hi: np.ndarray,
-    x: np.ndarray,
-    y: np.ndarray,
+    iterate: tuple[np.ndarray, np.ndarray],
     tol: float = POLISH_TOL,
     max_steps: int = MAX_POLISH_STEPS,
 ) -> np.ndarray | None:
-    r"""The exact solution, from the active set guessed by an ADMM iterate; None if not found.
+    r"""The exact solution, from the active set guessed by an ADMM iterate ``(x, y)`` (primal (n,), dual (M,));
+    None if not found.
 
     QP: :math:`\min \tfrac12 x^T P x + c^T x` s.t. :math:`lo \le \bar A x \le hi`, P (n, n)
     SPD, :math:`\bar A` (M, n). With :math:`P = L L^T`, :math:`x_0 = -P^{-1} c` and
@@ -214,6 +214,7 @@ def polish(
     is ≥ −``tol``, both scaled by 1 + max|c| + the largest finite bound (the problem's
     own scale: ADMM's iterate is huge on an infeasible QP and must not loosen the check).
     """
+    x, y = iterate
     w = Abar @ x + y  # z + y: below lo ⇔ z - lo < -y, above hi ⇔ hi - z < y
     lower = w < lo
     guessed = lower | (w > hi)
