@@ -180,8 +180,7 @@ class Controller:
         summary = self.assembler.extra  # views, refilled by every build
         self._past, self._task_error, self._own = summary.past, summary.task_error, summary.own
         self._caps = (summary.cap_lo, summary.cap_hi)
-        self._pairs = [(summary[f"pairs{k}"], capsule_pairs(robot, lim.obstacles)[~robot.fixed_capsules].ravel())
-                       for k, lim in enumerate(self.obstacle_limits)]  # fmt: skip
+        self._clearance = summary.clearance
         self._d_safe = [lim.d_safe for lim in self.obstacle_limits]
         self.last = StepInfo()
 
@@ -241,18 +240,21 @@ class Controller:
                 task.set_target(q_ref)
 
     def _summary(self, s: SymState) -> dict[str, ca.SX]:
-        """The step's summary, computed in the compiled call: ``pairs<k>``, per :class:`ObstacleLimit` k the
-        distances (m) of its capsule–obstacle pairs over the capsules a joint moves
-        (:attr:`~qpik.robots.robot.Robot.fixed_capsules` are left out; :meth:`step` keeps the pairs
-        :mod:`qpik.geometry.contacts` checks); ``past``, 1.0 if q is past a :class:`ConfigurationLimit`'s range
-        (else 0.0);
+        """The step's summary, computed in the compiled call: ``clearance``, per :class:`ObstacleLimit` the
+        smallest distance (m) of its capsule–obstacle pairs that :mod:`qpik.geometry.contacts` checks, over the
+        capsules a joint moves (:attr:`~qpik.robots.robot.Robot.fixed_capsules` are left out; the pairs are an
+        input, 0 or inf per pair, since controllers of one structure share the function); ``past``, 1.0 if q is
+        past a :class:`ConfigurationLimit`'s range (else 0.0);
         ``task_error``, the norm of the first :class:`FrameTask`'s pose error ``[m; rad]`` (nan without one);
         ``own``, per :class:`~qpik.control.self_collision.SelfCollisionLimit` its smallest checked self-distance
         (m); ``cap_lo``, ``cap_hi``, the caps' own box (n,) each, rad/s (the yielding QP stays in it)."""
-        out = {}
-        for k, lim in enumerate(self.obstacle_limits):
+        clearance = []
+        for lim in self.obstacle_limits:
             moving = np.repeat(~self.robot.fixed_capsules, len(lim.obstacles))  # pair (c, o) at c·O + o
-            out[f"pairs{k}"] = lim.distances_expr(s)[np.flatnonzero(moving).tolist()]
+            checked = capsule_pairs(self.robot, lim.obstacles).ravel() & moving
+            on = np.where(checked, 0.0, np.inf)
+            mask = s.parameter(len(checked), lambda state, on=on: on)
+            clearance.append(ca.mmin(lim.distances_expr(s) + mask) if len(checked) else ca.SX(np.inf))
         past = ca.SX(0.0)
         for lim in self.config_limits:
             p = s.params_of(lim)
@@ -261,8 +263,8 @@ class Controller:
         if self.frame_task is not None:
             error = ca.norm_2(self.frame_task.error_expr(s, s.params_of(self.frame_task)))
         own = [ca.mmin(d) if (d := lim.distances_expr(s)).numel() else ca.inf for lim in self.self_limits]
-        return {**out, "past": past > 0, "task_error": error, "own": ca.vertcat(*own), "cap_lo": s.caps[0],
-                "cap_hi": s.caps[1]}  # fmt: skip
+        return {"clearance": ca.vertcat(*clearance), "past": past > 0, "task_error": error, "own": ca.vertcat(*own),
+                "cap_lo": s.caps[0], "cap_hi": s.caps[1]}  # fmt: skip
 
     def step(self, q: np.ndarray, target: np.ndarray | None = None, twist: np.ndarray | None = None) -> np.ndarray:
         """One control step: the joint velocity v (n,), rad/s, for configuration ``q`` (n,), rad.
@@ -311,7 +313,7 @@ class Controller:
             info.status = "failed"
         for lim in self.limits:
             lim.observe(v)
-        clearances = [float(d[c].min(initial=np.inf)) for d, c in self._pairs]
+        clearances = self._clearance.tolist()
         past, info.task_error = self._past[0], float(self._task_error[0])
         if clearances:
             info.min_clearance = min(clearances)

@@ -30,7 +30,7 @@ import numpy as np
 from qpik.control.state import State, SymState, Traced, evaluate, kinematics_of
 from qpik.core.errors import InfeasibleError, InputError
 from qpik.core.layout import Blocks, Layout
-from qpik.core.validate import finite_array, number
+from qpik.core.validate import finite_array, joint_vector, number
 
 if TYPE_CHECKING:
     from qpik.geometry.distance import ObstacleSet
@@ -272,7 +272,7 @@ class ObstacleLimit(RowLimit):
         brake: float | None = None,
         moving: bool = False,
     ):
-        from qpik.geometry.distance import ObstacleSet
+        from qpik.geometry.distance import PARAMS, ObstacleSet
 
         self.obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
         self.d_influence = number(d_influence, "d_influence", minimum=None)
@@ -284,6 +284,10 @@ class ObstacleLimit(RowLimit):
         if self.xi <= 0 or self.buffer < 0:
             raise InputError("ObstacleLimit: need xi > 0 and buffer >= 0")
         self.moving = bool(moving)
+        starts = np.cumsum([0, *(PARAMS[k] for k in self.obstacles.kinds)])
+        # per obstacle its reference point in the packed parameters (None for a half-space), for translate
+        self._points = [None if k == "halfspace" else self.obstacles.params[a : a + 3]
+                        for k, a in zip(self.obstacles.kinds, starts)]  # fmt: skip
         self.velocities = np.zeros((len(self.obstacles), 6))
         self.brake = None if brake is None else number(brake, "brake")
 
@@ -357,15 +361,15 @@ class ObstacleLimit(RowLimit):
         """Move obstacle ``o`` (a sphere, capsule or box) rigidly so that its reference point (a sphere's centre,
         a capsule's ``p0``, a box's centre) is ``point`` (3,), m, moving at ``velocity`` (6,) ``[v; ω]``: the
         cheap update of one moving obstacle in a control loop (no shape is rebuilt)."""
-        from qpik.geometry.distance import PARAMS
-
-        kinds = self.obstacles.kinds
-        if not 0 <= o < len(kinds) or kinds[o] == "halfspace":
-            raise InputError(f"translate: obstacle {o} is not a sphere, capsule or box of this limit")
-        start = sum(PARAMS[k] for k in kinds[:o])
-        self.obstacles.params[start : start + 3] = finite_array(point, "point", (3,))
         self._need_moving()
-        self.velocities[o] = finite_array(velocity, "velocity", (6,))
+        if not 0 <= o < len(self._points) or self._points[o] is None:
+            raise InputError(f"translate: obstacle {o} is not a sphere, capsule or box of this limit")
+        point, many = joint_vector(point, 3, "point")  # a vector of 3 (one check in C), as velocity's of 6
+        velocity, more = joint_vector(velocity, 6, "velocity")
+        if many or more:
+            raise InputError("translate: point must have shape (3,) and velocity (6,)")
+        self._points[o][:] = point
+        self.velocities[o] = velocity
 
     def _need_moving(self) -> None:
         if not self.moving:

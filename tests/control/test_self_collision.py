@@ -10,7 +10,7 @@ from qpik.control import State
 from qpik.control.limits_motion import AccelerationLimit, BrakingLimit, JerkLimit
 from qpik.control.self_collision import SelfCollisionLimit, checked_pairs
 from qpik.core.errors import InputError
-from qpik.robots.self_pairs import candidate_pairs, default_allowed, pair_distances
+from qpik.robots.self_pairs import always_in_collision, candidate_pairs, default_allowed, pair_distances
 from qpik.robots.srdf import disabled_links, link_names, read_disabled
 from qpik.sim.self_distance import SelfDistances
 
@@ -62,6 +62,19 @@ def test_default_allowed_pairs_are_always_or_never_in_collision(panda) -> None:
             assert np.all(d[:, k] < 0.0) or np.all(d[:, k] > 0.0), p
     kept = [k for k, p in enumerate(pairs) if p not in allowed]
     assert kept and any(np.any(d[:, k] < 0.05) for k in kept)  # the checked pairs do come close
+
+
+def test_always_in_collision_pairs_overlap_everywhere() -> None:
+    """iiwa14: the pairs of links k and k + 2 overlap at every sample (other samples than the list's); the other
+    candidates do not; both lists' pairs are in the default allowed list."""
+    iiwa = qpik.load_robot("iiwa14")
+    always = always_in_collision(iiwa)
+    assert always <= default_allowed(iiwa) and len(always) == 3
+    pairs = candidate_pairs(iiwa)
+    lo, hi = np.maximum(iiwa.q_min, -np.pi), np.minimum(iiwa.q_max, np.pi)
+    d = pair_distances(iiwa, lo + (hi - lo) * np.random.default_rng(5).random((2000, 7)), pairs)
+    for k, p in enumerate(pairs):
+        assert np.all(d[:, k] < 0.0) == (p in always), p
 
 
 SRDF = """<robot name="panda">
