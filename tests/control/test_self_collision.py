@@ -6,10 +6,12 @@ import numpy as np
 import pytest
 
 import qpik
+from qpik.algebra import symbolic as sy
 from qpik.control import State
 from qpik.control.limits_motion import AccelerationLimit, BrakingLimit, JerkLimit
-from qpik.control.self_collision import SelfCollisionLimit, checked_pairs
+from qpik.control.self_collision import SelfCollisionLimit, checked_pairs, row_layout
 from qpik.core.errors import InputError
+from qpik.geometry.distance import pair_expr
 from qpik.robots.self_pairs import always_in_collision, candidate_pairs, default_allowed, pair_distances
 from qpik.robots.srdf import disabled_links, link_names, read_disabled
 from qpik.sim.self_distance import SelfDistances
@@ -20,19 +22,64 @@ def panda() -> qpik.Robot:
     return qpik.load_robot("panda")
 
 
-def test_rows_are_the_rate_of_the_self_distance(panda) -> None:
-    """Row · v = d/dt of the capsule–capsule distance (central differences), for every checked pair."""
+def _heights(robot, q: np.ndarray, pairs, q_plane: np.ndarray) -> np.ndarray:
+    """Per row of :func:`row_layout`: the height (m) at q of the capsule's end over the separating plane found at
+    ``q_plane``, carried rigidly with the plane's link to q (numpy, from the witness of ``pair_expr``)."""
+    seg0, seg = robot.capsule_segments(q_plane), robot.capsule_segments(q)
+    T0, T = robot.frames(q_plane), robot.frames(q)
+    radii, caps = robot.capsule_radii, robot.capsules
+    out = []
+    for k, end, swapped in row_layout(robot, pairs):
+        first, second = pairs[k][::-1] if swapped else pairs[k]
+        (a, b), (qa, qb) = seg0[first], seg0[second]
+        _, _, p, n, _ = pair_expr(
+            tuple(a), tuple(b), radii[first], "capsule", (*qa, *(qb - qa), radii[second]), sy.NUMPY
+        )
+        move = T[caps[second].link] @ np.linalg.inv(T0[caps[second].link])  # the plane rides on link l
+        p, n = move[:3, :3] @ np.array(p) + move[:3, 3], move[:3, :3] @ np.array(n)
+        out.append(n @ (seg[first][end] - p) - radii[first])
+    return np.array(out)
+
+
+def test_rows_are_the_rate_of_the_heights(panda) -> None:
+    """Row · v = d/dt of the row's height over its separating plane moving with the other link (central
+    differences), for every checked pair; at q the heights are ≥ the pair's distance, the smaller one equal to it
+    within the witness' position along the axis."""
     lim = SelfCollisionLimit(allowed=frozenset(), d_influence=10.0)  # every candidate pair, every row on
     rng = np.random.default_rng(3)
     pairs = checked_pairs(panda, frozenset())
+    layout = row_layout(panda, pairs)
+    assert len(layout) == 2 * len(pairs)  # the panda's capsules are segments: two rows per pair
     for _ in range(5):
         q = panda.q_min + (panda.q_max - panda.q_min) * (0.2 + 0.6 * rng.random(7))
         v = rng.normal(size=7)
         state = State(panda, q, 1e-3)
         A, _, _ = lim.rows(state, -np.full(7, 10.0), np.full(7, 10.0))
+        h, rates = lim.heights(panda, q)
+        np.testing.assert_allclose(rates, A)
+        np.testing.assert_allclose(h, _heights(panda, q, pairs, q), atol=1e-12)
         eps = 1e-6
-        fd = (pair_distances(panda, q + eps * v, pairs) - pair_distances(panda, q - eps * v, pairs))[0] / (2 * eps)
+        fd = (_heights(panda, q + eps * v, pairs, q) - _heights(panda, q - eps * v, pairs, q)) / (2 * eps)
         np.testing.assert_allclose(A @ v, fd, atol=1e-5)
+        d = pair_distances(panda, q, pairs)[0]
+        by_pair = np.array([min(h[r] for r, (k, _, _) in enumerate(layout) if k == j) for j in range(len(pairs))])
+        assert np.all(by_pair >= d - 1e-12)
+
+
+def test_heights_bound_the_distance_after_a_motion(panda) -> None:
+    """The separating-plane argument: after a random motion the pair's distance is ≥ the smaller height of its
+    rows over the plane of the start (carried with the other link), dense sampling of motions."""
+    rng = np.random.default_rng(8)
+    pairs = checked_pairs(panda, frozenset())
+    layout = row_layout(panda, pairs)
+    for _ in range(20):
+        q = panda.q_min + (panda.q_max - panda.q_min) * (0.2 + 0.6 * rng.random(7))
+        for _ in range(10):
+            q1 = q + rng.normal(scale=0.3, size=7)
+            h = _heights(panda, q1, pairs, q)
+            d = pair_distances(panda, q1, pairs)[0]
+            for j in range(len(pairs)):
+                assert d[j] >= min(h[r] for r, (k, _, _) in enumerate(layout) if k == j) - 1e-9
 
 
 def test_damper_bound_at_the_safety_distance(panda) -> None:
@@ -40,10 +87,10 @@ def test_damper_bound_at_the_safety_distance(panda) -> None:
     q = panda.q_home
     state = State(panda, q, 1e-3)
     A, lower, upper = lim.rows(state, -panda.v_max, panda.v_max)
-    d = lim.distances(panda, q)
+    h = lim.heights(panda, q)[0]
     moved = np.abs(A).sum(axis=1) > 1e-12  # a row no joint moves is left out (-inf)
     assert moved.sum() >= 8 and np.all(np.isneginf(lower[~moved]))
-    want = -0.5 * (d - 0.01) / (10.0 - 0.01)
+    want = -0.5 * (h - 0.01) / (10.0 - 0.01)
     separating = want > 0  # capped at what the box allows: at most the demand
     np.testing.assert_allclose(lower[moved & ~separating], want[moved & ~separating], atol=1e-12)
     assert np.all(lower[moved & separating] <= want[moved & separating] + 1e-12)
