@@ -26,9 +26,12 @@ Failure policy (never raises in the loop unless ``raise_on_failure=True``):
    15/16 or 1, the part of the demand dropped): a part of the separating speed is kept
    where it can be, since rows held at exactly zero approach let the second-order terms of
    the motion (see :class:`~qpik.control.limits.ObstacleLimit`) creep closer;
-5. otherwise the step returns ``v = 0`` (the arm holds still: never further past a limit,
-   never toward an obstacle) with ``last.status == "failed"`` — or raises
-   :class:`~qpik.core.errors.SolverError` with ``raise_on_failure=True``.
+5. otherwise the step returns the command nearest ``v = 0`` that the cap limits allow (their own box: the
+   velocity limits and, where given, :class:`~qpik.control.limits_motion.AccelerationLimit` and
+   :class:`~qpik.control.limits_motion.JerkLimit` around the last commands): ``v = 0`` without them (the arm
+   holds still: never further past a limit, never toward an obstacle), else the arm brakes toward rest at those
+   limits, which :class:`~qpik.control.limits_motion.BrakingLimit` leaves room for; ``last.status == "failed"``
+   — or raises :class:`~qpik.core.errors.SolverError` with ``raise_on_failure=True``.
 """
 
 from __future__ import annotations
@@ -69,7 +72,8 @@ class StepInfo:
             safety distance, moving back); ``"penetrating"`` (a capsule overlaps an obstacle,
             d < 0; moving away); ``"yielding"`` (past a position limit, the return conflicts
             with the obstacle rows: it goes only as fast as they allow, see the failure
-            policy); ``"failed"`` (no QP solution: ``v = 0`` was returned). When several
+            policy); ``"failed"`` (no QP solution: the command nearest 0 that the velocity, acceleration and
+            jerk limits allow was returned, ``v = 0`` without acceleration limits). When several
             hold, the first of failed, yielding, penetrating, recovering is reported.
         active: names of the constraints at their bound (``"joint3 position upper"``,
             ``"obstacle sphere0 / link4"``, ...).
@@ -131,7 +135,7 @@ class Controller:
             warm-started) or a :class:`~qpik.control.solvers.Solver`.
         dt: control period, s (position limits and dampers look one step ahead).
         raise_on_failure: raise :class:`SolverError` on a failed solve instead of
-            returning ``v = 0``.
+            returning the stop of the failure policy (step 5).
 
     Raises:
         InfeasibleError: the limits can never be met (e.g. ``q_min > q_max`` overrides, or two
@@ -309,7 +313,7 @@ class Controller:
         else:
             if self.raise_on_failure:
                 raise SolverError(f"{self.solver.name}: no solution ({sol.status})")
-            v = np.zeros(self.robot.dof)
+            v = np.minimum(np.maximum(0.0, self._caps[0]), self._caps[1])  # the stop the motion limits allow
             info.status = "failed"
         for lim in self.limits:
             lim.observe(v)

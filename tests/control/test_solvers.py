@@ -13,6 +13,7 @@ from test_limits import D_SAFE, scene
 
 import qpik
 from qpik.control import Controller, RowLimit, VelocityLimit, get_solver
+from qpik.control.limits_motion import AccelerationLimit, JerkLimit
 from qpik.control.qp import QP
 from qpik.control.solvers import available
 from qpik.control.solvers.osqp import REUSED, polish
@@ -230,6 +231,26 @@ def test_failed_solve_returns_safe_velocity(name):
     strict = Controller(robot, tasks, [VelocityLimit(), _Impossible(upper=True)], solver=name, raise_on_failure=True)
     with pytest.raises(SolverError):
         strict.step(q)
+
+
+def test_failed_solve_brakes_at_the_acceleration_and_jerk_limits():
+    """A failed step under motion limits returns the command nearest 0 in the caps' box: the arm, moving, brakes
+    at the acceleration limit (v = 0 at once would break it); the acceleration and jerk stay in their limits."""
+    robot = qpik.load_robot("iiwa14")
+    tasks = Controller.for_robot(robot, target=robot.fk(robot.q_home)).tasks
+    dt = 1e-3
+    moving = np.linspace(-1.0, 1.0, 7)  # rad/s, every joint moving (one at rest)
+    acc, jerk = AccelerationLimit(), JerkLimit()
+    ctrl = Controller(robot, tasks, [VelocityLimit(), acc, jerk, _Impossible(upper=True)], dt=dt)
+    acc.reset(moving)
+    jerk.reset(moving, moving)
+    v = ctrl.step(robot.q_home + 0.1)
+    assert ctrl.last.status == "failed"
+    a_step, j_step = robot.a_max * dt, robot.j_max * dt * dt  # the most a command may change (steady before)
+    np.testing.assert_allclose(np.abs(v), np.maximum(np.abs(moving) - np.minimum(a_step, j_step), 0.0), atol=1e-12)
+    assert np.all(np.abs(v - moving) <= a_step * (1 + 1e-12))  # acceleration
+    assert np.all(np.abs(v - moving) <= j_step * (1 + 1e-12))  # jerk
+    assert np.all(np.sign(v) * np.sign(moving) >= 0)  # toward rest, never beyond it
 
 
 def test_unknown_solver():
