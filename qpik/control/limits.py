@@ -247,7 +247,7 @@ class ObstacleLimit(RowLimit):
         xi: ξ, m/s (> 0).
         buffer: δ, m (≥ 0).
         brake: α, m/s² (None: off): with acceleration limits, rows beyond d_i slow an approach so that it
-            reaches d_i at ξ (:func:`damper_lower`).
+            reaches d_i at ξ, lowered where α cannot follow it (:func:`damper_lower`).
         moving: the rows take the obstacles' velocities (:meth:`set_velocities`, :meth:`move`,
             :meth:`translate`); off, the obstacles are taken as standing still and the rows cost less.
 
@@ -439,12 +439,18 @@ def damper_lower(
     step. Where the caps cannot stop an approach in time the row asks only what they allow (the clearance may
     then fall below :math:`d_s`; the acceleration and jerk limits are kept).
 
-    With ``brake`` α (m/s², a deceleration along the row that the acceleration limits can give), rows beyond
-    :math:`d_i` apply too, with the braking profile :math:`\dot h \ge -\xi - \sqrt{2\alpha (h - d_i)}`: an
-    approach is slowed early enough to reach :math:`d_i` at ξ (the damper assumes an arm that can stop at
-    once; with acceleration limits it cannot).
+    With ``brake`` α (m/s², a deceleration along the row that the acceleration limits can give), the approach
+    is one that a deceleration α can follow (the damper assumes an arm that can stop at once; with acceleration
+    limits it cannot). Inside :math:`d_i` the damper's bound falls at the rate :math:`\xi/(d_i - d_s)` per unit
+    of approach, so an approach on it decelerates by up to :math:`\xi^2/(d_i - d_s)`: ξ is lowered to
+    :math:`\xi_\alpha = \min(\xi, \sqrt{\alpha (d_i - d_s)})`, which keeps that within α. Rows beyond
+    :math:`d_i` apply too, with the braking profile :math:`\dot h \ge -\sqrt{\xi_\alpha^2 + 2\alpha (h - d_i)}`:
+    an approach is slowed at α early enough to reach :math:`d_i` at :math:`\xi_\alpha`. Both only ask for a
+    slower approach than without ``brake``.
     """
     m = A.shape[0]
+    if brake is not None:
+        xi = ca.fmin(xi, ca.sqrt(brake * (d_i - ds)))
     lower = (-xi / (d_i - ds)) * (h - ds) + approach
     lo0, hi0 = ca.fmin(lb, 0.0), ca.fmax(ub, 0.0)
     if caps is not None:
@@ -456,6 +462,6 @@ def damper_lower(
     moved = ca.sum2(ca.fabs(A)) > 1e-12  # a row no joint moves is left out
     near = h < d_i
     if brake is not None:
-        lower = ca.if_else(near, lower, -xi - ca.sqrt(2.0 * brake * ca.fmax(h - d_i, 0.0)) + approach)
+        lower = ca.if_else(near, lower, -ca.sqrt(xi * xi + 2.0 * brake * ca.fmax(h - d_i, 0.0)) + approach)
         near = h == h  # every row applies
     return ca.if_else(ca.logic_and(near, moved), ca.fmin(lower, cap), -ca.inf)

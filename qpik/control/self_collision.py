@@ -121,7 +121,7 @@ class SelfCollisionLimit(RowLimit):
         xi: ξ, m/s (> 0), the largest approach speed, at :math:`d_i`.
         buffer: δ, m (≥ 0), added to d_s in the rows.
         brake: α, m/s² (None: off): with acceleration limits, rows beyond d_i slow an approach so that it
-            reaches d_i at ξ (:func:`~qpik.control.limits.damper_lower`).
+            reaches d_i at ξ, lowered where α cannot follow it (:func:`~qpik.control.limits.damper_lower`).
     """
 
     name = "self"

@@ -188,3 +188,24 @@ def test_motion_limits_bound_acceleration_jerk_and_braking(panda) -> None:
     acc.observe(np.zeros(7))
     lo, hi = acc.bounds(state)
     np.testing.assert_allclose(hi, panda.a_max * dt)
+
+
+def test_braked_damper_is_followed_at_the_braking_deceleration() -> None:
+    """With ``brake`` α, an approach riding the damper's bound from beyond d_i down to d_s never has to slow
+    faster than α (one dimension, dense steps); ξ = 0.5 m/s alone would need ξ²/(d_i − d_s) ≈ 5 m/s²."""
+    import casadi as ca
+
+    from qpik.control.limits import damper_lower
+
+    h = ca.SX.sym("h")
+    wide = ca.SX(np.array([100.0]))
+    d_i, d_s, xi, alpha, dt = 0.06, 0.011, 0.5, 1.0, 1e-4
+    bound = ca.Function("l", [h], [damper_lower(ca.SX(1.0), h, d_i, d_s, xi, -wide, wide, brake=alpha)])
+    height, rates = d_i + 0.1, []
+    while height > d_s + 1e-4:
+        rate = float(bound(height))  # the fastest approach allowed (ḣ = l < 0)
+        rates.append(rate)
+        height += rate * dt
+    decel = np.diff(rates) / dt  # ḣ rises toward 0: the deceleration
+    assert decel.max() <= alpha * 1.01 and decel.max() >= 0.5 * alpha
+    assert rates[0] < -2 * np.sqrt(alpha * (d_i - d_s))  # beyond d_i the braking profile allows more than ξ_α
