@@ -92,10 +92,14 @@ def j_max(robot: qpik.Robot) -> np.ndarray:
 
 def _clear(robot: qpik.Robot, sc: SelfCollisionLimit, q: np.ndarray, v: np.ndarray) -> bool:
     """Whether the start (q, v) is one the controller can hold: every row of the self pairs at least 2 d_s high
-    after braking any approach at BRAKE (its height less rate² / (2 BRAKE))."""
+    after braking any approach at BRAKE (its height less rate² / (2 BRAKE)); or, for a pair some arms keep
+    within 2 d_s at every configuration (pybullet's panda: hand and link 5, 1 mm), not penetrating and not
+    approaching."""
     h, A = sc.heights(robot, q)
     rate = np.minimum(A @ v, 0.0)
-    return bool(np.all(h - rate * rate / (2.0 * BRAKE) >= 2.0 * D_SAFE_SELF))
+    clear = h - rate * rate / (2.0 * BRAKE) >= 2.0 * D_SAFE_SELF
+    close = (h >= 0.0) & (rate == 0.0) & (h < 2.0 * D_SAFE_SELF)
+    return bool(np.all(clear | close))
 
 
 def make_episode(robot: qpik.Robot, seed: int, family: str | None = None) -> Episode:

@@ -21,11 +21,13 @@ Failure policy (never raises in the loop unless ``raise_on_failure=True``):
    "yielding"``). The obstacle rows are bounded inside that widened box
    (:class:`~qpik.control.limits.ObstacleLimit`), so only rows among themselves can still conflict;
 4. if obstacle rows demand separation and conflict (an arm inside the safety distance of two
-   obstacles on opposite sides), their demands are scaled by 1/4, then 1/16, then 0 (only
-   forbid approach, which ``v = 0`` meets) until it is solved (``last.relaxation`` = 3/4,
-   15/16 or 1, the part of the demand dropped): a part of the separating speed is kept
-   where it can be, since rows held at exactly zero approach let the second-order terms of
-   the motion (see :class:`~qpik.control.limits.ObstacleLimit`) creep closer;
+   obstacles on opposite sides, or a moving obstacle the arm must flee from two sides), their demands are
+   scaled by the largest common fraction that can be met: first 0 (only forbid approach, which ``v = 0``
+   meets where the acceleration limits let the arm stop), then :data:`RELAX_STEPS` bisection steps toward 1
+   (``last.relaxation`` is the part of the demand dropped, within 2⁻⁶): as much of the separating speed is
+   kept as can be — the speed at which a moving obstacle is fled, above all — since rows held at exactly
+   zero approach let the second-order terms of the motion (see :class:`~qpik.control.limits.ObstacleLimit`)
+   creep closer;
 5. otherwise the step returns the command nearest ``v = 0`` that the cap limits allow (their own box: the
    velocity limits and, where given, :class:`~qpik.control.limits_motion.AccelerationLimit` and
    :class:`~qpik.control.limits_motion.JerkLimit` around the last commands): ``v = 0`` without them (the arm
@@ -57,8 +59,8 @@ from qpik.robots.robot import as_robot
 
 FALLBACK = "daqp"  # exact active-set solver tried when the main solver reports no solution
 ACTIVE_TOL = 1e-7  # rad/s (box) and row units: a constraint within this of its bound is reported active
-RELAXED = (0.25, 0.0625, 0.0)
-"""Fractions of their demand that separating obstacle rows keep when they conflict, tried in turn (failure policy)."""
+RELAX_STEPS = 6
+"""Bisection steps on the fraction of their demand that separating rows keep when they conflict (failure policy)."""
 YIELD_WEIGHT = 1e3
 """Weight of the return from past a limit in the yielding QP, relative to 1 + the largest diagonal entry of P."""
 
@@ -84,8 +86,8 @@ class StepInfo:
             :class:`~qpik.control.self_collision.SelfCollisionLimit` checks (inf without one); below its d_s
             the status is ``"recovering"``, below 0 ``"penetrating"``.
         relaxation: 0 if the QP was solved as built; else the part of the separating rows'
-            demand that was dropped (3/4, 15/16, or 1: only approach is forbidden, which
-            ``v = 0`` meets) when they conflicted (failure policy, step 4).
+            demand that was dropped when they conflicted, in (0, 1] (1: only approach is forbidden;
+            failure policy, step 4).
         task_error: norm of the first FrameTask's pose error ``[m; rad]`` (nan without one).
         solver_status: the solver's own status string.
         solve_time, total_time: seconds in the solver, and in the whole step.
@@ -299,12 +301,20 @@ class Controller:
         if not sol.found and (qp.l > 0).any():  # separating rows conflict: ask less of them, down to no approach
             separating = qp.l > 0.0
             demand = qp.l[separating].copy()
-            for kept in RELAXED:
-                qp.l[separating] = kept * demand
-                sol = exact.solve(qp)
-                if sol.found:
-                    relaxation = 1.0 - kept
-                    break
+            qp.l[separating] = 0.0
+            sol = exact.solve(qp)
+            if sol.found:  # the largest fraction of the demand that can be met, by bisection
+                kept, above = 0.0, 1.0
+                for _ in range(RELAX_STEPS):
+                    middle = 0.5 * (kept + above)
+                    qp.l[separating] = middle * demand
+                    trial = exact.solve(qp)
+                    if trial.found:
+                        kept, sol = middle, trial
+                    else:
+                        above = middle
+                qp.l[separating] = kept * demand  # the QP solved (as :attr:`StepInfo.active` reads it)
+                relaxation = 1.0 - kept
         t2 = time.perf_counter()
         info = StepInfo(solver_status=sol.status, solve_time=t2 - t1, relaxation=relaxation)
         if sol.found:
