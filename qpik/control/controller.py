@@ -23,11 +23,12 @@ Failure policy (never raises in the loop unless ``raise_on_failure=True``):
 4. if obstacle rows demand separation and conflict (an arm inside the safety distance of two
    obstacles on opposite sides, or a moving obstacle the arm must flee from two sides), their demands are
    scaled by the largest common fraction that can be met: first 0 (only forbid approach, which ``v = 0``
-   meets where the acceleration limits let the arm stop), then :data:`RELAX_STEPS` bisection steps toward 1
-   (``last.relaxation`` is the part of the demand dropped, within 2⁻⁶): as much of the separating speed is
-   kept as can be — the speed at which a moving obstacle is fled, above all — since rows held at exactly
-   zero approach let the second-order terms of the motion (see :class:`~qpik.control.limits.ObstacleLimit`)
-   creep closer;
+   meets where the acceleration limits let the arm stop), then :data:`RELAX_STEPS` bisection steps toward 1,
+   the fraction found times :data:`BACK_OFF` (``last.relaxation`` is the part of the demand dropped; the QP
+   is then not at the edge of feasibility, where its set is too thin for the solvers): as much of the
+   separating speed is kept as can be — the speed at which a moving obstacle is fled, above all — since rows
+   held at exactly zero approach let the second-order terms of the motion (see
+   :class:`~qpik.control.limits.ObstacleLimit`) creep closer;
 5. otherwise the step returns the command nearest ``v = 0`` that the cap limits allow (their own box: the
    velocity limits and, where given, :class:`~qpik.control.limits_motion.AccelerationLimit` and
    :class:`~qpik.control.limits_motion.JerkLimit` around the last commands): ``v = 0`` without them (the arm
@@ -61,6 +62,8 @@ FALLBACK = "daqp"  # exact active-set solver tried when the main solver reports 
 ACTIVE_TOL = 1e-7  # rad/s (box) and row units: a constraint within this of its bound is reported active
 RELAX_STEPS = 6
 """Bisection steps on the fraction of their demand that separating rows keep when they conflict (failure policy)."""
+BACK_OFF = 15 / 16
+"""The fraction found by the bisection is kept times this (failure policy): not at the edge of feasibility."""
 YIELD_WEIGHT = 1e3
 """Weight of the return from past a limit in the yielding QP, relative to 1 + the largest diagonal entry of P."""
 
@@ -313,6 +316,10 @@ class Controller:
                         kept, sol = middle, trial
                     else:
                         above = middle
+                if kept > 0.0:  # backed off from the edge of feasibility, where the set is too thin for ADMM
+                    qp.l[separating] = BACK_OFF * kept * demand
+                    trial = exact.solve(qp)
+                    kept, sol = (BACK_OFF * kept, trial) if trial.found else (kept, sol)
                 qp.l[separating] = kept * demand  # the QP solved (as :attr:`StepInfo.active` reads it)
                 relaxation = 1.0 - kept
         t2 = time.perf_counter()

@@ -151,10 +151,17 @@ class OSQPSolver(Solver):
         return Solution(x, x is not None, info.status, int(info.iter))
 
     def _polish(self, qp: QP, x: np.ndarray, y: np.ndarray) -> np.ndarray | None:
-        """:func:`polish` (in C where it compiles) of the current QP from the guess of ``(x, y)``."""
+        """:func:`polish` (in C where it compiles) of the current QP from the guess of ``(x, y)``, over the rows with
+        a finite bound: a row bounded by ±inf on both sides (a damper beyond its influence distance) can be neither
+        violated nor active, and leaving it out saves its part of :math:`H = \bar A P^{-1} \bar A^T` (M², most
+        of the work with many inactive rows)."""
+        AbarT, lo, hi = self._AbarT, self._l, self._u
+        live = np.flatnonzero(np.isfinite(lo) | np.isfinite(hi))
+        if len(live) < len(lo):
+            AbarT, lo, hi, y = np.ascontiguousarray(AbarT[:, live]), lo[live], hi[live], y[live]
         if (compiled := _compiled_polish()) is not None:
-            return compiled(qp.P, qp.c, self._AbarT, self._l, self._u, x, y, POLISH_TOL, MAX_POLISH_STEPS)
-        return polish(qp.P, qp.c, self._Abar, self._l, self._u, x, y, POLISH_TOL, MAX_POLISH_STEPS)
+            return compiled(qp.P, qp.c, AbarT, lo, hi, x, y, POLISH_TOL, MAX_POLISH_STEPS)
+        return polish(qp.P, qp.c, AbarT.T, lo, hi, x, y, POLISH_TOL, MAX_POLISH_STEPS)
 
     def _refresh(self, qp: QP) -> None:
         """Give OSQP the current P and Ā (it refactors its KKT matrix)."""
