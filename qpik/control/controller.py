@@ -21,8 +21,10 @@ Failure policy (never raises in the loop unless ``raise_on_failure=True``):
    "yielding"``). The obstacle rows are bounded inside that widened box
    (:class:`~qpik.control.limits.ObstacleLimit`), so only rows among themselves can still conflict;
 4. if obstacle rows demand separation and conflict (an arm inside the safety distance of two
-   obstacles on opposite sides, or a moving obstacle the arm must flee from two sides), their demands are
-   scaled by the largest common fraction that can be met: first 0 (only forbid approach, which ``v = 0``
+   obstacles on opposite sides, or a moving obstacle the arm must flee from two sides), the demands of the rows
+   already inside their safety distance (a recovery) are scaled first, and only if that is not enough those of
+   every separating row (the escape from a moving obstacle too), each time by the largest common fraction that
+   can be met: first 0 (only forbid approach, which ``v = 0``
    meets where the acceleration limits let the arm stop), then :data:`RELAX_STEPS` bisection steps toward 1,
    the fraction found times :data:`BACK_OFF` (``last.relaxation`` is the part of the demand dropped; the QP
    is then not at the edge of feasibility, where its set is too thin for the solvers): as much of the
@@ -46,7 +48,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from qpik.control.limits import ConfigurationLimit, Limit, ObstacleLimit, VelocityLimit
+from qpik.control.limits import ConfigurationLimit, Limit, ObstacleLimit, RowLimit, VelocityLimit
 from qpik.control.qp import QP, Assembler
 from qpik.control.self_collision import SelfCollisionLimit
 from qpik.control.solvers import Solver, get_solver
@@ -189,7 +191,7 @@ class Controller:
         summary = self.assembler.extra  # views, refilled by every build
         self._past, self._task_error, self._own = summary.past, summary.task_error, summary.own
         self._caps = (summary.cap_lo, summary.cap_hi)
-        self._clearance = summary.clearance
+        self._clearance, self._inside = summary.clearance, summary.inside
         self._d_safe = [lim.d_safe for lim in self.obstacle_limits]
         self.last = StepInfo()
 
@@ -256,7 +258,9 @@ class Controller:
         past a :class:`ConfigurationLimit`'s range (else 0.0);
         ``task_error``, the norm of the first :class:`FrameTask`'s pose error ``[m; rad]`` (nan without one);
         ``own``, per :class:`~qpik.control.self_collision.SelfCollisionLimit` its smallest checked self-distance
-        (m); ``cap_lo``, ``cap_hi``, the caps' own box (n,) each, rad/s (the yielding QP stays in it)."""
+        (m); ``cap_lo``, ``cap_hi``, the caps' own box (n,) each, rad/s (the yielding QP stays in it); ``inside``
+        (m,), 1 per QP row already inside its safety distance (:meth:`~qpik.control.limits.RowLimit.inside_expr`;
+        relaxed first)."""
         clearance = []
         for lim in self.obstacle_limits:
             moving = np.repeat(~self.robot.fixed_capsules, len(lim.obstacles))  # pair (c, o) at c·O + o
@@ -272,8 +276,10 @@ class Controller:
         if self.frame_task is not None:
             error = ca.norm_2(self.frame_task.error_expr(s, s.params_of(self.frame_task)))
         own = [ca.mmin(d) if (d := lim.distances_expr(s)).numel() else ca.inf for lim in self.self_limits]
-        return {"clearance": ca.vertcat(*clearance), "past": past > 0, "task_error": error, "own": ca.vertcat(*own),
-                "cap_lo": s.caps[0], "cap_hi": s.caps[1]}  # fmt: skip
+        rows = [lim for lim in self.limits if isinstance(lim, RowLimit)]  # the assembler's order of the rows
+        inside = ca.vertcat(ca.SX(0, 1), *[lim.inside_expr(s, lim.parameters(s)) for lim in rows])
+        return {"inside": inside, "clearance": ca.vertcat(*clearance), "past": past > 0, "task_error": error,
+                "own": ca.vertcat(*own), "cap_lo": s.caps[0], "cap_hi": s.caps[1]}  # fmt: skip
 
     def step(self, q: np.ndarray, target: np.ndarray | None = None, twist: np.ndarray | None = None) -> np.ndarray:
         """One control step: the joint velocity v (n,), rad/s, for configuration ``q`` (n,), rad.
@@ -303,25 +309,13 @@ class Controller:
                 sol = exact.solve(qp)
         if not sol.found and (qp.l > 0).any():  # separating rows conflict: ask less of them, down to no approach
             separating = qp.l > 0.0
-            demand = qp.l[separating].copy()
-            qp.l[separating] = 0.0
-            sol = exact.solve(qp)
-            if sol.found:  # the largest fraction of the demand that can be met, by bisection
-                kept, above = 0.0, 1.0
-                for _ in range(RELAX_STEPS):
-                    middle = 0.5 * (kept + above)
-                    qp.l[separating] = middle * demand
-                    trial = exact.solve(qp)
-                    if trial.found:
-                        kept, sol = middle, trial
-                    else:
-                        above = middle
-                if kept > 0.0:  # backed off from the edge of feasibility, where the set is too thin for ADMM
-                    qp.l[separating] = BACK_OFF * kept * demand
-                    trial = exact.solve(qp)
-                    kept, sol = (BACK_OFF * kept, trial) if trial.found else (kept, sol)
-                qp.l[separating] = kept * demand  # the QP solved (as :attr:`StepInfo.active` reads it)
-                relaxation = 1.0 - kept
+            recovering = separating & (self._inside > 0.5)
+            for rows in (recovering, separating):  # the rows inside d_s first, then every separating row
+                if rows.any():
+                    sol, kept = _relax(exact, qp, rows)
+                    if sol.found:
+                        relaxation = 1.0 - kept
+                        break
         t2 = time.perf_counter()
         info = StepInfo(solver_status=sol.status, solve_time=t2 - t1, relaxation=relaxation)
         if sol.found:
@@ -409,6 +403,33 @@ def _check_ranges(limits: Sequence[ConfigurationLimit]) -> None:
             "ConfigurationLimit: the position ranges of the limits do not meet for joint(s) "
             + ", ".join(str(j + 1) for j in bad)
         )
+
+
+def _relax(solver: Solver, qp: QP, rows: np.ndarray) -> tuple:
+    """``(solution, kept)``: ``qp`` solved with the lower bounds of ``rows`` (mask, all > 0) scaled by the largest
+    fraction ``kept`` that can be met (failure policy, step 4), ``qp.l`` left so; kept 0 and no solution (l
+    restored) if even 0 cannot."""
+    demand = qp.l[rows].copy()
+    qp.l[rows] = 0.0
+    sol = solver.solve(qp)
+    if not sol.found:
+        qp.l[rows] = demand
+        return sol, 0.0
+    kept, above = 0.0, 1.0
+    for _ in range(RELAX_STEPS):  # bisection on the fraction kept
+        middle = 0.5 * (kept + above)
+        qp.l[rows] = middle * demand
+        trial = solver.solve(qp)
+        if trial.found:
+            kept, sol = middle, trial
+        else:
+            above = middle
+    if kept > 0.0:  # backed off from the edge of feasibility, where the set is too thin for ADMM
+        qp.l[rows] = BACK_OFF * kept * demand
+        trial = solver.solve(qp)
+        kept, sol = (BACK_OFF * kept, trial) if trial.found else (kept, sol)
+    qp.l[rows] = kept * demand  # the QP solved (as :attr:`StepInfo.active` reads it)
+    return sol, kept
 
 
 def yielding_qp(

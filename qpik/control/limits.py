@@ -91,6 +91,11 @@ class RowLimit(Limit, ABC):
     def expr(self, s: SymState, p: Blocks, lb: ca.SX, ub: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
         """``(A, l, u)``: (m, n), (m,), (m,) SX, given the step's final box ``lb ≤ v ≤ ub`` (n,)."""
 
+    def inside_expr(self, s: SymState, p: Blocks) -> ca.SX:
+        """(m,) SX, 1 for a row already inside its safety distance (its demand is a recovery), else 0 (the
+        default: none). The controller relaxes such rows first when rows conflict."""
+        return ca.SX.zeros(self.size(s.kin.robot))
+
     def rows(self, state: State, lb: np.ndarray, ub: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(A, l, u)``: (m, n), (m,), (m,) for ``state`` and the final box (:meth:`expr` on numbers)."""
         self.check(state.robot, state.dt)
@@ -389,6 +394,10 @@ class ObstacleLimit(RowLimit):
             vel = p.velocities[o, :3].T + ca.cross(p.velocities[o, 3:].T, p_obs - refs[o])
             out.append(ca.dot(n, vel))
         return ca.vertcat(*out) if out else ca.SX(0, 1)
+
+    def inside_expr(self, s: SymState, p: Blocks) -> ca.SX:
+        r"""1 where the row's height is below :math:`d_s + \delta` (R,)."""
+        return s.damper_heights(self.obstacles) < p.d_safe
 
     def expr(self, s: SymState, p: Blocks, lb: ca.SX, ub: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
         # every row (fixed shape, from the step's compiled kinematics); rows beyond d_i get l = -inf

@@ -194,6 +194,11 @@ class SelfCollisionLimit(RowLimit):
         lower = damper_lower(A, h, p.d_influence, p.d_safe, p.xi, lb, ub, caps=s.caps, brake=self.brake)
         return A, lower, ca.SX(A.shape[0], 1) + ca.inf
 
+    def inside_expr(self, s: SymState, p: Blocks) -> ca.SX:
+        r"""1 where the row's height is below :math:`d_s + \delta` (R,)."""
+        rows = self_distance_expr(s.kin.robot, s.q, self.pairs(s.kin.robot))[1]
+        return ca.vertcat(*[height for height, _ in rows]) < p.d_safe if rows else ca.SX(0, 1)
+
     def heights(self, robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(h, A)``: the rows' heights (R,), m, and rates (R, n) at q (n,), rad (numbers; :func:`row_layout`)."""
         fn = robot.cache.get(("self-collision rows", self.pairs(robot)), _rows_function, robot, self.pairs(robot))
