@@ -234,6 +234,39 @@ def test_failed_solve_returns_safe_velocity(name):
         strict.step(q)
 
 
+class _Demands(RowLimit):
+    """Two separating rows: v_1 ≥ 10 rad/s, marked inside its safety distance (a recovery, impossible), and
+    v_2 ≥ 1 rad/s, not (an escape that can be met)."""
+
+    name = "demands"
+
+    def size(self, robot):
+        return 2
+
+    def row_names(self, robot):
+        return ["recovery", "escape"]
+
+    def expr(self, s, p, lb, ub):
+        A = ca.SX.zeros(2, s.n)
+        A[0, 0], A[1, 1] = 1.0, 1.0
+        return A, ca.vertcat(10.0, 1.0), ca.SX.zeros(2) + np.inf
+
+    def inside_expr(self, s, p):
+        return ca.vertcat(1.0, 0.0)
+
+
+def test_conflicting_rows_relax_the_recovery_first():
+    """The row already inside its safety distance gives way; the escape keeps its whole demand (a common
+    fraction would have cut it to 0.148)."""
+    robot = qpik.load_robot("iiwa14")
+    tasks = Controller.for_robot(robot, target=robot.fk(robot.q_home)).tasks
+    ctrl = Controller(robot, tasks, [VelocityLimit(), _Demands()])
+    v = ctrl.step(robot.q_home)
+    assert ctrl.last.status == "ok" and 0.0 < ctrl.last.relaxation < 1.0
+    assert v[1] >= 1.0 - 1e-9
+    assert v[0] >= 10.0 * (1.0 - ctrl.last.relaxation) - 1e-9
+
+
 def test_failed_solve_brakes_at_the_acceleration_and_jerk_limits():
     """A failed step under motion limits returns the command nearest 0 in the caps' box: the arm, moving, brakes
     at the acceleration limit (v = 0 at once would break it); the acceleration and jerk stay in their limits."""
