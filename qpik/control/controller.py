@@ -21,15 +21,14 @@ Failure policy (never raises in the loop unless ``raise_on_failure=True``):
    "yielding"``). The obstacle rows are bounded inside that widened box
    (:class:`~qpik.control.limits.ObstacleLimit`), so only rows among themselves can still conflict;
 4. if obstacle rows demand separation and conflict (an arm inside the safety distance of two
-   obstacles on opposite sides, or a moving obstacle the arm must flee from two sides), the demands of the rows
-   already inside their safety distance (a recovery) are scaled first, and only if that is not enough those of
-   every separating row (the escape from a moving obstacle too), each time by the largest common fraction that
-   can be met: first 0 (only forbid approach, which ``v = 0``
-   meets where the acceleration limits let the arm stop), then :data:`RELAX_STEPS` bisection steps toward 1,
-   the fraction found times :data:`BACK_OFF` (``last.relaxation`` is the part of the demand dropped; the QP
-   is then not at the edge of feasibility, where its set is too thin for the solvers): as much of the
-   separating speed is kept as can be — the speed at which a moving obstacle is fled, above all — since rows
-   held at exactly zero approach let the second-order terms of the motion (see
+   obstacles on opposite sides, or a moving obstacle the arm must flee from two sides), the parts of the
+   demands that recover from inside a safety distance are scaled first (the escape from a moving obstacle
+   kept), and only if that is not enough the whole demands, each time by the largest common fraction that
+   can be met: first 0 (for the whole demands: only forbid approach, which ``v = 0`` meets where the
+   acceleration limits let the arm stop), then :data:`RELAX_STEPS` bisection steps toward 1, the fraction
+   found times :data:`BACK_OFF` (``last.relaxation`` is the part dropped; the QP is then not at the edge of
+   feasibility, where its set is too thin for the solvers): as much of the separating speed is kept as can
+   be, since rows held at exactly zero approach let the second-order terms of the motion (see
    :class:`~qpik.control.limits.ObstacleLimit`) creep closer;
 5. otherwise the step returns the command nearest ``v = 0`` that the cap limits allow (their own box: the
    velocity limits and, where given, :class:`~qpik.control.limits_motion.AccelerationLimit` and
@@ -191,7 +190,7 @@ class Controller:
         summary = self.assembler.extra  # views, refilled by every build
         self._past, self._task_error, self._own = summary.past, summary.task_error, summary.own
         self._caps = (summary.cap_lo, summary.cap_hi)
-        self._clearance, self._inside = summary.clearance, summary.inside
+        self._clearance, self._recovery = summary.clearance, summary.recovery
         self._d_safe = [lim.d_safe for lim in self.obstacle_limits]
         self.last = StepInfo()
 
@@ -258,9 +257,9 @@ class Controller:
         past a :class:`ConfigurationLimit`'s range (else 0.0);
         ``task_error``, the norm of the first :class:`FrameTask`'s pose error ``[m; rad]`` (nan without one);
         ``own``, per :class:`~qpik.control.self_collision.SelfCollisionLimit` its smallest checked self-distance
-        (m); ``cap_lo``, ``cap_hi``, the caps' own box (n,) each, rad/s (the yielding QP stays in it); ``inside``
-        (m,), 1 per QP row already inside its safety distance (:meth:`~qpik.control.limits.RowLimit.inside_expr`;
-        relaxed first)."""
+        (m); ``cap_lo``, ``cap_hi``, the caps' own box (n,) each, rad/s (the yielding QP stays in it); ``recovery``
+        (m,), m/s, per QP row the part of its bound that asks to recover from inside its safety distance
+        (:meth:`~qpik.control.limits.RowLimit.recovery_expr`; given up first)."""
         clearance = []
         for lim in self.obstacle_limits:
             moving = np.repeat(~self.robot.fixed_capsules, len(lim.obstacles))  # pair (c, o) at c·O + o
@@ -277,8 +276,8 @@ class Controller:
             error = ca.norm_2(self.frame_task.error_expr(s, s.params_of(self.frame_task)))
         own = [ca.mmin(d) if (d := lim.distances_expr(s)).numel() else ca.inf for lim in self.self_limits]
         rows = [lim for lim in self.limits if isinstance(lim, RowLimit)]  # the assembler's order of the rows
-        inside = ca.vertcat(ca.SX(0, 1), *[lim.inside_expr(s, lim.parameters(s)) for lim in rows])
-        return {"inside": inside, "clearance": ca.vertcat(*clearance), "past": past > 0, "task_error": error,
+        recovery = ca.vertcat(ca.SX(0, 1), *[lim.recovery_expr(s, lim.parameters(s)) for lim in rows])
+        return {"recovery": recovery, "clearance": ca.vertcat(*clearance), "past": past > 0, "task_error": error,
                 "own": ca.vertcat(*own), "cap_lo": s.caps[0], "cap_hi": s.caps[1]}  # fmt: skip
 
     def step(self, q: np.ndarray, target: np.ndarray | None = None, twist: np.ndarray | None = None) -> np.ndarray:
@@ -308,11 +307,11 @@ class Controller:
                 qp, yielding = yielding_qp(qp, forced, *self._caps), True
                 sol = exact.solve(qp)
         if not sol.found and (qp.l > 0).any():  # separating rows conflict: ask less of them, down to no approach
-            separating = qp.l > 0.0
-            recovering = separating & (self._inside > 0.5)
-            for rows in (recovering, separating):  # the rows inside d_s first, then every separating row
-                if rows.any():
-                    sol, kept = _relax(exact, qp, rows)
+            demand = np.maximum(qp.l, 0.0)
+            # the recoveries from inside d_s first (an escape from a moving obstacle kept), then every demand
+            for part in (np.minimum(self._recovery, demand), demand):
+                if part.any():
+                    sol, kept = _relax(exact, qp, part)
                     if sol.found:
                         relaxation = 1.0 - kept
                         break
@@ -405,30 +404,31 @@ def _check_ranges(limits: Sequence[ConfigurationLimit]) -> None:
         )
 
 
-def _relax(solver: Solver, qp: QP, rows: np.ndarray) -> tuple:
-    """``(solution, kept)``: ``qp`` solved with the lower bounds of ``rows`` (mask, all > 0) scaled by the largest
-    fraction ``kept`` that can be met (failure policy, step 4), ``qp.l`` left so; kept 0 and no solution (l
-    restored) if even 0 cannot."""
-    demand = qp.l[rows].copy()
-    qp.l[rows] = 0.0
+def _relax(solver: Solver, qp: QP, part: np.ndarray) -> tuple:
+    """``(solution, kept)``: ``qp`` solved with its lower bounds lowered by ``(1 - kept) · part`` (m,), ≥ 0, for
+    the largest fraction ``kept`` that can be met (failure policy, step 4), ``qp.l`` left so; kept 0 and no
+    solution (``qp.l`` as given) if even ``l - part`` cannot."""
+    rows = np.flatnonzero(part > 0.0)
+    full, part = qp.l[rows].copy(), part[rows]
+    qp.l[rows] = full - part
     sol = solver.solve(qp)
     if not sol.found:
-        qp.l[rows] = demand
+        qp.l[rows] = full
         return sol, 0.0
     kept, above = 0.0, 1.0
     for _ in range(RELAX_STEPS):  # bisection on the fraction kept
         middle = 0.5 * (kept + above)
-        qp.l[rows] = middle * demand
+        qp.l[rows] = full - (1.0 - middle) * part
         trial = solver.solve(qp)
         if trial.found:
             kept, sol = middle, trial
         else:
             above = middle
     if kept > 0.0:  # backed off from the edge of feasibility, where the set is too thin for ADMM
-        qp.l[rows] = BACK_OFF * kept * demand
+        qp.l[rows] = full - (1.0 - BACK_OFF * kept) * part
         trial = solver.solve(qp)
         kept, sol = (BACK_OFF * kept, trial) if trial.found else (kept, sol)
-    qp.l[rows] = kept * demand  # the QP solved (as :attr:`StepInfo.active` reads it)
+    qp.l[rows] = full - (1.0 - kept) * part  # the QP solved (as :attr:`StepInfo.active` reads it)
     return sol, kept
 
 

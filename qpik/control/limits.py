@@ -91,9 +91,9 @@ class RowLimit(Limit, ABC):
     def expr(self, s: SymState, p: Blocks, lb: ca.SX, ub: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
         """``(A, l, u)``: (m, n), (m,), (m,) SX, given the step's final box ``lb ≤ v ≤ ub`` (n,)."""
 
-    def inside_expr(self, s: SymState, p: Blocks) -> ca.SX:
-        """(m,) SX, 1 for a row already inside its safety distance (its demand is a recovery), else 0 (the
-        default: none). The controller relaxes such rows first when rows conflict."""
+    def recovery_expr(self, s: SymState, p: Blocks) -> ca.SX:
+        """(m,) SX, ≥ 0: the part of each row's lower bound that asks to recover from inside its safety distance
+        (the default: none). When rows conflict, the controller gives up these parts first."""
         return ca.SX.zeros(self.size(s.kin.robot))
 
     def rows(self, state: State, lb: np.ndarray, ub: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -395,9 +395,9 @@ class ObstacleLimit(RowLimit):
             out.append(ca.dot(n, vel))
         return ca.vertcat(*out) if out else ca.SX(0, 1)
 
-    def inside_expr(self, s: SymState, p: Blocks) -> ca.SX:
-        r"""1 where the row's height is below :math:`d_s + \delta` (R,)."""
-        return s.damper_heights(self.obstacles) < p.d_safe
+    def recovery_expr(self, s: SymState, p: Blocks) -> ca.SX:
+        r"""The damper's separating speed below :math:`d_s + \delta` (R,), m/s (:func:`damper_recovery`)."""
+        return damper_recovery(s.damper_heights(self.obstacles), p.d_influence, p.d_safe, p.xi, self.brake)
 
     def expr(self, s: SymState, p: Blocks, lb: ca.SX, ub: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
         # every row (fixed shape, from the step's compiled kinematics); rows beyond d_i get l = -inf
@@ -458,8 +458,7 @@ def damper_lower(
     slower approach than without ``brake``.
     """
     m = A.shape[0]
-    if brake is not None:
-        xi = ca.fmin(xi, ca.sqrt(brake * (d_i - ds)))
+    xi = braked_xi(xi, d_i, ds, brake)
     lower = (-xi / (d_i - ds)) * (h - ds) + approach
     lo0, hi0 = ca.fmin(lb, 0.0), ca.fmax(ub, 0.0)
     if caps is not None:
@@ -474,3 +473,14 @@ def damper_lower(
         lower = ca.if_else(near, lower, -ca.sqrt(xi * xi + 2.0 * brake * ca.fmax(h - d_i, 0.0)) + approach)
         near = h == h  # every row applies
     return ca.if_else(ca.logic_and(near, moved), ca.fmin(lower, cap), -ca.inf)
+
+
+def braked_xi(xi: ca.SX, d_i: ca.SX, ds: ca.SX, brake: ca.SX | None) -> ca.SX:
+    r"""ξ (m/s) of a damper, lowered to :math:`\sqrt{\alpha (d_i - d_s)}` with ``brake`` α (:func:`damper_lower`)."""
+    return xi if brake is None else ca.fmin(xi, ca.sqrt(brake * (d_i - ds)))
+
+
+def damper_recovery(h: ca.SX, d_i: ca.SX, ds: ca.SX, xi: ca.SX, brake: ca.SX | None = None) -> ca.SX:
+    r"""The part (m,), m/s, ≥ 0, of the damper bounds of :func:`damper_lower` that asks rows of heights h (m,)
+    below d_s to separate: :math:`\xi (d_s - h)/(d_i - d_s)` there, else 0 (the obstacle's approach excluded)."""
+    return ca.fmax((braked_xi(xi, d_i, ds, brake) / (d_i - ds)) * (ds - h), 0.0)

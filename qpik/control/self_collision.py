@@ -36,7 +36,7 @@ import casadi as ca
 import numpy as np
 
 from qpik.algebra import symbolic as sy
-from qpik.control.limits import RowLimit, damper_lower
+from qpik.control.limits import RowLimit, damper_lower, damper_recovery
 from qpik.control.state import SymState
 from qpik.core.errors import InfeasibleError, InputError
 from qpik.core.layout import Blocks, Layout
@@ -194,10 +194,14 @@ class SelfCollisionLimit(RowLimit):
         lower = damper_lower(A, h, p.d_influence, p.d_safe, p.xi, lb, ub, caps=s.caps, brake=self.brake)
         return A, lower, ca.SX(A.shape[0], 1) + ca.inf
 
-    def inside_expr(self, s: SymState, p: Blocks) -> ca.SX:
-        r"""1 where the row's height is below :math:`d_s + \delta` (R,)."""
+    def recovery_expr(self, s: SymState, p: Blocks) -> ca.SX:
+        r"""The damper's separating speed below :math:`d_s + \delta` (R,), m/s
+        (:func:`~qpik.control.limits.damper_recovery`)."""
         rows = self_distance_expr(s.kin.robot, s.q, self.pairs(s.kin.robot))[1]
-        return ca.vertcat(*[height for height, _ in rows]) < p.d_safe if rows else ca.SX(0, 1)
+        if not rows:
+            return ca.SX(0, 1)
+        h = ca.vertcat(*[height for height, _ in rows])
+        return damper_recovery(h, p.d_influence, p.d_safe, p.xi, self.brake)
 
     def heights(self, robot: Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(h, A)``: the rows' heights (R,), m, and rates (R, n) at q (n,), rad (numbers; :func:`row_layout`)."""

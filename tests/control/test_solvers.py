@@ -251,8 +251,8 @@ class _Demands(RowLimit):
         A[0, 0], A[1, 1] = 1.0, 1.0
         return A, ca.vertcat(10.0, 1.0), ca.SX.zeros(2) + np.inf
 
-    def inside_expr(self, s, p):
-        return ca.vertcat(1.0, 0.0)
+    def recovery_expr(self, s, p):
+        return ca.vertcat(10.0, 0.0)
 
 
 def test_conflicting_rows_relax_the_recovery_first():
