@@ -38,6 +38,7 @@ from qpik.control import (
 from qpik.control.limits_motion import AccelerationLimit, BrakingLimit, JerkLimit
 from qpik.control.self_collision import SelfCollisionLimit
 from qpik.geometry import Sphere
+from qpik.geometry.distance import distances
 from qpik.robots.self_pairs import candidate_pairs
 from qpik.sim import build_scene
 from qpik.sim.self_distance import SelfDistances, allowed_links
@@ -89,46 +90,64 @@ def j_max(robot: qpik.Robot) -> np.ndarray:
     return robot.j_max if robot.j_max is not None else np.full(robot.dof, LOADED_J_MAX)
 
 
+def _clear(robot: qpik.Robot, sc: SelfCollisionLimit, q: np.ndarray, v: np.ndarray) -> bool:
+    """Whether the start (q, v) is one the controller can hold: every row of the self pairs at least 2 d_s high
+    after braking any approach at BRAKE (its height less rate² / (2 BRAKE)); or, for a pair some arms keep
+    within 2 d_s at every configuration (pybullet's panda: hand and link 5, 1 mm), not penetrating and not
+    approaching."""
+    h, A = sc.heights(robot, q)
+    rate = np.minimum(A @ v, 0.0)
+    clear = h - rate * rate / (2.0 * BRAKE) >= 2.0 * D_SAFE_SELF
+    close = (h >= 0.0) & (rate == 0.0) & (h < 2.0 * D_SAFE_SELF)
+    return bool(np.all(clear | close))
+
+
 def make_episode(robot: qpik.Robot, seed: int, family: str | None = None) -> Episode:
+    """One episode (module docstring). Its start holds the premise of the safety checks: every self pair's
+    rows clear (:func:`_clear`; a start is drawn again until it is), and the sphere starts beyond d_i of every
+    link capsule (its direction is drawn again until it does)."""
     rng = np.random.default_rng(seed)
     family = family or FAMILIES[seed % len(FAMILIES)]
     lo, hi = np.maximum(robot.q_min, -np.pi), np.minimum(robot.q_max, np.pi)
     sc = SelfCollisionLimit()
     sc.check(robot, DT)
-    for _ in range(200):  # a start with every checked pair beyond d_i of the self rows
+    for _ in range(1000):
         q0 = lo + (hi - lo) * (0.2 + 0.6 * rng.random(robot.dof))
-        if np.all(sc.distances(robot, q0) > sc.d_influence):
-            break
-    v0, start, velocity, moving = np.zeros(robot.dof), PARK.copy(), np.zeros(3), 0.0
-    target = robot.fk(q0)
-    seg = robot.capsule_segments(q0)
-    moving_caps = np.flatnonzero(~robot.fixed_capsules)
-    if family == "fold":
-        c = int(rng.choice([0, 1, len(robot.capsules) // 2]))  # base column, shoulder, forearm
-        point = seg[c, 0] + rng.random() * (seg[c, 1] - seg[c, 0])
-        target = target.copy()
-        target[:3, 3] = point
-    elif family == "sphere":
-        c = int(rng.choice(moving_caps[moving_caps >= len(robot.capsules) // 2]))
-        point = seg[c, 0] + rng.random() * (seg[c, 1] - seg[c, 0])
-        u = rng.normal(size=3)
-        u /= np.linalg.norm(u)
-        speed = rng.uniform(0.1, 0.5)
-        contact = robot.capsules[c].radius + SPHERE_RADIUS
-        gap = D_INFLUENCE_OBS + rng.uniform(0.0, 0.05)
-        start = point + u * (contact + gap)
-        velocity, moving = -u * speed, (gap + 0.05) / speed  # it would end 5 cm inside the link
-    else:
-        j = int(rng.integers(robot.dof))
-        vmax, a = robot.v_max[j], a_max(robot)[j]
-        tau = a / j_max(robot)[j]
-        room = (vmax * vmax / (2 * a) + vmax * (DT + tau)) * (1.0 + 0.2 * rng.random()) + 1e-3
-        up = rng.random() < 0.5
-        q0 = q0.copy()
-        q0[j] = robot.q_max[j] - room if up else robot.q_min[j] + room
-        v0[j] = vmax if up else -vmax
+        v0, start, velocity, moving = np.zeros(robot.dof), PARK.copy(), np.zeros(3), 0.0
         target = robot.fk(q0)
-    return Episode(seed, robot, family, q0, v0, target, start, velocity, moving)
+        seg = robot.capsule_segments(q0)
+        moving_caps = np.flatnonzero(~robot.fixed_capsules)
+        if family == "fold":
+            c = int(rng.choice([0, 1, len(robot.capsules) // 2]))  # base column, shoulder, forearm
+            point = seg[c, 0] + rng.random() * (seg[c, 1] - seg[c, 0])
+            target = target.copy()
+            target[:3, 3] = point
+        elif family == "sphere":
+            c = int(rng.choice(moving_caps[moving_caps >= len(robot.capsules) // 2]))
+            point = seg[c, 0] + rng.random() * (seg[c, 1] - seg[c, 0])
+            speed = rng.uniform(0.1, 0.5)
+            contact = robot.capsules[c].radius + SPHERE_RADIUS
+            gap = D_INFLUENCE_OBS + rng.uniform(0.0, 0.05)
+            for _ in range(100):  # a direction whose start is beyond d_i of every capsule
+                u = rng.normal(size=3)
+                u /= np.linalg.norm(u)
+                start = point + u * (contact + gap)
+                if distances(seg, robot.capsule_radii, [Sphere(start, SPHERE_RADIUS)]).d.min() >= D_INFLUENCE_OBS:
+                    break
+            velocity, moving = -u * speed, (gap + 0.05) / speed  # it would end 5 cm inside the link
+        else:
+            j = int(rng.integers(robot.dof))
+            vmax, a = robot.v_max[j], a_max(robot)[j]
+            tau = a / j_max(robot)[j]
+            room = (vmax * vmax / (2 * a) + vmax * (DT + tau)) * (1.0 + 0.2 * rng.random()) + 1e-3
+            up = rng.random() < 0.5
+            q0 = q0.copy()
+            q0[j] = robot.q_max[j] - room if up else robot.q_min[j] + room
+            v0[j] = vmax if up else -vmax
+            target = robot.fk(q0)
+        if _clear(robot, sc, q0, v0):
+            return Episode(seed, robot, family, q0, v0, target, start, velocity, moving)
+    raise AssertionError(f"{robot.identifier} seed {seed}: no clear start in 1000 draws")
 
 
 def limits(robot: qpik.Robot, obstacles: list, off: str | None = None) -> list:

@@ -43,7 +43,7 @@ from qpik.bench import Row
 from qpik.geometry.shapes import Sphere
 from qpik.nlp import solve_best, solve_full
 from qpik.nlp.full import REACHED
-from qpik.nlp.options import FullOptions
+from qpik.nlp.options import BestOptions, FullOptions
 from qpik.robots.loader import load_robot
 
 TITLE = "NLP: best branch and δ/ψ (solve_best) and the full-joint NLP"
@@ -72,13 +72,14 @@ def run(args: argparse.Namespace) -> list[Row]:
         T = robot.fk(np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (max(repeat, batch), robot.dof)))
         r = SSIK if name == "iiwa14" and ref is not None else None
         cases = [
-            ("margin (level sets), certified", dict(objective="margin"), repeat),
-            ("margin, method=search, certified", dict(objective="margin", method="search"), repeat),
-            ("margin, method=search, no certificate", dict(objective="margin", method="search", certify=False), repeat),
-            ("margin, method=ipopt", dict(objective="margin", certify=False, method="ipopt"), max(3, repeat // 10)),
-            ("manipulability + 2 obstacles", dict(objective="manipulability", obstacles=obstacles), repeat),
-        ]
-        for label, kw, n in cases:
+            ("margin (level sets), certified", {}, BestOptions(), repeat),
+            ("margin, method=search, certified", {}, BestOptions(method="search"), repeat),
+            ("margin, method=search, no certificate", {}, BestOptions(method="search", certify=False), repeat),
+            ("margin, method=ipopt", {}, BestOptions(certify=False, method="ipopt"), max(3, repeat // 10)),
+            ("manipulability + 2 obstacles", dict(objective="manipulability", obstacles=obstacles), BestOptions(), repeat),
+        ]  # fmt: skip
+        for label, kw, options, n in cases:
+            kw = {"objective": "margin", **kw, "options": options}
             solve_best(robot, T[0], **kw)  # builds and compiles
             times, cert = [], []
             for k in range(n):
@@ -88,7 +89,7 @@ def run(args: argparse.Namespace) -> list[Row]:
                 cert.append(res.certified)
             t = np.array(times)
             note = f"p95 {_ms(np.percentile(t, 95))}"
-            if kw.get("certify", True) and label.startswith("margin"):
+            if options.certify and label.startswith("margin"):
                 note += f"; certified {np.mean(cert):.0%} of {n}"
             rows.append(Row(f"solve_best {label} ({name})", float(np.median(t)), r, note=note))
         solve_best(robot, T[:batch])  # the first large call allocates and compiles

@@ -21,14 +21,21 @@ Failure policy (never raises in the loop unless ``raise_on_failure=True``):
    "yielding"``). The obstacle rows are bounded inside that widened box
    (:class:`~qpik.control.limits.ObstacleLimit`), so only rows among themselves can still conflict;
 4. if obstacle rows demand separation and conflict (an arm inside the safety distance of two
-   obstacles on opposite sides), their demands are scaled by 1/4, then 1/16, then 0 (only
-   forbid approach, which ``v = 0`` meets) until it is solved (``last.relaxation`` = 3/4,
-   15/16 or 1, the part of the demand dropped): a part of the separating speed is kept
-   where it can be, since rows held at exactly zero approach let the second-order terms of
-   the motion (see :class:`~qpik.control.limits.ObstacleLimit`) creep closer;
-5. otherwise the step returns ``v = 0`` (the arm holds still: never further past a limit,
-   never toward an obstacle) with ``last.status == "failed"`` — or raises
-   :class:`~qpik.core.errors.SolverError` with ``raise_on_failure=True``.
+   obstacles on opposite sides, or a moving obstacle the arm must flee from two sides), the parts of the
+   demands that recover from inside a safety distance are scaled first (the escape from a moving obstacle
+   kept), and only if that is not enough the whole demands, each time by the largest common fraction that
+   can be met: first 0 (for the whole demands: only forbid approach, which ``v = 0`` meets where the
+   acceleration limits let the arm stop), then :data:`RELAX_STEPS` bisection steps toward 1, the fraction
+   found times :data:`BACK_OFF` (``last.relaxation`` is the part dropped; the QP is then not at the edge of
+   feasibility, where its set is too thin for the solvers): as much of the separating speed is kept as can
+   be, since rows held at exactly zero approach let the second-order terms of the motion (see
+   :class:`~qpik.control.limits.ObstacleLimit`) creep closer;
+5. otherwise the step returns the command nearest ``v = 0`` that the cap limits allow (their own box: the
+   velocity limits and, where given, :class:`~qpik.control.limits_motion.AccelerationLimit` and
+   :class:`~qpik.control.limits_motion.JerkLimit` around the last commands): ``v = 0`` without them (the arm
+   holds still: never further past a limit, never toward an obstacle), else the arm brakes toward rest at those
+   limits, which :class:`~qpik.control.limits_motion.BrakingLimit` leaves room for; ``last.status == "failed"``
+   — or raises :class:`~qpik.core.errors.SolverError` with ``raise_on_failure=True``.
 """
 
 from __future__ import annotations
@@ -40,7 +47,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from qpik.control.limits import ConfigurationLimit, Limit, ObstacleLimit, VelocityLimit
+from qpik.control.limits import ConfigurationLimit, Limit, ObstacleLimit, RowLimit, VelocityLimit
 from qpik.control.options import ControllerOptions
 from qpik.control.qp import QP, Assembler
 from qpik.control.self_collision import SelfCollisionLimit
@@ -55,8 +62,10 @@ from qpik.scene.scene import Scene
 
 FALLBACK = "daqp"  # exact active-set solver tried when the main solver reports no solution
 ACTIVE_TOL = 1e-7  # rad/s (box) and row units: a constraint within this of its bound is reported active
-RELAXED = (0.25, 0.0625, 0.0)
-"""Fractions of their demand that separating obstacle rows keep when they conflict, tried in turn (failure policy)."""
+RELAX_STEPS = 6
+"""Bisection steps on the fraction of their demand that separating rows keep when they conflict (failure policy)."""
+BACK_OFF = 15 / 16
+"""The fraction found by the bisection is kept times this (failure policy): not at the edge of feasibility."""
 YIELD_WEIGHT = 1e3
 """Weight of the return from past a limit in the yielding QP, relative to 1 + the largest diagonal entry of P."""
 
@@ -70,7 +79,8 @@ class StepInfo:
             safety distance, moving back); ``"penetrating"`` (a capsule overlaps an obstacle,
             d < 0; moving away); ``"yielding"`` (past a position limit, the return conflicts
             with the obstacle rows: it goes only as fast as they allow, see the failure
-            policy); ``"failed"`` (no QP solution: ``v = 0`` was returned). When several
+            policy); ``"failed"`` (no QP solution: the command nearest 0 that the velocity, acceleration and
+            jerk limits allow was returned, ``v = 0`` without acceleration limits). When several
             hold, the first of failed, yielding, penetrating, recovering is reported.
         active: names of the constraints at their bound (``"joint3 position upper"``,
             ``"obstacle sphere0 / link4"``, ...).
@@ -81,8 +91,8 @@ class StepInfo:
             :class:`~qpik.control.self_collision.SelfCollisionLimit` checks (inf without one); below its d_s
             the status is ``"recovering"``, below 0 ``"penetrating"``.
         relaxation: 0 if the QP was solved as built; else the part of the separating rows'
-            demand that was dropped (3/4, 15/16, or 1: only approach is forbidden, which
-            ``v = 0`` meets) when they conflicted (failure policy, step 4).
+            demand that was dropped when they conflicted, in (0, 1] (1: only approach is forbidden;
+            failure policy, step 4).
         task_error: norm of the first FrameTask's pose error ``[m; rad]`` (nan without one).
         solver_status: the solver's own status string.
         solve_time, total_time: seconds in the solver, and in the whole step.
@@ -132,7 +142,7 @@ class Controller:
             warm-started) or a :class:`~qpik.control.solvers.Solver`.
         dt: control period, s (position limits and dampers look one step ahead).
         raise_on_failure: raise :class:`SolverError` on a failed solve instead of
-            returning ``v = 0``.
+            returning the stop of the failure policy (step 5).
 
     Raises:
         InfeasibleError: the limits can never be met (e.g. ``q_min > q_max`` overrides, or two
@@ -181,8 +191,7 @@ class Controller:
         summary = self.assembler.extra  # views, refilled by every build
         self._past, self._task_error, self._own = summary.past, summary.task_error, summary.own
         self._caps = (summary.cap_lo, summary.cap_hi)
-        self._pairs = [(summary[f"pairs{k}"], capsule_pairs(robot, lim.obstacles)[~robot.fixed_capsules].ravel())
-                       for k, lim in enumerate(self.obstacle_limits)]  # fmt: skip
+        self._clearance, self._recovery = summary.clearance, summary.recovery
         self._d_safe = [lim.d_safe for lim in self.obstacle_limits]
         self.last = StepInfo()
 
@@ -252,18 +261,23 @@ class Controller:
                 task.set_target(q_ref)
 
     def _summary(self, s: SymState) -> dict[str, ca.SX]:
-        """The step's summary, computed in the compiled call: ``pairs<k>``, per :class:`ObstacleLimit` k the
-        distances (m) of its capsule–obstacle pairs over the capsules a joint moves
-        (:attr:`~qpik.robots.robot.Robot.fixed_capsules` are left out; :meth:`step` keeps the pairs
-        :mod:`qpik.geometry.contacts` checks); ``past``, 1.0 if q is past a :class:`ConfigurationLimit`'s range
-        (else 0.0);
+        """The step's summary, computed in the compiled call: ``clearance``, per :class:`ObstacleLimit` the
+        smallest distance (m) of its capsule–obstacle pairs that :mod:`qpik.geometry.contacts` checks, over the
+        capsules a joint moves (:attr:`~qpik.robots.robot.Robot.fixed_capsules` are left out; the pairs are an
+        input, 0 or inf per pair, since controllers of one structure share the function); ``past``, 1.0 if q is
+        past a :class:`ConfigurationLimit`'s range (else 0.0);
         ``task_error``, the norm of the first :class:`FrameTask`'s pose error ``[m; rad]`` (nan without one);
         ``own``, per :class:`~qpik.control.self_collision.SelfCollisionLimit` its smallest checked self-distance
-        (m); ``cap_lo``, ``cap_hi``, the caps' own box (n,) each, rad/s (the yielding QP stays in it)."""
-        out = {}
-        for k, lim in enumerate(self.obstacle_limits):
+        (m); ``cap_lo``, ``cap_hi``, the caps' own box (n,) each, rad/s (the yielding QP stays in it); ``recovery``
+        (m,), m/s, per QP row the part of its bound that asks to recover from inside its safety distance
+        (:meth:`~qpik.control.limits.RowLimit.recovery_expr`; given up first)."""
+        clearance = []
+        for lim in self.obstacle_limits:
             moving = np.repeat(~self.robot.fixed_capsules, len(lim.obstacles))  # pair (c, o) at c·O + o
-            out[f"pairs{k}"] = lim.distances_expr(s)[np.flatnonzero(moving).tolist()]
+            checked = capsule_pairs(self.robot, lim.obstacles).ravel() & moving
+            on = np.where(checked, 0.0, np.inf)
+            mask = s.parameter(len(checked), lambda state, on=on: on)
+            clearance.append(ca.mmin(lim.distances_expr(s) + mask) if len(checked) else ca.SX(np.inf))
         past = ca.SX(0.0)
         for lim in self.config_limits:
             p = s.params_of(lim)
@@ -272,8 +286,10 @@ class Controller:
         if self.frame_task is not None:
             error = ca.norm_2(self.frame_task.error_expr(s, s.params_of(self.frame_task)))
         own = [ca.mmin(d) if (d := lim.distances_expr(s)).numel() else ca.inf for lim in self.self_limits]
-        return {**out, "past": past > 0, "task_error": error, "own": ca.vertcat(*own), "cap_lo": s.caps[0],
-                "cap_hi": s.caps[1]}  # fmt: skip
+        rows = [lim for lim in self.limits if isinstance(lim, RowLimit)]  # the assembler's order of the rows
+        recovery = ca.vertcat(ca.SX(0, 1), *[lim.recovery_expr(s, lim.parameters(s)) for lim in rows])
+        return {"recovery": recovery, "clearance": ca.vertcat(*clearance), "past": past > 0, "task_error": error,
+                "own": ca.vertcat(*own), "cap_lo": s.caps[0], "cap_hi": s.caps[1]}  # fmt: skip
 
     def step(self, q: np.ndarray, target: np.ndarray | None = None, twist: np.ndarray | None = None) -> np.ndarray:
         """One control step: the joint velocity v (n,), rad/s, for configuration ``q`` (n,), rad.
@@ -302,14 +318,14 @@ class Controller:
                 qp, yielding = yielding_qp(qp, forced, *self._caps), True
                 sol = exact.solve(qp)
         if not sol.found and (qp.l > 0).any():  # separating rows conflict: ask less of them, down to no approach
-            separating = qp.l > 0.0
-            demand = qp.l[separating].copy()
-            for kept in RELAXED:
-                qp.l[separating] = kept * demand
-                sol = exact.solve(qp)
-                if sol.found:
-                    relaxation = 1.0 - kept
-                    break
+            demand = np.maximum(qp.l, 0.0)
+            # the recoveries from inside d_s first (an escape from a moving obstacle kept), then every demand
+            for part in (np.minimum(self._recovery, demand), demand):
+                if part.any():
+                    sol, kept = _relax(exact, qp, part)
+                    if sol.found:
+                        relaxation = 1.0 - kept
+                        break
         t2 = time.perf_counter()
         info = StepInfo(solver_status=sol.status, solve_time=t2 - t1, relaxation=relaxation)
         if sol.found:
@@ -318,11 +334,11 @@ class Controller:
         else:
             if self.raise_on_failure:
                 raise SolverError(f"{self.solver.name}: no solution ({sol.status})")
-            v = np.zeros(self.robot.dof)
+            v = np.minimum(np.maximum(0.0, self._caps[0]), self._caps[1])  # the stop the motion limits allow
             info.status = "failed"
         for lim in self.limits:
             lim.observe(v)
-        clearances = [float(d[c].min(initial=np.inf)) for d, c in self._pairs]
+        clearances = self._clearance.tolist()
         past, info.task_error = self._past[0], float(self._task_error[0])
         if clearances:
             info.min_clearance = min(clearances)
@@ -399,6 +415,34 @@ def _check_ranges(limits: Sequence[ConfigurationLimit]) -> None:
             "ConfigurationLimit: the position ranges of the limits do not meet for joint(s) "
             + ", ".join(str(j + 1) for j in bad)
         )
+
+
+def _relax(solver: Solver, qp: QP, part: np.ndarray) -> tuple:
+    """``(solution, kept)``: ``qp`` solved with its lower bounds lowered by ``(1 - kept) · part`` (m,), ≥ 0, for
+    the largest fraction ``kept`` that can be met (failure policy, step 4), ``qp.l`` left so; kept 0 and no
+    solution (``qp.l`` as given) if even ``l - part`` cannot."""
+    rows = np.flatnonzero(part > 0.0)
+    full, part = qp.l[rows].copy(), part[rows]
+    qp.l[rows] = full - part
+    sol = solver.solve(qp)
+    if not sol.found:
+        qp.l[rows] = full
+        return sol, 0.0
+    kept, above = 0.0, 1.0
+    for _ in range(RELAX_STEPS):  # bisection on the fraction kept
+        middle = 0.5 * (kept + above)
+        qp.l[rows] = full - (1.0 - middle) * part
+        trial = solver.solve(qp)
+        if trial.found:
+            kept, sol = middle, trial
+        else:
+            above = middle
+    if kept > 0.0:  # backed off from the edge of feasibility, where the set is too thin for ADMM
+        qp.l[rows] = full - (1.0 - BACK_OFF * kept) * part
+        trial = solver.solve(qp)
+        kept, sol = (BACK_OFF * kept, trial) if trial.found else (kept, sol)
+    qp.l[rows] = full - (1.0 - kept) * part  # the QP solved (as :attr:`StepInfo.active` reads it)
+    return sol, kept
 
 
 def yielding_qp(

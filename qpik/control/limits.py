@@ -30,7 +30,7 @@ import numpy as np
 from qpik.control.state import State, SymState, Traced, evaluate, kinematics_of
 from qpik.core.errors import InfeasibleError, InputError
 from qpik.core.layout import Blocks, Layout
-from qpik.core.validate import finite_array, number
+from qpik.core.validate import finite_array, joint_vector, number
 
 if TYPE_CHECKING:
     from qpik.geometry.distance import ObstacleSet
@@ -90,6 +90,11 @@ class RowLimit(Limit, ABC):
     @abstractmethod
     def expr(self, s: SymState, p: Blocks, lb: ca.SX, ub: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
         """``(A, l, u)``: (m, n), (m,), (m,) SX, given the step's final box ``lb ≤ v ≤ ub`` (n,)."""
+
+    def recovery_expr(self, s: SymState, p: Blocks) -> ca.SX:
+        """(m,) SX, ≥ 0: the part of each row's lower bound that asks to recover from inside its safety distance
+        (the default: none). When rows conflict, the controller gives up these parts first."""
+        return ca.SX.zeros(self.size(s.kin.robot))
 
     def rows(self, state: State, lb: np.ndarray, ub: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(A, l, u)``: (m, n), (m,), (m,) for ``state`` and the final box (:meth:`expr` on numbers)."""
@@ -247,7 +252,7 @@ class ObstacleLimit(RowLimit):
         xi: ξ, m/s (> 0).
         buffer: δ, m (≥ 0).
         brake: α, m/s² (None: off): with acceleration limits, rows beyond d_i slow an approach so that it
-            reaches d_i at ξ (:func:`damper_lower`).
+            reaches d_i at ξ, lowered where α cannot follow it (:func:`damper_lower`).
         moving: the rows take the obstacles' velocities (:meth:`set_velocities`, :meth:`move`,
             :meth:`translate`); off, the obstacles are taken as standing still and the rows cost less.
 
@@ -272,7 +277,7 @@ class ObstacleLimit(RowLimit):
         brake: float | None = None,
         moving: bool = False,
     ):
-        from qpik.geometry.distance import ObstacleSet
+        from qpik.geometry.distance import PARAMS, ObstacleSet
 
         self.obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
         self.d_influence = number(d_influence, "d_influence", minimum=None)
@@ -284,6 +289,10 @@ class ObstacleLimit(RowLimit):
         if self.xi <= 0 or self.buffer < 0:
             raise InputError("ObstacleLimit: need xi > 0 and buffer >= 0")
         self.moving = bool(moving)
+        starts = np.cumsum([0, *(PARAMS[k] for k in self.obstacles.kinds)])
+        # per obstacle its reference point in the packed parameters (None for a half-space), for translate
+        self._points = [None if k == "halfspace" else self.obstacles.params[a : a + 3]
+                        for k, a in zip(self.obstacles.kinds, starts)]  # fmt: skip
         self.velocities = np.zeros((len(self.obstacles), 6))
         self.brake = None if brake is None else number(brake, "brake")
 
@@ -357,15 +366,15 @@ class ObstacleLimit(RowLimit):
         """Move obstacle ``o`` (a sphere, capsule or box) rigidly so that its reference point (a sphere's centre,
         a capsule's ``p0``, a box's centre) is ``point`` (3,), m, moving at ``velocity`` (6,) ``[v; ω]``: the
         cheap update of one moving obstacle in a control loop (no shape is rebuilt)."""
-        from qpik.geometry.distance import PARAMS
-
-        kinds = self.obstacles.kinds
-        if not 0 <= o < len(kinds) or kinds[o] == "halfspace":
-            raise InputError(f"translate: obstacle {o} is not a sphere, capsule or box of this limit")
-        start = sum(PARAMS[k] for k in kinds[:o])
-        self.obstacles.params[start : start + 3] = finite_array(point, "point", (3,))
         self._need_moving()
-        self.velocities[o] = finite_array(velocity, "velocity", (6,))
+        if not 0 <= o < len(self._points) or self._points[o] is None:
+            raise InputError(f"translate: obstacle {o} is not a sphere, capsule or box of this limit")
+        point, many = joint_vector(point, 3, "point")  # a vector of 3 (one check in C), as velocity's of 6
+        velocity, more = joint_vector(velocity, 6, "velocity")
+        if many or more:
+            raise InputError("translate: point must have shape (3,) and velocity (6,)")
+        self._points[o][:] = point
+        self.velocities[o] = velocity
 
     def _need_moving(self) -> None:
         if not self.moving:
@@ -385,6 +394,10 @@ class ObstacleLimit(RowLimit):
             vel = p.velocities[o, :3].T + ca.cross(p.velocities[o, 3:].T, p_obs - refs[o])
             out.append(ca.dot(n, vel))
         return ca.vertcat(*out) if out else ca.SX(0, 1)
+
+    def recovery_expr(self, s: SymState, p: Blocks) -> ca.SX:
+        r"""The damper's separating speed below :math:`d_s + \delta` (R,), m/s (:func:`damper_recovery`)."""
+        return damper_recovery(s.damper_heights(self.obstacles), p, self.brake)
 
     def expr(self, s: SymState, p: Blocks, lb: ca.SX, ub: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
         # every row (fixed shape, from the step's compiled kinematics); rows beyond d_i get l = -inf
@@ -435,13 +448,18 @@ def damper_lower(
     step. Where the caps cannot stop an approach in time the row asks only what they allow (the clearance may
     then fall below :math:`d_s`; the acceleration and jerk limits are kept).
 
-    With ``brake`` α (m/s², a deceleration along the row that the acceleration limits can give), rows beyond
-    :math:`d_i` apply too, with the braking profile :math:`\dot h \ge -\xi - \sqrt{2\alpha (h - d_i)}`: an
-    approach is slowed early enough to reach :math:`d_i` at ξ (the damper assumes an arm that can stop at
-    once; with acceleration limits it cannot).
+    With ``brake`` α (m/s², a deceleration along the row that the acceleration limits can give), the approach
+    is one that a deceleration α can follow (the damper assumes an arm that can stop at once; with acceleration
+    limits it cannot). Inside :math:`d_i` the damper's bound falls at the rate :math:`\xi/(d_i - d_s)` per unit
+    of approach, so an approach on it decelerates by up to :math:`\xi^2/(d_i - d_s)`: ξ is lowered to
+    :math:`\xi_\alpha = \min(\xi, \sqrt{\alpha (d_i - d_s)})`, which keeps that within α. Rows beyond
+    :math:`d_i` apply too, with the braking profile :math:`\dot h \ge -\sqrt{\xi_\alpha^2 + 2\alpha (h - d_i)}`:
+    an approach is slowed at α early enough to reach :math:`d_i` at :math:`\xi_\alpha`. Both only ask for a
+    slower approach than without ``brake``.
     """
     m = A.shape[0]
-    d_i, ds, xi = gains.d_influence, gains.d_safe, gains.xi
+    d_i, ds = gains.d_influence, gains.d_safe
+    xi = braked_xi(gains.xi, d_i, ds, brake)
     lower = (-xi / (d_i - ds)) * (h - ds) + approach
     lo0, hi0 = ca.fmin(lb, 0.0), ca.fmax(ub, 0.0)
     if caps is not None:
@@ -453,6 +471,19 @@ def damper_lower(
     moved = ca.sum2(ca.fabs(A)) > 1e-12  # a row no joint moves is left out
     near = h < d_i
     if brake is not None:
-        lower = ca.if_else(near, lower, -xi - ca.sqrt(2.0 * brake * ca.fmax(h - d_i, 0.0)) + approach)
+        lower = ca.if_else(near, lower, -ca.sqrt(xi * xi + 2.0 * brake * ca.fmax(h - d_i, 0.0)) + approach)
         near = h == h  # every row applies
     return ca.if_else(ca.logic_and(near, moved), ca.fmin(lower, cap), -ca.inf)
+
+
+def braked_xi(xi: ca.SX, d_i: ca.SX, ds: ca.SX, brake: ca.SX | None) -> ca.SX:
+    r"""ξ (m/s) of a damper, lowered to :math:`\sqrt{\alpha (d_i - d_s)}` with ``brake`` α (:func:`damper_lower`)."""
+    return xi if brake is None else ca.fmin(xi, ca.sqrt(brake * (d_i - ds)))
+
+
+def damper_recovery(h: ca.SX, gains, brake: ca.SX | None = None) -> ca.SX:
+    r"""The part (m,), m/s, ≥ 0, of the damper bounds of :func:`damper_lower` that asks rows of heights h (m,)
+    below d_s to separate: :math:`\xi (d_s - h)/(d_i - d_s)` there, else 0 (the obstacle's approach excluded).
+    ``gains``: as for :func:`damper_lower`."""
+    d_i, ds = gains.d_influence, gains.d_safe
+    return ca.fmax((braked_xi(gains.xi, d_i, ds, brake) / (d_i - ds)) * (ds - h), 0.0)

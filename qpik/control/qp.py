@@ -126,7 +126,9 @@ class Assembler:
             traced = self._compose(kin, extra, trace=True)
             entry = kin.composed[key] = (traced, native_library(traced))
         fn, lib = entry
-        self._values = values
+        self._params = np.empty(sum(size for size, _ in values))
+        ends = np.cumsum([size for size, _ in values], dtype=int)
+        self._fills = [(self._params[end - size : end], value) for (size, value), end in zip(values, ends)]
         self._fn = Compiled(fn, compile=False, library=lib)
         out = self._output_layout(sizes).views(self._fn.outputs[0])
         self._flat = out.qp
@@ -182,12 +184,13 @@ class Assembler:
             objects = (*self.tasks, *self.boxes, *self.caps, *self.row_limits)
             structure = tuple((type(o).__module__, type(o).__qualname__, o.structure()) for o in objects)
             key = (structure, tuple(sym.numel() for sym, _ in s.inputs), tuple(sizes.items()), A.shape)
-            return [value for _, value in s.inputs], sizes, key
+            return [(sym.numel(), value) for sym, value in s.inputs], sizes, key
         qp = self._qp_layout().pack(P=P, c=c, lb=lb, ub=ub, A=A, l=lo, u=hi)
         out = ca.densify(self._output_layout(sizes).pack(qp=qp, **more))
         prm = ca.vertcat(*[sym for sym, _ in s.inputs])
         tag = hashlib.sha256(repr(self._compose(kin, extra, trace=False)[2]).encode()).hexdigest()[:12]
-        return ca.Function(f"qp_{kin.robot.identifier}_{tag}", [q, prm], [out])
+        # cse: the self-collision rows and the summary trace the frames again; one evaluation of each subexpression
+        return ca.Function(f"qp_{kin.robot.identifier}_{tag}", [q, prm], [out], {"cse": True})
 
     def snapshot(self, qp: QP) -> Callable[[], QP]:
         """A function giving ``qp`` as it is now, which later builds do not overwrite: for the assembler's own QP
@@ -199,5 +202,7 @@ class Assembler:
 
     def build(self, q: np.ndarray) -> QP:
         """Fill the QP for configuration ``q`` (n,), rad, and return it (the same object every call)."""
-        self._fn(q, np.concatenate([value(None) for value in self._values]))
+        for view, value in self._fills:  # the parameters written in place into one buffer
+            view[:] = value(None)
+        self._fn(q, self._params)
         return self.qp

@@ -66,16 +66,28 @@ def _sample(robot: Robot, samples: int, seed: int) -> np.ndarray:
     return lo + (hi - lo) * np.random.default_rng(seed).random((samples, robot.dof))
 
 
-def _allowed(robot: Robot, samples: int, seed: int, margin: float) -> frozenset[Pair]:
+def _sampled(robot: Robot, samples: int, seed: int) -> np.ndarray:
+    """The candidate pairs' distances (samples, P), m, over the seeded configurations."""
     pairs = candidate_pairs(robot)
     if not pairs:
-        return frozenset()
-    d = np.concatenate([pair_distances(robot, q, pairs) for q in np.array_split(_sample(robot, samples, seed), 10)])
-    always, never = np.all(d < 0.0, axis=0), np.all(d > margin, axis=0)
-    return frozenset(p for p, a, b in zip(pairs, always, never) if a or b)
+        return np.zeros((samples, 0))
+    return np.concatenate([pair_distances(robot, q, pairs) for q in np.array_split(_sample(robot, samples, seed), 10)])
+
+
+def _allowed(robot: Robot, samples: int, seed: int, margin: float | None) -> frozenset[Pair]:
+    d = robot.cache.get(("self-collision samples", samples, seed), _sampled, robot, samples, seed)
+    always = np.all(d < 0.0, axis=0)
+    out = always if margin is None else always | np.all(d > margin, axis=0)
+    return frozenset(p for p, a in zip(candidate_pairs(robot), out) if a)
 
 
 def default_allowed(robot: Robot, samples: int = SAMPLES, seed: int = 0, margin: float = MARGIN) -> frozenset[Pair]:
     """The candidate pairs always in collision or never within ``margin`` (m) over ``samples`` seeded
     configurations (module docstring); built once per robot and arguments (``robot.cache``)."""
     return robot.cache.get(("self-collision allowed", samples, seed, margin), _allowed, robot, samples, seed, margin)
+
+
+def always_in_collision(robot: Robot, samples: int = SAMPLES, seed: int = 0) -> frozenset[Pair]:
+    """The candidate pairs in collision (d < 0) at every one of ``samples`` seeded configurations: capsules that
+    overlap where a link's shape wraps its neighbour's; no controller can keep them apart (``robot.cache``)."""
+    return robot.cache.get(("self-collision always", samples, seed), _allowed, robot, samples, seed, None)

@@ -13,6 +13,7 @@ from test_limits import D_SAFE, scene
 
 import qpik
 from qpik.control import Controller, RowLimit, VelocityLimit, get_solver
+from qpik.control.limits_motion import AccelerationLimit, JerkLimit
 from qpik.control.qp import QP
 from qpik.control.solvers import available
 from qpik.control.solvers.osqp import REUSED, polish
@@ -216,13 +217,14 @@ def test_failed_solve_returns_safe_velocity(name):
     q = robot.q_home + 0.1
     relaxed = Controller(robot, tasks, [VelocityLimit(), _Impossible(upper=False)], solver=name)
     v = relaxed.step(q)
-    # v_1 ≥ 10 · 1/4 still exceeds v_max (1.48 rad/s); v_1 ≥ 10 · 1/16 does not
-    assert relaxed.last.relaxation == 1 - 1 / 16 and relaxed.last.status == "ok"
+    # v_1 ≥ 10 k is met for k ≤ v_max / 10 = 0.148 (iiwa14: 1.48 rad/s): bisection finds 9/64, kept × 15/16
+    kept = 9 / 64 * 15 / 16
+    assert relaxed.last.relaxation == 1 - kept and relaxed.last.status == "ok"
     free = Controller(robot, tasks, [VelocityLimit()], solver=name).step(q)
-    if free[0] >= 10 / 16:
+    if free[0] >= 10 * kept:
         np.testing.assert_allclose(v, free, atol=1e-9)
     else:
-        assert abs(v[0] - 10 / 16) < 1e-7
+        assert abs(v[0] - 10 * kept) < 1e-7
     ctrl = Controller(robot, tasks, [VelocityLimit(), _Impossible(upper=True)], solver=name)
     v = ctrl.step(q)
     assert ctrl.last.status == "failed"
@@ -230,6 +232,59 @@ def test_failed_solve_returns_safe_velocity(name):
     strict = Controller(robot, tasks, [VelocityLimit(), _Impossible(upper=True)], solver=name, raise_on_failure=True)
     with pytest.raises(SolverError):
         strict.step(q)
+
+
+class _Demands(RowLimit):
+    """Two separating rows: v_1 ≥ 10 rad/s, marked inside its safety distance (a recovery, impossible), and
+    v_2 ≥ 1 rad/s, not (an escape that can be met)."""
+
+    name = "demands"
+
+    def size(self, robot):
+        return 2
+
+    def row_names(self, robot):
+        return ["recovery", "escape"]
+
+    def expr(self, s, p, lb, ub):
+        A = ca.SX.zeros(2, s.n)
+        A[0, 0], A[1, 1] = 1.0, 1.0
+        return A, ca.vertcat(10.0, 1.0), ca.SX.zeros(2) + np.inf
+
+    def recovery_expr(self, s, p):
+        return ca.vertcat(10.0, 0.0)
+
+
+def test_conflicting_rows_relax_the_recovery_first():
+    """The row already inside its safety distance gives way; the escape keeps its whole demand (a common
+    fraction would have cut it to 0.148)."""
+    robot = qpik.load_robot("iiwa14")
+    tasks = Controller.for_robot(robot, target=robot.fk(robot.q_home)).tasks
+    ctrl = Controller(robot, tasks, [VelocityLimit(), _Demands()])
+    v = ctrl.step(robot.q_home)
+    assert ctrl.last.status == "ok" and 0.0 < ctrl.last.relaxation < 1.0
+    assert v[1] >= 1.0 - 1e-9
+    assert v[0] >= 10.0 * (1.0 - ctrl.last.relaxation) - 1e-9
+
+
+def test_failed_solve_brakes_at_the_acceleration_and_jerk_limits():
+    """A failed step under motion limits returns the command nearest 0 in the caps' box: the arm, moving, brakes
+    at the acceleration limit (v = 0 at once would break it); the acceleration and jerk stay in their limits."""
+    robot = qpik.load_robot("iiwa14")
+    tasks = Controller.for_robot(robot, target=robot.fk(robot.q_home)).tasks
+    dt = 1e-3
+    moving = np.linspace(-1.0, 1.0, 7)  # rad/s, every joint moving (one at rest)
+    acc, jerk = AccelerationLimit(), JerkLimit()
+    ctrl = Controller(robot, tasks, [VelocityLimit(), acc, jerk, _Impossible(upper=True)], dt=dt)
+    acc.reset(moving)
+    jerk.reset(moving, moving)
+    v = ctrl.step(robot.q_home + 0.1)
+    assert ctrl.last.status == "failed"
+    a_step, j_step = robot.a_max * dt, robot.j_max * dt * dt  # the most a command may change (steady before)
+    np.testing.assert_allclose(np.abs(v), np.maximum(np.abs(moving) - np.minimum(a_step, j_step), 0.0), atol=1e-12)
+    assert np.all(np.abs(v - moving) <= a_step * (1 + 1e-12))  # acceleration
+    assert np.all(np.abs(v - moving) <= j_step * (1 + 1e-12))  # jerk
+    assert np.all(np.sign(v) * np.sign(moving) >= 0)  # toward rest, never beyond it
 
 
 def test_unknown_solver():
