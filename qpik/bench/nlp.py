@@ -71,12 +71,13 @@ def run(args: argparse.Namespace) -> list[Row]:
         robot = load_robot(name)
         T = robot.fk(np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (max(repeat, batch), robot.dof)))
         r = SSIK if name == "iiwa14" and ref is not None else None
+        manipulability = {"objective": "manipulability", "obstacles": obstacles}
         cases = [
             ("margin (level sets), certified", {}, BestOptions(), repeat),
             ("margin, method=search, certified", {}, BestOptions(method="search"), repeat),
             ("margin, method=search, no certificate", {}, BestOptions(method="search", certify=False), repeat),
             ("margin, method=ipopt", {}, BestOptions(certify=False, method="ipopt"), max(3, repeat // 10)),
-            ("manipulability + 2 obstacles", dict(objective="manipulability", obstacles=obstacles), BestOptions(), repeat),
+            ("manipulability + 2 obstacles", manipulability, BestOptions(), repeat),
         ]  # fmt: skip
         for label, kw, options, n in cases:
             kw = {"objective": "margin", **kw, "options": options}
