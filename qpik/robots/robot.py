@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from qpik.robots.loader import ModelSource
     from qpik.robots.recognize import Canonical
 
-ClosedForm = Literal["offset_shoulder", "srs"] | None
+ClosedForm = Literal["offset_shoulder", "srs", "locked_joint"] | None
 
 
 @dataclass(frozen=True)
@@ -59,7 +59,7 @@ class Robot:
         q_home: a home configuration (rad), shape (n,).
         capsules: one :class:`LinkCapsule` per moving link.
         closed_form: which analytic IK applies: ``"offset_shoulder"`` (δ),
-            ``"srs"`` (ψ) or ``None``.
+            ``"srs"`` (ψ), ``"locked_joint"`` (q7 locked) or ``None``.
         source: where the numbers come from.
         model: the MJCF/URDF model of a loaded robot (:func:`qpik.robots.loader.load_robot`),
             or None for a catalog arm (whose MuJoCo model is the twin).
