@@ -29,14 +29,17 @@ R_G R(h_6,-q_6) R(h_5,-q_5) R(h_4,-q_4)`: subproblem 2 on :math:`R(h_2,q_2) h_3 
     branch = 4·shoulder + 2·elbow + wrist
 
 - *elbow* = 1 where :math:`\sin(q_4 - \varphi) < 0` (the root :math:`\varphi - \mathrm{atan2}(\cdot)`), 0 for the
-  other root;
-- *wrist* = 1 where :math:`(h_6 \times h_5)\cdot R(h_5, -q_5)\,y(q_4) < 0` (γ < 0 in the wrist's subproblem 2);
-- *shoulder* = 1 where :math:`(h_2 \times h_1)\cdot R(h_2, q_2)\,h_3 < 0` (γ < 0 in the shoulder's subproblem 2).
+  other root; the two meet where the elbow is stretched or folded;
+- *wrist* = 1 where :math:`(h_6 \times h_5)\cdot R(h_5, -q_5)\,y(q_4) < 0` (γ < 0 in the wrist's subproblem 2):
+  the shoulder point S lies on the negative side of the plane of axes 5 and 6 (normal :math:`z_6 \times z_5`);
+- *shoulder* = 1 where :math:`(h_2 \times h_1)\cdot R(h_2, q_2)\,h_3 < 0` (γ < 0 in the shoulder's
+  subproblem 2): axis 3 on the negative side of the plane of axes 1 and 2.
 
-On the Panda (catalog table, and the files whose chain has its axis signs) φ = 0.2 rad... see
-:attr:`LockedJointSolver.phi`; the elbow bit is 1 for q4 < φ, which holds on the whole of Panda's q4 range
-(−3.07, −0.07), so its feasible branches are 2, 3, 6, 7; the shoulder bit is the sign of −sin q2 up to the
-axis signs, the wrist bit that of a combination of q5 with q4 (its ``branch_signs`` are computed, not assumed).
+On the Panda (the catalog's table and the Panda files of example-robot-data and pybullet, whose axes point the
+same way): φ = 2.6746 rad, so *elbow* = 1 iff q4 > φ − π = −0.4670 rad (the elbow bent less than where the
+shoulder-wrist distance is largest; Franka's q4 range is [−3.0718, −0.0698]); *shoulder* = 1 iff q2 < 0;
+*wrist* = 1 iff :math:`\cos q_5 > 0` (|q5| < π/2) for every q4 in (−π, 0), Franka's range (there S lies on one
+side of the forearm axis; the side changes at q4 = 0 and 2.6308 rad).
 
 The parameter is q7 itself: :meth:`LockedJointSolver.table_parameter_expr` returns it with the bits above.
 
@@ -92,11 +95,13 @@ def rotation(k: Vec, c: Scalar, s: Scalar) -> Mat:
 
 
 def subproblem1(k: Vec, p: Vec, q: Vec, ops: Ops) -> Scalar:
-    r"""θ in (−π, π] with :math:`R(k, \theta) p = q` (best fit): :math:`\mathrm{atan2}(k\cdot(p\times q),\ p\cdot q -
-    (k\cdot p)(k\cdot q))` (Elias & Wen 2022, subproblem 1); 0 when p or q lies on k."""
-    y = sy.dot(k, sy.cross(p, q))
-    x = sy.sub(sy.dot(p, q), sy.mul(sy.dot(k, p), sy.dot(k, q)))
-    return angle(y, x, ops)
+    r"""θ in (−π, π] with :math:`R(k, \theta) p = q` (best fit): :math:`\mathrm{atan2}(k\cdot(p_\perp\times q_\perp),\
+    p_\perp\cdot q_\perp)` (Elias & Wen 2022, subproblem 1), :math:`p_\perp = p - (k\cdot p)k`: the projections are
+    formed first, so that a p or q close to k (a near-singular joint) keeps its relative precision; 0 when p or q lies
+    on k."""
+    pp = sy.vsub(p, sy.vscale(sy.dot(k, p), k))
+    qq = sy.vsub(q, sy.vscale(sy.dot(k, q), k))
+    return angle(sy.dot(k, sy.cross(pp, qq)), sy.dot(pp, qq), ops)
 
 
 def subproblem2(ka: Vec, pa: Vec, kb: Vec, pb: Vec, ops: Ops) -> tuple[Vec, Vec, Scalar, Scalar]:
@@ -104,8 +109,13 @@ def subproblem2(ka: Vec, pa: Vec, kb: Vec, pb: Vec, ops: Ops) -> tuple[Vec, Vec,
     :math:`k_a, k_b` constant unit vectors, not parallel; :math:`|p_a| = |p_b|`).
 
     :math:`v = \alpha k_a + \beta k_b \pm \gamma\,n`, :math:`n = k_a \times k_b`, from
-    :math:`k_a\cdot v = k_a\cdot p_a`, :math:`k_b\cdot v = k_b\cdot p_b` and :math:`|v| = |p_a|`. Returns ``(v_plus, v_minus, ok, close)``: ``ok`` where
-    :math:`\gamma^2 \ge -` EPS :math:`|p_a|^2`, ``close`` where :math:`\gamma^2 <` BRANCH_TOL :math:`|p_a|^2`.
+    :math:`k_a\cdot v = k_a\cdot p_a`, :math:`k_b\cdot v = k_b\cdot p_b` and :math:`|v| = |p_a|`, in the form
+    :math:`\gamma^2 (1 - c^2) = |p_b \times k_b|^2 - \alpha^2 (1 - c^2)`, :math:`c = k_a\cdot k_b` (the part of v off
+    :math:`k_b` is that of :math:`p_b`): where :math:`p_b` nears :math:`k_b` (the shoulder singularity, axes 1 and 3
+    aligned) and :math:`\alpha` is fixed (the Panda's :math:`\alpha = h_2\cdot h_3 = 0`) no difference of near
+    equal numbers is formed, so q2 there keeps its absolute precision instead of the square root of it.
+    Returns ``(v_plus, v_minus, ok, close)``: ``ok`` where :math:`\gamma^2 \ge -` EPS :math:`|p_a|^2`,
+    ``close`` where :math:`\gamma^2 <` BRANCH_TOL :math:`|p_a|^2`.
     """
     c = float(np.dot(ka, kb))
     s2 = 1.0 - c * c
@@ -113,7 +123,8 @@ def subproblem2(ka: Vec, pa: Vec, kb: Vec, pb: Vec, ops: Ops) -> tuple[Vec, Vec,
     A, B = sy.dot(ka, pa), sy.dot(kb, pb)
     al, be = (A - c * B) / s2, (B - c * A) / s2
     norm2 = sy.dot(pa, pa)
-    g2s = norm2 - (al * al + be * be + 2.0 * c * al * be)  # γ² s2
+    pxk = sy.cross(pb, kb)
+    g2s = sy.dot(pxk, pxk) - s2 * al * al  # γ² s2 = |v × k_b|² − α² s2, and |v × k_b| = |p_b × k_b|
     g = ops.safe_sqrt(g2s / s2)
     base = sy.vadd(sy.vscale(al, ka), sy.vscale(be, kb))
     ok = g2s >= -EPS * norm2

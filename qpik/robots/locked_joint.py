@@ -33,7 +33,7 @@ class LockedJointGeometry:
 
     Attributes:
         h: (7, 3) unit joint axes.
-        o: (7, 3) a point on each axis (o[3] is the foot of the common normal of axes 4 and 5... any point on it).
+        o: (7, 3) a point on each axis.
         shoulder: (3,) S, where axes 1-3 meet.
         wrist: (3,) W, where axes 5-6 meet.
         home: (4, 4) the end-effector pose at q = 0.
@@ -49,7 +49,7 @@ class LockedJointGeometry:
 
     def describe(self) -> str:
         """One line for ``robot.notes``: the geometry found (offsets in mm) and the solver serving it."""
-        off = ", ".join(f"{i}-{j} {1000 * d:.4g} mm" for (i, j), d in self.offsets.items())
+        off = ", ".join(f"{i}-{j} {1000 * d:.4g} mm" for (i, j), d in self.offsets.items()) or "none"
         return (
             "closed form with q7 locked (parameter q7, 8 branches): axes 1-2-3 meet (spherical shoulder), "
             f"axes 5-6 meet; offsets between axes {off}; solved by subproblems 3, 2, 2 and 1 "
