@@ -11,8 +11,8 @@ disappears (a subproblem's discriminant crossing 0) or jumps (a singular case), 
 
 These functions are not sinusoids in q7, so their roots are found by a sweep of :data:`GRID` values of q7 (the
 compiled IK, :meth:`~qpik.analytic.solver.AnalyticSolver.solve_many`), a sign change (or a flag change) between
-neighbours bracketing a root, refined by bisection to :data:`ROOT_TOL` over all brackets at once (numpy,
-:meth:`~qpik.analytic.solver.AnalyticSolver.solve_batch`). The gaps between the roots are then classified as for
+neighbours bracketing a root, refined by bisection to :data:`ROOT_TOL` over all brackets at once (each step one
+compiled sweep of the midpoints). The gaps between the roots are then classified as for
 the other families (:class:`~qpik.analytic.intervals.SetAssembler`: one IK evaluation at each midpoint).
 **Not certified:** two roots closer than the grid spacing (2π/GRID) of the same function are missed (a joint
 that touches a limit and leaves it within 3 mrad of q7); the exactly bounded search the S-R-S and offset-shoulder
@@ -56,18 +56,23 @@ class Q7Intervals:
             out.append(wrap(np.array(levels)))
         return out
 
-    def _values(self, q: np.ndarray, valid: np.ndarray, levels: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """The functions whose sign changes are breakpoints, (M, F): sin(q_j − L) per joint j < 7, branch and level,
-        then ±1 for each branch's valid flag; and the branch of each column (F,)."""
+    def _columns(self, levels: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The functions whose sign changes are breakpoints, as (branch, joint, level) arrays (F,): sin(q_j − L)
+        per branch, joint j < 7 and level L; then each branch's valid flag (joint −1, level 0)."""
         B = self._solver.n_branches
-        cols, branch = [], []
+        branch, joint, level = [np.arange(B)], [np.full(B, -1)], [np.zeros(B)]
         for j, L in enumerate(levels[:-1]):
-            if L.size:
-                cols.append(np.sin(q[:, :, j, None] - L).reshape(len(q), -1))
-                branch.append(np.repeat(np.arange(B), L.size))
-        cols.append(np.where(valid, 1.0, -1.0))
-        branch.append(np.arange(B))
-        return np.concatenate(cols, axis=1), np.concatenate(branch)
+            branch.append(np.repeat(np.arange(B), L.size))
+            joint.append(np.full(B * L.size, j))
+            level.append(np.tile(L, B))
+        return np.concatenate(branch), np.concatenate(joint), np.concatenate(level)
+
+    @staticmethod
+    def _values(q: np.ndarray, valid: np.ndarray, rows, branch, joint, level) -> np.ndarray:
+        """The functions (branch, joint, level) of :meth:`_columns` at the parameters ``rows`` of a sweep (q (M, B,
+        n), valid (M, B)): sin(q_j − L), or ±1 for a valid flag (joint −1)."""
+        limit = np.sin(q[rows, branch, np.maximum(joint, 0)] - level)
+        return np.where(joint < 0, np.where(valid[rows, branch], 1.0, -1.0), limit)
 
     def __call__(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
         """Per branch, the q7 (rad) where every joint lies in the limits shrunk by ``margin``; ``T`` (4, 4)."""
@@ -77,32 +82,32 @@ class Q7Intervals:
             return FeasibleIntervals(s.param_name, s.branch_array, empty, [[] for _ in s.branch_ids])
         lo, hi = shrunk_limits(s.robot.q_min, s.robot.q_max, margin)
         levels = self._levels(lo, hi)
+        branch, joint, level = self._columns(levels)
         grid = self._grid
         sol = s.solve_many(T, grid)
-        f, branch = self._values(sol.q, sol.valid, levels)
+        f = self._values(sol.q, sol.valid, np.arange(GRID)[:, None], branch, joint, level)
         g = np.concatenate([f, f[:1]])  # close the circle
         ok = np.concatenate([sol.valid, sol.valid[:1]])
         i, k = np.nonzero(np.signbit(g[:-1]) != np.signbit(g[1:]))
-        is_flag = k >= f.shape[1] - s.n_branches
-        keep = is_flag | (ok[i, branch[k]] & ok[i + 1, branch[k]])  # a limit crossing between two valid values
+        keep = (joint[k] < 0) | (ok[i, branch[k]] & ok[i + 1, branch[k]])  # a limit crossing between valid values
         i, k = i[keep], k[keep]
         a = grid[i]
-        roots = self._bisect(T, a, a + 2.0 * np.pi / GRID, k, levels, f[i, k])
+        roots = self._bisect(T, a, a + 2.0 * np.pi / GRID, f[i, k], branch[k], joint[k], level[k])
         breaks = np.concatenate([roots, levels[-1]])
         sets, sing = self._assemble(T, breaks, roots, (lo, hi))
         return FeasibleIntervals(s.param_name, s.branch_array, sets, sing)
 
-    def _bisect(self, T: np.ndarray, a: np.ndarray, b: np.ndarray, k: np.ndarray, levels, fa: np.ndarray) -> np.ndarray:
-        """Roots of the functions ``k`` (columns of :meth:`_values`) bracketed by [a, b], ``fa`` their values at a."""
+    def _bisect(self, T: np.ndarray, a: np.ndarray, b: np.ndarray, fa: np.ndarray, *column) -> np.ndarray:
+        """Roots of the functions ``column`` (branch, joint, level of :meth:`_columns`, each (K,)) bracketed by
+        [a, b] (K,), ``fa`` their values at a."""
         if a.size == 0:
             return a
         s = self._solver
-        Ts = np.broadcast_to(T, (a.size, 4, 4))
         rows = np.arange(a.size)
         while (b - a).max() > ROOT_TOL:
             m = 0.5 * (a + b)
-            sol = s.solve_batch(Ts, wrap(m))
-            fm = self._values(sol.q, sol.valid, levels)[0][rows, k]
+            sol = s.solve_many(T, wrap(m))
+            fm = self._values(sol.q, sol.valid, rows, *column)
             left = np.signbit(fm) == np.signbit(fa)
             a, b = np.where(left, m, a), np.where(left, b, m)
             fa = np.where(left, fm, fa)
