@@ -114,8 +114,8 @@ def subproblem2(ka: Vec, pa: Vec, kb: Vec, pb: Vec, ops: Ops) -> tuple[Vec, Vec,
     :math:`k_b` is that of :math:`p_b`): where :math:`p_b` nears :math:`k_b` (the shoulder singularity, axes 1 and 3
     aligned) and :math:`\alpha` is fixed (the Panda's :math:`\alpha = h_2\cdot h_3 = 0`) no difference of near
     equal numbers is formed, so q2 there keeps its absolute precision instead of the square root of it.
-    Returns ``(v_plus, v_minus, ok, close)``: ``ok`` where :math:`\gamma^2 \ge -` EPS :math:`|p_a|^2`,
-    ``close`` where :math:`\gamma^2 <` BRANCH_TOL :math:`|p_a|^2`.
+    Returns ``(v_plus, v_minus, measure, close)``: ``measure`` :math:`= \gamma^2 (1 - c^2)/|p_a|^2`, continuous in
+    the inputs, solvable where it is :math:`\ge -` EPS; ``close`` where :math:`\gamma^2 <` BRANCH_TOL :math:`|p_a|^2`.
     """
     c = float(np.dot(ka, kb))
     s2 = 1.0 - c * c
@@ -127,9 +127,9 @@ def subproblem2(ka: Vec, pa: Vec, kb: Vec, pb: Vec, ops: Ops) -> tuple[Vec, Vec,
     g2s = sy.dot(pxk, pxk) - s2 * al * al  # γ² s2 = |v × k_b|² − α² s2, and |v × k_b| = |p_b × k_b|
     g = ops.safe_sqrt(g2s / s2)
     base = sy.vadd(sy.vscale(al, ka), sy.vscale(be, kb))
-    ok = g2s >= -EPS * norm2
-    close = g2s < BRANCH_TOL * s2 * norm2
-    return sy.vadd(base, sy.vscale(g, n)), sy.vsub(base, sy.vscale(g, n)), ok, close
+    measure = g2s / ops.fmax(norm2, 1e-300)
+    close = measure < BRANCH_TOL * s2
+    return sy.vadd(base, sy.vscale(g, n)), sy.vsub(base, sy.vscale(g, n)), measure, close
 
 
 class LockedJointSolver(AnalyticSolver):
@@ -168,6 +168,17 @@ class LockedJointSolver(AnalyticSolver):
 
     def table_branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
         """All 8 branches at q7 = ``param`` (rad) for the pose ``(R, p)`` (base frame)."""
+        return self._solve(R, p, param, ops)[0]
+
+    def validity(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> list[Scalar]:
+        r"""Per branch, a continuous function of the pose and q7 whose sign is the branch's ``valid`` flag:
+        :math:`\min(\text{elbow}, \text{wrist}, \text{shoulder}) + ` EPS, each subproblem's discriminant relative to
+        its scale (:func:`subproblem2`; the elbow's :math:`(r^2 - c^2)/r^2`), clamped nowhere. For the feasible
+        sets (:mod:`qpik.analytic.locked_joint_intervals`), whose validity changes are its roots."""
+        return [m + EPS for m in self._solve(R, p, param, ops)[1]]
+
+    def _solve(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> tuple[Branches, list[Scalar]]:
+        """The branches and their validity measures (:meth:`validity` without the EPS)."""
         h = self.h
         c7, s7 = ops.cos(param), ops.sin(param)
         back7 = rotation(self.k7, c7, sy.neg(s7))  # R(k7, −q7)
@@ -180,9 +191,9 @@ class LockedJointSolver(AnalyticSolver):
         r = self.r4
         disc = (r - cc) * (r + cc)
         beta = ops.atan2(ops.safe_sqrt(disc), cc)
-        ok4 = disc >= -EPS * r * r
-        close4 = disc < BRANCH_TOL * r * r
-        q, valid, singular = [None] * 8, [None] * 8, [None] * 8
+        m4 = disc / (r * r)
+        close4 = m4 < BRANCH_TOL
+        q, valid, singular, measure = [None] * 8, [None] * 8, [None] * 8, [None] * 8
         for e, q4 in enumerate((ops.wrap(self.phi + beta), ops.wrap(self.phi - beta))):
             c4, s4 = ops.cos(q4), ops.sin(q4)
             y = sy.vsub(rotate(h[3], c4, sy.neg(s4), self.s4), self.w4)
@@ -210,9 +221,10 @@ class LockedJointSolver(AnalyticSolver):
                     q3 = subproblem1(h[2], self.a3, b, ops)
                     k = 4 * s + 2 * e + w
                     q[k] = [q1, q2, q3, q4, q5, q6, ops.wrap(param)]
-                    valid[k] = ok4 * v_w[2] * v_s[2]
+                    measure[k] = ops.fmin(ops.fmin(m4, v_w[2]), v_s[2])
+                    valid[k] = measure[k] >= -EPS
                     singular[k] = ops.fmax(ops.fmax(close4, v_w[3]), v_s[3])
-        return Branches(q, valid, singular)
+        return Branches(q, valid, singular), measure
 
     def table_parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
         """q7 (rad) and the branch id ``4·shoulder + 2·elbow + wrist`` of the configuration ``q`` (7 scalars)."""

@@ -12,32 +12,36 @@ disappears (a subproblem's discriminant crossing 0) or jumps (a singular case), 
 - another joint j crossing a level L of its (shrunk) limits: a root of :math:`\sin(q_j(q_7) - L)` (which also
   vanishes at L + π: such extra roots only split a gap), L = π too for a joint whose limits reach ±π (the
   representative inside the limits changes there, :class:`~qpik.analytic.solver.AnalyticSolver`);
-- a change of the branch's ``valid`` flag (the wrist's subproblem 2).
+- a change of the branch's ``valid`` flag: a root of its validity function
+  (:meth:`~qpik.analytic.locked_joint.LockedJointSolver.validity`: the subproblems' discriminants, continuous in q7).
 
 The last two are not sinusoids in q7: their roots are found by a sweep of :data:`GRID` values of q7 (the compiled
-IK, :meth:`~qpik.analytic.solver.AnalyticSolver.solve_many`), a sign change (or a flag change) between neighbours
-bracketing a root. Two roots of one function inside one grid cell (a joint that touches a level and turns back,
-as it does at the best margin) sit about an extremum of :math:`q_j(q_7)`: where the sampled :math:`q_j` turns, the
-extremum is located by bisection on the sign of a central difference and the level tested there, which brackets
-both roots. All brackets are refined by bisection to :data:`ROOT_TOL` together (each step one compiled sweep of
-the midpoints). The gaps between the roots are then classified as for the other families
-(:class:`~qpik.analytic.intervals.SetAssembler`: one IK evaluation at each midpoint).
+IK, :meth:`~qpik.analytic.solver.AnalyticSolver.solve_many`, and the compiled validity functions), a sign change
+between neighbours bracketing a root (a limit crossing between two valid values). Two roots of one function inside
+one grid cell (a joint that touches a level and turns back, as it does at the best margin; a branch valid on less
+than a cell) sit about an extremum: where the sampled function turns, the extremum is located by bisection on the
+sign of a central difference and the function tested there, which brackets both roots. Limit crossings between a
+validity root and the next valid value are bracketed there. All brackets are refined to :data:`ROOT_TOL` together
+(regula falsi with bisection steps, :meth:`Q7Intervals._bisect`; each step one compiled sweep). The gaps between
+the breakpoints are then classified as for the other families (:class:`~qpik.analytic.intervals.SetAssembler`: one
+IK evaluation at each midpoint).
 
-**Not certified:** a function with more than one extremum in a grid cell (2π/GRID ≈ 3 mrad; near a singular
-configuration), or a branch valid on less than a cell, can hide roots; the exactly bounded search the S-R-S and
-offset-shoulder sets have is not written for this family yet. ``margin`` shrinks the limits as there
-(:func:`~qpik.analytic.intervals.shrunk_limits`).
+**Not certified:** a function with more than one extremum in three grid values (2π/GRID ≈ 3 mrad; near a singular
+configuration) can hide roots; the exactly bounded search the S-R-S and offset-shoulder sets have is not written for
+this family yet. ``margin`` shrinks the limits as there (:func:`~qpik.analytic.intervals.shrunk_limits`).
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import casadi as ca
 import numpy as np
 
 from qpik.algebra import symbolic as sy
 from qpik.analytic import trig
 from qpik.analytic.intervals import FeasibleIntervals, SetAssembler, shrunk_limits, wrap
+from qpik.native.compiled import RowMap
 
 if TYPE_CHECKING:
     from qpik.analytic.locked_joint import LockedJointSolver
@@ -50,55 +54,89 @@ TURN_TOL = 1e-8
 """Width (rad) to which an extremum of a joint is located (its value is then exact to ~curvature·TURN_TOL²)."""
 ELBOW = 3
 """Index of q4, whose levels are solved exactly."""
+CELL = 2.0 * np.pi / GRID
+
+Brackets = tuple[np.ndarray, np.ndarray, np.ndarray]
+"""``(a, b, column)`` (K,) each: a root of column k lies in [a, b] (rad, not wrapped)."""
+
+
+def _none() -> Brackets:
+    return np.zeros(0), np.zeros(0), np.zeros(0, int)
+
+
+def _join(*parts: Brackets) -> Brackets:
+    return tuple(np.concatenate(x) for x in zip(*parts))  # type: ignore[return-value]
 
 
 class Q7Intervals:
-    """The feasible q7 sets of a :class:`~qpik.analytic.locked_joint.LockedJointSolver` (a ``ParameterSets``)."""
+    """The feasible q7 sets of a :class:`~qpik.analytic.locked_joint.LockedJointSolver` (a ``ParameterSets``).
+
+    The functions whose roots are breakpoints are *columns* ``(branch, joint, level)``: sin(q_j − L) for a joint
+    j (not q4, not q7), or the branch's validity function (:meth:`LockedJointSolver.validity`) as joint n = 7.
+    """
 
     def __init__(self, solver: LockedJointSolver):
         self._solver = solver
         self._assemble = SetAssembler(solver, solver.n_branches)
         self._grid = np.linspace(-np.pi, np.pi, GRID, endpoint=False)
+        self._n = solver.robot.dof
+        T, q7 = ca.SX.sym("T", 4, 4), ca.SX.sym("q7")
+        R, p = sy.frame_of_batch(T)
+        f = ca.Function(f"validity_{solver.kind}", [T, q7], [ca.vertcat(*solver.validity(R, p, q7, sy.CASADI))])
+        self._validity = RowMap(f, shared=[0])
 
     def native_sets(self) -> None:
         """No single C call for this family."""
         return None
 
+    def _sweep(self, T: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """At q7 = x (M,): the joints and the validity function of every branch, (M, B, n + 1), and valid (M, B)."""
+        x = wrap(x)
+        sol = self._solver.solve_many(T, x)
+        (v,) = self._validity(np.asarray(T, float).reshape(-1, order="F"), x[:, None])
+        return np.concatenate([sol.q, v[:, :, None]], axis=2), sol.valid
+
+    def _values(self, qa: np.ndarray, rows, branch, joint, level) -> np.ndarray:
+        """The columns (branch, joint, level) at the rows ``rows`` of a sweep ``qa`` (M, B, n + 1)."""
+        x = qa[rows, branch, joint]
+        return np.where(joint == self._n, x, np.sin(x - level))
+
+    def _at(self, T: np.ndarray, x: np.ndarray, *column) -> np.ndarray:
+        """The columns (branch, joint, level, each (K,)) at q7 = x (K,)."""
+        if x.size == 0:
+            return x
+        return self._values(self._sweep(T, x)[0], np.arange(x.size), *column)
+
     def __call__(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
         """Per branch, the q7 (rad) where every joint lies in the limits shrunk by ``margin``; ``T`` (4, 4)."""
         s = self._solver
         if margin > 1.0:
-            empty = [[] for _ in s.branch_ids]
-            return FeasibleIntervals(s.param_name, s.branch_array, empty, [[] for _ in s.branch_ids])
+            return FeasibleIntervals(s.param_name, s.branch_array, [[] for _ in s.branch_ids],
+                                     [[] for _ in s.branch_ids])  # fmt: skip
         lo, hi = shrunk_limits(s.robot.q_min, s.robot.q_max, margin)
         levels = _levels(lo, hi)
-        branch, joint, level = self._columns(levels)
-        sol = s.solve_many(T, self._grid)
-        f = _values(sol.q, sol.valid, np.arange(GRID)[:, None], branch, joint, level)
-        i, k = self._sign_changes(f, sol.valid, branch, joint)
-        a, flag = self._grid[i], joint[k] < 0
-        cols = branch[k], joint[k], level[k]
-        fa = f[i, k]
-        af, bf = self._bisect(T, a[flag], a[flag] + 2.0 * np.pi / GRID, fa[flag], *(c[flag] for c in cols))
-        edges = self._edges(T, i[flag], af, bf, branch[k[flag]], sol.valid, f, branch, joint, level)
-        turns = self._turns(T, sol.q, sol.valid, f, branch, joint, level)
-        limit = ~flag
-        a = np.concatenate([a[limit], edges[0], turns[0]])
-        b = np.concatenate([self._grid[i[limit]] + 2.0 * np.pi / GRID, edges[1], turns[1]])
-        kk = np.concatenate([k[limit], edges[2], turns[2]]).astype(int)
-        cols = branch[kk], joint[kk], level[kk]
-        al, bl = self._bisect(T, a, b, self._at(T, a, *cols), *cols)
-        roots = wrap(0.5 * np.concatenate([af + bf, al + bl]))
-        exact = self._elbow_roots(T, levels[ELBOW])
-        breaks = np.concatenate([roots, exact, levels[-1]])
-        sets, sing = self._assemble(T, breaks, roots, (lo, hi))
+        cols = self._columns(levels)
+        qa, valid = self._sweep(T, self._grid)
+        f = self._values(qa, np.arange(GRID)[:, None], *cols)
+        signs, turns = self._sign_changes(f, valid, cols), self._turns(T, qa, valid, f, cols)
+        a, b, k = _join(signs, turns)
+        border = cols[1][k] == self._n
+        fa = self._at(T, a, *(c[k] for c in cols))
+        va, vb = self._bisect(T, a[border], b[border], fa[border], *(c[k[border]] for c in cols))
+        inside = np.where(np.signbit(fa[border]), vb, va)  # the valid side of each validity root
+        edges = self._edges(T, inside, cols[0][k[border]], valid, f, cols)
+        a, b, k = _join((a[~border], b[~border], k[~border]), edges)
+        la, lb = self._bisect(T, a, b, self._at(T, a, *(c[k] for c in cols)), *(c[k] for c in cols))
+        found = wrap(0.5 * np.concatenate([va + vb, la + lb]))
+        breaks = np.concatenate([found, self._elbow_roots(T, levels[ELBOW]), levels[-1]])
+        sets, sing = self._assemble(T, breaks, found, (lo, hi))
         return FeasibleIntervals(s.param_name, s.branch_array, sets, sing)
 
     def _columns(self, levels: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The functions whose roots are found by the sweep, as (branch, joint, level) arrays (F,): sin(q_j − L)
-        per branch, joint j (not q4, not q7) and level L; then each branch's valid flag (joint −1, level 0)."""
+        """The columns as (branch, joint, level) arrays (F,): each branch's validity, then sin(q_j − L) per branch,
+        joint j (not q4, not q7) and level L."""
         B = self._solver.n_branches
-        branch, joint, level = [np.arange(B)], [np.full(B, -1)], [np.zeros(B)]
+        branch, joint, level = [np.arange(B)], [np.full(B, self._n)], [np.zeros(B)]
         for j, L in enumerate(levels[:-1]):
             if j != ELBOW:
                 branch.append(np.repeat(np.arange(B), L.size))
@@ -106,95 +144,118 @@ class Q7Intervals:
                 level.append(np.tile(L, B))
         return np.concatenate(branch), np.concatenate(joint), np.concatenate(level)
 
-    def _sign_changes(self, f, valid, branch, joint) -> tuple[np.ndarray, np.ndarray]:
-        """Cells ``i`` (between grid values i and i + 1) and columns ``k`` of the sign changes of the sweep ``f``
-        (GRID, F) (a limit crossing only between two valid values)."""
+    def _sign_changes(self, f: np.ndarray, valid: np.ndarray, cols) -> Brackets:
+        """The sign changes of the sweep ``f`` (GRID, F) between neighbours (a limit crossing only between two valid
+        values)."""
+        branch, joint, _ = cols
         g = np.concatenate([f, f[:1]])  # close the circle
         ok = np.concatenate([valid, valid[:1]])
         i, k = np.nonzero(np.signbit(g[:-1]) != np.signbit(g[1:]))
-        keep = (joint[k] < 0) | (ok[i, branch[k]] & ok[i + 1, branch[k]])
-        return i[keep], k[keep]
+        keep = (joint[k] == self._n) | (ok[i, branch[k]] & ok[i + 1, branch[k]])
+        i, k = i[keep], k[keep]
+        return self._grid[i], self._grid[i] + CELL, k
 
-    def _edges(self, T, cell, af, bf, fb, valid, f, branch, joint, level) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Brackets ``(a, b, column)`` of the limit crossings between a branch's validity boundary (the bracket
-        ``(af, bf)`` found in ``cell`` for branch ``fb``) and the valid end of that cell: the joints there against
-        the grid value."""
-        if cell.size == 0:
-            return np.zeros(0), np.zeros(0), np.zeros(0, int)
-        left = valid[cell, fb]  # the branch is valid at the cell's start (then af is the valid side)
-        inside = np.where(left, af, bf)
-        end = np.where(left, cell, (cell + 1) % GRID)
-        sol = self._solver.solve_many(T, wrap(inside))
-        out_a, out_b, out_k = [], [], []
-        for r in np.flatnonzero(left | valid[(cell + 1) % GRID, fb]):
-            ks = np.flatnonzero((branch == fb[r]) & (joint >= 0))
-            here = np.sin(sol.q[r, fb[r], joint[ks]] - level[ks])
-            cross = ks[np.signbit(here) != np.signbit(f[end[r], ks])]
-            g = self._grid[cell[r]] + (0.0 if left[r] else 2.0 * np.pi / GRID)
-            lo, hi = (g, inside[r]) if left[r] else (inside[r], g)
-            out_a.append(np.full(cross.size, lo))
-            out_b.append(np.full(cross.size, hi))
-            out_k.append(cross)
-        if not out_a:
-            return np.zeros(0), np.zeros(0), np.zeros(0, int)
-        return np.concatenate(out_a), np.concatenate(out_b), np.concatenate(out_k)
-
-    def _turns(self, T, q, valid, f, branch, joint, level) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Brackets ``(a, b, column)`` of the pairs of roots about a turn of a joint inside three grid values: the
-        extremum located, each level with a sign there other than at an end gives the bracket (end, extremum)."""
-        s, h = self._solver, 2.0 * np.pi / GRID
-        dq = wrap(np.roll(q, -1, axis=0) - q)  # (GRID, B, n): q[i+1] − q[i]
+    def _turns(self, T: np.ndarray, qa: np.ndarray, valid: np.ndarray, f: np.ndarray, cols) -> Brackets:
+        """The pairs of roots about a turn of a joint (valid at three grid values) or of a validity function inside
+        two grid cells: the extremum located, each column with a sign there other than at an end gives the bracket
+        (end, extremum)."""
+        branch, joint, level = cols
+        n = self._n
+        dq = np.roll(qa, -1, axis=0) - qa  # (GRID, B, n + 1): qa[i+1] − qa[i]
+        dq[..., :n] = wrap(dq[..., :n])
         ok = valid & np.roll(valid, -1, axis=0) & np.roll(valid, 1, axis=0)
-        turn = (np.signbit(dq) != np.signbit(np.roll(dq, 1, axis=0))) & ok[:, :, None]  # q[i] a sampled extremum
-        turn[:, :, [ELBOW, q.shape[2] - 1]] = False
+        turn = np.signbit(dq) != np.signbit(np.roll(dq, 1, axis=0))  # qa[i] a sampled extremum
+        turn[..., :n] &= ok[:, :, None]
+        turn[..., [ELBOW, n - 1]] = False
         i, bj, jj = np.nonzero(turn)
+        near = np.zeros(i.size, bool)  # a level within twice the larger neighbouring step of the sampled extremum
+        reach = 2.0 * np.maximum(np.abs(dq[i, bj, jj]), np.abs(dq[i - 1, bj, jj])) + 1e-9
+        for k in range(branch.size):
+            mine = (bj == branch[k]) & (jj == joint[k])
+            gap = np.abs(f[i, k]) if joint[k] == n else np.abs(wrap(qa[i, bj, jj] - level[k]))
+            near |= mine & (gap <= reach)
+        i, bj, jj = i[near], bj[near], jj[near]
         if i.size == 0:
-            return np.zeros(0), np.zeros(0), np.zeros(0, int)
-        lo, hi = self._grid[i] - h, self._grid[i] + h
-        while (hi - lo).max() > TURN_TOL:  # bisection on the sign of the slope, the same sense as at lo
+            return _none()
+        rows = np.arange(i.size)
+        lo, hi = self._grid[i] - CELL, self._grid[i] + CELL
+        while (hi - lo).max() > TURN_TOL:  # bisection on the sign of the slope: the extremum is where it turns
             m = 0.5 * (lo + hi)
-            both = s.solve_many(T, wrap(np.concatenate([m - 0.25 * TURN_TOL, m + 0.25 * TURN_TOL])))
-            rows = np.arange(i.size)
-            slope = wrap(both.q[i.size :][rows, bj, jj] - both.q[: i.size][rows, bj, jj])
-            rising = np.signbit(slope) == np.signbit(dq[i - 1, bj, jj])
-            lo, hi = np.where(rising, m, lo), np.where(rising, hi, m)
+            both = self._sweep(T, np.concatenate([m - 0.25 * TURN_TOL, m + 0.25 * TURN_TOL]))[0]
+            slope = both[i.size :][rows, bj, jj] - both[: i.size][rows, bj, jj]
+            slope = np.where(jj < n, wrap(slope), slope)
+            on = np.signbit(slope) == np.signbit(dq[i - 1, bj, jj])  # still rising (falling) as before the turn
+            lo, hi = np.where(on, m, lo), np.where(on, hi, m)
         e = 0.5 * (lo + hi)
-        at = s.solve_many(T, wrap(e))
-        out_a, out_b, out_k = [], [], []
+        at = self._sweep(T, e)[0]
+        out = [_none()]
         for k in range(branch.size):  # the columns of each (branch, joint) that turns
             sel = np.nonzero((branch[k] == bj) & (joint[k] == jj))[0]
             if sel.size == 0:
                 continue
-            fe = np.sin(at.q[sel, bj[sel], jj[sel]] - level[k])
+            fe = self._values(at, sel, branch[k], joint[k], level[k])
             for end, side in ((i[sel] - 1, 0), ((i[sel] + 1) % GRID, 1)):
-                cross = (np.signbit(fe) != np.signbit(f[end, k])) & at.valid[sel, bj[sel]]
-                edge = self._grid[i[sel]] + (h if side else -h)
-                out_a.append(np.where(side, e[sel], edge)[cross])
-                out_b.append(np.where(side, edge, e[sel])[cross])
-                out_k.append(np.full(int(cross.sum()), k))
-        if not out_a:
-            return np.zeros(0), np.zeros(0), np.zeros(0, int)
-        return np.concatenate(out_a), np.concatenate(out_b), np.concatenate(out_k)
+                cross = np.signbit(fe) != np.signbit(f[end, k])
+                edge = self._grid[i[sel]] + (CELL if side else -CELL)
+                a, b = (e[sel], edge) if side else (edge, e[sel])
+                out.append((a[cross], b[cross], np.full(int(cross.sum()), k)))
+        return _join(*out)
 
-    def _at(self, T, x, *column) -> np.ndarray:
-        """The functions ``column`` (branch, joint, level) at the parameters x (K,)."""
-        if x.size == 0:
-            return x
-        sol = self._solver.solve_many(T, wrap(x))
-        return _values(sol.q, sol.valid, np.arange(x.size), *column)
+    def _edges(self, T: np.ndarray, inside: np.ndarray, vb: np.ndarray, valid: np.ndarray, f: np.ndarray, cols):
+        """The limit crossings next to a validity root: ``inside`` (K,) are q7 just on the valid side of the roots
+        of branch ``vb`` (K,); between each and its neighbours among the grid values and the others of its branch,
+        where both are valid, a limit column of the branch that changes sign gives a bracket."""
+        branch, joint, level = cols
+        if inside.size == 0:
+            return _none()
+        qa = self._sweep(T, inside)[0]
+        out = [_none()]
+        for bb in np.unique(vb):
+            ks = np.flatnonzero((branch == bb) & (joint < self._n))
+            mine = np.flatnonzero(vb == bb)
+            x = np.concatenate([self._grid, wrap(inside[mine])])
+            ok = np.concatenate([valid[:, bb], np.ones(mine.size, bool)])
+            fx = np.concatenate([f[:, ks], self._values(qa, mine[:, None], bb, joint[ks], level[ks])])
+            new = np.concatenate([np.zeros(GRID, bool), np.ones(mine.size, bool)])
+            order = np.argsort(x, kind="stable")
+            x, ok, fx, new = x[order], ok[order], fx[order], new[order]
+            nxt = np.roll(np.arange(x.size), -1)
+            pair = ok & ok[nxt] & (new | new[nxt])
+            r, c = np.nonzero((np.signbit(fx) != np.signbit(fx[nxt])) & pair[:, None])
+            b = np.where(nxt[r] == 0, x[nxt[r]] + 2.0 * np.pi, x[nxt[r]])
+            out.append((x[r], b, ks[c]))
+        return _join(*out)
 
     def _bisect(self, T: np.ndarray, a: np.ndarray, b: np.ndarray, fa: np.ndarray, *column):
-        """Brackets ``(a, b)`` (K,) no wider than :data:`ROOT_TOL` of the roots of the functions ``column`` (branch,
-        joint, level of :meth:`_columns`, each (K,)) bracketed by [a, b] (K,), ``fa`` their values at a; a keeps
-        the sign of ``fa``."""
+        """Brackets ``(a, b)`` (K,) no wider than :data:`ROOT_TOL` of the roots of the columns ``column`` (branch,
+        joint, level, each (K,)) bracketed by [a, b] (K,), ``fa`` their values at a; a keeps the sign of ``fa``.
+
+        Regula falsi with the Illinois rule (the value kept at an end twice in a row is halved), every third step a
+        bisection: the bracket at least halves every three steps, and a smooth root converges superlinearly."""
         if a.size == 0:
             return a, b
-        while (b - a).max() > ROOT_TOL:
-            m = 0.5 * (a + b)
-            fm = self._at(T, m, *column)
-            left = np.signbit(fm) == np.signbit(fa)
-            a, b = np.where(left, m, a), np.where(left, b, m)
-            fa = np.where(left, fm, fa)
+        a, b, fa = a.copy(), b.copy(), fa.copy()
+        fb = self._at(T, b, *column)
+        kept = np.zeros(a.size, int)  # +1: a kept last step, -1: b kept
+        step = 0
+        while (live := np.flatnonzero(b - a > ROOT_TOL)).size:
+            step += 1
+            A, B, FA, FB = a[live], b[live], fa[live], fb[live]
+            m = 0.5 * (A + B)
+            x = m
+            if step % 3:
+                den = np.where(FB != FA, FB - FA, 1.0)
+                x = np.where(FB != FA, (A * FB - B * FA) / den, m)
+                x = np.where((x > A) & (x < B), x, m)
+            fx = self._at(T, x, *(c[live] for c in column))
+            left = np.signbit(fx) == np.signbit(FA)  # the root is in [x, b]
+            FB = FB * np.where(left & (kept[live] == -1), 0.5, 1.0)
+            FA = FA * np.where(~left & (kept[live] == 1), 0.5, 1.0)
+            exact = fx == 0.0
+            a[live] = np.where(left | exact, x, A)
+            b[live] = np.where(left & ~exact, B, x)
+            fa[live], fb[live] = np.where(left, fx, FA), np.where(left, FB, fx)
+            kept[live] = np.where(left, -1, 1)
         return a, b
 
     def _elbow_roots(self, T: np.ndarray, levels: np.ndarray) -> np.ndarray:
@@ -222,10 +283,3 @@ def _levels(lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
         levels = [lj, uj] + ([np.pi] if lj <= -np.pi or uj >= np.pi else [])
         out.append(wrap(np.array(levels)))
     return out
-
-
-def _values(q: np.ndarray, valid: np.ndarray, rows, branch, joint, level) -> np.ndarray:
-    """The functions (branch, joint, level) of :meth:`Q7Intervals._columns` at the parameters ``rows`` of a sweep
-    (q (M, B, n), valid (M, B)): sin(q_j − L), or ±1 for a valid flag (joint −1)."""
-    limit = np.sin(q[rows, branch, np.maximum(joint, 0)] - level)
-    return np.where(joint < 0, np.where(valid[rows, branch], 1.0, -1.0), limit)
