@@ -94,14 +94,19 @@ def rotation(k: Vec, c: Scalar, s: Scalar) -> Mat:
     return sy.transpose(tuple(cols))  # type: ignore[arg-type]
 
 
-def subproblem1(k: Vec, p: Vec, q: Vec, ops: Ops) -> Scalar:
-    r"""θ in (−π, π] with :math:`R(k, \theta) p = q` (best fit): :math:`\mathrm{atan2}(k\cdot(p_\perp\times q_\perp),\
-    p_\perp\cdot q_\perp)` (Elias & Wen 2022, subproblem 1), :math:`p_\perp = p - (k\cdot p)k`: the projections are
-    formed first, so that a p or q close to k (a near-singular joint) keeps its relative precision; 0 when p or q lies
-    on k."""
+def subproblem1(k: Vec, p: Vec, q: Vec, ops: Ops) -> tuple[Scalar, Scalar, Scalar]:
+    r"""θ in (−π, π] with :math:`R(k, \theta) p = q` (best fit), and cos θ, sin θ: θ = atan2(y, x),
+    :math:`y = k\cdot(p_\perp\times q_\perp)`, :math:`x = p_\perp\cdot q_\perp` (Elias & Wen 2022, subproblem 1),
+    :math:`p_\perp = p - (k\cdot p)k`: the projections are formed first, so that a p or q close to k (a near-singular
+    joint) keeps its relative precision. cos θ, sin θ = (x, y)/|(x, y)| (a square root instead of two trigonometric
+    calls); θ = 0, cos θ = 1 when p or q lies on k."""
     pp = sy.vsub(p, sy.vscale(sy.dot(k, p), k))
     qq = sy.vsub(q, sy.vscale(sy.dot(k, q), k))
-    return angle(sy.dot(k, sy.cross(pp, qq)), sy.dot(pp, qq), ops)
+    y, x = sy.dot(k, sy.cross(pp, qq)), sy.dot(pp, qq)
+    rho = ops.sqrt(x * x + y * y)
+    some = rho > 1e-300
+    inv = 1.0 / ops.fmax(rho, 1e-300)
+    return angle(y, x, ops), ops.where(some, x * inv, 1.0), y * inv
 
 
 def subproblem2(ka: Vec, pa: Vec, kb: Vec, pb: Vec, ops: Ops) -> tuple[Vec, Vec, Scalar, Scalar]:
@@ -190,19 +195,26 @@ class LockedJointSolver(AnalyticSolver):
         cc = self.k4 - 0.5 * sy.dot(d, d)
         r = self.r4
         disc = (r - cc) * (r + cc)
-        beta = ops.atan2(ops.safe_sqrt(disc), cc)
+        sb = ops.safe_sqrt(disc)
+        beta = ops.atan2(sb, cc)
+        rho = ops.sqrt(cc * cc + sb * sb)  # r where the elbow reaches, |c| > r where not: never 0
+        cb, sb = cc / rho, sb / rho
+        cp, sp = float(np.cos(self.phi)), float(np.sin(self.phi))
         m4 = disc / (r * r)
         close4 = m4 < BRANCH_TOL
         q, valid, singular, measure = [None] * 8, [None] * 8, [None] * 8, [None] * 8
-        for e, q4 in enumerate((ops.wrap(self.phi + beta), ops.wrap(self.phi - beta))):
-            c4, s4 = ops.cos(q4), ops.sin(q4)
+        elbows = (
+            (self.phi + beta, cp * cb - sp * sb, sp * cb + cp * sb),
+            (self.phi - beta, cp * cb + sp * sb, sp * cb - cp * sb),
+        )
+        for e, (q4, c4, s4) in enumerate(elbows):
+            q4 = ops.wrap(q4)
             y = sy.vsub(rotate(h[3], c4, sy.neg(s4), self.s4), self.w4)
             v_w = subproblem2(h[5], x, h[4], y, ops)
             for w in (0, 1):
                 v = v_w[w]
-                q6 = subproblem1(h[5], x, v, ops)
-                q5 = subproblem1(h[4], v, y, ops)
-                c5, s5, c6, s6 = ops.cos(q5), ops.sin(q5), ops.cos(q6), ops.sin(q6)
+                q6, c6, s6 = subproblem1(h[5], x, v, ops)
+                q5, c5, s5 = subproblem1(h[4], v, y, ops)
 
                 def back(u: Vec, c4=c4, s4=s4, c5=c5, s5=s5, c6=c6, s6=s6) -> Vec:
                     """R_H u = R_G R(h6, −q6) R(h5, −q5) R(h4, −q4) u."""
@@ -214,11 +226,10 @@ class LockedJointSolver(AnalyticSolver):
                 v_s = subproblem2(h[1], h[2], h[0], t, ops)
                 for s in (0, 1):
                     vs = v_s[s]
-                    q2 = subproblem1(h[1], h[2], vs, ops)
-                    q1 = subproblem1(h[0], vs, t, ops)
-                    c1, s1, c2, s2 = ops.cos(q1), ops.sin(q1), ops.cos(q2), ops.sin(q2)
+                    q2, c2, s2 = subproblem1(h[1], h[2], vs, ops)
+                    q1, c1, s1 = subproblem1(h[0], vs, t, ops)
                     b = rotate(h[1], c2, sy.neg(s2), rotate(h[0], c1, sy.neg(s1), ta))
-                    q3 = subproblem1(h[2], self.a3, b, ops)
+                    q3 = subproblem1(h[2], self.a3, b, ops)[0]
                     k = 4 * s + 2 * e + w
                     q[k] = [q1, q2, q3, q4, q5, q6, ops.wrap(param)]
                     measure[k] = ops.fmin(ops.fmin(m4, v_w[2]), v_s[2])
