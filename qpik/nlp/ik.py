@@ -381,7 +381,7 @@ def solve_ik(
             may depend on the machine's speed.
         seed: seed of the restarts (the answer is reproducible for a given seed and iteration budget).
         project: project a non-orthonormal rotation onto SO(3) instead of raising :class:`qpik.RotationError`.
-        method: ``"closed form"`` (the default where ``robot.closed_form`` is set) or
+        method: ``"closed form"`` (the default for the families of :data:`CLOSED_FORM_DEFAULT`) or
             ``"levenberg-marquardt"`` (the default elsewhere, and possible on every arm).
 
     Returns:
