@@ -19,6 +19,8 @@ _SOLVERS = {  # family -> (solver, its feasible sets), each as (module, class)
     "offset_shoulder": (("qpik.analytic.offset_shoulder", "OffsetShoulderSolver"),
                         ("qpik.analytic.offset_shoulder_intervals", "DeltaIntervals")),
     "srs": (("qpik.analytic.srs", "SRSSolver"), ("qpik.analytic.srs_intervals", "PsiIntervals")),
+    "locked_joint": (("qpik.analytic.locked_joint", "LockedJointSolver"),
+                     ("qpik.analytic.locked_joint_intervals", "Q7Intervals")),
 }  # fmt: skip
 SYMBOL = {"delta": "δ", "psi": "ψ"}
 """The Greek letter of each redundancy parameter name (:attr:`IKSolutions.param_name`)."""
@@ -41,7 +43,11 @@ def closed_form_for(robot: Robot) -> AnalyticSolver:
 
 def _new_solver(robot: Robot) -> AnalyticSolver:
     if robot.closed_form not in _SOLVERS:
-        why = robot.notes if robot.notes.startswith("no closed form") else "only offset-shoulder and S-R-S arms do"
+        why = (
+            robot.notes
+            if robot.notes.startswith("no closed form")
+            else "only offset-shoulder, S-R-S, locked-q7 arms do"
+        )
         raise NoClosedFormError(f"{robot.name} has no closed-form IK ({why}); use qpik.solve_ik instead")
     (module, cls), (sets_module, sets) = _SOLVERS[robot.closed_form]
     make_sets = getattr(importlib.import_module(sets_module), sets)

@@ -1,6 +1,6 @@
 """Bench: the closed form — one pose, a batch of poses, the feasible intervals — beside ssik.
 
-For each arm with a closed form (``nammoto7``: δ, ``iiwa14``: ψ), poses are
+For each arm with a closed form (``nammoto7``: δ, ``iiwa14``: ψ, ``panda``: q7 locked), poses are
 ``fk(q)`` of configurations drawn uniformly inside the joint limits (seed 0)
 and the parameter of each is the one of its configuration. Rows, in seconds
 per pose (median; the single-pose rows and ssik's over blocks of :data:`BLOCK` calls, "hot"):
@@ -21,7 +21,7 @@ arm) and ik-geo (``Robot.spherical_two_intersecting`` of EAIK's remodelled axes,
 rotation convention converted before timing), and the batched calls (EAIK's ``IK_batched`` with
 :data:`EAIK_THREADS` threads). Every peer's answers are first checked by qpik's FK: the rows say
 how many of a peer's solutions reach the pose to 1e-9. A peer that is not installed (the test
-extra) is left out with a note.
+extra) is left out with a note. Last, the Panda beside frankik, GeoFIK and ssik (:mod:`qpik.bench.analytic_panda`).
 
 Targets (issue): single ≤ 3 µs and faster than EAIK, with a numpy scalar parameter within 10 % of a float;
 batched ≤ 3 µs/pose; intervals ≤ 50 µs/pose for both arms. Nammoto & Kosuge report 31.3 µs per solution set
@@ -36,13 +36,14 @@ import numpy as np
 
 from qpik.analytic.api import closed_form_for, feasible_intervals, ik, redundancy_parameter, symbol
 from qpik.bench import Row, time_calls, time_interleaved
+from qpik.bench.analytic_panda import panda_rows
 from qpik.robots.loader import load_robot
 
 BLOCK = 20
 """The single-pose rows (one pose, feasible intervals, the locked-joint rows): each sample is a block of this many
 calls (poses cycling), divided ("hot")."""
 TITLE = f"Closed-form IK (per pose; single-pose rows hot: blocks of {BLOCK} calls, peers' blocks interleaved)"
-ARMS = ("nammoto7", "iiwa14")
+ARMS = ("nammoto7", "iiwa14", "panda")
 POSES = 64  # distinct poses cycled through by the single-pose rows
 BATCH = 10_000
 BATCH_CALLS = 20
@@ -75,7 +76,7 @@ def run(args: argparse.Namespace) -> list[Row]:
         rows.append(ssik_row)
     for name in ARMS:
         rows += _arm_rows(name, repeat, SSIK if name == "iiwa14" and ssik_row is not None else None)
-    return rows + _locked_rows(repeat)
+    return rows + _locked_rows(repeat) + panda_rows(repeat, BLOCK, _row)
 
 
 def _arm_rows(name: str, repeat: int, ref: str | None) -> list[Row]:

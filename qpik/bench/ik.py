@@ -44,7 +44,7 @@ import numpy as np
 from qpik.algebra.lie import pose_error
 from qpik.bench import Row, fmt_time
 from qpik.core.errors import UnreachableError
-from qpik.nlp.ik import solve_ik
+from qpik.nlp.ik import CLOSED_FORM_DEFAULT, solve_ik
 from qpik.nlp.options import IKOptions
 from qpik.robots.loader import load_robot
 from qpik.robots.robot import Robot
@@ -78,7 +78,8 @@ def _arm_rows(robot: Robot, count: int) -> list[Row]:
     starts = np.random.default_rng(1).uniform(robot.q_min, robot.q_max, (count, robot.dof))
     targets = robot.fk(q_goal)
     name = robot.name
-    qpik_label = f"{name}: qpik.solve_ik ({'closed form' if robot.closed_form else 'Levenberg–Marquardt'})"
+    closed = robot.closed_form in CLOSED_FORM_DEFAULT
+    qpik_label = f"{name}: qpik.solve_ik ({'closed form' if closed else 'Levenberg–Marquardt'})"
     peers: dict[str, Solve] = {qpik_label: _qpik(robot)}
     notes: dict[str, str] = {qpik_label: f"1 thread, tol {TOL:g} on ‖e‖₂"}
     tracik, tracik_note = _tracik(robot)

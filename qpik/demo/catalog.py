@@ -36,7 +36,9 @@ def run(out: Path) -> None:
     print(header)
     print("-" * len(header))
     for r in robots:
-        kind = {"offset_shoulder": "offset shoulder δ", "srs": "S-R-S ψ"}.get(r.closed_form or "", "none")
+        kind = {"offset_shoulder": "offset shoulder δ", "srs": "S-R-S ψ", "locked_joint": "q7 locked"}.get(
+            r.closed_form or "", "none"
+        )
         print(f"{r.name:9} {kind:18} {r.chain.convention:9} {reach(r):6.3f}m  {limits_text(r)}")
     print("\nsources:")
     for r in robots:

@@ -19,7 +19,8 @@ answer. Otherwise, one of two ways:
   set is empty, no configuration inside the limits reaches the pose (up to the sets' 1e-9 rad resolution); one
   Levenberg–Marquardt attempt from q₀ then gives the smallest error to report (or the
   answer, should it find one).
-- **Levenberg–Marquardt** (the default for ``zheng7`` and ``panda``; possible on every arm).
+- **Levenberg–Marquardt** (the default for ``zheng7`` and ``panda``, see :data:`CLOSED_FORM_DEFAULT`; possible on
+  every arm).
   With :math:`G = -\partial e/\partial q = [J_v;\ J_l^{-1}(-\omega) J_\omega]` (6, n) (geometric
   Jacobian J, :math:`\omega = \log(R^* R^T)`, :func:`residual_expr`), each iteration takes the
   damped Gauss–Newton step
@@ -60,6 +61,11 @@ from qpik.core.validate import finite_array, joint_vector
 from qpik.core.validate import pose as check_pose
 from qpik.native.compiled import Compiled
 from qpik.nlp.options import MAX_ITERS, IKOptions, Method
+
+CLOSED_FORM_DEFAULT = ("srs", "offset_shoulder")
+"""The families whose closed form is :func:`solve_ik`'s default: their exact feasible sets take tens of µs. The
+locked-q7 sets (the Panda) sweep q7 (~20 ms a pose), so there Levenberg–Marquardt is the default and
+``method="closed form"`` the choice."""
 
 if TYPE_CHECKING:
     from qpik.analytic.intervals import Interval
@@ -242,7 +248,7 @@ class IKSolver:
         if max_time is not None and float(finite_array(max_time, "max_time", ())) <= 0:
             raise InputError(f"max_time: must be > 0 or None, got {max_time}")
         if method is None:
-            method = "closed form" if robot.closed_form else "levenberg-marquardt"
+            method = "closed form" if robot.closed_form in CLOSED_FORM_DEFAULT else "levenberg-marquardt"
         if method not in ("closed form", "levenberg-marquardt"):
             raise InputError(f"method: 'closed form', 'levenberg-marquardt' or None, got {method!r}")
         if method == "closed form" and not robot.closed_form:

@@ -69,8 +69,8 @@ class IKOptions:
         max_time: budget in seconds (wall clock, checked between attempts), or None; with it the answer may depend
             on the machine's speed.
         seed: seed of the restarts (the answer is reproducible for a given seed and iteration budget).
-        method: ``"closed form"`` (the default where ``robot.closed_form`` is set) or ``"levenberg-marquardt"``
-            (the default elsewhere, and possible on every arm); None: the default.
+        method: ``"closed form"`` (the default for the families of :data:`qpik.nlp.ik.CLOSED_FORM_DEFAULT`) or
+            ``"levenberg-marquardt"`` (the default elsewhere, and possible on every arm); None: the default.
     """
 
     max_iters: int = MAX_ITERS

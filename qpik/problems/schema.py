@@ -587,6 +587,10 @@ def _branch_ids(closed_form: str) -> tuple[int, ...]:
         from qpik.analytic.srs import SRSSolver
 
         return SRSSolver.branch_ids
+    if closed_form == "locked_joint":
+        from qpik.analytic.locked_joint import LockedJointSolver
+
+        return LockedJointSolver.branch_ids
     from qpik.analytic.offset_shoulder import OffsetShoulderSolver
 
     return OffsetShoulderSolver.branch_ids

@@ -13,6 +13,7 @@ import numpy as np
 
 from qpik.core.errors import UnknownRobotError
 from qpik.robots.dh import DHChain
+from qpik.robots.locked_joint import find_locked_joint
 from qpik.robots.robot import Robot, default_capsules
 
 PI = np.pi
@@ -106,7 +107,8 @@ def zheng7() -> Robot:
 
 
 def panda() -> Robot:
-    """Franka Emika Panda (modified DH, offsets at elbow and wrist), flange as end-effector."""
+    """Franka Emika Panda (modified DH, offsets at elbow and wrist), flange as end-effector; closed form with q7
+    locked (:mod:`qpik.analytic.locked_joint`)."""
     tool = np.eye(4)
     tool[2, 3] = 0.107
     chain = DHChain(
@@ -126,9 +128,18 @@ def panda() -> Robot:
         j_max=np.array([7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0]),
         q_home=np.array([0.0, -PI / 4, 0.0, -3 * PI / 4, 0.0, PI / 2, PI / 4]),
         capsules=default_capsules(chain, (0.07, 0.07, 0.065, 0.065, 0.06, 0.055, 0.05)),
-        closed_form=None,
+        closed_form="locked_joint",
         source="Franka Emika Panda documentation (DH, limits)",
+        notes=locked_joint_notes(chain),
     )
+
+
+def locked_joint_notes(chain: DHChain) -> str:
+    """The notes of an arm of the locked-q7 family: its geometry in words (:mod:`qpik.robots.locked_joint`)."""
+    found, why = find_locked_joint(chain)
+    if found is None:
+        raise ValueError(f"not a locked-q7 arm: {why}")
+    return found.describe()
 
 
 CATALOG: dict[str, Callable[[], Robot]] = {

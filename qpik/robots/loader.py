@@ -68,7 +68,7 @@ from qpik.robots.catalog import CATALOG, catalog_robot
 from qpik.robots.chain import Joint, SerialChain
 from qpik.robots.limits import arm_limits
 from qpik.robots.model_files import MeshOptions, UrdfJoint, is_urdf, read_spec, urdf_joints
-from qpik.robots.recognize import recognize
+from qpik.robots.recognize import REDUNDANCY, recognize
 from qpik.robots.robot import LinkCapsule, Robot
 
 if TYPE_CHECKING:
@@ -220,9 +220,9 @@ def load_robot(
     tip: str | None = None,
     joints: Sequence[str] | None = None,
     ee: np.ndarray | None = None,
-    q_home: np.ndarray | None = None,
     name: str | None = None,
     meshes: MeshOptions | None = None,
+    redundancy: str | None = None,
 ) -> Robot:
     """A catalog arm by name, or the arm of an MJCF or URDF file.
 
@@ -238,10 +238,11 @@ def load_robot(
             the path from base to tip. Other joints on the path are locked at their reference.
         ee: (4, 4) end-effector frame in the tip's frame (default identity), m.
             Mimic joints on the chain (URDF ``<mimic>``) are coupled to their leader, not arm joints of their own.
-        q_home: (n,) home configuration, rad (default from the model, see the module docstring).
         name: the robot's name (default the model's name; any text: ``robot.identifier`` is its C-safe form).
         meshes: how the meshes are read: ``package_map``, ``collision_only``, ``allow_outside``
             (:class:`~qpik.robots.model_files.MeshOptions`; default its defaults).
+        redundancy: the closed form's parameter, ``"psi"``, ``"delta"`` or ``"q7"`` (q7 locked), instead of the
+            first family that fits (:func:`~qpik.robots.recognize.recognize`); a catalog arm takes only its own.
 
     Raises:
         UnknownRobotError: neither a catalog name nor an existing file; a name that looks like a file
@@ -256,11 +257,18 @@ def load_robot(
             f"path_or_name: expected a catalog name or a file path, got {type(path_or_name).__name__}"
         )
     text = os.fspath(path_or_name)
-    options = (base, tip, joints, ee, q_home, name, meshes)
+    options = (base, tip, joints, ee, name, meshes)
+    if redundancy is not None and redundancy not in REDUNDANCY:
+        raise InputError(f"redundancy: expected one of {', '.join(REDUNDANCY)} or None, got {redundancy!r}"[:200])
     if text in CATALOG:
         if any(o is not None for o in options):
             raise InputError(f"load_robot: {text!r} is a catalog arm; the options are for model files")
-        return catalog_robot(text)
+        robot = catalog_robot(text)
+        if redundancy is not None and REDUNDANCY[redundancy] != robot.closed_form:
+            raise InputError(
+                f"redundancy: {text!r} has no closed form in {redundancy} (its family: {robot.closed_form})"
+            )
+        return robot
     path = Path(text)
     if not path.is_file():
         known = ", ".join(CATALOG)
@@ -309,10 +317,12 @@ def load_robot(
                 f"{model.joint(j).name} = {m:g}·{model.joint(lead).name} + {c:g}" for j, (lead, m, c) in mimic.items()
             )
         )
-    home = _home(model, arm, q_min, q_max) if q_home is None else finite_array(q_home, "q_home", (len(arm),)).copy()
-    canonical, why = recognize(chain)
+    home = _home(model, arm, q_min, q_max)
+    canonical, why = recognize(chain, redundancy)
     if canonical is None:
         notes.insert(0, f"no closed form: {why}")
+    elif canonical.notes:
+        notes.insert(0, canonical.notes)
     return Robot(
         name=name or model.names[: model.names.index(b"\0")].decode() or path.stem,
         chain=chain,

@@ -31,8 +31,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from qpik.core.errors import InputError
 from qpik.robots.chain import SerialChain
 from qpik.robots.dh import DHChain
+from qpik.robots.locked_joint import find_locked_joint
 
 TOL = 1e-9
 """m and rad: an a or d below this is zero, an α within this of ±π/2 is ±π/2."""
@@ -107,15 +109,26 @@ class JointMap:
 
 @dataclass(frozen=True)
 class Canonical:
-    """A closed-form pattern found in a chain: the catalog-form DH table with its base/tool, and the joint map."""
+    """A closed form found in a chain: the catalog-form DH table with its base/tool, and the joint map (for the
+    locked-q7 family, which reads the axes of any chain, the chain itself and the identity); ``notes``, the
+    geometry in words where the family says it."""
 
     kind: str
-    table: DHChain
+    table: SerialChain
     joints: JointMap
+    notes: str = ""
 
 
-def recognize(chain: SerialChain) -> tuple[Canonical | None, str]:
-    """The first pattern of :data:`PATTERNS` that ``chain`` fits, or None and the reason (one line)."""
+REDUNDANCY = {"psi": "srs", "delta": "offset_shoulder", "q7": "locked_joint"}
+"""The redundancy parameters a user can ask for (``load_robot(..., redundancy=)``) and their family."""
+
+
+def recognize(chain: SerialChain, redundancy: str | None = None) -> tuple[Canonical | None, str]:
+    """The first closed form ``chain`` fits, or None and the reason (one line): the patterns of :data:`PATTERNS`,
+    then q7 locked (:mod:`qpik.robots.locked_joint`). ``redundancy`` (a key of :data:`REDUNDANCY`) tries only the
+    family of that parameter."""
+    if redundancy is not None and redundancy not in REDUNDANCY:
+        raise InputError(f"redundancy: expected one of {', '.join(REDUNDANCY)} or None, got {redundancy!r}"[:200])
     if len(chain.joints) != chain.dof:
         return None, "the closed forms do not cover mimic (coupled) joints"
     if chain.dof != 7 or chain.prismatic.any():
@@ -123,11 +136,20 @@ def recognize(chain: SerialChain) -> tuple[Canonical | None, str]:
             f", {int(chain.prismatic.sum())} prismatic" if chain.prismatic.any() else ""
         )
     reasons = []
+    wanted = None if redundancy is None else REDUNDANCY[redundancy]
     for kind, pattern in PATTERNS.items():
+        if wanted not in (None, kind):
+            continue
         found, why = _fit(chain, kind, pattern)
         if found is not None:
             return found, ""
         reasons.append(f"not {kind.replace('_', '-')}: {why}")
+    if wanted in (None, "locked_joint"):
+        geometry, why = find_locked_joint(chain)
+        if geometry is not None:
+            identity = JointMap(np.ones(7), np.zeros(7))
+            return Canonical("locked_joint", chain, identity, geometry.describe()), ""
+        reasons.append(f"not locked-q7: {why}")
     return None, "; ".join(reasons)
 
 

@@ -9,7 +9,7 @@ frame is ``robot.model.placement``; for one loaded without ``base`` the file's w
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import TYPE_CHECKING, Literal
 
@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from qpik.robots.loader import ModelSource
     from qpik.robots.recognize import Canonical
 
-ClosedForm = Literal["offset_shoulder", "srs"] | None
+ClosedForm = Literal["offset_shoulder", "srs", "locked_joint"] | None
 
 
 @dataclass(frozen=True)
@@ -59,7 +59,7 @@ class Robot:
         q_home: a home configuration (rad), shape (n,).
         capsules: one :class:`LinkCapsule` per moving link.
         closed_form: which analytic IK applies: ``"offset_shoulder"`` (δ),
-            ``"srs"`` (ψ) or ``None``.
+            ``"srs"`` (ψ), ``"locked_joint"`` (q7 locked) or ``None``.
         source: where the numbers come from.
         model: the MJCF/URDF model of a loaded robot (:func:`qpik.robots.loader.load_robot`),
             or None for a catalog arm (whose MuJoCo model is the twin).
@@ -133,6 +133,21 @@ class Robot:
         q, _ = joint_vector(q, self.dof)
         ok = np.all((q >= self.q_min - tol) & (q <= self.q_max + tol), axis=-1)
         return bool(ok) if ok.ndim == 0 else ok
+
+    def with_home(self, q_home: np.ndarray) -> Robot:
+        """This robot with the home configuration ``q_home`` (n,), rad, within the limits (a new robot, with its own
+        cache).
+
+        Raises:
+            InputError: NaN/inf, a wrong shape, or a joint outside ``[q_min, q_max]``.
+        """
+        q, batched = joint_vector(q_home, self.dof, "q_home")
+        if batched:
+            raise InputError(f"q_home: expected shape ({self.dof},), got {np.shape(q_home)}")
+        if not self.within_limits(q):
+            bad = np.flatnonzero((q < self.q_min) | (q > self.q_max))
+            raise InputError(f"q_home: joints {', '.join(str(j + 1) for j in bad)} outside their limits")
+        return replace(self, q_home=q.copy())
 
     def capsule_segments_expr(self, frames: list[Frame]) -> list[tuple[Vec, Vec]]:
         """Base-frame end points ``(a, b)`` of every capsule from the frames of :meth:`SerialChain.frames_expr`.

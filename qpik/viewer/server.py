@@ -348,9 +348,10 @@ class Viewer:
     def _build_panel(self) -> None:
         robot, gui = self.robot, self.server.gui
         closed = robot.closed_form is not None
-        symbol = {"srs": "ψ", "offset_shoulder": "δ"}.get(robot.closed_form or "", "")
+        symbol = {"srs": "ψ", "offset_shoulder": "δ", "locked_joint": "q7"}.get(robot.closed_form or "", "")
         self._symbol = symbol
-        kind = {"srs": "S-R-S, closed form in the arm angle ψ", "offset_shoulder": "offset shoulder, closed form in δ"}
+        kind = {"srs": "S-R-S, closed form in the arm angle ψ", "offset_shoulder": "offset shoulder, closed form in δ",
+                "locked_joint": "closed form with q7 locked"}  # fmt: skip
         what = kind.get(robot.closed_form or "", "no closed form")
         gui.add_markdown(f"**{robot.name}** ({robot.dof} joints): {what}")
         with gui.add_folder("Branches", visible=closed):

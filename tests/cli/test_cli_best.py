@@ -39,7 +39,7 @@ def test_best_errors_are_one_line_with_exit_2(capsys):
     assert main(["best", "-r", "iiwa14", "--position", "0.4 0.2 nan"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("qpik best: pose")
-    assert main(["best", "-r", "panda", "--position", "0.4 0.2 0.5"]) == 2
+    assert main(["best", "-r", "zheng7", "--position", "0.4 0.2 0.5"]) == 2
     assert "no closed-form" in capsys.readouterr().err
     assert main(["best", "-r", "iiwa14", "--position", "0.4 0.2 0.5", "--objective", "distance"]) == 2
     assert "q_ref" in capsys.readouterr().err

@@ -283,7 +283,7 @@ def test_bad_input_names_the_argument():
     with pytest.raises(InputError, match="obstacles"):
         solve_best(robot, T, obstacles=["ball"])
     with pytest.raises(NoClosedFormError):
-        solve_best(qpik.load_robot("panda"), T)
+        solve_best(qpik.load_robot("zheng7"), T)
 
 
 def test_branch_table_restriction_and_mirrored_branches():

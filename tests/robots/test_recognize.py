@@ -37,7 +37,6 @@ def test_the_kuka_urdf_is_the_catalog_iiwa14():
 @pytest.mark.parametrize(
     ("key", "why"),
     [
-        ("erd_panda", "not srs: axes 3-4-5 do not intersect (offsets 0.0825, 0.0825 m)"),
         ("erd_xarm7", "not srs: axes 1-2 are not perpendicular"),
     ],
 )

@@ -1,0 +1,250 @@
+r"""Closed-form IK of a 7-R arm with q7 locked (Franka Panda, xArm7): 8 branches in the parameter q7.
+
+He & Liu 2021 and Tittel 2021 solve the Panda with q7 given; this module writes that solution once for any
+chain of the geometry of :mod:`qpik.robots.locked_joint` (axes 1-2-3 meet in the shoulder point S, axes 5-6
+in the wrist point W), in the product-of-exponentials form and the subproblems of Elias & Wen 2022
+(IK-Geo): with the axes :math:`h_i` through :math:`o_i` at q = 0 (base frame) and the home pose M,
+
+.. math:: T = e_1 e_2 \cdots e_7 M,\qquad e_i = \exp(\hat\xi_i q_i),\qquad
+          G := e_1 \cdots e_6 = T M^{-1} e_7^{-1} \quad\text{(known once q7 is given).}
+
+**Elbow q4 (subproblem 3).** :math:`e_5 e_6` fix W and :math:`e_1 e_2 e_3` fix S, so
+:math:`|e_4 W - S| = |G W - S| =: D`. With :math:`w = W - o_4`, :math:`s = S - o_4`:
+:math:`a\cos q_4 + b\sin q_4 = c`, :math:`a = s\cdot w - (h_4\cdot s)(h_4\cdot w)`,
+:math:`b = s\cdot(h_4\times w)` (constants of the arm), :math:`c = (|w|^2 + |s|^2 - D^2)/2 - (h_4\cdot s)(h_4\cdot w)`;
+:math:`q_4 = \varphi \pm \mathrm{atan2}(\sqrt{r^2 - c^2}, c)`, :math:`\varphi = \mathrm{atan2}(b, a)`,
+:math:`r^2 = a^2 + b^2`, with :math:`r^2 - c^2 = (r - c)(r + c)`.
+
+**Wrist q5, q6 (subproblem 2).** :math:`e_5 e_6 (G^{-1} S) = e_4^{-1} S`, about W:
+:math:`R(h_5, q_5) R(h_6, q_6)\,x = y`, :math:`x = R_G^T (S - G W)`, :math:`y = R(h_4, -q_4)\,s - (W - o_4)`.
+The common vector :math:`v = R(h_6, q_6) x = R(h_5, -q_5) y` is :math:`v = \alpha h_6 + \beta h_5 + \gamma\,(h_6
+\times h_5)` (:func:`subproblem2`), two signs of γ; q6 and q5 then follow by subproblem 1 (:func:`subproblem1`).
+
+**Shoulder q1, q2, q3 (subproblems 2 and 1).** :math:`R(h_1,q_1) R(h_2,q_2) R(h_3,q_3) = R_H :=
+R_G R(h_6,-q_6) R(h_5,-q_5) R(h_4,-q_4)`: subproblem 2 on :math:`R(h_2,q_2) h_3 = R(h_1,-q_1) R_H h_3`
+(two signs), then q3 by subproblem 1 on a unit vector :math:`a \perp h_3`.
+
+**Branches** (public ids 0-7; 2 elbows × 2 wrists × 2 shoulders)::
+
+    branch = 4·shoulder + 2·elbow + wrist
+
+- *elbow* = 1 where :math:`\sin(q_4 - \varphi) < 0` (the root :math:`\varphi - \mathrm{atan2}(\cdot)`), 0 for the
+  other root; the two meet where the elbow is stretched or folded;
+- *wrist* = 1 where :math:`(h_6 \times h_5)\cdot R(h_5, -q_5)\,y(q_4) < 0` (γ < 0 in the wrist's subproblem 2):
+  the shoulder point S lies on the negative side of the plane of axes 5 and 6 (normal :math:`z_6 \times z_5`);
+- *shoulder* = 1 where :math:`(h_2 \times h_1)\cdot R(h_2, q_2)\,h_3 < 0` (γ < 0 in the shoulder's
+  subproblem 2): axis 3 on the negative side of the plane of axes 1 and 2.
+
+On the Panda (the catalog's table and the Panda files of example-robot-data and pybullet, whose axes point the
+same way): φ = 2.6746 rad, so *elbow* = 1 iff q4 > φ − π = −0.4670 rad (the elbow bent less than where the
+shoulder-wrist distance is largest; Franka's q4 range is [−3.0718, −0.0698]); *shoulder* = 1 iff q2 < 0;
+*wrist* = 1 iff :math:`\cos q_5 > 0` (|q5| < π/2) for every q4 in (−π, 0), Franka's range (there S lies on one
+side of the forearm axis; the side changes at q4 = 0 and 2.6308 rad).
+
+The parameter is q7 itself: :meth:`LockedJointSolver.table_parameter_expr` returns it with the bits above.
+
+**Singular cases** (defined results, ``singular`` set, every valid branch still reaches the pose):
+
+- *elbow stretched or folded*: :math:`r^2 - c^2 <` ``BRANCH_TOL`` :math:`r^2`: the two elbow roots coincide;
+- *wrist* or *shoulder* subproblem 2 with :math:`\gamma^2 <` ``BRANCH_TOL`` :math:`|x|^2`: its two roots
+  coincide; where the vector to turn lies on the axis (S on axis 6, or axes 1 and 3 aligned) that joint is
+  free: subproblem 1 returns ``atan2`` of what is left (any value reaches the pose) and the next joint takes
+  the rest.
+
+An unreachable pose gives ``valid = 0`` (a negative discriminant beyond round-off, ``EPS`` relative); the square
+roots are clamped at 0, so q stays finite.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from qpik.algebra import symbolic as sy
+from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
+from qpik.analytic.solver import AnalyticSolver, Branches
+from qpik.analytic.trig import EPS, angle
+from qpik.core.errors import NoClosedFormError
+from qpik.robots.locked_joint import find_locked_joint
+
+if TYPE_CHECKING:
+    from qpik.analytic.intervals import ParameterSets
+    from qpik.robots.robot import Robot
+
+BRANCH_TOL = 1e-13
+"""Relative squared distance between two roots (of one subproblem) below which they are one: ``singular``."""
+
+
+def _v(x: np.ndarray) -> Vec:
+    return tuple(sy.snap(float(c)) for c in x)  # type: ignore[return-value]
+
+
+def rotate(k: Vec, c: Scalar, s: Scalar, v: Vec) -> Vec:
+    r""":math:`R(k, \theta)\,v = v\cos\theta + (k\times v)\sin\theta + k\,(k\cdot v)(1-\cos\theta)` (k unit)."""
+    kv = sy.mul(sy.dot(k, v), sy.sub(1.0, c))
+    kxv = sy.cross(k, v)
+    return tuple(sy.lin((v[i], c), (kxv[i], s), (k[i], kv)) for i in range(3))  # type: ignore[return-value]
+
+
+def rotation(k: Vec, c: Scalar, s: Scalar) -> Mat:
+    """The matrix :math:`R(k, \\theta)` (columns: the unit vectors turned)."""
+    cols = [rotate(k, c, s, e) for e in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))]
+    return sy.transpose(tuple(cols))  # type: ignore[arg-type]
+
+
+def subproblem1(k: Vec, p: Vec, q: Vec, ops: Ops) -> tuple[Scalar, Scalar, Scalar]:
+    r"""θ in (−π, π] with :math:`R(k, \theta) p = q` (best fit), and cos θ, sin θ: θ = atan2(y, x),
+    :math:`y = k\cdot(p_\perp\times q_\perp)`, :math:`x = p_\perp\cdot q_\perp` (Elias & Wen 2022, subproblem 1),
+    :math:`p_\perp = p - (k\cdot p)k`: the projections are formed first, so that a p or q close to k (a near-singular
+    joint) keeps its relative precision. cos θ, sin θ = (x, y)/|(x, y)| (a square root instead of two trigonometric
+    calls); θ = 0, cos θ = 1 when p or q lies on k."""
+    pp = sy.vsub(p, sy.vscale(sy.dot(k, p), k))
+    qq = sy.vsub(q, sy.vscale(sy.dot(k, q), k))
+    y, x = sy.dot(k, sy.cross(pp, qq)), sy.dot(pp, qq)
+    rho = ops.sqrt(x * x + y * y)
+    some = rho > 1e-300
+    inv = 1.0 / ops.fmax(rho, 1e-300)
+    return angle(y, x, ops), ops.where(some, x * inv, 1.0), y * inv
+
+
+def subproblem2(ka: Vec, pa: Vec, kb: Vec, pb: Vec, ops: Ops) -> tuple[Vec, Vec, Scalar, Scalar]:
+    r"""The two vectors :math:`v_\pm = R(k_a, \theta_a) p_a = R(k_b, \theta_b) p_b` (Elias & Wen 2022, subproblem 2;
+    :math:`k_a, k_b` constant unit vectors, not parallel; :math:`|p_a| = |p_b|`).
+
+    :math:`v = \alpha k_a + \beta k_b \pm \gamma\,n`, :math:`n = k_a \times k_b`, from
+    :math:`k_a\cdot v = k_a\cdot p_a`, :math:`k_b\cdot v = k_b\cdot p_b` and :math:`|v| = |p_a|`, in the form
+    :math:`\gamma^2 (1 - c^2) = |p_b \times k_b|^2 - \alpha^2 (1 - c^2)`, :math:`c = k_a\cdot k_b` (the part of v off
+    :math:`k_b` is that of :math:`p_b`): where :math:`p_b` nears :math:`k_b` (the shoulder singularity, axes 1 and 3
+    aligned) and :math:`\alpha` is fixed (the Panda's :math:`\alpha = h_2\cdot h_3 = 0`) no difference of near
+    equal numbers is formed, so q2 there keeps its absolute precision instead of the square root of it.
+    Returns ``(v_plus, v_minus, measure, close)``: ``measure`` :math:`= \gamma^2 (1 - c^2)/|p_a|^2`, continuous in
+    the inputs, solvable where it is :math:`\ge -` EPS; ``close`` where :math:`\gamma^2 <` BRANCH_TOL :math:`|p_a|^2`.
+    """
+    c = float(np.dot(ka, kb))
+    s2 = 1.0 - c * c
+    n = sy.cross(ka, kb)
+    A, B = sy.dot(ka, pa), sy.dot(kb, pb)
+    al, be = (A - c * B) / s2, (B - c * A) / s2
+    norm2 = sy.dot(pa, pa)
+    pxk = sy.cross(pb, kb)
+    g2s = sy.dot(pxk, pxk) - s2 * al * al  # γ² s2 = |v × k_b|² − α² s2, and |v × k_b| = |p_b × k_b|
+    g = ops.safe_sqrt(g2s / s2)
+    base = sy.vadd(sy.vscale(al, ka), sy.vscale(be, kb))
+    measure = g2s / ops.fmax(norm2, 1e-300)
+    close = measure < BRANCH_TOL * s2
+    return sy.vadd(base, sy.vscale(g, n)), sy.vsub(base, sy.vscale(g, n)), measure, close
+
+
+class LockedJointSolver(AnalyticSolver):
+    """Closed-form IK with q7 locked; see the module docstring. Branch ids 0-7:
+    ``4·shoulder + 2·elbow + wrist``."""
+
+    kind = "locked_joint"
+    param_name = "q7"
+    branch_ids = tuple(range(8))
+
+    def __init__(self, robot: Robot, sets: Callable[[AnalyticSolver], ParameterSets] | None = None):
+        super().__init__(robot, sets)
+        g, why = find_locked_joint(self.table)
+        if g is None:
+            raise NoClosedFormError(f"the locked-q7 closed form does not apply: {why}")
+        self.geometry = g
+        h, o, S, W = g.h, g.o, g.shoulder, g.wrist
+        self.h = [_v(x) for x in h]
+        Rm, pm = g.home[:3, :3], g.home[:3, 3]
+        self.k7 = _v(Rm.T @ h[6])  # axis 7 in the home flange frame
+        self.c7 = _v(Rm.T @ (o[6] - pm))
+        self.w7 = _v(Rm.T @ (W - o[6]))
+        self.Rm_t = tuple(_v(r) for r in Rm.T)  # M's rotation, transposed
+        self.S = _v(S)
+        w, s = W - o[3], S - o[3]
+        self.s4, self.w4 = _v(s), _v(w)
+        hw, hs = float(h[3] @ w), float(h[3] @ s)
+        self.a4 = float(s @ w - hs * hw)
+        self.b4 = float(s @ np.cross(h[3], w))
+        self.k4 = 0.5 * float(w @ w + s @ s) - hs * hw
+        self.r4 = float(np.hypot(self.a4, self.b4))
+        self.phi = float(np.arctan2(self.b4, self.a4))
+        """φ (rad): the elbow roots are φ ± atan2(√(r²−c²), c)."""
+        a = np.cross(h[1], h[2])
+        self.a3 = _v(a / np.linalg.norm(a))  # a unit vector ⊥ h3 for q3's subproblem 1
+
+    def table_branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
+        """All 8 branches at q7 = ``param`` (rad) for the pose ``(R, p)`` (base frame)."""
+        return self._solve(R, p, param, ops)[0]
+
+    def validity(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> list[Scalar]:
+        r"""Per branch, a continuous function of the pose and q7 whose sign is the branch's ``valid`` flag:
+        :math:`\min(\text{elbow}, \text{wrist}, \text{shoulder}) + ` EPS, each subproblem's discriminant relative to
+        its scale (:func:`subproblem2`; the elbow's :math:`(r^2 - c^2)/r^2`), clamped nowhere. For the feasible
+        sets (:mod:`qpik.analytic.locked_joint_intervals`), whose validity changes are its roots."""
+        return [m + EPS for m in self._solve(R, p, param, ops)[1]]
+
+    def _solve(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> tuple[Branches, list[Scalar]]:
+        """The branches and their validity measures (:meth:`validity` without the EPS)."""
+        h = self.h
+        c7, s7 = ops.cos(param), ops.sin(param)
+        back7 = rotation(self.k7, c7, sy.neg(s7))  # R(k7, −q7)
+        RG = sy.matmul(R, sy.matmul(back7, self.Rm_t))  # rotation of G = T M⁻¹ e7⁻¹
+        GW = sy.vadd(sy.matvec(R, sy.vadd(self.c7, rotate(self.k7, c7, sy.neg(s7), self.w7))), p)
+        d = sy.vsub(self.S, GW)
+        x = sy.matvec(sy.transpose(RG), d)
+        # elbow: a cos q4 + b sin q4 = c
+        cc = self.k4 - 0.5 * sy.dot(d, d)
+        r = self.r4
+        disc = (r - cc) * (r + cc)
+        sb = ops.safe_sqrt(disc)
+        beta = ops.atan2(sb, cc)
+        rho = ops.sqrt(cc * cc + sb * sb)  # r where the elbow reaches, |c| > r where not: never 0
+        cb, sb = cc / rho, sb / rho
+        cp, sp = float(np.cos(self.phi)), float(np.sin(self.phi))
+        m4 = disc / (r * r)
+        close4 = m4 < BRANCH_TOL
+        q, valid, singular, measure = [None] * 8, [None] * 8, [None] * 8, [None] * 8
+        elbows = (
+            (self.phi + beta, cp * cb - sp * sb, sp * cb + cp * sb),
+            (self.phi - beta, cp * cb + sp * sb, sp * cb - cp * sb),
+        )
+        for e, (q4, c4, s4) in enumerate(elbows):
+            q4 = ops.wrap(q4)
+            y = sy.vsub(rotate(h[3], c4, sy.neg(s4), self.s4), self.w4)
+            v_w = subproblem2(h[5], x, h[4], y, ops)
+            for w in (0, 1):
+                v = v_w[w]
+                q6, c6, s6 = subproblem1(h[5], x, v, ops)
+                q5, c5, s5 = subproblem1(h[4], v, y, ops)
+
+                def back(u: Vec, c4=c4, s4=s4, c5=c5, s5=s5, c6=c6, s6=s6) -> Vec:
+                    """R_H u = R_G R(h6, −q6) R(h5, −q5) R(h4, −q4) u."""
+                    u = rotate(h[3], c4, sy.neg(s4), u)
+                    u = rotate(h[4], c5, sy.neg(s5), u)
+                    return sy.matvec(RG, rotate(h[5], c6, sy.neg(s6), u))
+
+                t, ta = back(h[2]), back(self.a3)
+                v_s = subproblem2(h[1], h[2], h[0], t, ops)
+                for s in (0, 1):
+                    vs = v_s[s]
+                    q2, c2, s2 = subproblem1(h[1], h[2], vs, ops)
+                    q1, c1, s1 = subproblem1(h[0], vs, t, ops)
+                    b = rotate(h[1], c2, sy.neg(s2), rotate(h[0], c1, sy.neg(s1), ta))
+                    q3 = subproblem1(h[2], self.a3, b, ops)[0]
+                    k = 4 * s + 2 * e + w
+                    q[k] = [q1, q2, q3, q4, q5, q6, ops.wrap(param)]
+                    measure[k] = ops.fmin(ops.fmin(m4, v_w[2]), v_s[2])
+                    valid[k] = measure[k] >= -EPS
+                    singular[k] = ops.fmax(ops.fmax(close4, v_w[3]), v_s[3])
+        return Branches(q, valid, singular), measure
+
+    def table_parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
+        """q7 (rad) and the branch id ``4·shoulder + 2·elbow + wrist`` of the configuration ``q`` (7 scalars)."""
+        h = self.h
+        c4, s4 = ops.cos(q[3]), ops.sin(q[3])
+        elbow = ops.where(self.a4 * s4 - self.b4 * c4 < 0, 2.0, 0.0)
+        y = sy.vsub(rotate(h[3], c4, sy.neg(s4), self.s4), self.w4)
+        v = rotate(h[4], ops.cos(q[4]), sy.neg(ops.sin(q[4])), y)
+        wrist = ops.where(sy.dot(sy.cross(h[5], h[4]), v) < 0, 1.0, 0.0)
+        vs = rotate(h[1], ops.cos(q[1]), ops.sin(q[1]), h[2])
+        shoulder = ops.where(sy.dot(sy.cross(h[1], h[0]), vs) < 0, 4.0, 0.0)
+        return q[6], shoulder + elbow + wrist

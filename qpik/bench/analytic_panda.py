@@ -1,0 +1,106 @@
+"""Bench rows of the Panda's locked-q7 closed form beside the Panda solvers of others (``qpik bench analytic``).
+
+Poses are ``fk(q)`` of the catalog Panda's flange for configurations drawn uniformly inside Franka's limits (seed 2),
+each solved at its own q7. Timed interleaved, blocks of :data:`~qpik.bench.analytic.BLOCK` calls ("hot"):
+
+- ``qpik.ik`` (all 8 branches, flags and limit test);
+- frankik's ``ik_full(T, None, q7)`` (Tittel 2021: the flange pose; up to 4 solutions inside the limits, NaN rows
+  for the others);
+- GeoFIK's ``franka_ik_q7(r, R, q7)`` (geofikpy: the pose of frame E, the flange turned by −π/4 about z and moved
+  0.1034 m along it; up to 8 solutions, NaN entries outside the limits);
+- ssik's ``panda_ik.solve(T)`` (it samples q7: a larger question, the issue's reference for speed).
+
+Every peer's answers are first checked by qpik's FK: each row's note says how many of its finite solutions reach the
+pose to 1e-9, and how many of the generating configurations are among them. A peer that does not import is left
+out with a note.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from qpik.analytic.api import ik
+from qpik.bench import Row, import_peer, time_interleaved
+from qpik.robots.loader import load_robot
+
+POSES = 64
+REACH = 1e-9
+"""m and rotation entries: a solution reaches the pose when qpik's FK is this close."""
+
+
+def _hand() -> np.ndarray:
+    """Frame E of GeoFIK (and of frankik's ``fk``) in the flange frame: Rz(−π/4), 0.1034 m along z."""
+    c = np.sqrt(0.5)
+    E = np.eye(4)
+    E[:2, :2] = [[c, c], [-c, c]]
+    E[2, 3] = 0.1034
+    return E
+
+
+def _cycle(fn, items):
+    state = {"i": 0}
+
+    def call():
+        i = state["i"]
+        state["i"] = (i + 1) % len(items)
+        return fn(items[i])
+
+    return call
+
+
+def panda_rows(repeat: int, block: int, row) -> list[Row]:
+    """The rows (module docstring); ``row(label, seconds, ref, note)`` makes one."""
+    robot = load_robot("panda")
+    q = np.random.default_rng(2).uniform(robot.q_min, robot.q_max, (POSES, robot.dof))
+    T = robot.fk(q)
+    E = T @ _hand()
+    peers: dict[str, tuple] = {"qpik": (lambda i: ik(robot, T[i], float(q[i, 6])), _qpik_solutions)}
+    missing = []
+    try:
+        frankik = import_peer("frankik")
+        peers["frankik"] = (lambda i: frankik.ik_full(T[i], None, float(q[i, 6])), lambda out: list(out))
+    except ImportError as exc:
+        missing.append(f"frankik ({exc})")
+    try:
+        geofik = import_peer("geofikpy")
+        poses = [(E[i, :3, 3].copy(), E[i, :3, :3].reshape(-1).copy()) for i in range(POSES)]
+        peers["geofik"] = (lambda i: geofik.franka_ik_q7(*poses[i], float(q[i, 6])), lambda out: list(out[0][: out[1]]))
+    except ImportError as exc:
+        missing.append(f"geofikpy ({exc})")
+    try:
+        ssik = import_peer("ssik.prebuilt.franka.panda_ik")
+        peers["ssik"] = (lambda i: ssik.solve(T[i]), lambda out: [s.q for s in out])
+    except ImportError as exc:
+        missing.append(f"ssik ({exc})")
+    if missing:
+        print("qpik bench analytic: Panda peers left out: " + "; ".join(missing))
+    notes = {key: _check(robot, T, q, fn, solutions) for key, (fn, solutions) in peers.items()}
+    calls = {key: _cycle(fn, list(range(POSES))) for key, (fn, _) in peers.items()}
+    t = time_interleaved(calls, max(20, repeat // block), block=block)
+    labels = {
+        "qpik": "panda q7 locked: qpik.ik, 8 branches",
+        "frankik": "panda q7 locked: frankik ik_full (4 solutions)",
+        "geofik": "panda q7 locked: GeoFIK franka_ik_q7 (8 solutions)",
+        "ssik": "panda: ssik panda_ik.solve (q7 sampled)",
+    }
+    fastest = min((k for k in ("frankik", "geofik") if k in t), key=lambda k: np.median(t[k]), default=None)
+    ref = None if fastest is None else labels[fastest]
+    return [row(labels[k], t[k], None if k == fastest or k == "ssik" else ref, notes[k]) for k in peers]
+
+
+def _qpik_solutions(sols) -> list[np.ndarray]:
+    return list(sols.q[sols.valid])
+
+
+def _check(robot, T: np.ndarray, q: np.ndarray, fn, solutions) -> str:
+    """How many of a peer's finite solutions reach their pose by qpik's FK, and how often q is among them."""
+    good = total = found = 0
+    for i in range(len(T)):
+        sols = [np.asarray(x, float).ravel() for x in solutions(fn(i))]
+        sols = [x for x in sols if np.isfinite(x).all()]
+        total += len(sols)
+        reach = [x for x in sols if np.abs(robot.fk(x) - T[i]).max() <= REACH]
+        good += len(reach)
+        found += any(np.abs((x - q[i] + np.pi) % (2 * np.pi) - np.pi).max() < 1e-7 for x in reach)
+    n = len(T)
+    return f"({good}/{total} solutions of {n} poses reach the pose to 1e-9 by qpik's FK; q among them {found}/{n})"

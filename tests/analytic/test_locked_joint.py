@@ -1,0 +1,195 @@
+"""Locked-q7 closed form (Franka Panda): on the catalog table and on example-robot-data's Panda URDF (checked by
+MuJoCo's FK of that file), the catalog's twin, the S-R-S iiwa with q7 locked; feasible q7 sets against dense
+sampling.
+
+Random configurations are drawn inside the joint limits, three hypothesis seeds of 2,000 per arm.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+from conftest import SEEDS, model_robot, mujoco_poses, random_q
+from hypothesis import given, settings
+
+import qpik
+from qpik.analytic.api import closed_form_for
+from qpik.analytic.intervals import shrunk_limits
+from qpik.core.errors import InputError, NoClosedFormError
+
+BATCH = 2000
+PROPERTY = settings(max_examples=3, deadline=None)
+PANDA = qpik.load_robot("panda")
+
+
+def arm(key: str) -> qpik.Robot:
+    return PANDA if key == "panda" else model_robot(key)
+
+
+def angle_diff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """|a − b| on the circle (rad)."""
+    return np.abs((np.asarray(a) - b + np.pi) % (2 * np.pi) - np.pi)
+
+
+def assert_holds(robot: qpik.Robot, q: np.ndarray, found: np.ndarray) -> None:
+    """``found`` (N, 7) is q (N, 7) to 1e-9 rad, or to 1e-14/σ_min where the 6-R chain of joints 1-6 is that close to
+    singular (σ_min: its Jacobian's smallest singular value; the pose's rounding alone moves the answer that far)."""
+    err = angle_diff(found, q).max(axis=1)
+    sigma = np.linalg.svd(robot.jacobian(q)[:, :, :6], compute_uv=False)[:, -1]
+    assert np.all((err < 1e-9) | (err * sigma < 1e-14)), (err.max(), sigma[err.argmax()])
+
+
+def test_the_panda_is_recognised_with_its_offsets_in_the_notes():
+    for robot in (PANDA, model_robot("erd_panda"), model_robot("pybullet_panda")):
+        assert robot.closed_form == "locked_joint"
+        assert "q7 locked" in robot.notes and "3-4 82.5 mm, 4-5 82.5 mm, 6-7 88 mm" in robot.notes
+        assert "qpik.analytic.locked_joint" in robot.notes
+
+
+@PROPERTY
+@given(seed=SEEDS)
+@pytest.mark.parametrize("key", ["panda", "erd_panda"])
+def test_ik_at_its_own_q7_contains_q_and_every_branch_reaches_the_pose(key, seed):
+    """``ik(fk(q), q7)`` holds q as branch ``redundancy_parameter(q)``, within limits; every valid branch reaches
+    the pose to 1e-10 by MuJoCo's FK of the model (the twin's for the catalog arm).
+
+    "Holds q" is to 1e-9 rad, or, where the 6-R chain of joints 1-6 is so close to singular that no method can
+    (the pose's own rounding, ~1e-16, moves the exact answer by ~1e-16/σ_min of its Jacobian: near both the
+    shoulder singularity and the stretched elbow σ_min reaches 1e-8), to within 1e-14/σ_min."""
+    robot = arm(key)
+    q = random_q(robot, BATCH, seed)
+    T = mujoco_poses(robot, q)
+    np.testing.assert_allclose(robot.fk(q), T, atol=1e-12)
+    param, branch = qpik.redundancy_parameter(robot, q)
+    assert np.array_equal(param, q[:, 6])
+    sols = qpik.ik(robot, T, param)
+    rows = np.arange(BATCH)
+    assert_holds(robot, q, sols.q[rows, branch])
+    assert sols.valid[rows, branch].all() and sols.within_limits[rows, branch].all()
+    assert np.isfinite(sols.q).all()
+    valid = sols.q[sols.valid]
+    F = mujoco_poses(robot, valid)
+    assert np.abs(F - np.repeat(T, sols.valid.sum(1), axis=0)).max() < 1e-10
+
+
+@PROPERTY
+@given(seed=SEEDS)
+def test_redundancy_parameter_inverts_ik(seed):
+    """Every valid branch at a random q7 maps back to that q7 and its own branch id."""
+    rng = np.random.default_rng(seed)
+    T = PANDA.fk(random_q(PANDA, BATCH // 8, seed))
+    q7 = rng.uniform(-np.pi, np.pi, len(T))
+    sols = qpik.ik(PANDA, T, q7)
+    back, branch = qpik.redundancy_parameter(PANDA, sols.q[sols.valid])
+    assert np.all(angle_diff(back, np.repeat(q7, sols.valid.sum(1))) < 1e-12)
+    assert np.array_equal(branch, np.broadcast_to(np.arange(8), sols.valid.shape)[sols.valid])
+
+
+def test_branch_numbering_on_the_panda():
+    """The module docstring's numbering: 4·[q2 < 0] + 2·[q4 > −0.4670] + [cos q5 > 0] on Franka's q4 range."""
+    q = random_q(PANDA, BATCH, 7)
+    _, branch = qpik.redundancy_parameter(PANDA, q)
+    expected = 4 * (q[:, 1] < 0) + 2 * (q[:, 3] > closed_form_for(PANDA).phi - np.pi) + (np.cos(q[:, 4]) > 0)
+    assert np.array_equal(branch, expected)
+
+
+def test_batch_single_and_casadi_agree():
+    solver = closed_form_for(PANDA)
+    rng = np.random.default_rng(11)
+    T = PANDA.fk(random_q(PANDA, 100, 11))
+    q7 = rng.uniform(-np.pi, np.pi, len(T))
+    batch = qpik.ik(PANDA, T, q7)
+    for n in range(len(T)):
+        one = qpik.ik(PANDA, T[n], q7[n])
+        Q, valid, singular = (np.array(x) for x in solver.casadi_function(ca.DM(T[n]), q7[n]))
+        np.testing.assert_allclose(one.q, batch.q[n], atol=1e-12, rtol=0)
+        np.testing.assert_allclose(Q, batch.q[n], atol=1e-12, rtol=0)
+        assert np.array_equal(one.valid, batch.valid[n]) and np.array_equal(valid.ravel() > 0.5, batch.valid[n])
+        assert np.array_equal(one.within_limits, batch.within_limits[n])
+        assert np.array_equal(singular.ravel() > 0.5, batch.singular[n])
+
+
+def test_the_catalog_panda_and_its_urdf_twin_give_the_same_branches():
+    """example-robot-data's Panda to its flange (panda_link8) has the catalog's joint angles: same q per branch."""
+    twin = qpik.load_robot(model_robot("erd_panda").model.path, tip="panda_link8")
+    assert twin.closed_form == "locked_joint"
+    q = random_q(PANDA, 200, 3)
+    mine = qpik.ik(PANDA, PANDA.fk(q), q[:, 6])
+    theirs = qpik.ik(twin, twin.fk(q), q[:, 6])
+    assert np.array_equal(mine.valid, theirs.valid)
+    assert angle_diff(mine.q[mine.valid], theirs.q[theirs.valid]).max() < 1e-9
+
+
+def test_an_unreachable_pose_gives_finite_invalid_branches():
+    T = PANDA.fk(PANDA.q_home)
+    T[:3, 3] = (2.0, 0.0, 0.5)
+    sols = qpik.ik(PANDA, T, 0.3)
+    assert not sols.valid.any() and np.isfinite(sols.q).all()
+
+
+@pytest.mark.parametrize("q2", [0.0, 1e-12, 1e-9])
+def test_shoulder_singularity_still_reaches_the_pose(q2):
+    q = PANDA.q_home.copy()
+    q[1] = q2
+    T = PANDA.fk(q)
+    sols = qpik.ik(PANDA, T, q[6])
+    F = PANDA.fk(sols.q[sols.valid])
+    assert np.abs(F - T).max() < 1e-10
+    if q2 == 0.0:
+        assert sols.singular[qpik.redundancy_parameter(PANDA, q)[1]]
+
+
+# ---- recognition and the override -------------------------------------------
+
+
+def test_redundancy_override():
+    """``redundancy="q7"`` puts the S-R-S iiwa file in the locked-q7 family, where it is complete too."""
+    iiwa = qpik.load_robot(model_robot("pybullet_iiwa").model.path, redundancy="q7")
+    assert iiwa.closed_form == "locked_joint" and "offsets between axes none" in iiwa.notes
+    q = random_q(iiwa, 500, 1)
+    sols = qpik.ik(iiwa, iiwa.fk(q), q[:, 6])
+    _, branch = qpik.redundancy_parameter(iiwa, q)
+    assert_holds(iiwa, q, sols.q[np.arange(len(q)), branch])
+    panda_file = model_robot("erd_panda").model.path
+    assert qpik.load_robot(panda_file, redundancy="psi").closed_form is None
+    assert "not srs" in qpik.load_robot(panda_file, redundancy="psi").notes
+    with pytest.raises(InputError, match="redundancy"):
+        qpik.load_robot("iiwa14", redundancy="q7")
+    with pytest.raises(InputError, match="redundancy"):
+        qpik.load_robot(panda_file, redundancy="q4")
+
+
+def test_the_xarm7_file_is_near_but_not_in_the_family():
+    """example-robot-data's xArm7 has the Panda's structure up to its rounded angles (axis 3 ~1 µm off S)."""
+    robot = model_robot("erd_xarm7")
+    assert robot.closed_form is None and "not locked-q7: axes 1-2-3 do not meet in one point" in robot.notes
+    with pytest.raises(NoClosedFormError):
+        qpik.ik(robot, robot.fk(robot.q_home), 0.0)
+
+
+# ---- feasible q7 sets --------------------------------------------------------
+
+DENSE = 20_000
+
+
+@pytest.mark.parametrize("margin", [0.0, 0.2])
+@pytest.mark.parametrize("seed", range(6))
+def test_feasible_sets_match_dense_sampling(seed, margin):
+    """Every sampled q7 more than 1e-9 rad from a set end is classified as the compiled IK's limit test says."""
+    robot = PANDA
+    lo, hi = shrunk_limits(robot.q_min, robot.q_max, margin)
+    q = random_q(robot, 1, seed, margin=0.05)[0]
+    T = robot.fk(q)
+    fi = qpik.feasible_intervals(robot, T, margin=margin)
+    assert fi.param_name == "q7"
+    if margin == 0.0:
+        k = qpik.redundancy_parameter(robot, q)[1]
+        assert fi.contains(k, q[6])
+    q7 = np.random.default_rng(seed).uniform(-np.pi, np.pi, DENSE)
+    sols = qpik.ik(robot, np.broadcast_to(T, (DENSE, 4, 4)), q7)
+    inside = sols.valid & np.all((sols.q >= lo) & (sols.q <= hi), axis=-1)
+    for k in range(8):
+        ends = np.array([x for iv in fi[k] for x in iv])
+        near = np.abs(q7[:, None] - ends[None, :]).min(axis=1, initial=np.inf) < 1e-9
+        assert np.array_equal(fi.contains(k, q7)[~near], inside[~near, k]), f"branch {k}: {fi[k]}"
