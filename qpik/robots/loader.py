@@ -67,7 +67,7 @@ from qpik.core.validate import finite_array, flag
 from qpik.robots.catalog import CATALOG, catalog_robot
 from qpik.robots.chain import Joint, SerialChain
 from qpik.robots.limits import arm_limits
-from qpik.robots.model_files import MeshOptions, UrdfJoint, is_urdf, read_spec, urdf_joints
+from qpik.robots.model_files import MeshOptions, UrdfJoint, captured_warnings, is_urdf, read_spec, urdf_joints
 from qpik.robots.recognize import REDUNDANCY, recognize
 from qpik.robots.robot import LinkCapsule, Robot
 
@@ -113,7 +113,8 @@ class ModelSource:
     def spec(self) -> mujoco.MjSpec:
         """A fresh spec of the file (meshes resolved, static bodies kept), moved so that its world frame is the
         robot's base frame (a mimic joint keeps the joint equality MuJoCo reads from the file)."""
-        spec = read_spec(self.path, self.package_map, self.collision_only, self.allow_outside)
+        with captured_warnings():  # said when the file was loaded (the robot's notes)
+            spec = read_spec(self.path, self.package_map, self.collision_only, self.allow_outside)
         if not np.array_equal(self.placement, np.eye(4)):
             _move(spec, np.linalg.inv(self.placement))
         return spec
@@ -344,14 +345,16 @@ def _compile(
 ) -> tuple[mujoco.MjModel, list[str]]:
     """The compiled model and the notes of what was repaired in it (:func:`~qpik.robots.model_files.read_spec`)."""
     repaired: list[str] = []
-    spec = read_spec(path, pmap, collision_only, allow_outside, repaired)
-    try:
-        model = spec.compile()
-    except (ValueError, RuntimeError) as exc:
-        raise InputError(f"{path.name}: MuJoCo cannot compile it ({' '.join(str(exc).split())})") from None
-    if not repaired:
-        return model, []
-    return model, [f"invalid inertias replaced (the kinematics does not use them): {', '.join(repaired)}"]
+    with captured_warnings() as said:
+        spec = read_spec(path, pmap, collision_only, allow_outside, repaired)
+        try:
+            model = spec.compile()
+        except (ValueError, RuntimeError) as exc:
+            raise InputError(f"{path.name}: MuJoCo cannot compile it ({' '.join(str(exc).split())})") from None
+    notes = [f"MuJoCo warned: {' '.join(text.split())}" for text in dict.fromkeys(said)]
+    if repaired:
+        notes.append(f"invalid inertias replaced (the kinematics does not use them): {', '.join(repaired)}")
+    return model, notes
 
 
 def _finite(model: mujoco.MjModel, bodies: list[int], on_chain: list[int], file: str) -> None:

@@ -25,7 +25,8 @@ from __future__ import annotations
 import math
 import os
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -97,6 +98,22 @@ def parse_xml(path: Path) -> ET.Element:
 
 class _DoctypeError(Exception):
     """Raised inside the XML parser at a document type declaration."""
+
+
+@contextmanager
+def captured_warnings() -> Iterator[list[str]]:
+    """MuJoCo's warnings inside the block, as a list of their texts, instead of MuJoCo's default (a line on stderr
+    and ``MUJOCO_LOG.TXT`` appended in the current folder, which is not the user's to write to); the previous
+    handler is restored after the block."""
+    import mujoco
+
+    previous = mujoco.get_mju_user_warning()
+    said: list[str] = []
+    mujoco.set_mju_user_warning(said.append)
+    try:
+        yield said
+    finally:
+        mujoco.set_mju_user_warning(previous)
 
 
 def read_spec(

@@ -153,10 +153,14 @@ def write(folder: Path, key: str) -> Path:
 
 
 @pytest.mark.parametrize("key", list(CASES))
-def test_hostile_file_gives_one_qpik_error(tmp_path, key):
+def test_hostile_file_gives_one_qpik_error(tmp_path, key, monkeypatch):
+    """... and writes nothing where it runs (MuJoCo's own warnings would append MUJOCO_LOG.TXT there)."""
     path = write(tmp_path, key)
+    monkeypatch.chdir(tmp_path)
+    before = set(tmp_path.rglob("*"))
     with pytest.raises(QpikError) as info:
         qpik.load_robot(path, **CASES[key][2])
+    assert set(tmp_path.rglob("*")) == before
     assert isinstance(info.value, InputError)
     assert info.value.__cause__ is None and (info.value.__context__ is None or info.value.__suppress_context__)
     assert any(part in str(info.value) for part in CASES[key][3].split("|")), str(info.value)
