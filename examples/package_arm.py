@@ -47,7 +47,7 @@ def main(out: Path) -> None:
         print(f"  {name:13} [{lo: .4f}, {hi: .4f}] rad, |v| <= {v:.4f} rad/s")
     radii = ", ".join(f"{c.radius * 1e3:.1f}" for c in panda.capsules)
     print(f"capsules around the collision meshes, radius (mm) of links 1-{panda.dof}: {radii}")
-    print(panda.notes or f"closed form: {panda.closed_form}")  # why not, for the Panda
+    print(panda.notes)  # which closed form the axes admit (for the Panda: q7 locked), or why none
 
     q0 = np.array([0.0, -np.pi / 4, 0.0, -3 * np.pi / 4, 0.0, np.pi / 2, np.pi / 4])  # Franka's "ready"
     goal = np.array([1.2, 0.3, 0.0, -1.9, 0.0, 2.2, 0.4])

@@ -459,7 +459,7 @@ def test_package_arm(run_example) -> None:
         lim = limits[name]
         want = [float(lim.get("lower")), float(lim.get("upper")), float(lim.get("velocity"))]
         np.testing.assert_allclose([float(lo), float(hi), float(v)], want, atol=5e-5)
-    assert "no closed form" in result.stdout and "do not intersect" in result.stdout
+    assert "closed form with q7 locked" in result.stdout and "axes 1-2-3 meet" in result.stdout
 
     model = _urdf_with_ball(urdf, run["ball_center"], float(run["ball_radius"]))
     data = mujoco.MjData(model)

@@ -16,6 +16,7 @@ from hypothesis import given, settings
 
 import qpik
 from qpik.algebra.enclosure import interval_function, taylor_function
+from qpik.analytic import closed_form_for
 from qpik.core.errors import InputError
 
 
@@ -62,7 +63,7 @@ def _self_motion(name: str):
     the generator that drew it (seed 3)."""
     robot = qpik.load_robot(name)
     T, psi = ca.SX.sym("T", 4, 4), ca.SX.sym("psi")
-    Q = qpik.analytic.closed_form_for(robot).casadi_function(T, psi)[0]
+    Q = closed_form_for(robot).casadi_function(T, psi)[0]
     rng = np.random.default_rng(3)
     return robot, ca.Function("q", [T, psi], [Q]), robot.fk(rng.uniform(robot.q_min, robot.q_max)), rng
 

@@ -11,7 +11,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
-from conftest import random_q
+from conftest import model_robot, random_q
 
 import qpik
 from qpik.algebra.lie import pose_error
@@ -91,11 +91,16 @@ def test_the_pose_error_is_the_log_and_differentiable_at_zero():
 
 
 def test_unreachable_and_bad_input():
+    """Out of reach: "unreachable" where a closed form's feasible sets prove it (Panda, locked q7), "not found"
+    on an arm without one (example-robot-data's xArm7)."""
     robot = qpik.load_robot("panda")
     far = np.eye(4)
     far[:3, 3] = (2.0, 0.0, 0.5)
     res = solve_full(robot, far, options=FullOptions(max_starts=3))
-    assert res.status == "not found" and res.pose_error > 0.5 and res.starts == 3
+    assert res.status == "unreachable" and res.pose_error > 0.5
+    xarm = model_robot("erd_xarm7")
+    res = solve_full(xarm, far, options=FullOptions(max_starts=3))
+    assert xarm.closed_form is None and res.status == "not found" and res.pose_error > 0.5 and res.starts == 3
     with pytest.raises(InputError, match="pose"):
         solve_full(robot, np.full((4, 4), np.nan))
     with pytest.raises(InputError, match="pose"):
