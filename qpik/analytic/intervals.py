@@ -115,7 +115,12 @@ class Flagging(Protocol):
 
 
 class ParameterSets(Protocol):
-    """The exact feasible sets of one closed form's parameter (``DeltaIntervals``, ``PsiIntervals``)."""
+    """The feasible sets of one closed form's parameter (``DeltaIntervals``, ``PsiIntervals``, ``Q7Intervals``).
+
+    ``proved``: every breakpoint is found by an exact or exactly bounded method, so an empty set proves that no
+    parameter is feasible; False where the breakpoints come from a sampled sweep."""
+
+    proved: bool
 
     def __call__(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals: ...
 

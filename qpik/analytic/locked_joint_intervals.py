@@ -75,6 +75,9 @@ class Q7Intervals:
     j (not q4, not q7), or the branch's validity function (:meth:`LockedJointSolver.validity`) as joint n = 7.
     """
 
+    proved = False
+    """The breakpoints come from a sweep (module docstring): an empty set proves nothing."""
+
     def __init__(self, solver: LockedJointSolver):
         self._solver = solver
         self._assemble = SetAssembler(solver, solver.n_branches)
@@ -84,6 +87,7 @@ class Q7Intervals:
         R, p = sy.frame_of_batch(T)
         f = ca.Function(f"validity_{solver.kind}", [T, q7], [ca.vertcat(*solver.validity(R, p, q7, sy.CASADI))])
         self._validity = RowMap(f, shared=[0])
+        self._last: tuple[bytes, float, FeasibleIntervals] | None = None
 
     def native_sets(self) -> None:
         """No single C call for this family."""
@@ -108,7 +112,17 @@ class Q7Intervals:
         return self._values(self._sweep(T, x)[0], np.arange(x.size), *column)
 
     def __call__(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
-        """Per branch, the q7 (rad) where every joint lies in the limits shrunk by ``margin``; ``T`` (4, 4)."""
+        """Per branch, the q7 (rad) where every joint lies in the limits shrunk by ``margin``; ``T`` (4, 4). The
+        last answer is kept: the same pose and margin again (a viewer's sets, then its best answer's level sets)
+        return the same object."""
+        key = np.asarray(T, float).tobytes()
+        if self._last is not None and self._last[0] == key and self._last[1] == margin:
+            return self._last[2]
+        out = self._sets(T, margin)
+        self._last = (key, margin, out)
+        return out
+
+    def _sets(self, T: np.ndarray, margin: float) -> FeasibleIntervals:
         s = self._solver
         if margin > 1.0:
             return FeasibleIntervals(s.param_name, s.branch_array, [[] for _ in s.branch_ids],
@@ -231,12 +245,16 @@ class Q7Intervals:
         joint, level, each (K,)) bracketed by [a, b] (K,), ``fa`` their values at a; a keeps the sign of ``fa``.
 
         Regula falsi with the Illinois rule (the value kept at an end twice in a row is halved), every third step a
-        bisection: the bracket at least halves every three steps, and a smooth root converges superlinearly."""
+        bisection: the bracket at least halves every three steps, and a smooth root converges superlinearly. Each
+        step also evaluates the columns at x ± :data:`ROOT_TOL`/2.5 (in the same compiled sweep): where their signs
+        differ as at a and b, that straddle is the bracket, so a converged estimate ends the search at once instead
+        of waiting for the far end to move."""
         if a.size == 0:
             return a, b
         a, b, fa = a.copy(), b.copy(), fa.copy()
         fb = self._at(T, b, *column)
         kept = np.zeros(a.size, int)  # +1: a kept last step, -1: b kept
+        h = 0.4 * ROOT_TOL
         step = 0
         while (live := np.flatnonzero(b - a > ROOT_TOL)).size:
             step += 1
@@ -247,14 +265,17 @@ class Q7Intervals:
                 den = np.where(FB != FA, FB - FA, 1.0)
                 x = np.where(FB != FA, (A * FB - B * FA) / den, m)
                 x = np.where((x > A) & (x < B), x, m)
-            fx = self._at(T, x, *(c[live] for c in column))
+            xl, xr = np.maximum(x - h, A), np.minimum(x + h, B)
+            fl, fx, fr = self._at(T, np.concatenate([xl, x, xr]), *(np.tile(c[live], 3) for c in column)).reshape(3, -1)
             left = np.signbit(fx) == np.signbit(FA)  # the root is in [x, b]
             FB = FB * np.where(left & (kept[live] == -1), 0.5, 1.0)
             FA = FA * np.where(~left & (kept[live] == 1), 0.5, 1.0)
             exact = fx == 0.0
-            a[live] = np.where(left | exact, x, A)
-            b[live] = np.where(left & ~exact, B, x)
-            fa[live], fb[live] = np.where(left, fx, FA), np.where(left, FB, fx)
+            na, nb = np.where(left | exact, x, A), np.where(left & ~exact, B, x)
+            nfa, nfb = np.where(left, fx, FA), np.where(left, FB, fx)
+            straddle = ~exact & (np.signbit(fl) == np.signbit(FA)) & (np.signbit(fr) != np.signbit(FA))
+            a[live], b[live] = np.where(straddle, xl, na), np.where(straddle, xr, nb)
+            fa[live], fb[live] = np.where(straddle, fl, nfa), np.where(straddle, fr, nfb)
             kept[live] = np.where(left, -1, 1)
         return a, b
 

@@ -112,6 +112,8 @@ CSPoly = tuple[Poly, Poly]  # A(c) + sin δ · B(c)
 class DeltaIntervals:
     """Feasible δ intervals of every branch of one offset-shoulder solver; call with a (4, 4) pose and a margin."""
 
+    proved = True
+
     def __init__(self, solver: OffsetShoulderSolver):
         self._solver = solver
         self.branch = np.array(solver.branch_ids)

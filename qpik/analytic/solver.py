@@ -192,6 +192,12 @@ class AnalyticSolver(ABC):
         :mod:`qpik.analytic.srs_intervals`)."""
         return self._sets(T, margin)
 
+    @property
+    def sets_proved(self) -> bool:
+        """Whether :meth:`feasible_intervals` is proved (``ParameterSets.proved``): an empty set then proves that
+        no parameter is feasible, and a level set or certificate built on the sets is a proof."""
+        return self._sets.proved
+
     def native_sets(self) -> NativeSets | None:
         """:meth:`feasible_intervals` under limits given at run time as one C call
         (:class:`~qpik.analytic.intervals.NativeSets`), for C code that calls it in a loop; None where there is no

@@ -111,6 +111,8 @@ class JointLevels(NamedTuple):
 class PsiIntervals:
     """Feasible ψ intervals of every branch of one S-R-S solver; call with a (4, 4) pose and a margin."""
 
+    proved = True
+
     def __init__(self, solver: SRSSolver):
         self._solver = solver
         self.branch = np.array(solver.branch_ids)

@@ -49,6 +49,7 @@ from qpik.scene.scene import Scene, scene_of
 
 VERIFY_TOL = 1e-9
 """m and rad: an ``"optimal"`` answer's FK reaches the pose to this (:func:`_verify`)."""
+UNPROVED_SETS = "this closed form's feasible sets come from a sweep, which proves no maximum"
 STATUSES = ("optimal", "unreachable", "no feasible branch", "solver failed")
 METHODS = ("auto", "levelset", "search", "ipopt")
 VIOLATION_SAMPLES = 720
@@ -557,6 +558,9 @@ def _answers(
     """Per pose, the result from the best points, and what its per-branch table is built from."""
     sm = scene.selfmotion
     columns, ids = _columns(sm, tuple(searched)), sm.branch_ids.tolist()
+    if not sm.solver.sets_proved:  # the level sets and the certificate stand on the feasible sets
+        certified = np.zeros_like(certified)
+        reason = [UNPROVED_SETS] * len(reason)
     out = []
     poses = zip(best.f.tolist(), best.psi.tolist(), best.rounds.tolist(), scene.counts.tolist(), best.q.copy(),
                 best.clearance.tolist(), certified.tolist(), bound.tolist(), reason, method)  # fmt: skip

@@ -216,13 +216,17 @@ def solve_full(
 
 
 def _not_found(robot: Robot, T: np.ndarray) -> str:
-    """``"unreachable"`` when proved (a closed form's exact feasible set at T is empty), else ``"not found"``."""
+    """``"unreachable"`` when proved (a closed form's proved feasible sets at T are all empty), else
+    ``"not found"``."""
     if robot.closed_form is None:
         return "not found"
-    from qpik.analytic import feasible_intervals
+    from qpik.analytic import closed_form_for
 
-    fi = feasible_intervals(robot, T)
-    return "not found" if any(fi.intervals) else "unreachable"
+    solver = closed_form_for(robot)
+    if not solver.sets_proved:
+        return "not found"
+    with solver.lock:
+        return "not found" if any(solver.feasible_intervals(T).intervals) else "unreachable"
 
 
 def _starts(robot: Robot, T: np.ndarray, first: np.ndarray, seed: int):

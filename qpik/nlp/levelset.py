@@ -115,7 +115,7 @@ def build(scene: BestRun, rows: list[int]) -> None:
     with scene.watch.paused():
         if list(rows) == list(range(sm.searched)) and _native(sm) is not None:
             return
-        sm.solver.feasible_intervals(scene.poses[0], 0.5)
+        sm.build_sets(scene.poses[0])
         sm.build(models=False)
 
 

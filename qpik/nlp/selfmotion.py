@@ -55,6 +55,14 @@ class SelfMotion:
         self.searched = MIRRORED.get(self.solver.kind, self.solver.n_branches)
         self.whole_turn = bool(np.any(np.asarray(robot.q_max) - np.asarray(robot.q_min) >= 2.0 * np.pi))
         """Some joint's range spans a whole turn (its configurations are the IK's representatives q + 2πk)."""
+        self._sets_built = False
+
+    def build_sets(self, T: np.ndarray) -> None:
+        """Trace and compile the solver's feasible sets under shrunk limits, by evaluating them once at the pose
+        ``T`` (4, 4); later calls do nothing."""
+        if not self._sets_built:
+            self.solver.feasible_intervals(T, 0.5)
+            self._sets_built = True
 
     @cached_property
     def _symbols(self) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:

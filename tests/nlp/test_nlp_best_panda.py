@@ -20,7 +20,8 @@ def _margin(robot: qpik.Robot, q: np.ndarray) -> np.ndarray:
     return -np.minimum((q - robot.q_min) / half, (robot.q_max - q) / half).min(axis=-1)
 
 
-def test_margin_is_certified_and_no_dense_sample_is_better():
+def test_margin_is_optimal_not_certified_and_no_dense_sample_is_better():
+    """The sets come from a sweep, so the answer is never called certified; no dense sample beats it."""
     robot = qpik.load_robot("panda")
     solver = closed_form_for(robot)
     T = robot.fk(random_q(robot, POSES, 5))
@@ -28,7 +29,8 @@ def test_margin_is_certified_and_no_dense_sample_is_better():
     q7 = np.linspace(-np.pi, np.pi, DENSE, endpoint=False)
     for k in range(POSES):
         res = results[k]
-        assert res.status == "optimal" and res.certified, res.summary()
+        assert res.status == "optimal" and not res.certified and "sweep" in res.message, res.summary()
+        assert res.gap == np.inf
         assert res.param_name == "q7" and res.param == res.q[6]
         np.testing.assert_allclose(robot.fk(res.q), T[k], atol=1e-10)
         assert robot.within_limits(res.q)
