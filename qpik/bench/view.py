@@ -8,10 +8,11 @@ to a browser while the bench runs; the note says whether). A scripted drag of :d
 slider's ψ/δ, the feasible sets, :func:`qpik.solve_best` without its certificate (which follows when a
 drag ends) or the numerical IK, the clearances, every scene and panel message, and the flush of the
 websocket buffers. Each update's time is from the pose's arrival to the flush. Arms: the catalog iiwa14
-(alone, and with the ball and table of ``problems/iiwa_obstacle_reach.toml``), the catalog Panda (no
-closed form: the numerical IK) and the KUKA iiwa URDF of ``pybullet_data`` (meshes, closed form found
-in the file's chain). The loops go around the home pose; the URDF's home is the file's zero, the arm
-stretched straight up, where most of the loop is out of reach, so it is also dragged around a bent pose
+(alone, and with the ball and table of ``problems/iiwa_obstacle_reach.toml``), the catalog Panda (closed form
+with q7 locked, its sets by a sweep), the KUKA iiwa URDF of ``pybullet_data`` (meshes, closed form found
+in the file's chain) and, when example-robot-data is installed, its xArm7 (no closed form: the numerical IK).
+The loops go around the home pose; the URDF's home is the file's zero, the arm stretched straight up, where
+most of the loop is out of reach, so it is also dragged around a bent pose
 (:data:`BENT`). Each row says how many of its poses were reached: by some branch, or by the numerical IK
 (status ``"ok"``).
 """
@@ -54,15 +55,21 @@ def _arms() -> list[tuple[str, object, tuple, np.ndarray | None, str]]:
 
     iiwa, problem = load_robot("iiwa14"), load(find_problem("iiwa_obstacle_reach"))
     arms = [("iiwa14", iiwa, (), None, ""), ("iiwa14 + ball and table", iiwa, problem.obstacles, None, ""),
-            ("panda (numerical IK)", load_robot("panda"), (), None, "")]  # fmt: skip
-    try:
-        from qpik.robots.packaged import packaged_model
+            ("panda (q7 locked)", load_robot("panda"), (), None, "")]  # fmt: skip
+    from qpik.robots.packaged import packaged_model
 
-        urdf = load_robot(str(packaged_model("pybullet/iiwa")))
-    except QpikError as exc:  # pybullet is not installed
-        return [*arms, ("URDF pybullet kuka_iiwa", None, (), None, str(exc))]
     label = "URDF pybullet kuka_iiwa"
-    return [*arms, (label, urdf, (), None, ""), (f"{label}, bent", urdf, (), BENT, "")]
+    try:
+        urdf = load_robot(str(packaged_model("pybullet/iiwa")))
+        arms += [(label, urdf, (), None, ""), (f"{label}, bent", urdf, (), BENT, "")]
+    except QpikError as exc:  # pybullet is not installed
+        arms.append((label, None, (), None, str(exc)))
+    label = "URDF example-robot-data xArm7 (numerical IK)"
+    try:
+        arms.append((label, load_robot(str(packaged_model("erd/xarm7"))), (), None, ""))
+    except QpikError as exc:  # example-robot-data is not installed
+        arms.append((label, None, (), None, str(exc)))
+    return arms
 
 
 def run(args: argparse.Namespace) -> list[Row]:

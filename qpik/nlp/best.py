@@ -391,6 +391,7 @@ def _solve(
 ) -> list[BestResult]:
     sm = scene.selfmotion
     N, B = len(scene.poses), sm.searched
+    certify = certify and sm.solver.sets_proved  # a certificate over unproved sets would prove nothing
     if method == "levelset":
         sets = maximise(scene, rows, weight)
         scene.counts += sets.evaluations

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import functools
 import io
 import math
 import socket
@@ -43,7 +44,7 @@ from qpik.viewer.chart import feasible_chart
 from qpik.viewer.geometry import ArmGeometry, Part, capsule_part, rotation, shape_part, wxyz
 from qpik.viewer.options import ViewOptions
 from qpik.viewer.playback import Track, as_track
-from qpik.viewer.state import ViewState, solve_view
+from qpik.viewer.state import ViewState, prepare_search, solve_view
 
 WITHIN, OUTSIDE, BEST = (47, 158, 68), (245, 130, 32), (240, 160, 0)
 GHOST_OPACITY = 0.28
@@ -269,10 +270,15 @@ class Viewer:
             self._certifier.join()
 
     def _certify_later(self) -> None:
-        """Certify the current pose in a thread of its own (its first certificate builds the arm's bounds)."""
-        if self._state.best is None or self._state.best.certified:
+        """Certify the current pose in a thread of its own (its first certificate builds the arm's bounds); where
+        the level sets certified it, build the search instead (:func:`~qpik.viewer.state.prepare_search`)."""
+        state = self._state
+        if state.best is None:
             return
-        self._certifier = threading.Thread(target=self.update, name="qpik-view-certify", daemon=True)
+        work = self.update
+        if state.best.certified:
+            work = functools.partial(prepare_search, self.robot, state, self._objective, self.obstacles, self.d_safe)
+        self._certifier = threading.Thread(target=work, name="qpik-view-certify", daemon=True)
         self._certifier.start()
 
     def _stop_server(self) -> None:

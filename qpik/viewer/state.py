@@ -81,3 +81,14 @@ def solve_view(
     clearance = distances(robot.capsule_segments(q), robot.capsule_radii, obstacles) if len(obstacles) else None
     return ViewState(np.asarray(pose, dtype=float), param_, branches, intervals, best, numerical, q, clearance,
                      certify)  # fmt: skip
+
+
+def prepare_search(robot: Robot, state: ViewState, objective: str, obstacles: ObstacleSet, d_safe: float) -> None:
+    """Build what a later drag may call that ``state`` (``robot``'s answer of :func:`solve_view`) did not: the
+    search of :func:`qpik.solve_best`, for poses its level sets do not settle (out of reach, or among obstacles),
+    by one search without certificate at ``state``'s pose; its answer is not kept."""
+    if state.best is None:
+        return
+    q_ref = state.q if objective == "distance" else None
+    options = BestOptions(method="search", certify=False)
+    solve_best(robot, state.pose, objective, obstacles, q_ref, d_safe=d_safe, options=options)

@@ -72,9 +72,10 @@ EXPECTED = {
     "view": [
         "iiwa14: pose → scene",
         "iiwa14 + ball and table: pose → scene",
-        "panda (numerical IK): pose → scene",
+        "panda (q7 locked): pose → scene",
         "URDF pybullet kuka_iiwa: pose → scene",
         "URDF pybullet kuka_iiwa, bent: pose → scene",
+        "URDF example-robot-data xArm7 (numerical IK): pose → scene",
     ],
 }
 
