@@ -9,7 +9,8 @@ import qpik
 from qpik.core.errors import InputError
 from qpik.geometry.distance import ObstacleSet
 from qpik.geometry.shapes import Sphere
-from qpik.planning.planner import MAX_RESOLUTION, MAX_WAYPOINTS
+from qpik.planning.planner import MAX_RESOLUTION
+from qpik.planning.setup import MAX_WAYPOINTS
 from qpik.sim import simulate
 
 IIWA = qpik.load_robot("iiwa14")

@@ -16,8 +16,8 @@ import numpy as np
 
 from qpik.analytic import ik
 from qpik.core.errors import InputError
-from qpik.planning.plan import Plan, measure
-from qpik.planning.planner import Setup
+from qpik.planning.plan import Plan, make_plan, measure
+from qpik.planning.setup import Setup
 from qpik.planning.track import track
 
 
@@ -37,9 +37,9 @@ def constant_parameter(plan: Plan, value: float, branch: int, mujoco: bool = Tru
     q = sols.q[:, hits[0]]
     continuous = np.ones(len(q) - 1, bool)
     sym = {"delta": "δ", "psi": "ψ"}[sols.param_name]
-    out = setup.plan(q, "baseline", param=np.full(len(q), float(value)), branch=np.full(len(q), int(branch)),
-                     param_name=sols.param_name, cost=setup.cost(q, continuous),
-                     label=f"constant {sym} = {value:g} (branch {branch})")  # fmt: skip
+    out = make_plan(setup, q, "baseline", param=np.full(len(q), float(value)), branch=np.full(len(q), int(branch)),
+                    param_name=sols.param_name, cost=setup.cost(q, continuous),
+                    label=f"constant {sym} = {value:g} (branch {branch})")  # fmt: skip
     measure(out, mujoco)
     return out
 
@@ -50,6 +50,6 @@ def online(plan: Plan, mujoco: bool = True) -> Plan:
     if not len(plan.q):
         raise InputError("plan: no planned configuration to start from")
     q = track(setup, plan.q[0])
-    out = setup.plan(q, "baseline", cost=setup.cost(q, np.ones(len(q) - 1, bool)), label="QP controller (online)")
+    out = make_plan(setup, q, "baseline", cost=setup.cost(q, np.ones(len(q) - 1, bool)), label="QP controller (online)")
     measure(out, mujoco)
     return out

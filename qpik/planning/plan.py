@@ -36,7 +36,7 @@ from qpik.geometry.distance import ObstacleSet
 from qpik.robots.robot import Robot
 
 if TYPE_CHECKING:
-    from qpik.planning.planner import Setup
+    from qpik.planning.setup import Setup
 
 FK_TOL = 1e-9
 """m and rad: FK of the plan must reach every waypoint to this."""
@@ -361,3 +361,10 @@ def _mujoco_clearance(robot: Robot, obstacles: ObstacleSet, q: np.ndarray) -> np
         scene.kin.update(qk)
         res[k] = np.where(checked, scene.clearances(out), np.inf).min(initial=np.inf)
     return res
+
+
+def make_plan(setup: Setup, q: np.ndarray, status: str, **kw) -> Plan:
+    """A :class:`Plan` of configurations q (K, n) on the waypoints of ``setup``, measured."""
+    return Plan(setup.robot, setup.poses, setup.times, setup.progress, q, kw.pop("param", np.zeros(0)),
+                kw.pop("branch", np.zeros(0, int)), kw.pop("param_name", ""), status, setup.tr.step,
+                setup.d_safe, setup.obstacles, setup=setup, **kw)  # fmt: skip

@@ -40,23 +40,20 @@ from qpik.analytic import feasible_intervals
 from qpik.core.errors import InputError, UnreachableError
 from qpik.core.stopwatch import Stopwatch
 from qpik.core.validate import finite_array, flag, number
-from qpik.core.validate import pose as check_pose
 from qpik.geometry.paths import TimedPath
 from qpik.nlp.options import BestOptions
-from qpik.objectives import Objective, ReferenceDistance
+from qpik.objectives import Objective
 from qpik.planning import dp
 from qpik.planning.grid import Grid
 from qpik.planning.options import PlanOptions
-from qpik.planning.plan import Plan, Profile, measure
+from qpik.planning.plan import Plan, Profile, make_plan, measure
 from qpik.planning.refine import PathNLP
+from qpik.planning.setup import Setup
 from qpik.planning.track import track
 from qpik.robots.robot import Robot
-from qpik.scene.evaluator import Evaluator
 from qpik.scene.scene import Scene, scene_of
 
 RECONFIGURE = ("forbid", "fewest")
-MAX_WAYPOINTS = 10_000
-"""The most waypoints of one plan."""
 MAX_RESOLUTION = 16_384
 """The largest ``resolution``."""
 MAX_STATES = 4_000_000
@@ -67,88 +64,6 @@ NEAR_MISS = 2.0
 """A reconfiguration whose closest grid states need at most this many joint-step bounds is tried on finer grids."""
 IMPROVED = 1e-12
 """The NLP's answer replaces the DP's when its objective is lower by more than this (relative)."""
-
-
-class Setup:
-    """The checked inputs of one planning call: waypoints, progress, transition bounds and weights.
-
-    Attributes:
-        scene: the problem's scene; robot, objective, obstacles: the arm, the objective (or None) and the obstacles
-            (an ObstacleSet).
-        poses, times, progress: the waypoints (N, 4, 4), their times (N,) s or None, and progress (N,).
-        d_safe, q_ref: the safety distance (m) and the posture reference (n,), rad.
-        tr: the transition bounds (:class:`~qpik.planning.dp.Transitions`).
-    """
-
-    def __init__(self, scene: Scene, path, times, options: PlanOptions):
-        self.scene = scene
-        self.robot = robot = scene.robot
-        waypoints, max_joint_step, a_max = options.waypoints, options.max_joint_step, options.a_max
-        n = robot.dof
-        if isinstance(path, TimedPath) and not isinstance(path, np.ndarray):
-            duration = number(path.duration, "path.duration")
-            if times is None:
-                count = int(number(waypoints, "waypoints", 2))
-                if count != waypoints or count > MAX_WAYPOINTS:
-                    raise InputError(f"waypoints: expected an integer in [2, {MAX_WAYPOINTS}], got {waypoints!r}")
-                times = np.linspace(0.0, duration, count)
-            poses = np.asarray(path.pose(finite_array(times, "times", (None,))), float)
-        else:
-            poses = path
-        T, batched = check_pose(poses, "path", flag(options.project, "project"))
-        if not batched or len(T) < 2:
-            raise InputError(f"path: expected (N, 4, 4) poses with N >= 2 or a timed path, got shape {np.shape(T)}")
-        N = len(T)
-        if N > MAX_WAYPOINTS:
-            raise InputError(f"path: at most {MAX_WAYPOINTS} waypoints, got {N}")
-        self.poses = T
-        if times is not None:
-            times = finite_array(times, "times", (N,)).copy()
-            if np.any(np.diff(times) <= 0):
-                raise InputError("times: must be strictly increasing")
-        self.times = times
-        self.progress = times if times is not None else np.linspace(0.0, 1.0, N)
-        step = finite_array(max_joint_step, "max_joint_step")
-        if step.shape not in ((), (n,)) or np.any(step <= 0):
-            raise InputError(f"max_joint_step: expected a number > 0 or ({n},) of them (rad), got {step}")
-        lim = np.broadcast_to(step, (N - 1, n)).copy()
-        dt = None
-        if times is not None:
-            dt = np.diff(times)
-            lim = np.minimum(lim, robot.v_max[None] * dt[:, None])
-        acc = None
-        if a_max is not None:
-            if times is None:
-                raise InputError("a_max: acceleration limits need times")
-            acc = np.broadcast_to(finite_array(a_max, "a_max"), (n,)).copy()
-            if np.any(acc <= 0):
-                raise InputError("a_max: must be > 0")
-        delta = np.diff(self.progress)
-        point = np.zeros(N)
-        point[:-1] += 0.5 * delta
-        point[1:] += 0.5 * delta
-        self.tr = dp.Transitions(lim, 1.0 / delta, point, dt, acc)
-        self.objective, self.obstacles, self.d_safe = scene.objective, scene.obstacles, scene.d_safe
-        if scene.q_ref is None and self.objective is not None and any(isinstance(o, ReferenceDistance)
-                                                                      for _, o in self.objective.terms):  # fmt: skip
-            raise InputError("q_ref: the distance objective needs a reference configuration q_ref")
-        self.q_ref = np.zeros(n) if scene.q_ref is None else scene.q_ref
-
-    def plan(self, q: np.ndarray, status: str, **kw) -> Plan:
-        """A :class:`Plan` of configurations q (K, n) on these waypoints, measured."""
-        return Plan(self.robot, self.poses, self.times, self.progress, q, kw.pop("param", np.zeros(0)),
-                    kw.pop("branch", np.zeros(0, int)), kw.pop("param_name", ""), status, self.tr.step,
-                    self.d_safe, self.obstacles, setup=self, **kw)  # fmt: skip
-
-    def cost(self, q: np.ndarray, continuous: np.ndarray) -> float:
-        """J of configurations q (N, n) (see :mod:`qpik.planning.dp`); ``continuous`` (N-1,): which
-        transitions count in the motion term."""
-        D = np.diff(q, axis=0)
-        motion = float(np.sum(np.einsum("kj,kj->k", D, D) * self.tr.motion[: len(D)] * continuous))
-        if self.objective is None:
-            return motion
-        f = Evaluator(self.robot, self.objective, self.obstacles)(q, self.q_ref)[0]
-        return motion + float(np.sum(self.tr.point[: len(q)] * f))
 
 
 def plan_self_motion(
@@ -235,10 +150,10 @@ def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fe
         continuous = np.ones(max(k - 1, 0), bool)
         continuous[[j for j in result.reconfigurations if j < k - 1]] = False
         cost = setup.cost(result.q[:k], continuous) if k else 0.0
-        plan = setup.plan(result.q[:k], "failed", param_name=sym, failure=result.failure.reason, failure_waypoint=k,
-                          failure_kind=result.failure.kind,
-                          least_violating=_least_violating(setup, k), timings={"dp": t_dp}, cost=cost,
-                          dp_cost=cost, reconfigurations=[j for j in result.reconfigurations if j < k - 1])  # fmt: skip
+        plan = make_plan(setup, result.q[:k], "failed", param_name=sym, failure=result.failure.reason,
+                         failure_waypoint=k, failure_kind=result.failure.kind,
+                         least_violating=_least_violating(setup, k), timings={"dp": t_dp}, cost=cost,
+                         dp_cost=cost, reconfigurations=[j for j in result.reconfigurations if j < k - 1])  # fmt: skip
         plan.branch, plan.param = _public(grid, result.rows[:k], result.index[:k])
         plan.profile = _profile(grid, result)
         measure(plan, mujoco)
@@ -246,9 +161,9 @@ def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fe
     continuous = np.ones(len(setup.poses) - 1, bool)
     continuous[result.reconfigurations] = False
     branch, param = _public(grid, result.rows, result.index)
-    plan = setup.plan(result.q, "dp", param=param, branch=branch, param_name=sym, cost=result.cost,
-                      dp_cost=result.cost, reconfigurations=result.reconfigurations, timings={"dp": t_dp},
-                      profile=_profile(grid, result), label="DP")  # fmt: skip
+    plan = make_plan(setup, result.q, "dp", param=param, branch=branch, param_name=sym, cost=result.cost,
+                     dp_cost=result.cost, reconfigurations=result.reconfigurations, timings={"dp": t_dp},
+                     profile=_profile(grid, result), label="DP")  # fmt: skip
     measure(plan, mujoco)
     if not refine:
         return plan
@@ -258,9 +173,9 @@ def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fe
     if out.cost < result.cost - IMPROVED * max(1.0, abs(result.cost)):
         rows = result.rows
         branch, param = grid.public(rows, out.param)
-        better = setup.plan(out.q, "optimal", param=param, branch=branch, param_name=sym, cost=out.cost,
-                            dp_cost=result.cost, reconfigurations=result.reconfigurations, timings=plan.timings,
-                            profile=plan.profile, label="NLP", dp_plan=plan)  # fmt: skip
+        better = make_plan(setup, out.q, "optimal", param=param, branch=branch, param_name=sym, cost=out.cost,
+                           dp_cost=result.cost, reconfigurations=result.reconfigurations, timings=plan.timings,
+                           profile=plan.profile, label="NLP", dp_plan=plan)  # fmt: skip
         measure(better, mujoco)
         if better.ok:
             return better
@@ -340,7 +255,8 @@ def _plan_joints(setup: Setup, refine: bool, mujoco: bool) -> Plan:
     try:
         q0 = solve_ik(setup.robot, setup.poses[0], setup.robot.q_home)
     except UnreachableError as exc:  # no proof without a closed form: the plan fails its FK check at waypoint 0
-        plan = setup.plan(
+        plan = make_plan(
+            setup,
             np.zeros((0, setup.robot.dof)),
             "failed",
             failure=f"check 'fk' fails at waypoint 0: {exc}",
@@ -354,8 +270,13 @@ def _plan_joints(setup: Setup, refine: bool, mujoco: bool) -> Plan:
     q_track = track(setup, q0, watch)
     timings = {"tracking": watch.stop()}
     continuous = np.ones(len(setup.poses) - 1, bool)
-    plan = setup.plan(
-        q_track, "tracking", cost=setup.cost(q_track, continuous), timings=timings, label="QP controller (online)"
+    plan = make_plan(
+        setup,
+        q_track,
+        "tracking",
+        cost=setup.cost(q_track, continuous),
+        timings=timings,
+        label="QP controller (online)",
     )
     measure(plan, mujoco)
     if not refine:
@@ -363,6 +284,6 @@ def _plan_joints(setup: Setup, refine: bool, mujoco: bool) -> Plan:
     nlp = PathNLP(setup.scene, setup.poses, setup.tr, continuous)
     out = nlp.solve(q_track)
     timings["nlp"] = out.time
-    refined = setup.plan(out.q, "optimal", cost=out.cost, timings=timings, label="NLP", dp_plan=plan)
+    refined = make_plan(setup, out.q, "optimal", cost=out.cost, timings=timings, label="NLP", dp_plan=plan)
     measure(refined, mujoco)
     return refined if refined.ok or not plan.ok else plan

@@ -14,7 +14,7 @@ from qpik.core.stopwatch import Stopwatch
 from qpik.geometry.paths import WaypointPath
 
 if TYPE_CHECKING:
-    from qpik.planning.planner import Setup
+    from qpik.planning.setup import Setup
 
 TRACK_DT = 0.002
 """s: control period of the QP controller's tracking run."""
