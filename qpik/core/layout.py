@@ -8,7 +8,7 @@ back numpy views (or CasADi symbols) by name. No other code computes an offset i
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from typing import Any, Union
 
 import casadi as ca
@@ -117,6 +117,22 @@ class Layout:
             raise ValueError(f"views: expected a last axis of {self.size}, got shape {flat.shape}")
         lead = flat.shape[:-1]
         return Blocks({k: flat[..., span].reshape((*lead, *self.shape(k))) for k, span in self._spans.items()})
+
+    def split(self, values: Sequence[Any]) -> Blocks:
+        """The blocks of a flat sequence of scalars (numbers, numpy arrays that broadcast, or SX), by name: a
+        scalar block (shape ``()``) as its scalar, a vector as a tuple, a matrix (r, c) as a tuple of r row
+        tuples, a nested layout's block as the tuple of its scalars (to :meth:`split` with that layout)."""
+        if len(values) != self.size:
+            raise ValueError(f"split: expected {self.size} values, got {len(values)}")
+        out = {}
+        for name, span in self._spans.items():
+            part, shape = tuple(values[span]), self._shapes[name]
+            if shape == ():
+                part = part[0]
+            elif not isinstance(shape, Layout) and len(shape) == 2:
+                part = tuple(part[r * shape[1] : (r + 1) * shape[1]] for r in range(shape[0]))
+            out[name] = part
+        return Blocks(out)
 
     def symbols(self, flat: ca.SX, count: int = 1) -> Blocks:
         """The blocks of an SX column holding ``count`` records of this layout back to back.

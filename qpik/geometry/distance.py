@@ -50,7 +50,7 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
-from qpik.algebra.symbolic import CASADI, NUMPY, Mat, Ops, Scalar, Vec, matvec, transpose, vadd, vscale, vsub
+from qpik.algebra.symbolic import CASADI, NUMPY, Ops, Scalar, Vec, matvec, transpose, vadd, vscale, vsub
 from qpik.core.errors import InputError
 from qpik.core.layout import Layout
 from qpik.core.validate import bounded, finite_array
@@ -64,20 +64,39 @@ Kernel = tuple[Scalar, Scalar, Vec, Vec]
 def _params(shape: Shape) -> tuple[str, np.ndarray]:
     """The kernel family of a shape and its flat parameter vector (world frame)."""
     if isinstance(shape, Sphere):
-        return "sphere", np.r_[shape.center, shape.radius]
+        return "sphere", _record("sphere", centre=shape.center, radius=shape.radius)
     if isinstance(shape, Capsule):
         if not np.any(shape.p1 != shape.p0):  # a zero-length capsule is a sphere
-            return "sphere", np.r_[shape.p0, shape.radius]
-        return "capsule", np.r_[shape.p0, shape.p1 - shape.p0, shape.radius]
+            return "sphere", _record("sphere", centre=shape.p0, radius=shape.radius)
+        return "capsule", _record("capsule", start=shape.p0, axis=shape.p1 - shape.p0, radius=shape.radius)
     if isinstance(shape, Box):
-        return "box", np.r_[shape.center, shape.rotation.ravel(), shape.half_extents]
+        return "box", _record("box", centre=shape.center, rotation=shape.rotation, half_extents=shape.half_extents)
     if isinstance(shape, HalfSpace):
-        return "halfspace", np.r_[shape.normal, shape.offset]
+        return "halfspace", _record("halfspace", normal=shape.normal, offset=shape.offset)
     raise InputError(f"obstacle: expected a Sphere, Capsule, Box or HalfSpace, got {type(shape).__name__}")
 
 
-PARAMS = {"sphere": 4, "capsule": 7, "box": 15, "halfspace": 4}
-"""Length of the parameter vector of each kernel family (see :func:`_params`)."""
+RECORDS = {
+    "sphere": Layout(centre=3, radius=()),
+    "capsule": Layout(start=3, axis=3, radius=()),
+    "box": Layout(centre=3, rotation=(3, 3), half_extents=3),
+    "halfspace": Layout(normal=3, offset=()),
+}
+"""The parameter record of each kernel family (:func:`_params`; world frame, m): a capsule's axis runs from
+``start`` to ``start + axis``, a box's ``rotation`` maps box coordinates to the world (row-major), a half-space is
+``normal · x <= offset``."""
+PARAMS = {kind: record.size for kind, record in RECORDS.items()}
+"""Length of the parameter record of each kernel family."""
+REFERENCE = {"sphere": "centre", "capsule": "start", "box": "centre", "halfspace": None}
+"""The block of each family's record that is a point of the obstacle (what moves it), None for a half-space."""
+
+
+def set_layout(kinds: Sequence[str]) -> Layout:
+    """The packed parameters of obstacles of families ``kinds`` (:attr:`ObstacleSet.params`): block ``o{i}`` is
+    obstacle i's record (:data:`RECORDS`)."""
+    return Layout(**{f"o{i}": RECORDS[kind] for i, kind in enumerate(kinds)})
+
+
 SMOOTH = frozenset({"sphere"})
 """Kernel families whose witness point on a link capsule is unique and moves continuously with the
 capsule (the closest point of a segment to a point): the distance is C¹ in the configuration. For
@@ -85,18 +104,24 @@ the others (a capsule axis parallel to a box face, a half-space or another capsu
 jump along the capsule from one step to the next; see :class:`qpik.control.limits.ObstacleLimit`."""
 
 
+def _record(kind: str, **parts: object) -> np.ndarray:
+    """A new parameter record (:data:`RECORDS`) of family ``kind`` from its blocks by name."""
+    return RECORDS[kind].packer()(parts).copy()
+
+
 def _pair(kind: str, a: Vec, u: Vec, prm: Sequence[Scalar], ops: Ops) -> Kernel:
-    """``(s, sd, p, n)`` of the segment ``a + s u`` to one obstacle given by its parameters (world frame)."""
+    """``(s, sd, p, n)`` of the segment ``a + s u`` to one obstacle given by its parameter record (:data:`RECORDS`,
+    world frame)."""
+    r = RECORDS[kind].split(prm)
     if kind == "sphere":
-        return segment_capsule(a, u, tuple(prm[0:3]), (0.0, 0.0, 0.0), prm[3], ops)  # type: ignore[arg-type]
+        return segment_capsule(a, u, r.centre, (0.0, 0.0, 0.0), r.radius, ops)
     if kind == "capsule":
-        return segment_capsule(a, u, tuple(prm[0:3]), tuple(prm[3:6]), prm[6], ops)  # type: ignore[arg-type]
+        return segment_capsule(a, u, r.start, r.axis, r.radius, ops)
     if kind == "halfspace":
-        return segment_halfspace(a, u, tuple(prm[0:3]), prm[3], ops)  # type: ignore[arg-type]
-    c: Vec = tuple(prm[0:3])  # type: ignore[assignment]
-    R: Mat = (tuple(prm[3:6]), tuple(prm[6:9]), tuple(prm[9:12]))  # type: ignore[assignment]
+        return segment_halfspace(a, u, r.normal, r.offset, ops)
+    c, R = r.centre, r.rotation
     Rt = transpose(R)
-    s, sd, p, n = segment_box(matvec(Rt, vsub(a, c)), matvec(Rt, u), tuple(prm[12:15]), ops)  # type: ignore[arg-type]
+    s, sd, p, n = segment_box(matvec(Rt, vsub(a, c)), matvec(Rt, u), r.half_extents, ops)
     return s, sd, vadd(c, matvec(R, p)), matvec(R, n)
 
 
@@ -130,14 +155,10 @@ def set_expr(
 
     ``params``: the concatenated parameters of the obstacles (:attr:`ObstacleSet.params`), families ``kinds``.
     """
-    out = []
-    for (a, b), r in zip(segments, radii):
-        row, start = [], 0
-        for kind in kinds:
-            row.append(pair_expr(a, b, r, kind, params[start : start + PARAMS[kind]], ops))
-            start += PARAMS[kind]
-        out.append(row)
-    return out
+    records = list(set_layout(kinds).split(params).values())
+    return [
+        [pair_expr(a, b, r, kind, rec, ops) for kind, rec in zip(kinds, records)] for (a, b), r in zip(segments, radii)
+    ]
 
 
 class ObstacleSet:

@@ -12,7 +12,7 @@ import numpy as np
 from qpik.algebra import symbolic as sy
 from qpik.algebra.enclosure import taylor_function
 from qpik.core.errors import InputError
-from qpik.geometry.distance import PARAMS, ObstacleSet, axis_distance
+from qpik.geometry.distance import PARAMS, ObstacleSet, axis_distance, set_layout
 from qpik.native.build import concurrently
 from qpik.native.compiled import RowMap
 
@@ -76,7 +76,7 @@ class BoundFunction:
         moving = np.flatnonzero(~robot.fixed_capsules)
         self._pairs = [(c, o, kind) for c in range(len(moving)) for o, kind in enumerate(obstacles.kinds)]
         self._radii = robot.capsule_radii[moving]
-        self._starts = np.cumsum([0, *(PARAMS[k] for k in obstacles.kinds)])
+        self._records = set_layout(obstacles.kinds)
 
     @cached_property
     def values(self) -> ca.Function:
@@ -106,8 +106,8 @@ class BoundFunction:
                 pick = (6 * cap[:, None] + np.arange(6)).ravel()
                 parts = [x[:, pick].reshape(M * len(at), 6) for x in seg]
                 radius = np.tile(self._radii[cap], M)[:, None]
-                span = self._starts[obs][:, None] + np.arange(PARAMS[kind])
-                prm = np.tile(np.asarray(obstacle_params, float)[span], (M, 1))
+                records = self._records.views(np.asarray(obstacle_params, float))
+                prm = np.tile(np.stack([records[f"o{o}"] for o in obs]), (M, 1))
                 out = _pair_models(kind)(parts[0], radius, prm, *parts[1:])
                 for whole, part in zip(d, out):
                     whole[:, at] = part.reshape(M, len(at))

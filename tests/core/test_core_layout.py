@@ -60,3 +60,18 @@ def test_nested_layouts_and_wrong_sizes():
         inner.pack(a=[1, 2])
     with pytest.raises(ValueError, match="last axis of 10"):
         outer.views(np.zeros(9))
+
+
+@settings(max_examples=60, deadline=None, database=None)
+@given(blocks=BLOCKS, seed=st.integers(0, 2**16))
+def test_split_reads_a_sequence_as_views_read_the_buffer(blocks, seed):
+    """split of a plain list of numbers gives each block's values in the shape views gives (scalars as scalars,
+    vectors as tuples, matrices as row tuples)."""
+    layout = Layout(**blocks)
+    flat = np.random.default_rng(seed).normal(size=layout.size)
+    parts, views = layout.split(flat.tolist()), layout.views(flat)
+    assert list(parts) == list(views)
+    for name, view in views.items():
+        assert np.array_equal(np.array(parts[name], dtype=float).reshape(view.shape), view)
+    with pytest.raises(ValueError, match="split"):
+        layout.split([0.0] * (layout.size + 1))
