@@ -28,7 +28,7 @@ def test_the_package_list_is_every_package_of_the_source_tree():
 
 
 def test_every_c_source_is_package_data():
-    """The C sources compiled at first use (qpik.native.build, qpik.native.fastcall) match a package-data glob."""
+    """The C sources and headers compiled at first use (qpik.native.sources) match a package-data glob."""
     globs = SETUPTOOLS["package-data"]["qpik"]
     sources = [p.relative_to(ROOT / "qpik").as_posix() for p in (ROOT / "qpik").rglob("*") if p.suffix in (".c", ".h")]
     assert sources

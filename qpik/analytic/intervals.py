@@ -16,7 +16,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cache
 from itertools import accumulate, pairwise
-from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
@@ -24,11 +23,12 @@ import numpy as np
 from qpik.algebra import symbolic as sy
 from qpik.core.errors import InputError, SolverError
 from qpik.core.validate import finite_array, number
-from qpik.native.build import call_header, shared_library
 from qpik.native.compiled import Compiled, NativeFunction
 from qpik.native.fastcall import extension
+from qpik.native.sources import load_source
 
 if TYPE_CHECKING:
+    from qpik.analytic.arm_sets import NativeSets
     from qpik.robots.robot import Robot
 
 TWO_PI = 2.0 * np.pi
@@ -242,100 +242,6 @@ class _NativeSets:
         return self._lists(self._iv, self._count, self._sv, self._scount, ns)
 
 
-@dataclass
-class NativeSets:
-    """An arm's feasible sets under limits given at run time, as one C call, for C code that calls it in a loop
-    (:mod:`qpik.nlp.levelset`).
-
-    ``function`` is the address of ``int f(const void *context)``: it reads the pose T from :attr:`pose` (16,
-    column-major) and the limits from :attr:`lo` and :attr:`hi` ((n,) rad, the robot's angles), and writes
-    ``count[r]`` pieces of output row r, their ``(lo, hi)`` pairs one row after the other in :attr:`iv` (rad,
-    in [−π, π], sorted per row); it returns the number of pieces, or a negative status (:func:`check_sets`). An
-    unreachable pose gives no pieces. With ``n_region[0] = k >= 0`` (−1: none, as the call leaves it), the caller
-    knows every feasible parameter to lie in the k pairs ``(lo, hi)`` of :attr:`region` (rad, in [−π, π]; room for
-    :data:`REGION`): gaps outside them are not evaluated. ``owner`` keeps the buffers and the library alive.
-    """
-
-    function: int
-    context: int
-    pose: np.ndarray
-    lo: np.ndarray
-    hi: np.ndarray
-    iv: np.ndarray
-    count: np.ndarray
-    region: np.ndarray
-    n_region: np.ndarray
-    owner: object
-
-
-REGION = 256
-"""Pairs of a :class:`NativeSets` region."""
-
-
-class ArmSetsCall:
-    """An arm's feasible sets as one C call ``int name(const Struct *)`` (``offset_shoulder_intervals.c``,
-    ``srs_intervals.c``) over its breakpoint function's and its checked IK's generated C (:meth:`functions`) and
-    buffers allocated once.
-
-    The struct gets ``breakpoints``, ``ik`` (their :class:`~qpik.native.compiled.Kernel`), ``param`` (the IK's parameter
-    buffer), the addresses of ``arrays`` (its buffer fields by name, with the region's of :class:`NativeSets` added)
-    and ``fields`` (its other fields). The arrays become lists by :func:`list_maker`'s function (:attr:`lists`).
-    """
-
-    def __init__(
-        self,
-        dll: ctypes.CDLL,
-        name: str,
-        breaks: NativeFunction,
-        ik: NativeFunction,
-        struct: type[ctypes.Structure],
-        arrays: dict[str, np.ndarray],
-        **fields,
-    ):
-        self._name, self._function = name, getattr(dll, name)
-        self._breaks, self._ik = breaks, ik  # the C call uses their buffers: they live as long
-        self._pose = breaks.args[0].reshape(4, 4).T  # T column-major, as both generated functions read it
-        self._limits = ik.args[2:4]  # the IK's limit buffers, shared with the breakpoint function's when it takes them
-        self.arrays = {**arrays, "region": np.zeros(2 * REGION), "n_region": np.full(1, -1, np.intc)}
-        buffers = {key: x.ctypes.data for key, x in self.arrays.items()}
-        self._call = struct(breakpoints=breaks.kernel, ik=ik.kernel, param=ik.args[1].ctypes.data, **fields, **buffers)
-        self._address = ctypes.addressof(self._call)
-        self.lists = list_maker()
-
-    @staticmethod
-    def functions(
-        breaks: Compiled, outputs: tuple[int, ...], checked: Compiled, limits: tuple[np.ndarray, np.ndarray]
-    ) -> tuple[NativeFunction, NativeFunction] | None:
-        """The C calls of the breakpoint function ``breaks`` (of T, or of T, q_min and q_max; its ``outputs``) and of
-        the checked IK ``checked`` (of T, the parameter, q_min and q_max): both read T from one buffer, and q_min and
-        q_max too when ``breaks`` takes them; else the IK's hold ``limits``. None when either is not native code."""
-        bp = NativeFunction.of(breaks, outputs=outputs)
-        if bp is None:
-            return None
-        shared = {0: bp.args[0]} | ({2: bp.args[1], 3: bp.args[2]} if len(bp.args) == 3 else {})
-        ik = NativeFunction.of(checked, outputs=(1,), inputs=shared)
-        if ik is None:
-            return None
-        if len(bp.args) == 1:
-            ik.args[2][:], ik.args[3][:] = limits
-        return bp, ik
-
-    def run(self, T: np.ndarray, limits: tuple[np.ndarray, np.ndarray] | None = None) -> None:
-        """The call for the pose T (4, 4) and, for a breakpoint function that takes them, ``limits`` ``(q_min,
-        q_max)`` ((n,) rad): its outputs are in :attr:`arrays`."""
-        self._pose[...] = T
-        if limits is not None:
-            self._limits[0][:], self._limits[1][:] = limits
-        check_sets(self._function(self._address), self._name)
-
-    def sets(self) -> NativeSets:
-        """This call as :class:`NativeSets` (for a breakpoint function of the limits)."""
-        a = self.arrays
-        address = ctypes.cast(self._function, ctypes.c_void_p).value
-        return NativeSets(address, self._address, self._breaks.args[0], *self._limits, a["iv"], a["count"],
-                          a["region"], a["n_region"], self)  # fmt: skip
-
-
 def check_sets(m: int, name: str) -> None:
     """:class:`SolverError` for the negative status ``m`` of the C function ``name`` (``intervals.c``'s codes)."""
     if m < 0:
@@ -366,23 +272,17 @@ def python_lists(
     return sets, [flat[r * ns : r * ns + c] for r, c in enumerate(found)]
 
 
-def c_source() -> bytes:
-    """``intervals.c`` with its constants (:data:`SAME`), for a library of its own or one that includes it."""
-    return call_header() + f"#define SAME {SAME!r}\n".encode() + Path(__file__).with_name("intervals.c").read_bytes()
+INTERVALS = {"parts": ["intervals.c"], "defines": {"SAME": SAME}}
+"""``intervals.c`` for :func:`qpik.native.sources.load_source`: its file and its constant :data:`SAME`; a library
+that calls its ``circle_sets`` (``intervals.h``) holds it too."""
 
 
 @cache
 def _library() -> ctypes.CDLL | None:
-    lib = shared_library("qpik_intervals", c_source())
-    if lib is None:
-        return None
-    dll = ctypes.CDLL(str(lib))
-    dll.qpik_circle_sets.restype = ctypes.c_int
-    dll.qpik_circle_sets.argtypes = (
-        [ctypes.c_void_p] * 6 + [ctypes.c_int] * 3 + [ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p, ctypes.c_int]
-    )
-    dll.qpik_circle_sets.argtypes += [ctypes.c_void_p] * 4
-    return dll
+    """``intervals.c`` compiled (:func:`qpik.native.sources.load_source`), or None without a compiler."""
+    args = [ctypes.c_void_p] * 6 + [ctypes.c_int] * 3 + [ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p, ctypes.c_int]
+    args += [ctypes.c_void_p] * 4
+    return load_source("qpik_intervals", "cdll", **INTERVALS, signatures={"qpik_circle_sets": (ctypes.c_int, args)})
 
 
 def gaps(breaks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

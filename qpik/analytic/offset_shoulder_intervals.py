@@ -62,18 +62,16 @@ shifted by π, so only rows 1–8 are classified: one evaluation of those 8 bran
 at every gap midpoint (:class:`qpik.analytic.intervals.SetAssembler`), and
 rows 9–16's sets are rows 1–8's moved by π.
 
-With a C compiler all of it is one C call (``offset_shoulder_intervals.c``, compiled with
-``polyroots.c`` and ``intervals.c``): the breakpoint function, the wrist roots, the common-root
-test and the classification of the gaps, with no numpy in between; without one, the same
-steps run in numpy (:meth:`DeltaIntervals.breakpoints`, then the SetAssembler).
+With a C compiler all of it is one C call (:class:`~qpik.analytic.arm_sets.DeltaSetsCall`:
+``offset_shoulder_intervals.c``, compiled with ``polyroots.c`` and ``intervals.c``): the breakpoint function,
+the wrist roots, the common-root test and the classification of the gaps, with no numpy in between; without one,
+the same steps run in numpy (:meth:`DeltaIntervals.breakpoints`, then the SetAssembler).
 """
 
 from __future__ import annotations
 
-import ctypes
 from dataclasses import dataclass
-from functools import cache, cached_property
-from pathlib import Path
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import casadi as ca
@@ -81,15 +79,12 @@ import numpy as np
 
 from qpik.algebra import symbolic as sy
 from qpik.algebra.symbolic import Ops, Scalar
-from qpik.analytic.intervals import ArmSetsCall, FeasibleIntervals, Interval, NativeSets, SetAssembler, shrunk_limits
-from qpik.analytic.intervals import c_source as intervals_source
-from qpik.analytic.polyroots import FLAGS as POLYROOTS_FLAGS
-from qpik.analytic.polyroots import ROOM, trig_roots
-from qpik.analytic.polyroots import c_source as polyroots_source
+from qpik.analytic.arm_sets import NONE, DeltaSetsCall, NativeSets
+from qpik.analytic.intervals import FeasibleIntervals, SetAssembler, shrunk_limits
+from qpik.analytic.polyroots import trig_roots
 from qpik.analytic.trig import EPS, acos2
 from qpik.core.errors import QpikError
-from qpik.native.build import python_library
-from qpik.native.compiled import Compiled, Kernel, NativeFunction
+from qpik.native.compiled import Compiled
 
 if TYPE_CHECKING:
     from qpik.analytic.offset_shoulder import OffsetShoulderSolver
@@ -97,9 +92,6 @@ if TYPE_CHECKING:
 PI = np.pi
 ZERO = 1e-13
 """Wrist-centre distance (m) from the base axis below which its azimuth is taken as 0 (as the solver does)."""
-NONE = 10.0
-"""Stands for a breakpoint or singular δ that does not exist in the compiled function's output (any value outside
-[−π, π])."""
 COMMON_TOL = 1e-6
 """θ5 and θ7 roots closer than this (rad) are a common root: a wrist singularity (sin θ6 = 0)."""
 COEFFS = 9
@@ -160,7 +152,7 @@ class DeltaIntervals:
         # the rows of the θ7 and θ5 equations are consecutive (expressions lists them joint by joint): row ranges
         wrist_rows = np.array([k for j in (7, 5) for k in _row_range(kinds, j)])
         fn = Compiled(ca.Function(name, [T, *inputs], [*out, FA, FB]))
-        return _Breakpoints(fn, wrist_rows, _NativeDelta.build(fn, self._solver, wrist_rows))
+        return _Breakpoints(fn, wrist_rows, DeltaSetsCall.build(fn, self._solver, wrist_rows, COEFFS, COMMON_TOL))
 
     def native_sets(self) -> NativeSets | None:
         """The sets under limits given at run time as one C call (the shrunk limits' path), None without a compiler."""
@@ -290,7 +282,7 @@ class _Breakpoints:
 
     fn: Compiled
     wrist_rows: np.ndarray
-    native: _NativeDelta | None
+    native: DeltaSetsCall | None
 
     def breakpoints(self, T: np.ndarray, *limits: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The breakpoints and singular candidates (δ, rad) of the pose T (4, 4) (and the limits, as the function's
@@ -305,79 +297,6 @@ class _Breakpoints:
             close = (np.cos(r5[:, None] - r7[None, :]) > 1.0 - 0.5 * COMMON_TOL**2).any(axis=1)
             sing = np.concatenate([sing, r5[close]])
         return np.concatenate([cand, wrist]), sing
-
-
-class _DeltaSets(ctypes.Structure):
-    """``DeltaSets`` of ``offset_shoulder_intervals.c`` (same fields, same order)."""
-
-    _fields_ = [("breakpoints", Kernel)]
-    _fields_ += [(name, ctypes.c_int) for name in ("n_cand", "n_sing", "K", "size", "a7", "b7", "a5", "b5")]
-    _fields_ += [("none", ctypes.c_double), ("common", ctypes.c_double), ("ik", Kernel), ("param", ctypes.c_void_p)]
-    _fields_ += [("rows", ctypes.c_int), ("shift", ctypes.c_int), ("room_roots", ctypes.c_int)]
-    _fields_ += [(name, ctypes.c_void_p) for name in ("delta", "breaks", "sing", "owner")]
-    _fields_ += [("room", ctypes.c_int)] + [(name, ctypes.c_void_p) for name in ("iv", "sv", "count", "scount", "ns")]
-    _fields_ += [("region", ctypes.c_void_p), ("n_region", ctypes.c_void_p)]
-
-
-class _NativeDelta(ArmSetsCall):
-    """:class:`DeltaIntervals` in one C call (``qpik_delta_sets``, ``offset_shoulder_intervals.c``): the
-    breakpoint function's and the IK's generated C, :func:`~qpik.analytic.polyroots.trig_roots`' root finder and
-    the :class:`~qpik.analytic.intervals.SetAssembler`'s gap classification."""
-
-    ROWS = 8
-
-    def __init__(self, dll: ctypes.CDLL, breaks: NativeFunction, ik: NativeFunction, wrist_rows: np.ndarray):
-        cand, sing, FA, _ = breaks.res
-        K = FA.size // COEFFS
-        room_roots = ROOM * K
-        out_rows = 2 * self.ROWS
-        room = out_rows * (cand.size + room_roots + 2)
-        arrays = {
-            "delta": np.zeros(room_roots),
-            "owner": np.zeros(room_roots, np.intc),
-            "breaks": np.zeros(cand.size + room_roots),
-            "sing": np.zeros(sing.size + room_roots),
-            "iv": np.zeros(2 * room),
-            "sv": np.zeros(out_rows * (sing.size + room_roots)),
-            "count": np.zeros(out_rows, np.intc),
-            "scount": np.zeros(out_rows, np.intc),
-            "ns": np.zeros(1, np.intc),
-        }
-        a7, b7, a5, b5 = wrist_rows.tolist()
-        super().__init__(
-            dll, "qpik_delta_sets", breaks, ik, _DeltaSets, arrays,
-            n_cand=cand.size, n_sing=sing.size, K=K, size=COEFFS, a7=a7, b7=b7, a5=a5, b5=b5, none=NONE,
-            common=1.0 - 0.5 * COMMON_TOL**2,  # cos d > 1 − tol²/2 ⇔ |d| < tol on the circle
-            rows=self.ROWS, shift=1, room_roots=room_roots, room=room,
-        )  # fmt: skip
-
-    @classmethod
-    def build(cls, breaks: Compiled, solver: OffsetShoulderSolver, wrist_rows: np.ndarray) -> _NativeDelta | None:
-        """The C path over the breakpoint function ``breaks`` (of T, or of T, q_min and q_max) and ``solver``'s checked
-        IK (:meth:`~qpik.analytic.intervals.ArmSetsCall.functions`), or None when one of them or the C source is not
-        native code."""
-        dll = _library()
-        limits = (solver.robot.q_min, solver.robot.q_max)
-        pair = None if dll is None else cls.functions(breaks, (0, 1, 2, 3), solver.checked(cls.ROWS), limits)
-        return None if pair is None else cls(dll, *pair, wrist_rows)
-
-    def __call__(
-        self, T: np.ndarray, limits: tuple[np.ndarray, np.ndarray] | None = None
-    ) -> tuple[list[list[Interval]], list[list[float]]]:
-        """The sets and singular values of rows 1–16 for the pose T (4, 4); ``limits`` ``(q_min, q_max)`` ((n,) rad)
-        for a breakpoint function that takes them."""
-        self.run(T, limits)
-        a = self.arrays
-        return self.lists(a["iv"], a["count"], a["sv"], a["scount"], int(a["ns"][0]))
-
-
-@cache
-def _library() -> ctypes.CDLL | None:
-    """``offset_shoulder_intervals.c`` compiled after ``polyroots.c`` and ``intervals.c`` (whose functions it calls),
-    loaded as a :class:`ctypes.PyDLL` (its call keeps the GIL). Its buffers belong to the solver: like every compiled
-    call of qpik's, one arm's solver is not for several threads at once."""
-    source = polyroots_source() + intervals_source() + Path(__file__).with_suffix(".c").read_bytes()
-    return python_library("qpik_delta_intervals", source, {"qpik_delta_sets": [ctypes.c_void_p]}, POLYROOTS_FLAGS)
 
 
 def _row_range(kinds: list[int], joint: int) -> tuple[int, int]:

@@ -29,7 +29,7 @@ the bracket and H either changes sign in it (one root) or moves away from zero i
 (no root, and :math:`|H|` above the bound at the extremum too), the bracket's ends serve instead.
 Eigenvalues of companion matrices (``numpy.linalg.eigvals``) would cost several times
 more per ``qpik.feasible_intervals`` call (see ``qpik bench analytic``). The C source is
-compiled once by the system compiler (:func:`qpik.native.build.shared_library`); without
+compiled once by the system compiler (:func:`qpik.native.sources.load_source`); without
 one (or with ``QPIK_NATIVE=0``) the roots of H come from ``numpy``'s companion
 eigenvalues instead, every eigenvalue within ``EIG_IMAG`` of the real axis counting
 as real; that path resolves a double root only to about √ε (1e-8 rad), the C path to 1e-9 rad
@@ -43,12 +43,11 @@ from __future__ import annotations
 
 import ctypes
 from functools import cache
-from pathlib import Path
 
 import numpy as np
 
 from qpik.core.errors import InputError
-from qpik.native.build import shared_library
+from qpik.native.sources import load_source
 
 EIG_IMAG = 1e-7
 r"""Eigenvalue path: :math:`|\operatorname{Im} t|` below which an eigenvalue counts as real."""
@@ -61,22 +60,12 @@ FLAGS = ("-funroll-loops",)
 the coefficients unrolled, about 10 % faster."""
 
 
-def c_source() -> bytes:
-    """``polyroots.c``, for a library of its own or one that includes it (compiled with :data:`FLAGS`)."""
-    return Path(__file__).with_name("polyroots.c").read_bytes()
-
-
 @cache
 def _library() -> ctypes.CDLL | None:
-    lib = shared_library("qpik_polyroots", c_source(), FLAGS)
-    if lib is None:
-        return None
-    dll = ctypes.CDLL(str(lib))
-    dll.qpik_trig_roots.restype = ctypes.c_int
-    dll.qpik_trig_roots.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int] + [
-        ctypes.c_void_p
-    ] * 2
-    return dll
+    """``polyroots.c`` compiled (:func:`qpik.native.sources.load_source`), or None without a compiler."""
+    args = [ctypes.c_int, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int] + [ctypes.c_void_p] * 2
+    return load_source("qpik_polyroots", "cdll", ["polyroots.c"], flags=FLAGS,
+                       signatures={"qpik_trig_roots": (ctypes.c_int, args)})  # fmt: skip
 
 
 ROOM = 2 * 128

@@ -42,7 +42,8 @@ SWEEP_CHUNKS = (32, 8)
 more than 3/4 of it would be used, then the small one (so that 38 parameters cost 40 evaluations, not 64)."""
 
 if TYPE_CHECKING:
-    from qpik.analytic.intervals import FeasibleIntervals, NativeSets, ParameterSets
+    from qpik.analytic.arm_sets import NativeSets
+    from qpik.analytic.intervals import FeasibleIntervals, ParameterSets
     from qpik.robots.robot import Robot
 
 
@@ -200,7 +201,7 @@ class AnalyticSolver(ABC):
 
     def native_sets(self) -> NativeSets | None:
         """:meth:`feasible_intervals` under limits given at run time as one C call
-        (:class:`~qpik.analytic.intervals.NativeSets`), for C code that calls it in a loop; None where there is no
+        (:class:`~qpik.analytic.arm_sets.NativeSets`), for C code that calls it in a loop; None where there is no
         such call (no compiler)."""
         return self._sets.native_sets()
 

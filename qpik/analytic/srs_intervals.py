@@ -37,11 +37,11 @@ one compilation serves every margin; the gaps are classified by the IK's limit t
 Its cos-type equations are not merged numerically (the levels are symbols), only where the two limits' cos L
 agree at every margin (symmetric limits). Above m = 1 the shrunk limits are empty and so is every set.
 
-With a C compiler the sets are one C call (``srs_intervals.c``, compiled with ``intervals.c``): the breakpoint
-function and the classification of the gaps by the IK, which reads the same pose and limit buffers, with no numpy in
-between (:meth:`PsiIntervals.native_sets` hands it to C code that calls it in a loop); the singular values are
-then read from the breakpoint function's output. Without one, the same steps run in numpy (the compiled breakpoint
-function, then the SetAssembler).
+With a C compiler the sets are one C call (:class:`~qpik.analytic.arm_sets.PsiSetsCall`: ``srs_intervals.c``,
+compiled with ``intervals.c``): the breakpoint function and the classification of the gaps by the IK, which reads
+the same pose and limit buffers, with no numpy in between (:meth:`PsiIntervals.native_sets` hands it to C code
+that calls it in a loop); the singular values are then read from the breakpoint function's output. Without one,
+the same steps run in numpy (the compiled breakpoint function, then the SetAssembler).
 
 The singular values listed per branch are the ψ where :math:`|M_{22}| = 1` for
 the shoulder or the wrist (θ2 or θ6 = 0 or π): the maximum :math:`c + \sqrt{a^2+b^2}`
@@ -53,11 +53,9 @@ with the tool along the forearm) is flagged by ``ik`` and not listed here.
 
 from __future__ import annotations
 
-import ctypes
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import cache, cached_property
-from pathlib import Path
+from functools import cached_property
 from typing import TYPE_CHECKING, NamedTuple
 
 import casadi as ca
@@ -66,19 +64,10 @@ import numpy as np
 from qpik.algebra import symbolic as sy
 from qpik.algebra.symbolic import Scalar
 from qpik.analytic import trig
-from qpik.analytic.intervals import (
-    ArmSetsCall,
-    FeasibleIntervals,
-    Interval,
-    NativeSets,
-    SetAssembler,
-    shrunk_limits,
-    wrap,
-)
-from qpik.analytic.intervals import c_source as intervals_source
+from qpik.analytic.arm_sets import NONE, NativeSets, PsiSetsCall
+from qpik.analytic.intervals import FeasibleIntervals, SetAssembler, shrunk_limits, wrap
 from qpik.analytic.srs_geometry import arm_setup, branch_signs
-from qpik.native.build import python_library
-from qpik.native.compiled import Compiled, Kernel, NativeFunction
+from qpik.native.compiled import Compiled
 
 if TYPE_CHECKING:
     from qpik.analytic.srs import SRSSolver
@@ -88,8 +77,6 @@ r""":math:`\bigl|1 - |M_{22}|\bigr|` at the extremum below which a shoulder/wris
 MIRRORED = 1e-14
 """:math:`|s(l + u) + 2c|` (wrapped, rad) below which a joint's two limit levels have the same cosine at
 every margin."""
-NONE = 10.0
-"""Stands for a singular ψ that does not exist in the compiled function's output (outside [−π, π])."""
 
 _NO = (np.zeros(0), np.zeros(0))  # no singular ψ for either elbow sign
 _ANGLE_JOINTS = ((0, 1, 2), (4, 5, 6))  # joints of the (shoulder, wrist) ZYZ triples (a, b, c)
@@ -145,7 +132,7 @@ class PsiIntervals:
         breaks, singular, valid = self.expressions(T, levels)
         out = [ca.vertcat(*breaks), ca.vertcat(*singular), valid * self.fixed_joints_within(T, *limits)]
         fn = Compiled(ca.Function(name, [T, *inputs], out))
-        return _Breakpoints(fn, _NativePsi.build(fn, self._solver, len(self.branch)))
+        return _Breakpoints(fn, PsiSetsCall.build(fn, self._solver, len(self.branch)))
 
     def native_sets(self) -> NativeSets | None:
         """The sets under limits given at run time as one C call (the shrunk limits' function), None without a
@@ -263,65 +250,4 @@ class _Breakpoints:
     (None without a compiler)."""
 
     fn: Compiled
-    native: _NativePsi | None
-
-
-class _PsiSets(ctypes.Structure):
-    """``PsiSets`` of ``srs_intervals.c`` (same fields, same order)."""
-
-    _fields_ = [("breakpoints", Kernel), ("n_breaks", ctypes.c_int), ("n_sing", ctypes.c_int)]
-    _fields_ += [("none", ctypes.c_double), ("ik", Kernel), ("param", ctypes.c_void_p), ("rows", ctypes.c_int)]
-    _fields_ += [("breaks", ctypes.c_void_p), ("room", ctypes.c_int)]
-    _fields_ += [(name, ctypes.c_void_p) for name in ("iv", "sv", "count", "scount")]
-    _fields_ += [("region", ctypes.c_void_p), ("n_region", ctypes.c_void_p)]
-
-
-class _NativePsi(ArmSetsCall):
-    """:class:`PsiIntervals` in one C call (``qpik_psi_sets``, ``srs_intervals.c``): the breakpoint function's and
-    the IK's generated C and the :class:`~qpik.analytic.intervals.SetAssembler`'s gap classification."""
-
-    def __init__(self, dll: ctypes.CDLL, breaks: NativeFunction, ik: NativeFunction, rows: int):
-        n_breaks, n_sing = breaks.res[0].size, breaks.res[1].size
-        room = rows * (n_breaks + n_sing + 2)  # at most one piece more than gaps per row
-        arrays = {
-            "breaks": np.zeros(n_breaks + n_sing),
-            "iv": np.zeros(2 * room),
-            "sv": np.zeros(1),
-            "count": np.zeros(rows, np.intc),
-            "scount": np.zeros(rows, np.intc),
-        }
-        super().__init__(
-            dll, "qpik_psi_sets", breaks, ik, _PsiSets, arrays,
-            n_breaks=n_breaks, n_sing=n_sing, none=NONE, rows=rows, room=room,
-        )  # fmt: skip
-
-    @classmethod
-    def build(cls, breaks: Compiled, solver: SRSSolver, rows: int) -> _NativePsi | None:
-        """The C path over the breakpoint function ``breaks`` (of T, or of T, q_min and q_max) and ``solver``'s checked
-        IK of its first ``rows`` branches (:meth:`~qpik.analytic.intervals.ArmSetsCall.functions`), or None when one
-        of them or the C source is not native code."""
-        dll = _library()
-        limits = (solver.robot.q_min, solver.robot.q_max)
-        pair = None if dll is None else cls.functions(breaks, (0, 1, 2), solver.checked(rows), limits)
-        return None if pair is None else cls(dll, *pair, rows)
-
-    def __call__(
-        self, T: np.ndarray, limits: tuple[np.ndarray, np.ndarray] | None = None
-    ) -> tuple[list[list[Interval]], np.ndarray, np.ndarray]:
-        """For the pose T (4, 4): the sets of the rows (empty for an unreachable pose), and the breakpoint function's
-        singular ψ (8,) and ``valid`` (1,) outputs (views its next call overwrites); ``limits`` ``(q_min, q_max)``
-        ((n,) rad) for a breakpoint function that takes them."""
-        self.run(T, limits)
-        a = self.arrays
-        intervals, _ = self.lists(a["iv"], a["count"], a["sv"], a["scount"], 0)
-        _, singular, valid = self._breaks.res
-        return intervals, singular, valid
-
-
-@cache
-def _library() -> ctypes.CDLL | None:
-    """``srs_intervals.c`` compiled after ``intervals.c`` (whose ``circle_sets`` it calls), loaded as a
-    :class:`ctypes.PyDLL` (its call keeps the GIL). Its buffers belong to the solver: like every compiled call of
-    qpik's, one arm's solver is not for several threads at once."""
-    source = intervals_source() + Path(__file__).with_suffix(".c").read_bytes()
-    return python_library("qpik_psi_intervals", source, {"qpik_psi_sets": [ctypes.c_void_p]})
+    native: PsiSetsCall | None

@@ -4,8 +4,8 @@
 and caches the shared library on disk, keyed by a hash of the source. CasADi's SX virtual machine costs a
 few ns per instruction; machine code is several times faster, which matters for the large functions (IK of
 all branches, distances of all capsule/obstacle pairs, mapped sweeps). Where no compiler works, or with
-``QPIK_NATIVE=0``, the virtual machine is used: same results, slower. qpik's own C (:func:`shared_library`)
-and the CPython extension of :mod:`qpik.native.fastcall` are built and cached the same way.
+``QPIK_NATIVE=0``, the virtual machine is used: same results, slower. qpik's own C (:mod:`qpik.native.sources`:
+its libraries and CPython extensions) is built and cached the same way (:func:`shared_library`).
 """
 
 from __future__ import annotations
@@ -53,10 +53,14 @@ def compiler() -> str | None:
     return found
 
 
-def shared_library(name: str, source: bytes, flags: Sequence[str] = (), fatal: bool = True) -> Path | None:
+def shared_library(
+    name: str, source: bytes, flags: Sequence[str] = (), fatal: bool = True, files: Sequence[Path] = ()
+) -> Path | None:
     """C ``source`` compiled once into a shared library cached in :func:`cache_dir`, or None.
 
-    The library is keyed by a hash of the source, the flags (:func:`optimisation` for the source's size,
+    With ``files``, those C files are compiled together instead (:func:`qpik.native.sources.load_source`), and
+    ``source`` is only what identifies them: their text and that of every header they include. The library is keyed
+    by a hash of the source, the flags (:func:`optimisation` for the source's size,
     :data:`CFLAGS` and ``flags``, e.g. include folders) and CasADi's version. Processes that need the same
     library at once compile it once: the others wait on a lock file beside it. A compilation that takes
     longer than :data:`QUIET` seconds says so on stderr, and again every :data:`TICK` seconds. None when
@@ -76,7 +80,7 @@ def shared_library(name: str, source: bytes, flags: Sequence[str] = (), fatal: b
         if not lib.exists():
             with _locked(folder / f"{lib.name}.lock"):  # another process compiling it: wait for its library
                 if not lib.exists():
-                    _compile(cc, cflags, name, source, lib)
+                    _compile(cc, cflags, name, source, lib, files)
         return lib
     except (OSError, subprocess.CalledProcessError) as exc:
         why = f"{type(exc).__name__}: {exc}"
@@ -117,15 +121,18 @@ def optimisation(size: int) -> str:
     return "-O1" if size > LARGE else "-O2"
 
 
-def _compile(cc: str, cflags: Sequence[str], name: str, source: bytes, lib: Path) -> None:
-    """Compile ``source`` into ``lib`` (atomically: concurrent readers never see a partial library), saying on stderr
-    what it builds when it takes longer than :data:`QUIET` seconds."""
+def _compile(cc: str, cflags: Sequence[str], name: str, source: bytes, lib: Path, files: Sequence[Path]) -> None:
+    """Compile ``files``, or else ``source``, into ``lib`` (atomically: concurrent readers never see a partial
+    library), saying on stderr what it builds when it takes longer than :data:`QUIET` seconds."""
     with tempfile.TemporaryDirectory() as tmp:
-        src = Path(tmp, f"{name}.c")
-        src.write_bytes(source)
+        if not files:
+            files = (Path(tmp, f"{name}.c"),)
+            files[0].write_bytes(source)
         partial = lib.with_name(f"{lib.name}.{os.getpid()}.tmp")
         with subprocess.Popen(
-            [cc, *cflags, str(src), "-o", str(partial), "-lm"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+            [cc, *cflags, *map(str, files), "-o", str(partial), "-lm"],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
         ) as job:
             start, wait = time.monotonic(), QUIET
             while True:
@@ -164,21 +171,6 @@ _WHAT = {
 def describe(name: str) -> str:
     """What the generated function ``name`` is, in words, for the progress lines."""
     return next((what for prefix, what in _WHAT.items() if name.startswith(prefix)), "a generated function")
-
-
-def python_library(
-    name: str, source: bytes, signatures: dict[str, Sequence[type]], flags: Sequence[str] = ()
-) -> ctypes.PyDLL | None:
-    """:func:`shared_library` loaded as a :class:`ctypes.PyDLL` (its calls keep the GIL), each function named in
-    ``signatures`` declared with those argument types and an ``int`` result; None where it is not compiled."""
-    lib = shared_library(name, source, flags)
-    if lib is None:
-        return None
-    dll = ctypes.PyDLL(str(lib))
-    for function, argtypes in signatures.items():
-        entry = getattr(dll, function)
-        entry.restype, entry.argtypes = ctypes.c_int, list(argtypes)
-    return dll
 
 
 def native_library(*fns: ca.Function) -> Path | None:
@@ -265,15 +257,9 @@ def _off(exc: Exception) -> None:
 def entry_point(library: Path, name: str) -> tuple[int, ctypes.CDLL] | None:
     """The address of the generated function ``name`` in the shared library ``library`` and the loaded library
     (the address is valid while it lives), or None when the function's integers are not the 64-bit
-    ``casadi_int`` that qpik's C callers (:mod:`qpik.native.fastcall`, ``intervals.c``, ``grid.c``) pass (the library's
+    ``casadi_int`` that qpik's C callers (``casadi_call.h`` in :data:`qpik.native.sources.SRC`) pass (the library's
     size query is named after its first function, :func:`native_library`'s file name)."""
     dll = ctypes.CDLL(str(library))
     if getattr(dll, f"{library.stem.rsplit('_', 1)[0]}_casadi_int_size")() != 8:
         return None
     return ctypes.cast(getattr(dll, name), ctypes.c_void_p).value, dll
-
-
-def call_header() -> bytes:
-    """``casadi_call.h``: the types qpik's C code uses to call CasADi-generated C (``casadi_fn``, ``Kernel``), for the
-    start of its sources."""
-    return Path(__file__).with_name("casadi_call.h").read_bytes()

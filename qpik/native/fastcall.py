@@ -1,4 +1,5 @@
-"""The compiled CPython extension that calls qpik's generated C kernels from Python (``fastcall.c``).
+"""The compiled CPython extension that calls qpik's generated C kernels from Python (``fastcall.c`` of
+:data:`qpik.native.sources.SRC`).
 
 A call of a CasADi function through its ``buffer()`` interface costs about 1 µs beyond the
 kernel's 0.1 µs, and a ctypes call about as much: argument marshalling and dispatch. The
@@ -7,20 +8,16 @@ library :mod:`qpik.native.compiled` built) with its work arrays and numpy buffer
 arguments in C, checks them there where asked (finite, a pose's rotation orthonormal) and
 returns new arrays or writes into the caller's (see ``fastcall.c``). Its module functions check
 inputs in C (``pose_ok``, ``vector_ok``, installed into :mod:`qpik.core.validate` when it loads) and turn the
-arrays of the feasible-set C code into Python lists (``circle_lists``: :class:`qpik.analytic.intervals.Assembler`).
+arrays of the feasible-set C code into Python lists (``circle_lists``: :class:`qpik.analytic.intervals.SetAssembler`).
 
 The extension is compiled once by the system C compiler against this Python's and numpy's
-headers and cached with the other libraries (:func:`qpik.native.build.shared_library`). Without
+headers and cached with the other libraries (:func:`qpik.native.sources.load_source`). Without
 a compiler, without the Python headers, or with ``QPIK_NATIVE=0``, :func:`extension` is None
 and every caller keeps its general path (CasADi's buffer interface or virtual machine).
 """
 
 from __future__ import annotations
 
-import importlib.util
-import platform
-import sysconfig
-import warnings
 from collections.abc import Sequence
 from functools import cache
 from pathlib import Path
@@ -31,7 +28,8 @@ import numpy as np
 
 from qpik.core.errors import InputError
 from qpik.core.validate import install_checks
-from qpik.native.build import compiler, entry_point, shared_library
+from qpik.native.build import entry_point
+from qpik.native.sources import load_source
 
 if TYPE_CHECKING:
     import casadi as ca
@@ -50,34 +48,10 @@ row-major array), ``raw`` (the entries in CasADi's order, in the given shape), `
 @cache
 def extension() -> ModuleType | None:
     """The compiled extension module ``qpik_fastcall``, or None (no compiler or headers, or ``QPIK_NATIVE=0``)."""
-    module = build("qpik_fastcall", Path(__file__).with_name("fastcall.c"))
+    module = load_source("qpik_fastcall", "extension", ["fastcall.c"])
     if module is not None:
         module.set_input_error(InputError)
         install_checks(module.vector_ok, module.pose_ok)
-    return module
-
-
-def build(name: str, path: Path) -> ModuleType | None:
-    """The CPython extension module ``name`` (its ``PyInit_<name>``) compiled from the C file ``path`` against
-    this Python's and numpy's headers, cached (:func:`qpik.native.build.shared_library`), or None when there is no
-    compiler, no Python headers, or ``QPIK_NATIVE=0`` (a warning says why it does not build or load)."""
-    if compiler() is None:
-        return None
-    include = sysconfig.get_paths()["include"]
-    if not Path(include, "Python.h").exists():
-        warnings.warn(f"qpik: no Python headers in {include}: {name} is not compiled", stacklevel=2)
-        return None
-    stamp = f"/* CPython {platform.python_version()}, numpy {np.__version__} */\n".encode()
-    lib = shared_library(name, stamp + path.read_bytes(), ("-I", include, "-I", np.get_include()), fatal=False)
-    if lib is None:
-        return None
-    try:
-        spec = importlib.util.spec_from_file_location(name, lib)
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    except ImportError as exc:
-        warnings.warn(f"qpik: {name} does not load ({exc})", stacklevel=2)
-        return None
     return module
 
 

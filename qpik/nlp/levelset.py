@@ -44,14 +44,14 @@ import ctypes
 import math
 from dataclasses import dataclass
 from functools import cache
-from pathlib import Path
 
 import numpy as np
 
-from qpik.analytic.intervals import FeasibleIntervals, NativeSets, wrap
+from qpik.analytic.arm_sets import NativeSets
+from qpik.analytic.intervals import FeasibleIntervals, wrap
 from qpik.geometry.distance import ObstacleSet
-from qpik.native.build import call_header, python_library
 from qpik.native.compiled import Kernel, NativeFunction
+from qpik.native.sources import load_source
 from qpik.nlp.run import BestRun, Points, least_per_row
 from qpik.nlp.search import END
 from qpik.nlp.selfmotion import SelfMotion
@@ -342,7 +342,7 @@ class _LevelSet(ctypes.Structure):
 
 class _Native:
     """The rounds in C (``qpik_levelset``, ``levelset.c``) for one arm: its feasible sets under run-time limits
-    (:class:`~qpik.analytic.intervals.NativeSets`) and its self-motion's one-row call, over buffers allocated once."""
+    (:class:`~qpik.analytic.arm_sets.NativeSets`) and its self-motion's one-row call, over buffers allocated once."""
 
     def __init__(self, dll: ctypes.CDLL, sets: NativeSets, motion: NativeFunction, selfmotion: SelfMotion):
         robot = selfmotion.robot
@@ -401,5 +401,4 @@ def _library() -> ctypes.CDLL | None:
     """``levelset.c`` compiled, loaded as a :class:`ctypes.PyDLL` (its call keeps the GIL: the arm's buffers are one
     thread's at a time, under the solver's lock)."""
     args = [ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
-    source = call_header() + Path(__file__).with_suffix(".c").read_bytes()
-    return python_library("qpik_levelset", source, {"qpik_levelset": args})
+    return load_source("qpik_levelset", "pydll", ["levelset.c"], signatures={"qpik_levelset": (ctypes.c_int, args)})

@@ -30,11 +30,10 @@ from __future__ import annotations
 import ctypes
 from dataclasses import dataclass, field
 from functools import cache
-from pathlib import Path
 
 import numpy as np
 
-from qpik.native.build import shared_library
+from qpik.native.sources import load_source
 from qpik.planning.grid import Grid, Layers
 
 CHUNK = 32
@@ -376,17 +375,7 @@ def _failure(grid: Grid, layers: _Layers, step: _Step, k: int, V: np.ndarray) ->
 
 @cache
 def _library() -> ctypes.CDLL | None:
-    """``dp.c`` compiled (cached on disk by :func:`qpik.native.build.shared_library`), or None without a compiler."""
-    lib = shared_library("qpik_dp", Path(__file__).with_name("dp.c").read_bytes())
-    if lib is None:
-        return None
-    dll = ctypes.CDLL(str(lib))
-    fn = dll.qpik_dp_banded
-    fn.argtypes = (
-        [ctypes.c_longlong] * 4
-        + [ctypes.c_void_p] * 8
-        + [ctypes.c_double] * 2
-        + [ctypes.c_void_p, ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
-    )
-    fn.restype = None
-    return dll
+    """``dp.c`` compiled (:func:`qpik.native.sources.load_source`), or None without a compiler."""
+    args = [ctypes.c_longlong] * 4 + [ctypes.c_void_p] * 8 + [ctypes.c_double] * 2
+    args += [ctypes.c_void_p, ctypes.c_double] + [ctypes.c_void_p] * 4
+    return load_source("qpik_dp", "cdll", ["dp.c"], signatures={"qpik_dp_banded": (None, args)})

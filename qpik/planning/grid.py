@@ -29,7 +29,6 @@ import ctypes
 import itertools
 from dataclasses import dataclass
 from functools import cache, cached_property
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -40,8 +39,8 @@ from qpik.analytic.intervals import FeasibleIntervals, wrap
 from qpik.core.errors import SolverError
 from qpik.geometry.contacts import capsule_pairs
 from qpik.geometry.distance import ObstacleSet
-from qpik.native.build import shared_library
 from qpik.native.compiled import Compiled, NativeFunction, RowMap
+from qpik.native.sources import load_source
 from qpik.nlp.selfmotion import MIRRORED
 from qpik.objectives import Context, Objective
 from qpik.robots.robot import Robot
@@ -339,13 +338,7 @@ class _NativeLayers:
 
 @cache
 def _library() -> ctypes.CDLL | None:
-    """``grid.c`` compiled (cached on disk by :func:`qpik.native.build.shared_library`), or None without a compiler."""
-    lib = shared_library("qpik_plan_layers", Path(__file__).with_name("grid.c").read_bytes())
-    if lib is None:
-        return None
-    dll = ctypes.CDLL(str(lib))
-    fn = dll.qpik_plan_layers
-    fn.argtypes = [ctypes.c_void_p] * 13 + [ctypes.c_longlong] * 4 + [ctypes.c_void_p] * 5 + [ctypes.c_double]
-    fn.argtypes += [ctypes.c_void_p] * 5
-    fn.restype = ctypes.c_int
-    return dll
+    """``grid.c`` compiled (:func:`qpik.native.sources.load_source`), or None without a compiler."""
+    args = [ctypes.c_void_p] * 13 + [ctypes.c_longlong] * 4 + [ctypes.c_void_p] * 5 + [ctypes.c_double]
+    args += [ctypes.c_void_p] * 5
+    return load_source("qpik_plan_layers", "cdll", ["grid.c"], signatures={"qpik_plan_layers": (ctypes.c_int, args)})

@@ -278,12 +278,12 @@ def test_one_c_call_agrees_with_its_steps(seed):
 def test_feasible_intervals_exact_without_a_c_compiler(monkeypatch):
     """With no C compiler (no cc, or QPIK_NATIVE=0) the wrist roots come from eigenvalues and the gaps are
     classified in numpy (:class:`qpik.analytic.intervals.SetAssembler`): the same sets."""
-    from qpik.analytic import intervals, offset_shoulder_intervals, polyroots
+    from qpik.analytic import arm_sets, intervals, polyroots
     from qpik.analytic.offset_shoulder_intervals import DeltaIntervals
 
     monkeypatch.setattr(polyroots, "_library", lambda: None)
     monkeypatch.setattr(intervals, "_library", lambda: None)
-    monkeypatch.setattr(offset_shoulder_intervals, "_library", lambda: None)
+    monkeypatch.setattr(arm_sets, "_delta_library", lambda: None)
     without = DeltaIntervals(SOLVER)
     assert without._assemble._native is None and without._fixed.native is None
     for T in ROBOT.fk(random_q(ROBOT, 20, 7)):
@@ -357,12 +357,12 @@ def _poses(seed: int, n: int) -> np.ndarray:
 def _numpy_path():
     """nammoto7's feasible-interval solver without a C compiler, as ``QPIK_NATIVE=0`` builds it (gaps classified in
     numpy), its shrunk limits' function built too."""
-    from qpik.analytic import intervals, offset_shoulder_intervals, polyroots
+    from qpik.analytic import arm_sets, intervals, polyroots
     from qpik.analytic.offset_shoulder_intervals import DeltaIntervals
 
     with pytest.MonkeyPatch.context() as mp:
-        for module in (polyroots, intervals, offset_shoulder_intervals):
-            mp.setattr(module, "_library", lambda: None)
+        for module, name in ((polyroots, "_library"), (intervals, "_library"), (arm_sets, "_delta_library")):
+            mp.setattr(module, name, lambda: None)
         without = DeltaIntervals(SOLVER)
         assert without._shrunk.native is None and without._assemble._native is None
     return without

@@ -78,11 +78,11 @@ def test_intervals_match_dense_sampling(seed):
 
 def test_intervals_exact_without_a_c_compiler(monkeypatch):
     """With no C compiler the gaps are classified in numpy (:class:`~qpik.analytic.intervals.SetAssembler`)."""
-    from qpik.analytic import intervals, srs_intervals
+    from qpik.analytic import arm_sets, intervals
     from qpik.analytic.srs_intervals import PsiIntervals
 
     monkeypatch.setattr(intervals, "_library", lambda: None)
-    monkeypatch.setattr(srs_intervals, "_library", lambda: None)
+    monkeypatch.setattr(arm_sets, "_psi_library", lambda: None)
     without = PsiIntervals(SOLVER)
     assert without._fixed.native is None and without._assemble._native is None
     rng = np.random.default_rng(3)
@@ -167,12 +167,12 @@ def poses_for(robot: qpik.Robot, seed: int, n: int) -> np.ndarray:
 @pytest.fixture(scope="module")
 def without_compiler():
     """PsiIntervals of iiwa14 and of the asymmetric arm, gaps classified in numpy (no C compiler)."""
-    from qpik.analytic import intervals, srs_intervals
+    from qpik.analytic import arm_sets, intervals
     from qpik.analytic.srs_intervals import PsiIntervals
 
     with pytest.MonkeyPatch.context() as mp:
-        for module in (intervals, srs_intervals):
-            mp.setattr(module, "_library", lambda: None)
+        mp.setattr(intervals, "_library", lambda: None)
+        mp.setattr(arm_sets, "_psi_library", lambda: None)
         out = [PsiIntervals(closed_form_for(robot)) for robot in (ROBOT, ASYMMETRIC)]
         assert all(x._fixed.native is None and x._shrunk.native is None and x._assemble._native is None for x in out)
     return out

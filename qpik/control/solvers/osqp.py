@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import math
 from functools import cache
-from pathlib import Path
 
 import numpy as np
 import osqp
@@ -46,7 +45,7 @@ from scipy.linalg import lapack
 
 from qpik.control.qp import QP
 from qpik.control.solvers.base import Solution, Solver
-from qpik.native.fastcall import build
+from qpik.native.sources import load_source
 
 DEFAULTS: dict[str, object] = {
     "eps_abs": 1e-5,
@@ -170,9 +169,9 @@ class OSQPSolver(Solver):
 
 @cache
 def _compiled_polish():
-    """:func:`polish` in C (``polish.c``, the same steps; :func:`qpik.native.fastcall.build`), or None without a
-    compiler."""
-    module = build("qpik_polish", Path(__file__).with_name("polish.c"))
+    """:func:`polish` in C (``polish.c``, the same steps; a CPython extension, :func:`qpik.native.sources.load_source`),
+    or None without a compiler."""
+    module = load_source("qpik_polish", "extension", ["polish.c"])
     return None if module is None else module.polish
 
 

@@ -1,10 +1,11 @@
 /* The feasible psi sets of one S-R-S pose in one call (qpik.analytic.srs_intervals).
  *
- * Compiled after intervals.c, into one library. The breakpoint function (CasADi-generated, of the pose, and of
+ * Compiled with intervals.c into one library. The breakpoint function (CasADi-generated, of the pose, and of
  * q_min and q_max for shrunk limits) gives every breakpoint, the singular psi (NONE where one does not exist) and
  * whether the pose is reachable; the singular psi that exist are breakpoints too, and circle_sets classifies the
  * gaps with the IK. The same steps as PsiIntervals.__call__ and Assembler in numpy.
  */
+#include "intervals.h"
 
 typedef struct {
     Kernel breakpoints; /* pose (arg[0]) -> breakpoints (n_breaks), singular psi (n_sing), valid (1); the shrunk

@@ -1,11 +1,16 @@
 /* The feasible delta sets of one offset-shoulder pose in one call (qpik.analytic.offset_shoulder_intervals).
  *
- * Compiled after polyroots.c and intervals.c, into one library. The breakpoint function (CasADi-generated, of
+ * Compiled with polyroots.c and intervals.c into one library. The breakpoint function (CasADi-generated, of
  * the pose) gives the closed-form candidates and singular candidates (NONE where one does not exist) and the
  * wrist equations' coefficients; qpik_trig_roots solves those; a theta5 root within the common-root tolerance of
  * a theta7 root is a wrist singularity (sin theta6 = 0 zeroes both); circle_sets classifies the gaps with the IK.
  * The same steps as DeltaIntervals.breakpoints and Assembler in numpy.
  */
+#include <math.h>
+
+#include "circle.h"
+#include "intervals.h"
+#include "polyroots.h"
 
 typedef struct {
     Kernel breakpoints; /* pose (arg[0]) -> candidates, singular candidates, A (K, size), B (K, size); the shrunk

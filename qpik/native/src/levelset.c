@@ -11,10 +11,11 @@
 #include <math.h>
 #include <string.h>
 
+#include "casadi_call.h"
+#include "circle.h"
+
 typedef int (*sets_fn)(const void *context);
 
-#define PI 3.141592653589793
-#define TWO_PI 6.283185307179586
 #define TRIALS 3
 
 typedef struct {
@@ -40,9 +41,6 @@ typedef struct {
     int room;            /* pieces per round at most */
     double *work;        /* 24 * room doubles */
 } LevelSet;
-
-/* As qpik.symbolic.Ops.wrap: x + 2 pi floor((pi - x) / 2 pi), in (-pi, pi]. */
-static double wrap(double x) { return x + TWO_PI * floor((PI - x) / TWO_PI); }
 
 /* Pieces of one round: [lo, hi] of branch row `row`, and its trial points x with mu and dmu/dpsi there. */
 typedef struct {

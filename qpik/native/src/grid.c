@@ -14,8 +14,7 @@
 #include <math.h>
 #include <string.h>
 
-typedef long long casadi_int;
-typedef int (*casadi_fn)(const double **arg, double **res, casadi_int *iw, double *w, int mem);
+#include "casadi_call.h"
 
 int qpik_plan_layers(void *pre, const double **pre_arg, double **pre_res, casadi_int *pre_iw, double *pre_w,
                      void *fn, const double **arg, double **res, casadi_int *iw, double *w, double *fixed,

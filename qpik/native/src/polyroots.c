@@ -9,6 +9,8 @@
 #include <math.h>
 #include <string.h>
 
+#include "polyroots.h"
+
 #define QPIK_MAXD 32
 #define QPIK_MAXR (4 * QPIK_MAXD)
 

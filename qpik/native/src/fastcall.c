@@ -28,8 +28,7 @@
 #include <stddef.h>
 #include <string.h>
 
-typedef long long casadi_int;
-typedef int (*casadi_fn)(const double **arg, double **res, casadi_int *iw, double *w, int mem);
+#include "casadi_call.h"
 
 #define MAX_IO 16
 #define ORTHONORMAL_TOL 1e-6 /* qpik.validate.ORTHONORMAL_TOL */
@@ -60,7 +59,7 @@ typedef struct {
     npy_intp out_dims[MAX_IO][3];
     PyObject *keep;   /* the arrays whose memory is used and the owner of fn */
     PyObject *result; /* what a call returns */
-} Kernel;
+} KernelObject;
 
 /* Whether the row-major 4x4 T is a pose qpik.validate.single_pose accepts without projection. */
 static int pose_ok(const double *T) {
@@ -125,7 +124,7 @@ static int scalar_value(PyObject *a, double *x) {
 /* Copy argument a into input k. Returns 1 on success, 0 when a is of another form (or fails the
  * checks, with `checked`). A scalar input (one entry) takes a real number (scalar_value); an input of kind
  * IN_SCALAR takes nothing else. */
-static int load_input(Kernel *self, int k, PyObject *a, int checked) {
+static int load_input(KernelObject *self, int k, PyObject *a, int checked) {
     double *dst = self->in[k];
     Py_ssize_t rows = self->in_rows[k], cols = self->in_cols[k], size = rows * cols;
     if (size == 1 && scalar_value(a, dst)) return !checked || isfinite(dst[0]);
@@ -151,7 +150,7 @@ static int load_input(Kernel *self, int k, PyObject *a, int checked) {
 }
 
 /* Load the arguments and evaluate; 1 on success, 0 when an argument does not fit, -1 with an exception. */
-static int run(Kernel *self, PyObject *const *args, Py_ssize_t nargs, int checked) {
+static int run(KernelObject *self, PyObject *const *args, Py_ssize_t nargs, int checked) {
     if (nargs > self->n_in) {
         PyErr_Format(PyExc_TypeError, "kernel takes at most %d arguments, got %zd", self->n_in, nargs);
         return -1;
@@ -166,7 +165,7 @@ static int run(Kernel *self, PyObject *const *args, Py_ssize_t nargs, int checke
 }
 
 /* Output k written into dst (its kept form, see the file's comment). */
-static void store(Kernel *self, int k, void *dst) {
+static void store(KernelObject *self, int k, void *dst) {
     const double *src = self->out[k];
     Py_ssize_t rows = self->out_rows[k], cols = self->out_cols[k], size = rows * cols;
     if (self->out_kind[k] == OUT_MATRIX) {
@@ -182,7 +181,7 @@ static void store(Kernel *self, int k, void *dst) {
 }
 
 static PyObject *kernel_vectorcall(PyObject *obj, PyObject *const *args, size_t nargsf, PyObject *kwnames) {
-    Kernel *self = (Kernel *)obj;
+    KernelObject *self = (KernelObject *)obj;
     if (kwnames && PyTuple_GET_SIZE(kwnames)) {
         PyErr_SetString(PyExc_TypeError, "kernel takes no keyword arguments");
         return NULL;
@@ -195,7 +194,7 @@ static PyObject *kernel_vectorcall(PyObject *obj, PyObject *const *args, size_t 
 }
 
 static PyObject *kernel_fresh(PyObject *obj, PyObject *const *args, Py_ssize_t nargs) {
-    Kernel *self = (Kernel *)obj;
+    KernelObject *self = (KernelObject *)obj;
     int ok = run(self, args, nargs, 1);
     if (ok < 0) return NULL;
     if (!ok) Py_RETURN_NONE;
@@ -216,7 +215,7 @@ static PyObject *kernel_fresh(PyObject *obj, PyObject *const *args, Py_ssize_t n
 }
 
 static PyObject *kernel_into(PyObject *obj, PyObject *const *args, Py_ssize_t nargs) {
-    Kernel *self = (Kernel *)obj;
+    KernelObject *self = (KernelObject *)obj;
     if (nargs < 1 || !PyTuple_Check(args[0]) || PyTuple_GET_SIZE(args[0]) != self->n_kept) {
         PyErr_Format(PyExc_TypeError, "out: expected a tuple of %d arrays", self->n_kept);
         return NULL;
@@ -272,7 +271,7 @@ static PyObject *kernel_new(PyTypeObject *type, PyObject *args, PyObject *kwds) 
         PyErr_SetString(PyExc_ValueError, "Kernel: at most 16 inputs and outputs, and an entry point");
         return NULL;
     }
-    Kernel *self = (Kernel *)type->tp_alloc(type, 0);
+    KernelObject *self = (KernelObject *)type->tp_alloc(type, 0);
     if (!self) return NULL;
     self->vectorcall = kernel_vectorcall;
     self->fn = (casadi_fn)(uintptr_t)address;
@@ -324,7 +323,7 @@ static PyObject *kernel_new(PyTypeObject *type, PyObject *args, PyObject *kwds) 
     return (PyObject *)self;
 }
 
-static void kernel_dealloc(Kernel *self) {
+static void kernel_dealloc(KernelObject *self) {
     PyMem_Free(self->arg);
     PyMem_Free(self->res);
     PyMem_Free(self->iw);
@@ -344,12 +343,12 @@ static PyMethodDef kernel_methods[] = {
 
 static PyTypeObject KernelType = {
     PyVarObject_HEAD_INIT(NULL, 0).tp_name = "qpik_fastcall.Kernel",
-    .tp_basicsize = sizeof(Kernel),
+    .tp_basicsize = sizeof(KernelObject),
     .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_VECTORCALL,
     .tp_doc = "A CasADi-generated function called on numpy buffers (see qpik/fastcall.c).",
     .tp_new = kernel_new,
     .tp_dealloc = (destructor)kernel_dealloc,
-    .tp_vectorcall_offset = offsetof(Kernel, vectorcall),
+    .tp_vectorcall_offset = offsetof(KernelObject, vectorcall),
     .tp_call = PyVectorcall_Call,
     .tp_methods = kernel_methods,
 };

@@ -1,4 +1,4 @@
-/* Feasible parameter sets on the circle from breakpoints (qpik.analytic.intervals.Assembler).
+/* Feasible parameter sets on the circle from breakpoints (qpik.analytic.intervals.SetAssembler).
  *
  * The breakpoints are wrapped to (-pi, pi], sorted and merged within SAME; they cut the circle into
  * gaps, and one evaluation of the branches at each gap's midpoint (the compiled, CasADi-generated IK
@@ -7,15 +7,15 @@
  * pi are written after them (the offset-shoulder rows 9-16 are rows 1-8 at delta + pi). The candidate
  * singular values are evaluated as well and kept, per branch, where it is valid and singular.
  */
-#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#define PI 3.141592653589793
-#define TWO_PI 6.283185307179586
+#include "circle.h"
+#include "intervals.h"
 
-/* As qpik.symbolic.Ops.wrap: x + 2 pi floor((pi - x) / 2 pi), in (-pi, pi]. */
-static double wrap(double x) { return x + TWO_PI * floor((PI - x) / TWO_PI); }
+#ifndef SAME
+#error "SAME (rad, qpik.analytic.intervals.SAME: breakpoints closer than this are one) is given by -DSAME=..."
+#endif
 
 static int ascending(const void *a, const void *b) {
     double x = *(const double *)a, y = *(const double *)b;
@@ -39,21 +39,6 @@ static void sort_items(double *x, int n, int width) {
         for (int k = 0; k < width; ++k) x[width * j + k] = item[k];
     }
 }
-
-/* The call: fn(arg, res) with the parameter written to *param; flags = res[1] (valid, singular, within
- * per branch). A region (region[0..2 n), n = *n_region >= 0 pairs (lo, hi) in [-pi, pi]), when there is one,
- * holds every feasible gap: a gap whose middle lies outside it is infeasible on every row, with no evaluation (the
- * caller knows the sets are inside an earlier, larger one: qpik.nlp.levelset's rounds). */
-typedef struct {
-    casadi_fn fn;
-    const double **arg;
-    double **res;
-    casadi_int *iw;
-    double *w;
-    double *param;
-    const double *region;
-    const int *n_region;
-} Call;
 
 /* Whether x lies outside the call's region (to SAME); never without a region. */
 static int outside(const Call *c, double x) {
@@ -107,12 +92,9 @@ static int runs(int G, const double *lo, const unsigned char *ok, double *out) {
     return n;
 }
 
-/* Feasible sets of `rows` branches (2 rows with shift) from nb breakpoints, and their singular values, with
- * the IK `call`. Out: count[r] pieces per output row, their (lo, hi) pairs one row after the other in iv (room
- * pairs), and scount[r] singular values of row r in sv[r * ns ...]. Returns the number of pieces, -1 when room is
- * too small, -2 when the IK fails, -3 without memory. */
-static int circle_sets(const Call *call, int rows, int shift, int nb, const double *breaks, int ns, const double *sing,
-                       int room, double *iv, int *count, double *sv, int *scount) {
+/* The feasible sets of the rows (intervals.h). */
+int circle_sets(const Call *call, int rows, int shift, int nb, const double *breaks, int ns, const double *sing,
+                int room, double *iv, int *count, double *sv, int *scount) {
     int G = nb > 0 ? nb : 1, out_rows = shift ? 2 * rows : rows, status = 0, used = 0;
     double *lo = malloc(sizeof(double) * (2 * (size_t)G + (size_t)ns + 2 * ((size_t)G + 1)));
     unsigned char *ok = malloc((size_t)G * (size_t)rows * 2);
