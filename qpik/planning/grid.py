@@ -37,6 +37,7 @@ from qpik.algebra import symbolic as sy
 from qpik.analytic import closed_form_for, feasible_intervals
 from qpik.analytic.intervals import FeasibleIntervals, wrap
 from qpik.core.errors import SolverError
+from qpik.core.layout import Layout
 from qpik.geometry.contacts import capsule_pairs
 from qpik.geometry.distance import ObstacleSet
 from qpik.native.compiled import Compiled, NativeFunction, RowMap
@@ -165,8 +166,8 @@ class Grid:
         return RowMap(self._function, shared=(2, 3, 4), chunks=ROW_CHUNKS)
 
     def function(self) -> ca.Function:
-        """``(T (4x4), ψ, objective params, q_ref (n), obstacle params) -> (B·(n + 3),)``: per gridded branch,
-        ``[q (n), valid and within the limits, f(q), smallest clearance (m)]``.
+        """``(T (4x4), ψ, objective params, q_ref (n), obstacle input) -> (B · state size,)``: per gridded branch
+        a record of :attr:`state_layout` (q (n), valid and within the limits, f(q), smallest clearance (m)).
 
         Only the branches that are their own twin (:meth:`twins`) compute distances; the others' clearance is
         their twin's at ψ + π or ψ, another row of the grid (:meth:`clearance_sources`), and is inf here."""
@@ -174,11 +175,11 @@ class Grid:
         T, psi = ca.SX.sym("T", 4, 4), ca.SX.sym(self.param_name)
         p = ca.SX.sym("p", self.objective_params.size)
         q_ref = ca.SX.sym("q_ref", n)
-        size = self.obstacles.params.size
-        prm = ca.SX.sym("obstacles", self.obstacle_input.size)  # the obstacles' parameters, then the pair mask
+        prm = ca.SX.sym("obstacles", self.obstacle_layout.size)
+        given = self.obstacle_layout.symbols(prm)
         Q, valid, _ = self.solver.casadi_function(T, psi)
-        contexts = [Context(robot, Q[b, :].T, q_ref, self.obstacles, prm[:size]) for b in range(self.rows)]
-        unchecked = (1.0 - prm[size:]) * UNCHECKED  # a pair qpik.geometry.contacts leaves out counts as far away
+        contexts = [Context(robot, Q[b, :].T, q_ref, self.obstacles, given.params) for b in range(self.rows)]
+        unchecked = (1.0 - given.checked) * UNCHECKED  # a pair qpik.geometry.contacts leaves out counts as far away
         root, _ = self.clearance_sources
         out = []
         for b, ctx in enumerate(contexts):
@@ -187,16 +188,32 @@ class Grid:
                 ok = ok * (ctx.q[j] >= robot.q_min[j]) * (ctx.q[j] <= robot.q_max[j])
             f = self.objective.expr(ctx, p) if self.objective is not None else ca.SX(0.0)
             d = ca.mmin(ctx.distances + unchecked) if len(self.obstacles) and root[b] == b else ca.SX(np.inf)
-            out.append(ca.vertcat(ctx.q, ok, f, d))
+            out.append(self.state_layout.pack(q=ctx.q, valid=ok, f=f, clearance=d))
         name = f"plan_states_{self.solver.kind}_{robot.identifier}"
         return ca.Function(name, [T, psi, p, q_ref, prm], [ca.densify(ca.vertcat(*out))])
 
     @cached_property
+    def state_layout(self) -> Layout:
+        """One branch's record of :meth:`function`'s output: ``q`` (n,) rad, ``valid`` (1.0: valid and within the
+        limits), ``f`` (the objective at q), ``clearance`` (m, the smallest); ``grid.c`` reads records of this
+        order."""
+        return Layout(q=self.robot.dof, valid=(), f=(), clearance=())
+
+    @cached_property
+    def obstacle_layout(self) -> Layout:
+        """The function's obstacle input: ``params`` (the obstacles' packed parameters) and ``checked``: per pair
+        of :attr:`Context.distances` (capsules a joint moves × obstacles) 1.0 if :mod:`qpik.geometry.contacts`
+        checks it, else 0.0."""
+        return Layout(params=self.obstacles.params.size, checked=self._checked.size)
+
+    @cached_property
+    def _checked(self) -> np.ndarray:
+        return capsule_pairs(self.robot, self.obstacles)[~self.robot.fixed_capsules].ravel().astype(float)
+
+    @cached_property
     def obstacle_input(self) -> np.ndarray:
-        """The function's obstacle input: the obstacles' parameters, then per pair of :attr:`Context.distances`
-        (capsules a joint moves × obstacles) 1.0 if :mod:`qpik.geometry.contacts` checks it, else 0.0."""
-        mask = capsule_pairs(self.robot, self.obstacles)[~self.robot.fixed_capsules].ravel()
-        return np.concatenate([self.obstacles.params, mask.astype(float)])
+        """The function's obstacle input (:attr:`obstacle_layout`) filled in."""
+        return self.obstacle_layout.packer()({"params": self.obstacles.params, "checked": self._checked}).copy()
 
     @cached_property
     def clearance_sources(self) -> tuple[np.ndarray, np.ndarray]:
@@ -247,12 +264,12 @@ class Grid:
 
     def configurations(self, ks: np.ndarray, rows: np.ndarray, index: np.ndarray) -> np.ndarray:
         """(M, n) the configurations of the states (waypoint ks, grid row, grid index) (M,) each."""
-        n, call = self.robot.dof, self._compiled
+        n, call, layout = self.robot.dof, self._compiled, self.state_layout
         cols = np.swapaxes(self.poses[ks], 1, 2).reshape(len(ks), 16)
         out = np.empty((len(ks), n))
         for m, (T, value, b) in enumerate(zip(cols, self.values[index], rows)):
             (row,) = call(T, np.array([value]), self.objective_params, self.q_ref, self.obstacle_input)
-            out[m] = row[b * (n + 3) : b * (n + 3) + n]
+            out[m] = layout.views(row.reshape(-1, layout.size)).q[b]
         return out
 
     def split_function(self) -> tuple[ca.Function, ca.Function]:
@@ -282,19 +299,19 @@ class Grid:
     def layers(self, k0: int, k1: int) -> Layers:
         """The states of waypoints k0 .. k1 - 1 (see :class:`Layers`): only the grid values inside a branch's
         exact feasible set count (in C only the rows with one are evaluated; in numpy every row is)."""
-        K, B, G, n = k1 - k0, self.rows, self.G, self.robot.dof
+        K, B, G = k1 - k0, self.rows, self.G
         cols = np.ascontiguousarray(np.swapaxes(self.poses[k0:k1], 1, 2)).reshape(K, 16)
         if self._native is not None:
             return self._native(cols, self.inside[k0:k1])
         (out,) = self._rows(np.repeat(cols, G, axis=0), np.tile(self.values, K), self.objective_params, self.q_ref,
                             self.obstacle_input)  # fmt: skip
-        out = out.reshape(K, G, B, n + 3)
+        state = self.state_layout.views(out.reshape(K, G, B, self.state_layout.size))  # each (K, G, B, ...)
         root, shift = self.clearance_sources
-        clear = out[:, (np.arange(G)[None, :] + shift[:, None]) % G, root[:, None], n + 2]  # (K, B, G)
-        out = out.transpose(0, 2, 1, 3)
-        q = np.ascontiguousarray(out[..., :n])
-        ok = (out[..., n] > 0.5) & self.inside[k0:k1] & (clear >= self.d_safe) & np.isfinite(out[..., n + 1])
-        return Layers(q, ok, np.where(ok, out[..., n + 1], np.inf))
+        clear = state.clearance[:, (np.arange(G)[None, :] + shift[:, None]) % G, root[:, None]]  # (K, B, G)
+        q = np.ascontiguousarray(state.q.transpose(0, 2, 1, 3))
+        f = state.f.transpose(0, 2, 1)
+        ok = (state.valid.transpose(0, 2, 1) > 0.5) & self.inside[k0:k1] & (clear >= self.d_safe) & np.isfinite(f)
+        return Layers(q, ok, np.where(ok, f, np.inf))
 
 
 class _NativeLayers:
@@ -306,8 +323,11 @@ class _NativeLayers:
         self.values = np.ascontiguousarray(grid.values, float)
         self.root, self.shift = (np.ascontiguousarray(x, np.int64) for x in grid.clearance_sources)
         self._clear, self._need = np.zeros((self.B, self.G)), np.zeros(self.G, np.uint8)
-        fixed, psi, out = pre.args[0], row.args[2], row.res[0]  # fixed = [pose (16, set per waypoint), parameters]
-        fixed[16:] = np.concatenate([grid.objective_params, grid.q_ref, grid.obstacle_input])
+        fixed, psi, out = pre.args[0], row.args[2], row.res[0]  # the C call sets the pose per waypoint
+        given = Layout(pose=16, objective=grid.objective_params.size, q_ref=grid.robot.dof,
+                       obstacles=grid.obstacle_input.size).views(fixed)  # fmt: skip
+        given.objective[...], given.q_ref[...], given.obstacles[...] = (grid.objective_params, grid.q_ref,
+                                                                         grid.obstacle_input)  # fmt: skip
         self._head = (*pre.addresses, *row.addresses, fixed.ctypes.data, psi.ctypes.data, out.ctypes.data)
 
     @classmethod
