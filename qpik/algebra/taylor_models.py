@@ -61,7 +61,7 @@ def choose(cond: ca.SX, a: Model, b: Model) -> Model:
 
 
 def spread(x: Model) -> ca.SX:
-    """The largest |x − c| over the box: |s| + r."""
+    r"""The largest :math:`|x - c|` over the box: :math:`|s| + r`."""
     return ca.fabs(x.s) + x.r
 
 
@@ -115,9 +115,9 @@ def recip(y: Model) -> Model:
 
 
 def positive(x: Model, op: int, f: Callable, df: Callable, curvature: Callable) -> Model:
-    """A function defined for positive arguments (sqrt, log): its smooth model where the box is inside
-    the domain, with ``curvature(lo)`` bounding |f''| on the box (|f''| decreases in the argument for
-    both), else the hull of its interval bound."""
+    r"""A function defined for positive arguments (sqrt, log): its smooth model where the box is inside
+    the domain, with ``curvature(lo)`` bounding :math:`|f''|` on the box (:math:`|f''|` decreases in the argument
+    for both), else the hull of its interval bound."""
     box = iv.UNARY[op](x.box)
     if x.point:
         return Model.of(f(x.c))
@@ -135,7 +135,7 @@ def log(x: Model) -> Model:
 
 
 def trig(x: Model, cosine: bool) -> Model:
-    """sin or cos; |f''| is |sin| or |cos| over the box (the interval rule's bounds)."""
+    r"""sin or cos; :math:`|f''|` is :math:`|\sin|` or :math:`|\cos|` over the box (the interval rule's bounds)."""
     shift = iv.PI / 2 if cosine else 0.0
     box = iv.sin(x.box.lo + shift, x.box.hi + shift) if not x.box.point else iv.Range.of(ca.sin(x.box.lo + shift))
     if x.point:
