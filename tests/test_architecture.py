@@ -192,3 +192,15 @@ def test_core_imports_only_core():
 def test_the_import_checks_see_a_lazy_import():
     tree = ast.parse("def f():\n    from qpik.sim.log import x\n    import qpik.viewer\n")
     assert {"qpik.sim.log", "qpik.sim.log.x", "qpik.viewer"} <= qpik_imports(tree)
+
+
+MAX_LINES = 450
+
+
+def test_no_module_is_longer_than_450_lines():
+    """Short modules, one concept each, named for what they hold: no module of qpik is longer than
+    :data:`MAX_LINES` lines."""
+    lines = {path.relative_to(PACKAGE).as_posix(): len(path.read_text().splitlines()) for path in MODULES}
+    assert len(lines) > 100
+    found = sorted(f"{name}: {n}" for name, n in lines.items() if n > MAX_LINES)
+    assert not found, found

@@ -209,7 +209,7 @@ def _serial_chain(post, offset, kind, tool):
 
 
 def _solve_best(robot, pose, objective, obstacles, d_safe):
-    from qpik.nlp.best import STATUSES, BestResults
+    from qpik.nlp.best_result import STATUSES, BestResults
 
     best = qpik.solve_best(robot, pose, objective, obstacles, d_safe=d_safe, options=BestOptions(certify=False))
     results = list(best) if isinstance(best, BestResults) else [best]  # a batch of poses is a batch of answers

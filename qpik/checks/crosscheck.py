@@ -9,7 +9,7 @@ For a pose and a smooth objective f (:mod:`qpik.objectives`):
 (c) the QP controller (:class:`qpik.Controller`) at (a)'s configuration, with the same target (a
     :class:`~qpik.control.tasks.FrameTask` that dominates) and f as its secondary task
     (:class:`~qpik.control.tasks.ObjectiveTask`), the joint limits and the obstacles' velocity
-    dampers at the same d_s (:class:`~qpik.control.limits.ObstacleLimit` without its buffer).
+    dampers at the same d_s (:class:`~qpik.control.limits.obstacle.ObstacleLimit` without its buffer).
 
 All three state the same first-order optimality: at a minimum of f on the self-motion manifold
 {q : fk(q) = pose}, ∇f is a combination of the pose constraints' gradients, the active joint
@@ -36,7 +36,8 @@ from qpik.control.limits import ConfigurationLimit, ObstacleLimit
 from qpik.control.tasks import DampingTask, FrameTask, ObjectiveTask
 from qpik.core.errors import InputError
 from qpik.core.validate import count, single_pose
-from qpik.nlp.best import BestResult, solve_best
+from qpik.nlp.best import solve_best
+from qpik.nlp.best_result import BestResult
 from qpik.nlp.full import FullResult, solve_full
 from qpik.nlp.options import BestOptions, FullOptions
 from qpik.objectives import Objective
@@ -58,7 +59,7 @@ class CrossCheck:
     r"""The three answers for one pose and how far apart they are.
 
     Attributes:
-        best: (a), :class:`~qpik.nlp.best.BestResult`.
+        best: (a), :class:`~qpik.nlp.best_result.BestResult`.
         full: (b), :class:`~qpik.nlp.full.FullResult` (None when not applicable).
         velocity: (c), the QP's step (n,), rad/s (None when not applicable).
         q_gap: :math:`\max |q_b - q_a|`, rad; f_gap: :math:`|f_b - f_a|`; kkt: (b)'s KKT residual;

@@ -13,12 +13,13 @@ CLIK baselines with the same ``step`` interface are in :mod:`qpik.control.clik`.
 
 from qpik.algebra.lie import pose_error, so3_log
 from qpik.control.clik import CLIK, DampedLeastSquares, GradientProjection, PseudoInverseCLIK, VelocityOnly
-from qpik.control.controller import Controller, StepInfo
+from qpik.control.controller import Controller
 from qpik.control.limits import BoxLimit, ConfigurationLimit, Limit, ObstacleLimit, RowLimit, VelocityLimit
 from qpik.control.options import ControllerOptions
 from qpik.control.qp import QP
 from qpik.control.solvers import Solution, Solver, get_solver
 from qpik.control.state import State
+from qpik.control.step_info import StepInfo
 from qpik.control.tasks import (
     DampingTask,
     FrameTask,

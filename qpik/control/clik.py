@@ -27,8 +27,8 @@ import time
 import numpy as np
 
 from qpik.algebra.lie import pose_error
-from qpik.control.controller import StepInfo
 from qpik.control.state import State
+from qpik.control.step_info import StepInfo
 from qpik.core.errors import InputError
 from qpik.core.validate import finite_array, joint_vector, number, single_pose
 from qpik.robots.robot import as_robot

@@ -7,128 +7,33 @@ that gives :math:`\min \tfrac12 x^T P x + c^T x` s.t. :math:`l \le Ax \le u`,
 (:mod:`qpik.control.solvers`) and returns ``v`` (n,), rad/s, to integrate as
 ``q ← q + v·dt``.
 
-Failure policy (never raises in the loop unless ``raise_on_failure=True``):
-
-1. the main solver; if it reports no solution (e.g. OSQP stopping on a degenerate QP),
-2. DAQP, an exact active-set solver (:data:`FALLBACK`), on the same QP;
-3. if the QP is truly infeasible while the box makes a joint move back from past a position
-   limit (``lb_j > 0`` or ``ub_j < 0``), the return conflicts with the obstacle rows and
-   safety wins: the *yielding* QP keeps every row and the velocity caps, lets the joints
-   past a limit stop (the box widened to contain ``v = 0``: never further out) and asks for
-   the return in the cost, :math:`w \sum_{j\ \rm forced} (v_j - r_j)^2` with the box's
-   return velocity :math:`r_j` and ``w`` = :data:`YIELD_WEIGHT` × (1 + max diag P), above the
-   tasks: the limit is recovered as fast as the obstacle rows allow (``last.status ==
-   "yielding"``). The obstacle rows are bounded inside that widened box
-   (:class:`~qpik.control.limits.ObstacleLimit`), so only rows among themselves can still conflict;
-4. if obstacle rows demand separation and conflict (an arm inside the safety distance of two
-   obstacles on opposite sides, or a moving obstacle the arm must flee from two sides), the parts of the
-   demands that recover from inside a safety distance are scaled first (the escape from a moving obstacle
-   kept), and only if that is not enough the whole demands, each time by the largest common fraction that
-   can be met: first 0 (for the whole demands: only forbid approach, which ``v = 0`` meets where the
-   acceleration limits let the arm stop), then :data:`RELAX_STEPS` bisection steps toward 1, the fraction
-   found times :data:`BACK_OFF` (``last.relaxation`` is the part dropped; the QP is then not at the edge of
-   feasibility, where its set is too thin for the solvers): as much of the separating speed is kept as can
-   be, since rows held at exactly zero approach let the second-order terms of the motion (see
-   :class:`~qpik.control.limits.ObstacleLimit`) creep closer;
-5. otherwise the step returns the command nearest ``v = 0`` that the cap limits allow (their own box: the
-   velocity limits and, where given, :class:`~qpik.control.limits_motion.AccelerationLimit` and
-   :class:`~qpik.control.limits_motion.JerkLimit` around the last commands): ``v = 0`` without them (the arm
-   holds still: never further past a limit, never toward an obstacle), else the arm brakes toward rest at those
-   limits, which :class:`~qpik.control.limits_motion.BrakingLimit` leaves room for; ``last.status == "failed"``
-   — or raises :class:`~qpik.core.errors.SolverError` with ``raise_on_failure=True``.
+When the QP has no solution, the step follows the failure policy of :mod:`qpik.control.failure_policy`
+(another solver, the yielding QP, relaxed separating rows, then the stop the motion limits allow); what
+happened is :attr:`Controller.last` (:class:`~qpik.control.step_info.StepInfo`).
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
 
+from qpik.control.failure_policy import FALLBACK, solve_with_fallbacks
 from qpik.control.limits import ConfigurationLimit, Limit, ObstacleLimit, RowLimit, VelocityLimit
 from qpik.control.options import ControllerOptions
-from qpik.control.qp import QP, Assembler
+from qpik.control.qp import Assembler
 from qpik.control.self_collision import SelfCollisionLimit
 from qpik.control.solvers import Solver, get_solver
 from qpik.control.state import SymState
+from qpik.control.step_info import StepInfo
 from qpik.control.tasks import DampingTask, FrameTask, ManipulabilityTask, PostureTask, Task
 from qpik.core.errors import InfeasibleError, InputError, SolverError
 from qpik.core.validate import joint_vector, number
 from qpik.geometry.contacts import capsule_pairs
 from qpik.robots.robot import as_robot
 from qpik.scene.scene import Scene
-
-FALLBACK = "daqp"  # exact active-set solver tried when the main solver reports no solution
-ACTIVE_TOL = 1e-7  # rad/s (box) and row units: a constraint within this of its bound is reported active
-RELAX_STEPS = 6
-"""Bisection steps on the fraction of their demand that separating rows keep when they conflict (failure policy)."""
-BACK_OFF = 15 / 16
-"""The fraction found by the bisection is kept times this (failure policy): not at the edge of feasibility."""
-YIELD_WEIGHT = 1e3
-"""Weight of the return from past a limit in the yielding QP, relative to 1 + the largest diagonal entry of P."""
-
-
-@dataclass
-class StepInfo:
-    """What happened in the last control step.
-
-    Attributes:
-        status: ``"ok"``; ``"recovering"`` (started past a position limit or inside the
-            safety distance, moving back); ``"penetrating"`` (a capsule overlaps an obstacle,
-            d < 0; moving away); ``"yielding"`` (past a position limit, the return conflicts
-            with the obstacle rows: it goes only as fast as they allow, see the failure
-            policy); ``"failed"`` (no QP solution: the command nearest 0 that the velocity, acceleration and
-            jerk limits allow was returned, ``v = 0`` without acceleration limits). When several
-            hold, the first of failed, yielding, penetrating, recovering is reported.
-        active: names of the constraints at their bound (``"joint3 position upper"``,
-            ``"obstacle sphere0 / link4"``, ...).
-        min_clearance: smallest capsule–obstacle signed distance, m, over the pairs :mod:`qpik.geometry.contacts`
-            checks (not those whose distance no joint motion changes: a base column on its table;
-            inf without such pairs).
-        min_self_distance: smallest signed distance, m, of the pairs a
-            :class:`~qpik.control.self_collision.SelfCollisionLimit` checks (inf without one); below its d_s
-            the status is ``"recovering"``, below 0 ``"penetrating"``.
-        relaxation: 0 if the QP was solved as built; else the part of the separating rows'
-            demand that was dropped when they conflicted, in (0, 1] (1: only approach is forbidden;
-            failure policy, step 4).
-        task_error: norm of the first FrameTask's pose error ``[m; rad]`` (nan without one).
-        solver_status: the solver's own status string.
-        solve_time, total_time: seconds in the solver, and in the whole step.
-        activity: what :attr:`active` is built from: the step's v (n,), a function giving the step's QP,
-            and the controller's velocity limits (None when the step failed).
-    """
-
-    status: str = "ok"
-    min_clearance: float = np.inf
-    min_self_distance: float = np.inf
-    relaxation: float = 0.0
-    task_error: float = np.nan
-    solver_status: str = ""
-    solve_time: float = 0.0
-    total_time: float = 0.0
-    activity: tuple | None = field(default=None, repr=False, compare=False)
-
-    @property
-    def active(self) -> tuple[str, ...]:
-        """Names of the constraints at their bound, built on first access."""
-        if self.activity is None:
-            return ()
-        v, saved, caps = self.activity
-        qp = saved()
-        lb, ub, l, u = qp.lb, qp.ub, qp.l, qp.u
-        Av = qp.A @ v
-        gap_lo, gap_hi = Av - l, u - Av
-        cap = [lim.range for lim in caps if lim.range is not None]
-
-        def kind(j: int, bound: float, side: int) -> str:
-            return "velocity" if any(bound == c[side][j] for c in cap) else "position"
-
-        names = [f"joint{j + 1} {kind(j, lb[j], 0)} lower" for j in np.flatnonzero(v - lb < ACTIVE_TOL)]
-        names += [f"joint{j + 1} {kind(j, ub[j], 1)} upper" for j in np.flatnonzero(ub - v < ACTIVE_TOL)]
-        names += [qp.row_names[r] for r in np.flatnonzero((gap_lo < ACTIVE_TOL) | (gap_hi < ACTIVE_TOL))]
-        return tuple(names)
 
 
 class Controller:
@@ -270,7 +175,7 @@ class Controller:
         ``own``, per :class:`~qpik.control.self_collision.SelfCollisionLimit` its smallest checked self-distance
         (m); ``cap_lo``, ``cap_hi``, the caps' own box (n,) each, rad/s (the yielding QP stays in it); ``recovery``
         (m,), m/s, per QP row the part of its bound that asks to recover from inside its safety distance
-        (:meth:`~qpik.control.limits.RowLimit.recovery_expr`; given up first)."""
+        (:meth:`~qpik.control.limits.base.RowLimit.recovery_expr`; given up first)."""
         clearance = []
         for lim in self.obstacle_limits:
             moving = np.repeat(~self.robot.fixed_capsules, len(lim.obstacles))  # pair (c, o) at c·O + o
@@ -307,25 +212,7 @@ class Controller:
             self.frame_task.set_target(target, twist)
         qp = self.assembler.build(q)
         t1 = time.perf_counter()
-        sol = self.solver.solve(qp)
-        exact = self.fallback or self.solver
-        relaxation, yielding = 0.0, False
-        if not sol.found and self.fallback is not None:
-            sol = self.fallback.solve(qp)
-        if not sol.found:
-            forced = (qp.lb > 0.0) | (qp.ub < 0.0)
-            if forced.any():  # the return from past a limit conflicts with the rows: safety wins
-                qp, yielding = yielding_qp(qp, forced, *self._caps), True
-                sol = exact.solve(qp)
-        if not sol.found and (qp.l > 0).any():  # separating rows conflict: ask less of them, down to no approach
-            demand = np.maximum(qp.l, 0.0)
-            # the recoveries from inside d_s first (an escape from a moving obstacle kept), then every demand
-            for part in (np.minimum(self._recovery, demand), demand):
-                if part.any():
-                    sol, kept = _relax(exact, qp, part)
-                    if sol.found:
-                        relaxation = 1.0 - kept
-                        break
+        sol, qp, relaxation, yielding = solve_with_fallbacks(self.solver, self.fallback, qp, self._caps, self._recovery)
         t2 = time.perf_counter()
         info = StepInfo(solver_status=sol.status, solve_time=t2 - t1, relaxation=relaxation)
         if sol.found:
@@ -415,55 +302,3 @@ def _check_ranges(limits: Sequence[ConfigurationLimit]) -> None:
             "ConfigurationLimit: the position ranges of the limits do not meet for joint(s) "
             + ", ".join(str(j + 1) for j in bad)
         )
-
-
-def _relax(solver: Solver, qp: QP, part: np.ndarray) -> tuple:
-    """``(solution, kept)``: ``qp`` solved with its lower bounds lowered by ``(1 - kept) · part`` (m,), ≥ 0, for
-    the largest fraction ``kept`` that can be met (failure policy, step 4), ``qp.l`` left so; kept 0 and no
-    solution (``qp.l`` as given) if even ``l - part`` cannot."""
-    rows = np.flatnonzero(part > 0.0)
-    full, part = qp.l[rows].copy(), part[rows]
-    qp.l[rows] = full - part
-    sol = solver.solve(qp)
-    if not sol.found:
-        qp.l[rows] = full
-        return sol, 0.0
-    kept, above = 0.0, 1.0
-    for _ in range(RELAX_STEPS):  # bisection on the fraction kept
-        middle = 0.5 * (kept + above)
-        qp.l[rows] = full - (1.0 - middle) * part
-        trial = solver.solve(qp)
-        if trial.found:
-            kept, sol = middle, trial
-        else:
-            above = middle
-    if kept > 0.0:  # backed off from the edge of feasibility, where the set is too thin for ADMM
-        qp.l[rows] = full - (1.0 - BACK_OFF * kept) * part
-        trial = solver.solve(qp)
-        kept, sol = (BACK_OFF * kept, trial) if trial.found else (kept, sol)
-    qp.l[rows] = full - (1.0 - kept) * part  # the QP solved (as :attr:`StepInfo.active` reads it)
-    return sol, kept
-
-
-def yielding_qp(
-    qp: QP, forced: np.ndarray, cap_lo: np.ndarray | float = -np.inf, cap_hi: np.ndarray | float = np.inf
-) -> QP:
-    r"""The QP of step 3 of the failure policy (module docstring), as a new QP.
-
-    ``forced`` (n,) bool marks the joints whose box excludes ``v = 0`` (past a position
-    limit, or an acceleration box that excludes 0). Their bounds are widened toward 0 within the caps' own
-    box ``[cap_lo, cap_hi]`` (``lb ← max(min(lb, 0), cap_lo)``, ``ub ← min(max(ub, 0), cap_hi)``: they
-    may stop, where the acceleration limit lets them, but not move further out), and the cost gains
-    :math:`w (v_j - r_j)^2` toward the velocity :math:`r_j` the box demanded (its bound
-    nearer to 0), ``w`` = :data:`YIELD_WEIGHT` × (1 + max diag P): the return comes first,
-    the tasks after it; every row is kept.
-    """
-    out = qp.copy()
-    r = np.where(qp.lb > 0.0, qp.lb, qp.ub)
-    out.lb[:] = np.maximum(np.minimum(out.lb, 0.0), cap_lo)
-    out.ub[:] = np.minimum(np.maximum(out.ub, 0.0), cap_hi)
-    w = YIELD_WEIGHT * (1.0 + float(np.abs(np.diagonal(qp.P)).max()))
-    idx = np.flatnonzero(forced)
-    out.P[idx, idx] += 2.0 * w
-    out.c[idx] -= 2.0 * w * r[idx]
-    return out

@@ -3,12 +3,12 @@ r"""Limits that look at the motion, not only the configuration: acceleration, je
 The controller commands ``v_k`` (n,), rad/s, every ``dt`` seconds; the commands before it are
 ``v_{k-1}`` and ``v_{k-2}``. With finite differences, acceleration :math:`a_k = (v_k - v_{k-1})/dt`
 (rad/s²) and jerk :math:`j_k = (a_k - a_{k-1})/dt` (rad/s³). A limit that needs the past commands
-keeps them and is told each command by :meth:`~qpik.control.limits.Limit.observe` (the controller
+keeps them and is told each command by :meth:`~qpik.control.limits.base.Limit.observe` (the controller
 calls it after every step; before the first, the arm is taken at rest, or :meth:`reset` sets it).
 
 - :class:`AccelerationLimit` and :class:`JerkLimit` are *cap* boxes around the last command. Caps clip
-  the box in increasing :attr:`~qpik.control.limits.BoxLimit.rank` and the last wins: the jerk first,
-  then the acceleration, then :class:`~qpik.control.limits.VelocityLimit`. Where they conflict the velocity
+  the box in increasing :attr:`~qpik.control.limits.base.BoxLimit.rank` and the last wins: the jerk first,
+  then the acceleration, then :class:`~qpik.control.limits.velocity.VelocityLimit`. Where they conflict the velocity
   limit is kept, then the acceleration: a jerk box extrapolates the last two commands, and if it won it
   could carry the velocity away.
 - :class:`BrakingLimit` bounds the position so that the arm can still stop before a limit at the
@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 
-from qpik.control.limits import BoxLimit
+from qpik.control.limits.base import BoxLimit
 from qpik.control.state import SymState
 from qpik.core.errors import InfeasibleError, InputError
 from qpik.core.layout import Blocks, Layout
@@ -181,7 +181,7 @@ class BrakingLimit(BoxLimit):
     alone (τ = 0): if the last command met it, :math:`v = v_{k-1} - \bar a\,dt` (or 0) meets it again
     (:math:`q + v_{k-1}^2/(2\bar a) - \bar a\,dt^2/2 \le q_{max} - \mu`). With the jerk, the τ term is a
     conservative allowance, not a proof. Past the limit (g < 0) the bound is :math:`g/dt < 0`, as
-    :class:`~qpik.control.limits.ConfigurationLimit`: move back (as fast as the caps allow).
+    :class:`~qpik.control.limits.configuration.ConfigurationLimit`: move back (as fast as the caps allow).
 
     Args:
         a_max: (n,) :math:`\bar a`, rad/s², > 0 (None: ``robot.a_max``).

@@ -15,8 +15,8 @@ class ControllerOptions:
         posture_weight: the :class:`~qpik.control.tasks.PostureTask`'s weight, per rad².
         manipulability_weight: the :class:`~qpik.control.tasks.ManipulabilityTask`'s weight (0: no task effect).
         damping: the :class:`~qpik.control.tasks.DampingTask`'s weight, per (rad/s)².
-        margin: the :class:`~qpik.control.limits.ConfigurationLimit`'s margin, rad.
-        d_influence: the :class:`~qpik.control.limits.ObstacleLimit`'s influence distance, m.
+        margin: the :class:`~qpik.control.limits.configuration.ConfigurationLimit`'s margin, rad.
+        d_influence: the :class:`~qpik.control.limits.obstacle.ObstacleLimit`'s influence distance, m.
         xi: the obstacle dampers' gain, m/s.
         self_collision: add the :class:`~qpik.control.self_collision.SelfCollisionLimit` (arms with more than
             two capsules).

@@ -9,10 +9,10 @@ Decision variable: the joint velocity ``v`` (n,), rad/s:
 
 with :math:`P = \sum_i P_i + \epsilon I` (tasks; ε = 1e-12 keeps P definite for
 active-set solvers, as mink's default damping), the box from the
-:class:`~qpik.control.limits.BoxLimit` s and the rows from the
-:class:`~qpik.control.limits.RowLimit` s, which see the final box (a row limit may
+:class:`~qpik.control.limits.base.BoxLimit` s and the rows from the
+:class:`~qpik.control.limits.base.RowLimit` s, which see the final box (a row limit may
 relax a row that the box makes unreachable, see
-:class:`~qpik.control.limits.ObstacleLimit`). No slack variable (the design notes say why).
+:class:`~qpik.control.limits.obstacle.ObstacleLimit`). No slack variable (the design notes say why).
 
 Shapes are fixed for a controller (the rows of a limit that does not apply this step
 are ``−∞ ≤ · ≤ +∞``), so a persistent solver keeps its sparsity pattern.
@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from qpik.control.limits import BoxLimit, Limit, RowLimit
+from qpik.control.limits.base import BoxLimit, Limit, RowLimit
 from qpik.control.state import SymState, kinematics_of
 from qpik.control.tasks import Task
 from qpik.core.layout import Blocks, Layout

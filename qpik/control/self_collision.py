@@ -3,7 +3,7 @@ r"""Self-collision: velocity dampers that keep the arm's own link capsules apart
 Rows per checked pair of capsules ``(c, e)`` on links ``k < l`` (:func:`checked_pairs`), with the
 capsule–capsule distance ``d`` (m), the witness point :math:`p_e` on the surface of capsule ``e`` and the unit
 normal ``n`` from ``e`` toward ``c`` (:func:`~qpik.geometry.distance.pair_expr`). As for a box or a capsule
-obstacle (:class:`~qpik.control.limits.ObstacleLimit`), one witness row is not enough: where the axes are near
+obstacle (:class:`~qpik.control.limits.obstacle.ObstacleLimit`), one witness row is not enough: where the axes are near
 parallel the witness jumps along them from one step to the next, and the row of the old witness does not see the
 part that approaches next. So each pair gets two rows, the end points :math:`x_0 = a`, :math:`x_1 = b` of
 capsule ``c``'s axis against the *separating plane* of the step through :math:`p_e` with normal ``n``, **attached
@@ -19,11 +19,11 @@ and stays so as the plane moves with it; the distance of ``c``'s axis to the pla
 (an affine function along a segment is least at an end), so :math:`d \ge \min_i h_i` after any motion. The
 witness row is a convex combination of the two, implied. A pair of which capsule ``c`` is a point swaps the
 roles; two points (a C¹ distance) get one witness row, :math:`h = d`. Each row is the damper of
-:class:`~qpik.control.limits.ObstacleLimit`:
+:class:`~qpik.control.limits.obstacle.ObstacleLimit`:
 
 .. math::  \dot h_i \;\ge\; -\xi\,\frac{h_i - d_s}{d_i - d_s}  \qquad (h_i < d_i)
 
-with the same relaxation of a demand to separate (:func:`~qpik.control.limits.damper_lower`); ``buffer`` δ
+with the same relaxation of a demand to separate (:func:`~qpik.control.limits.damper.damper_lower`); ``buffer`` δ
 raises d_s for the rows, as for obstacles, to absorb the second-order terms of the motion.
 """
 
@@ -36,7 +36,8 @@ import casadi as ca
 import numpy as np
 
 from qpik.algebra import symbolic as sy
-from qpik.control.limits import RowLimit, damper_lower, damper_recovery
+from qpik.control.limits.base import RowLimit
+from qpik.control.limits.damper import damper_lower, damper_recovery
 from qpik.control.state import SymState
 from qpik.core.errors import InfeasibleError, InputError
 from qpik.core.layout import Blocks, Layout
@@ -121,7 +122,7 @@ class SelfCollisionLimit(RowLimit):
         xi: ξ, m/s (> 0), the largest approach speed, at :math:`d_i`.
         buffer: δ, m (≥ 0), added to d_s in the rows.
         brake: α, m/s² (None: off): with acceleration limits, rows beyond d_i slow an approach so that it
-            reaches d_i at ξ, lowered where α cannot follow it (:func:`~qpik.control.limits.damper_lower`).
+            reaches d_i at ξ, lowered where α cannot follow it (:func:`~qpik.control.limits.damper.damper_lower`).
     """
 
     name = "self"
@@ -196,7 +197,7 @@ class SelfCollisionLimit(RowLimit):
 
     def recovery_expr(self, s: SymState, p: Blocks) -> ca.SX:
         r"""The damper's separating speed below :math:`d_s + \delta` (R,), m/s
-        (:func:`~qpik.control.limits.damper_recovery`)."""
+        (:func:`~qpik.control.limits.damper.damper_recovery`)."""
         rows = self_distance_expr(s.kin.robot, s.q, self.pairs(s.kin.robot))[1]
         if not rows:
             return ca.SX(0, 1)

@@ -101,7 +101,7 @@ SMOOTH = frozenset({"sphere"})
 """Kernel families whose witness point on a link capsule is unique and moves continuously with the
 capsule (the closest point of a segment to a point): the distance is C¹ in the configuration. For
 the others (a capsule axis parallel to a box face, a half-space or another capsule) the witness can
-jump along the capsule from one step to the next; see :class:`qpik.control.limits.ObstacleLimit`."""
+jump along the capsule from one step to the next; see :class:`qpik.control.limits.obstacle.ObstacleLimit`."""
 
 
 def _record(kind: str, **parts: object) -> np.ndarray:

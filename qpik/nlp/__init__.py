@@ -6,7 +6,8 @@
 - :func:`solve_ik`: numerical inverse kinematics for every arm (:mod:`qpik.nlp.ik`).
 """
 
-from qpik.nlp.best import BestResult, BestResults, BranchOptimum, solve_best
+from qpik.nlp.best import solve_best
+from qpik.nlp.best_result import BestResult, BestResults, BranchOptimum
 from qpik.nlp.full import FullResult, solve_full
 from qpik.nlp.ik import IKResult, IKSolver, solve_ik
 from qpik.nlp.options import BestOptions, FullOptions, IKOptions

@@ -20,7 +20,7 @@ the analytic limit crossings):
    :math:`d_s` (its upper bound is), holds nothing better: it is dropped. The others are cut in
    :data:`SPLIT` and examined again, down to :data:`SMALLEST_CELL`.
 
-If every cell is dropped, the answer is certified: its :attr:`~qpik.nlp.best.BestResult.gap`
+If every cell is dropped, the answer is certified: its :attr:`~qpik.nlp.best_result.BestResult.gap`
 (:math:`f^*` minus the smallest bound met) is at most ε. A cell that cannot be dropped at the
 smallest width, or more than :data:`MAX_CELLS` cells, leaves it uncertified (the flag says so;
 the answer is still the best found). The test point (the middle) of a cell that is kept, if it is

@@ -15,7 +15,8 @@ from matplotlib.figure import Figure
 
 from qpik.analytic.api import feasible_intervals, ik
 from qpik.core.errors import InputError
-from qpik.nlp.best import BestResult, solve_best
+from qpik.nlp.best import solve_best
+from qpik.nlp.best_result import BestResult
 from qpik.plots.closed_form import PI, branch_colors, feasible_panel, symbol
 from qpik.scene import Scene
 

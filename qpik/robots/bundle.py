@@ -24,8 +24,8 @@ from pathlib import Path
 
 from qpik.core.errors import InputError
 from qpik.robots.catalog import CATALOG, catalog_robot
-from qpik.robots.loader import ModelSource
 from qpik.robots.model_files import PACKAGE, resolve_mesh
+from qpik.robots.model_source import ModelSource
 from qpik.robots.robot import Robot, as_robot
 
 _ROBOTS: dict[str, Robot] = {}

@@ -24,7 +24,8 @@ import numpy as np
 from qpik.algebra import symbolic as sy
 from qpik.core.errors import InputError
 from qpik.core.validate import bounded, finite_array
-from qpik.robots.chain import Joint, SerialChain
+from qpik.robots.chain import SerialChain
+from qpik.robots.joint import Joint
 
 Convention = Literal["standard", "modified"]
 
@@ -40,7 +41,7 @@ class DHChain(SerialChain):
         convention: ``"standard"`` or ``"modified"``.
         base: (4, 4) world-from-frame-0 transform.
         tool: (4, 4) frame-n-from-end-effector transform.
-        joints: the :class:`~qpik.robots.chain.Joint` s the table stands for (derived).
+        joints: the :class:`~qpik.robots.joint.Joint` s the table stands for (derived).
     """
 
     a: tuple[float, ...]

@@ -4,7 +4,7 @@ MuJoCo parses and compiles the file (it reads URDF too; mesh paths and visual ge
 are handled by :mod:`qpik.robots.model_files`). The arm is the chain of bodies from
 ``base`` to ``tip``; its joints are the hinge and slide joints on that path (or those
 named in ``joints``: the others on the path are then locked at their reference
-position). Joint *k* becomes a :class:`~qpik.robots.chain.Joint` with
+position). Joint *k* becomes a :class:`~qpik.robots.joint.Joint` with
 
 - ``pre``: from link frame *k-1* through the bodies' ``pos``/``quat`` to the joint's
   anchor, turned so that z is the joint axis; ``post = I``: link frame *k* is the
@@ -19,11 +19,12 @@ controller and planner) is in the **base frame**: the frame of the ``base`` body
 pinocchio, KDL/TRAC-IK and MoveIt give poses relative to a chain's base link. Without ``base``
 it is the model's world frame. The base's pose in the model's world frame, with the joints above
 the base at their reference, is ``robot.model.placement`` (4, 4): a world-frame pose is
-``robot.model.placement @ robot.fk(q)``. The MuJoCo model of the robot (:meth:`ModelSource.spec`)
+``robot.model.placement @ robot.fk(q)``. The MuJoCo model of the robot
+(:meth:`~qpik.robots.model_source.ModelSource.spec`)
 is moved by its inverse, so that its world frame is the base frame too.
 
 Mimic joints (URDF ``<mimic joint=J multiplier=m offset=c>``) on the chain are coupled, not free:
-:math:`q_{mimic} = m\,q_J + c` (:class:`~qpik.robots.chain.Joint` ``mimic``), with J an arm joint
+:math:`q_{mimic} = m\,q_J + c` (:class:`~qpik.robots.joint.Joint` ``mimic``), with J an arm joint
 before it on the chain; the arm's q has one entry per independent joint.
 
 From the model (:mod:`qpik.robots.limits`, which refuses invalid limits):
@@ -41,14 +42,15 @@ From the model (:mod:`qpik.robots.limits`, which refuses invalid limits):
   non-zero ``contype`` or ``conaffinity``) rigidly attached to each link, or all its geoms
   when none of them collides (:mod:`qpik.robots.capsule_fit`; meshes by their vertices,
   spheres, capsules and boxes exactly, a cylinder by a polygon around it, an ellipsoid by
-  its box). Geoms on side branches (fingers) count at their reference position.
+  its box: :mod:`qpik.robots.link_capsules`). Geoms on side branches (fingers) count at their
+  reference position.
 
 The chain is matched against the closed-form patterns (:mod:`qpik.robots.recognize`): an
 S-R-S or offset-shoulder arm gets ``closed_form`` and its ``canonical`` table, any other
 the reason in ``notes``.
 
-A loaded robot keeps its model (:class:`ModelSource`): :meth:`qpik.Robot.to_mjcf` gives
-the model itself with the capsules drawn (translucent, visual only) and a site at the
+A loaded robot keeps its model (:class:`~qpik.robots.model_source.ModelSource`):
+:meth:`qpik.Robot.to_mjcf` gives the model itself with the capsules drawn (translucent, visual only) and a site at the
 end effector, so that the simulation and the pictures run on the real arm.
 """
 
@@ -56,7 +58,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -64,142 +66,23 @@ import numpy as np
 
 from qpik.core.errors import InputError, UnknownRobotError
 from qpik.core.validate import finite_array, flag
+from qpik.robots.body_tree import BodyTree, joint_frame, pose_matrix
 from qpik.robots.catalog import CATALOG, catalog_robot
-from qpik.robots.chain import Joint, SerialChain
+from qpik.robots.chain import SerialChain
+from qpik.robots.joint import Joint
 from qpik.robots.limits import arm_limits
+from qpik.robots.link_capsules import link_capsules
 from qpik.robots.model_files import MeshOptions, UrdfJoint, captured_warnings, is_urdf, read_spec, urdf_joints
+from qpik.robots.model_source import ModelSource
 from qpik.robots.recognize import REDUNDANCY, recognize
-from qpik.robots.robot import LinkCapsule, Robot
+from qpik.robots.robot import Robot
 
 if TYPE_CHECKING:
     import mujoco
 
+
 HOME_MARGIN = 0.1
 """Without a ``home`` keyframe, the home configuration keeps this fraction of each joint's range from its limits."""
-SITE = "qpik_ee"
-"""Name of the end-effector site that :meth:`ModelSource.spec_with` adds to the model."""
-CAPSULE_RGBA = (0.2, 0.6, 1.0, 0.3)
-_CIRCLE = 32  # points per rim of a cylinder (its capsule is widened by the chord error)
-
-
-@dataclass(frozen=True)
-class ModelSource:
-    """Where a loaded robot comes from, to rebuild its MuJoCo model.
-
-    Attributes:
-        path: the MJCF or URDF file.
-        package_map: ``{package: folder}`` for ``package://`` mesh paths.
-        collision_only: visual geoms (and meshes only they use) are left out.
-        joint_names: the arm's independent joints in the model, in chain order (one per entry of q).
-        tip_body: the body the end effector is attached to.
-        site: the name of the end-effector site added by :meth:`spec_with`.
-        placement: (4, 4) the base frame's pose in the file's world frame (joints above the base at
-            their reference), m; :meth:`spec` moves the model by its inverse.
-        allow_outside: mesh paths may leave their package root.
-        mimic: ``(joint, leader, multiplier, offset)`` per mimic joint on the chain: the model's
-            ``qpos[joint] = multiplier * qpos[leader] + offset``.
-    """
-
-    path: Path
-    package_map: Mapping[str, str] = field(default_factory=dict)
-    collision_only: bool = False
-    joint_names: tuple[str, ...] = ()
-    tip_body: str = ""
-    site: str = SITE
-    placement: np.ndarray = field(default_factory=lambda: np.eye(4), compare=False)  # (arrays do not compare)
-    allow_outside: bool = False
-    mimic: tuple[tuple[str, str, float, float], ...] = ()
-
-    def spec(self) -> mujoco.MjSpec:
-        """A fresh spec of the file (meshes resolved, static bodies kept), moved so that its world frame is the
-        robot's base frame (a mimic joint keeps the joint equality MuJoCo reads from the file)."""
-        with captured_warnings():  # said when the file was loaded (the robot's notes)
-            spec = read_spec(self.path, self.package_map, self.collision_only, self.allow_outside)
-        if not np.array_equal(self.placement, np.eye(4)):
-            _move(spec, np.linalg.inv(self.placement))
-        return spec
-
-    def qpos(self, model: mujoco.MjModel, q: np.ndarray) -> np.ndarray:
-        """The model's ``qpos`` at arm configuration q (n,): ``qpos0`` with the arm's and the mimic joints' entries."""
-        qpos = model.qpos0.copy()
-        adr = {nm: int(model.joint(nm).qposadr[0]) for nm in self.joint_names}
-        for nm, x in zip(self.joint_names, q):
-            qpos[adr[nm]] = x
-        for joint, leader, m, c in self.mimic:
-            qpos[model.joint(joint).qposadr[0]] = m * qpos[adr[leader]] + c
-        return qpos
-
-    def spec_with(self, robot: Robot) -> mujoco.MjSpec:
-        """The spec with the robot's capsules (visual: translucent, group 2, no contacts) and the end-effector site.
-
-        Capsule ``c`` of link ``k`` is geom ``qpik_capsule{c}`` on the body of chain joint ``k``, placed by
-        link frame ``k`` (the joint frame) in that body.
-        """
-        import mujoco
-
-        spec = self.spec()
-        model = spec.compile()
-        for c, cap in enumerate(robot.capsules):
-            joint = model.joint(robot.chain.joints[cap.link - 1].name)
-            body = spec.body(model.body(int(joint.bodyid[0])).name)
-            to_link = _anchor(model, joint.id)  # link frame k in the joint's body (at any q: it moves with it)
-            p0, p1 = (to_link[:3, :3] @ p + to_link[:3, 3] for p in (cap.p0, cap.p1))
-            g = body.add_geom()
-            g.name = f"qpik_capsule{c}"
-            g.contype, g.conaffinity, g.group = 0, 0, 2
-            g.rgba = CAPSULE_RGBA
-            half = 0.5 * float(np.linalg.norm(p1 - p0))
-            if half < 1e-9:
-                g.type, g.size, g.pos = mujoco.mjtGeom.mjGEOM_SPHERE, [cap.radius, 0, 0], p0
-            else:  # centre and orientation rather than fromto, which MuJoCo refuses for very short segments
-                quat = np.zeros(4)
-                mujoco.mju_quatZ2Vec(quat, p1 - p0)
-                g.type, g.size = mujoco.mjtGeom.mjGEOM_CAPSULE, [cap.radius, half, 0]
-                g.pos, g.quat = 0.5 * (p0 + p1), quat
-        q_ref = np.array([model.qpos0[model.joint(nm).qposadr[0]] for nm in self.joint_names])
-        tree = _Tree(model, self.qpos(model, q_ref))
-        ee = np.linalg.inv(tree.pose(model.body(self.tip_body).id)) @ robot.fk(q_ref)
-        quat = np.zeros(4)
-        mujoco.mju_mat2Quat(quat, np.ascontiguousarray(ee[:3, :3]).ravel())
-        site = spec.body(self.tip_body).add_site()
-        site.name, site.pos, site.quat, site.size, site.rgba = (
-            self.site,
-            ee[:3, 3],
-            quat,
-            [0.01, 0, 0],
-            [0.9, 0.1, 0.1, 1],
-        )
-        _stage(spec)
-        return spec
-
-
-def _move(spec: mujoco.MjSpec, T: np.ndarray) -> None:
-    """Move everything in the spec's world body by the rigid transform ``T`` (4, 4), through one frame."""
-    import mujoco
-
-    frame = spec.worldbody.add_frame()
-    quat = np.zeros(4)
-    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(T[:3, :3]).ravel())
-    frame.pos, frame.quat = T[:3, 3], quat
-    w = spec.worldbody
-    for element in [*w.bodies, *w.geoms, *w.sites, *w.cameras, *w.lights, *w.frames]:
-        if element is not frame and element.frame is None:
-            element.set_frame(frame)
-
-
-def _stage(spec: mujoco.MjSpec) -> None:
-    """Lights and a sky for pictures, as the twin has (nothing that collides or moves)."""
-    import mujoco
-
-    spec.visual.headlight.ambient = [0.35, 0.35, 0.35]
-    spec.visual.headlight.diffuse = [0.5, 0.5, 0.5]
-    sky = spec.add_texture()
-    sky.name, sky.type = "qpik_sky", mujoco.mjtTexture.mjTEXTURE_SKYBOX
-    sky.builtin = mujoco.mjtBuiltin.mjBUILTIN_GRADIENT
-    sky.rgb1, sky.rgb2, sky.width, sky.height = [0.95, 0.96, 0.98], [0.75, 0.8, 0.88], 256, 256
-    light = spec.worldbody.add_light()
-    light.name, light.pos, light.dir, light.diffuse = "qpik_key", [1.0, -1.0, 2.5], [-1.0, 1.0, -2.5], [0.6, 0.6, 0.6]
-    light.type = mujoco.mjtLightType.mjLIGHT_DIRECTIONAL
 
 
 MODEL_SUFFIXES = (".urdf", ".xml", ".mjcf")
@@ -286,7 +169,7 @@ def load_robot(
     collision_only, allow_outside = meshes.collision_only, flag(meshes.allow_outside, "allow_outside")
     urdf = urdf_joints(path) if is_urdf(path) else None
     model, notes = _compile(path, pmap, collision_only, allow_outside)
-    tree = _Tree(model)
+    tree = BodyTree(model)
     base_id, base_offset = tree.frame(base, "base") if base is not None else (0, np.eye(4))
     tip_id, tip_offset = tree.frame(tip, "tip") if tip is not None else (tree.default_tip(base_id), np.eye(4))
     path_bodies = tree.path(base_id, tip_id)
@@ -305,7 +188,7 @@ def load_robot(
         mimic=tuple((model.joint(j).name, model.joint(lead).name, m, c) for j, (lead, m, c) in mimic.items()),
     )
     q_ref = model.qpos0[model.jnt_qposadr[arm]]
-    tree = _Tree(model, source.qpos(model, q_ref))  # mimic joints coupled at the reference
+    tree = BodyTree(model, source.qpos(model, q_ref))  # mimic joints coupled at the reference
     placement = tree.pose(base_id) @ base_offset
     source = replace(source, placement=placement)
     chain = _chain(model, path_bodies, on_chain, arm, mimic, base_offset, tip_offset, ee)
@@ -331,7 +214,7 @@ def load_robot(
         q_max=q_max,
         v_max=v_max,
         q_home=home,
-        capsules=_capsules(model, tree, on_chain, chain, placement),
+        capsules=link_capsules(model, tree, on_chain, chain, placement),
         closed_form=None if canonical is None else canonical.kind,  # type: ignore[arg-type]
         source=str(path.resolve()),
         notes="; ".join(notes),
@@ -407,142 +290,6 @@ def _mimic(
     return out
 
 
-class _Tree:
-    """The body tree of a compiled model: parents, joints per body, poses at the reference configuration (or at
-    ``qpos``), in the model's world frame."""
-
-    def __init__(self, model: mujoco.MjModel, qpos: np.ndarray | None = None):
-        import mujoco
-
-        self.model = model
-        self.data = mujoco.MjData(model)
-        if qpos is not None:
-            self.data.qpos[:] = qpos
-        mujoco.mj_kinematics(model, self.data)
-        self.children: dict[int, list[int]] = {b: [] for b in range(model.nbody)}
-        for b in range(1, model.nbody):
-            self.children[int(model.body_parentid[b])].append(b)
-
-    def pose(self, body: int) -> np.ndarray:
-        """World pose (4, 4) of a body at the reference configuration."""
-        T = np.eye(4)
-        T[:3, :3] = self.data.xmat[body].reshape(3, 3)
-        T[:3, 3] = self.data.xpos[body]
-        return T
-
-    def frame(self, name: str, what: str) -> tuple[int, np.ndarray]:
-        """A body's id and identity, or a site's body id and the site's pose in that body."""
-        import mujoco
-
-        b = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, name)
-        if b >= 0:
-            return b, np.eye(4)
-        s = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_SITE, name)
-        if s >= 0:
-            return int(self.model.site_bodyid[s]), _transform(self.model.site_pos[s], self.model.site_quat[s])
-        raise InputError(f"{what}: no body or site {name!r} in the model")
-
-    def moves(self, body: int) -> bool:
-        """Whether a body or one below it has a joint."""
-        return bool(self.model.body_jntnum[body]) or any(self.moves(c) for c in self.children[body])
-
-    def default_tip(self, base: int) -> int:
-        """Down from ``base`` while exactly one child moves (then to its end through static bodies)."""
-        body = base
-        while True:
-            moving = [c for c in self.children[body] if self.moves(c)]
-            if len(moving) > 1:
-                if body == base:
-                    names = ", ".join(repr(self.model.body(c).name) for c in moving)
-                    raise InputError(
-                        f"branched chain: {self.model.body(body).name or 'world'!r} carries {len(moving)} moving "
-                        f"branches ({names}); name the arm's end with tip=... (or joints=...)"
-                    )
-                return body
-            if not moving:
-                static = self.children[body]
-                if len(static) == 1 and not self.children[static[0]]:
-                    return static[0]  # a single static end link (a URDF flange or tool frame)
-                return body
-            body = moving[0]
-
-    def path(self, base: int, tip: int) -> list[int]:
-        """Bodies from base (excluded) down to tip (included)."""
-        out, b = [], tip
-        while b != base:
-            if b == 0:
-                raise InputError(
-                    f"branched chain: tip {self.model.body(tip).name!r} is not below base "
-                    f"{self.model.body(base).name or 'world'!r}"
-                )
-            out.append(b)
-            b = int(self.model.body_parentid[b])
-        return out[::-1]
-
-    def arm_joints(self, bodies: list[int], names: Sequence[str] | None) -> list[int]:
-        """Ids of the arm's joints: hinge/slide joints on the path, or the named ones (all on the path)."""
-        import mujoco
-
-        m = self.model
-        on_path = [j for b in bodies for j in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b])]
-        kinds = {int(mujoco.mjtJoint.mjJNT_HINGE): "hinge", int(mujoco.mjtJoint.mjJNT_SLIDE): "slide"}
-        if names is None:
-            bad = [j for j in on_path if int(m.jnt_type[j]) not in kinds]
-            if bad:
-                kind = mujoco.mjtJoint(int(m.jnt_type[bad[0]])).name[6:].lower()
-                raise InputError(
-                    f"unsupported joint: {m.joint(bad[0]).name!r} is a {kind} joint "
-                    "(only hinge and slide joints can be arm joints; choose base= below it)"
-                )
-            arm = on_path
-        else:
-            arm = []
-            for nm in names:
-                j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, nm)
-                if j < 0:
-                    raise InputError(f"joints: no joint {nm!r} in the model")
-                if j not in on_path:
-                    raise InputError(f"joints: {nm!r} is not on the chain from base to tip (a branched chain?)")
-                if int(m.jnt_type[j]) not in kinds:
-                    raise InputError(f"unsupported joint: {nm!r} is not a hinge or slide joint")
-                arm.append(j)
-            if arm != sorted(arm, key=on_path.index):
-                raise InputError("joints: not in chain order from base to tip")
-        if not arm:
-            raise InputError("no joints: the chain from base to tip has no hinge or slide joint")
-        return arm
-
-
-def _transform(pos: np.ndarray, quat: np.ndarray) -> np.ndarray:
-    import mujoco
-
-    T = np.eye(4)
-    R = np.zeros(9)
-    mujoco.mju_quat2Mat(R, np.asarray(quat, float))
-    T[:3, :3], T[:3, 3] = R.reshape(3, 3), pos
-    return T
-
-
-def _align(axis: np.ndarray) -> np.ndarray:
-    """A rotation (4, 4) taking z to the unit vector ``axis`` (exact for ±z)."""
-    T = np.eye(4)
-    z = axis / np.linalg.norm(axis)
-    if abs(z[2]) == 1.0 and z[0] == 0.0 and z[1] == 0.0:
-        T[:3, :3] = np.diag([1.0, z[2], z[2]])
-        return T
-    x = np.cross((0.0, 0.0, 1.0) if abs(z[2]) < 0.9 else (1.0, 0.0, 0.0), z)
-    x /= np.linalg.norm(x)
-    T[:3, 0], T[:3, 1], T[:3, 2] = x, np.cross(z, x), z
-    return T
-
-
-def _anchor(model: mujoco.MjModel, j: int) -> np.ndarray:
-    """The joint frame (anchor, z along the axis) in its body's frame, (4, 4)."""
-    T = _align(model.jnt_axis[j])
-    T[:3, 3] = model.jnt_pos[j]
-    return T
-
-
 def _chain(
     model: mujoco.MjModel,
     bodies: list[int],
@@ -562,11 +309,11 @@ def _chain(
     joints = []
     acc = np.linalg.inv(base_offset)  # the current body frame in the last link frame (the base frame at first)
     for b in bodies:
-        acc = acc @ _transform(model.body_pos[b], model.body_quat[b])
+        acc = acc @ pose_matrix(model.body_pos[b], model.body_quat[b])
         for j in range(model.body_jntadr[b], model.body_jntadr[b] + model.body_jntnum[b]):
             if j not in on_chain:
                 continue  # locked at its reference: no motion
-            anchor = _anchor(model, j)
+            anchor = joint_frame(model, j)
             slide = int(model.jnt_type[j]) == int(mujoco.mjtJoint.mjJNT_SLIDE)
             q_ref = float(model.qpos0[model.jnt_qposadr[j]])
             if j in mimic:  # qpos = m q_leader + c: the motion m q_leader + (c - q_ref)
@@ -598,81 +345,3 @@ def _home(model: mujoco.MjModel, arm: list[int], q_min: np.ndarray, q_max: np.nd
         return model.key_qpos[k][adr].copy()
     margin = HOME_MARGIN * (q_max - q_min)
     return np.clip(model.qpos0[adr], q_min + margin, q_max - margin)
-
-
-def _capsules(
-    model: mujoco.MjModel, tree: _Tree, arm: list[int], chain: SerialChain, placement: np.ndarray
-) -> tuple[LinkCapsule, ...]:
-    """One capsule per link with geoms: the smallest containing its collision geoms (else all), in link frame k.
-
-    ``arm``: every chain joint (link k is moved by chain joint k); ``tree`` at the chain's reference configuration;
-    ``placement``: the base frame in the model's world frame (4, 4).
-    """
-    from qpik.robots.capsule_fit import fit_capsule  # SciPy's optimisers: only for a model file
-
-    owner = {}  # body -> link index (1..n) of the arm joint that moves it last
-    joint_body = [int(model.jnt_bodyid[j]) for j in arm]
-
-    def assign(body: int, link: int) -> None:
-        if body in joint_body:
-            link = max(k + 1 for k, b in enumerate(joint_body) if b == body)
-        owner[body] = link
-        for c in tree.children[body]:
-            assign(c, link)
-
-    assign(0, 0)
-    q_ref = np.array([-j.offset for j in chain.joints if j.mimic is None])
-    frames = placement @ chain.frames(q_ref)  # link frames at the reference configuration (model's world)
-    geoms: dict[int, list[int]] = {}
-    for g in range(model.ngeom):
-        link = owner[int(model.geom_bodyid[g])]
-        if link:
-            geoms.setdefault(link, []).append(g)
-    balls: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
-    for link, gs in geoms.items():
-        colliding = [g for g in gs if model.geom_contype[g] or model.geom_conaffinity[g]]
-        for g in colliding or gs:  # a link whose geoms all skip contacts (visual only): all of them
-            balls.setdefault(link, []).append(_geom_balls(model, tree, g))
-    caps = []
-    for link in sorted(balls):
-        to_link = np.linalg.inv(frames[link])
-        centres = np.concatenate([c for c, _ in balls[link]]) @ to_link[:3, :3].T + to_link[:3, 3]
-        radii = np.concatenate([r for _, r in balls[link]])
-        a, b, R = fit_capsule(centres, radii)
-        caps.append(LinkCapsule(link, a, b, R))
-    return tuple(caps)
-
-
-def _geom_balls(model: mujoco.MjModel, tree: _Tree, g: int) -> tuple[np.ndarray, np.ndarray]:
-    """Balls (world centres (N, 3), radii (N,)) whose convex hull contains geom g at the reference configuration."""
-    import mujoco
-
-    T = np.eye(4)
-    T[:3, :3] = tree.data.geom_xmat[g].reshape(3, 3)
-    T[:3, 3] = tree.data.geom_xpos[g]
-    size = model.geom_size[g]
-    kind = int(model.geom_type[g])
-    G = mujoco.mjtGeom
-    if kind == G.mjGEOM_MESH:
-        m = int(model.geom_dataid[g])
-        a, n = model.mesh_vertadr[m], model.mesh_vertnum[m]
-        local, radius = model.mesh_vert[a : a + n].astype(float), 0.0
-    elif kind == G.mjGEOM_SPHERE:
-        local, radius = np.zeros((1, 3)), size[0]
-    elif kind == G.mjGEOM_CAPSULE:
-        local, radius = np.array([[0, 0, -size[1]], [0, 0, size[1]]]), size[0]
-    elif kind == G.mjGEOM_BOX:
-        local, radius = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * size, 0.0
-    elif kind == G.mjGEOM_CYLINDER:
-        t = np.linspace(0, 2 * np.pi, _CIRCLE, endpoint=False)
-        rim = np.stack([np.cos(t), np.sin(t)], axis=1) * size[0] / np.cos(np.pi / _CIRCLE)  # polygon around the rim
-        local = np.concatenate([np.c_[rim, np.full(_CIRCLE, z)] for z in (-size[1], size[1])])
-        radius = 0.0
-    elif kind == G.mjGEOM_ELLIPSOID:  # by its bounding box (contains it; not the smallest)
-        local, radius = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * size, 0.0
-    else:
-        raise InputError(
-            f"geom {model.geom(g).name or g!r}: type {G(kind).name[7:].lower()} cannot be fitted by a capsule"
-        )
-    centres = local @ T[:3, :3].T + T[:3, 3]
-    return centres, np.full(len(centres), float(radius))

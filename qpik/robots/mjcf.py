@@ -3,7 +3,7 @@ r"""The MJCF twin of a chain robot: the same kinematics as a MuJoCo model.
 Body ``link{k}`` turns with joint ``joint{k}`` (a hinge about its local z axis, or a
 slide along it for a prismatic joint). At ``q = 0`` the body frames are taken from
 :meth:`SerialChain.frames`, so the chain algebra lives in one place: body *k* is the
-joint frame :math:`F_{k-1} P_k M_k(o_k)` (:class:`~qpik.robots.chain.Joint`), and link
+joint frame :math:`F_{k-1} P_k M_k(o_k)` (:class:`~qpik.robots.joint.Joint`), and link
 frame *k* sits at the constant :math:`S_k` in it. For a standard DH table that is
 :math:`F_{k-1} R_z(\theta_k + o_k)` with DH frame *k* at :math:`T_z(d_k) T_x(a_k) R_x(\alpha_k)`.
 
@@ -32,7 +32,7 @@ import numpy as np
 from qpik.core.errors import InputError
 
 if TYPE_CHECKING:
-    from qpik.robots.chain import Joint
+    from qpik.robots.joint import Joint
     from qpik.robots.robot import Robot
 
 # one colour per link (RGB), cycled

@@ -18,7 +18,7 @@ Mimic joints (``mimic``: ``(joint, leader, multiplier, offset)``) follow their l
 ``multiplier`` times theirs (the chain rule).
 
 Frames: MuJoCo's world frame is the base frame (a loaded robot's model is moved so that it is:
-:meth:`qpik.robots.loader.ModelSource.spec`). Units: metres, radians.
+:meth:`qpik.robots.model_source.ModelSource.spec`). Units: metres, radians.
 Not thread-safe: every call overwrites the configuration's ``MjData``.
 """
 

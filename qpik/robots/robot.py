@@ -25,7 +25,7 @@ from qpik.robots.chain import SerialChain
 if TYPE_CHECKING:
     import mujoco
 
-    from qpik.robots.loader import ModelSource
+    from qpik.robots.model_source import ModelSource
     from qpik.robots.recognize import Canonical
 
 ClosedForm = Literal["offset_shoulder", "srs", "locked_joint"] | None
@@ -204,7 +204,7 @@ class Robot:
     def to_mjcf(self) -> str:
         """The MuJoCo model as MJCF text: for a catalog arm the twin (one body per link, capsules as
         geoms, site ``ee``); for a loaded arm its own model with the capsules drawn (visual only)
-        and the site :attr:`site` (:meth:`~qpik.robots.loader.ModelSource.spec_with`)."""
+        and the site :attr:`site` (:meth:`~qpik.robots.model_source.ModelSource.spec_with`)."""
         if self.model is not None:
             return self.model.spec_with(self).to_xml()
         from qpik.robots.mjcf import to_mjcf

@@ -23,7 +23,7 @@ from qpik.robots.mujoco_backend import MjKinematics
 from qpik.robots.robot import LinkCapsule, Robot
 
 CAPSULE_GEOM = "qpik_capsule"
-"""Name prefix of the capsules :meth:`qpik.robots.loader.ModelSource.spec_with` adds to a loaded model."""
+"""Name prefix of the capsules :meth:`qpik.robots.model_source.ModelSource.spec_with` adds to a loaded model."""
 SUBDIVISIONS = 2  # icosphere subdivisions of spheres and ellipsoids (162 vertices)
 SECTIONS = 20  # segments around a capsule or cylinder
 

@@ -15,7 +15,7 @@ import qpik
 from qpik.checks.crosscheck import crosscheck
 from qpik.core.errors import InputError
 from qpik.geometry import Sphere
-from qpik.nlp.best import BestResult
+from qpik.nlp.best_result import BestResult
 
 OBSTACLES = [Sphere((0.35, 0.25, 0.6), 0.1), Sphere((0.3, -0.35, 0.45), 0.1)]
 

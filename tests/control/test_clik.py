@@ -19,7 +19,7 @@ from qpik.control import (
     VelocityOnly,
     pose_error,
 )
-from qpik.problems.schema import find_problem, load
+from qpik.problems.files import find_problem, load
 
 DT = 0.001
 # Along the "relative" reading of eq. (19) the arm nears a singularity at t ≈ 6.3 s

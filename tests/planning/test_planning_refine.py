@@ -15,7 +15,7 @@ import qpik
 from qpik.geometry import Sphere
 from qpik.geometry.distance import ObstacleSet
 from qpik.objectives import resolve
-from qpik.planning import refine
+from qpik.planning import path_problem
 from qpik.planning.dp import Transitions
 from qpik.planning.grid import Grid
 from qpik.planning.refine import PathNLP
@@ -46,7 +46,7 @@ def peers(request):
     nlp = PathNLP(scene, T, tr, continuous, grid, rows)
     near = np.array([0, 1, 1, 0, 1, 1, 1, 0, 0], bool)
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(refine, "NATIVE_WAYPOINTS", 0 if compiled else N + 1)
+        mp.setattr(path_problem, "NATIVE_WAYPOINTS", 0 if compiled else N + 1)
         problem = nlp.problem(near)
     sigma, lam = ca.MX.sym("sigma"), ca.MX.sym("lam", problem.g.numel())
     x = problem.x

@@ -15,7 +15,8 @@ from hypothesis import given, settings
 
 import qpik
 from qpik.core.errors import InputError
-from qpik.robots.chain import Joint, SerialChain
+from qpik.robots.chain import SerialChain
+from qpik.robots.joint import Joint
 
 PROPERTY = settings(max_examples=4, deadline=None)
 

@@ -1,33 +1,21 @@
-r"""Limits: the constraints of the QP over the joint velocity ``v`` (n,), rad/s.
+r"""Velocity dampers between the link capsules and the obstacles: :class:`ObstacleLimit`.
 
-Two kinds:
-
-- :class:`BoxLimit` gives bounds ``lb ≤ v ≤ ub`` (n,). The QP intersects every
-  non-cap box, then clips the result into the *cap* boxes (:class:`VelocityLimit`):
-  ``lb = clip(lb, cap_lb, cap_ub)``, ``ub = clip(ub, cap_lb, cap_ub)``. Clipping is
-  monotone, so ``lb ≤ ub`` whenever the non-cap boxes are consistent — which their
-  :meth:`Limit.check` proves at construction — and an arm past a position limit gets
-  the bound that moves it back as fast as the velocity limit allows.
-- :class:`RowLimit` gives a fixed number of rows ``l ≤ A v ≤ u`` (m, n); a row that
-  does not apply this step has ``l = −∞, u = +∞``, so the sparsity pattern never changes.
-  It sees the final box, so it can keep each row reachable inside it.
-
-Like the tasks, a limit holds its math once, as a CasADi expression (``expr``) of the
-symbolic state and of its own parameters (inputs of the controller's compiled function);
-:meth:`BoxLimit.bounds` and :meth:`RowLimit.rows` evaluate the same expression on a
-numeric :class:`~qpik.control.state.State`.
+One or two rows per (capsule, obstacle) pair, :math:`n^T J_p v \ge -\xi (h - d_s)/(d_i - d_s)` (heights h
+and distances in m, ξ in m/s; their bounds: :mod:`qpik.control.limits.damper`), with the obstacles in the
+base frame, standing still or moving at given or estimated velocities (m/s, rad/s).
 """
 
 from __future__ import annotations
 
-from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
 
-from qpik.control.state import State, SymState, Traced, evaluate, kinematics_of
+from qpik.control.limits.base import RowLimit
+from qpik.control.limits.damper import damper_lower, damper_recovery
+from qpik.control.state import SymState, kinematics_of
 from qpik.core.errors import InfeasibleError, InputError
 from qpik.core.layout import Blocks, Layout
 from qpik.core.validate import finite_array, joint_vector, number
@@ -36,164 +24,6 @@ if TYPE_CHECKING:
     from qpik.geometry.distance import ObstacleSet
     from qpik.geometry.shapes import Shape
     from qpik.robots.robot import Robot
-
-
-class Limit(Traced):
-    """A constraint family of the QP (subclass :class:`BoxLimit` or :class:`RowLimit`)."""
-
-    name: str = "limit"
-
-    def check(self, robot: Robot, dt: float) -> None:
-        """Raise :class:`InfeasibleError` if the limit can never be met (called at construction).
-
-        The default accepts any robot and dt.
-        """
-        return None
-
-    def observe(self, v: np.ndarray) -> None:
-        """Called by the controller with each step's command ``v`` (n,), rad/s (the default keeps nothing)."""
-        return None
-
-    def parameters(self, s: SymState) -> Blocks:
-        """This limit's parameters declared as inputs of ``s`` (SX blocks of :meth:`param_layout`)."""
-        return s.params_of(self)
-
-
-class BoxLimit(Limit, ABC):
-    """Bounds ``lb ≤ v ≤ ub`` (n,) on the joint velocity (rad/s)."""
-
-    cap: bool = False  # cap boxes (velocity limits) clip every other box
-    rank: int = 0  # caps clip in increasing rank, the last wins: jerk (-2), acceleration (-1), velocity (0)
-
-    @abstractmethod
-    def expr(self, s: SymState, p: Blocks) -> tuple[ca.SX, ca.SX]:
-        """``(lb, ub)``, each (n,) SX, rad/s; ``±inf`` for no bound."""
-
-    def bounds(self, state: State) -> tuple[np.ndarray, np.ndarray]:
-        """``(lb, ub)``, each (n,), rad/s, for the configuration in ``state`` (:meth:`expr` on numbers)."""
-        self.check(state.robot, state.dt)
-        lb, ub = evaluate(self, state, lambda s: list(self.expr(s, self.parameters(s))))
-        return lb.reshape(-1), ub.reshape(-1)
-
-
-class RowLimit(Limit, ABC):
-    """A fixed number of rows ``l ≤ A v ≤ u``."""
-
-    @abstractmethod
-    def size(self, robot: Robot) -> int:
-        """Number of rows m (constant for a controller)."""
-
-    @abstractmethod
-    def row_names(self, robot: Robot) -> list[str]:
-        """One name per row (for :attr:`StepInfo.active`)."""
-
-    @abstractmethod
-    def expr(self, s: SymState, p: Blocks, lb: ca.SX, ub: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
-        """``(A, l, u)``: (m, n), (m,), (m,) SX, given the step's final box ``lb ≤ v ≤ ub`` (n,)."""
-
-    def recovery_expr(self, s: SymState, p: Blocks) -> ca.SX:
-        """(m,) SX, ≥ 0: the part of each row's lower bound that asks to recover from inside its safety distance
-        (the default: none). When rows conflict, the controller gives up these parts first."""
-        return ca.SX.zeros(self.size(s.kin.robot))
-
-    def rows(self, state: State, lb: np.ndarray, ub: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(A, l, u)``: (m, n), (m,), (m,) for ``state`` and the final box (:meth:`expr` on numbers)."""
-        self.check(state.robot, state.dt)
-        lb, ub = (np.asarray(x, dtype=float).reshape(-1) for x in (lb, ub))
-        A, lo, hi = evaluate(self, state, lambda s, a, b: list(self.expr(s, self.parameters(s), a, b)), lb, ub)
-        return A, lo.reshape(-1), hi.reshape(-1)
-
-
-class ConfigurationLimit(BoxLimit):
-    r"""Joint position limits through one step: :math:`q_{min} + \mu \le q + v\,dt \le q_{max} - \mu`.
-
-    As a box: :math:`(q_{min} + \mu - q)/dt \le v \le (q_{max} - \mu - q)/dt`. A joint
-    past its limit gets a lower (upper) bound > 0 (< 0): it must move back, and the
-    velocity cap bounds how fast.
-
-    Args:
-        margin: μ ≥ 0, rad, kept from both limits.
-        q_min, q_max: (n,) overrides of the robot's limits, rad (None: the robot's).
-    """
-
-    name = "position"
-
-    def __init__(self, margin: float = 0.0, q_min: np.ndarray | None = None, q_max: np.ndarray | None = None):
-        self.margin = number(margin, "ConfigurationLimit.margin")
-        self.q_min = None if q_min is None else finite_array(q_min, "q_min", (None,)).copy()
-        self.q_max = None if q_max is None else finite_array(q_max, "q_max", (None,)).copy()
-        self._lo = self._hi = None
-
-    def check(self, robot: Robot, dt: float) -> None:
-        lo = (robot.q_min if self.q_min is None else self.q_min) + self.margin
-        hi = (robot.q_max if self.q_max is None else self.q_max) - self.margin
-        if lo.shape != (robot.dof,) or hi.shape != (robot.dof,):
-            raise InputError(f"ConfigurationLimit: q_min/q_max must have shape ({robot.dof},)")
-        bad = np.flatnonzero(lo > hi)
-        if len(bad):
-            raise InfeasibleError(
-                "ConfigurationLimit: empty joint range (q_min + margin > q_max - margin) for joint(s) "
-                + ", ".join(str(j + 1) for j in bad)
-            )
-        self._lo, self._hi = lo, hi
-
-    @property
-    def range(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(q_min + μ, q_max − μ)``, each (n,), rad: the range kept (after :meth:`check`)."""
-        return self._lo, self._hi
-
-    def structure(self) -> tuple:
-        return ()
-
-    def param_layout(self, n: int) -> Layout:
-        return Layout(lo=n, hi=n)
-
-    def param_values(self) -> dict[str, np.ndarray]:
-        return {"lo": self._lo, "hi": self._hi}
-
-    def expr(self, s: SymState, p: Blocks) -> tuple[ca.SX, ca.SX]:
-        return (p.lo - s.q) / s.dt, (p.hi - s.q) / s.dt
-
-
-class VelocityLimit(BoxLimit):
-    r"""Joint velocity limits :math:`|v| \le v_{max}` (a cap box: every other box is clipped into it).
-
-    Args:
-        v_max: (n,) limits, rad/s, ≥ 0 (None: the robot's).
-    """
-
-    name = "velocity"
-    cap = True
-
-    def __init__(self, v_max: np.ndarray | None = None):
-        self.v_max = None if v_max is None else finite_array(v_max, "v_max", (None,)).copy()
-        self._bounds: tuple[np.ndarray, np.ndarray] | None = None
-
-    def check(self, robot: Robot, dt: float) -> None:
-        vmax = robot.v_max if self.v_max is None else self.v_max
-        if vmax.shape != (robot.dof,):
-            raise InputError(f"VelocityLimit.v_max: expected shape ({robot.dof},), got {vmax.shape}")
-        bad = np.flatnonzero(vmax < 0)
-        if len(bad):
-            raise InfeasibleError("VelocityLimit: negative v_max for joint(s) " + ", ".join(str(j + 1) for j in bad))
-        self._bounds = (-vmax.copy(), vmax.copy())
-
-    @property
-    def range(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """``(−v_max, v_max)``, each (n,), rad/s: the range kept (after :meth:`check`; None before)."""
-        return self._bounds
-
-    def structure(self) -> tuple:
-        return ()
-
-    def param_layout(self, n: int) -> Layout:
-        return Layout(v_max=n)
-
-    def param_values(self) -> dict[str, np.ndarray]:
-        return {"v_max": self._bounds[1]}
-
-    def expr(self, s: SymState, p: Blocks) -> tuple[ca.SX, ca.SX]:
-        return -p.v_max, p.v_max
 
 
 class ObstacleLimit(RowLimit):
@@ -252,7 +82,7 @@ class ObstacleLimit(RowLimit):
         xi: ξ, m/s (> 0).
         buffer: δ, m (≥ 0).
         brake: α, m/s² (None: off): with acceleration limits, rows beyond d_i slow an approach so that it
-            reaches d_i at ξ, lowered where α cannot follow it (:func:`damper_lower`).
+            reaches d_i at ξ, lowered where α cannot follow it (:func:`~qpik.control.limits.damper.damper_lower`).
         moving: the rows take the obstacles' velocities (:meth:`set_velocities`, :meth:`move`,
             :meth:`translate`); off, the obstacles are taken as standing still and the rows cost less.
 
@@ -396,7 +226,8 @@ class ObstacleLimit(RowLimit):
         return ca.vertcat(*out) if out else ca.SX(0, 1)
 
     def recovery_expr(self, s: SymState, p: Blocks) -> ca.SX:
-        r"""The damper's separating speed below :math:`d_s + \delta` (R,), m/s (:func:`damper_recovery`)."""
+        r"""The damper's separating speed below :math:`d_s + \delta` (R,), m/s
+        (:func:`~qpik.control.limits.damper.damper_recovery`)."""
         return damper_recovery(s.damper_heights(self.obstacles), p, self.brake)
 
     def expr(self, s: SymState, p: Blocks, lb: ca.SX, ub: ca.SX) -> tuple[ca.SX, ca.SX, ca.SX]:
@@ -420,70 +251,3 @@ def _reference_points(obstacles: ObstacleSet, symbolic: ca.SX | None = None) -> 
         out.append(zero if kind == "halfspace" else prm[start : start + 3])
         start += PARAMS[kind]
     return np.array(out, dtype=float).reshape(-1, 3) if symbolic is None else out
-
-
-def damper_lower(
-    A: ca.SX,
-    h: ca.SX,
-    gains,
-    lb: ca.SX,
-    ub: ca.SX,
-    approach: ca.SX | float = 0.0,
-    caps: tuple[ca.SX, ca.SX] | None = None,
-    brake: ca.SX | None = None,
-) -> ca.SX:
-    r"""Lower bounds (m,) of velocity-damper rows ``A v ≥ l`` (A (m, n), heights h (m,), m, box ``lb ≤ v ≤ ub``):
-    :math:`l = -\xi (h - d_s)/(d_i - d_s) + \text{approach}` where :math:`h < d_i` and a joint moves the row,
-    else −∞ (``approach`` (m,): the other body's speed toward this one along the row, m/s). ``gains``: the
-    limit's parameters (:meth:`~qpik.control.state.SymState.params_of`), :math:`d_i` ``d_influence`` and
-    :math:`d_s` ``d_safe`` (m), ξ ``xi`` (m/s).
-
-    The bound is capped so that each row alone can be met in the box widened toward ``v = 0`` within the
-    caps' own box ``caps`` (:math:`B_0`: the velocity, acceleration and jerk limits; without ``caps``,
-    widened to contain 0): at the larger of :math:`r_0 - \tfrac12 |r_0|` with
-    :math:`r_0 = \max_{v \in B_0} a^T v` (half of it when :math:`r_0 \ge 0`, see :class:`ObstacleLimit`) and
-    :math:`\max_{v \in B} a^T v - \tfrac14 \sum_j |a_j| (ub_j - lb_j)`. The two agree for a box symmetric
-    about 0; the second lets a narrow box around the last command
-    (:class:`~qpik.control.limits_motion.AccelerationLimit`) grow the separating speed by half its width per
-    step. Where the caps cannot stop an approach in time the row asks only what they allow (the clearance may
-    then fall below :math:`d_s`; the acceleration and jerk limits are kept).
-
-    With ``brake`` α (m/s², a deceleration along the row that the acceleration limits can give), the approach
-    is one that a deceleration α can follow (the damper assumes an arm that can stop at once; with acceleration
-    limits it cannot). Inside :math:`d_i` the damper's bound falls at the rate :math:`\xi/(d_i - d_s)` per unit
-    of approach, so an approach on it decelerates by up to :math:`\xi^2/(d_i - d_s)`: ξ is lowered to
-    :math:`\xi_\alpha = \min(\xi, \sqrt{\alpha (d_i - d_s)})`, which keeps that within α. Rows beyond
-    :math:`d_i` apply too, with the braking profile :math:`\dot h \ge -\sqrt{\xi_\alpha^2 + 2\alpha (h - d_i)}`:
-    an approach is slowed at α early enough to reach :math:`d_i` at :math:`\xi_\alpha`. Both only ask for a
-    slower approach than without ``brake``.
-    """
-    m = A.shape[0]
-    d_i, ds = gains.d_influence, gains.d_safe
-    xi = braked_xi(gains.xi, d_i, ds, brake)
-    lower = (-xi / (d_i - ds)) * (h - ds) + approach
-    lo0, hi0 = ca.fmin(lb, 0.0), ca.fmax(ub, 0.0)
-    if caps is not None:
-        lo0, hi0 = ca.fmax(lo0, caps[0]), ca.fmin(hi0, caps[1])
-    LB, UB = ca.repmat(lb.T, m, 1), ca.repmat(ub.T, m, 1)
-    reach0 = ca.sum2(ca.fmax(A * ca.repmat(lo0.T, m, 1), A * ca.repmat(hi0.T, m, 1)))
-    reach = ca.sum2(ca.fmax(A * LB, A * UB)) - 0.25 * ca.sum2(ca.fabs(A) * (UB - LB))
-    cap = ca.fmax(reach0 - 0.5 * ca.fabs(reach0), reach)
-    moved = ca.sum2(ca.fabs(A)) > 1e-12  # a row no joint moves is left out
-    near = h < d_i
-    if brake is not None:
-        lower = ca.if_else(near, lower, -ca.sqrt(xi * xi + 2.0 * brake * ca.fmax(h - d_i, 0.0)) + approach)
-        near = h == h  # every row applies
-    return ca.if_else(ca.logic_and(near, moved), ca.fmin(lower, cap), -ca.inf)
-
-
-def braked_xi(xi: ca.SX, d_i: ca.SX, ds: ca.SX, brake: ca.SX | None) -> ca.SX:
-    r"""ξ (m/s) of a damper, lowered to :math:`\sqrt{\alpha (d_i - d_s)}` with ``brake`` α (:func:`damper_lower`)."""
-    return xi if brake is None else ca.fmin(xi, ca.sqrt(brake * (d_i - ds)))
-
-
-def damper_recovery(h: ca.SX, gains, brake: ca.SX | None = None) -> ca.SX:
-    r"""The part (m,), m/s, ≥ 0, of the damper bounds of :func:`damper_lower` that asks rows of heights h (m,)
-    below d_s to separate: :math:`\xi (d_s - h)/(d_i - d_s)` there, else 0 (the obstacle's approach excluded).
-    ``gains``: as for :func:`damper_lower`."""
-    d_i, ds = gains.d_influence, gains.d_safe
-    return ca.fmax((braked_xi(gains.xi, d_i, ds, brake) / (d_i - ds)) * (ds - h), 0.0)

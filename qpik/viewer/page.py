@@ -1,0 +1,262 @@
+r"""The viewer's page: the viser scene and panel of one arm, and how a :class:`~qpik.viewer.state.ViewState` is drawn.
+
+:class:`Page` builds, on a :class:`viser.ViserServer`, the scene (a grid, the arm solid, the best answer in
+gold, one translucent ghost per closed-form branch with its label, the link capsules, the obstacles, the
+clearance segments and the target's transform controls) and the panel (the δ/ψ slider over the feasible-set
+chart, the objective, the obstacles' clearances, the playback and live-mode folders). It keeps the handles
+of everything it draws; the viewer (:mod:`qpik.viewer.server`) connects the panel's callbacks.
+Positions in the robot's base frame, metres; the slider in radians.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from qpik.geometry.distance import ObstacleSet
+from qpik.objectives import NAMES
+from qpik.robots.robot import Robot
+from qpik.viewer.chart import feasible_chart
+from qpik.viewer.geometry import ArmGeometry, Part, capsule_part, shape_part, wxyz
+from qpik.viewer.playback import Track
+from qpik.viewer.state import ViewState
+
+if TYPE_CHECKING:
+    import viser
+
+    from qpik.geometry.distance import Distances
+
+WITHIN, OUTSIDE, BEST = (47, 158, 68), (245, 130, 32), (240, 160, 0)
+GHOST_OPACITY = 0.28
+OBSTACLE, CAPSULE = (224, 49, 49), (51, 154, 240)
+
+
+class Page:
+    """The scene and panel of one arm on ``server`` (see the module docstring).
+
+    Args:
+        server: the viser server the page is drawn on.
+        robot: the arm.
+        obstacles: the obstacles drawn (base frame).
+        d_safe: m, the clearance below which a distance is drawn red.
+        pose: (4, 4) where the target's controls start.
+        track: what the playback folder plays (None: the folder is hidden).
+        objective: the objective first selected (a name of :data:`qpik.objectives.NAMES`).
+    """
+
+    def __init__(
+        self,
+        server: viser.ViserServer,
+        robot: Robot,
+        obstacles: ObstacleSet,
+        d_safe: float,
+        pose: np.ndarray,
+        track: Track | None,
+        objective: str,
+    ):
+        self.server, self.robot, self.obstacles, self.d_safe = server, robot, obstacles, d_safe
+        self._build(pose, track, objective)
+
+    def _build(self, pose: np.ndarray, track: Track | None, objective: str) -> None:
+        robot, scene = self.robot, self.server.scene
+        # no share button: sharing goes through viser's relay server, off this machine
+        self.server.gui.configure_theme(control_width="large", show_share_button=False)
+        scene.set_up_direction("+z")
+        reach = float(np.linalg.norm(robot.frames(robot.q_home)[:, :3, 3], axis=1).max()) + 0.2
+        cam = self.server.initial_camera
+        cam.look_at = (0.15 * reach, 0.0, 0.35 * reach)
+        cam.position = (1.1 * reach, -0.95 * reach, 0.75 * reach)
+        scene.add_grid("/grid", width=2 * reach, height=2 * reach, cell_size=0.1, section_size=0.5)
+        self.geometry = ArmGeometry(robot)
+        self.arm = self._add_arm("/arm", None, 1.0)
+        self.best = self._add_arm("/best", BEST, 0.45, visible=False)
+        closed = robot.closed_form is not None
+        from qpik.analytic.api import closed_form_for
+
+        self.branch_ids = closed_form_for(robot).branch_array.tolist() if closed else []
+        self.ghosts = [self._add_arm(f"/ghost{b}", WITHIN, GHOST_OPACITY, visible=False) for b in self.branch_ids]
+        self.ghost_colour = [WITHIN] * len(self.ghosts)
+        self.labels = [scene.add_label(f"/ghost{b}/label", f"b{b}", visible=False) for b in self.branch_ids]
+        self.capsules = []
+        for c, cap in enumerate(robot.capsules):
+            part, local = capsule_part(cap, CAPSULE, 0.25)
+            self.capsules.append((self._mesh(f"/capsules/c{c}", part), cap.link, local))
+        scene.add_frame("/capsules", show_axes=False, visible=len(self.obstacles) > 0)
+        for o, shape in enumerate(self.obstacles.shapes):
+            part, T = shape_part(shape, OBSTACLE, 0.45)
+            self._mesh(f"/obstacles/o{o}", part, T[:3, 3], wxyz(T[:3, :3]))
+        count = len(self.obstacles)
+        self.clear_lines = scene.add_line_segments("/clearance", np.zeros((max(count, 1), 2, 3)), (0, 0, 0),
+                                                   thickness=0.004, visible=count > 0)  # fmt: skip
+        self.clear_labels = [scene.add_label(f"/clearance/d{o}", "") for o in range(count)]
+        self.target = scene.add_transform_controls("/target", scale=0.18, position=pose[:3, 3], wxyz=wxyz(pose[:3, :3]))
+        self._build_panel(track, objective)
+
+    def _add_arm(self, root: str, colour, opacity: float, visible: bool = True) -> list:
+        """The arm's parts under ``root``: one frame per body (returned, in :attr:`ArmGeometry.bodies` order)."""
+        frames = []
+        self.server.scene.add_frame(root, show_axes=False, visible=visible)
+        pos, quat = self.geometry.poses(self.robot.q_home)  # a fixed body stays where it is placed here
+        for body, p, w in zip(self.geometry.bodies, pos, quat):
+            frame = self.server.scene.add_frame(f"{root}/b{body.body}", show_axes=False, position=p, wxyz=w)
+            for i, part in enumerate(body.parts):
+                if colour is not None:
+                    part = Part(part.vertices, part.faces, colour, opacity, part.geom)
+                self._mesh(f"{root}/b{body.body}/p{i}", part)
+            frames.append(frame)
+        return frames
+
+    def _mesh(self, name: str, part: Part, position=(0.0, 0.0, 0.0), quat=(1.0, 0.0, 0.0, 0.0)):
+        return self.server.scene.add_mesh_simple(
+            name, part.vertices, part.faces, color=part.rgb, opacity=None if part.opacity >= 1.0 else part.opacity,
+            position=position, wxyz=quat, side="front",
+            cast_shadow=part.opacity >= 1.0, receive_shadow=part.opacity >= 1.0,
+        )  # fmt: skip
+
+    def _build_panel(self, track: Track | None, objective: str) -> None:
+        robot, gui = self.robot, self.server.gui
+        closed = robot.closed_form is not None
+        symbol = {"srs": "ψ", "offset_shoulder": "δ", "locked_joint": "q7"}.get(robot.closed_form or "", "")
+        self.symbol = symbol
+        kind = {"srs": "S-R-S, closed form in the arm angle ψ", "offset_shoulder": "offset shoulder, closed form in δ",
+                "locked_joint": "closed form with q7 locked"}  # fmt: skip
+        what = kind.get(robot.closed_form or "", "no closed form")
+        gui.add_markdown(f"**{robot.name}** ({robot.dof} joints): {what}")
+        with gui.add_folder("Branches", visible=closed):
+            self.slider = gui.add_slider(f"{symbol or 'param'} [rad]", -math.pi, math.pi, 0.001, 0.0,
+                                         marks=((-math.pi, "−π"), (0.0, "0"), (math.pi, "π")))  # fmt: skip
+            self.chart = gui.add_html("")
+            self.ghost_box = gui.add_checkbox("ghosts", True)
+            self.branch_md = gui.add_markdown("")
+        with gui.add_folder("Best answer" if closed else "Numerical IK"):
+            self.objective_dd = gui.add_dropdown("objective", NAMES, initial_value=objective, visible=closed)
+            self.best_md = gui.add_markdown("")
+            self.to_best = gui.add_button(f"{symbol or 'param'} ← best", visible=closed)
+        with gui.add_folder("Obstacles", visible=len(self.obstacles) > 0):
+            self.capsule_box = gui.add_checkbox("capsules", len(self.obstacles) > 0)
+            self.capsule_box.on_update(lambda e: setattr(self.server.scene.get_handle_by_name("/capsules"), "visible",
+                                                         e.target.value))  # fmt: skip
+            self.clear_md = gui.add_markdown("")
+        with gui.add_folder("Playback", visible=track is not None):
+            k = max(len(track) - 1, 1) if track is not None else 1
+            self.time = gui.add_slider("record", 0, k, 1, 0)
+            self.play = gui.add_button("play")
+            self.play_md = gui.add_markdown(track.label if track is not None else "")
+        with gui.add_folder("Live"):
+            self.live_box = gui.add_checkbox("QP controller tracks the target", False)
+            self.live_md = gui.add_markdown("off")
+
+    def draw(self, state: ViewState, override: np.ndarray | None) -> None:
+        """Draw ``state``: the solid arm at its q, or at ``override`` (n,) (live mode, playback) with the best
+        answer in gold beside it; the ghosts, capsules, clearances, feasible-set chart and the answer's text."""
+        q = state.q if override is None else override
+        self.place(self.arm, q)
+        if override is not None and state.best is not None:
+            self.place(self.best, state.best.q)
+        self.server.scene.get_handle_by_name("/best").visible = override is not None and state.best is not None
+        self.draw_ghosts(state, q)
+        self.draw_capsules(q, state.clearance if override is None else None)
+        self.draw_chart(state)
+        self.best_md.content = best_text(state, self.symbol)
+
+    def place(self, frames: list, q: np.ndarray) -> None:
+        """Put the moving bodies of an arm (its frames of :meth:`_add_arm`) at configuration q."""
+        pos, quat = self.geometry.poses(q)
+        for frame, body, p, w in zip(frames, self.geometry.bodies, pos, quat):
+            if body.moving:
+                frame.position, frame.wxyz = p, w
+
+    def draw_ghosts(self, state: ViewState, solid: np.ndarray) -> None:
+        """A ghost per branch that reaches the pose, but not one that is the solid arm itself; a label per place
+        (branches whose middle link frames coincide, as the shoulder and wrist flips of an S-R-S arm do, share one);
+        ``solid``: (n,) the solid arm's configuration."""
+        sol = state.branches
+        if sol is None:
+            return
+        show = sol.valid & self.ghost_box.value & (np.abs(sol.q - solid).max(axis=1) > 1e-9)
+        F = self.robot.frames(sol.q)  # (B, n+2, 4, 4): the labels sit at the middle link's frame
+        spots = F[:, (self.robot.dof + 1) // 2, :3, 3]
+        texts: dict[int, list[str]] = {}
+        for k, frames in enumerate(self.ghosts):
+            root = self.server.scene.get_handle_by_name(f"/ghost{self.branch_ids[k]}")
+            if root.visible != bool(show[k]):
+                root.visible = bool(show[k])
+            if not show[k]:
+                continue
+            colour = WITHIN if sol.within_limits[k] else OUTSIDE
+            if colour != self.ghost_colour[k]:
+                self.ghost_colour[k] = colour
+                for body in self.geometry.bodies:
+                    for i in range(len(body.parts)):
+                        handle = self.server.scene.get_handle_by_name(f"/ghost{self.branch_ids[k]}/b{body.body}/p{i}")
+                        handle.color = colour
+            self.place(frames, sol.q[k])
+            first = next((j for j in texts if np.linalg.norm(spots[j] - spots[k]) < 0.01), k)
+            texts.setdefault(first, []).append(f"b{self.branch_ids[k]}")
+        for k, label in enumerate(self.labels):
+            label.visible = k in texts
+            if k in texts:
+                label.text, label.position = " ".join(texts[k]), spots[k]
+        within, valid = int(sol.within_limits.sum()), int(sol.valid.sum())
+        self.branch_md.content = (f"{self.symbol} = {state.param:.3f} rad: {valid} of {len(sol.valid)} branches reach"
+                                  f" the pose, {within} inside the joint limits (ghosts: green inside, orange"
+                                  " outside)")  # fmt: skip
+
+    def draw_chart(self, state: ViewState) -> None:
+        """The feasible sets of every branch under the slider, the parameter and the best answer marked."""
+        if state.intervals is None:
+            return
+        best = state.best
+        mark = (best.branch, best.param) if best is not None and best.status == "optimal" else None
+        self.chart.content = feasible_chart(state.intervals, state.param, mark, self.symbol)
+
+    def draw_capsules(self, q: np.ndarray, dist: Distances | None) -> None:
+        """The capsules at q (n,) and, per obstacle, the segment to its nearest capsule with the distance:
+        ``dist`` (computed at q when None)."""
+        F = self.robot.frames(q)
+        for handle, link, local in self.capsules:
+            T = F[link] @ local
+            handle.position, handle.wxyz = T[:3, 3], wxyz(T[:3, :3])
+        if not len(self.obstacles):
+            return
+        if dist is None:
+            from qpik.geometry.distance import distances
+
+            dist = distances(self.robot.capsule_segments(q), self.robot.capsule_radii, self.obstacles)
+        moving = np.flatnonzero(~self.robot.fixed_capsules)
+        points, colours, lines = [], [], []
+        for o, (shape, label) in enumerate(zip(self.obstacles.shapes, self.clear_labels)):
+            c = moving[np.argmin(dist.d[moving, o])]
+            d = float(dist.d[c, o])
+            a, b = dist.p_link[c, o], dist.p_obs[c, o]
+            points.append((a, b))
+            colours.append(OBSTACLE if d < self.d_safe else WITHIN)
+            label.text = f"{d * 1e3:.0f} mm"
+            label.position = 0.5 * (a + b)
+            name = shape.name or f"obstacle {o}"
+            lines.append(f"{name}: {d * 1e3:.1f} mm from capsule {c + 1} (link {self.robot.capsules[c].link})")
+        self.clear_lines.points = np.array(points, dtype=np.float32)
+        self.clear_lines.colors = np.repeat(np.array(colours, dtype=np.uint8)[:, None], 2, axis=1)
+        self.clear_md.content = "  \n".join([f"clearance (d_safe = {self.d_safe * 1e3:.0f} mm):", *lines])
+
+
+def best_text(state: ViewState, symbol: str) -> str:
+    """The panel's lines on the solid arm's answer (``symbol``: δ, ψ or q7)."""
+    if state.numerical is not None:
+        r = state.numerical
+        return (f"numerical IK (Levenberg–Marquardt from the last configuration): **{r.status}**, "
+                f"pose error {r.residual:.2e} (m, rad)")  # fmt: skip
+    best = state.best
+    if best.status != "optimal":
+        return f"**{best.status}**: {best.summary()}"
+    if best.certified:
+        cert = f"**certified** global optimum (gap {best.gap:.1e})"
+    elif not state.certify:
+        cert = "certificate: follows when the target rests"
+    else:
+        cert = f"not certified: {best.message}"
+    clear = f", clearance {best.clearance * 1e3:.1f} mm" if math.isfinite(best.clearance) else ""
+    return (f"solid arm: branch **{best.branch}**, {symbol} = {best.param:.4f} rad, objective {best.objective:.6g}"
+            f"{clear}  \n{cert} ({best.method}, {best.time * 1e3:.1f} ms)")  # fmt: skip
