@@ -1,9 +1,11 @@
 """The house rules, measured on the code: no import circle, no cache keyed by ``id()``, no write into another
-object's ``__dict__``, no read of another object's private attribute (one documented exception)."""
+object's ``__dict__``, no read of another object's private attribute (one documented exception), no module over
+450 lines, no offset arithmetic on flat buffers."""
 
 from __future__ import annotations
 
 import ast
+import re
 from functools import cache
 from pathlib import Path
 
@@ -204,3 +206,35 @@ def test_no_module_is_longer_than_450_lines():
     assert len(lines) > 100
     found = sorted(f"{name}: {n}" for name, n in lines.items() if n > MAX_LINES)
     assert not found, found
+
+
+OFFSET_SLICE = re.compile(r"\[\s*([A-Za-z_][\w.]*)\s*:\s*\1\s*\+")
+"""``buffer[start : start + size]``: a block read at an offset computed by hand."""
+OFFSET_STEP = re.compile(r"\b(start|offset|pos)\s*\+=\s*(size\b|PARAMS\[|len\()")
+"""An offset advanced by hand over the records of a flat buffer."""
+CHUNKED = {
+    # a batch walked in chunks of a compiled call's fixed size (rows of one array, not blocks of a record)
+    "analytic/solver.py",
+    "native/compiled.py",
+    "planning/dp.py",
+    # MuJoCo's own mesh arrays, read with the addresses and counts its model gives (mesh_vertadr, mesh_vertnum)
+    "viewer/geometry.py",
+    "robots/link_capsules.py",
+}
+
+
+def test_no_offset_arithmetic_on_flat_buffers():
+    """Flat buffers are read through :class:`qpik.core.layout.Layout` by name: no module slices a buffer at an
+    offset it computes (``x[a : a + k]``) or advances one by hand, except the batch loops and MuJoCo arrays of
+    :data:`CHUNKED`."""
+    found = []
+    for path in MODULES:
+        name = path.relative_to(PACKAGE).as_posix()
+        if name == "core/layout.py" or name in CHUNKED:
+            continue
+        for k, line in enumerate(path.read_text().splitlines(), 1):
+            code = line.split("#", 1)[0]
+            if OFFSET_SLICE.search(code) or OFFSET_STEP.search(code):
+                found.append(f"{name}:{k}: {line.strip()}")
+    assert not found, found
+    assert any(OFFSET_SLICE.search(line) for line in (PACKAGE / "analytic/solver.py").read_text().splitlines())

@@ -11,6 +11,7 @@ import casadi as ca
 import numpy as np
 
 from qpik.core.errors import InputError
+from qpik.core.layout import Layout
 from qpik.core.validate import number
 
 if TYPE_CHECKING:
@@ -144,20 +145,20 @@ class Sum(Objective):
         parts = [f"{w:g} × ({q.minimised or q.name})" for w, q in zip(self.weights, quantities)]
         return Quantity("objective", meaning=" + ".join(parts))
 
-    def _slices(self, robot: Robot) -> list[slice]:
-        start, out = len(self._terms), []
-        for _, o in self._terms:
-            size = o.param_size(robot)
-            out.append(slice(start, start + size))
-            start += size
-        return out
+    def layout(self, robot: Robot) -> Layout:
+        """The blocks of :meth:`params`: ``weights`` (one per term), then ``term{k}``, the k-th term's parameters."""
+        return Layout(
+            weights=len(self._terms), **{f"term{k}": o.param_size(robot) for k, (_, o) in enumerate(self._terms)}
+        )
 
     def split(self, ctx: Context, p: ca.SX) -> Split:
         out = Split(ca.SX(0.0))
-        for i, ((_, o), sl) in enumerate(zip(self._terms, self._slices(ctx.robot))):
-            part = o.split(ctx, p[sl])
-            out.smooth = out.smooth + p[i] * part.smooth
-            out.maxima += [(p[i] * w, h) for w, h in part.maxima]
+        blocks = self.layout(ctx.robot).symbols(p)
+        for k, (_, o) in enumerate(self._terms):
+            part = o.split(ctx, blocks[f"term{k}"])
+            w = blocks.weights[k]
+            out.smooth = out.smooth + w * part.smooth
+            out.maxima += [(w * v, h) for v, h in part.maxima]
         return out
 
     @property

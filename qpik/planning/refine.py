@@ -17,6 +17,7 @@ import casadi as ca
 import numpy as np
 
 from qpik.analytic.intervals import wrap
+from qpik.core.layout import Layout
 from qpik.core.stopwatch import Stopwatch
 from qpik.geometry.contacts import capsule_clearance
 from qpik.planning.grid import Grid
@@ -148,8 +149,5 @@ class PathNLP(PathModel):
         if not self.n_t:
             return np.zeros((0, N))
         h = np.asarray(self.value()(z, np.zeros((self.n_t, N)))[1])  # pieces h - t at t = 0: the pieces
-        out, start = [], 0
-        for size in self.sizes:
-            out.append(h[start : start + size].max(axis=0))
-            start += size
-        return np.array(out)
+        pieces = Layout(**{f"t{k}": size for k, size in enumerate(self.sizes)}).views(h.T)  # each (N, size)
+        return np.array([p.max(axis=1) for p in pieces.values()])

@@ -107,7 +107,7 @@ class ObstacleLimit(RowLimit):
         brake: float | None = None,
         moving: bool = False,
     ):
-        from qpik.geometry.distance import PARAMS, ObstacleSet
+        from qpik.geometry.distance import RECORDS, REFERENCE, ObstacleSet, set_layout
 
         self.obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
         self.d_influence = number(d_influence, "d_influence", minimum=None)
@@ -119,10 +119,11 @@ class ObstacleLimit(RowLimit):
         if self.xi <= 0 or self.buffer < 0:
             raise InputError("ObstacleLimit: need xi > 0 and buffer >= 0")
         self.moving = bool(moving)
-        starts = np.cumsum([0, *(PARAMS[k] for k in self.obstacles.kinds)])
-        # per obstacle its reference point in the packed parameters (None for a half-space), for translate
-        self._points = [None if k == "halfspace" else self.obstacles.params[a : a + 3]
-                        for k, a in zip(self.obstacles.kinds, starts)]  # fmt: skip
+        # per obstacle its reference point, a view into the packed parameters (None for a half-space), for translate
+        kinds = self.obstacles.kinds
+        records = set_layout(kinds).views(self.obstacles.params).values()
+        self._points = [None if REFERENCE[k] is None else RECORDS[k].views(r)[REFERENCE[k]]
+                        for k, r in zip(kinds, records)]  # fmt: skip
         self.velocities = np.zeros((len(self.obstacles), 6))
         self.brake = None if brake is None else number(brake, "brake")
 
@@ -242,12 +243,13 @@ class ObstacleLimit(RowLimit):
 def _reference_points(obstacles: ObstacleSet, symbolic: ca.SX | None = None) -> list | np.ndarray:
     """Each obstacle's reference point: (O, 3) numbers, or with the packed parameters ``symbolic`` a list of
     (3,) SX (a half-space's is the origin)."""
-    from qpik.geometry.distance import PARAMS
+    from qpik.geometry.distance import RECORDS, REFERENCE, set_layout
 
-    prm = obstacles.params if symbolic is None else symbolic
-    out, start = [], 0
-    for kind in obstacles.kinds:
-        zero = np.zeros(3) if symbolic is None else ca.SX.zeros(3)
-        out.append(zero if kind == "halfspace" else prm[start : start + 3])
-        start += PARAMS[kind]
-    return np.array(out, dtype=float).reshape(-1, 3) if symbolic is None else out
+    layout, out = set_layout(obstacles.kinds), []
+    if symbolic is None:
+        for kind, record in zip(obstacles.kinds, layout.views(obstacles.params).values()):
+            out.append(np.zeros(3) if REFERENCE[kind] is None else RECORDS[kind].views(record)[REFERENCE[kind]])
+        return np.array(out, dtype=float).reshape(-1, 3)
+    for kind, record in zip(obstacles.kinds, layout.symbols(symbolic).values()):
+        out.append(ca.SX.zeros(3) if REFERENCE[kind] is None else RECORDS[kind].symbols(record)[REFERENCE[kind]])
+    return out
