@@ -14,13 +14,13 @@ modules of the arms run the same steps in numpy.
 from __future__ import annotations
 
 import ctypes
-from dataclasses import dataclass
 from functools import cache
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from qpik.analytic.intervals import INTERVALS, Interval, check_sets, list_maker
+from qpik.analytic.native_sets import REGION, NativeSets
 from qpik.analytic.polyroots import FLAGS as POLYROOTS_FLAGS
 from qpik.analytic.polyroots import ROOM
 from qpik.native.compiled import Compiled, Kernel, NativeFunction
@@ -33,37 +33,6 @@ if TYPE_CHECKING:
 NONE = 10.0
 """Stands for a breakpoint or singular value that does not exist in a breakpoint function's output (any value outside
 [−π, π])."""
-
-
-@dataclass
-class NativeSets:
-    """An arm's feasible sets under limits given at run time, as one C call, for C code that calls it in a loop
-    (:mod:`qpik.nlp.levelset`).
-
-    ``function`` is the address of ``int f(const void *context)``: it reads the pose T from :attr:`pose` (16,
-    column-major) and the limits from :attr:`lo` and :attr:`hi` ((n,) rad, the robot's angles), and writes
-    ``count[r]`` pieces of output row r, their ``(lo, hi)`` pairs one row after the other in :attr:`iv` (rad,
-    in [−π, π], sorted per row); it returns the number of pieces, or a negative status
-    (:func:`~qpik.analytic.intervals.check_sets`). An unreachable pose gives no pieces. With ``n_region[0] = k >= 0``
-    (−1: none, as the call leaves it), the caller knows every feasible parameter to lie in the k pairs ``(lo, hi)``
-    of :attr:`region` (rad, in [−π, π]; room for :data:`REGION`): gaps outside them are not evaluated. ``owner``
-    keeps the buffers and the library alive.
-    """
-
-    function: int
-    context: int
-    pose: np.ndarray
-    lo: np.ndarray
-    hi: np.ndarray
-    iv: np.ndarray
-    count: np.ndarray
-    region: np.ndarray
-    n_region: np.ndarray
-    owner: object
-
-
-REGION = 256
-"""Pairs of a :class:`NativeSets` region."""
 
 
 class ArmSetsCall:

@@ -28,7 +28,7 @@ from qpik.native.fastcall import extension
 from qpik.native.sources import load_source
 
 if TYPE_CHECKING:
-    from qpik.analytic.arm_sets import NativeSets
+    from qpik.analytic.native_sets import NativeSets
     from qpik.robots.robot import Robot
 
 TWO_PI = 2.0 * np.pi

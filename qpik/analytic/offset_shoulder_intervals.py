@@ -79,8 +79,9 @@ import numpy as np
 
 from qpik.algebra import symbolic as sy
 from qpik.algebra.symbolic import Ops, Scalar
-from qpik.analytic.arm_sets import NONE, DeltaSetsCall, NativeSets
+from qpik.analytic.arm_sets import NONE, DeltaSetsCall
 from qpik.analytic.intervals import FeasibleIntervals, SetAssembler, shrunk_limits
+from qpik.analytic.native_sets import NativeSets
 from qpik.analytic.polyroots import trig_roots
 from qpik.analytic.trig import EPS, acos2
 from qpik.core.errors import QpikError

@@ -45,8 +45,8 @@ LONG_SWEEP = 1024
 while all of it would be, so that only sweeps that long compile it."""
 
 if TYPE_CHECKING:
-    from qpik.analytic.arm_sets import NativeSets
     from qpik.analytic.intervals import FeasibleIntervals, ParameterSets
+    from qpik.analytic.native_sets import NativeSets
     from qpik.robots.robot import Robot
 
 
@@ -204,7 +204,7 @@ class AnalyticSolver(ABC):
 
     def native_sets(self) -> NativeSets | None:
         """:meth:`feasible_intervals` under limits given at run time as one C call
-        (:class:`~qpik.analytic.arm_sets.NativeSets`), for C code that calls it in a loop; None where there is no
+        (:class:`~qpik.analytic.native_sets.NativeSets`), for C code that calls it in a loop; None where there is no
         such call (no compiler)."""
         return self._sets.native_sets()
 

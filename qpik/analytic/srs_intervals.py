@@ -64,8 +64,9 @@ import numpy as np
 from qpik.algebra import symbolic as sy
 from qpik.algebra.symbolic import Scalar
 from qpik.analytic import trig
-from qpik.analytic.arm_sets import NONE, NativeSets, PsiSetsCall
+from qpik.analytic.arm_sets import NONE, PsiSetsCall
 from qpik.analytic.intervals import FeasibleIntervals, SetAssembler, shrunk_limits, wrap
+from qpik.analytic.native_sets import NativeSets
 from qpik.analytic.srs_geometry import arm_setup, branch_signs
 from qpik.native.compiled import Compiled
 

@@ -47,8 +47,8 @@ from functools import cache
 
 import numpy as np
 
-from qpik.analytic.arm_sets import NativeSets
 from qpik.analytic.intervals import FeasibleIntervals, wrap
+from qpik.analytic.native_sets import NativeSets
 from qpik.geometry.distance import ObstacleSet
 from qpik.native.compiled import Kernel, NativeFunction
 from qpik.native.sources import load_source
@@ -342,7 +342,7 @@ class _LevelSet(ctypes.Structure):
 
 class _Native:
     """The rounds in C (``qpik_levelset``, ``levelset.c``) for one arm: its feasible sets under run-time limits
-    (:class:`~qpik.analytic.arm_sets.NativeSets`) and its self-motion's one-row call, over buffers allocated once."""
+    (:class:`~qpik.analytic.native_sets.NativeSets`) and its self-motion's one-row call, over buffers allocated once."""
 
     def __init__(self, dll: ctypes.CDLL, sets: NativeSets, motion: NativeFunction, selfmotion: SelfMotion):
         robot = selfmotion.robot
