@@ -25,6 +25,8 @@ the helpers with ``from conftest import ...``):
   need single draws.
 - ``matrix_function(name)``: a small CasADi function with non-symmetric matrix inputs and
   outputs, for the compiled-call tests (a row/column-major mix-up changes its answer).
+- ``LARGE``: true with ``QPIK_TESTS_LARGE=1``: the sweeps that take a seeded subset by default
+  (episodes, fuzzed plans, solve_best poses) then run their full count.
 - ``fd(f, q, eps=1e-6)``: central finite differences of any ``f(q) -> array``;
   works on one ``q`` (n,) and on a batch ``(N, n)`` when ``f`` is batched.
   Returns ``(..., n)`` with the derivative index last: for ``f`` returning
@@ -57,6 +59,7 @@ from qpik.robots.model_files import MeshOptions
 from qpik.robots.robot import Robot, default_capsules
 
 ARMS = ("nammoto7", "iiwa14", "zheng7", "panda")
+LARGE = os.environ.get("QPIK_TESTS_LARGE", "") not in ("", "0")
 SEEDS = st.integers(min_value=0, max_value=2**32 - 1)
 MODEL_DIR = Path(__file__).parent / "models"
 

@@ -27,6 +27,9 @@ from scipy.optimize import nnls
 
 import qpik
 
+# --dist loadgroup: one worker runs the whole module, so its module- and session-scoped fixtures are built once
+pytestmark = pytest.mark.xdist_group("examples")
+
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
 SCRIPTS = sorted(EXAMPLES.glob("*.py"))

@@ -1,12 +1,13 @@
 """Limits of the QP: damper rows vs finite differences of the geometry, and limits and clearances holding in
-closed loop over 1,008 seeded random episodes on the MuJoCo twin (:mod:`episodes`)."""
+closed loop over seeded random episodes on the MuJoCo twin (:mod:`episodes`): 240 by default, 1,008 with
+``QPIK_TESTS_LARGE=1``."""
 
 from __future__ import annotations
 
 import episodes
 import numpy as np
 import pytest
-from conftest import SEEDS, random_q
+from conftest import LARGE, SEEDS, random_q
 from hypothesis import given, settings
 
 import qpik
@@ -17,7 +18,8 @@ from qpik.geometry.shapes import Box, Capsule, HalfSpace, Sphere
 
 D_SAFE = 0.02
 D_INFL = 0.10
-EPISODES = 1008  # 21 rounds of every (arm, solver, family)
+ROUND = len(episodes.ARMS) * len(episodes.SOLVERS) * len(episodes.FAMILIES)  # 48 seeds: each combination once
+EPISODES = ROUND * (21 if LARGE else 5)  # 1,008 episodes in the large run, 240 by default
 
 
 def clearance(robot: qpik.Robot, Q: np.ndarray, obstacles) -> np.ndarray:
@@ -48,7 +50,8 @@ def scene(robot: qpik.Robot, q0: np.ndarray, rng: np.random.Generator) -> list:
 
 @pytest.mark.parametrize("arm", episodes.ARMS)
 def test_limits_and_clearance_hold_over_random_episodes(arm):
-    """1,008 seeded closed-loop episodes (252 per arm, both solvers, six scene families: :mod:`episodes`), run on
+    """:data:`EPISODES` seeded closed-loop episodes (a quarter per arm, both solvers, six scene families:
+    :mod:`episodes`; 1,008 with ``QPIK_TESTS_LARGE=1``), run on
     the MuJoCo twin, which measures every link–obstacle clearance at every step (mj_geomDistance, not qpik's
     distance code). Over every one: no joint further past a limit than it has been (1e-6 rad), no velocity above
     its limit (1e-6 rad/s), a clearance that has been at d_s never below d_s − 1e-4 m, one that starts inside d_s

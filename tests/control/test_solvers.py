@@ -21,6 +21,9 @@ from qpik.control.solvers.qpsolvers import QpsolversSolver
 from qpik.core.errors import SolverError
 from qpik.geometry.shapes import Sphere
 
+# --dist loadgroup: one worker runs the whole module, so its module- and session-scoped fixtures are built once
+pytestmark = pytest.mark.xdist_group("control_solvers")
+
 # tolerances that make the interior-point backends accurate to ~1e-9 (proxqp: its own defaults)
 OPTIONS = {
     "clarabel": {"tol_gap_abs": 1e-11, "tol_gap_rel": 1e-11, "tol_feas": 1e-11},

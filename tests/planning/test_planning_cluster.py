@@ -23,6 +23,9 @@ from qpik.robots.packaged import packaged_model
 
 pytest.importorskip("dask.distributed")
 
+# --dist loadgroup: one worker runs the whole module, so its module- and session-scoped fixtures are built once
+pytestmark = pytest.mark.xdist_group("planning_cluster")
+
 SMALL = find_problem("nammoto2012_joint_limits_plan").read_text().replace("num = 61", "num = 11")
 Q = np.array([0.3, 0.5, 0.1, -1.2, 0.2, 0.8, 0.1])
 MODEL = f"""name = "iiwa_model_plan"

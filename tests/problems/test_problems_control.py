@@ -21,6 +21,9 @@ from qpik.geometry import distances
 from qpik.problems import find_problem, load
 from qpik.scene.evaluator import Evaluator
 
+# --dist loadgroup: one worker runs the whole module, so its module- and session-scoped fixtures are built once
+pytestmark = pytest.mark.xdist_group("problems_control")
+
 REACH = find_problem("iiwa_obstacle_reach")
 TRACK = find_problem("zheng2019_clik")
 

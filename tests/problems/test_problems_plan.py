@@ -19,6 +19,9 @@ from qpik.problems import find_problem, list_problems, load, run_problem
 from qpik.problems.plan import plan_problem, waypoints
 from qpik.sim import build_scene
 
+# --dist loadgroup: one worker runs the whole module, so its module- and session-scoped fixtures are built once
+pytestmark = pytest.mark.xdist_group("problems_plan")
+
 PLANS = [p for p in list_problems() if p.kind == "plan"]
 
 

@@ -22,6 +22,9 @@ from qpik.viewer import ViewerError
 from qpik.viewer.browser import browser, open_page, settle
 from qpik.viewer.server import Viewer
 
+# --dist loadgroup: one worker runs the whole module, so its module- and session-scoped fixtures are built once
+pytestmark = pytest.mark.xdist_group("viewer_browser")
+
 SIZE = (960, 640)
 
 
