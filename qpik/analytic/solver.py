@@ -40,9 +40,6 @@ from qpik.native.compiled import Compiled
 SWEEP_CHUNKS = (32, 8)
 """Parameters per call of the compiled sweeps of :meth:`AnalyticSolver.solve_many`: the large one while
 more than 3/4 of it would be used, then the small one (so that 38 parameters cost 40 evaluations, not 64)."""
-LONG_SWEEP = 1024
-"""Parameters per call of a long sweep (a whole-circle grid, :mod:`qpik.analytic.locked_joint_intervals`): used
-while all of it would be, so that only sweeps that long compile it."""
 
 if TYPE_CHECKING:
     from qpik.analytic.intervals import FeasibleIntervals, ParameterSets
@@ -325,7 +322,7 @@ class AnalyticSolver(ABC):
         big, small = SWEEP_CHUNKS
         M, i = params.size, 0
         while i < M:
-            size = LONG_SWEEP if M - i >= LONG_SWEEP else big if M - i > 3 * big // 4 else small
+            size = big if M - i > 3 * big // 4 else small
             m = min(size, M - i)
             chunk = np.full(size, params[i])
             chunk[:m] = params[i : i + m]
