@@ -195,9 +195,10 @@ class AnalyticSolver(ABC):
 
     @property
     def sets_proved(self) -> bool:
-        """Whether :meth:`feasible_intervals` is proved (``ParameterSets.proved``): an empty set then proves that
-        no parameter is feasible, and a level set or certificate built on the sets is a proof."""
-        return self._sets.proved
+        """Whether :meth:`feasible_intervals` is proved (the sets type's ``ParameterSets.proved``, read without
+        building the sets): an empty set then proves that no parameter is feasible, and a level set or certificate
+        built on the sets is a proof."""
+        return self._make_sets is not None and bool(self._make_sets.proved)
 
     def native_sets(self) -> NativeSets | None:
         """:meth:`feasible_intervals` under limits given at run time as one C call
