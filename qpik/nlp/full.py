@@ -220,13 +220,11 @@ def _not_found(robot: Robot, T: np.ndarray) -> str:
     ``"not found"``."""
     if robot.closed_form is None:
         return "not found"
-    from qpik.analytic import closed_form_for
+    from qpik.analytic import closed_form_for, feasible_intervals
 
-    solver = closed_form_for(robot)
-    if not solver.sets_proved:
+    if not closed_form_for(robot).sets_proved:
         return "not found"
-    with solver.lock:
-        return "not found" if any(solver.feasible_intervals(T).intervals) else "unreachable"
+    return "not found" if any(feasible_intervals(robot, T).intervals) else "unreachable"
 
 
 def _starts(robot: Robot, T: np.ndarray, first: np.ndarray, seed: int):
