@@ -32,8 +32,8 @@ import numpy as np
 from qpik.core.errors import InputError
 
 if TYPE_CHECKING:
+    from qpik.robots.description import ArmDescription
     from qpik.robots.joint import Joint
-    from qpik.robots.robot import Robot
 
 # one colour per link (RGB), cycled
 PALETTE = (
@@ -48,7 +48,7 @@ PALETTE = (
 VISUAL = 'group="2" contype="0" conaffinity="0"'
 
 
-def to_mjcf(robot: Robot, extra_worldbody: Sequence[str] = ()) -> str:
+def to_mjcf(robot: ArmDescription, extra_worldbody: Sequence[str] = ()) -> str:
     """The MJCF twin of ``robot`` as an XML string.
 
     Args:

@@ -19,10 +19,11 @@ import numpy as np
 
 from qpik.robots.body_tree import BodyTree, joint_frame
 from qpik.robots.model_files import captured_warnings, read_spec
-from qpik.robots.robot import Robot
 
 if TYPE_CHECKING:
     import mujoco
+
+    from qpik.robots.description import ArmDescription
 
 
 SITE = "qpik_ee"
@@ -77,7 +78,7 @@ class ModelSource:
             qpos[model.joint(joint).qposadr[0]] = m * qpos[adr[leader]] + c
         return qpos
 
-    def spec_with(self, robot: Robot) -> mujoco.MjSpec:
+    def spec_with(self, robot: ArmDescription) -> mujoco.MjSpec:
         """The spec with the robot's capsules (visual: translucent, group 2, no contacts) and the end-effector site.
 
         Capsule ``c`` of link ``k`` is geom ``qpik_capsule{c}`` on the body of chain joint ``k``, placed by

@@ -21,11 +21,11 @@ from qpik.core.errors import InputError
 from qpik.core.validate import joint_vector, number
 from qpik.robots.cache import RobotCache
 from qpik.robots.chain import SerialChain
+from qpik.robots.description import ModelFile
 
 if TYPE_CHECKING:
     import mujoco
 
-    from qpik.robots.model_source import ModelSource
     from qpik.robots.recognize import Canonical
 
 ClosedForm = Literal["offset_shoulder", "srs", "locked_joint"] | None
@@ -80,7 +80,7 @@ class Robot:
     closed_form: ClosedForm = None
     source: str = ""
     notes: str = field(default="", compare=False)
-    model: ModelSource | None = field(default=None, compare=False)
+    model: ModelFile | None = field(default=None, compare=False)
     canonical: Canonical | None = field(default=None, compare=False)
     a_max: np.ndarray | None = field(default=None, compare=False)
     j_max: np.ndarray | None = field(default=None, compare=False)

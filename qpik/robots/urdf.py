@@ -27,12 +27,12 @@ import numpy as np
 from qpik.core.errors import InputError
 
 if TYPE_CHECKING:
-    from qpik.robots.robot import Robot
+    from qpik.robots.description import ArmDescription
 
 BASE, TIP = "base", "ee"
 
 
-def to_urdf(robot: Robot) -> str:
+def to_urdf(robot: ArmDescription) -> str:
     """The URDF of ``robot`` as an XML string: links ``base``, ``link1..linkn``, ``ee``; joints ``joint1..jointn``.
 
     Raises:
