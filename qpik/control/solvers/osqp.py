@@ -149,17 +149,10 @@ class OSQPSolver(Solver):
         return Solution(x, x is not None, info.status, int(info.iter))
 
     def _polish(self, qp: QP, x: np.ndarray, y: np.ndarray) -> np.ndarray | None:
-        """:func:`polish` (in C where it compiles) of the current QP from the guess of ``(x, y)``, over the rows with
-        a finite bound: a row bounded by ±inf on both sides (a damper beyond its influence distance) can be neither
-        violated nor active, and leaving it out saves its part of :math:`H = \bar A P^{-1} \bar A^T` (M², most
-        of the work with many inactive rows)."""
-        AbarT, lo, hi = self._AbarT, self._l, self._u
-        live = np.flatnonzero(np.isfinite(lo) | np.isfinite(hi))
-        if len(live) < len(lo):
-            AbarT, lo, hi, y = np.ascontiguousarray(AbarT[:, live]), lo[live], hi[live], y[live]
+        """:func:`polish` (in C where it compiles) of the current QP from the guess of ``(x, y)``."""
         if (compiled := _compiled_polish()) is not None:
-            return compiled(qp.P, qp.c, AbarT, lo, hi, x, y, POLISH_TOL, MAX_POLISH_STEPS)
-        return polish(qp.P, qp.c, AbarT.T, lo, hi, (x, y), POLISH_TOL, MAX_POLISH_STEPS)
+            return compiled(qp.P, qp.c, self._AbarT, self._l, self._u, x, y, POLISH_TOL, MAX_POLISH_STEPS)
+        return polish(qp.P, qp.c, self._AbarT.T, self._l, self._u, (x, y), POLISH_TOL, MAX_POLISH_STEPS)
 
     def _refresh(self, qp: QP) -> None:
         """Give OSQP the current P and Ā (it refactors its KKT matrix)."""
@@ -236,7 +229,9 @@ def polish(
     guess = np.flatnonzero(guessed)
     if not len(guess) and viol <= scale:  # nothing active, a bound met within the tolerance
         return x0
-    C = lapack.dpotrs(L, Abar.T, lower=1)[0]  # (n, M): P⁻¹ Āᵀ (not dtrtrs: OpenBLAS threads it even at n = 7)
+    live = np.isfinite(lo) | np.isfinite(hi)  # a row bounded by ±inf on both sides is never violated nor active:
+    C = np.zeros(Abar.T.shape)  # (n, M): P⁻¹ Āᵀ, and its part of H stays 0 (most of the M² n work)
+    C[:, live] = lapack.dpotrs(L, Abar[live].T, lower=1)[0]  # not dtrtrs: OpenBLAS threads it even at n = 7
     H = Abar @ C
     b = np.where(lower, lo, hi)  # the bound each row is at (rows entering later set theirs)
     W = _independent(H, guess)
