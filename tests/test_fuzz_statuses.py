@@ -1,7 +1,7 @@
 """Fuzz: no result whose own check fails carries a success status (plans on every kind of arm, IK results).
 
 Seeded paths on 8 arms (the catalog's closed-form and fallback arms and four third-party arms without a
-closed form): 10 per arm by default (each kind of case twice), 25 per arm with ``QPIK_TESTS_LARGE=1``. Each is
+closed form): 5 per arm by default (each kind of case once), 25 per arm with ``QPIK_TESTS_LARGE=1``. Each is
 a short motion of random joints (the reference, inside the limits), some with a waypoint moved out of reach
 and some with a sphere on the path. Every plan is measured again
 here, independently of qpik's own checks: FK of its configurations against the waypoints, the joint
@@ -34,7 +34,7 @@ THIRD_PARTY = {
                         "tip": "arm_left_7_link"}),
 }  # fmt: skip
 SUCCESS = {"optimal", "dp", "tracking"}
-PER_ARM = 25 if LARGE else 10  # seeds per arm; the case kind cycles with the seed mod 5
+PER_ARM = 25 if LARGE else 5  # seeds per arm; the case kind cycles with the seed mod 5
 N = 5
 
 

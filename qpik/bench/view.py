@@ -31,6 +31,8 @@ from qpik.core.errors import QpikError
 TITLE = "Viewer update: target pose received → scene messages sent (qpik view, scripted drag poses)"
 POSES = 100
 BUDGET = 0.050  # s per update, the issue's target
+PAGE = (1280, 800)
+"""(width, height) px of the page open in Chromium while an arm is dragged."""
 BENT = np.array([0.0, 0.6, 0.0, -1.4, 0.0, 0.8, 0.0])
 """(7,) rad: the bent configuration the URDF arm is also dragged around (shoulder, elbow and wrist bent)."""
 
@@ -90,7 +92,7 @@ def run(args: argparse.Namespace) -> list[Row]:
                 continue
             with Viewer(robot, obstacles=obstacles, options=ViewOptions(port=0)) as viewer:
                 viewer.wait()
-                page = open_page(chromium, viewer, (1280, 800)) if chromium is not None else None
+                page = open_page(chromium, viewer, PAGE) if chromium is not None else None
                 reached = 0
                 for pose in drag(robot, min(POSES, args.repeat), centre):
                     viewer.receive(pose, time.perf_counter())

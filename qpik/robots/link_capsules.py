@@ -6,11 +6,15 @@ given as balls whose convex hull contains it (:func:`geom_balls`: mesh vertices,
 a box or of an ellipsoid's bounding box, a cylinder's rims as polygons widened by their chord
 error, a sphere or capsule's centres with its radius), fitted by
 :func:`qpik.robots.capsule_fit.fit_capsule`. Capsules are in link frame *k* (the joint frame),
-metres, at the chain's reference configuration.
+metres, at the chain's reference configuration. A fit is kept on disk beside the compiled code
+(:func:`fitted`), so that loading the same model again, in any process, does not fit it again.
 """
 
 from __future__ import annotations
 
+import hashlib
+import os
+import tempfile
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -35,8 +39,6 @@ def link_capsules(
     ``arm``: every chain joint (link k is moved by chain joint k); ``tree`` at the chain's reference configuration;
     ``placement``: the base frame in the model's world frame (4, 4).
     """
-    from qpik.robots.capsule_fit import fit_capsule  # SciPy's optimisers: only for a model file
-
     owner = {}  # body -> link index (1..n) of the arm joint that moves it last
     joint_body = [int(model.jnt_bodyid[j]) for j in arm]
 
@@ -65,9 +67,40 @@ def link_capsules(
         to_link = np.linalg.inv(frames[link])
         centres = np.concatenate([c for c, _ in balls[link]]) @ to_link[:3, :3].T + to_link[:3, 3]
         radii = np.concatenate([r for _, r in balls[link]])
-        a, b, R = fit_capsule(centres, radii)
+        a, b, R = fitted(centres, radii)
         caps.append(LinkCapsule(link, a, b, R))
     return tuple(caps)
+
+
+def fitted(centres: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """:func:`qpik.robots.capsule_fit.fit_capsule` of the balls (centres (N, 3), radii (N,), m), kept in the cache
+    folder (:func:`qpik.native.build.cache_dir`) under a hash of the balls, the fit's settings and SciPy's version:
+    a later call with the same balls reads the same numbers back. Where the folder cannot be written the fit is
+    only not kept."""
+    import scipy
+
+    from qpik.native.build import cache_dir
+    from qpik.robots import capsule_fit  # SciPy's optimisers: only for a model file
+
+    centres, radii = np.ascontiguousarray(centres, float), np.ascontiguousarray(radii, float)
+    settings = f"{capsule_fit.DIRECTIONS} {capsule_fit.REFINED} {scipy.__version__} {centres.shape}".encode()
+    key = hashlib.sha256(settings + centres.tobytes() + radii.tobytes()).hexdigest()[:40]
+    path = cache_dir() / "capsules" / f"{key}.npz"
+    try:
+        with np.load(path) as kept:
+            return kept["a"], kept["b"], float(kept["R"])
+    except (OSError, ValueError, KeyError):  # not kept yet, or unreadable: fit again
+        pass
+    a, b, R = capsule_fit.fit_capsule(centres, radii)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz.tmp")
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, a=a, b=b, R=R)
+        os.replace(tmp, path)  # atomic: a concurrent loader reads the whole file or none
+    except OSError:
+        pass
+    return a, b, R
 
 
 def geom_balls(model: mujoco.MjModel, tree: BodyTree, g: int) -> tuple[np.ndarray, np.ndarray]:

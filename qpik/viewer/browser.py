@@ -91,6 +91,14 @@ def browser() -> Iterator[object]:
 def open_page(chromium, viewer: Page, size: tuple[int, int], messages: list | None = None):
     """A page of ``viewer`` in ``chromium``, connected and with its scene drawn; console messages and page errors
     are appended to ``messages`` as ``(type, text)``."""
+    page = _connected_page(chromium, viewer, size, messages)
+    settle(page)
+    return page
+
+
+def _connected_page(chromium, viewer: Page, size: tuple[int, int], messages: list | None = None):
+    """A page of ``viewer`` in ``chromium`` (``size``: width, height px) once its websocket is connected, its scene
+    perhaps not yet drawn; ``messages`` as in :func:`open_page`."""
     known = set(viewer.server.get_clients())
     page = chromium.new_page(viewport={"width": int(size[0]), "height": int(size[1])})
     if messages is not None:
@@ -104,7 +112,6 @@ def open_page(chromium, viewer: Page, size: tuple[int, int], messages: list | No
             page.close()
             raise ViewerError(f"the page at {viewer.url} did not connect within {CONNECT_TIMEOUT:g} s")
         time.sleep(0.05)
-    settle(page)
     return page
 
 
@@ -143,7 +150,7 @@ def screenshot(viewer: Page, path: str | os.PathLike, size: tuple[int, int] = (1
     if len(size) != 2 or any(int(s) != s or s < 64 for s in size):
         raise InputError(f"size: expected (width, height), whole pixels >= 64, got {tuple(size)}")
     with browser() as chromium:
-        page = open_page(chromium, viewer, size)
+        page = _connected_page(chromium, viewer, size)
         picture = settle(page)
         page.close()
     from PIL import Image
