@@ -39,6 +39,16 @@ def cache_dir() -> Path:
     return Path(base) / "qpik"
 
 
+def keep(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` in the cache (its folder made if missing) atomically: a concurrent reader sees the
+    whole file or none. Raises OSError where it cannot be written."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+    with os.fdopen(fd, "wb") as f:
+        f.write(data)
+    os.replace(tmp, path)
+
+
 def compiler() -> str | None:
     """The C compiler that :func:`shared_library` uses (``$CC``, else ``cc``), or None when off or missing.
 

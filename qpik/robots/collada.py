@@ -12,7 +12,6 @@ from __future__ import annotations
 import hashlib
 import io
 import os
-import tempfile
 from pathlib import Path
 
 from qpik.core.errors import InputError
@@ -34,7 +33,7 @@ def as_stl(path: Path) -> Path:
     Raises:
         InputError: the file cannot be read as COLLADA or holds no triangles, or the cache cannot be written.
     """
-    from qpik.native.build import cache_dir
+    from qpik.native.build import cache_dir, keep
 
     data = path.read_bytes()
     key = hashlib.sha256(VERSION + data).hexdigest()[:40]
@@ -43,11 +42,7 @@ def as_stl(path: Path) -> Path:
         return out
     mesh = _triangles(data, path.name)
     try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=out.parent, suffix=".stl.tmp")
-        with os.fdopen(fd, "wb") as f:
-            f.write(mesh.export(file_type="stl"))
-        os.replace(tmp, out)  # atomic: a concurrent loader sees the whole file or none
+        keep(out, mesh.export(file_type="stl"))
     except OSError as exc:
         where = f"cannot write its conversion to {out.parent} ({exc}); set QPIK_CACHE"
         raise InputError(f"mesh {path.name!r}: {where}") from None

@@ -12,9 +12,9 @@ metres, at the chain's reference configuration. A fit is kept on disk beside the
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
-import os
-import tempfile
+import io
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -79,7 +79,7 @@ def fitted(centres: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarr
     only not kept."""
     import scipy
 
-    from qpik.native.build import cache_dir
+    from qpik.native.build import cache_dir, keep
     from qpik.robots import capsule_fit  # SciPy's optimisers: only for a model file
 
     centres, radii = np.ascontiguousarray(centres, float), np.ascontiguousarray(radii, float)
@@ -92,14 +92,10 @@ def fitted(centres: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarr
     except (OSError, ValueError, KeyError):  # not kept yet, or unreadable: fit again
         pass
     a, b, R = capsule_fit.fit_capsule(centres, radii)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz.tmp")
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, a=a, b=b, R=R)
-        os.replace(tmp, path)  # atomic: a concurrent loader reads the whole file or none
-    except OSError:
-        pass
+    buffer = io.BytesIO()
+    np.savez(buffer, a=a, b=b, R=R)
+    with contextlib.suppress(OSError):  # a folder that cannot be written only leaves the fit unkept
+        keep(path, buffer.getvalue())
     return a, b, R
 
 
