@@ -22,20 +22,36 @@ if TYPE_CHECKING:
 class Capsule(Protocol):
     """A capsule on link ``link`` (1..n): segment ``p0``–``p1`` (3,) in that link's frame, m; ``radius``, m."""
 
-    link: int
-    p0: np.ndarray
-    p1: np.ndarray
-    radius: float
+    @property
+    def link(self) -> int: ...
+
+    @property
+    def p0(self) -> np.ndarray: ...
+
+    @property
+    def p1(self) -> np.ndarray: ...
+
+    @property
+    def radius(self) -> float: ...
 
 
 class ArmDescription(Protocol):
-    """An arm's chain, limits and capsules (base frame; rad, rad/s, m)."""
+    """An arm's chain, limits and capsules (base frame; rad, rad/s, m); read-only, as a frozen robot is."""
 
-    name: str
-    chain: SerialChain
-    q_min: np.ndarray
-    q_max: np.ndarray
-    v_max: np.ndarray
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def chain(self) -> SerialChain: ...
+
+    @property
+    def q_min(self) -> np.ndarray: ...
+
+    @property
+    def q_max(self) -> np.ndarray: ...
+
+    @property
+    def v_max(self) -> np.ndarray: ...
 
     @property
     def dof(self) -> int: ...
