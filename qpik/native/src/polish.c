@@ -125,7 +125,6 @@ static int independent(const double *H, int M, int *W, int k, double *G) {
 
 /* The polish; 1 with the answer in out, 0 for no answer, -1 out of memory. */
 #define ABAR(i, j) AbarT[(size_t)(j) * M + (i)] /* Abar (M, n) stored column-major: AbarT (n, M) row-major */
-#define LIVE(i) (isfinite(lo[i]) || isfinite(hi[i]))
 
 static int polish(int n, int M, const double *P, const double *c, const double *AbarT, const double *lo,
                   const double *hi, const double *x, const double *y, double tol, int max_steps, double *out) {
@@ -133,7 +132,7 @@ static int polish(int n, int M, const double *P, const double *c, const double *
     size_t need = (size_t)n * n + 2 * (size_t)n + (size_t)n * M + 2 * (size_t)M * M + 7 * V + V * V;
     double *L = malloc(sizeof(double) * need);
     int *W = malloc(sizeof(int) * 2 * ((size_t)M + 1));
-    unsigned char *lower = malloc((size_t)M + 1);
+    unsigned char *lower = malloc(2 * ((size_t)M + 1)), *live = lower + M + 1; /* live: a finite bound */
     if (!L || !W || !lower) {
         free(L), free(W), free(lower);
         return -1;
@@ -177,15 +176,16 @@ static int polish(int n, int M, const double *P, const double *c, const double *
     }
     /* A row bounded by +-inf on both sides (a damper beyond its influence distance) can be neither violated nor
        active: its part of H stays 0, which saves most of the M^2 n work when many rows are inactive. */
+    for (int i = 0; i < M; ++i) live[i] = isfinite(lo[i]) || isfinite(hi[i]);
     for (int i = 0; i < M; ++i) { /* C[:, i] = P^-1 Abar_i, stored row i of C as (M, n) */
-        if (!LIVE(i)) continue;
+        if (!live[i]) continue;
         for (int j = 0; j < n; ++j) C[(size_t)i * n + j] = ABAR(i, j);
         chol_solve(L, n, C + (size_t)i * n);
     }
     for (int i = 0; i < M; ++i)
         for (int j = 0; j < M; ++j) {
             double s = 0.0;
-            if (LIVE(i) && LIVE(j))
+            if (live[i] && live[j])
                 for (int t = 0; t < n; ++t) s += ABAR(i, t) * C[(size_t)j * n + t];
             H[(size_t)i * M + j] = s;
         }
