@@ -14,7 +14,6 @@ from __future__ import annotations
 import ctypes
 import threading
 from collections.abc import Sequence
-from functools import cached_property
 from pathlib import Path
 
 import casadi as ca
@@ -173,10 +172,18 @@ class RowMap:
     def __init__(self, fn: ca.Function, shared: Sequence[int] = (), chunks: tuple[int, int] = (32, 4)):
         self.fn, self.shared, self.chunks = fn, tuple(shared), chunks
         self._lock = threading.Lock()
+        self._compiled: dict[int, tuple[Compiled, list[np.ndarray | None], list[np.ndarray]]] | None = None
 
-    @cached_property
     def _maps(self) -> dict[int, tuple[Compiled, list[np.ndarray | None], list[np.ndarray]]]:
-        """Per size, the compiled map and views (size, nnz) of its per-row input and output buffers."""
+        """Per size, the compiled map and views (size, nnz) of its per-row input and output buffers, compiled on the
+        first call under this map's own lock (a ``functools.cached_property`` would hold one lock for every
+        instance on Python 3.11 and serialise the compiles of :func:`qpik.native.build.concurrently`)."""
+        with self._lock:
+            if self._compiled is None:
+                self._compiled = self._compile()
+            return self._compiled
+
+    def _compile(self) -> dict[int, tuple[Compiled, list[np.ndarray | None], list[np.ndarray]]]:
         sizes = sorted(set(self.chunks), reverse=True)
         fns = [self.fn.map(f"{self.fn.name()}_rows{size}", "serial", size, list(self.shared), []) for size in sizes]
         lib = native_library(*fns)
@@ -191,13 +198,12 @@ class RowMap:
     @property
     def built(self) -> bool:
         """Whether the maps are compiled (:meth:`build` would return at once)."""
-        return "_maps" in self.__dict__
+        return self._compiled is not None
 
     def build(self) -> None:
         """Compile the maps now (else on the first call): a solve that starts its clock after this times
         evaluations, never a compile."""
-        with self._lock:
-            self._maps  # noqa: B018 (the cached property is the build)
+        self._maps()
 
     def __call__(self, *args: np.ndarray) -> list[np.ndarray]:
         """Each output as (M, nnz) for per-row inputs (M, nnz_i) (shared inputs: (nnz_i,))."""
@@ -206,8 +212,7 @@ class RowMap:
         M = len(per_row[0][1]) if per_row else 1
         outs = [np.empty((M, self.fn.nnz_out(k))) for k in range(self.fn.n_out())]
         big, small = self.chunks
-        with self._lock:
-            maps = self._maps
+        maps = self._maps()
         i = 0
         while i < M:
             size = big if M - i > 3 * big // 4 else small
