@@ -182,8 +182,27 @@ class LockedJointSolver(AnalyticSolver):
         sets (:mod:`qpik.analytic.locked_joint_intervals`), whose validity changes are its roots."""
         return [m + EPS for m in self._solve(R, p, param, ops)[1]]
 
-    def _solve(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> tuple[Branches, list[Scalar]]:
-        """The branches and their validity measures (:meth:`validity` without the EPS)."""
+    def joint_trig(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> list[list[tuple[Scalar, Scalar]]]:
+        r"""Per branch, :math:`(\cos q_j, \sin q_j)` of the robot's joints 1-6 at q7 = ``param`` (rad) for the pose
+        ``(R, p)`` (base frame): the unit vectors the subproblems return (:func:`subproblem1`), not functions of the
+        angles, so continuous wherever the joint is not free (no cut at ±π); through the joint map
+        :math:`q = s\,(q^{DH} - c)` (:class:`~qpik.analytic.solver.AnalyticSolver`): :math:`\cos q = \cos(q^{DH} - c)`,
+        :math:`\sin q = s \sin(q^{DH} - c)`. A representative :math:`q + 2\pi k` has the same pair."""
+        out = self._solve(R, p, param, ops)[2]
+        if self.joint_map is None:
+            return out
+        turned = []
+        for row in out:
+            pairs = []
+            for (c, s), sign, shift in zip(row, self.joint_map.sign, self.joint_map.shift):
+                cc, sc = float(np.cos(shift)), float(np.sin(shift))
+                pairs.append((sy.lin((c, cc), (s, sc)), sy.mul(float(sign), sy.lin((s, cc), (c, -sc)))))
+            turned.append(pairs)
+        return turned
+
+    def _solve(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> tuple[Branches, list[Scalar], list[list]]:
+        """The branches, their validity measures (:meth:`validity` without the EPS) and the cosines and sines of
+        their joints 1-6 in the table's angles (:meth:`joint_trig`)."""
         h = self.h
         c7, s7 = ops.cos(param), ops.sin(param)
         back7 = rotation(self.k7, c7, sy.neg(s7))  # R(k7, −q7)
@@ -202,7 +221,7 @@ class LockedJointSolver(AnalyticSolver):
         cp, sp = float(np.cos(self.phi)), float(np.sin(self.phi))
         m4 = disc / (r * r)
         close4 = m4 < BRANCH_TOL
-        q, valid, singular, measure = [None] * 8, [None] * 8, [None] * 8, [None] * 8
+        q, valid, singular, measure, trig = [None] * 8, [None] * 8, [None] * 8, [None] * 8, [None] * 8
         elbows = (
             (self.phi + beta, cp * cb - sp * sb, sp * cb + cp * sb),
             (self.phi - beta, cp * cb + sp * sb, sp * cb - cp * sb),
@@ -229,13 +248,14 @@ class LockedJointSolver(AnalyticSolver):
                     q2, c2, s2 = subproblem1(h[1], h[2], vs, ops)
                     q1, c1, s1 = subproblem1(h[0], vs, t, ops)
                     b = rotate(h[1], c2, sy.neg(s2), rotate(h[0], c1, sy.neg(s1), ta))
-                    q3 = subproblem1(h[2], self.a3, b, ops)[0]
+                    q3, c3, s3 = subproblem1(h[2], self.a3, b, ops)
                     k = 4 * s + 2 * e + w
                     q[k] = [q1, q2, q3, q4, q5, q6, ops.wrap(param)]
+                    trig[k] = [(c1, s1), (c2, s2), (c3, s3), (c4, s4), (c5, s5), (c6, s6)]
                     measure[k] = ops.fmin(ops.fmin(m4, v_w[2]), v_s[2])
                     valid[k] = measure[k] >= -EPS
                     singular[k] = ops.fmax(ops.fmax(close4, v_w[3]), v_s[3])
-        return Branches(q, valid, singular), measure
+        return Branches(q, valid, singular), measure, trig
 
     def table_parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
         """q7 (rad) and the branch id ``4·shoulder + 2·elbow + wrist`` of the configuration ``q`` (7 scalars)."""
