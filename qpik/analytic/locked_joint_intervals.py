@@ -14,30 +14,34 @@ sets change only at
 - another joint j crossing a level L of its (shrunk) limits: a root of
   :math:`\sin(q_j - L) = \sin q_j \cos L - \cos q_j \sin L`, with :math:`(\cos q_j, \sin q_j)` the unit vectors of
   the subproblems (:meth:`~qpik.analytic.locked_joint.LockedJointSolver.joint_trig`; it also vanishes at L + π,
-  which the search skips: a cell where :math:`\cos(q_j - L) < 0` holds no root of interest), L = π too for a joint whose limits reach ±π (the representative inside the
-  limits changes there, :class:`~qpik.analytic.solver.AnalyticSolver`); only where the branch is valid;
+  which the search skips: a cell where :math:`\cos(q_j - L) < 0` holds no root of interest), L = π too for a joint
+  whose limits reach ±π (the representative inside the limits changes there,
+  :class:`~qpik.analytic.solver.AnalyticSolver`); only where the branch is valid;
 - a change of the branch's ``valid`` flag: a root of its validity function
   (:meth:`~qpik.analytic.locked_joint.LockedJointSolver.validity`: the subproblems' discriminants, continuous in q7).
 
 The last two are *columns*, functions of q7 whose roots are found by Taylor-model root isolation (Berz & Makino
 1998; Makino & Berz 2003): over a cell :math:`[a, b] = \{m + h t : t \in [-1, 1]\}` of q7, the first-order Taylor
-model of every column (:func:`qpik.algebra.enclosure.taylor_function` of the compiled columns, one call for all
-the cells of a round, per branch) is :math:`f(m + h t) \in f_0 + f_1 t + [-r, r]`, beside interval bounds. A column's roots in
-the cell then lie where :math:`|f_0 + f_1 t| \le r + ` :data:`SLACK` (a Newton step with its remainder enclosed,
-as in the interval Newton method, Moore 1966): the cell is discarded when that is empty (or the bounds exclude 0, or, for a joint, the branch's
-validity is below 0 over it), replaced by that window when the window is at most half as wide (near a simple root
-the window shrinks quadratically from round to round), else halved. A window narrower than :data:`WINDOW` is a
-breakpoint (its centre). The search starts from :data:`CELLS` cells over the circle and stops after
-:data:`ROUNDS` rounds or at :data:`MAX_CELLS` live cells: then the cells left are breakpoints too (their ends),
-and the answer is not proved. The gaps between the breakpoints are classified as for the other families
+model of every column (:func:`qpik.algebra.enclosure.taylor_function` of the compiled columns, one call per branch
+for all the cells of a round) is :math:`f(m + h t) \in f_0 + f_1 t + [-r, r]`, beside interval bounds. The
+column's roots in the cell then lie where :math:`|f_0 + f_1 t| \le r + ` :data:`SLACK` (a Newton step with its
+remainder enclosed, as in the interval Newton method, Moore 1966): the cell is discarded when that is empty (or
+the bounds exclude 0, or, for a joint, the branch's validity is below 0 over it), replaced by that window when
+the window is at most half as wide (near a simple root the window shrinks quadratically from round to round), else
+halved. A window narrower than :data:`WINDOW` is a breakpoint (its centre); so are the ends of a cell over which a
+column stays within :data:`TOUCH` of 0 (a tangency: a joint touching a level over a whole cell, to round-off).
+The search starts from :data:`CELLS` cells over the circle and stops after :data:`ROUNDS` rounds or above
+:data:`MAX_CELLS` cells in a round: then the cells left are breakpoints too (their ends), and the answer is not
+proved. The gaps between the breakpoints are classified as for the other families
 (:class:`~qpik.analytic.intervals.SetAssembler`: one IK evaluation at each midpoint).
 
 **Proved:** when the search ends with no cell left, every root of every column lies within :data:`WINDOW` of a
-breakpoint, so the sets are exact except within :data:`WINDOW` of their ends (``FeasibleIntervals.proved``).
-A tangency (a joint touching a level: a double root) or a free joint (a singular configuration: a unit vector of
-no direction) is resolved by halving down to :data:`WINDOW`, which the budget may not allow. The enclosures are
-computed in round-to-nearest arithmetic (:mod:`qpik.algebra.enclosure`), which :data:`SLACK` covers for these
-values of order 1. ``margin`` shrinks the limits as there (:func:`~qpik.analytic.intervals.shrunk_limits`).
+breakpoint or in a cell where the column is within :data:`TOUCH` of 0, so the sets are exact except within
+:data:`WINDOW` of their ends and where a joint is within :data:`TOUCH` rad of a limit (``FeasibleIntervals.proved``).
+A free joint (a singular configuration: a unit vector of no direction) is resolved by halving down to
+:data:`WINDOW`, which the budget may not allow. The enclosures are computed in round-to-nearest arithmetic
+(:mod:`qpik.algebra.enclosure`), which :data:`SLACK` covers for these values of order 1. ``margin`` shrinks the
+limits as there (:func:`~qpik.analytic.intervals.shrunk_limits`).
 """
 
 from __future__ import annotations
@@ -62,6 +66,9 @@ WINDOW = 1e-10
 """Width (rad) of a window of roots that is a breakpoint."""
 SLACK = 1e-12
 """Added to every remainder: the round-off of the enclosures of values of order 1."""
+TOUCH = 1e-10
+"""A column within this of 0 over a whole cell (a joint that touches a level there, to this many rad) makes the
+cell's ends breakpoints."""
 ROUNDS = 80
 """Rounds of the search before the answer is left unproved."""
 MAX_CELLS = 2048
@@ -166,8 +173,9 @@ class Q7Intervals:
             x1, x2 = m + h * t1, m + h * t2
             gone = (t1 > t2) | outside | (flat & (np.abs(f0) > rest))
             done = ~gone & (x2 - x1 <= WINDOW)
-            found.append(0.5 * (x1 + x2)[done])
-            live = ~gone & ~done
+            touch = ~gone & ~done & (np.abs(f0) + np.abs(f1) + rest <= TOUCH)
+            found += [0.5 * (x1 + x2)[done], a[touch], b[touch]]
+            live = ~gone & ~done & ~touch
             narrow = live & (x2 - x1 <= h)  # at most half the cell: the window is the next cell
             halve = live & ~narrow
             mid = 0.5 * (x1 + x2)[halve]
@@ -200,7 +208,7 @@ class Q7Intervals:
             valid_hi[sel] = out[4][row, -1]
         w = np.stack([w1, w2], axis=1)
         used = w != 0.0
-        with np.errstate(invalid="ignore"):  # an unbounded enclosure times a zero weight: that term is not used
+        with np.errstate(invalid="ignore", over="ignore"):  # inf or nan (a free joint): the cell stays undecided
             f0, f1 = np.where(used, w * c0, 0.0).sum(axis=1), np.where(used, w * c1, 0.0).sum(axis=1)
             rest = np.where(used, np.abs(w) * r, 0.0).sum(axis=1) + SLACK
             low = np.where(used, np.minimum(w * lo, w * hi), 0.0).sum(axis=1)

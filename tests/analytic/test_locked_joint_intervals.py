@@ -1,0 +1,81 @@
+"""The Panda's locked-q7 feasible sets, proved per pose (qpik.analytic.locked_joint_intervals): against dense sampling
+of q7 through the compiled IK's own limit test, at random and at singular configurations; a search without the
+budget to finish says it is not proved, and solve_best and solve_full then claim no proof."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import random_q
+
+import qpik
+from qpik.analytic.api import closed_form_for
+from qpik.analytic.intervals import shrunk_limits
+from qpik.analytic.locked_joint_intervals import Q7Intervals
+from qpik.nlp import solve_best
+from qpik.nlp.best_search import UNPROVED_SETS
+from qpik.nlp.full import FullOptions, solve_full
+
+PANDA = qpik.load_robot("panda")
+SOLVER = closed_form_for(PANDA)
+DENSE = 100_000
+POSES = 8
+
+
+def assert_dense(T: np.ndarray, margin: float, fi) -> None:
+    """Every one of DENSE random q7 farther than 1e-9 rad from a set end is in the set iff the compiled IK's branch
+    is valid with every joint inside the limits shrunk by ``margin``."""
+    lo, hi = shrunk_limits(PANDA.q_min, PANDA.q_max, margin)
+    q7 = np.random.default_rng(7).uniform(-np.pi, np.pi, DENSE)
+    sol = SOLVER.solve_many(T, q7)
+    inside = sol.valid & np.all((sol.q >= lo) & (sol.q <= hi), axis=-1)
+    for k in range(8):
+        ends = np.sort([x for iv in fi[k] for x in iv])
+        if ends.size:
+            i = np.clip(np.searchsorted(ends, q7), 1, ends.size - 1)
+            near = np.minimum(np.abs(q7 - ends[i - 1]), np.abs(q7 - ends[i])) < 1e-9
+        else:
+            near = np.zeros(DENSE, bool)
+        assert np.array_equal(fi.contains(k, q7)[~near], inside[~near, k]), (k, fi[k])
+
+
+@pytest.mark.parametrize("margin", [0.0, 0.3])
+@pytest.mark.parametrize("seed", range(3))
+def test_proved_sets_match_dense_sampling(seed, margin):
+    """Random configurations inside the limits: every pose's sets are proved and agree with dense sampling."""
+    q = random_q(PANDA, POSES, 100 + seed)
+    for T in PANDA.fk(q):
+        fi = qpik.feasible_intervals(PANDA, T, margin=margin)
+        assert fi.proved
+        assert_dense(T, margin, fi)
+
+
+@pytest.mark.parametrize("joint, value", [(1, 0.0), (3, -0.0698), (4, 0.0), (5, 0.0)])
+def test_sets_at_special_configurations(joint, value):
+    """Axes 1 and 3 aligned (q2 = 0: q1 free at that q7), q4 at its upper limit, q5 = 0, q6 = 0: proved, and the
+    dense check holds (a free joint's jump is inside a breakpoint's window)."""
+    q = random_q(PANDA, 4, joint, margin=0.1)
+    q[:, joint] = value
+    for T in PANDA.fk(q):
+        fi = qpik.feasible_intervals(PANDA, T)
+        assert fi.proved
+        assert_dense(T, 0.0, fi)
+
+
+def test_a_search_without_budget_is_not_proved_and_nothing_claims_a_proof(monkeypatch):
+    """Three rounds cannot isolate the roots from the first cells: the answer says it is not proved; solve_best then
+    certifies nothing, and with no round at all solve_full does not call an unreachable pose "unreachable"."""
+    weak = Q7Intervals(SOLVER, rounds=3)
+    T = PANDA.fk(random_q(PANDA, 1, 11))[0]
+    fi = weak(T)
+    assert not fi.proved
+    assert qpik.feasible_intervals(PANDA, T).proved
+    monkeypatch.setitem(SOLVER.__dict__, "_sets", weak)
+    res = solve_best(PANDA, T)
+    assert res.status == "optimal" and not res.certified and res.message == UNPROVED_SETS, res.summary()
+    far = np.eye(4)
+    far[:3, 3] = (2.0, 0.0, 0.5)
+    monkeypatch.setattr(weak, "_rounds", 0)
+    assert not weak(far).proved
+    res = solve_full(PANDA, far, options=FullOptions(max_starts=2))
+    assert res.status == "not found"
