@@ -98,12 +98,17 @@ class Q7Intervals:
         T, q7 = ca.SX.sym("T", 4, 4), ca.SX.sym("q7")
         R, p = sy.frame_of_batch(T)
         pairs, valid = solver.joint_trig(R, p, q7, sy.CASADI), solver.validity(R, p, q7, sy.CASADI)
-        self._models = []
-        for b, (row, v) in enumerate(zip(pairs, valid)):
-            out = ca.vertcat(*[row[j][0] for j in self._joints], *[row[j][1] for j in self._joints], v)
-            f = ca.Function(f"columns_{solver.kind}_{b}", [T, q7], [out])
-            self._models.append(RowMap(taylor_function(f, [1]), shared=[0]))
+        blocks = [ca.vertcat(*[row[j][0] for j in self._joints], *[row[j][1] for j in self._joints], v)
+                  for row, v in zip(pairs, valid)]  # fmt: skip
+        self._models = [self._model(f"columns_{solver.kind}_{b}", T, q7, x) for b, x in enumerate(blocks)]
+        self._grid_model = self._model(f"columns_{solver.kind}", T, q7, ca.vertcat(*blocks))
         self._last: tuple[bytes, float, FeasibleIntervals] | None = None
+
+    @staticmethod
+    def _model(name: str, T: ca.SX, q7: ca.SX, out: ca.SX) -> RowMap:
+        """The Taylor models of ``out`` (T, q7) over cells of q7 (:func:`~qpik.algebra.enclosure.taylor_function`),
+        mapped over rows of cells."""
+        return RowMap(taylor_function(ca.Function(name, [T, q7], [out]), [1]), shared=[0])
 
     def native_sets(self) -> None:
         """No single C call for this family."""
@@ -157,10 +162,10 @@ class Q7Intervals:
         a, b, k = np.repeat(edges[:-1], F), np.repeat(edges[1:], F), np.tile(np.arange(F), CELLS)
         found = []
         Tf = np.asarray(T, float).reshape(-1, order="F")
-        for _ in range(self._rounds):
+        for step in range(self._rounds):
             if not a.size:
                 break
-            bounds = self._bounds(Tf, a, b, [c[k] for c in cols])
+            bounds = self._bounds(Tf, a, b, [c[k] for c in cols], step == 0)
             if bounds is None:
                 break
             f0, f1, rest, outside = bounds
@@ -185,27 +190,31 @@ class Q7Intervals:
         found = wrap(np.concatenate(found)) if found else np.zeros(0)
         return found, wrap(np.concatenate([a, b]))
 
-    def _bounds(self, Tf: np.ndarray, a: np.ndarray, b: np.ndarray, cols: list[np.ndarray]):
+    def _bounds(self, Tf: np.ndarray, a: np.ndarray, b: np.ndarray, cols: list[np.ndarray], grid: bool):
         """Over the cells [a, b] (K,) of the columns ``cols`` (:meth:`_columns`, (K,) each): the Taylor model
         ``f0 + f1·t ± rest`` (t ∈ [−1, 1]; rest with :data:`SLACK`) and where the column surely has no root of
         interest (its bounds exclude 0, or its branch is invalid, or cos(q_j − L) < 0); None above
-        :data:`MAX_CELLS` cells. ``Tf``: the pose, column-major (16,)."""
+        :data:`MAX_CELLS` cells. ``Tf``: the pose, column-major (16,); ``grid``: every branch has the same cells (one
+        call of all the branches' models), else one call per branch."""
         br, i1, w1, i2, w2, joint = cols
-        K = a.size
-        c0, c1, r, lo, hi = (np.empty((K, 2)) for _ in range(5))
-        valid_hi = np.empty(K)
+        P = 2 * len(self._joints) + 1  # outputs per branch, its validity last
+        at = np.stack([i1, i2, np.full(a.size, P - 1)], axis=1)
+        models = [np.empty((a.size, 3)) for _ in range(5)]  # c0, c1, r, lo, hi of out[i1], out[i2], validity
         count = 0
-        for bb in np.unique(br):
-            sel = np.flatnonzero(br == bb)
+        for bb in [None] if grid else np.unique(br):
+            sel = slice(None) if bb is None else np.flatnonzero(br == bb)
             cells, row = np.unique(a[sel] + 1j * b[sel], return_inverse=True)
             count += cells.size
             if count > MAX_CELLS:
                 return None
             x, y = cells.real[:, None], cells.imag[:, None]
-            out = self._models[bb](Tf, 0.5 * (x + y), 0.5 * (y - x), np.zeros_like(x), x, y)
-            for dst, src in zip((c0, c1, r, lo, hi), out):
-                dst[sel] = src[row[:, None], np.stack([i1[sel], i2[sel]], axis=1)]
-            valid_hi[sel] = out[4][row, -1]
+            call = self._grid_model if bb is None else self._models[bb]
+            out = call(Tf, 0.5 * (x + y), 0.5 * (y - x), np.zeros_like(x), x, y)
+            take = at[sel] + (br[:, None] * P if bb is None else 0)
+            for dst, src in zip(models, out):
+                dst[sel] = src[row[:, None], take]
+        c0, c1, r, lo, hi = (x[:, :2] for x in models)
+        valid_hi = models[4][:, 2]
         w = np.stack([w1, w2], axis=1)
         used = w != 0.0
         with np.errstate(invalid="ignore", over="ignore"):  # inf or nan (a free joint): the cell stays undecided

@@ -4,13 +4,17 @@ budget to finish says it is not proved, and solve_best and solve_full then claim
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
-from conftest import random_q
+from conftest import model_robot, random_q
 
 import qpik
+from qpik.algebra import symbolic as sy
 from qpik.analytic.api import closed_form_for
 from qpik.analytic.intervals import shrunk_limits
+from qpik.analytic.locked_joint import LockedJointSolver
 from qpik.analytic.locked_joint_intervals import Q7Intervals
 from qpik.nlp import solve_best
 from qpik.nlp.best_search import UNPROVED_SETS
@@ -22,12 +26,12 @@ DENSE = 100_000
 POSES = 8
 
 
-def assert_dense(T: np.ndarray, margin: float, fi) -> None:
+def assert_dense(T: np.ndarray, margin: float, fi, robot: qpik.Robot = PANDA) -> None:
     """Every one of DENSE random q7 farther than 1e-9 rad from a set end is in the set iff the compiled IK's branch
     is valid with every joint inside the limits shrunk by ``margin``."""
-    lo, hi = shrunk_limits(PANDA.q_min, PANDA.q_max, margin)
+    lo, hi = shrunk_limits(robot.q_min, robot.q_max, margin)
     q7 = np.random.default_rng(7).uniform(-np.pi, np.pi, DENSE)
-    sol = SOLVER.solve_many(T, q7)
+    sol = closed_form_for(robot).solve_many(T, q7)
     inside = sol.valid & np.all((sol.q >= lo) & (sol.q <= hi), axis=-1)
     for k in range(8):
         ends = np.sort([x for iv in fi[k] for x in iv])
@@ -60,6 +64,45 @@ def test_sets_at_special_configurations(joint, value):
         fi = qpik.feasible_intervals(PANDA, T)
         assert fi.proved
         assert_dense(T, 0.0, fi)
+
+
+@pytest.mark.parametrize("key", ["erd_panda", "pybullet_panda"])
+def test_the_columns_are_the_joints_cosines_and_sines_and_file_arms_sets_are_proved(key):
+    """On the Panda files (their joints mapped to the table's): joint_trig is (cos q_j, sin q_j) of the IK's joints
+    wherever the branch is valid, and the sets of two poses are proved and agree with dense sampling."""
+    robot = model_robot(key)
+    solver = closed_form_for(robot)
+    q = random_q(robot, 200, 4)
+    T = robot.fk(q)
+    R, p = sy.frame_of_batch(T)
+    pairs = solver.joint_trig(R, p, q[:, 6], sy.NUMPY)
+    sol = solver.solve_batch(T, q[:, 6])
+    for k in range(8):
+        ok = sol.valid[:, k]
+        for j in range(6):
+            c, s = (np.broadcast_to(x, ok.shape)[ok] for x in pairs[k][j])
+            np.testing.assert_allclose(c, np.cos(sol.q[ok, k, j]), atol=1e-9)
+            np.testing.assert_allclose(s, np.sin(sol.q[ok, k, j]), atol=1e-9)
+    for pose in T[:2]:
+        fi = qpik.feasible_intervals(robot, pose)
+        assert fi.proved
+        assert_dense(pose, 0.0, fi, robot)
+
+
+def test_joint_trig_follows_a_joint_map():
+    """A joint map q = s (q_DH − c) (signs and shifts as a file's joints may have): joint_trig is (cos, sin) of the
+    joints that branches() returns through it."""
+    solver = LockedJointSolver(PANDA)
+    rng = np.random.default_rng(2)
+    solver.joint_map = SimpleNamespace(sign=rng.choice([-1.0, 1.0], 7), shift=rng.uniform(-np.pi, np.pi, 7))
+    q = random_q(PANDA, 200, 6)
+    R, p = sy.frame_of_batch(PANDA.fk(q))
+    pairs = solver.joint_trig(R, p, q[:, 6], sy.NUMPY)
+    br = solver.branches(R, p, q[:, 6], sy.NUMPY)
+    for k in range(8):
+        for j in range(6):
+            np.testing.assert_allclose(pairs[k][j][0], np.cos(br.q[k][j]), atol=1e-9)
+            np.testing.assert_allclose(pairs[k][j][1], np.sin(br.q[k][j]), atol=1e-9)
 
 
 def test_a_search_without_budget_is_not_proved_and_nothing_claims_a_proof(monkeypatch):
