@@ -76,15 +76,12 @@ MAX_CELLS = 2048
 ELBOW = 3
 """Index of q4, whose levels are solved exactly."""
 
-Tasks = tuple[np.ndarray, np.ndarray, np.ndarray]
-"""``(a, b, column)`` (K,) each: the roots of column k in [a, b] (rad, not wrapped) are still to be isolated."""
-
 
 class Q7Intervals:
     """The feasible q7 sets of a :class:`~qpik.analytic.locked_joint.LockedJointSolver` (a ``ParameterSets``).
 
-    The columns (``(branch, joint, level)``) are sin(q_j − L) for a joint j (not q4, not q7) of a branch, or the
-    branch's validity function as joint n = 7. ``rounds``: the search's budget (:data:`ROUNDS`).
+    The columns (:meth:`_columns`) are sin(q_j − L) for a joint j (not q4, not q7) of a branch and a level L, or the
+    branch's validity function. ``rounds``: the search's budget (:data:`ROUNDS`).
     """
 
     proved = True
