@@ -60,7 +60,7 @@ from qpik.native.compiled import RowMap
 if TYPE_CHECKING:
     from qpik.analytic.locked_joint import LockedJointSolver
 
-CELLS = 128
+CELLS = 64
 """Cells of q7 over the circle at the start of the search."""
 WINDOW = 1e-10
 """Width (rad) of a window of roots that is a breakpoint."""
@@ -75,6 +75,9 @@ MAX_CELLS = 2048
 """Cells of q7 in a round above which the answer is left unproved."""
 ELBOW = 3
 """Index of q4, whose levels are solved exactly."""
+SIGNS = np.array([[1 - 2 * (k >> bit & 1) for bit in (2, 1, 0)] for k in range(8)], float)
+"""Per branch id ``4·shoulder + 2·elbow + wrist``, the signs of its shoulder's, elbow's and wrist's roots (8, 3)
+(:data:`qpik.analytic.locked_joint.BranchSigns`)."""
 
 
 class Q7Intervals:
@@ -92,20 +95,16 @@ class Q7Intervals:
         self._assemble = SetAssembler(solver, solver.n_branches)
         self._n = solver.robot.dof
         self._joints = [j for j in range(self._n - 1) if j != ELBOW]
-        T, q7 = ca.SX.sym("T", 4, 4), ca.SX.sym("q7")
+        T, q7, sign = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("sign", 3)
         R, p = sy.frame_of_batch(T)
-        pairs, valid = solver.joint_trig(R, p, q7, sy.CASADI), solver.validity(R, p, q7, sy.CASADI)
-        blocks = [ca.vertcat(*[row[j][0] for j in self._joints], *[row[j][1] for j in self._joints], v)
-                  for row, v in zip(pairs, valid)]  # fmt: skip
-        self._models = [self._model(f"columns_{solver.kind}_{b}", T, q7, x) for b, x in enumerate(blocks)]
-        self._grid_model = self._model(f"columns_{solver.kind}", T, q7, ca.vertcat(*blocks))
+        one = ((sign[0],), (sign[1],), (sign[2],))  # the branch of these signs, chosen at run time
+        (row,), (valid,) = solver.joint_trig(R, p, q7, sy.CASADI, one), solver.validity(R, p, q7, sy.CASADI, one)
+        out = ca.vertcat(*[row[j][0] for j in self._joints], *[row[j][1] for j in self._joints], valid)
+        columns = ca.Function(f"columns_{solver.kind}", [T, q7, sign], [out])
+        self._model = RowMap(taylor_function(columns, [1]), shared=[0])
+        """The Taylor models of one branch's outputs (inputs: T, the centre of a cell of q7, the branch's
+        :data:`SIGNS`, then the cell's half-width, radius 0 and its ends) over rows of cells and branches."""
         self._last: tuple[bytes, float, FeasibleIntervals] | None = None
-
-    @staticmethod
-    def _model(name: str, T: ca.SX, q7: ca.SX, out: ca.SX) -> RowMap:
-        """The Taylor models of ``out`` (T, q7) over cells of q7 (:func:`~qpik.algebra.enclosure.taylor_function`),
-        mapped over rows of cells."""
-        return RowMap(taylor_function(ca.Function(name, [T, q7], [out]), [1]), shared=[0])
 
     def native_sets(self) -> None:
         """No single C call for this family."""
@@ -159,10 +158,10 @@ class Q7Intervals:
         a, b, k = np.repeat(edges[:-1], F), np.repeat(edges[1:], F), np.tile(np.arange(F), CELLS)
         found = []
         Tf = np.asarray(T, float).reshape(-1, order="F")
-        for step in range(self._rounds):
+        for _ in range(self._rounds):
             if not a.size:
                 break
-            bounds = self._bounds(Tf, a, b, [c[k] for c in cols], step == 0)
+            bounds = self._bounds(Tf, a, b, [c[k] for c in cols])
             if bounds is None:
                 break
             f0, f1, rest, outside = bounds
@@ -187,31 +186,27 @@ class Q7Intervals:
         found = wrap(np.concatenate(found)) if found else np.zeros(0)
         return found, wrap(np.concatenate([a, b]))
 
-    def _bounds(self, Tf: np.ndarray, a: np.ndarray, b: np.ndarray, cols: list[np.ndarray], grid: bool):
+    def _bounds(self, Tf: np.ndarray, a: np.ndarray, b: np.ndarray, cols: list[np.ndarray]):
         """Over the cells [a, b] (K,) of the columns ``cols`` (:meth:`_columns`, (K,) each): the Taylor model
         ``f0 + f1·t ± rest`` (t ∈ [−1, 1]; rest with :data:`SLACK`) and where the column surely has no root of
         interest (its bounds exclude 0, or its branch is invalid, or cos(q_j − L) < 0); None above
-        :data:`MAX_CELLS` cells. ``Tf``: the pose, column-major (16,); ``grid``: every branch has the same cells (one
-        call of all the branches' models), else one call per branch."""
+        :data:`MAX_CELLS` cells (of all the branches). ``Tf``: the pose, column-major (16,). One call of the
+        model for the distinct (branch, cell) pairs."""
         br, i1, w1, i2, w2, joint = cols
         P = 2 * len(self._joints) + 1  # outputs per branch, its validity last
-        at = np.stack([i1, i2, np.full(a.size, P - 1)], axis=1)
-        models = [np.empty((a.size, 3)) for _ in range(5)]  # c0, c1, r, lo, hi of out[i1], out[i2], validity
-        count = 0
-        for bb in [None] if grid else np.unique(br):
-            sel = slice(None) if bb is None else np.flatnonzero(br == bb)
-            cells, row = np.unique(a[sel] + 1j * b[sel], return_inverse=True)
-            count += cells.size
-            if count > MAX_CELLS:
-                return None
-            x, y = cells.real[:, None], cells.imag[:, None]
-            call = self._grid_model if bb is None else self._models[bb]
-            out = call(Tf, 0.5 * (x + y), 0.5 * (y - x), np.zeros_like(x), x, y)
-            take = at[sel] + (br[:, None] * P if bb is None else 0)
-            for dst, src in zip(models, out):
-                dst[sel] = src[row[:, None], take]
-        c0, c1, r, lo, hi = (x[:, :2] for x in models)
-        valid_hi = models[4][:, 2]
+        order = np.lexsort((b, a, br))
+        new = np.ones(a.size, bool)
+        new[1:] = (np.diff(br[order]) != 0) | (np.diff(a[order]) != 0) | (np.diff(b[order]) != 0)
+        first = order[new]  # one column of each distinct (branch, cell)
+        if first.size > MAX_CELLS:
+            return None
+        row = np.empty(a.size, int)
+        row[order] = np.cumsum(new) - 1
+        x, y = a[first, None], b[first, None]
+        out = self._model(Tf, 0.5 * (x + y), SIGNS[br[first]], 0.5 * (y - x), np.zeros_like(x), x, y)
+        at = (row[:, None], np.stack([i1, i2, np.full(a.size, P - 1)], axis=1))
+        c0, c1, r, lo, hi = (v[at][:, :2] for v in out)
+        valid_hi = out[4][at][:, 2]
         w = np.stack([w1, w2], axis=1)
         used = w != 0.0
         with np.errstate(invalid="ignore", over="ignore"):  # inf or nan (a free joint): the cell stays undecided

@@ -1,16 +1,17 @@
 """qpik.solve_best on the Panda's locked-q7 closed form against dense sampling of q7 (as tests/nlp/test_nlp_best.py
-does for the S-R-S and offset-shoulder arms): 100 seeded random reachable poses, 20,000 values of q7 each."""
+does for the S-R-S and offset-shoulder arms): 10 seeded random reachable poses (100 with QPIK_TESTS_LARGE=1), 20,000
+values of q7 each."""
 
 from __future__ import annotations
 
 import numpy as np
-from conftest import random_q
+from conftest import LARGE, random_q
 
 import qpik
 from qpik.analytic import closed_form_for
 from qpik.nlp import solve_best
 
-POSES = 100
+POSES = 100 if LARGE else 10
 DENSE = 20_000
 
 
