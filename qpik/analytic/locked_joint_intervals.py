@@ -22,10 +22,11 @@ sets change only at
 
 The last two are *columns*, functions of q7 whose roots are found by Taylor-model root isolation (Berz & Makino
 1998; Makino & Berz 2003): over a cell :math:`[a, b] = \{m + h t : t \in [-1, 1]\}` of q7, the first-order Taylor
-model of every column (:func:`qpik.algebra.enclosure.taylor_function` of the compiled columns, one call per branch
-for all the cells of a round) is :math:`f(m + h t) \in f_0 + f_1 t + [-r, r]`, beside interval bounds. The
-column's roots in the cell then lie where :math:`|f_0 + f_1 t| \le r + ` :data:`SLACK` (a Newton step with its
-remainder enclosed, as in the interval Newton method, Moore 1966): the cell is discarded when that is empty (or
+model of every column (:func:`qpik.algebra.enclosure.taylor_function` of the compiled columns of one branch, whose
+shoulder, elbow and wrist signs are inputs: one compiled function for every branch, one call for all the cells of a
+round) is :math:`f(m + h t) \in f_0 + f_1 t + [-r, r]`, beside interval bounds. The column's roots in the cell
+then lie where :math:`|f_0 + f_1 t| \le r + ` :data:`SLACK` (a Newton step with its remainder enclosed, as in the
+interval Newton method, Moore 1966): the cell is discarded when that is empty (or
 the bounds exclude 0, or, for a joint, the branch's validity is below 0 over it), replaced by that window when
 the window is at most half as wide (near a simple root the window shrinks quadratically from round to round), else
 halved. A window narrower than :data:`WINDOW` is a breakpoint (its centre); so are the ends of a cell over which a
