@@ -50,12 +50,15 @@ class FeasibleIntervals:
         intervals: per branch, sorted disjoint closed intervals ``(lo, hi)`` with
             ``lo <= hi``; a set that wraps through ±pi is split in two.
         singular: per branch, parameter values where some joint is singular.
+        proved: every breakpoint was found by an exact or exactly bounded method, so the sets are exact (an empty
+            set proves that no parameter is feasible); False where a search left parts of the circle undecided.
     """
 
     param_name: str
     branch: np.ndarray
     intervals: list[list[Interval]]
     singular: list[list[float]] = field(default_factory=list)
+    proved: bool = True
 
     def __getitem__(self, b: int) -> list[Interval]:
         """Intervals of the branch with public id ``b``."""
@@ -117,8 +120,9 @@ class Flagging(Protocol):
 class ParameterSets(Protocol):
     """The feasible sets of one closed form's parameter (``DeltaIntervals``, ``PsiIntervals``, ``Q7Intervals``).
 
-    ``proved``: every breakpoint is found by an exact or exactly bounded method, so an empty set proves that no
-    parameter is feasible; False where the breakpoints come from a sampled sweep."""
+    ``proved``: the answers can be proved: every breakpoint is found by an exact or exactly bounded method, and an
+    answer whose search was left unfinished says so (``FeasibleIntervals.proved``); False where the breakpoints
+    come from a sampled sweep."""
 
     proved: bool
 

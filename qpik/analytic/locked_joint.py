@@ -75,6 +75,15 @@ if TYPE_CHECKING:
 
 BRANCH_TOL = 1e-13
 """Relative squared distance between two roots (of one subproblem) below which they are one: ``singular``."""
+Signs = tuple[Scalar, ...]
+"""Signs (±1) of the roots of a subproblem to take, in order; a symbol stands for a sign given at run time."""
+BOTH: Signs = (1.0, -1.0)
+"""Both roots of a subproblem: a branch bit 0, then 1."""
+BranchSigns = tuple[Signs, Signs, Signs]
+"""The signs of the shoulder's, the elbow's and the wrist's roots (:data:`Signs`): the branches
+``(4·shoulder + 2·elbow + wrist)`` of every combination, numbered in that order; one sign each is one branch."""
+ALL: BranchSigns = (BOTH, BOTH, BOTH)
+"""The 8 branches, ids 0-7."""
 
 
 def _v(x: np.ndarray) -> Vec:
@@ -109,7 +118,7 @@ def subproblem1(k: Vec, p: Vec, q: Vec, ops: Ops) -> tuple[Scalar, Scalar, Scala
     return angle(y, x, ops), ops.where(some, x * inv, 1.0), y * inv
 
 
-def subproblem2(ka: Vec, pa: Vec, kb: Vec, pb: Vec, ops: Ops) -> tuple[Vec, Vec, Scalar, Scalar]:
+def subproblem2(ka: Vec, pa: Vec, kb: Vec, pb: Vec, ops: Ops, signs: Signs = BOTH) -> tuple[list[Vec], Scalar, Scalar]:
     r"""The two vectors :math:`v_\pm = R(k_a, \theta_a) p_a = R(k_b, \theta_b) p_b` (Elias & Wen 2022, subproblem 2;
     :math:`k_a, k_b` constant unit vectors, not parallel; :math:`|p_a| = |p_b|`).
 
@@ -119,8 +128,10 @@ def subproblem2(ka: Vec, pa: Vec, kb: Vec, pb: Vec, ops: Ops) -> tuple[Vec, Vec,
     :math:`k_b` is that of :math:`p_b`): where :math:`p_b` nears :math:`k_b` (the shoulder singularity, axes 1 and 3
     aligned) and :math:`\alpha` is fixed (the Panda's :math:`\alpha = h_2\cdot h_3 = 0`) no difference of near
     equal numbers is formed, so q2 there keeps its absolute precision instead of the square root of it.
-    Returns ``(v_plus, v_minus, measure, close)``: ``measure`` :math:`= \gamma^2 (1 - c^2)/|p_a|^2`, continuous in
-    the inputs, solvable where it is :math:`\ge -` EPS; ``close`` where :math:`\gamma^2 <` BRANCH_TOL :math:`|p_a|^2`.
+    Returns ``(v, measure, close)``: ``v`` the vectors :math:`\alpha k_a + \beta k_b + \sigma\gamma\,n` for the
+    signs σ of ``signs`` (:data:`BOTH`: :math:`v_+, v_-`); ``measure`` :math:`= \gamma^2 (1 - c^2)/|p_a|^2`,
+    continuous in the inputs, solvable where it is :math:`\ge -` EPS; ``close`` where :math:`\gamma^2 <` BRANCH_TOL
+    :math:`|p_a|^2`.
     """
     c = float(np.dot(ka, kb))
     s2 = 1.0 - c * c
@@ -134,7 +145,7 @@ def subproblem2(ka: Vec, pa: Vec, kb: Vec, pb: Vec, ops: Ops) -> tuple[Vec, Vec,
     base = sy.vadd(sy.vscale(al, ka), sy.vscale(be, kb))
     measure = g2s / ops.fmax(norm2, 1e-300)
     close = measure < BRANCH_TOL * s2
-    return sy.vadd(base, sy.vscale(g, n)), sy.vsub(base, sy.vscale(g, n)), measure, close
+    return [sy.vadd(base, sy.vscale(sign * g, n)) for sign in signs], measure, close
 
 
 class LockedJointSolver(AnalyticSolver):
@@ -175,15 +186,41 @@ class LockedJointSolver(AnalyticSolver):
         """All 8 branches at q7 = ``param`` (rad) for the pose ``(R, p)`` (base frame)."""
         return self._solve(R, p, param, ops)[0]
 
-    def validity(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> list[Scalar]:
+    def validity(self, R: Mat, p: Vec, param: Scalar, ops: Ops, signs: BranchSigns = ALL) -> list[Scalar]:
         r"""Per branch, a continuous function of the pose and q7 whose sign is the branch's ``valid`` flag:
         :math:`\min(\text{elbow}, \text{wrist}, \text{shoulder}) + ` EPS, each subproblem's discriminant relative to
         its scale (:func:`subproblem2`; the elbow's :math:`(r^2 - c^2)/r^2`), clamped nowhere. For the feasible
-        sets (:mod:`qpik.analytic.locked_joint_intervals`), whose validity changes are its roots."""
-        return [m + EPS for m in self._solve(R, p, param, ops)[1]]
+        sets (:mod:`qpik.analytic.locked_joint_intervals`), whose validity changes are its roots. ``signs``: the
+        branches (:data:`ALL`: 0-7)."""
+        return [m + EPS for m in self._solve(R, p, param, ops, signs)[1]]
 
-    def _solve(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> tuple[Branches, list[Scalar]]:
-        """The branches and their validity measures (:meth:`validity` without the EPS)."""
+    def joint_trig(
+        self, R: Mat, p: Vec, param: Scalar, ops: Ops, signs: BranchSigns = ALL
+    ) -> list[list[tuple[Scalar, Scalar]]]:
+        r"""Per branch, :math:`(\cos q_j, \sin q_j)` of the robot's joints 1-6 at q7 = ``param`` (rad) for the pose
+        ``(R, p)`` (base frame): the unit vectors the subproblems return (:func:`subproblem1`), not functions of the
+        angles, so continuous wherever the joint is not free (no cut at ±π); through the joint map
+        :math:`q = s\,(q^{DH} - c)` (:class:`~qpik.analytic.solver.AnalyticSolver`): :math:`\cos q = \cos(q^{DH} - c)`,
+        :math:`\sin q = s \sin(q^{DH} - c)`. A representative :math:`q + 2\pi k` has the same pair. ``signs``: the
+        branches (:data:`ALL`: 0-7)."""
+        out = self._solve(R, p, param, ops, signs)[2]
+        if self.joint_map is None:
+            return out
+        turned = []
+        for row in out:
+            pairs = []
+            for (c, s), sign, shift in zip(row, self.joint_map.sign, self.joint_map.shift):
+                cc, sc = float(np.cos(shift)), float(np.sin(shift))
+                pairs.append((sy.lin((c, cc), (s, sc)), sy.mul(float(sign), sy.lin((s, cc), (c, -sc)))))
+            turned.append(pairs)
+        return turned
+
+    def _solve(
+        self, R: Mat, p: Vec, param: Scalar, ops: Ops, signs: BranchSigns = ALL
+    ) -> tuple[Branches, list[Scalar], list[list]]:
+        """The branches of ``signs`` (:data:`BranchSigns`), their validity measures (:meth:`validity` without the
+        EPS) and the cosines and sines of their joints 1-6 in the table's angles (:meth:`joint_trig`)."""
+        shoulders, elbows, wrists = signs
         h = self.h
         c7, s7 = ops.cos(param), ops.sin(param)
         back7 = rotation(self.k7, c7, sy.neg(s7))  # R(k7, −q7)
@@ -202,17 +239,13 @@ class LockedJointSolver(AnalyticSolver):
         cp, sp = float(np.cos(self.phi)), float(np.sin(self.phi))
         m4 = disc / (r * r)
         close4 = m4 < BRANCH_TOL
-        q, valid, singular, measure = [None] * 8, [None] * 8, [None] * 8, [None] * 8
-        elbows = (
-            (self.phi + beta, cp * cb - sp * sb, sp * cb + cp * sb),
-            (self.phi - beta, cp * cb + sp * sb, sp * cb - cp * sb),
-        )
-        for e, (q4, c4, s4) in enumerate(elbows):
-            q4 = ops.wrap(q4)
+        n = len(shoulders) * len(elbows) * len(wrists)
+        q, valid, singular, measure, trig = [None] * n, [None] * n, [None] * n, [None] * n, [None] * n
+        for e, sign in enumerate(elbows):
+            q4, c4, s4 = ops.wrap(self.phi + sign * beta), cp * cb - sp * (sign * sb), sp * cb + cp * (sign * sb)
             y = sy.vsub(rotate(h[3], c4, sy.neg(s4), self.s4), self.w4)
-            v_w = subproblem2(h[5], x, h[4], y, ops)
-            for w in (0, 1):
-                v = v_w[w]
+            v_w = subproblem2(h[5], x, h[4], y, ops, wrists)
+            for w, v in enumerate(v_w[0]):
                 q6, c6, s6 = subproblem1(h[5], x, v, ops)
                 q5, c5, s5 = subproblem1(h[4], v, y, ops)
 
@@ -223,19 +256,19 @@ class LockedJointSolver(AnalyticSolver):
                     return sy.matvec(RG, rotate(h[5], c6, sy.neg(s6), u))
 
                 t, ta = back(h[2]), back(self.a3)
-                v_s = subproblem2(h[1], h[2], h[0], t, ops)
-                for s in (0, 1):
-                    vs = v_s[s]
+                v_s = subproblem2(h[1], h[2], h[0], t, ops, shoulders)
+                for s, vs in enumerate(v_s[0]):
                     q2, c2, s2 = subproblem1(h[1], h[2], vs, ops)
                     q1, c1, s1 = subproblem1(h[0], vs, t, ops)
                     b = rotate(h[1], c2, sy.neg(s2), rotate(h[0], c1, sy.neg(s1), ta))
-                    q3 = subproblem1(h[2], self.a3, b, ops)[0]
-                    k = 4 * s + 2 * e + w
+                    q3, c3, s3 = subproblem1(h[2], self.a3, b, ops)
+                    k = (s * len(elbows) + e) * len(wrists) + w
                     q[k] = [q1, q2, q3, q4, q5, q6, ops.wrap(param)]
-                    measure[k] = ops.fmin(ops.fmin(m4, v_w[2]), v_s[2])
+                    trig[k] = [(c1, s1), (c2, s2), (c3, s3), (c4, s4), (c5, s5), (c6, s6)]
+                    measure[k] = ops.fmin(ops.fmin(m4, v_w[1]), v_s[1])
                     valid[k] = measure[k] >= -EPS
-                    singular[k] = ops.fmax(ops.fmax(close4, v_w[3]), v_s[3])
-        return Branches(q, valid, singular), measure
+                    singular[k] = ops.fmax(ops.fmax(close4, v_w[2]), v_s[2])
+        return Branches(q, valid, singular), measure, trig
 
     def table_parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
         """q7 (rad) and the branch id ``4·shoulder + 2·elbow + wrist`` of the configuration ``q`` (7 scalars)."""

@@ -1,7 +1,9 @@
-r"""Feasible q7 sets of the locked-q7 closed form (:mod:`qpik.analytic.locked_joint`) under joint limits.
+r"""Feasible q7 sets of the locked-q7 closed form (:mod:`qpik.analytic.locked_joint`) under joint limits, proved
+per pose.
 
 Every joint of a branch is a continuous function of q7 between the values where the branch appears or
-disappears (a subproblem's discriminant crossing 0) or jumps (a singular case), so the sets change only at
+disappears (a subproblem's discriminant crossing 0) or jumps (a free joint at a singular configuration), so the
+sets change only at
 
 - q7 at its own levels (exact: q7 is the parameter);
 - q4 at a level L, or the elbow's discriminant at 0: exact roots. :math:`|G W - S|^2 = A + B\cos q_7 + C\sin q_7`
@@ -9,26 +11,38 @@ disappears (a subproblem's discriminant crossing 0) or jumps (a singular case), 
   :math:`B = -2\,e\cdot R w_\perp`, :math:`C = 2\,e\cdot R (k_7\times w_7)`, in the solver's flange-frame constants),
   so the elbow's :math:`c(q_7) = k - |GW - S|^2/2` is a sinusoid and q4 = L, i.e. :math:`c = r\cos(L - \varphi)`,
   or :math:`c = \pm r`, is :func:`qpik.analytic.trig.solve_cos_sin`;
-- another joint j crossing a level L of its (shrunk) limits: a root of :math:`\sin(q_j(q_7) - L)` (which also
-  vanishes at L + π: such extra roots only split a gap), L = π too for a joint whose limits reach ±π (the
-  representative inside the limits changes there, :class:`~qpik.analytic.solver.AnalyticSolver`);
+- another joint j crossing a level L of its (shrunk) limits: a root of
+  :math:`\sin(q_j - L) = \sin q_j \cos L - \cos q_j \sin L`, with :math:`(\cos q_j, \sin q_j)` the unit vectors of
+  the subproblems (:meth:`~qpik.analytic.locked_joint.LockedJointSolver.joint_trig`; it also vanishes at L + π,
+  which the search skips: a cell where :math:`\cos(q_j - L) < 0` holds no root of interest), L = π too for a joint
+  whose limits reach ±π (the representative inside the limits changes there,
+  :class:`~qpik.analytic.solver.AnalyticSolver`); only where the branch is valid;
 - a change of the branch's ``valid`` flag: a root of its validity function
   (:meth:`~qpik.analytic.locked_joint.LockedJointSolver.validity`: the subproblems' discriminants, continuous in q7).
 
-The last two are not sinusoids in q7: their roots are found by a sweep of :data:`GRID` values of q7 (the compiled
-IK, :meth:`~qpik.analytic.solver.AnalyticSolver.solve_many`, and the compiled validity functions), a sign change
-between neighbours bracketing a root (a limit crossing between two valid values). Two roots of one function inside
-one grid cell (a joint that touches a level and turns back, as it does at the best margin; a branch valid on less
-than a cell) sit about an extremum: where the sampled function turns, the extremum is located by bisection on the
-sign of a central difference and the function tested there, which brackets both roots. Limit crossings between a
-validity root and the next valid value are bracketed there. All brackets are refined to :data:`ROOT_TOL` together
-(regula falsi with bisection steps, :meth:`Q7Intervals._bisect`; each step one compiled sweep). The gaps between
-the breakpoints are then classified as for the other families (:class:`~qpik.analytic.intervals.SetAssembler`: one
-IK evaluation at each midpoint).
+The last two are *columns*, functions of q7 whose roots are found by Taylor-model root isolation (Berz & Makino
+1998; Makino & Berz 2003): over a cell :math:`[a, b] = \{m + h t : t \in [-1, 1]\}` of q7, the first-order Taylor
+model of every column (:func:`qpik.algebra.enclosure.taylor_function` of the compiled columns of one branch, whose
+shoulder, elbow and wrist signs are inputs: one compiled function for every branch, one call for all the cells of a
+round) is :math:`f(m + h t) \in f_0 + f_1 t + [-r, r]`, beside interval bounds. The column's roots in the cell
+then lie where :math:`|f_0 + f_1 t| \le r + ` :data:`SLACK` (a Newton step with its remainder enclosed, as in the
+interval Newton method, Moore 1966): the cell is discarded when that is empty (or
+the bounds exclude 0, or, for a joint, the branch's validity is below 0 over it), replaced by that window when
+the window is at most half as wide (near a simple root the window shrinks quadratically from round to round), else
+halved. A window narrower than :data:`WINDOW` is a breakpoint (its centre); so are the ends of a cell over which a
+column stays within :data:`TOUCH` of 0 (a tangency: a joint touching a level over a whole cell, to round-off).
+The search starts from :data:`CELLS` cells over the circle and stops after :data:`ROUNDS` rounds or above
+:data:`MAX_CELLS` cells in a round: then the cells left are breakpoints too (their ends), and the answer is not
+proved. The gaps between the breakpoints are classified as for the other families
+(:class:`~qpik.analytic.intervals.SetAssembler`: one IK evaluation at each midpoint).
 
-**Not certified:** a function with more than one extremum in three grid values (2π/GRID ≈ 3 mrad; near a singular
-configuration) can hide roots; the exactly bounded search the S-R-S and offset-shoulder sets have is not written for
-this family yet. ``margin`` shrinks the limits as there (:func:`~qpik.analytic.intervals.shrunk_limits`).
+**Proved:** when the search ends with no cell left, every root of every column lies within :data:`WINDOW` of a
+breakpoint or in a cell where the column is within :data:`TOUCH` of 0, so the sets are exact except within
+:data:`WINDOW` of their ends and where a joint is within :data:`TOUCH` rad of a limit (``FeasibleIntervals.proved``).
+A free joint (a singular configuration: a unit vector of no direction) is resolved by halving down to
+:data:`WINDOW`, which the budget may not allow. The enclosures are computed in round-to-nearest arithmetic
+(:mod:`qpik.algebra.enclosure`), which :data:`SLACK` covers for these values of order 1. ``margin`` shrinks the
+limits as there (:func:`~qpik.analytic.intervals.shrunk_limits`).
 """
 
 from __future__ import annotations
@@ -39,6 +53,7 @@ import casadi as ca
 import numpy as np
 
 from qpik.algebra import symbolic as sy
+from qpik.algebra.enclosure import taylor_function
 from qpik.analytic import trig
 from qpik.analytic.intervals import FeasibleIntervals, SetAssembler, shrunk_limits, wrap
 from qpik.native.compiled import RowMap
@@ -46,70 +61,55 @@ from qpik.native.compiled import RowMap
 if TYPE_CHECKING:
     from qpik.analytic.locked_joint import LockedJointSolver
 
-GRID = 2048
-"""q7 values of the sweep over the circle."""
-ROOT_TOL = 1e-12
-"""Width (rad) of a bracket at which bisection stops."""
-TURN_TOL = 1e-8
-"""Width (rad) to which an extremum of a joint is located (its value is then exact to ~curvature·TURN_TOL²)."""
+CELLS = 64
+"""Cells of q7 over the circle at the start of the search."""
+WINDOW = 1e-10
+"""Width (rad) of a window of roots that is a breakpoint."""
+SLACK = 1e-12
+"""Added to every remainder: the round-off of the enclosures of values of order 1."""
+TOUCH = 1e-10
+"""A column within this of 0 over a whole cell (a joint that touches a level there, to this many rad) makes the
+cell's ends breakpoints."""
+ROUNDS = 80
+"""Rounds of the search before the answer is left unproved."""
+MAX_CELLS = 2048
+"""Cells of q7 in a round above which the answer is left unproved."""
 ELBOW = 3
 """Index of q4, whose levels are solved exactly."""
-CELL = 2.0 * np.pi / GRID
-
-Brackets = tuple[np.ndarray, np.ndarray, np.ndarray]
-"""``(a, b, column)`` (K,) each: a root of column k lies in [a, b] (rad, not wrapped)."""
-
-
-def _none() -> Brackets:
-    return np.zeros(0), np.zeros(0), np.zeros(0, int)
-
-
-def _join(*parts: Brackets) -> Brackets:
-    return tuple(np.concatenate(x) for x in zip(*parts))  # type: ignore[return-value]
+SIGNS = np.array([[1 - 2 * (k >> bit & 1) for bit in (2, 1, 0)] for k in range(8)], float)
+"""Per branch id ``4·shoulder + 2·elbow + wrist``, the signs of its shoulder's, elbow's and wrist's roots (8, 3)
+(:data:`qpik.analytic.locked_joint.BranchSigns`)."""
 
 
 class Q7Intervals:
     """The feasible q7 sets of a :class:`~qpik.analytic.locked_joint.LockedJointSolver` (a ``ParameterSets``).
 
-    The functions whose roots are breakpoints are *columns* ``(branch, joint, level)``: sin(q_j − L) for a joint
-    j (not q4, not q7), or the branch's validity function (:meth:`LockedJointSolver.validity`) as joint n = 7.
+    The columns (:meth:`_columns`) are sin(q_j − L) for a joint j (not q4, not q7) of a branch and a level L, or the
+    branch's validity function. ``rounds``: the search's budget (:data:`ROUNDS`).
     """
 
-    proved = False
-    """The breakpoints come from a sweep (module docstring): an empty set proves nothing."""
+    proved = True
+    """Each answer says whether its search ended (``FeasibleIntervals.proved``)."""
 
-    def __init__(self, solver: LockedJointSolver):
-        self._solver = solver
+    def __init__(self, solver: LockedJointSolver, rounds: int = ROUNDS):
+        self._solver, self._rounds = solver, rounds
         self._assemble = SetAssembler(solver, solver.n_branches)
-        self._grid = np.linspace(-np.pi, np.pi, GRID, endpoint=False)
         self._n = solver.robot.dof
-        T, q7 = ca.SX.sym("T", 4, 4), ca.SX.sym("q7")
+        self._joints = [j for j in range(self._n - 1) if j != ELBOW]
+        T, q7, sign = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("sign", 3)
         R, p = sy.frame_of_batch(T)
-        f = ca.Function(f"validity_{solver.kind}", [T, q7], [ca.vertcat(*solver.validity(R, p, q7, sy.CASADI))])
-        self._validity = RowMap(f, shared=[0])
+        one = ((sign[0],), (sign[1],), (sign[2],))  # the branch of these signs, chosen at run time
+        (row,), (valid,) = solver.joint_trig(R, p, q7, sy.CASADI, one), solver.validity(R, p, q7, sy.CASADI, one)
+        out = ca.vertcat(*[row[j][0] for j in self._joints], *[row[j][1] for j in self._joints], valid)
+        columns = ca.Function(f"columns_{solver.kind}", [T, q7, sign], [out])
+        self._model = RowMap(taylor_function(columns, [1]), shared=[0])
+        """The Taylor models of one branch's outputs (inputs: T, the centre of a cell of q7, the branch's
+        :data:`SIGNS`, then the cell's half-width, radius 0 and its ends) over rows of cells and branches."""
         self._last: tuple[bytes, float, FeasibleIntervals] | None = None
 
     def native_sets(self) -> None:
         """No single C call for this family."""
         return None
-
-    def _sweep(self, T: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """At q7 = x (M,): the joints and the validity function of every branch, (M, B, n + 1), and valid (M, B)."""
-        x = wrap(x)
-        sol = self._solver.solve_many(T, x)
-        (v,) = self._validity(np.asarray(T, float).reshape(-1, order="F"), x[:, None])
-        return np.concatenate([sol.q, v[:, :, None]], axis=2), sol.valid
-
-    def _values(self, qa: np.ndarray, rows, branch, joint, level) -> np.ndarray:
-        """The columns (branch, joint, level) at the rows ``rows`` of a sweep ``qa`` (M, B, n + 1)."""
-        x = qa[rows, branch, joint]
-        return np.where(joint == self._n, x, np.sin(x - level))
-
-    def _at(self, T: np.ndarray, x: np.ndarray, *column) -> np.ndarray:
-        """The columns (branch, joint, level, each (K,)) at q7 = x (K,)."""
-        if x.size == 0:
-            return x
-        return self._values(self._sweep(T, x)[0], np.arange(x.size), *column)
 
     def __call__(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
         """Per branch, the q7 (rad) where every joint lies in the limits shrunk by ``margin``; ``T`` (4, 4). The
@@ -129,155 +129,95 @@ class Q7Intervals:
                                      [[] for _ in s.branch_ids])  # fmt: skip
         lo, hi = shrunk_limits(s.robot.q_min, s.robot.q_max, margin)
         levels = _levels(lo, hi)
-        cols = self._columns(levels)
-        qa, valid = self._sweep(T, self._grid)
-        f = self._values(qa, np.arange(GRID)[:, None], *cols)
-        signs, turns = self._sign_changes(f, valid, cols), self._turns(T, qa, valid, f, cols)
-        a, b, k = _join(signs, turns)
-        border = cols[1][k] == self._n
-        fa = self._at(T, a, *(c[k] for c in cols))
-        va, vb = self._bisect(T, a[border], b[border], fa[border], *(c[k[border]] for c in cols))
-        inside = np.where(np.signbit(fa[border]), vb, va)  # the valid side of each validity root
-        edges = self._edges(T, inside, cols[0][k[border]], valid, f, cols)
-        a, b, k = _join((a[~border], b[~border], k[~border]), edges)
-        la, lb = self._bisect(T, a, b, self._at(T, a, *(c[k] for c in cols)), *(c[k] for c in cols))
-        found = wrap(0.5 * np.concatenate([va + vb, la + lb]))
-        breaks = np.concatenate([found, self._elbow_roots(T, levels[ELBOW]), levels[-1]])
+        found, left = self._isolate(T, self._columns(levels))
+        breaks = np.concatenate([found, left, self._elbow_roots(T, levels[ELBOW]), levels[-1]])
         sets, sing = self._assemble(T, breaks, found, (lo, hi))
-        return FeasibleIntervals(s.param_name, s.branch_array, sets, sing)
+        return FeasibleIntervals(s.param_name, s.branch_array, sets, sing, proved=not left.size)
 
-    def _columns(self, levels: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The columns as (branch, joint, level) arrays (F,): each branch's validity, then sin(q_j − L) per branch,
-        joint j (not q4, not q7) and level L."""
-        B = self._solver.n_branches
-        branch, joint, level = [np.arange(B)], [np.full(B, self._n)], [np.zeros(B)]
-        for j, L in enumerate(levels[:-1]):
-            if j != ELBOW:
-                branch.append(np.repeat(np.arange(B), L.size))
-                joint.append(np.full(B * L.size, j))
-                level.append(np.tile(L, B))
-        return np.concatenate(branch), np.concatenate(joint), np.concatenate(level)
+    def _columns(self, levels: list[np.ndarray]) -> tuple[np.ndarray, ...]:
+        """The columns, (F,) each: the branch, and weights of its compiled outputs (cos q_j of the joints, their
+        sin q_j, its validity): column k is ``w1[k]·out[i1[k]] + w2[k]·out[i2[k]]`` (sin q_j cos L − cos q_j sin L
+        for a joint j and a level L of ``levels``, or the validity out[i1]), joint (False: validity); where
+        cos(q_j − L) ``= w1[k]·out[i2[k]] − w2[k]·out[i1[k]]`` is negative its root is L + π, no level."""
+        B, J = self._solver.n_branches, len(self._joints)
+        br, i1, w1, i2, w2 = [np.arange(B)], [np.full(B, 2 * J)], [np.ones(B)], [np.zeros(B, int)], [np.zeros(B)]
+        for k, j in enumerate(self._joints):
+            L = levels[j]
+            br.append(np.repeat(np.arange(B), L.size))
+            i1.append(np.full(B * L.size, J + k))
+            w1.append(np.tile(np.cos(L), B))
+            i2.append(np.full(B * L.size, k))
+            w2.append(np.tile(-np.sin(L), B))
+        out = tuple(np.concatenate(x) for x in (br, i1, w1, i2, w2))
+        return (*out, np.arange(out[0].size) >= B)
 
-    def _sign_changes(self, f: np.ndarray, valid: np.ndarray, cols) -> Brackets:
-        """The sign changes of the sweep ``f`` (GRID, F) between neighbours (a limit crossing only between two valid
-        values)."""
-        branch, joint, _ = cols
-        g = np.concatenate([f, f[:1]])  # close the circle
-        ok = np.concatenate([valid, valid[:1]])
-        i, k = np.nonzero(np.signbit(g[:-1]) != np.signbit(g[1:]))
-        keep = (joint[k] == self._n) | (ok[i, branch[k]] & ok[i + 1, branch[k]])
-        i, k = i[keep], k[keep]
-        return self._grid[i], self._grid[i] + CELL, k
+    def _isolate(self, T: np.ndarray, cols: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray]:
+        """The breakpoints of the columns ``cols`` (:meth:`_columns`) at the pose T: the centres of the windows of
+        their roots (rad, wrapped), and the ends of the cells left when the budget ran out (empty: proved)."""
+        edges = np.linspace(-np.pi, np.pi, CELLS + 1)
+        F = cols[0].size
+        a, b, k = np.repeat(edges[:-1], F), np.repeat(edges[1:], F), np.tile(np.arange(F), CELLS)
+        found = []
+        Tf = np.asarray(T, float).reshape(-1, order="F")
+        for _ in range(self._rounds):
+            if not a.size:
+                break
+            bounds = self._bounds(Tf, a, b, [c[k] for c in cols])
+            if bounds is None:
+                break
+            f0, f1, rest, outside = bounds
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                t1, t2 = (-f0 - rest) / f1, (-f0 + rest) / f1
+            flat = ~(np.abs(f1) > 0) | ~np.isfinite(rest)  # no slope, or no model: the whole cell
+            t1, t2 = np.where(flat, -1.0, np.minimum(t1, t2)), np.where(flat, 1.0, np.maximum(t1, t2))
+            t1, t2 = np.maximum(t1, -1.0), np.minimum(t2, 1.0)
+            m, h = 0.5 * (a + b), 0.5 * (b - a)
+            x1, x2 = m + h * t1, m + h * t2
+            gone = (t1 > t2) | outside | (flat & (np.abs(f0) > rest))
+            done = ~gone & (x2 - x1 <= WINDOW)
+            touch = ~gone & ~done & (np.abs(f0) + np.abs(f1) + rest <= TOUCH)
+            found += [0.5 * (x1 + x2)[done], a[touch], b[touch]]
+            live = ~gone & ~done & ~touch
+            narrow = live & (x2 - x1 <= h)  # at most half the cell: the window is the next cell
+            halve = live & ~narrow
+            mid = 0.5 * (x1 + x2)[halve]
+            a = np.concatenate([x1[narrow], x1[halve], mid])
+            b = np.concatenate([x2[narrow], mid, x2[halve]])
+            k = np.concatenate([k[narrow], k[halve], k[halve]])
+        found = wrap(np.concatenate(found)) if found else np.zeros(0)
+        return found, wrap(np.concatenate([a, b]))
 
-    def _turns(self, T: np.ndarray, qa: np.ndarray, valid: np.ndarray, f: np.ndarray, cols) -> Brackets:
-        """The pairs of roots about a turn of a joint (valid at three grid values) or of a validity function inside
-        two grid cells: the extremum located, each column with a sign there other than at an end gives the bracket
-        (end, extremum)."""
-        branch, joint, level = cols
-        n = self._n
-        dq = np.roll(qa, -1, axis=0) - qa  # (GRID, B, n + 1): qa[i+1] − qa[i]
-        dq[..., :n] = wrap(dq[..., :n])
-        ok = valid & np.roll(valid, -1, axis=0) & np.roll(valid, 1, axis=0)
-        turn = np.signbit(dq) != np.signbit(np.roll(dq, 1, axis=0))  # qa[i] a sampled extremum
-        turn[..., :n] &= ok[:, :, None]
-        turn[..., [ELBOW, n - 1]] = False
-        i, bj, jj = np.nonzero(turn)
-        near = np.zeros(i.size, bool)  # a level within twice the larger neighbouring step of the sampled extremum
-        reach = 2.0 * np.maximum(np.abs(dq[i, bj, jj]), np.abs(dq[i - 1, bj, jj])) + 1e-9
-        for k in range(branch.size):
-            mine = (bj == branch[k]) & (jj == joint[k])
-            gap = np.abs(f[i, k]) if joint[k] == n else np.abs(wrap(qa[i, bj, jj] - level[k]))
-            near |= mine & (gap <= reach)
-        i, bj, jj = i[near], bj[near], jj[near]
-        if i.size == 0:
-            return _none()
-        rows = np.arange(i.size)
-        lo, hi = self._grid[i] - CELL, self._grid[i] + CELL
-        while (hi - lo).max() > TURN_TOL:  # bisection on the sign of the slope: the extremum is where it turns
-            m = 0.5 * (lo + hi)
-            both = self._sweep(T, np.concatenate([m - 0.25 * TURN_TOL, m + 0.25 * TURN_TOL]))[0]
-            slope = both[i.size :][rows, bj, jj] - both[: i.size][rows, bj, jj]
-            slope = np.where(jj < n, wrap(slope), slope)
-            on = np.signbit(slope) == np.signbit(dq[i - 1, bj, jj])  # still rising (falling) as before the turn
-            lo, hi = np.where(on, m, lo), np.where(on, hi, m)
-        e = 0.5 * (lo + hi)
-        at = self._sweep(T, e)[0]
-        out = [_none()]
-        for k in range(branch.size):  # the columns of each (branch, joint) that turns
-            sel = np.nonzero((branch[k] == bj) & (joint[k] == jj))[0]
-            if sel.size == 0:
-                continue
-            fe = self._values(at, sel, branch[k], joint[k], level[k])
-            for end, side in ((i[sel] - 1, 0), ((i[sel] + 1) % GRID, 1)):
-                cross = np.signbit(fe) != np.signbit(f[end, k])
-                edge = self._grid[i[sel]] + (CELL if side else -CELL)
-                a, b = (e[sel], edge) if side else (edge, e[sel])
-                out.append((a[cross], b[cross], np.full(int(cross.sum()), k)))
-        return _join(*out)
-
-    def _edges(self, T: np.ndarray, inside: np.ndarray, vb: np.ndarray, valid: np.ndarray, f: np.ndarray, cols):
-        """The limit crossings next to a validity root: ``inside`` (K,) are q7 just on the valid side of the roots
-        of branch ``vb`` (K,); between each and its neighbours among the grid values and the others of its branch,
-        where both are valid, a limit column of the branch that changes sign gives a bracket."""
-        branch, joint, level = cols
-        if inside.size == 0:
-            return _none()
-        qa = self._sweep(T, inside)[0]
-        out = [_none()]
-        for bb in np.unique(vb):
-            ks = np.flatnonzero((branch == bb) & (joint < self._n))
-            mine = np.flatnonzero(vb == bb)
-            x = np.concatenate([self._grid, wrap(inside[mine])])
-            ok = np.concatenate([valid[:, bb], np.ones(mine.size, bool)])
-            fx = np.concatenate([f[:, ks], self._values(qa, mine[:, None], bb, joint[ks], level[ks])])
-            new = np.concatenate([np.zeros(GRID, bool), np.ones(mine.size, bool)])
-            order = np.argsort(x, kind="stable")
-            x, ok, fx, new = x[order], ok[order], fx[order], new[order]
-            nxt = np.roll(np.arange(x.size), -1)
-            pair = ok & ok[nxt] & (new | new[nxt])
-            r, c = np.nonzero((np.signbit(fx) != np.signbit(fx[nxt])) & pair[:, None])
-            b = np.where(nxt[r] == 0, x[nxt[r]] + 2.0 * np.pi, x[nxt[r]])
-            out.append((x[r], b, ks[c]))
-        return _join(*out)
-
-    def _bisect(self, T: np.ndarray, a: np.ndarray, b: np.ndarray, fa: np.ndarray, *column):
-        """Brackets ``(a, b)`` (K,) no wider than :data:`ROOT_TOL` of the roots of the columns ``column`` (branch,
-        joint, level, each (K,)) bracketed by [a, b] (K,), ``fa`` their values at a; a keeps the sign of ``fa``.
-
-        Regula falsi with the Illinois rule (the value kept at an end twice in a row is halved), every third step a
-        bisection: the bracket at least halves every three steps, and a smooth root converges superlinearly. Each
-        step also evaluates the columns at x ± :data:`ROOT_TOL`/2.5 (in the same compiled sweep): where their signs
-        differ as at a and b, that straddle is the bracket, so a converged estimate ends the search at once instead
-        of waiting for the far end to move."""
-        if a.size == 0:
-            return a, b
-        a, b, fa = a.copy(), b.copy(), fa.copy()
-        fb = self._at(T, b, *column)
-        kept = np.zeros(a.size, int)  # +1: a kept last step, -1: b kept
-        h = 0.4 * ROOT_TOL
-        step = 0
-        while (live := np.flatnonzero(b - a > ROOT_TOL)).size:
-            step += 1
-            A, B, FA, FB = a[live], b[live], fa[live], fb[live]
-            m = 0.5 * (A + B)
-            x = m
-            if step % 3:
-                den = np.where(FB != FA, FB - FA, 1.0)
-                x = np.where(FB != FA, (A * FB - B * FA) / den, m)
-                x = np.where((x > A) & (x < B), x, m)
-            xl, xr = np.maximum(x - h, A), np.minimum(x + h, B)
-            fl, fx, fr = self._at(T, np.concatenate([xl, x, xr]), *(np.tile(c[live], 3) for c in column)).reshape(3, -1)
-            left = np.signbit(fx) == np.signbit(FA)  # the root is in [x, b]
-            FB = FB * np.where(left & (kept[live] == -1), 0.5, 1.0)
-            FA = FA * np.where(~left & (kept[live] == 1), 0.5, 1.0)
-            exact = fx == 0.0
-            na, nb = np.where(left | exact, x, A), np.where(left & ~exact, B, x)
-            nfa, nfb = np.where(left, fx, FA), np.where(left, FB, fx)
-            straddle = ~exact & (np.signbit(fl) == np.signbit(FA)) & (np.signbit(fr) != np.signbit(FA))
-            a[live], b[live] = np.where(straddle, xl, na), np.where(straddle, xr, nb)
-            fa[live], fb[live] = np.where(straddle, fl, nfa), np.where(straddle, fr, nfb)
-            kept[live] = np.where(left, -1, 1)
-        return a, b
+    def _bounds(self, Tf: np.ndarray, a: np.ndarray, b: np.ndarray, cols: list[np.ndarray]):
+        """Over the cells [a, b] (K,) of the columns ``cols`` (:meth:`_columns`, (K,) each): the Taylor model
+        ``f0 + f1·t ± rest`` (t ∈ [−1, 1]; rest with :data:`SLACK`) and where the column surely has no root of
+        interest (its bounds exclude 0, or its branch is invalid, or cos(q_j − L) < 0); None above
+        :data:`MAX_CELLS` cells (of all the branches). ``Tf``: the pose, column-major (16,). One call of the
+        model for the distinct (branch, cell) pairs."""
+        br, i1, w1, i2, w2, joint = cols
+        P = 2 * len(self._joints) + 1  # outputs per branch, its validity last
+        order = np.lexsort((b, a, br))
+        new = np.ones(a.size, bool)
+        new[1:] = (np.diff(br[order]) != 0) | (np.diff(a[order]) != 0) | (np.diff(b[order]) != 0)
+        first = order[new]  # one column of each distinct (branch, cell)
+        if first.size > MAX_CELLS:
+            return None
+        row = np.empty(a.size, int)
+        row[order] = np.cumsum(new) - 1
+        x, y = a[first, None], b[first, None]
+        out = self._model(Tf, 0.5 * (x + y), SIGNS[br[first]], 0.5 * (y - x), np.zeros_like(x), x, y)
+        at = (row[:, None], np.stack([i1, i2, np.full(a.size, P - 1)], axis=1))
+        c0, c1, r, lo, hi = (v[at][:, :2] for v in out)
+        valid_hi = out[4][at][:, 2]
+        w = np.stack([w1, w2], axis=1)
+        used = w != 0.0
+        with np.errstate(invalid="ignore", over="ignore"):  # inf or nan (a free joint): the cell stays undecided
+            f0, f1 = np.where(used, w * c0, 0.0).sum(axis=1), np.where(used, w * c1, 0.0).sum(axis=1)
+            rest = np.where(used, np.abs(w) * r, 0.0).sum(axis=1) + SLACK
+            low = np.where(used, np.minimum(w * lo, w * hi), 0.0).sum(axis=1)
+            high = np.where(used, np.maximum(w * lo, w * hi), 0.0).sum(axis=1)
+        cos_hi = np.maximum(w1 * lo[:, 1], w1 * hi[:, 1]) + np.maximum(-w2 * lo[:, 0], -w2 * hi[:, 0])
+        far = joint & ((valid_hi < -SLACK) | (cos_hi < -SLACK))
+        return f0, f1, rest, far | (low > SLACK) | (high < -SLACK)
 
     def _elbow_roots(self, T: np.ndarray, levels: np.ndarray) -> np.ndarray:
         """The q7 (rad) where q4 meets one of ``levels`` or the elbow's discriminant vanishes (module docstring)."""

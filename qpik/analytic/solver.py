@@ -195,9 +195,9 @@ class AnalyticSolver(ABC):
 
     @property
     def sets_proved(self) -> bool:
-        """Whether :meth:`feasible_intervals` is proved (the sets type's ``ParameterSets.proved``, read without
-        building the sets): an empty set then proves that no parameter is feasible, and a level set or certificate
-        built on the sets is a proof."""
+        """Whether :meth:`feasible_intervals` can be proved (the sets type's ``ParameterSets.proved``, read without
+        building the sets); each answer says whether it is (``FeasibleIntervals.proved``): an empty set then proves
+        that no parameter is feasible, and a level set or certificate built on the sets is a proof."""
         return self._make_sets is not None and bool(self._make_sets.proved)
 
     def native_sets(self) -> NativeSets | None:

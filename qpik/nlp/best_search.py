@@ -30,8 +30,9 @@ from qpik.nlp.selfmotion import SelfMotion
 
 RETRIES = 2
 """Searches again (with samples 4x closer each time) when the certificate finds a better point."""
-UNPROVED_SETS = "this closed form's feasible sets come from a sweep, which proves no maximum"
-"""The message of an answer over feasible sets that are not proved (``AnalyticSolver.sets_proved``)."""
+UNPROVED_SETS = "the feasible sets at this pose are not proved, so no maximum is"
+"""The message of an answer over feasible sets that are not proved (``AnalyticSolver.sets_proved``,
+``FeasibleIntervals.proved``)."""
 
 
 def solve_poses(
@@ -63,6 +64,7 @@ def solve_poses(
     left = np.flatnonzero(~by_levels)
     scene.build_search()
     fis = dict(zip(left.tolist(), (sm.solver.feasible_intervals(scene.poses[i]) for i in left)))
+    unproved = [i for i in left.tolist() if not fis[i].proved]
     pieces = _feasible_pieces(fis, rows, left)
     if method == "ipopt":
         from qpik.nlp.ipopt import solve_pieces
@@ -70,7 +72,7 @@ def solve_poses(
         best.update(*solve_pieces(scene, pieces))
     elif len(pieces):
         best.update_from(*_search(scene, pieces, SAMPLE_STEP))
-    todo = np.flatnonzero(best.found() & certify & ~cert_ok)
+    todo = np.setdiff1d(np.flatnonzero(best.found() & certify & ~cert_ok), unproved)
     for attempt in range(RETRIES + 1):
         if not len(todo):
             break
@@ -87,6 +89,8 @@ def solve_poses(
         best.update_from(*_search(scene, sub, SAMPLE_STEP / 4 ** (attempt + 1), extra=cert.better))
         todo = redo
     methods = ["levelset" if done else method for done in by_levels.tolist()]
+    for i in unproved:  # the certificate stands on the feasible sets
+        cert_ok[i], reason[i] = False, UNPROVED_SETS
     return _answers(scene, best, rows, cert_ok, bound, reason, methods)
 
 

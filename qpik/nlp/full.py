@@ -216,7 +216,7 @@ def solve_full(
 
 
 def _not_found(robot: Robot, T: np.ndarray) -> str:
-    """``"unreachable"`` when proved (a closed form's proved feasible sets at T are all empty), else
+    """``"unreachable"`` when proved (a closed form's feasible sets at T are all empty and proved so), else
     ``"not found"``."""
     if robot.closed_form is None:
         return "not found"
@@ -224,7 +224,8 @@ def _not_found(robot: Robot, T: np.ndarray) -> str:
 
     if not closed_form_for(robot).sets_proved:
         return "not found"
-    return "not found" if any(feasible_intervals(robot, T).intervals) else "unreachable"
+    fi = feasible_intervals(robot, T)
+    return "unreachable" if fi.proved and not any(fi.intervals) else "not found"
 
 
 def _starts(robot: Robot, T: np.ndarray, first: np.ndarray, seed: int):

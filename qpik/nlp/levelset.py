@@ -136,6 +136,7 @@ def maximise(scene: BestRun, rows: list[int], weight: float) -> LevelSets:
     best = np.full(N, -np.inf)
     level = np.zeros(N)
     current = {i: solver.feasible_intervals(T) for i, T in enumerate(scene.poses)}
+    proved = np.array([current[i].proved for i in range(N)], bool)  # every set of the pose's rounds proved
     parent = None
     for k in range(MAX_ROUNDS + 1):
         pieces = _pieces(current, rows, level)
@@ -159,7 +160,9 @@ def maximise(scene: BestRun, rows: list[int], weight: float) -> LevelSets:
         moved &= np.isfinite(best)
         level = np.maximum(best, 0.0) + EPS
         current = {i: solver.feasible_intervals(scene.poses[i], margin=float(level[i])) for i in np.flatnonzero(moved)}
+        proved[list(current)] &= [fi.proved for fi in current.values()]
         parent = pieces
+    out.certified &= proved
     out.bound = np.where(out.certified, -weight * level, -np.inf)
     return out
 

@@ -349,8 +349,9 @@ def _empty(grid: Grid, layers: _Layers, k: int) -> str:
 
 
 def _proved_empty(grid: Grid, k: int) -> bool:
-    """Whether the exact feasible intervals of waypoint k (every branch) are empty."""
-    return not any(grid.intervals[k].intervals[b] for b in range(grid.rows))
+    """Whether the exact feasible intervals of waypoint k (every branch) are empty, and proved so."""
+    fi = grid.intervals[k]
+    return fi.proved and not any(fi.intervals[b] for b in range(grid.rows))
 
 
 def _empty_failure(grid: Grid, layers: _Layers, k: int) -> Failure:

@@ -91,16 +91,17 @@ def test_the_pose_error_is_the_log_and_differentiable_at_zero():
 
 
 def test_unreachable_and_bad_input():
-    """Out of reach: "unreachable" only where proved feasible sets prove it (iiwa14); "not found" where the sets
-    come from a sweep (Panda, locked q7) or there is no closed form (example-robot-data's xArm7)."""
+    """Out of reach: "unreachable" where proved feasible sets prove it (iiwa14, and the Panda's locked-q7 sets, proved
+    at this pose); "not found" where there is no closed form (example-robot-data's xArm7)."""
     far = np.eye(4)
     far[:3, 3] = (2.0, 0.0, 0.5)
-    res = solve_full(qpik.load_robot("iiwa14"), far, options=FullOptions(max_starts=3))
-    assert res.status == "unreachable" and res.pose_error > 0.5
     robot = qpik.load_robot("panda")
-    for arm in (robot, model_robot("erd_xarm7")):
+    assert qpik.feasible_intervals(robot, far).proved
+    for arm in (qpik.load_robot("iiwa14"), robot):
         res = solve_full(arm, far, options=FullOptions(max_starts=3))
-        assert res.status == "not found" and res.pose_error > 0.5 and res.starts == 3
+        assert res.status == "unreachable" and res.pose_error > 0.5
+    res = solve_full(model_robot("erd_xarm7"), far, options=FullOptions(max_starts=3))
+    assert res.status == "not found" and res.pose_error > 0.5 and res.starts == 3
     with pytest.raises(InputError, match="pose"):
         solve_full(robot, np.full((4, 4), np.nan))
     with pytest.raises(InputError, match="pose"):
