@@ -46,6 +46,11 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
+# The suite's matrices are a few rows wide: a BLAS thread pool in each pytest worker only oversubscribes the cores
+# (then one scipy.linalg.expm of a 4 × 4 waits on threads for milliseconds). Set before numpy is first imported.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
 import casadi as ca
 import numpy as np
 import pytest

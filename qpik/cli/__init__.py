@@ -31,6 +31,11 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+SERIAL_BLAS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+"""The variables that :func:`main` sets to 1 unless the user set them: qpik's matrices are a few rows wide, and a
+BLAS thread pool only costs on them (on a busy machine a small ``scipy.linalg.expm`` then waits on its threads for
+milliseconds). Set before numpy is first imported."""
+
 PIPE_CLOSED = 141
 """The exit code when the reader of the output goes away (``qpik problems | head -1``): a program ended by
 SIGPIPE exits with 128 + 13, as ``yes | head -1`` does."""
@@ -44,8 +49,10 @@ def main(argv: list[str] | None = None) -> int:
     system's (files that cannot be read or written) as they are; anything else, a bug,
     as ``internal error: <type>: <message>``. Argument syntax errors are argparse's (usage
     and message, exit code 2). A standard output closed by its reader ends the command
-    quietly with :data:`PIPE_CLOSED`.
+    quietly with :data:`PIPE_CLOSED`. BLAS runs on one thread (:data:`SERIAL_BLAS`).
     """
+    for var in SERIAL_BLAS:
+        os.environ.setdefault(var, "1")
     try:
         try:
             return _command(argv)
