@@ -126,7 +126,7 @@ class BoundFunction:
 
     def _self_rows(self, seg: list[np.ndarray], M: int) -> list[np.ndarray]:
         """The models ``[centre, slope, radius, lo, hi]`` (each (M, P)) of the capsule pairs' distances from the
-        moving capsules' axis models ``seg``; a fixed capsule's axis is a constant (slope and radius 0)."""
+        moving capsules' axis models ``seg``; a fixed capsule's axis is a constant (slope and radius 0, lo = hi)."""
         robot, P = self._form[0], len(self.self_pairs)
         fixed = robot.fixed_capsules
         ends = robot.capsule_segments(robot.q_home[None])[0]
@@ -135,8 +135,8 @@ class BoundFunction:
             if fixed[c]:
                 a, b = ends[c]
                 value = np.tile(np.concatenate([a, b - a]), (M, 1))
-                zero, inf = np.zeros((M, 6)), np.full((M, 6), np.inf)
-                axes.append([value, zero, zero, -inf, inf])
+                zero = np.zeros((M, 6))
+                axes.append([value, zero, zero, value, value])
             else:
                 pick = 6 * self._rank[c] + np.arange(6)
                 axes.append([x[:, pick] for x in seg])

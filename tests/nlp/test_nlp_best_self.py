@@ -105,10 +105,9 @@ def test_self_clearance_is_kept_and_the_answer_is_global(name):
     assert optimal >= (0.8 * POSES if name == "nammoto7" else 0)
 
 
-def test_without_the_constraint_the_answers_collide_and_the_certificate_sees_the_pairs():
-    """Without self-collision the answers' capsules come closer than d_s (qpik's kernel agrees with MuJoCo's), with
-    it the level-set method is not used and the certificate's clearances include the capsule pairs: their Taylor
-    models enclose the pair distances."""
+def test_without_the_constraint_the_answers_collide():
+    """Without self-collision the answers' capsules come closer than d_s (qpik's kernel agrees with MuJoCo's); with
+    it the level-set method (which does not see the constraint) is not used."""
     robot = qpik.load_robot("nammoto7")
     plain = Scene.of(robot, d_safe=D_SAFE, objective="margin")
     T, _, q_plain = _colliding_poses(plain, 4, 5)
@@ -117,14 +116,23 @@ def test_without_the_constraint_the_answers_collide_and_the_certificate_sees_the
     np.testing.assert_allclose(safe.self_clearance(q_plain), mujoco_self_clearance(safe, q_plain), atol=1e-6)
     assert {r.method for r in qpik.solve_best(plain, T)} == {"levelset"}
     assert {r.method for r in qpik.solve_best(safe, T)} == {"search"}
+
+
+@pytest.mark.parametrize("name", ["nammoto7", "iiwa14"])
+def test_the_certificate_models_enclose_the_capsule_pair_distances(name):
+    """The certificate's clearances end with the capsule pairs (iiwa14's include its fixed base capsule, a
+    constant): at q(t) = Q + t·step every pair distance lies within its model's line ± radius and its bounds."""
+    robot = qpik.load_robot(name)
+    safe = Scene.of(robot, [Sphere((0.5, 0.2, 0.6), 0.1)], d_safe=D_SAFE, objective="margin", self_collision=True)
     bounds = safe.bounds
-    assert bounds.n_clear == bounds.n_pairs + len(safe.self_pairs)
+    assert bounds.n_clear == bounds.n_pairs + len(safe.self_pairs) and bounds.n_pairs
     Q = random_q(robot, 50, 6)
-    step = np.full_like(Q, 1e-3)
-    models = bounds.rows(Q, bounds.params, np.zeros_like(Q), plain.obstacles.params, step, np.zeros_like(Q),
+    step = np.full_like(Q, 1e-2)
+    models = bounds.rows(Q, bounds.params, np.zeros_like(Q), safe.obstacles.params, step, np.zeros_like(Q),
                          Q - step, Q + step)  # fmt: skip
     c, s, r, d_lo, d_hi = (m[:, -len(safe.self_pairs) :] for m in models)
-    for t in (-1.0, 0.0, 1.0):  # q(t) = Q + t·step: every pair distance within its model at t
+    assert np.isfinite(c).all() and np.isfinite(d_lo).all() and (r < 0.05).all()
+    for t in np.linspace(-1.0, 1.0, 9):
         d = pair_distances(robot, Q + t * step, safe.self_pairs)
         assert (np.abs(d - (c + s * t)) <= r + 1e-12).all()
         assert (d_lo <= d + 1e-12).all() and (d <= d_hi + 1e-12).all()
