@@ -118,6 +118,22 @@ def test_without_the_constraint_the_answers_collide():
     assert {r.method for r in qpik.solve_best(safe, T)} == {"search"}
 
 
+def test_ipopt_per_branch_keeps_self_clearance_and_finds_no_better_optimum():
+    """``method="ipopt"`` (the clearances as IPOPT's constraints): its answers keep the capsule pairs ≥ d_s apart
+    (MuJoCo) and are no better than the certified search's."""
+    robot = qpik.load_robot("nammoto7")
+    plain = Scene.of(robot, d_safe=D_SAFE, objective="margin")
+    T, _, _ = _colliding_poses(plain, 4, 5)
+    safe = plain.replace(self_collision=True)
+    search = qpik.solve_best(safe, T)
+    ipopt = qpik.solve_best(safe, T, options=BestOptions(certify=False, method="ipopt"))
+    assert any(b.status == "optimal" for b in ipopt)
+    for a, b in zip(search, ipopt):
+        if b.status == "optimal":
+            assert mujoco_self_clearance(safe, b.q)[0] >= D_SAFE - TOL, b.summary()
+            assert a.status == "optimal" and b.objective >= a.objective - 1e-8, (a.summary(), b.summary())
+
+
 @pytest.mark.parametrize("name", ["nammoto7", "iiwa14"])
 def test_the_certificate_models_enclose_the_capsule_pair_distances(name):
     """The certificate's clearances end with the capsule pairs (iiwa14's include its fixed base capsule, a
