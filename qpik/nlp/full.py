@@ -8,9 +8,9 @@ r"""The full-joint NLP: minimise an objective over the 7 joints with the pose as
 
 (the objective's split in epigraph form, :class:`qpik.objectives.Split`; the world-frame pose
 error :func:`qpik.algebra.lie.pose_error_expr`, differentiable at its solution; the capsule–obstacle distances of
-:mod:`qpik.geometry.distance` and, with the scene's self-collision, the capsule pairs' distances), solved by IPOPT (``casadi.nlpsol``, exact derivatives). It
-works for every arm, with or without a closed form. ``objective=None`` is a pure IK (the
-feasibility problem).
+:mod:`qpik.geometry.distance` and, with the scene's self-collision, the capsule pairs' distances), solved by IPOPT
+(``casadi.nlpsol``, exact derivatives). It works for every arm, with or without a closed form. ``objective=None``
+is a pure IK (the feasibility problem).
 
 A local method: :func:`solve_full` starts it from several configurations — ``q0`` (given),
 then, for an arm with a closed form, the within-limits branches of the pose at the middle of

@@ -42,12 +42,12 @@ def test_three_way_agreement_with_self_collision_active():
     robot = qpik.load_robot("nammoto7")
     plain = qpik.Scene.of(robot, d_safe=0.02, objective="smooth-margin")
     safe = plain.replace(self_collision=True)
-    T = robot.fk(random_q(robot, 300, 3))
+    T = robot.fk(random_q(robot, 60, 3))
     res = qpik.solve_best(plain, T, options=BestOptions(certify=False))
     q = np.array([r.q for r in res])
     ok = np.array([r.status == "optimal" for r in res])
-    hit = np.flatnonzero(ok & (safe.self_clearance(q) < 0.019))[:5]
-    assert len(hit) == 5
+    hit = np.flatnonzero(ok & (safe.self_clearance(q) < 0.019))[:3]
+    assert len(hit) == 3
     checks = [crosscheck(safe, pose) for pose in T[hit]]
     for c in checks:
         assert c.applicable and c.passed, c.report()

@@ -1,10 +1,10 @@
 """qpik.solve_best with self-collision (``Scene.of(..., self_collision=True)``) against dense sampling, on seeded poses
-whose best answer without it brings the arm's own capsules closer than d_s (12 per arm by default, 100 with
+whose best answer without it brings the arm's own capsules closer than d_s (3 per arm by default, 100 with
 ``QPIK_TESTS_LARGE=1``).
 
 The reference is independent of the search: every branch's closed form (the batched numpy path,
-:meth:`AnalyticSolver.solve_batch`) at 20,000 values of δ/ψ, kept where inside the limits, clear of the obstacles
-(:func:`qpik.geometry.distances`) and with the checked capsule pairs ≥ d_s apart (the numpy kernel,
+:meth:`AnalyticSolver.solve_batch`) at :data:`DENSE` values of δ/ψ, kept where inside the limits, clear of the
+obstacles (:func:`qpik.geometry.distances`) and with the checked capsule pairs ≥ d_s apart (the numpy kernel,
 :func:`qpik.robots.self_pairs.pair_distances`). The answer's self-clearance is measured by MuJoCo on the arm's twin
 (:mod:`self_clearance`).
 """
@@ -25,8 +25,9 @@ from qpik.robots.self_pairs import pair_distances
 from qpik.scene import Scene
 from qpik.scene.evaluator import Evaluator
 
-POSES = 100 if LARGE else 12
-DENSE = 20_000
+POSES = 100 if LARGE else 3
+DENSE = 20_000 if LARGE else 4_000
+"""δ/ψ samples per branch of the dense reference: a step of 1.6 mrad by default, 0.3 mrad in the large run."""
 D_SAFE = 0.02
 TOL = 1e-6
 """m: MuJoCo's distance of an answer on the boundary d_s may differ from qpik's kernel by rounding."""
@@ -105,12 +106,19 @@ def test_self_clearance_is_kept_and_the_answer_is_global(name):
     assert optimal >= (0.8 * POSES if name == "nammoto7" else 0)
 
 
-def test_without_the_constraint_the_answers_collide():
+@pytest.fixture(scope="module")
+def margin_poses():
+    """nammoto7's margin without obstacles: the scene, 4 seeded poses whose answer without self-collision
+    collides, and those answers."""
+    plain = Scene.of(qpik.load_robot("nammoto7"), d_safe=D_SAFE, objective="margin")
+    T, _, q_plain = _colliding_poses(plain, 4, 5)
+    return plain, T, q_plain
+
+
+def test_without_the_constraint_the_answers_collide(margin_poses):
     """Without self-collision the answers' capsules come closer than d_s (qpik's kernel agrees with MuJoCo's); with
     it the level-set method (which does not see the constraint) is not used."""
-    robot = qpik.load_robot("nammoto7")
-    plain = Scene.of(robot, d_safe=D_SAFE, objective="margin")
-    T, _, q_plain = _colliding_poses(plain, 4, 5)
+    plain, T, q_plain = margin_poses
     safe = plain.replace(self_collision=True)
     assert (safe.self_clearance(q_plain) < D_SAFE).all()
     np.testing.assert_allclose(safe.self_clearance(q_plain), mujoco_self_clearance(safe, q_plain), atol=1e-6)
@@ -118,12 +126,10 @@ def test_without_the_constraint_the_answers_collide():
     assert {r.method for r in qpik.solve_best(safe, T)} == {"search"}
 
 
-def test_ipopt_per_branch_keeps_self_clearance_and_finds_no_better_optimum():
+def test_ipopt_per_branch_keeps_self_clearance_and_finds_no_better_optimum(margin_poses):
     """``method="ipopt"`` (the clearances as IPOPT's constraints): its answers keep the capsule pairs ≥ d_s apart
     (MuJoCo) and are no better than the certified search's."""
-    robot = qpik.load_robot("nammoto7")
-    plain = Scene.of(robot, d_safe=D_SAFE, objective="margin")
-    T, _, _ = _colliding_poses(plain, 4, 5)
+    plain, T, _ = margin_poses
     safe = plain.replace(self_collision=True)
     search = qpik.solve_best(safe, T)
     ipopt = qpik.solve_best(safe, T, options=BestOptions(certify=False, method="ipopt"))

@@ -1,11 +1,12 @@
 """qpik.plan_self_motion with self-collision (``Scene.of(..., self_collision=True)``) on seeded short paths of
-nammoto7 whose plan without it brings the arm's own capsules closer than d_s (3 paths by default, 8 with
+nammoto7 whose plan without it brings the arm's own capsules closer than d_s (2 paths by default, 8 with
 ``QPIK_TESTS_LARGE=1``): with it, every waypoint of the plan, and of the DP's plan it was refined from, keeps
 the checked capsule pairs ≥ d_s apart, measured by MuJoCo on the arm's twin (:mod:`self_clearance`)."""
 
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from conftest import LARGE
 from self_clearance import mujoco_self_clearance
 
@@ -14,7 +15,7 @@ from qpik.planning.plan import make_plan, measure
 from qpik.planning.setup import Setup
 from qpik.scene import Scene
 
-PATHS = 8 if LARGE else 3
+PATHS = 8 if LARGE else 2
 D_SAFE = 0.02
 TOL = 1e-6
 """m: MuJoCo's distance of a waypoint on the boundary d_s may differ from qpik's kernel by rounding."""
@@ -42,11 +43,17 @@ def _colliding_paths(plain, count, seed, tries=400):
     raise AssertionError(f"only {len(out)} colliding plans in {tries} tries")
 
 
-def test_every_waypoint_keeps_self_clearance():
-    robot = qpik.load_robot("nammoto7")
-    plain = Scene.of(robot, d_safe=D_SAFE, objective="margin")
+@pytest.fixture(scope="module")
+def colliding():
+    """nammoto7's margin without obstacles: the scene and its :data:`PATHS` seeded colliding paths and plans."""
+    plain = Scene.of(qpik.load_robot("nammoto7"), d_safe=D_SAFE, objective="margin")
+    return plain, _colliding_paths(plain, PATHS, 7)
+
+
+def test_every_waypoint_keeps_self_clearance(colliding):
+    plain, paths = colliding
     safe = plain.replace(self_collision=True)
-    for T, before in _colliding_paths(plain, PATHS, 7):
+    for T, before in paths:
         assert "self_clearance" not in [c.name for c in before.checks]  # without it nothing checks the pairs
         plan = qpik.plan_self_motion(safe, T, options=OPTIONS)
         assert plan.ok and len(plan.q) == len(T), plan.summary()
@@ -57,13 +64,11 @@ def test_every_waypoint_keeps_self_clearance():
                 np.testing.assert_allclose(made.self_clearance, safe.self_clearance(made.q))
 
 
-def test_a_plan_coming_too_close_to_itself_fails_its_check():
+def test_a_plan_coming_too_close_to_itself_fails_its_check(colliding):
     """The plan's check measures the capsule pairs itself: the configurations of a plan made without
     self-collision, measured for the scene with it, fail the check at the first waypoint that comes too close."""
-    robot = qpik.load_robot("nammoto7")
-    plain = Scene.of(robot, d_safe=D_SAFE, objective="margin")
+    plain, ((T, before), *_) = colliding
     safe = plain.replace(self_collision=True)
-    ((T, before),) = _colliding_paths(plain, 1, 7)
     setup = Setup(safe, T, None, OPTIONS)
     plan = make_plan(setup, before.q, "optimal")
     measure(plan, mujoco=False)
