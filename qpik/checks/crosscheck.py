@@ -3,13 +3,15 @@ r"""Three-way cross-validation of the closed form, the NLP and the QP controller
 For a pose and a smooth objective f (:mod:`qpik.objectives`):
 
 (a) :func:`qpik.solve_best`: the best branch and δ/ψ — the global minimum of f over the
-    self-motion of the closed form, inside the limits and clear of the obstacles;
+    self-motion of the closed form, inside the limits and clear of the obstacles (and, with the scene's
+    self-collision, with its checked capsule pairs ≥ d_s apart);
 (b) :func:`qpik.nlp.solve_full` started at (a)'s configuration: f minimised over the 7 joints
     with the pose as an equality constraint, by IPOPT;
 (c) the QP controller (:class:`qpik.Controller`) at (a)'s configuration, with the same target (a
     :class:`~qpik.control.tasks.FrameTask` that dominates) and f as its secondary task
     (:class:`~qpik.control.tasks.ObjectiveTask`), the joint limits and the obstacles' velocity
-    dampers at the same d_s (:class:`~qpik.control.limits.obstacle.ObstacleLimit` without its buffer).
+    dampers at the same d_s (:class:`~qpik.control.limits.obstacle.ObstacleLimit` without its buffer), and with
+    self-collision the dampers of the same capsule pairs (:class:`~qpik.control.self_collision.SelfCollisionLimit`).
 
 All three state the same first-order optimality: at a minimum of f on the self-motion manifold
 {q : fk(q) = pose}, ∇f is a combination of the pose constraints' gradients, the active joint
@@ -33,6 +35,7 @@ import numpy as np
 
 from qpik.control.controller import Controller
 from qpik.control.limits import ConfigurationLimit, ObstacleLimit
+from qpik.control.self_collision import SelfCollisionLimit
 from qpik.control.tasks import DampingTask, FrameTask, ObjectiveTask
 from qpik.core.errors import InputError
 from qpik.core.validate import count, single_pose
@@ -42,6 +45,7 @@ from qpik.nlp.full import FullResult, solve_full
 from qpik.nlp.options import BestOptions, FullOptions
 from qpik.objectives import Objective
 from qpik.robots.robot import Robot
+from qpik.robots.self_pairs import candidate_pairs
 from qpik.scene.scene import Scene, scene_of
 
 FRAME_WEIGHT = 1e8
@@ -189,6 +193,9 @@ def _qp_step(scene: Scene, pose: np.ndarray, q: np.ndarray) -> tuple[np.ndarray,
     limits = [ConfigurationLimit()]
     if len(obs):
         limits.append(ObstacleLimit(obs, d_influence=d_safe + 0.1, d_safe=d_safe, xi=0.5, buffer=0.0))
+    if scene.self_pairs:
+        allowed = frozenset(candidate_pairs(robot)) - frozenset(scene.self_pairs)
+        limits.append(SelfCollisionLimit(allowed, d_influence=d_safe + 0.1, d_safe=d_safe, xi=0.5, buffer=0.0))
     ctrl = Controller(robot, tasks, limits, solver="daqp", dt=dt)
     v = ctrl.step(q)
     return v, ctrl.last.status

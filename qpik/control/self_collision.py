@@ -42,29 +42,10 @@ from qpik.control.state import SymState
 from qpik.core.errors import InfeasibleError, InputError
 from qpik.core.layout import Blocks, Layout
 from qpik.core.validate import number
-from qpik.robots.self_pairs import Pair, candidate_pairs, default_allowed
+from qpik.robots.self_pairs import Pair, checked_pairs
 
 if TYPE_CHECKING:
     from qpik.robots.robot import Robot
-
-
-def checked_pairs(
-    robot: Robot, allowed: frozenset[Pair] | None = None, srdf: str | os.PathLike | None = None
-) -> tuple[Pair, ...]:
-    """The capsule pairs the controller keeps apart: :func:`~qpik.robots.self_pairs.candidate_pairs` minus the
-    allowed ones — ``allowed`` (capsule index pairs) if given, else the links an SRDF's ``disable_collisions``
-    names (``srdf``), else :func:`~qpik.robots.self_pairs.default_allowed`."""
-    if allowed is None and srdf is not None:
-        from qpik.robots.srdf import disabled_links
-
-        links = disabled_links(robot, srdf)
-        caps = robot.capsules
-        allowed = frozenset((c, e) for c, e in candidate_pairs(robot) if (caps[c].link, caps[e].link) in links)
-    elif allowed is None:
-        allowed = default_allowed(robot)
-    else:
-        allowed = frozenset(tuple(sorted(p)) for p in allowed)
-    return tuple(p for p in candidate_pairs(robot) if p not in allowed)
 
 
 def row_layout(robot: Robot, pairs: tuple[Pair, ...]) -> tuple[tuple[int, int, int], ...]:

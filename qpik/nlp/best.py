@@ -2,14 +2,17 @@ r"""``qpik.solve_best``: the globally best branch and δ/ψ of a closed-form arm
 
 Minimises an objective (:mod:`qpik.objectives`) over every branch and every δ (offset
 shoulder) or ψ (S-R-S) that keeps the joints inside their limits (the exact
-:func:`qpik.feasible_intervals`) and every link capsule at least ``d_safe`` from every obstacle.
+:func:`qpik.feasible_intervals`), every link capsule at least ``d_safe`` from every obstacle and, with the
+scene's ``self_collision``, the capsules of every checked pair (:attr:`~qpik.scene.Scene.self_pairs`) at least
+``d_safe`` apart.
 The variable is the one parameter; q is the branch's closed form, traced in CasADi with exact
 derivatives (:mod:`qpik.nlp.selfmotion`). Every feasible interval of every branch is searched
 (:mod:`qpik.nlp.search`: sampling, then a bracketed polish of the local minima; or, with
 ``method="ipopt"``, IPOPT from the middle of each interval, :mod:`qpik.nlp.ipopt`), and the
 answer is checked for global optimality (:mod:`qpik.nlp.certificate`). The plain joint-limit
 margin without obstacles has a faster exact method, which finds and proves its maximum with the
-feasible intervals under shrunk limits (:mod:`qpik.nlp.levelset`); a pose it leaves unproved goes
+feasible intervals under shrunk limits (:mod:`qpik.nlp.levelset`; not with self-collision, whose constraint it does
+not see); a pose it leaves unproved goes
 through the search and the certificate. In its per-branch table a branch's row holds the best point
 evaluated on that branch, which is the branch's own optimum only for the best branch.
 
@@ -17,7 +20,7 @@ Statuses: ``"optimal"`` (the best point found; :attr:`~qpik.nlp.best_result.Best
 says whether it is proved global), ``"unreachable"`` (no branch reaches the pose at any parameter),
 ``"no feasible branch"`` (reachable, but not inside the limits and clear of the obstacles),
 ``"solver failed"`` (a numerical failure, or an answer that fails its own check at q: FK, limits,
-clearance; the reason in :attr:`~qpik.nlp.best_result.BestResult.message`).
+clearance, self-clearance; the reason in :attr:`~qpik.nlp.best_result.BestResult.message`).
 Every result's q is a finite configuration: for a status other than ``"optimal"`` it is the
 fallback of :func:`~qpik.nlp.least_violating.least_violating` (its objective is +inf,
 :attr:`~qpik.nlp.best_result.BestResult.violation` says how
@@ -34,7 +37,6 @@ import numpy as np
 from qpik.core.errors import InputError, NoClosedFormError
 from qpik.core.validate import finite_array, flag, number
 from qpik.core.validate import pose as check_pose
-from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.best_result import BestResult, BestResults
 from qpik.nlp.best_search import solve_poses
 from qpik.nlp.least_violating import least_violating
@@ -94,7 +96,7 @@ def solve_best(
     certify, tol, method, branches = options.certify, options.tol, options.method, options.branches
     per_pose = q_ref is not None and np.ndim(q_ref) == 2
     problem = scene_of(robot, obstacles, d_safe, objective, None if per_pose else q_ref).with_objective("margin")
-    robot, obj, obs, d_safe = problem.robot, problem.objective, problem.obstacles, problem.d_safe
+    robot, obj, obs = problem.robot, problem.objective, problem.obstacles
     q_ref = q_ref if per_pose else problem.q_ref
     if robot.closed_form is None:
         raise NoClosedFormError(
@@ -120,9 +122,9 @@ def solve_best(
     if not isinstance(method, str) or method not in METHODS:
         raise InputError(f"method: expected one of {list(METHODS)}, got {method!r}")
     sm = selfmotion_of(robot)
-    weight = margin_weight(obj, obs, sm)
+    weight = None if problem.self_pairs else margin_weight(obj, obs, sm)
     if method == "levelset" and weight is None:
-        raise InputError("method: 'levelset' solves the margin objective alone, without obstacles")
+        raise InputError("method: 'levelset' solves the margin objective alone, without obstacles or self-collision")
     if method == "auto":
         method = "search" if weight is None else "levelset"
     rows = _rows(sm, branches)
@@ -138,21 +140,22 @@ def solve_best(
     elapsed = scene.watch.stop() / len(T)  # the clock stops while functions are built (BestRun.build_search)
     quantity = obj.quantity
     for r, Tk in zip(results, T):
-        _verify(robot, Tk, r, obs, d_safe)
+        _verify(problem, Tk, r)
     for r in results:
         r.time, r.quantity = elapsed, quantity
     return BestResults(results, n) if batched else results[0]
 
 
-def _verify(robot: Robot, T: np.ndarray, r: BestResult, obstacles: ObstacleSet, d_safe: float) -> None:
+def _verify(scene: Scene, T: np.ndarray, r: BestResult) -> None:
     """An ``"optimal"`` result is measured at its q: FK reaches T (:data:`VERIFY_TOL`), every joint inside its
-    limits, clearance ≥ d_safe over the pairs :mod:`qpik.geometry.contacts` checks; one that fails becomes
-    ``"solver failed"`` naming the check."""
+    limits, clearance ≥ d_safe over the pairs :mod:`qpik.geometry.contacts` checks and over the scene's capsule
+    pairs (:meth:`~qpik.scene.Scene.self_clearance`); one that fails becomes ``"solver failed"`` naming the check."""
     if r.status != "optimal":
         return
     from qpik.algebra.lie import tracking_errors
     from qpik.geometry.contacts import capsule_clearance
 
+    robot, obstacles, d_safe = scene.robot, scene.obstacles, scene.d_safe
     pos, rot = tracking_errors(robot.fk(r.q), T)
     fails = []
     if not (pos <= VERIFY_TOL and rot <= VERIFY_TOL):
@@ -161,6 +164,8 @@ def _verify(robot: Robot, T: np.ndarray, r: BestResult, obstacles: ObstacleSet, 
         fails.append("a joint is outside its limits")
     if len(obstacles) and float(capsule_clearance(robot, r.q[None], obstacles)[0]) < d_safe - 1e-9:
         fails.append(f"clearance below d_s = {d_safe:g} m")
+    if float(scene.self_clearance(r.q[None])[0]) < d_safe - 1e-9:
+        fails.append(f"self-clearance below d_s = {d_safe:g} m")
     if fails:
         r.status, r.objective, r.certified, r.gap = "solver failed", math.inf, False, math.inf
         r.message = "the answer fails its check: " + "; ".join(fails)

@@ -88,7 +88,8 @@ class BestResult:
             itself for the margin objective, whose ``objective`` is −margin).
         certified: proved to be the global minimum to ``gap`` (:mod:`qpik.nlp.certificate`).
         gap: the objective minus the certified lower bound (inf when not certified).
-        clearance: smallest capsule–obstacle distance at q, m (inf without obstacles).
+        clearance: smallest clearance at q, m: capsule–obstacle distances and the distances of the scene's capsule
+            pairs (:attr:`~qpik.scene.Scene.self_pairs`); inf without either.
         violation: 0 for ``"optimal"``; else how far q is from a solution: outside the limits (rad),
             inside d_s (m), or, when unreachable, the norm of its pose error (m and rad,
             :func:`~qpik.nlp.least_violating.least_violating`).

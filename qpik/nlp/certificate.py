@@ -1,7 +1,8 @@
 r"""A certificate that the answer of :func:`qpik.solve_best` is the global minimum (to a tolerance).
 
 The claim, for a pose with answer value :math:`f^*`: every ψ of every searched branch that keeps
-the joints inside their limits and every link capsule at least :math:`d_s` from every obstacle has
+the joints inside their limits, every link capsule at least :math:`d_s` from every obstacle and the capsules of
+every pair of :attr:`~qpik.scene.Scene.self_pairs` at least :math:`d_s` apart has
 :math:`f(\psi) \ge f^* - \varepsilon`, with :math:`\varepsilon = tol \cdot \max(1, |f^*|)`. Proof by
 branch and bound over the exact feasible intervals (:func:`qpik.feasible_intervals`, whose ends are
 the analytic limit crossings):
@@ -10,13 +11,13 @@ the analytic limit crossings):
 2. For each cell [a, b], the Taylor model of the branch's closed form over it
    (:meth:`~qpik.nlp.selfmotion.SelfMotion.models`: with :math:`t = (\psi - \psi_{mid})/h`, every
    joint lies within :math:`c + s\,t \pm r` and within [lo, hi] for every ψ of the cell), composed
-   with the Taylor models of the objective's split and of the capsule–obstacle distances
+   with the Taylor models of the objective's split and of the clearances (capsule–obstacle and capsule pairs)
    (:class:`qpik.scene.bounds.BoundFunction`), gives :func:`lower_bound`: a convex piecewise-linear
    function of t below f on the whole cell, whose minimum over [−1, 1] is the cell's bound. Its
    error is second order in the cell's width (the slopes carry the correlation that a plain
    interval extension loses), so kinks (where the epigraph terms switch) and smooth minima are
    proved with cells of a few milliradians.
-3. A cell whose bound is :math:`\ge f^* - \varepsilon`, or where some pair distance is surely below
+3. A cell whose bound is :math:`\ge f^* - \varepsilon`, or where some clearance is surely below
    :math:`d_s` (its upper bound is), holds nothing better: it is dropped. The others are cut in
    :data:`SPLIT` and examined again, down to :data:`SMALLEST_CELL`.
 
@@ -236,12 +237,12 @@ def cell_bounds(
 ) -> tuple[np.ndarray, np.ndarray]:
     """For cells (pose, branch row, [lo, hi]) (M,): the lower bound of f (:func:`lower_bound`, refined until it
     decides whether it is below ``decide`` (M,)) and whether the clearance constraint surely fails on the whole
-    cell (some distance's upper bound below d_s)."""
+    cell (some clearance's upper bound below d_s: a capsule–obstacle pair or a pair of the arm's own capsules)."""
     M = len(lo)
     c, s, r, q_lo, q_hi = scene.selfmotion.models(row, scene.columns[pose], lo, hi)
     models = scene.bound_rows(bounds, c, s, r, q_lo, q_hi, pose)
     lb = lower_bound(models, bounds.sizes, decide)
-    if not bounds.n_pairs:
+    if not bounds.n_clear:
         return lb, np.zeros(M, bool)
-    d_hi = models[4][:, -bounds.n_pairs :]
+    d_hi = models[4][:, -bounds.n_clear :]
     return lb, (d_hi < scene.d_safe).any(axis=1)

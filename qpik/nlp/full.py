@@ -8,9 +8,9 @@ r"""The full-joint NLP: minimise an objective over the 7 joints with the pose as
 
 (the objective's split in epigraph form, :class:`qpik.objectives.Split`; the world-frame pose
 error :func:`qpik.algebra.lie.pose_error_expr`, differentiable at its solution; the capsule–obstacle distances of
-:mod:`qpik.geometry.distance`), solved by IPOPT (``casadi.nlpsol``, exact derivatives). It
-works for every arm, with or without a closed form. ``objective=None`` is a pure IK (the
-feasibility problem).
+:mod:`qpik.geometry.distance` and, with the scene's self-collision, the capsule pairs' distances), solved by IPOPT
+(``casadi.nlpsol``, exact derivatives). It works for every arm, with or without a closed form. ``objective=None``
+is a pure IK (the feasibility problem).
 
 A local method: :func:`solve_full` starts it from several configurations — ``q0`` (given),
 then, for an arm with a closed form, the within-limits branches of the pose at the middle of
@@ -38,6 +38,7 @@ from qpik.geometry.distance import ObstacleSet
 from qpik.nlp.options import FullOptions
 from qpik.objectives import Context, Objective, ReferenceDistance
 from qpik.robots.robot import Robot
+from qpik.robots.self_pairs import Pair
 from qpik.scene.scene import Scene, scene_of
 
 REACHED = 1e-9
@@ -69,7 +70,8 @@ class FullResult:
         objective: the objective at q (0 for a pure IK; +inf if the solver failed).
         pose_error: ‖[p* − p; log(R* Rᵀ)]‖ at q, m and rad together.
         kkt: the KKT residual at q (∞-norm of ∇L and of the constraint violation).
-        clearance: smallest capsule–obstacle distance at q, m (inf without obstacles).
+        clearance: smallest clearance at q, m: capsule–obstacle distances and the distances of the scene's capsule
+            pairs (:attr:`~qpik.scene.Scene.self_pairs`); inf without either.
         starts: starts tried; iterations: IPOPT iterations over all of them.
         time: seconds of the starts' solves (building the NLP and its IPOPT solver not counted).
     """
@@ -87,9 +89,11 @@ class FullResult:
 
 
 class FullNLP:
-    """The compiled full-joint NLP of one robot, objective form and obstacle families (built once, cached)."""
+    """The compiled full-joint NLP of one robot, objective form, obstacle families and capsule pairs kept apart
+    (built once, cached)."""
 
-    def __init__(self, robot: Robot, objective: Objective | None, obstacles: ObstacleSet):
+    def __init__(self, robot: Robot, objective: Objective | None, obstacles: ObstacleSet,
+                 self_pairs: tuple[Pair, ...] = ()):  # fmt: skip
         self.robot, self.objective, self.obstacles = robot, objective, obstacles
         self.lock = threading.Lock()
         """Held around each solve (:func:`solve_full`): threads may share the NLP, one solve at a time."""
@@ -99,7 +103,7 @@ class FullNLP:
         q, q_ref = ca.SX.sym("q", n), ca.SX.sym("q_ref", n)
         p_obj = ca.SX.sym("p", len(self.params))
         prm, d_s = ca.SX.sym("obstacles", len(obstacles.params)), ca.SX.sym("d_safe")
-        ctx = Context(robot, q, q_ref, obstacles, prm)
+        ctx = Context(robot, q, q_ref, obstacles, prm, self_pairs=self_pairs)
         if objective is None:
             t, cost, g_epi = ca.SX(0, 1), ca.SX(0.0), ca.SX(0, 1)
             value = ca.SX(0.0)
@@ -110,14 +114,15 @@ class FullNLP:
         R, pos = ctx.frames[-1]
         err = pose_error_expr(T, ca.horzcat(ca.vertcat(*[ca.horzcat(*R[i]) for i in range(3)]), ca.vertcat(*pos)))
         x = ca.vertcat(q, t)
-        g = ca.vertcat(err, g_epi, d_s - ctx.distances)
+        g = ca.vertcat(err, g_epi, d_s - ctx.clearances)
         p = ca.vertcat(ca.vec(T), p_obj, q_ref, prm, d_s)
         self.n_eq, self.n_t = 6, t.numel()
         self.solver = ca.nlpsol(f"full_{robot.identifier}", "ipopt", {"x": x, "f": cost, "g": g, "p": p}, OPTIONS)
         lam_g, lam_x = ca.SX.sym("lam_g", g.numel()), ca.SX.sym("lam_x", x.numel())
         grad = ca.gradient(cost + ca.dot(lam_g, g), x) + lam_x
         self.kkt_terms = ca.Function("kkt", [x, p, lam_g, lam_x], [grad, g])
-        self.value = ca.Function("value", [q, p], [value, ca.mmin(ctx.distances) if len(obstacles) else ca.inf])
+        clear = ctx.clearances
+        self.value = ca.Function("value", [q, p], [value, ca.mmin(clear) if clear.numel() else ca.inf])
         self.start_t = (
             ca.Function("start_t", [q, p], [ca.vertcat(*[ca.mmax(h) for _, h in split.maxima], ca.SX(0, 1))])
             if objective is not None
@@ -125,11 +130,13 @@ class FullNLP:
         )
 
 
-def full_nlp(robot: Robot, objective: Objective | None, obstacles: ObstacleSet) -> FullNLP:
-    """The :class:`FullNLP` for ``robot``, the objective's form and the obstacle families, built once
-    (``robot.cache``)."""
+def full_nlp(robot: Robot, objective: Objective | None, obstacles: ObstacleSet,
+             self_pairs: tuple[Pair, ...] = ()) -> FullNLP:  # fmt: skip
+    """The :class:`FullNLP` for ``robot``, the objective's form, the obstacle families and the capsule pairs, built
+    once (``robot.cache``)."""
     form = None if objective is None else (objective.key(), len(objective.params(robot)))
-    return robot.cache.get(("full nlp", form, obstacles.kinds), FullNLP, robot, objective, obstacles)
+    key = ("full nlp", form, obstacles.kinds, self_pairs)
+    return robot.cache.get(key, FullNLP, robot, objective, obstacles, self_pairs)
 
 
 def solve_full(
@@ -176,7 +183,7 @@ def solve_full(
     ref = np.zeros(n) if q_ref is None else q_ref
     starts, max_starts, seed = count(starts, "starts", 1), count(max_starts, "max_starts", 1), count(seed, "seed")
     first = np.zeros((0, n)) if q0 is None else np.atleast_2d(joint_vector(q0, n, "q0")[0])
-    nlp = full_nlp(robot, obj, obs)
+    nlp = full_nlp(robot, obj, obs, scene.self_pairs)
     t0 = time.perf_counter()  # the solve's clock: the NLP and its IPOPT solver are built above (cached per form)
     p = np.concatenate([T.T.ravel(), nlp.params if obj is None else obj.params(robot), ref, obs.params, [d_safe]])
     queue = _starts(robot, T, first, seed)

@@ -39,7 +39,7 @@ OPTIONS = {
 def _solver(scene: BestRun, b: int) -> tuple[ca.Function, ca.Function]:
     """``(nlpsol, start)`` of branch row b: ``start(T, ψ, p) -> [t (K,)]`` (the maxima at ψ, a start for t)."""
     robot, obs = scene.robot, scene.obstacles
-    key = ("branch nlp", scene.objective.key(), obs.kinds, len(scene.params), b)
+    key = ("branch nlp", scene.objective.key(), obs.kinds, len(scene.params), b, scene.self_pairs)
     return robot.cache.get(key, _build, scene, b)
 
 
@@ -50,10 +50,10 @@ def _build(scene: BestRun, b: int) -> tuple[ca.Function, ca.Function]:
     p_obj, q_ref = ca.SX.sym("p", len(scene.params)), ca.SX.sym("q_ref", n)
     prm, d_s = ca.SX.sym("obstacles", len(obs.params)), ca.SX.sym("d_safe")
     Q, _, _ = scene.selfmotion.solver.casadi_function(T, psi)
-    ctx = Context(robot, Q[b, :].T, q_ref, obs, prm)
+    ctx = Context(robot, Q[b, :].T, q_ref, obs, prm, self_pairs=scene.self_pairs)
     split = scene.objective.split(ctx, p_obj)
     t, cost, g_epi = split.epigraph()
-    g = ca.vertcat(g_epi, d_s - ctx.distances)
+    g = ca.vertcat(g_epi, d_s - ctx.clearances)
     p = ca.vertcat(ca.vec(T), p_obj, q_ref, prm, d_s)
     nlp = {"x": ca.vertcat(psi, t), "f": cost, "g": g, "p": p}
     solver = ca.nlpsol(f"branch_{robot.identifier}_{b}", "ipopt", nlp, OPTIONS)

@@ -47,11 +47,12 @@ def least_violating(
                           rows=rows, param_name=name, message=why)  # fmt: skip
     beyond = np.maximum(robot.q_min - sol.q, sol.q - robot.q_max).max(axis=2)  # (M, B) rad outside the limits
     within = sol.within_limits
-    if within.any() and len(scene.obstacles):
+    if within.any() and (len(scene.obstacles) or scene.self_pairs):
         # inside the limits but never clear: the configuration with the largest clearance
         k, b = np.nonzero(within)
         Q = sol.q[k, b]
         clear = clearance(robot, Q, scene.obstacles)  # the pairs of fixed capsules constrain nothing
+        clear = np.minimum(clear, scene.problem.self_clearance(Q))
         j = int(np.argmax(clear))
         violation = max(float(scene.d_safe - clear[j]), 0.0)
         at, br, q = psi[k[j]], b[j], Q[j]
@@ -60,6 +61,7 @@ def least_violating(
         k, br = np.unravel_index(int(np.argmin(score)), score.shape)
         violation, at, q = float(score[k, br]), psi[k], sol.q[k, br]
     why = "no branch keeps the joints in their limits" + (" and clear of the obstacles" if len(scene.obstacles) else "")
+    why += " and its capsules apart" if scene.self_pairs else ""
     return BestResult(status or "no feasible branch", int(sm.branch_ids[br]), float(wrap(at)), q.copy(), np.inf,
                       violation=violation, rows=rows, param_name=name, message=message or why)  # fmt: skip
 

@@ -6,8 +6,9 @@ search and the certificate need, from two compiled functions: the self-motion
 (:class:`~qpik.scene.evaluator.Evaluator`: f, ∇f, the capsule–obstacle distances):
 
 - the objective :math:`f(\psi) = f(q_b(\psi))` and :math:`f'(\psi) = \nabla f \cdot dq_b/d\psi`;
-- the clearance constraint :math:`c(\psi) = \min_{k,o} d_{k,o}(q_b(\psi)) - d_s` (+∞ without
-  obstacles) and :math:`c'(\psi)`, the rate of the nearest pair.
+- the clearance constraint :math:`c(\psi) = \min_{k} d_{k}(q_b(\psi)) - d_s` over the clearances
+  (capsule–obstacle pairs, then the scene's capsule pairs :attr:`~qpik.scene.Scene.self_pairs`; +∞ without
+  any) and :math:`c'(\psi)`, the rate of the nearest pair.
 """
 
 from __future__ import annotations
@@ -34,8 +35,8 @@ class Points:
         pose, row: (M,) int; psi: (M,) rad.
         q, dq: (M, n) configuration (rad) and dq/dψ; valid: (M,) the branch reaches the pose.
         f, df: (M,) objective and its derivative in ψ.
-        c, dc: (M,) clearance margin min d − d_s (m; +inf without obstacles) and its derivative.
-        d: (M, C'·O) the pair distances, m.
+        c, dc: (M,) clearance margin min d − d_s (m; +inf without clearances) and its derivative.
+        d: (M, C'·O + P) the clearances, m (:attr:`~qpik.scene.evaluator.Evaluator.n_pairs`).
     """
 
     pose: np.ndarray
@@ -91,7 +92,8 @@ class BestRun:
 
     def __init__(self, scene: Scene, selfmotion: SelfMotion, poses: np.ndarray, q_ref: np.ndarray):
         self.robot, self.selfmotion, self.objective = scene.robot, selfmotion, scene.objective
-        self.obstacles, self.d_safe = scene.obstacles, scene.d_safe
+        self.obstacles, self.d_safe, self.self_pairs = scene.obstacles, scene.d_safe, scene.self_pairs
+        self.problem = scene
         self.poses, self.q_ref = poses, q_ref
         self.columns = columns(poses)
         self.evaluations = 0
@@ -114,7 +116,7 @@ class BestRun:
         """:meth:`build_search` and the certificate's Taylor models (of q and of the objective's split), compiled
         concurrently with :attr:`watch` paused; returns the bound function (None: the objective has none)."""
         with self.watch.paused():
-            bounds = bound_function(self.robot, self.objective, self.obstacles)
+            bounds = bound_function(self.robot, self.objective, self.obstacles, self.self_pairs)
             models = [self.selfmotion.builds(models=True)[-1]]
             concurrently(*self._search_builds(), *models, *([] if bounds is None else bounds.builds()))
         return bounds
@@ -122,7 +124,7 @@ class BestRun:
     @cached_property
     def evaluator(self) -> Evaluator:
         """The objective's and the clearances' compiled rows (built on first use: the level sets need none)."""
-        return Evaluator(self.robot, self.objective, self.obstacles)
+        return Evaluator(self.robot, self.objective, self.obstacles, self.self_pairs)
 
     @property
     def params(self) -> np.ndarray:

@@ -12,6 +12,7 @@ import numpy as np
 from qpik.algebra import symbolic as sy
 from qpik.geometry.distance import ObstacleSet, distances, set_expr
 from qpik.robots.manipulability import hessian_rows, jacobian_rows, manipulability_gradient_expr
+from qpik.robots.self_pairs import Pair, pair_distance_expr
 
 if TYPE_CHECKING:
     from qpik.robots.robot import Robot
@@ -44,6 +45,7 @@ class Context:
         witness: (n,) a second symbol for q, or None; see :attr:`distances`.
         distances: (C'·O,) symbols standing for :attr:`distances`, or None (then they are built from q):
             an objective's split written against them is a function of q and the distances.
+        self_pairs: the capsule pairs of :attr:`self_distances` (:func:`~qpik.robots.self_pairs.checked_pairs`).
 
     The kinematics are built on first use, so an objective that needs none costs nothing.
     """
@@ -57,8 +59,9 @@ class Context:
         obstacle_params: ca.SX,
         witness: ca.SX | None = None,
         distances: ca.SX | None = None,
+        self_pairs: tuple[Pair, ...] = (),
     ):
-        self.robot, self.q, self.q_ref = robot, q, q_ref
+        self.robot, self.q, self.q_ref, self.self_pairs = robot, q, q_ref, self_pairs
         self.obstacles, self.obstacle_params, self.witness = obstacles, obstacle_params, witness
         self.n = robot.dof
         self._given_distances = distances
@@ -118,6 +121,23 @@ class Context:
                 x = sy.vadd(a, sy.vscale(s, sy.vsub(b, a)))
                 out.append(sy.dot(normal, sy.vsub(x, p_obs)) - r)
         return ca.vertcat(*out)
+
+    @cached_property
+    def self_distances(self) -> ca.SX:
+        """Signed distances (P,) of the capsule pairs :attr:`self_pairs` at q, m
+        (:func:`~qpik.robots.self_pairs.pair_distance_expr`, written from q: CasADi differentiates the kernel
+        itself)."""
+        if not self.self_pairs:
+            return ca.SX(0, 1)
+        segments = self.robot.capsule_segments_expr(self.frames)
+        radii = [float(r) for r in self.robot.capsule_radii]
+        return ca.vertcat(*[pair_distance_expr(segments, radii, p, sy.CASADI) for p in self.self_pairs])
+
+    @property
+    def clearances(self) -> ca.SX:
+        """(C'·O + P,) every distance the clearance constraint keeps ≥ d_s, m: :attr:`distances` (capsule–obstacle),
+        then :attr:`self_distances` (capsule–capsule)."""
+        return ca.vertcat(self.distances, self.self_distances)
 
     def _frames_of(self, q: ca.SX) -> list:
         return self.robot.chain.frames_expr([q[i] for i in range(self.n)], sy.CASADI)

@@ -344,7 +344,8 @@ def _empty(grid: Grid, layers: _Layers, k: int) -> str:
         if _proved_empty(grid, k):
             return f"no branch reaches this pose with every joint inside its limits at any {sym}"
         return f"its feasible {sym} intervals hold no grid value (narrower than the grid step {grid.spacing:.3g} rad)"
-    return (f"every configuration inside the joint limits is closer than d_s = {grid.d_safe:g} m to an obstacle"
+    what = "an obstacle or, for a checked capsule pair, to itself" if grid.self_pairs else "an obstacle"
+    return (f"every configuration inside the joint limits is closer than d_s = {grid.d_safe:g} m to {what}"
             f" (at the {grid.G} grid values of {sym})")  # fmt: skip
 
 

@@ -8,7 +8,8 @@ form, per branch b, the curve :math:`q_b(T_k, \psi)`. The grid samples it at G v
 the same values on every branch and at every waypoint (so that a slowly changing parameter
 stays on nearby indices). A state (k, b, i) is *feasible* when ψ_i lies in branch b's exact
 feasible set at waypoint k (:func:`qpik.feasible_intervals`: every joint inside its limits, the
-branch reaches the pose) and every link capsule is at least ``d_safe`` from every obstacle.
+branch reaches the pose), every link capsule is at least ``d_safe`` from every obstacle and the capsules of every
+pair of the scene's :attr:`~qpik.scene.Scene.self_pairs` are at least ``d_safe`` apart.
 Parameter values outside the exact feasible set are never evaluated.
 
 Offset-shoulder arms have 16 branches, but branch k + 8 at δ is branch k at δ + π (Nammoto &
@@ -18,8 +19,8 @@ a state.
 
 Per feasible state the compiled row function (one row = a waypoint and a parameter value, every
 branch at once) gives q (n,), the point objective f(q) (:mod:`qpik.objectives`) and the smallest
-capsule–obstacle distance (m). With a C compiler one loop in C (``grid.c``) calls its generated C for
-the rows where some branch is inside its feasible set and writes the states in place; without one,
+clearance (m; capsule–obstacle and capsule pairs). With a C compiler one loop in C (``grid.c``) calls its
+generated C for the rows where some branch is inside its feasible set and writes the states in place; without one,
 :class:`qpik.native.compiled.RowMap` evaluates every row and numpy sorts them.
 """
 
@@ -39,12 +40,11 @@ from qpik.analytic.intervals import FeasibleIntervals, wrap
 from qpik.core.errors import SolverError
 from qpik.core.layout import Layout
 from qpik.geometry.contacts import capsule_pairs
-from qpik.geometry.distance import ObstacleSet
 from qpik.native.compiled import Compiled, NativeFunction, RowMap
 from qpik.native.sources import load_source
 from qpik.nlp.selfmotion import MIRRORED
-from qpik.objectives import Context, Objective
-from qpik.robots.robot import Robot
+from qpik.objectives import Context
+from qpik.scene.scene import Scene
 
 UNCHECKED = 1e6
 """m added to the distance of a pair :mod:`qpik.geometry.contacts` leaves out (no motion changes it)."""
@@ -71,13 +71,11 @@ class Grid:
     """The parameter grid of a closed-form arm along N poses (see the module docstring).
 
     Args:
-        robot: an arm with a closed form.
+        scene: an arm with a closed form, the point objective (or None), the obstacles, d_safe (the smallest
+            capsule–obstacle distance of a feasible state, and of the capsule pairs :attr:`~Scene.self_pairs`, m)
+            and the objective's reference configuration q_ref (n,), rad (zeros without one: then no term reads it).
         poses: (N, 4, 4) end-effector poses, base frame (checked by the caller).
-        objective: the point objective, or None.
-        obstacles: the obstacles (packed).
-        d_safe: smallest capsule–obstacle distance of a feasible state, m.
         resolution: G, the number of parameter values (≥ 4, even).
-        q_ref: (n,) reference configuration of the objective, rad.
 
     Attributes:
         values: (G,) the parameter values ψ_i, rad.
@@ -86,18 +84,11 @@ class Grid:
         inside: (N, B, G) the grid values inside each branch's exact feasible set.
     """
 
-    def __init__(
-        self,
-        robot: Robot,
-        poses: np.ndarray,
-        objective: Objective | None,
-        obstacles: ObstacleSet,
-        d_safe: float,
-        resolution: int,
-        q_ref: np.ndarray,
-    ):
-        self.robot, self.poses, self.objective = robot, poses, objective
-        self.obstacles, self.d_safe, self.q_ref = obstacles, float(d_safe), q_ref
+    def __init__(self, scene: Scene, poses: np.ndarray, resolution: int):
+        self.robot = robot = scene.robot
+        self.poses, self.objective = poses, scene.objective
+        self.obstacles, self.d_safe, self.self_pairs = scene.obstacles, float(scene.d_safe), scene.self_pairs
+        self.q_ref = np.zeros(robot.dof) if scene.q_ref is None else scene.q_ref
         self.solver = closed_form_for(robot)
         self.G = int(resolution)
         self.values = -np.pi + (np.arange(self.G) + 0.5) * (2.0 * np.pi / self.G)
@@ -178,7 +169,8 @@ class Grid:
         prm = ca.SX.sym("obstacles", self.obstacle_layout.size)
         given = self.obstacle_layout.symbols(prm)
         Q, valid, _ = self.solver.casadi_function(T, psi)
-        contexts = [Context(robot, Q[b, :].T, q_ref, self.obstacles, given.params) for b in range(self.rows)]
+        contexts = [Context(robot, Q[b, :].T, q_ref, self.obstacles, given.params, self_pairs=self.self_pairs)
+                    for b in range(self.rows)]  # fmt: skip
         unchecked = (1.0 - given.checked) * UNCHECKED  # a pair qpik.geometry.contacts leaves out counts as far away
         root, _ = self.clearance_sources
         out = []
@@ -187,7 +179,8 @@ class Grid:
             for j in range(n):
                 ok = ok * (ctx.q[j] >= robot.q_min[j]) * (ctx.q[j] <= robot.q_max[j])
             f = self.objective.expr(ctx, p) if self.objective is not None else ca.SX(0.0)
-            d = ca.mmin(ctx.distances + unchecked) if len(self.obstacles) and root[b] == b else ca.SX(np.inf)
+            clear = ca.vertcat(ctx.distances + unchecked, ctx.self_distances)
+            d = ca.mmin(clear) if clear.numel() and root[b] == b else ca.SX(np.inf)
             out.append(self.state_layout.pack(q=ctx.q, valid=ok, f=f, clearance=d))
         name = f"plan_states_{self.solver.kind}_{robot.identifier}"
         return ca.Function(name, [T, psi, p, q_ref, prm], [ca.densify(ca.vertcat(*out))])
@@ -219,13 +212,14 @@ class Grid:
     def clearance_sources(self) -> tuple[np.ndarray, np.ndarray]:
         """(B,) root and (B,) index shift: the clearance of state (k, b, i) is the root's at grid index
         (i + shift) mod G (:meth:`twins`; every branch its own root without obstacles)."""
-        pairs = self.twins() if len(self.obstacles) else [(b, False) for b in range(self.rows)]
+        pairs = self.twins() if len(self.obstacles) or self.self_pairs else [(b, False) for b in range(self.rows)]
         root = np.array([a for a, _ in pairs], np.int64)
         return root, np.array([self.G // 2 if half else 0 for _, half in pairs], np.int64)
 
     def twins(self, samples: int = 16) -> list[tuple[int, bool]]:
         """For each gridded branch b, the first branch a and whether b's link capsules at ψ are a's at ψ + π
-        (else at ψ) for every pose and parameter ((b, False) if none): found by evaluating the capsule segments of
+        (else at ψ) for every pose and parameter ((b, False) if none): equal capsules have equal clearances, to the
+        obstacles and between themselves. Found by evaluating the capsule segments of
         every branch at ``samples`` random poses (FK of random configurations, seeded) and parameters, equal to
         1e-9 m at all. The grid maps onto itself under ψ → ψ + π (G even), so a twin's clearance is another row.
 

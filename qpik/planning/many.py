@@ -78,7 +78,8 @@ def plan_many(
 
     Args:
         robot: the arm (a catalog arm, a loaded model: its files are read here and sent to the workers, or a chain),
-            or a :class:`~qpik.scene.Scene` of it: the objective, obstacles, d_safe and q_ref of every path.
+            or a :class:`~qpik.scene.Scene` of it: the objective, obstacles, d_safe, q_ref and capsule pairs kept apart
+            of every path.
         paths: waypoints (N, 4, 4) each (end-effector poses, base frame, m), or timed paths
             (:class:`qpik.geometry.paths.TimedPath`, sampled here at ``options.waypoints`` even times).
         options: :func:`qpik.plan_self_motion`'s (:class:`~qpik.planning.options.PlanOptions`), the same for every
@@ -109,8 +110,8 @@ def plan_many(
         raise InputError(f"paths: expected a sequence of paths, got {type(paths).__name__}") from None
     items = [_sampled(p, options.waypoints, f"paths[{i}]") for i, p in enumerate(paths)]
     pieces = {"objective": scene.objective, "obstacles": scene.obstacles.shapes, "d_safe": scene.d_safe,
-              "q_ref": scene.q_ref, "options": options}  # fmt: skip
-    context = (RobotBundle.of(robot), pieces)
+              "q_ref": scene.q_ref, "self_collision": scene.self_pairs}  # fmt: skip
+    context = (RobotBundle.of(robot), pieces, options)
     if client is None and workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
                                                    or workers < 1):  # fmt: skip
         raise InputError(f"workers: expected an integer >= 1, got {workers!r}")
@@ -138,6 +139,6 @@ def _sampled(path: Any, count: Any, name: str) -> tuple[Any, np.ndarray | None]:
 
 
 def _plan_one(context: tuple, item: tuple) -> Plan:
-    bundle, pieces = context
+    bundle, pieces, options = context
     poses, times = item
-    return detach(plan_self_motion(bundle.robot(), poses, times=times, **pieces))
+    return detach(plan_self_motion(Scene.of(bundle.robot(), **pieces), poses, times=times, options=options))

@@ -102,8 +102,9 @@ class PathModel:
     with the clearance constraints of some waypoints, :meth:`value` evaluates the objective.
 
     Args:
-        scene: the arm, the point objective (or None), the obstacles, d_safe (m) and the objective's reference
-            configuration q_ref (n,), rad (zeros without one: then no term reads it).
+        scene: the arm, the point objective (or None), the obstacles, d_safe (m), the objective's reference
+            configuration q_ref (n,), rad (zeros without one: then no term reads it) and the capsule pairs kept
+            apart (:attr:`~qpik.scene.Scene.self_pairs`).
         poses: (N, 4, 4) waypoints, base frame.
         tr: the transition bounds and weights.
         continuous: (N-1,) whether transition k is continuous (not a reconfiguration).
@@ -123,7 +124,7 @@ class PathModel:
         self.robot = robot = scene.robot
         self.poses, self.objective, self.obstacles = poses, scene.objective, scene.obstacles
         self.q_ref = np.zeros(robot.dof) if scene.q_ref is None else scene.q_ref
-        self.d_safe, self.tr, self.grid = scene.d_safe, tr, grid
+        self.d_safe, self.tr, self.grid, self.scene = scene.d_safe, tr, grid, scene
         self.continuous = np.asarray(continuous, bool)
         N, n = len(poses), robot.dof
         self.rows = np.zeros(N, int) if rows is None else np.asarray(rows, int)
@@ -146,7 +147,7 @@ class PathModel:
 
     def _point(self, b: int, near: bool) -> ca.Function:
         """``(T, z, t, p, q_ref, obstacle params) -> (q, cost, epigraph (≤ 0), g)`` of one waypoint on row b:
-        g = [distances (≥ d_s) if ``near``; pose error (= 0, joints only)]."""
+        g = [clearances (≥ d_s: capsule–obstacle, then capsule pairs) if ``near``; pose error (= 0, joints only)]."""
         key = (b, near)
         if key in self._points:
             return self._points[key]
@@ -156,12 +157,12 @@ class PathModel:
         p, q_ref = ca.SX.sym("p", self.p_obj.size), ca.SX.sym("q_ref", n)
         prm = ca.SX.sym("obstacles", self.obstacles.params.size)
         q = self.grid.solver.casadi_function(T, z)[0][b, :].T if self.grid is not None else z
-        ctx = Context(robot, q, q_ref, self.obstacles, prm)
+        ctx = Context(robot, q, q_ref, self.obstacles, prm, self_pairs=self.scene.self_pairs)
         if self.objective is None:
             t, cost, g_epi = ca.SX.sym("t", 0), ca.SX(0.0), ca.SX(0, 1)
         else:
             t, cost, g_epi = self.objective.split(ctx, p).epigraph()
-        g = [ctx.distances if near else ca.SX(0, 1)]
+        g = [ctx.clearances if near else ca.SX(0, 1)]
         if self.grid is None:
             R, pos = ctx.frames[-1]
             D = ca.mtimes(T[:3, :3], ca.vertcat(*[ca.horzcat(*R[i]) for i in range(3)]).T)  # R* Rᵀ
@@ -334,12 +335,13 @@ class PathModel:
         z, t, Q, cost_pt, E, others = self._graph(near)
         D = Q[:, 1:] - Q[:, :-1]  # (n, N-1)
         f = self._cost(Q, cost_pt)
-        n_d = pair_count(self.robot, self.obstacles)
+        n_d = pair_count(self.robot, self.obstacles) + len(self.scene.self_pairs)
         n_eq = 0 if self.grid is not None else 6
         g_parts, lbg, ubg = [ca.vec(E)], [np.full(E.numel(), -np.inf)], [np.zeros(E.numel())]
         # the pairs qpik.geometry.contacts leaves out (a base column on its table) constrain nothing
         floor = np.where(capsule_pairs(self.robot, self.obstacles)[~self.robot.fixed_capsules].ravel(),
                          self.d_safe + INSIDE, -np.inf)  # fmt: skip
+        floor = np.r_[floor, np.full(len(self.scene.self_pairs), self.d_safe + INSIDE)]
         for a, b, g in others:
             d = n_d if near[a] else 0
             g_parts.append(ca.vec(g))

@@ -10,7 +10,9 @@ were found:
   ``mj_geomDistance`` between the collision geoms of the arm's MuJoCo model and the obstacles
   (:func:`qpik.robots.mujoco_scene.build_scene`; the twin of a catalog arm, the model of a loaded one), within
   :data:`CLEARANCE_TOL`;
-- every continuous transition moves each joint by at most its bound.
+- every continuous transition moves each joint by at most its bound;
+- with self-collision (:attr:`qpik.scene.Scene.self_pairs`), the capsules of every checked pair ≥ d_s apart
+  (:func:`qpik.robots.self_pairs.pair_distances`).
 
 Both clearances are over the pairs :mod:`qpik.geometry.contacts` checks: a pair whose distance no joint motion
 changes (a base column standing on its table) is left out and reported in :attr:`Plan.facts`.
@@ -122,7 +124,8 @@ class Plan:
             closed form the QP controller's run).
         margin: (K,) the smallest distance to a joint limit, rad; clearance: (K,) the smallest capsule–obstacle
             distance, m (inf without obstacles); clearance_mujoco: (K,) the same measured by MuJoCo (empty when
-            not measured);
+            not measured); self_clearance: (K,) the smallest distance of the scene's capsule pairs, m (inf without
+            self-collision);
             manipulability: (K,) Yoshikawa's.
         step_bound: (N-1, n) the largest move of each joint allowed between waypoints, rad.
         d_safe: m. checks: the :class:`Check` list. profile: the DP's :class:`Profile` (closed form only).
@@ -156,6 +159,7 @@ class Plan:
     margin: np.ndarray = field(default_factory=lambda: np.zeros(0))
     clearance: np.ndarray = field(default_factory=lambda: np.zeros(0))
     clearance_mujoco: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    self_clearance: np.ndarray = field(default_factory=lambda: np.zeros(0))
     manipulability: np.ndarray = field(default_factory=lambda: np.zeros(0))
     fk_error: tuple[float, float] = (0.0, 0.0)
     max_step_ratio: float = 0.0
@@ -307,6 +311,8 @@ def measure(plan: Plan, mujoco: bool = True) -> None:
         plan.clearance_mujoco = _mujoco_clearance(robot, obs, q) if mujoco else np.zeros(0)
     else:
         plan.clearance = plan.clearance_mujoco = np.full(K, np.inf)
+    pairs = () if plan.setup is None else plan.setup.scene.self_pairs
+    plan.self_clearance = np.full(K, np.inf) if plan.setup is None else plan.setup.scene.self_clearance(q)
     steps = np.abs(np.diff(q, axis=0)) / plan.step_bound[: K - 1]
     keep = np.ones(K - 1, bool)
     keep[[k for k in plan.reconfigurations if k < K - 1]] = False
@@ -336,6 +342,10 @@ def measure(plan: Plan, mujoco: bool = True) -> None:
             text = f"clearance (MuJoCo mj_geomDistance on the arm's model): min {cm * 1e3:.3f} mm"
             close = plan.clearance_mujoco < plan.d_safe - CLEARANCE_TOL
             checks.append(Check("clearance_mujoco", not close.any(), text, _first(close)))
+    if pairs:
+        close = plan.self_clearance < plan.d_safe - 1e-12
+        text = f"self-clearance (capsule pairs): min {float(plan.self_clearance.min()) * 1e3:.3f} mm"
+        checks.append(Check("self_clearance", not close.any(), text, _first(close)))
     plan.checks = checks
     bad = next((c for c in checks if not c.ok), None)
     if bad is not None and plan.status != "failed":

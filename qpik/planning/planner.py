@@ -184,7 +184,7 @@ def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fe
 
 def _grid(setup: Setup, resolution: int, branches) -> Grid:
     """The DP's grid of ``resolution`` values per branch, restricted to ``branches`` (public ids, or None)."""
-    grid = Grid(setup.robot, setup.poses, setup.objective, setup.obstacles, setup.d_safe, resolution, setup.q_ref)
+    grid = Grid(setup.scene, setup.poses, resolution)
     if branches is not None:
         ids = [int(b) for b in np.atleast_1d(finite_array(branches, "branches"))]
         known = list(grid.solver.branch_ids)
@@ -242,9 +242,7 @@ def _least_violating(setup: Setup, k: int) -> str:
     """What :func:`qpik.solve_best` says about waypoint k: unreachable, or the least-violating branch."""
     from qpik.nlp import solve_best
 
-    best = solve_best(
-        setup.robot, setup.poses[k], "margin", setup.obstacles, d_safe=setup.d_safe, options=BestOptions(certify=False)
-    )
+    best = solve_best(setup.scene.replace(objective="margin"), setup.poses[k], options=BestOptions(certify=False))
     return best.summary()
 
 

@@ -82,7 +82,8 @@ class PathNLP(PathModel):
     """The NLP of :class:`~qpik.planning.path_problem.PathModel` for one path, solved by :meth:`solve`.
 
     A waypoint's clearance constraints are in the NLP only where some link capsule is closer than
-    ``d_safe`` + :data:`NEAR` to an obstacle at the start: far-away obstacles cost nothing. If the answer
+    ``d_safe`` + :data:`NEAR` to an obstacle, or to another capsule of a checked pair, at the start: far-away
+    obstacles cost nothing. If the answer
     comes closer than d_s at a waypoint left out, that waypoint joins and the NLP is solved again from the
     answer (at most :data:`ROUNDS` solves); an answer that keeps d_s everywhere is a KKT point of the
     whole problem too (the constraints left out are inactive there). Arguments: as
@@ -104,19 +105,25 @@ class PathNLP(PathModel):
         inward = INSIDE if self.grid is not None else 0.0
         lo, hi = np.atleast_2d(lo) + inward, np.atleast_2d(hi) - inward
         z = np.clip(z0, lo, hi)
-        near = capsule_clearance(self.robot, self._q(z), self.obstacles) < self.d_safe + NEAR
+        near = self._clearance(z) < self.d_safe + NEAR
         start_cost, iterations = None, 0
         for _ in range(ROUNDS):
             z, cost0, its, status = self._solve(z, lo, hi, near, watch)
             start_cost = cost0 if start_cost is None else start_cost
             iterations += its
-            grow = (capsule_clearance(self.robot, self._q(z), self.obstacles) < self.d_safe + INSIDE) & ~near
+            grow = (self._clearance(z) < self.d_safe + INSIDE) & ~near
             if not grow.any():
                 break
             near |= grow
         cost, _, q = self.value()(z, self._least_t(z))
         return Refined(z[0] if self.grid is not None else np.zeros(0), np.asarray(q), float(cost), float(start_cost),
                        status, iterations, watch.stop())  # fmt: skip
+
+    def _clearance(self, z: np.ndarray) -> np.ndarray:
+        """(N,) the smallest clearance at the variables z, m: the pairs :mod:`qpik.geometry.contacts` checks and the
+        capsule pairs of the scene."""
+        q = self._q(z)
+        return np.minimum(capsule_clearance(self.robot, q, self.obstacles), self.scene.self_clearance(q))
 
     def _q(self, z: np.ndarray) -> np.ndarray:
         """(N, n) the configurations at the variables z (w, N)."""

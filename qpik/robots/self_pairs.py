@@ -9,12 +9,17 @@ r"""Which pairs of an arm's own link capsules can collide: candidates, and the a
   every sample) is allowed. MoveIt's "never" is d > 0; the default ``margin`` = 0.05 m is more
   cautious (a pair kept out must stay 5 cm apart over the samples). Cached on the robot
   (``robot.cache``).
-- :func:`pair_distances`: the signed distances (m) of pairs at a batch of configurations, with the
-  same kernel as the controller (:func:`qpik.geometry.distance.pair_expr`, capsule–capsule).
+- :func:`checked_pairs`: the candidates minus the allowed ones (given, from an SRDF, or the default list): the
+  pairs the controller and the solvers keep apart.
+- :func:`pair_distance_expr`: one pair's signed distance (m) in :mod:`qpik.algebra.symbolic`, the kernel of
+  :func:`qpik.geometry.distance.pair_expr` (capsule–capsule); :func:`pair_distances` evaluates it over a batch of
+  configurations (numpy), :class:`qpik.objectives.context.Context` traces it in CasADi.
 """
 
 from __future__ import annotations
 
+import os
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -44,20 +49,48 @@ def candidate_pairs(robot: Robot) -> tuple[Pair, ...]:
     )
 
 
-def pair_distances(robot: Robot, q: np.ndarray, pairs: tuple[Pair, ...]) -> np.ndarray:
-    """Signed distances (N, P), m, of capsule ``pairs`` at configurations ``q`` (N, n), rad."""
+def checked_pairs(
+    robot: Robot, allowed: frozenset[Pair] | None = None, srdf: str | os.PathLike | None = None
+) -> tuple[Pair, ...]:
+    """The capsule pairs kept apart: :func:`candidate_pairs` minus the allowed ones — ``allowed`` (capsule index
+    pairs) if given, else the links an SRDF's ``disable_collisions`` names (``srdf``), else :func:`default_allowed`."""
+    if allowed is None and srdf is not None:
+        from qpik.robots.srdf import disabled_links
+
+        links = disabled_links(robot, srdf)
+        caps = robot.capsules
+        allowed = frozenset((c, e) for c, e in candidate_pairs(robot) if (caps[c].link, caps[e].link) in links)
+    elif allowed is None:
+        allowed = default_allowed(robot)
+    else:
+        allowed = frozenset(tuple(sorted(p)) for p in allowed)
+    return tuple(p for p in candidate_pairs(robot) if p not in allowed)
+
+
+def pair_distance_expr(segments: Sequence[tuple[sy.Vec, sy.Vec]], radii: Sequence[float], pair: Pair,
+                       ops: sy.Ops) -> sy.Scalar:  # fmt: skip
+    """The signed distance (m) of capsules ``pair = (c, e)``: capsule c's axis (``segments[c]``, end points ``a, b``,
+    world frame) against capsule e taken as a capsule obstacle (:func:`qpik.geometry.distance.pair_expr`)."""
     from qpik.geometry.distance import pair_expr
 
+    c, e = pair
+    (a, b), (qa, qb) = segments[c], segments[e]
+    prm = (*qa, *sy.vsub(qb, qa), radii[e])
+    return pair_expr(a, b, radii[c], "capsule", prm, ops)[0]
+
+
+def pair_distances(robot: Robot, q: np.ndarray, pairs: tuple[Pair, ...]) -> np.ndarray:
+    """Signed distances (N, P), m, of capsule ``pairs`` at configurations ``q`` (N, n), rad
+    (:func:`pair_distance_expr`)."""
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if q.shape[1] != robot.dof:
         raise InputError(f"q: expected shape (N, {robot.dof}), got {q.shape}")
     seg = robot.capsule_segments(q)  # (N, C, 2, 3)
-    radii = robot.capsule_radii
+    segments = [(tuple(seg[:, c, 0].T), tuple(seg[:, c, 1].T)) for c in range(seg.shape[1])]
+    radii = [float(r) for r in robot.capsule_radii]
     out = np.empty((len(q), len(pairs)))
-    for k, (c, e) in enumerate(pairs):
-        a, b = tuple(seg[:, c, 0].T), tuple(seg[:, c, 1].T)
-        prm = (*seg[:, e, 0].T, *(seg[:, e, 1] - seg[:, e, 0]).T, radii[e])
-        out[:, k] = pair_expr(a, b, radii[c], "capsule", prm, sy.NUMPY)[0]
+    for k, pair in enumerate(pairs):
+        out[:, k] = pair_distance_expr(segments, radii, pair, sy.NUMPY)
     return out
 
 

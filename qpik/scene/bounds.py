@@ -20,6 +20,7 @@ if TYPE_CHECKING:
     from qpik.robots.robot import Robot
 from qpik.objectives.context import Context, pair_count
 from qpik.objectives.objective import Objective
+from qpik.robots.self_pairs import Pair
 
 
 class BoundFunction:
@@ -29,23 +30,25 @@ class BoundFunction:
     variable :math:`t \in [-1, 1]` (within [lo, hi]; :func:`qpik.algebra.enclosure.taylor_function`, e.g. the
     closed form over a δ/ψ range), :meth:`rows` gives the models of the values
 
-    .. math:: v = [\,s(q);\ w_1 \dots w_K;\ h_1 (m_1);\ \dots;\ h_K (m_K);\ d\ (C \cdot O)\,]
+    .. math:: v = [\,s(q);\ w_1 \dots w_K;\ h_1 (m_1);\ \dots;\ h_K (m_K);\ d\ (C \cdot O);\ e\ (P)\,]
 
     — the split's smooth part, its weights (parameters: single values), the pieces of each maximum
-    (:class:`Split`) and the capsule–obstacle distances (m). Each value lies, for the same t, within
-    ``centre + slope·t ± radius`` and within [lo, hi], so for every t, with
+    (:class:`Split`), the capsule–obstacle distances and the distances of the capsule pairs ``self_pairs`` (m):
+    the last :attr:`n_clear` values are the clearances (:attr:`~qpik.objectives.context.Context.clearances`).
+    Each value lies, for the same t, within ``centre + slope·t ± radius`` and within [lo, hi], so for every t, with
     :math:`\ell(t) = \max(lo,\ c + s\,t - r)` of each value (lower lines),
 
     .. math:: f(q(t)) \ge \ell_s(t) + \sum_k w_k \max_i \ell_{k,i}(t),
 
     a convex piecewise-linear function of t whose minimum over [−1, 1] is a lower bound of f over the
-    range (:func:`qpik.nlp.certificate.lower_bound`); a distance whose upper bound is below d_s on the
+    range (:func:`qpik.nlp.certificate.lower_bound`); a clearance whose upper bound is below d_s on the
     whole range proves the clearance constraint violated there.
 
     The models are composed from three kinds of Taylor function, each compiled once and evaluated over
     rows: the end points of the moving capsules from q (per robot), the distance of one capsule to one
     obstacle from its end points (per obstacle family, shared by every robot, objective and pair), and
-    the split from q and the distances (per objective form). Models compose because they share t: the
+    the split from q and the distances (per objective form); a capsule pair's distance is the capsule kernel
+    with both axes models (:func:`_self_pair_model`). Models compose because they share t: the
     outputs of one Taylor function are model inputs of the next.
 
     Raises:
@@ -53,7 +56,7 @@ class BoundFunction:
             expression): then no bound exists, and no certificate.
     """
 
-    def __init__(self, robot: Robot, objective: Objective, obstacles: ObstacleSet):
+    def __init__(self, robot: Robot, objective: Objective, obstacles: ObstacleSet, self_pairs: tuple[Pair, ...] = ()):
         n = robot.dof
         self.params = objective.params(robot)
         q, q_ref = ca.SX.sym("q", n), ca.SX.sym("q_ref", n)
@@ -72,8 +75,13 @@ class BoundFunction:
             chunks=(16, 16),
         )
         self._form = (robot, objective, obstacles)
-        self._segments = _segment_models(robot) if self.n_pairs else None
+        self.self_pairs = self_pairs
+        self.n_clear = self.n_pairs + len(self_pairs)
+        """The number of clearances, the last values of v: capsule–obstacle pairs, then capsule pairs."""
+        self._segments = _segment_models(robot) if self.n_clear else None
         moving = np.flatnonzero(~robot.fixed_capsules)
+        self._rank = np.cumsum(~robot.fixed_capsules) - 1
+        """Capsule index -> its rank among the moving capsules (the blocks of :func:`_segment_models`)."""
         self._pairs = [(c, o, kind) for c in range(len(moving)) for o, kind in enumerate(obstacles.kinds)]
         self._radii = robot.capsule_radii[moving]
         self._records = set_layout(obstacles.kinds)
@@ -85,9 +93,9 @@ class BoundFunction:
         robot, objective, obstacles = self._form
         q, q_ref = ca.SX.sym("q", robot.dof), ca.SX.sym("q_ref", robot.dof)
         p, prm = ca.SX.sym("p", len(self.params)), ca.SX.sym("obstacles", len(obstacles.params))
-        ctx = Context(robot, q, q_ref, obstacles, prm)
+        ctx = Context(robot, q, q_ref, obstacles, prm, self_pairs=self.self_pairs)
         split = objective.split(ctx, p)
-        v = ca.vertcat(split.smooth, *[w for w, _ in split.maxima], *[h for _, h in split.maxima], ctx.distances)
+        v = ca.vertcat(split.smooth, *[w for w, _ in split.maxima], *[h for _, h in split.maxima], ctx.clearances)
         return ca.Function(f"bound_values_{robot.identifier}", [q, p, q_ref, prm], [ca.densify(v)])
 
     def rows(self, c: np.ndarray, params: np.ndarray, q_ref: np.ndarray, obstacle_params: np.ndarray,
@@ -97,8 +105,8 @@ class BoundFunction:
         ``params``, ``q_ref`` (M, n) and the packed ``obstacle_params`` (:attr:`ObstacleSet.params`)."""
         M = len(c)
         d = [np.zeros((M, 0))] * 5
-        if self._segments is not None:
-            seg = self._segments(c, s, r, lo, hi)  # 5 × (M, 6 C')
+        seg = None if self._segments is None else self._segments(c, s, r, lo, hi)  # 5 × (M, 6 C')
+        if self.n_pairs:
             d = [np.empty((M, self.n_pairs)) for _ in range(5)]
             for kind, at in _by_kind(self._pairs):
                 cap = np.array([self._pairs[k][0] for k in at])
@@ -111,12 +119,38 @@ class BoundFunction:
                 out = _pair_models(kind)(parts[0], radius, prm, *parts[1:])
                 for whole, part in zip(d, out):
                     whole[:, at] = part.reshape(M, len(at))
-        return self._split(c, params, q_ref, obstacle_params, d[0], s, r, lo, hi, *d[1:])
+        models = self._split(c, params, q_ref, obstacle_params, d[0], s, r, lo, hi, *d[1:])
+        if not self.self_pairs:
+            return models
+        return [np.hstack([v, e]) for v, e in zip(models, self._self_rows(seg, M))]
+
+    def _self_rows(self, seg: list[np.ndarray], M: int) -> list[np.ndarray]:
+        """The models ``[centre, slope, radius, lo, hi]`` (each (M, P)) of the capsule pairs' distances from the
+        moving capsules' axis models ``seg``; a fixed capsule's axis is a constant (slope and radius 0, lo = hi)."""
+        robot, P = self._form[0], len(self.self_pairs)
+        fixed = robot.fixed_capsules
+        ends = robot.capsule_segments(robot.q_home[None])[0]
+        axes = []
+        for c in (c for pair in self.self_pairs for c in pair):
+            if fixed[c]:
+                a, b = ends[c]
+                value = np.tile(np.concatenate([a, b - a]), (M, 1))
+                zero = np.zeros((M, 6))
+                axes.append([value, zero, zero, value, value])
+            else:
+                pick = 6 * self._rank[c] + np.arange(6)
+                axes.append([x[:, pick] for x in seg])
+        first, second = ([np.concatenate([axes[2 * k + j][m] for k in range(P)]) for m in range(5)] for j in (0, 1))
+        radii = robot.capsule_radii[np.array(self.self_pairs)]
+        radius = [np.repeat(radii[:, j], M)[:, None] for j in (0, 1)]
+        out = _self_pair_model()(first[0], second[0], *radius, *first[1:], *second[1:])
+        return [x.reshape(P, M).T for x in out]
 
     def builds(self) -> list[Callable[[], None]]:
         """The compiles of every function :meth:`rows` calls (:meth:`~qpik.native.compiled.RowMap.build`), to run
         now."""
         maps = [self._split, *([] if self._segments is None else [self._segments])]
+        maps += [_self_pair_model()] if self.self_pairs else []
         return [m.build for m in maps + [_pair_models(kind) for kind, _ in _by_kind(self._pairs)]]
 
     def build(self) -> None:
@@ -162,18 +196,32 @@ def _pair_models(kind: str) -> RowMap:
     return RowMap(taylor_function(ca.Function(f"pair_{kind}", [axis, radius, prm], [d]), [0]), chunks=(64, 16))
 
 
-def bound_function(robot: Robot, objective: Objective, obstacles: ObstacleSet) -> BoundFunction | None:
-    """The cached :class:`BoundFunction` of the objective's form and the obstacle families, or None when
-    the objective is not :attr:`~Objective.bounded` or its expression has an operation without a
+@cache
+def _self_pair_model() -> RowMap:
+    """The Taylor model of one capsule–capsule distance (m) from both axes' models (:func:`_segment_models`):
+    ``(axis [a, u] (6,), other axis [a', u'] (6,), radius, other radius, slope, radius, lo, hi of each axis)
+    -> 5 × (1,)`` (:func:`~qpik.robots.self_pairs.pair_distance_expr`'s kernel), compiled once."""
+    axis, other, radii = ca.SX.sym("axis", 6), ca.SX.sym("other", 6), ca.SX.sym("radii", 2)
+    a, u = tuple(axis[i] for i in range(3)), tuple(axis[i] for i in range(3, 6))
+    d = axis_distance(a, u, radii[0], "capsule", [*(other[i] for i in range(6)), radii[1]], sy.CASADI)
+    fn = ca.Function("self_pair", [axis, other, radii[0], radii[1]], [d])
+    return RowMap(taylor_function(fn, [0, 1]), chunks=(64, 16))
+
+
+def bound_function(robot: Robot, objective: Objective, obstacles: ObstacleSet,
+                   self_pairs: tuple[Pair, ...] = ()) -> BoundFunction | None:  # fmt: skip
+    """The cached :class:`BoundFunction` of the objective's form, the obstacle families and the capsule pairs,
+    or None when the objective is not :attr:`~Objective.bounded` or its expression has an operation without a
     Taylor-model rule."""
     if not objective.bounded:
         return None
-    key = ("bound function", objective.key(), obstacles.kinds, len(objective.params(robot)))
-    return robot.cache.get(key, _bounds, robot, objective, obstacles)
+    key = ("bound function", objective.key(), obstacles.kinds, len(objective.params(robot)), self_pairs)
+    return robot.cache.get(key, _bounds, robot, objective, obstacles, self_pairs)
 
 
-def _bounds(robot: Robot, objective: Objective, obstacles: ObstacleSet) -> BoundFunction | None:
+def _bounds(robot: Robot, objective: Objective, obstacles: ObstacleSet,
+            self_pairs: tuple[Pair, ...]) -> BoundFunction | None:  # fmt: skip
     try:
-        return BoundFunction(robot, objective, obstacles)
+        return BoundFunction(robot, objective, obstacles, self_pairs)
     except InputError:
         return None

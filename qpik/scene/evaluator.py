@@ -20,6 +20,7 @@ if TYPE_CHECKING:
     from qpik.robots.robot import Robot
 from qpik.objectives.context import Context, pair_count
 from qpik.objectives.objective import Objective
+from qpik.robots.self_pairs import Pair
 
 CHUNKS = (128, 16)
 
@@ -28,7 +29,9 @@ class Evaluator:
     """An objective and the capsule–obstacle distances, compiled for one robot and obstacle families.
 
     Evaluates, per configuration, ``f(q)``, ``∇f(q)`` (n,) (CasADi's exact derivative; at a kink
-    of an epigraph term, the gradient of one active piece) and the pair distances (C'·O,), m.
+    of an epigraph term, the gradient of one active piece) and the clearances (C'·O + P,), m: the
+    capsule–obstacle distances, then the distances of the capsule pairs ``self_pairs``
+    (:attr:`~qpik.objectives.context.Context.clearances`).
     The objective's parameters, ``q_ref`` and the obstacle geometry are inputs: one compiled
     function serves every value of them (it is cached per robot, objective key and families).
 
@@ -37,44 +40,47 @@ class Evaluator:
         objective: the objective.
         obstacles: shapes or an :class:`ObstacleSet` (their families fix the function; the
             geometry is read at every call from :attr:`obstacles`).
+        self_pairs: the capsule pairs kept apart (:func:`~qpik.robots.self_pairs.checked_pairs`; none: ()).
     """
 
-    def __init__(self, robot: Robot, objective: Objective, obstacles: Sequence | ObstacleSet = ()):
-        self.robot, self.objective = robot, objective
+    def __init__(self, robot: Robot, objective: Objective, obstacles: Sequence | ObstacleSet = (),
+                 self_pairs: tuple[Pair, ...] = ()):  # fmt: skip
+        self.robot, self.objective, self.self_pairs = robot, objective, self_pairs
         self.obstacles = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
-        self.n_pairs = pair_count(robot, self.obstacles)
+        self.n_pairs = pair_count(robot, self.obstacles) + len(self_pairs)
+        """The number of clearances: capsule–obstacle pairs, then capsule pairs."""
         self.params = objective.params(robot)
-        key = ("objective maps", objective.key(), self.obstacles.kinds, len(self.params))
+        key = ("objective maps", objective.key(), self.obstacles.kinds, len(self.params), self_pairs)
         self._maps = robot.cache.get(key, _Maps, self)
 
     def function(self) -> ca.Function:
-        """``(q (n,), p, q_ref (n,), obstacle params) -> [f, ∇f (n), d (C'·O), ∇ min d (n)]`` in one column."""
+        """``(q (n,), p, q_ref (n,), obstacle params) -> [f, ∇f (n), d (C'·O + P), ∇ min d (n)]`` in one column."""
         robot, n = self.robot, self.robot.dof
         q, q_ref, w = ca.SX.sym("q", n), ca.SX.sym("q_ref", n), ca.SX.sym("w", n)
         p = ca.SX.sym("p", len(self.params))
         prm = ca.SX.sym("obstacles", len(self.obstacles.params))
-        ctx = Context(robot, q, q_ref, self.obstacles, prm, witness=w)
+        ctx = Context(robot, q, q_ref, self.obstacles, prm, witness=w, self_pairs=self.self_pairs)
         f = self.objective.expr(ctx, p)
-        d = ctx.distances
+        d = ctx.clearances
         nearest = ca.gradient(ca.mmin(d), q) if self.n_pairs else ca.SX.zeros(n)
         out = ca.densify(ca.substitute(self.layout.pack(f=f, grad=ca.gradient(f, q), d=d, nearest=nearest), w, q))
         return ca.Function(f"objective_{robot.identifier}", [q, p, q_ref, prm], [out])
 
     def value_function(self) -> ca.Function:
-        """``(q (n,), p, q_ref (n,), obstacle params) -> [f, d (C'·O)]`` in one column: :meth:`function`
+        """``(q (n,), p, q_ref (n,), obstacle params) -> [f, d (C'·O + P)]`` in one column: :meth:`function`
         without the derivatives."""
         robot, n = self.robot, self.robot.dof
         q, q_ref, w = ca.SX.sym("q", n), ca.SX.sym("q_ref", n), ca.SX.sym("w", n)
         p = ca.SX.sym("p", len(self.params))
         prm = ca.SX.sym("obstacles", len(self.obstacles.params))
-        ctx = Context(robot, q, q_ref, self.obstacles, prm, witness=w)  # the same expressions as :meth:`function`
-        out = ca.densify(ca.substitute(ca.vertcat(self.objective.expr(ctx, p), ctx.distances), w, q))
+        ctx = Context(robot, q, q_ref, self.obstacles, prm, witness=w, self_pairs=self.self_pairs)  # as function()
+        out = ca.densify(ca.substitute(ca.vertcat(self.objective.expr(ctx, p), ctx.clearances), w, q))
         return ca.Function(f"objective_value_{robot.identifier}", [q, p, q_ref, prm], [out])
 
     def __call__(self, q: np.ndarray, q_ref: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
-        """``(f (M,), ∇f (M, n), d (M, C'·O), ∇ min d (M, n))`` at configurations q (M, n) (or (n,): then
+        """``(f (M,), ∇f (M, n), d (M, C'·O + P), ∇ min d (M, n))`` at configurations q (M, n) (or (n,): then
         the shapes drop M). ``q_ref``: (n,) or (M, n), rad (zeros if None; only :class:`ReferenceDistance`
-        reads it). ``∇ min d`` is the gradient of the smallest pair distance (zeros without obstacles)."""
+        reads it). ``∇ min d`` is the gradient of the smallest clearance (zeros without any)."""
         n = self.robot.dof
         q = finite_array(q, "q")
         Q = np.atleast_2d(q)
@@ -86,7 +92,7 @@ class Evaluator:
 
     @cached_property
     def layout(self) -> Layout:
-        """The column of :meth:`function`: ``f``, ``grad`` (n,), ``d`` (C'·O,), ``nearest`` (n,) (∇ min d)."""
+        """The column of :meth:`function`: ``f``, ``grad`` (n,), ``d`` (C'·O + P,), ``nearest`` (n,) (∇ min d)."""
         n = self.robot.dof
         return Layout(f=(), grad=n, d=self.n_pairs, nearest=n)
 
@@ -106,7 +112,7 @@ class Evaluator:
         concurrently(*self.builds())
 
     def value_rows(self, Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`rows` without the derivatives (:meth:`value_function`): ``(f (M,), d (M, C'·O))``."""
+        """:meth:`rows` without the derivatives (:meth:`value_function`): ``(f (M,), d (M, C'·O + P))``."""
         (out,) = self._maps.values(Q, self.params, R, self.obstacles.params)
         return out[:, 0], out[:, 1:]
 

@@ -1,4 +1,5 @@
-"""A problem's pieces as one value: the arm, its obstacles, the clearance kept, the objective, q_ref."""
+"""A problem's pieces as one value: the arm, its obstacles, the clearance kept, the objective, q_ref, the capsule
+pairs of the arm kept apart."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from qpik.geometry.distance import ObstacleSet
 from qpik.geometry.shapes import Shape
 from qpik.objectives import Objective, clearance, pair_count, resolve
 from qpik.robots.robot import Robot, as_robot
+from qpik.robots.self_pairs import Pair, candidate_pairs, checked_pairs, pair_distances
 from qpik.scene.bounds import BoundFunction, bound_function
 from qpik.scene.evaluator import Evaluator
 
@@ -30,10 +32,13 @@ class Scene:
     Attributes:
         robot: the arm.
         obstacles: the obstacles, packed once (:class:`~qpik.geometry.distance.ObstacleSet`; base frame, m).
-        d_safe: the clearance every link capsule keeps from every obstacle, m (≥ 0).
+        d_safe: the clearance every link capsule keeps from every obstacle, and the capsules of every pair of
+            :attr:`self_pairs` from each other, m (≥ 0).
         objective: the cost minimised over the redundancy (:mod:`qpik.objectives`), or None.
         q_ref: (n,) the reference configuration of a :class:`~qpik.objectives.ReferenceDistance` term and of
             the controller's posture task, rad (None: the arm's home configuration).
+        self_pairs: the pairs ``(c, e)`` of the arm's own capsules (indices of ``robot.capsules``) kept ≥ d_safe
+            apart (:func:`~qpik.robots.self_pairs.checked_pairs`); () when self-collision is not checked.
     """
 
     robot: Robot
@@ -41,6 +46,7 @@ class Scene:
     d_safe: float
     objective: Objective | None
     q_ref: np.ndarray | None
+    self_pairs: tuple[Pair, ...] = ()
 
     @classmethod
     def of(
@@ -51,6 +57,7 @@ class Scene:
         d_safe: float = 0.02,
         objective: Objective | str | None = None,
         q_ref: np.ndarray | None = None,
+        self_collision: bool | Sequence[Pair] = False,
     ) -> Scene:
         """The scene of ``robot`` with the arguments checked (:class:`~qpik.core.errors.InputError` naming the one that
         is not right) and the obstacles packed.
@@ -62,6 +69,11 @@ class Scene:
             objective: an :class:`~qpik.objectives.Objective`, a name of :data:`qpik.objectives.NAMES`, or None
                 (none: each solver's own default, e.g. the joint-limit margin for :func:`qpik.solve_best`).
             q_ref: (n,) reference configuration, rad, or None.
+            self_collision: keep the arm's own capsules ≥ d_safe apart: True for the pairs of
+                :func:`~qpik.robots.self_pairs.checked_pairs` (the non-adjacent pairs minus the default allowed
+                list), or the capsule pairs to keep apart (e.g. ``checked_pairs(robot, srdf=...)``); False: none.
+                Off by default: the solvers' exact methods without constraints (the level sets of the margin)
+                and every answer computed without it keep their meaning; see :attr:`self_pairs`.
         """
         robot = as_robot(robot)
         packed = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
@@ -69,7 +81,8 @@ class Scene:
         if q_ref is not None:
             q_ref = finite_array(q_ref, "q_ref", (robot.dof,)).copy()
             q_ref.flags.writeable = False
-        return cls(robot, packed, d_safe, None if objective is None else resolve(objective), q_ref)
+        return cls(robot, packed, d_safe, None if objective is None else resolve(objective), q_ref,
+                   _self_pairs(robot, self_collision))  # fmt: skip
 
     def __post_init__(self) -> None:
         if not isinstance(self.robot, Robot) or not isinstance(self.obstacles, ObstacleSet):
@@ -79,6 +92,7 @@ class Scene:
         """A scene with some of :meth:`of`'s arguments changed (checked again); the compiled functions of the
         same robot, objective form and obstacle families are shared, not rebuilt."""
         fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        fields["self_collision"] = fields.pop("self_pairs")
         fields.update(changes)
         robot = fields.pop("robot")
         return Scene.of(robot, fields.pop("obstacles"), **fields)
@@ -100,18 +114,40 @@ class Scene:
     @cached_property
     def evaluator(self) -> Evaluator:
         """The objective and the clearances at many configurations (compiled once per robot and form)."""
-        return Evaluator(self.robot, self.objective, self.obstacles)
+        return Evaluator(self.robot, self.objective, self.obstacles, self.self_pairs)
 
     @cached_property
     def bounds(self) -> BoundFunction | None:
         """The objective's Taylor-model bounds (the certificate of :func:`qpik.solve_best`), or None when the
         objective has none."""
-        return bound_function(self.robot, self.objective, self.obstacles)
+        return bound_function(self.robot, self.objective, self.obstacles, self.self_pairs)
 
     def clearance(self, q: np.ndarray) -> np.ndarray:
         """(M,) the smallest distance of the pairs (:attr:`pairs`) at configurations q (M, n), m; inf without any."""
         q = finite_array(q, "q", (None, self.robot.dof))
         return clearance(self.robot, q, self.obstacles)
+
+    def self_clearance(self, q: np.ndarray) -> np.ndarray:
+        """(M,) the smallest distance of the capsule pairs :attr:`self_pairs` at configurations q (M, n), m
+        (:func:`~qpik.robots.self_pairs.pair_distances`); inf without any."""
+        q = finite_array(q, "q", (None, self.robot.dof))
+        if not self.self_pairs:
+            return np.full(len(q), np.inf)
+        return pair_distances(self.robot, q, self.self_pairs).min(axis=1)
+
+
+def _self_pairs(robot: Robot, self_collision: bool | Sequence[Pair]) -> tuple[Pair, ...]:
+    """:attr:`Scene.self_pairs` from :meth:`Scene.of`'s ``self_collision`` (checked: candidate pairs only)."""
+    if isinstance(self_collision, (bool, np.bool_)):
+        return checked_pairs(robot) if self_collision else ()
+    try:
+        pairs = tuple(sorted({tuple(sorted((int(c), int(e)))) for c, e in self_collision}))
+    except (TypeError, ValueError):
+        raise InputError("self_collision: expected a bool or a sequence of capsule index pairs (c, e)") from None
+    bad = sorted(set(pairs) - set(candidate_pairs(robot)))
+    if bad:
+        raise InputError(f"self_collision: {bad} are not candidate pairs (capsules of non-adjacent links)")
+    return pairs  # type: ignore[return-value]
 
 
 def scene_of(

@@ -16,6 +16,7 @@ from qpik.checks.crosscheck import crosscheck
 from qpik.core.errors import InputError
 from qpik.geometry import Sphere
 from qpik.nlp.best_result import BestResult
+from qpik.nlp.options import BestOptions
 
 OBSTACLES = [Sphere((0.35, 0.25, 0.6), 0.1), Sphere((0.3, -0.35, 0.45), 0.1)]
 
@@ -32,6 +33,27 @@ def test_three_way_agreement(name, objective, obstacles):
     for c in applicable:
         assert c.passed, c.report()
         assert c.q_gap <= 1e-6 and c.f_gap <= 1e-8 and c.kkt <= 1e-8 and c.speed <= 1e-6
+
+
+def test_three_way_agreement_with_self_collision_active():
+    """nammoto7, the smooth margin with self-collision, on seeded poses whose answer without it brings the arm's
+    capsules closer than d_s: (b)'s NLP and (c)'s self-collision dampers confirm (a), with the capsule-pair
+    constraint active (at d_s) on some of them."""
+    robot = qpik.load_robot("nammoto7")
+    plain = qpik.Scene.of(robot, d_safe=0.02, objective="smooth-margin")
+    safe = plain.replace(self_collision=True)
+    T = robot.fk(random_q(robot, 60, 3))
+    res = qpik.solve_best(plain, T, options=BestOptions(certify=False))
+    q = np.array([r.q for r in res])
+    ok = np.array([r.status == "optimal" for r in res])
+    hit = np.flatnonzero(ok & (safe.self_clearance(q) < 0.019))[:3]
+    assert len(hit) == 3
+    checks = [crosscheck(safe, pose) for pose in T[hit]]
+    for c in checks:
+        assert c.applicable and c.passed, c.report()
+        assert safe.self_clearance(c.best.q[None])[0] >= 0.02 - 1e-9
+    active = [abs(safe.self_clearance(c.best.q[None])[0] - 0.02) < 1e-7 for c in checks]
+    assert any(active)
 
 
 def test_a_wrong_answer_is_reported(monkeypatch):

@@ -1,17 +1,15 @@
 """Closed-loop episodes with self-collision, a moving sphere and the motion limits (tests/safety_episodes.py).
 
 The default run takes :data:`PER_ARM` seeds per arm (the four catalog arms and two loaded arms); with
-``QPIK_SAFETY_LARGE=1`` the large run takes :data:`LARGE` more per arm (1,020 episodes in all). The same
+``QPIK_TESTS_LARGE=1`` the large run takes :data:`EXTRA` more per arm (1,020 episodes in all). The same
 episodes with one limit left out must show the violation that limit prevents, so each check can fail.
 """
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 import pytest
-from conftest import model_robot
+from conftest import LARGE, model_robot
 from safety_episodes import FAMILIES, make_episode, run_episode
 
 import qpik
@@ -19,7 +17,7 @@ from qpik.robots.catalog import CATALOG
 
 ARMS = ("panda", "iiwa14", "nammoto7", "zheng7", "robosuite_iiwa", "pybullet_panda")
 PER_ARM = 6
-LARGE = 170  # 6 arms × 170 = 1,020 episodes
+EXTRA = 170  # 6 arms × 170 = 1,020 episodes
 
 
 def _robot(name: str) -> qpik.Robot:
@@ -42,10 +40,10 @@ def test_episodes_hold_every_limit(name: str) -> None:
     _check(name, range(PER_ARM))
 
 
-@pytest.mark.skipif(not os.environ.get("QPIK_SAFETY_LARGE"), reason="the large run: QPIK_SAFETY_LARGE=1")
+@pytest.mark.skipif(not LARGE, reason="the large run: QPIK_TESTS_LARGE=1")
 @pytest.mark.parametrize("name", ARMS)
 def test_episodes_hold_every_limit_large(name: str) -> None:
-    _check(name, range(PER_ARM, PER_ARM + LARGE))
+    _check(name, range(PER_ARM, PER_ARM + EXTRA))
 
 
 @pytest.mark.parametrize(

@@ -9,11 +9,12 @@ import pytest
 
 import qpik
 from qpik.geometry import Sphere
-from qpik.geometry.distance import ObstacleSet, distances
+from qpik.geometry.distance import distances
 from qpik.objectives import JointLimitMargin
 from qpik.planning import dp
 from qpik.planning import grid as grid_module
 from qpik.planning.grid import Grid
+from qpik.scene import Scene
 
 IIWA = qpik.load_robot("iiwa14")
 
@@ -53,7 +54,7 @@ def _brute_force(q: np.ndarray, ok: np.ndarray, lim: float, motion: np.ndarray) 
 @pytest.mark.parametrize("angles, least", [((0.0, 0.5, 2.0, 2.5), 1), ((0.0, 0.9, 1.8, 2.7), 0)])
 def test_fewest_reconfigurations_equal_the_brute_force_minimum(angles, least):
     N = len(angles)
-    grid = Grid(IIWA, _turning(angles), None, ObstacleSet([]), 0.02, 6, np.zeros(7))
+    grid = Grid(Scene.of(IIWA), _turning(angles), 6)
     layers = grid.layers(0, N)
     tr = dp.Transitions(np.full((N - 1, 7), 1.0), np.ones(N - 1), np.ones(N))
     res = dp.solve(grid, tr, grid.G // 2, fewest=True)
@@ -73,7 +74,7 @@ def test_fewest_reconfigurations_equal_the_brute_force_minimum(angles, least):
 def test_compiled_kernel_equals_its_numpy_twin(monkeypatch):
     rng = np.random.default_rng(3)
     T = IIWA.fk(IIWA.q_home + np.linspace(0, 0.4, 12)[:, None] * rng.uniform(-1, 1, 7))
-    grid = Grid(IIWA, T, JointLimitMargin(), ObstacleSet([Sphere((0.5, 0.3, 0.6), 0.1)]), 0.02, 60, np.zeros(7))
+    grid = Grid(Scene.of(IIWA, [Sphere((0.5, 0.3, 0.6), 0.1)], d_safe=0.02, objective=JointLimitMargin()), T, 60)
     dt = np.full(11, 0.1)
     tr = dp.Transitions(np.minimum(0.3, IIWA.v_max * 0.1)[None].repeat(11, 0), 1 / dt, np.full(12, 0.1), dt,
                         np.full(7, 20.0))  # fmt: skip
@@ -89,7 +90,7 @@ def test_compiled_kernel_equals_its_numpy_twin(monkeypatch):
 def test_grid_states_in_c_equal_their_numpy_twin(monkeypatch):
     rng = np.random.default_rng(5)
     T = IIWA.fk(IIWA.q_home + np.linspace(0, 0.5, 7)[:, None] * rng.uniform(-1, 1, 7))
-    args = (IIWA, T, JointLimitMargin(), ObstacleSet([Sphere((0.45, 0.1, 0.7), 0.12)]), 0.02, 90, np.zeros(7))
+    args = (Scene.of(IIWA, [Sphere((0.45, 0.1, 0.7), 0.12)], d_safe=0.02, objective=JointLimitMargin()), T, 90)
     native = Grid(*args).layers(1, 7)
     monkeypatch.setattr(grid_module, "_library", lambda: None)
     twin = Grid(*args).layers(1, 7)
@@ -100,7 +101,7 @@ def test_grid_states_in_c_equal_their_numpy_twin(monkeypatch):
 def test_grid_states_are_the_grid_values_inside_the_exact_intervals_and_clear():
     T = IIWA.fk(IIWA.q_home + np.linspace(0, 0.3, 3)[:, None])
     ball = Sphere((0.4, 0.2, 0.7), 0.12)
-    grid = Grid(IIWA, T, None, ObstacleSet([ball]), 0.03, 90, np.zeros(7))
+    grid = Grid(Scene.of(IIWA, [ball], d_safe=0.03), T, 90)
     layers = grid.layers(0, 3)
     for k in range(3):
         sols = qpik.ik(IIWA, np.repeat(T[k][None], grid.G, 0), grid.values)

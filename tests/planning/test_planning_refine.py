@@ -36,13 +36,13 @@ def peers(request):
     T = IIWA.fk(IIWA.q_home + np.linspace(0.0, 1.0, N)[:, None] * np.full(7, 0.15))
     obstacles = ObstacleSet([Sphere(T[N // 2, :3, 3] + (0.0, 0.0, 0.25), 0.05)])
     objective = None if name is None else resolve(name)
-    grid = Grid(IIWA, T, objective, obstacles, 0.01, 64, IIWA.q_home)
+    scene = qpik.Scene.of(IIWA, obstacles, d_safe=0.01, objective=objective, q_ref=IIWA.q_home)
+    grid = Grid(scene, T, 64)
     dt = np.linspace(0.08, 0.12, N - 1)  # uneven: the acceleration rows weigh their two steps differently
     tr = Transitions(np.full((N - 1, 7), 0.5), 1.0 / dt, np.full(N, 0.1), dt, np.full(7, 10.0))
     continuous = np.ones(N - 1, bool)
     continuous[5] = False  # a reconfiguration: no motion term, no step or acceleration bound there
     rows = np.array([0, 0, 0, 0, 0, 0, 2, 2, 2])
-    scene = qpik.Scene.of(IIWA, obstacles, d_safe=0.01, objective=objective, q_ref=IIWA.q_home)
     nlp = PathNLP(scene, T, tr, continuous, grid, rows)
     near = np.array([0, 1, 1, 0, 1, 1, 1, 0, 0], bool)
     with pytest.MonkeyPatch.context() as mp:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import fd, random_q
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -11,6 +12,7 @@ import qpik
 from qpik.core.errors import InputError
 from qpik.geometry import Box, HalfSpace, ObstacleSet, Sphere, distances
 from qpik.objectives import JointLimitMargin, ReferenceDistance
+from qpik.robots.self_pairs import checked_pairs, pair_distances
 from qpik.scene import Scene
 
 IIWA = qpik.load_robot("iiwa14")
@@ -86,3 +88,35 @@ def test_the_solvers_take_the_scene_or_its_pieces_never_both():
     for name, value in (("objective", "margin"), ("obstacles", []), ("d_safe", 0.05)):
         with pytest.raises(InputError, match=f"{name}: given twice"):
             qpik.solve_best(scene, pose, **{name: value})
+
+
+def test_self_collision_is_off_by_default_and_names_its_pairs():
+    nammoto = qpik.load_robot("nammoto7")
+    assert Scene.of(nammoto).self_pairs == ()
+    scene = Scene.of(nammoto, self_collision=True)
+    assert scene.self_pairs == checked_pairs(nammoto) and scene.self_pairs
+    assert scene.replace(d_safe=0.05).self_pairs == scene.self_pairs
+    assert scene.replace(self_collision=False).self_pairs == ()
+    assert Scene.of(nammoto, self_collision=[(5, 0), (0, 4)]).self_pairs == ((0, 4), (0, 5))
+    for bad in ([(0, 1)], [(0, 9)], "pairs", [1, 2]):  # adjacent links, no such capsule, not pairs
+        with pytest.raises(InputError, match="self_collision"):
+            Scene.of(nammoto, self_collision=bad)
+
+
+def test_the_evaluator_appends_the_capsule_pairs_with_their_exact_gradient():
+    """The evaluator's clearances are the capsule–obstacle distances, then the scene's capsule pairs (the numpy
+    kernel's values), and ∇ min d is their derivative (central differences) where a capsule pair is the nearest."""
+    nammoto = qpik.load_robot("nammoto7")
+    scene = Scene.of(nammoto, [Sphere((1.5, 0.0, 0.5), 0.1)], objective="margin", self_collision=True)
+    q = random_q(nammoto, 400, 8)
+    _, _, d, grad = scene.evaluator(q)
+    n_obs = len(d[0]) - len(scene.self_pairs)
+    np.testing.assert_allclose(d[:, n_obs:], pair_distances(nammoto, q, scene.self_pairs), atol=1e-12)
+    np.testing.assert_allclose(d[:, :n_obs].min(axis=1), scene.clearance(q), atol=1e-12)
+    np.testing.assert_allclose(d[:, n_obs:].min(axis=1), scene.self_clearance(q), atol=1e-12)
+    gaps = np.sort(d, axis=1)
+    clear = np.flatnonzero((d.argmin(axis=1) >= n_obs) & (gaps[:, 1] - gaps[:, 0] > 1e-3) & (d.min(axis=1) > 1e-3))
+    assert len(clear) >= 20
+    for k in clear[:20]:
+        want = fd(lambda x: pair_distances(nammoto, x, scene.self_pairs).min(axis=1), q[k][None])[0]
+        np.testing.assert_allclose(grad[k], want, atol=1e-6)
