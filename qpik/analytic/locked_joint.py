@@ -155,6 +155,7 @@ class LockedJointSolver(AnalyticSolver):
     kind = "locked_joint"
     param_name = "q7"
     branch_ids = tuple(range(8))
+    closed_form_sets = False  # the sets are isolated by Taylor models (qpik.analytic.locked_joint_intervals)
 
     def __init__(self, robot: Robot, sets: Callable[[AnalyticSolver], ParameterSets] | None = None):
         super().__init__(robot, sets)

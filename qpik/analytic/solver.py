@@ -97,6 +97,10 @@ class AnalyticSolver(ABC):
     kind: str
     param_name: str
     branch_ids: tuple[int, ...]
+    closed_form_sets: bool = True
+    """Whether the feasible sets are roots of closed-form functions of the parameter (found in microseconds), not a
+    certified root isolation (milliseconds): :func:`qpik.solve_best`'s ``"auto"`` method runs the level sets, which
+    ask for the sets at several margins per pose, only where they are."""
 
     def __init__(self, robot: Robot, sets: Callable[[AnalyticSolver], ParameterSets] | None = None):
         self.robot = robot

@@ -126,7 +126,7 @@ def solve_best(
     if method == "levelset" and weight is None:
         raise InputError("method: 'levelset' solves the margin objective alone, without obstacles or self-collision")
     if method == "auto":
-        method = "search" if weight is None else "levelset"
+        method = "levelset" if weight is not None and sm.solver.closed_form_sets else "search"
     rows = _rows(sm, branches)
     if not len(T):
         return BestResults([], n)

@@ -39,3 +39,17 @@ def test_margin_is_certified_where_the_sets_are_proved_and_no_dense_sample_is_be
         f = np.where(sol.within_limits, _margin(robot, sol.q), np.inf)
         assert np.isfinite(f).any()
         assert res.objective <= f.min() + 1e-8, (k, res.objective, f.min())
+
+
+def test_auto_searches_the_panda_and_the_level_sets_agree():
+    """The Panda's sets are a root isolation, not closed-form roots, so "auto" searches (with its certificate); the
+    level sets, asked for, reach the same margin on the same poses (the two methods share no code but the
+    objective)."""
+    robot = qpik.load_robot("panda")
+    T = robot.fk(random_q(robot, 3, 11))
+    auto = solve_best(robot, T)
+    level = solve_best(robot, T, options=qpik.BestOptions(method="levelset"))
+    for a, b in zip(auto, level):
+        assert a.method == "search" and b.method == "levelset"
+        assert a.certified and b.certified
+        assert abs(a.objective - b.objective) <= 1e-4 * max(1.0, abs(b.objective)), (a.summary(), b.summary())
