@@ -27,6 +27,8 @@ from pathlib import Path
 
 import casadi as ca
 
+from qpik.core.progress import QUIET, TICK
+
 CFLAGS = ("-shared", "-fPIC")
 _native_failed: str | None = None  # why native compilation is off in this process
 
@@ -115,10 +117,6 @@ def _locked(path: Path):
         yield
 
 
-QUIET = 2.0
-"""Seconds a compilation runs before it says what it builds."""
-TICK = 8.0
-"""Seconds between its progress lines after that."""
 LARGE = 256_000
 """Bytes of C above which :func:`optimisation` gives ``-O1``."""
 

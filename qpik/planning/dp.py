@@ -33,6 +33,7 @@ from functools import cache
 
 import numpy as np
 
+from qpik.core.progress import Progress
 from qpik.native.sources import load_source
 from qpik.planning.grid import Grid, Layers
 
@@ -122,9 +123,11 @@ def build(grid: Grid) -> None:
     _library()
 
 
-def solve(grid: Grid, tr: Transitions, window: int, fewest: bool) -> DPResult:
-    """The DP of the module docstring on ``grid``; ``window``: grid indices searched each way (≥ 1)."""
+def solve(grid: Grid, tr: Transitions, window: int, fewest: bool, progress: bool = True) -> DPResult:
+    """The DP of the module docstring on ``grid``; ``window``: grid indices searched each way (≥ 1). A DP that runs
+    longer than a moment says how far it is on stderr (:class:`qpik.core.progress.Progress`; ``progress``)."""
     N, B, G = len(grid.poses), grid.rows, grid.G
+    said = Progress(f"the DP over {N} waypoints × {B} branches × {G} values, waypoint", N, progress)
     layers = _Layers(grid)
     w = int(min(max(window, 1), G // 2))
     offsets = np.arange(-w, w + 1) if 2 * w + 1 <= G else np.arange(G)
@@ -137,6 +140,7 @@ def solve(grid: Grid, tr: Transitions, window: int, fewest: bool) -> DPResult:
     failure = None if ok0.any() else _empty_failure(grid, layers, 0)
     last = N - 1 if failure is None else -1
     for k in range(N - 1 if failure is None else 0):
+        said(k)
         qa, _, _ = layers(k)
         qb, okb, fb = layers(k + 1)
         step = _Step(qa, qb, okb, fb, tr, k, vel)
@@ -157,6 +161,7 @@ def solve(grid: Grid, tr: Transitions, window: int, fewest: bool) -> DPResult:
             prev = qa.reshape(B * G, -1)[np.where(has, s, 0)]
             vel = np.where((has & ~jump)[..., None], (qb - prev) / tr.dt[k], 0.0)
         V, J, src[k + 1], jumped[k + 1] = Vn, Jn, s, jump
+    said.finish(N if failure is None else max(last + 1, 0))
     rows, index, q = _backtrack(layers, src, jumped, V, J, last, grid)
     recon = [k for k in range(last) if jumped[k + 1, rows[k + 1], index[k + 1]]]
     cost = float(V.reshape(-1)[rows[last] * G + index[last]]) if last >= 0 else np.inf
