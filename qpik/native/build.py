@@ -27,6 +27,7 @@ from pathlib import Path
 
 import casadi as ca
 
+from qpik.core.errors import InputError
 from qpik.core.progress import QUIET, TICK
 
 CFLAGS = ("-shared", "-fPIC")
@@ -121,11 +122,25 @@ LARGE = 256_000
 """Bytes of C above which :func:`optimisation` gives ``-O1``."""
 
 
+LEVELS = ("-O0", "-O1", "-O2", "-O3", "-Os")
+"""The values ``$QPIK_OPTIMISE`` may take."""
+
+
 def optimisation(size: int) -> str:
     """The optimisation flag for a C source of ``size`` bytes: ``-O2``, or ``-O1`` for a source over :data:`LARGE`
     bytes. The large sources are CasADi's straight-line code of big expressions (the Taylor models of a
     distance kernel), for which gcc's ``-O2`` costs several times the time and memory of ``-O1`` and gives no
-    faster code."""
+    faster code.
+
+    ``$QPIK_OPTIMISE`` (one of :data:`LEVELS`) sets the flag of every source instead: ``-O1`` compiles faster than
+    ``-O2`` and gives slower code (the test suite uses it). The arithmetic is the same IEEE
+    arithmetic at every level (no fast-math), so the results are too. Raises :class:`~qpik.core.errors.InputError`
+    naming the variable for another value."""
+    forced = os.environ.get("QPIK_OPTIMISE")
+    if forced:
+        if forced not in LEVELS:
+            raise InputError(f"QPIK_OPTIMISE: {forced!r} is not one of {', '.join(LEVELS)}")
+        return forced
     return "-O1" if size > LARGE else "-O2"
 
 

@@ -1,0 +1,39 @@
+"""qpik.native.build: the optimisation level of the generated libraries ($QPIK_OPTIMISE)."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+from conftest import matrix_function
+
+from qpik.core.errors import InputError
+from qpik.native import build
+
+
+def test_the_level_is_the_variables_or_else_by_size(monkeypatch):
+    monkeypatch.delenv("QPIK_OPTIMISE", raising=False)
+    assert build.optimisation(1000) == "-O2" and build.optimisation(build.LARGE + 1) == "-O1"
+    for level in build.LEVELS:
+        monkeypatch.setenv("QPIK_OPTIMISE", level)
+        assert build.optimisation(1000) == level == build.optimisation(build.LARGE + 1)
+    monkeypatch.setenv("QPIK_OPTIMISE", "-Ofast")
+    with pytest.raises(InputError, match="QPIK_OPTIMISE"):
+        build.optimisation(1000)
+
+
+@pytest.mark.skipif(build.compiler() is None, reason="no C compiler, or QPIK_NATIVE=0")
+def test_each_level_is_its_own_library_with_the_same_answers(monkeypatch, tmp_path):
+    """A library built at -O0 and one at -O2 are two files of the cache, and give the same bits (no fast-math)."""
+    monkeypatch.setenv("QPIK_CACHE", str(tmp_path))
+    fn = matrix_function("levels")
+    rng = np.random.default_rng(3)
+    A, x = rng.normal(size=(2, 3)), rng.normal(size=3)
+    outs, libs = [], []
+    for level in ("-O0", "-O2"):
+        monkeypatch.setenv("QPIK_OPTIMISE", level)
+        libs.append(build.native_library(fn))
+        outs.append([np.asarray(o) for o in ca.external("levels", str(libs[-1]))(A, x)])
+    assert libs[0] != libs[1] and all(lib.exists() for lib in libs)
+    for a, b in zip(*outs):
+        assert np.array_equal(a, b)
