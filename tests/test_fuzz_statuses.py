@@ -1,7 +1,8 @@
 """Fuzz: no result whose own check fails carries a success status (plans on every kind of arm, IK results).
 
-Seeded paths on 8 arms (the catalog's closed-form and fallback arms and four third-party arms without a
-closed form): 5 per arm by default (each kind of case once), 25 per arm with ``QPIK_TESTS_LARGE=1``. Each is
+Seeded paths on the catalog's arms (closed-form and fallback) and third-party files: example-robot-data's
+Panda (closed form with q7 locked), xArm7 and TIAGo Pro arm by default, pybullet's Panda too with
+``QPIK_TESTS_LARGE=1``; 5 per arm by default (each kind of case once), 25 per arm with ``QPIK_TESTS_LARGE=1``. Each is
 a short motion of random joints (the reference, inside the limits), some with a waypoint moved out of reach
 and some with a sphere on the path. Every plan is measured again
 here, independently of qpik's own checks: FK of its configurations against the waypoints, the joint
@@ -91,7 +92,7 @@ def _measured_ok(plan) -> bool:
     return True
 
 
-ARMS = ["iiwa14", "nammoto7", "zheng7", "panda", *THIRD_PARTY]
+ARMS = ["iiwa14", "nammoto7", "zheng7", "panda", *(arm for arm in THIRD_PARTY if LARGE or arm != "pybullet_panda")]
 
 
 @pytest.mark.parametrize("arm", ARMS)
