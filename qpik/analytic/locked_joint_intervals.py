@@ -221,7 +221,7 @@ class Q7Intervals:
             rest = np.where(used, np.abs(w) * r, 0.0).sum(axis=1) + SLACK
             low = np.where(used, np.minimum(w * lo, w * hi), 0.0).sum(axis=1)
             high = np.where(used, np.maximum(w * lo, w * hi), 0.0).sum(axis=1)
-        cos_hi = np.maximum(w1 * lo[:, 1], w1 * hi[:, 1]) + np.maximum(-w2 * lo[:, 0], -w2 * hi[:, 0])
+            cos_hi = np.maximum(w1 * lo[:, 1], w1 * hi[:, 1]) + np.maximum(-w2 * lo[:, 0], -w2 * hi[:, 0])
         far = joint & ((valid_hi < -SLACK) | (cos_hi < -SLACK))
         return f0, f1, rest, far | (low > SLACK) | (high < -SLACK)
 

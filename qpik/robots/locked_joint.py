@@ -28,7 +28,10 @@ NEAR_TOL = 1e-4
 the closed form of its :func:`ideal_chain`, polished on its own FK (:mod:`qpik.analytic.polish`). A file's
 rounding gives such misses: an rpy written as 1.571 (2e-4 rad off a quarter turn) over a 0.5 m link puts an axis
 1e-4 m from where it should pass; the closed form's start is then about 1e-4/0.1 rad from the answer (links of
-~0.1 m), which Newton's quadratic steps take to round-off in the polish's four."""
+~0.1 m), which Newton's quadratic steps take to round-off in the polish's four. Not near a singular Jacobian of
+joints 1-6 (smallest singular value σ_min): the file's answer lies about miss/σ_min from the ideal one, beyond the
+polish's reach where σ_min is below about 1e-4, and a branch may be missed there (flagged invalid, or the polish
+reaching another answer)."""
 PARALLEL_TOL = 1e-9
 """Smallest sine of the angle between two axes that are not parallel."""
 
@@ -57,7 +60,12 @@ class LockedJointGeometry:
         """One line for ``robot.notes``: the geometry found (offsets in mm) and the solver serving it; ``near``, the
         deviations of a file from its :func:`ideal_chain` in words (empty for a chain of the family)."""
         off = ", ".join(f"{i}-{j} {1000 * d:.4g} mm" for (i, j), d in self.offsets.items()) or "none"
-        ideal = f" on its nearest ideal geometry ({near}), polished by Newton on the file's chain" if near else ""
+        ideal = (
+            f" on its nearest ideal geometry ({near}), polished by Newton on the file's chain (a branch may be missed"
+            " near a singular Jacobian of joints 1-6; feasible sets not proved)"
+            if near
+            else ""
+        )
         return (
             f"closed form with q7 locked (parameter q7, 8 branches){ideal}: axes 1-2-3 meet (spherical shoulder), "
             f"axes 5-6 meet; offsets between axes {off}; solved by subproblems 3, 2, 2 and 1 "

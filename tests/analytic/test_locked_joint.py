@@ -10,7 +10,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 import pytest
-from conftest import SEEDS, model_robot, mujoco_poses, random_q
+from conftest import LARGE, SEEDS, model_robot, mujoco_poses, random_q
 from hypothesis import given, settings
 
 import qpik
@@ -20,6 +20,10 @@ from qpik.analytic.polish import RESIDUAL_TOL
 from qpik.core.errors import InputError, NoClosedFormError
 
 BATCH = 2000
+DENSE = 20_000
+NEAR_END = 1e-4
+"""rad: a near member's set ends are the ideal chain's, off from the file's by the polish's change of a joint over
+that joint's rate along q7."""
 PROPERTY = settings(max_examples=3, deadline=None)
 PANDA = qpik.load_robot("panda")
 
@@ -175,7 +179,7 @@ def test_the_xarm7_file_is_a_near_member_with_its_miss_in_the_notes():
     miss = np.linalg.norm(np.cross(S - o[2], h[2]))
     assert 1e-7 < miss < 1e-5
     assert f"axis 3 passes {1e6 * miss:.4g} µm from the shoulder point" in robot.notes
-    assert "polished by Newton on the file's chain" in robot.notes
+    assert "polished by Newton on the file's chain" in robot.notes and "feasible sets not proved" in robot.notes
     ideal = robot.canonical.table
     hi, oi = ideal.axes(np.zeros(7))
     np.testing.assert_allclose(hi, h, atol=1e-15)
@@ -184,16 +188,15 @@ def test_the_xarm7_file_is_a_near_member_with_its_miss_in_the_notes():
     assert 0 < np.abs(ideal.fk(q) - robot.fk(q)).max() < 10 * miss
 
 
-@PROPERTY
-@given(seed=SEEDS)
+@pytest.mark.parametrize("seed", range(3))
 def test_ik_of_the_xarm7_holds_q_and_every_valid_branch_reaches_the_pose_by_mujoco(seed):
     """The polished branches are answers on the file's own chain: every valid one reaches the pose to 1e-10 by
-    MuJoCo's FK of the URDF, and a valid branch holds q: to 1e-9 rad, or to RESIDUAL_TOL/σ_min (σ_min: the smallest
-    singular value of the Jacobian of joints 1-6; the polish's residual moves the answer that far), the branch
-    ``redundancy_parameter(q)`` itself unless that chain is near singular (σ_min < 1e-3). There the file's answers
-    lie ~miss/σ_min from the ideal chain's, where two of them nearly meet: the polish may reach the twin of q
-    (another answer, still valid) or, in its steps, neither (then flagged invalid, never returned wrong); q is missed
-    for at most 1% of the configurations."""
+    MuJoCo's FK of the URDF, and the branch ``redundancy_parameter(q)`` holds q: to 1e-9 rad, or to RESIDUAL_TOL/σ_min
+    (σ_min: the smallest singular value of the Jacobian of joints 1-6; the polish's residual moves the answer that
+    far), unless that chain is near singular (σ_min < 1e-4). There the file's answers lie ~miss/σ_min from the
+    ideal chain's, beyond the polish's reach: it may reach the twin of q (another answer, still valid) or neither
+    (the branch then flagged invalid, never returned wrong). The completeness counted on these fixed seeds: q is
+    missed for at most 0.5% of the configurations."""
     robot = model_robot("erd_xarm7")
     q = random_q(robot, BATCH, seed)
     T = mujoco_poses(robot, q)
@@ -202,15 +205,39 @@ def test_ik_of_the_xarm7_holds_q_and_every_valid_branch_reaches_the_pose_by_mujo
     sols = qpik.ik(robot, T, param)
     err = np.where(sols.valid, angle_diff(sols.q, q[:, None]).max(axis=2), np.inf)  # (N, 8)
     sigma = np.linalg.svd(robot.jacobian(q)[:, :, :6], compute_uv=False)[:, -1]
-    own, best = err[np.arange(BATCH), branch], err.min(axis=1)
-    near_singular = sigma < 1e-3
-    assert np.all((own < 1e-9) | (own * sigma < RESIDUAL_TOL) | near_singular), (own.max(), sigma[own.argmax()])
-    held = (best < 1e-9) | (best * sigma < RESIDUAL_TOL)
-    assert np.all(held | near_singular) and (~held).sum() <= BATCH // 100
+    own = err[np.arange(BATCH), branch]
+    held = (own < 1e-9) | (own * sigma < RESIDUAL_TOL)
+    assert np.all(held | (sigma < 1e-4)), (own[~held], sigma[~held])
+    assert (~held).sum() <= BATCH // 200
     inside = robot.within_limits(sols.q.reshape(-1, 7)).reshape(BATCH, 8)
     assert np.isfinite(sols.q).all() and np.array_equal(sols.within_limits, sols.valid & inside)
     F = mujoco_poses(robot, sols.q[sols.valid])
     assert np.abs(F - np.repeat(T, sols.valid.sum(1), axis=0)).max() < 1e-10
+
+
+@pytest.mark.parametrize("margin", [0.0, 0.3])
+def test_the_xarm7s_sets_claim_no_proof_and_match_dense_sampling_of_its_file(margin):
+    """A near member's sets (the ideal chain's breakpoints, the gaps classified by the polished IK) are not proved;
+    every one of DENSE random q7 farther than NEAR_END from a set end is in the set iff the compiled IK's branch
+    is valid with every joint inside the limits shrunk by ``margin``, and every valid branch reaches the pose by the
+    file's FK to 1e-10. One pose per margin (four in the large run)."""
+    robot = model_robot("erd_xarm7")
+    solver = closed_form_for(robot)
+    assert not solver.sets_proved
+    lo, hi = shrunk_limits(robot.q_min, robot.q_max, margin)
+    q7 = np.random.default_rng(3).uniform(-np.pi, np.pi, DENSE)
+    q = np.random.default_rng(20).uniform(lo, hi, (4 if LARGE else 1, 7))  # inside the shrunk limits
+    for T, param, branch in zip(robot.fk(q), *qpik.redundancy_parameter(robot, q)):
+        fi = qpik.feasible_intervals(robot, T, margin=margin)
+        assert not fi.proved and fi.contains(int(branch), param)
+        sols = [solver.solve_one(T, x) for x in q7]
+        Q, valid = np.stack([s.q for s in sols]), np.stack([s.valid for s in sols])
+        assert np.abs(robot.fk(Q[valid]) - T).max() < 1e-10
+        inside = valid & np.all((lo <= Q) & (hi >= Q), axis=-1)
+        for k in range(8):
+            ends = np.array([x for iv in fi[k] for x in iv])
+            near = np.abs(q7[:, None] - ends[None, :]).min(axis=1, initial=np.inf) < NEAR_END
+            assert np.array_equal(fi.contains(k, q7)[~near], inside[~near, k]), f"branch {k}: {fi[k]}"
 
 
 def test_the_xarm7s_batch_single_and_casadi_agree():
@@ -247,8 +274,6 @@ def test_an_arm_beyond_the_near_tolerance_has_no_closed_form():
 
 
 # ---- feasible q7 sets --------------------------------------------------------
-
-DENSE = 20_000
 
 
 @pytest.mark.parametrize("margin", [0.0, 0.2])
