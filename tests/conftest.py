@@ -7,7 +7,8 @@ the helpers with ``from conftest import ...``):
   parametrised over them (``def test_x(robot): ...`` runs once per arm).
 - ``MODELS``: arms from model files written by others (URDFs of the ``pybullet`` and
   ``example-robot-data`` packages of the test extra, MJCF copied into ``tests/models``);
-  ``model_robot(key)`` loads one (cached), the ``loaded`` fixture is parametrised over them.
+  ``model_robot(key)`` loads one (cached), the ``loaded`` fixture is parametrised over them. ``MADE``: files
+  made from them, ``"xarm7_offset"`` (an arm of no closed-form family), which ``model_robot`` loads too.
 - ``random_q(robot, n, seed, margin=0.0)``: ``(n, 7)`` configurations drawn
   uniformly inside ``[q_min + margin, q_max - margin]`` (a numpy generator
   seeded with ``seed``). Draw many at once so that 10,000 configurations cost
@@ -96,6 +97,20 @@ def packaged(key: str) -> Path:
         pytest.skip(str(exc))
 
 
+def xarm7_offset() -> tuple[Path, dict]:
+    """example-robot-data's xArm7 with joint 3 moved 1 mm along link 2's x (axis 3 then passes 1 mm from the shoulder
+    point, ten times the near tolerance): a 7-R arm of no closed-form family, written to a temporary folder."""
+    import tempfile
+
+    path = packaged("erd/xarm7")
+    text = path.read_text()
+    joint3 = '<origin rpy="1.5708 0 0" xyz="0 -0.293 0"/>'
+    assert text.count(joint3) == 1
+    out = Path(tempfile.mkdtemp(prefix="qpik-xarm7-offset-")) / "xarm7_offset.urdf"
+    out.write_text(text.replace(joint3, '<origin rpy="1.5708 0 0" xyz="0.001 -0.293 0"/>'))
+    return out, {"meshes": MeshOptions(package_map={"example-robot-data": path.parents[3]})}
+
+
 MODELS: dict[str, Callable[[], tuple[Path, dict]]] = {
     "pybullet_iiwa": lambda: (packaged("pybullet/iiwa"), {}),
     "pybullet_panda": lambda: (packaged("pybullet/panda"), {}),
@@ -104,13 +119,15 @@ MODELS: dict[str, Callable[[], tuple[Path, dict]]] = {
     "robosuite_iiwa": lambda: (MODEL_DIR / "robosuite_iiwa/robot.xml", {"meshes": MeshOptions(collision_only=True)}),
     "pusher": lambda: (MODEL_DIR / "gymnasium_pusher/pusher_v5.xml", {"tip": "tips_arm"}),
 }
+MADE: dict[str, Callable[[], tuple[Path, dict]]] = {"xarm7_offset": xarm7_offset}
+"""Model files made for the tests (``model_robot`` loads them too; not among the ``loaded`` arms)."""
 _loaded: dict[str, qpik.Robot] = {}
 
 
 def model_robot(key: str) -> qpik.Robot:
-    """The arm of ``MODELS[key]`` (loaded once per session)."""
+    """The arm of ``MODELS[key]`` or ``MADE[key]`` (loaded once per session)."""
     if key not in _loaded:
-        path, options = MODELS[key]()
+        path, options = (MODELS | MADE)[key]()
         _loaded[key] = qpik.load_robot(path, **options)
     return _loaded[key]
 

@@ -164,7 +164,8 @@ def redundancy_parameter(robot: Robot, q: np.ndarray) -> tuple[float | np.ndarra
 def feasible_intervals(robot: Robot, pose: np.ndarray, project: bool = False, margin: float = 0.0) -> FeasibleIntervals:
     r"""Per branch, the set of the parameter (δ, ψ or q7; rad) keeping all joints in limits; see
     :class:`FeasibleIntervals`. Exact for the S-R-S and offset-shoulder families; the locked-q7 family's are proved
-    per pose by a bounded search, and ``proved`` says whether it ended (:mod:`qpik.analytic.locked_joint_intervals`).
+    per pose by a bounded search, and ``proved`` says whether it ended (:mod:`qpik.analytic.locked_joint_intervals`;
+    never for a near member, a file polished onto the family).
 
     ``margin`` m >= 0: keeping every joint j in the shrunk limits :math:`[l_j + m\rho_j,\ u_j - m\rho_j]`,
     :math:`\rho_j = (u_j - l_j)/2` instead: the set where the joint-limit margin

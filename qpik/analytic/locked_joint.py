@@ -51,6 +51,12 @@ The parameter is q7 itself: :meth:`LockedJointSolver.table_parameter_expr` retur
   free: subproblem 1 returns ``atan2`` of what is left (any value reaches the pose) and the next joint takes
   the rest.
 
+**Near members** (a file whose axes miss the geometry by at most
+:data:`~qpik.robots.locked_joint.NEAR_TOL`, :func:`~qpik.robots.locked_joint.ideal_chain`): the branches above are
+those of the ideal chain (:attr:`~LockedJointSolver.table`), each then polished by Newton on the file's chain
+(:mod:`qpik.analytic.polish`) and valid where the polish reaches the pose; :meth:`~LockedJointSolver.validity` and
+:meth:`~LockedJointSolver.joint_trig` stay the ideal chain's.
+
 An unreachable pose gives ``valid = 0`` (a negative discriminant beyond round-off, ``EPS`` relative); the square
 roots are clamped at 0, so q stays finite.
 """
@@ -64,6 +70,7 @@ import numpy as np
 
 from qpik.algebra import symbolic as sy
 from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
+from qpik.analytic.polish import RESIDUAL_TOL, polish
 from qpik.analytic.solver import AnalyticSolver, Branches
 from qpik.analytic.trig import EPS, angle
 from qpik.core.errors import NoClosedFormError
@@ -163,6 +170,10 @@ class LockedJointSolver(AnalyticSolver):
         if g is None:
             raise NoClosedFormError(f"the locked-q7 closed form does not apply: {why}")
         self.geometry = g
+        canonical = robot.canonical
+        self.polished = None if canonical is None or canonical.exact else robot.chain
+        """The chain the branches are polished on (:mod:`qpik.analytic.polish`): the robot's own, where
+        :attr:`table` is its nearest ideal chain (a near member, :func:`qpik.robots.locked_joint.ideal_chain`)."""
         h, o, S, W = g.h, g.o, g.shoulder, g.wrist
         self.h = [_v(x) for x in h]
         Rm, pm = g.home[:3, :3], g.home[:3, 3]
@@ -184,8 +195,24 @@ class LockedJointSolver(AnalyticSolver):
         self.a3 = _v(a / np.linalg.norm(a))  # a unit vector ⊥ h3 for q3's subproblem 1
 
     def table_branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
-        """All 8 branches at q7 = ``param`` (rad) for the pose ``(R, p)`` (base frame)."""
-        return self._solve(R, p, param, ops)[0]
+        """All 8 branches at q7 = ``param`` (rad) for the pose ``(R, p)`` (base frame); for a near member
+        (:attr:`polished`), each polished on the robot's chain and valid where the polish reaches the pose
+        (:data:`~qpik.analytic.polish.RESIDUAL_TOL`), whatever the ideal chain's discriminants say."""
+        br = self._solve(R, p, param, ops)[0]
+        if self.polished is None:
+            return br
+        q, valid = [], []
+        for row in br.q:
+            qk, residual = polish(self.polished, R, p, row, ops)
+            q.append([ops.wrap(x) for x in qk[:6]] + qk[6:])
+            valid.append(residual <= RESIDUAL_TOL)
+        return Branches(q, valid, br.singular)
+
+    @property
+    def sets_proved(self) -> bool:
+        """Whether :meth:`feasible_intervals` can be proved: not for a near member (:attr:`polished`; module
+        docstring of :mod:`qpik.analytic.locked_joint_intervals`)."""
+        return self.polished is None and super().sets_proved
 
     def validity(self, R: Mat, p: Vec, param: Scalar, ops: Ops, signs: BranchSigns = ALL) -> list[Scalar]:
         r"""Per branch, a continuous function of the pose and q7 whose sign is the branch's ``valid`` flag:

@@ -36,6 +36,12 @@ The search starts from :data:`CELLS` cells over the circle and stops after :data
 proved. The gaps between the breakpoints are classified as for the other families
 (:class:`~qpik.analytic.intervals.SetAssembler`: one IK evaluation at each midpoint).
 
+**Near members** (:attr:`~qpik.analytic.locked_joint.LockedJointSolver.polished`): the columns are those of the
+ideal chain's closed form, the gaps classified by the polished IK of the file's chain. The ends of the sets are
+then those of the ideal chain, off from the file's by about the polish's change of the joints, and a validity
+change of the polish (where it stops short of the pose, near a singular Jacobian) is no breakpoint: the answers
+are not proved (``proved`` False).
+
 **Proved:** when the search ends with no cell left, every root of every column lies within :data:`WINDOW` of a
 breakpoint or in a cell where the column is within :data:`TOUCH` of 0, so the sets are exact except within
 :data:`WINDOW` of their ends and where a joint is within :data:`TOUCH` rad of a limit (``FeasibleIntervals.proved``).
@@ -89,7 +95,7 @@ class Q7Intervals:
     """
 
     proved = True
-    """Each answer says whether its search ended (``FeasibleIntervals.proved``)."""
+    """Each answer says whether its search ended (``FeasibleIntervals.proved``); none of a near member's is."""
 
     def __init__(self, solver: LockedJointSolver, rounds: int = ROUNDS):
         self._solver, self._rounds = solver, rounds
@@ -132,7 +138,7 @@ class Q7Intervals:
         found, left = self._isolate(T, self._columns(levels))
         breaks = np.concatenate([found, left, self._elbow_roots(T, levels[ELBOW]), levels[-1]])
         sets, sing = self._assemble(T, breaks, found, (lo, hi))
-        return FeasibleIntervals(s.param_name, s.branch_array, sets, sing, proved=not left.size)
+        return FeasibleIntervals(s.param_name, s.branch_array, sets, sing, proved=not left.size and s.polished is None)
 
     def _columns(self, levels: list[np.ndarray]) -> tuple[np.ndarray, ...]:
         """The columns, (F,) each: the branch, and weights of its compiled outputs (cos q_j of the joints, their
@@ -215,7 +221,7 @@ class Q7Intervals:
             rest = np.where(used, np.abs(w) * r, 0.0).sum(axis=1) + SLACK
             low = np.where(used, np.minimum(w * lo, w * hi), 0.0).sum(axis=1)
             high = np.where(used, np.maximum(w * lo, w * hi), 0.0).sum(axis=1)
-        cos_hi = np.maximum(w1 * lo[:, 1], w1 * hi[:, 1]) + np.maximum(-w2 * lo[:, 0], -w2 * hi[:, 0])
+            cos_hi = np.maximum(w1 * lo[:, 1], w1 * hi[:, 1]) + np.maximum(-w2 * lo[:, 0], -w2 * hi[:, 0])
         far = joint & ((valid_hi < -SLACK) | (cos_hi < -SLACK))
         return f0, f1, rest, far | (low > SLACK) | (high < -SLACK)
 

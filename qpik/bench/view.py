@@ -10,7 +10,8 @@ drag ends) or the numerical IK, the clearances, every scene and panel message, a
 websocket buffers. Each update's time is from the pose's arrival to the flush. Arms: the catalog iiwa14
 (alone, and with the ball and table of ``problems/iiwa_obstacle_reach.toml``), the catalog Panda (closed form
 with q7 locked, its sets by a sweep), the KUKA iiwa URDF of ``pybullet_data`` (meshes, closed form found
-in the file's chain) and, when example-robot-data is installed, its xArm7 (no closed form: the numerical IK).
+in the file's chain) and, when example-robot-data is installed, its xArm7 (q7 locked on the ideal geometry nearest
+to its file, polished on the file's chain: :func:`qpik.robots.locked_joint.ideal_chain`).
 The loops go around the home pose; the URDF's home is the file's zero, the arm stretched straight up, where
 most of the loop is out of reach, so it is also dragged around a bent pose
 (:data:`BENT`). Each row says how many of its poses were reached: by some branch, or by the numerical IK
@@ -66,7 +67,7 @@ def _arms() -> list[tuple[str, object, tuple, np.ndarray | None, str]]:
         arms += [(label, urdf, (), None, ""), (f"{label}, bent", urdf, (), BENT, "")]
     except QpikError as exc:  # pybullet is not installed
         arms.append((label, None, (), None, str(exc)))
-    label = "URDF example-robot-data xArm7 (numerical IK)"
+    label = "URDF example-robot-data xArm7 (q7 locked, polished)"
     try:
         arms.append((label, load_robot(str(packaged_model("erd/xarm7"))), (), None, ""))
     except QpikError as exc:  # example-robot-data is not installed

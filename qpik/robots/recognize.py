@@ -34,7 +34,7 @@ import numpy as np
 from qpik.core.errors import InputError
 from qpik.robots.chain import SerialChain
 from qpik.robots.dh import DHChain
-from qpik.robots.locked_joint import find_locked_joint
+from qpik.robots.locked_joint import find_locked_joint, ideal_chain
 
 TOL = 1e-9
 """m and rad: an a or d below this is zero, an α within this of ±π/2 is ±π/2."""
@@ -111,12 +111,15 @@ class JointMap:
 class Canonical:
     """A closed form found in a chain: the catalog-form DH table with its base/tool, and the joint map (for the
     locked-q7 family, which reads the axes of any chain, the chain itself and the identity); ``notes``, the
-    geometry in words where the family says it."""
+    geometry in words where the family says it. ``exact`` False: ``table`` is the family's chain nearest to one that
+    misses it by a file's rounding (:func:`qpik.robots.locked_joint.ideal_chain`), whose branches the solver polishes
+    on the robot's own chain (:mod:`qpik.analytic.polish`)."""
 
     kind: str
     table: SerialChain
     joints: JointMap
     notes: str = ""
+    exact: bool = True
 
 
 REDUNDANCY = {"psi": "srs", "delta": "offset_shoulder", "q7": "locked_joint"}
@@ -125,8 +128,9 @@ REDUNDANCY = {"psi": "srs", "delta": "offset_shoulder", "q7": "locked_joint"}
 
 def recognize(chain: SerialChain, redundancy: str | None = None) -> tuple[Canonical | None, str]:
     """The first closed form ``chain`` fits, or None and the reason (one line): the patterns of :data:`PATTERNS`,
-    then q7 locked (:mod:`qpik.robots.locked_joint`). ``redundancy`` (a key of :data:`REDUNDANCY`) tries only the
-    family of that parameter."""
+    then q7 locked (:mod:`qpik.robots.locked_joint`), exactly or as a near member (its axes miss by at most
+    :data:`~qpik.robots.locked_joint.NEAR_TOL`: the closed form of its ideal chain, polished on its own).
+    ``redundancy`` (a key of :data:`REDUNDANCY`) tries only the family of that parameter."""
     if redundancy is not None and redundancy not in REDUNDANCY:
         raise InputError(f"redundancy: expected one of {', '.join(REDUNDANCY)} or None, got {redundancy!r}"[:200])
     if len(chain.joints) != chain.dof:
@@ -145,10 +149,14 @@ def recognize(chain: SerialChain, redundancy: str | None = None) -> tuple[Canoni
             return found, ""
         reasons.append(f"not {kind.replace('_', '-')}: {why}")
     if wanted in (None, "locked_joint"):
-        geometry, why = find_locked_joint(chain)
+        identity = JointMap(np.ones(7), np.zeros(7))
+        geometry, _ = find_locked_joint(chain)
         if geometry is not None:
-            identity = JointMap(np.ones(7), np.zeros(7))
             return Canonical("locked_joint", chain, identity, geometry.describe()), ""
+        ideal, near = ideal_chain(chain)
+        geometry, why = (None, near) if ideal is None else find_locked_joint(ideal)
+        if ideal is not None and geometry is not None:
+            return Canonical("locked_joint", ideal, identity, geometry.describe(near), exact=False), ""
         reasons.append(f"not locked-q7: {why}")
     return None, "; ".join(reasons)
 

@@ -75,7 +75,7 @@ EXPECTED = {
         "panda (q7 locked): pose → scene",
         "URDF pybullet kuka_iiwa: pose → scene",
         "URDF pybullet kuka_iiwa, bent: pose → scene",
-        "URDF example-robot-data xArm7 (numerical IK): pose → scene",
+        "URDF example-robot-data xArm7 (q7 locked, polished): pose → scene",
     ],
 }
 

@@ -7,7 +7,7 @@ import re
 
 import numpy as np
 import pytest
-from conftest import MODEL_DIR, model_robot
+from conftest import MODEL_DIR, model_robot, packaged
 from PIL import Image
 
 import qpik
@@ -41,9 +41,11 @@ def test_model_errors_are_one_line(capsys):
     assert "branched chain" in capsys.readouterr().err
     pusher = ["-r", str(MODEL_DIR / "gymnasium_pusher/pusher_v5.xml"), "--tip", "tips_arm"]
     assert main(["fk", *pusher, "--q", "0 0 0 -0.5 0 -0.5 0"]) == 0
-    assert main(["ik", "-r", model_robot("erd_xarm7").model.path.as_posix(), "--q", "0 0 0 -1 0 1 0", "-p", "0"]) == 2
+    offset = model_robot("xarm7_offset").model.path.as_posix()  # example-robot-data's xArm7, axis 3 moved 1 mm
+    package = f"example-robot-data={packaged('erd/xarm7').parents[3]}"  # the made file lies outside the package
+    assert main(["ik", "-r", offset, "--package", package, "--q", "0 0 0 -1 0 1 0", "-p", "0"]) == 2
     err = capsys.readouterr().err
-    assert "no closed-form IK" in err and "not locked-q7: axes 1-2-3 do not meet in one point" in err
+    assert "no closed-form IK" in err and "not locked-q7: axes 2-3 do not meet (1 mm apart)" in err
 
 
 def test_render_a_model_file(tmp_path, capsys):

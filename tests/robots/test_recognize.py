@@ -37,7 +37,7 @@ def test_the_kuka_urdf_is_the_catalog_iiwa14():
 @pytest.mark.parametrize(
     ("key", "why"),
     [
-        ("erd_xarm7", "not srs: axes 1-2 are not perpendicular"),
+        ("xarm7_offset", "not srs: axes 1-2 are not perpendicular"),
     ],
 )
 def test_other_arms_say_why(key, why):

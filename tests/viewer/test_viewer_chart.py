@@ -85,7 +85,7 @@ def test_view_state_of_a_pose_reaches_it():
 
 
 def test_view_state_of_an_arm_without_closed_form_is_the_numerical_ik():
-    robot = model_robot("erd_xarm7")  # example-robot-data's xArm7: axes 1-2-3 miss one point by ~1 µm
+    robot = model_robot("xarm7_offset")  # example-robot-data's xArm7 with axis 3 moved 1 mm: no closed form
     q = random_q(robot, 1, 5)[0]
     st = solve_view(robot, robot.fk(q), 0.0, q_seed=q + 0.05)
     assert st.branches is None and st.intervals is None and st.best is None
