@@ -27,7 +27,9 @@ class BestOptions:
             answer by more than ``tol · max(1, |f|)``.
         method: ``"levelset"`` (the exact super-level sets of the margin, :mod:`qpik.nlp.levelset`: the plain
             margin objective without obstacles only), ``"search"`` (sampling and polish), ``"ipopt"`` (IPOPT from
-            every interval), or ``"auto"``: ``"levelset"`` where it applies, else ``"search"``.
+            every interval), or ``"auto"``: ``"levelset"`` where it applies, else ``"search"``. With
+            self-collision, the method of the pass without the capsule pairs; a pose solved again with them
+            (:mod:`qpik.nlp.best`) goes through the search after the level sets.
         branches: public ids of the branches to search (None: all), e.g. the branch of the current configuration
             (:func:`qpik.redundancy_parameter`), which a continuous motion keeps unless it passes a singular
             configuration.
