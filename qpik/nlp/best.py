@@ -25,7 +25,7 @@ says so). Every other pose is solved again with the pairs as constraints, by the
 
 Statuses: ``"optimal"`` (the best point found; :attr:`~qpik.nlp.best_result.BestResult.certified`
 says whether it is proved global), ``"unreachable"`` (no branch reaches the pose at any parameter),
-``"no feasible branch"`` (reachable, but not inside the limits and clear of the obstacles),
+``"no feasible branch"`` (reachable, but not inside the limits and clear of the obstacles and of itself),
 ``"solver failed"`` (a numerical failure, or an answer that fails its own check at q: FK, limits,
 clearance, self-clearance; the reason in :attr:`~qpik.nlp.best_result.BestResult.message`).
 Every result's q is a finite configuration: for a status other than ``"optimal"`` it is the

@@ -130,12 +130,12 @@ class Scene:
         q = finite_array(q, "q", (None, self.robot.dof))
         return clearance(self.robot, q, self.obstacles)
 
-    @cached_property
+    @property
     def self_distances(self) -> RowMap:
         """The signed distances (P,) of the capsule pairs :attr:`self_pairs` at one configuration (n,), m
         (:attr:`~qpik.objectives.Context.self_distances`), compiled over rows on its first call (or
         :meth:`~qpik.native.compiled.RowMap.build`): ``self_distances(q)[0]`` is (M, P) for q (M, n); one map per
-        robot and pairs."""
+        robot and pairs, kept in the robot's cache (so the scene still pickles)."""
         return self.robot.cache.get(("self distances", self.self_pairs), _self_distance_map, self.robot,
                                     self.self_pairs)  # fmt: skip
 
