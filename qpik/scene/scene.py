@@ -18,7 +18,7 @@ from qpik.geometry.shapes import Shape
 from qpik.native.compiled import RowMap
 from qpik.objectives import Context, Objective, clearance, pair_count, resolve
 from qpik.robots.robot import Robot, as_robot
-from qpik.robots.self_pairs import Pair, candidate_pairs, checked_pairs
+from qpik.robots.self_pairs import Pair, candidate_pairs, checked_pairs, never_apart
 from qpik.scene.bounds import BoundFunction, bound_function
 from qpik.scene.evaluator import Evaluator
 
@@ -74,7 +74,9 @@ class Scene:
             q_ref: (n,) reference configuration, rad, or None.
             self_collision: keep the arm's own capsules ≥ d_safe apart: True (the default) for the pairs of
                 :func:`~qpik.robots.self_pairs.checked_pairs` (the non-adjacent pairs minus the default allowed
-                list), or the capsule pairs to keep apart (e.g. ``checked_pairs(robot, srdf=...)``); False: none.
+                list) less those never d_safe apart (:func:`~qpik.robots.self_pairs.never_apart`: every
+                configuration would violate them), or the capsule pairs to keep apart (e.g.
+                ``checked_pairs(robot, srdf=...)``); False: none.
                 On by default because an answer is a configuration sent to the arm, and a 7-DOF arm's best
                 configuration for a pose can fold two of its links into each other; see :attr:`self_pairs`.
         """
@@ -85,7 +87,7 @@ class Scene:
             q_ref = finite_array(q_ref, "q_ref", (robot.dof,)).copy()
             q_ref.flags.writeable = False
         return cls(robot, packed, d_safe, None if objective is None else resolve(objective), q_ref,
-                   _self_pairs(robot, self_collision))  # fmt: skip
+                   _self_pairs(robot, self_collision, d_safe))  # fmt: skip
 
     def __post_init__(self) -> None:
         if not isinstance(self.robot, Robot) or not isinstance(self.obstacles, ObstacleSet):
@@ -155,10 +157,14 @@ def _self_distance_map(robot: Robot, pairs: tuple[Pair, ...]) -> RowMap:
     return RowMap(ca.Function(f"self_distances_{robot.identifier}", [q], [ctx.self_distances]), chunks=(128, 16))
 
 
-def _self_pairs(robot: Robot, self_collision: bool | Sequence[Pair]) -> tuple[Pair, ...]:
-    """:attr:`Scene.self_pairs` from :meth:`Scene.of`'s ``self_collision`` (checked: candidate pairs only)."""
+def _self_pairs(robot: Robot, self_collision: bool | Sequence[Pair], d_safe: float) -> tuple[Pair, ...]:
+    """:attr:`Scene.self_pairs` from :meth:`Scene.of`'s ``self_collision`` (checked: candidate pairs only) and
+    ``d_safe`` (m)."""
     if isinstance(self_collision, (bool, np.bool_)):
-        return checked_pairs(robot) if self_collision else ()
+        if not self_collision:
+            return ()
+        never = never_apart(robot, d_safe)
+        return tuple(p for p in checked_pairs(robot) if p not in never)
     try:
         pairs = tuple(sorted({tuple(sorted((int(c), int(e)))) for c, e in self_collision}))
     except (TypeError, ValueError):

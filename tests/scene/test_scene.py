@@ -104,6 +104,17 @@ def test_self_collision_is_on_by_default_and_names_its_pairs():
             Scene.of(nammoto, self_collision=bad)
 
 
+def test_the_default_pairs_leave_out_those_never_d_safe_apart():
+    """With d_s = 0.4 m nammoto7's pairs whose distance never reaches it (seeded configurations, numpy's kernel) are
+    left out and the others kept; at d_s = 0 none is; at d_s = 1 m every one is."""
+    nammoto = qpik.load_robot("nammoto7")
+    pairs = checked_pairs(nammoto)
+    widest = pair_distances(nammoto, random_q(nammoto, 5000, 9), pairs).max(axis=0)
+    assert widest.min() < 0.4 < widest.max()
+    assert Scene.of(nammoto, d_safe=0.4).self_pairs == tuple(p for p, w in zip(pairs, widest) if w >= 0.4)
+    assert Scene.of(nammoto, d_safe=0.0).self_pairs == pairs and Scene.of(nammoto, d_safe=1.0).self_pairs == ()
+
+
 def test_the_evaluator_appends_the_capsule_pairs_with_their_exact_gradient():
     """The evaluator's clearances are the capsule–obstacle distances, then the scene's capsule pairs (the numpy
     kernel's values), and ∇ min d is their derivative (central differences) where a capsule pair is the nearest."""
