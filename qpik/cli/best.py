@@ -35,7 +35,13 @@ def register(sub: Subcommands) -> None:
     )
     p.add_argument("--problem", help="take the obstacles of this problem file (or shipped problem name)")
     p.add_argument(
-        "--d-safe", type=float, default=0.02, help="smallest capsule–obstacle distance allowed (m; default: 0.02)"
+        "--d-safe",
+        type=float,
+        default=0.02,
+        help="smallest capsule–obstacle distance allowed, and between the arm's own capsules (m; default: 0.02)",
+    )
+    p.add_argument(
+        "--no-self-collision", action="store_true", help="let the arm's own capsules come closer than --d-safe"
     )
     p.add_argument("--tol", type=float, default=1e-4, help="the certificate's relative tolerance (default: 1e-4)")
     p.add_argument("--no-certify", action="store_true", help="skip the certificate of global optimality")
@@ -68,7 +74,8 @@ def _run(args: argparse.Namespace) -> int:
         if s.size != 4:
             raise InputError(f"--sphere: expected x,y,z,radius (4 numbers), got {s.size}")
         obstacles.append(Sphere(s[:3], s[3]))
-    scene = Scene.of(robot, obstacles, d_safe=args.d_safe, objective=args.objective, q_ref=args.q_ref)
+    scene = Scene.of(robot, obstacles, d_safe=args.d_safe, objective=args.objective, q_ref=args.q_ref,
+                     self_collision=not args.no_self_collision)  # fmt: skip
     best = solve_best(scene, T, options=BestOptions(certify=not args.no_certify, tol=args.tol, method=args.method))
     p = np.array2string(T[:3, 3], precision=4)
     extra = f", {len(obstacles)} obstacle(s), d_s = {args.d_safe:g} m" if obstacles else ""

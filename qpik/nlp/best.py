@@ -11,14 +11,21 @@ derivatives (:mod:`qpik.nlp.selfmotion`). Every feasible interval of every branc
 ``method="ipopt"``, IPOPT from the middle of each interval, :mod:`qpik.nlp.ipopt`), and the
 answer is checked for global optimality (:mod:`qpik.nlp.certificate`). The plain joint-limit
 margin without obstacles has a faster exact method, which finds and proves its maximum with the
-feasible intervals under shrunk limits (:mod:`qpik.nlp.levelset`; not with self-collision, whose constraint it does
-not see); a pose it leaves unproved goes
+feasible intervals under shrunk limits (:mod:`qpik.nlp.levelset`); a pose it leaves unproved goes
 through the search and the certificate. In its per-branch table a branch's row holds the best point
 evaluated on that branch, which is the branch's own optimum only for the best branch.
 
+Self-collision (on by default, :meth:`Scene.of <qpik.scene.Scene.of>`'s ``self_collision``) is solved in two
+passes. The poses are first solved without the capsule pairs, by the methods above (the level sets included,
+which do not see them); an optimal answer whose pairs are all ≥ d_safe apart is kept as it is: adding a constraint
+that it meets can only remove points, none better, so it stays optimal and its certificate stands
+(:attr:`~qpik.nlp.best_result.BestResult.self_collision` ``"clear"``; a row of its table whose point comes closer
+says so). Every other pose is solved again with the pairs as constraints, by the search (or IPOPT when asked),
+``"re-solved"``.
+
 Statuses: ``"optimal"`` (the best point found; :attr:`~qpik.nlp.best_result.BestResult.certified`
 says whether it is proved global), ``"unreachable"`` (no branch reaches the pose at any parameter),
-``"no feasible branch"`` (reachable, but not inside the limits and clear of the obstacles),
+``"no feasible branch"`` (reachable, but not inside the limits and clear of the obstacles and of itself),
 ``"solver failed"`` (a numerical failure, or an answer that fails its own check at q: FK, limits,
 clearance, self-clearance; the reason in :attr:`~qpik.nlp.best_result.BestResult.message`).
 Every result's q is a finite configuration: for a status other than ``"optimal"`` it is the
@@ -31,10 +38,14 @@ from __future__ import annotations
 
 import math
 import operator
+from collections.abc import Callable
+from dataclasses import replace
+from functools import partial
 
 import numpy as np
 
 from qpik.core.errors import InputError, NoClosedFormError
+from qpik.core.stopwatch import Stopwatch
 from qpik.core.validate import finite_array, flag, number
 from qpik.core.validate import pose as check_pose
 from qpik.nlp.best_result import BestResult, BestResults
@@ -122,28 +133,72 @@ def solve_best(
     if not isinstance(method, str) or method not in METHODS:
         raise InputError(f"method: expected one of {list(METHODS)}, got {method!r}")
     sm = selfmotion_of(robot)
-    weight = None if problem.self_pairs else margin_weight(obj, obs, sm)
+    weight = margin_weight(obj, obs, sm)
     if method == "levelset" and weight is None:
-        raise InputError("method: 'levelset' solves the margin objective alone, without obstacles or self-collision")
+        raise InputError("method: 'levelset' solves the margin objective alone, without obstacles")
     if method == "auto":
         method = "levelset" if weight is not None and sm.solver.closed_form_sets else "search"
     rows = _rows(sm, branches)
     if not len(T):
         return BestResults([], n)
     with sm.solver.lock:  # the arm's compiled functions evaluate in buffers of their own: one thread at a time
-        scene = BestRun(problem, sm, T, ref)
-        try:
-            results = solve_poses(scene, certify, tol, method, rows, weight)
-        except (RuntimeError, FloatingPointError, np.linalg.LinAlgError) as exc:  # a numerical failure: a status
-            why = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
-            results = [least_violating(scene, i, None, "solver failed", why) for i in range(len(T))]
-    elapsed = scene.watch.stop() / len(T)  # the clock stops while functions are built (BestRun.build_search)
+        run = BestRun(problem.replace(self_collision=False) if problem.self_pairs else problem, sm, T, ref)
+        results = _solve(run, certify, tol, method, rows, weight)
+        elapsed = run.watch.stop()  # the clock stops while functions are built (BestRun.build_search)
+        if problem.self_pairs:
+            again = "search" if method == "levelset" else method
+            elapsed += _self_pass(problem, results, run, partial(_solve, certify=certify, tol=tol, method=again,
+                                                                 rows=rows, weight=None))  # fmt: skip
+    elapsed /= len(T)
     quantity = obj.quantity
     for r, Tk in zip(results, T):
         _verify(problem, Tk, r)
     for r in results:
         r.time, r.quantity = elapsed, quantity
     return BestResults(results, n) if batched else results[0]
+
+
+def _solve(
+    run: BestRun, certify: bool, tol: float, method: str, rows: list[int], weight: float | None
+) -> list[BestResult]:
+    """The results of :func:`~qpik.nlp.best_search.solve_poses` for the poses of ``run``, a numerical failure
+    ``"solver failed"`` for each."""
+    try:
+        return solve_poses(run, certify, tol, method, rows, weight)
+    except (RuntimeError, FloatingPointError, np.linalg.LinAlgError) as exc:  # a numerical failure: a status
+        why = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+        return [least_violating(run, i, None, "solver failed", why) for i in range(len(run.poses))]
+
+
+def _self_pass(
+    scene: Scene, results: list[BestResult], first: BestRun, solve: Callable[[BestRun], list[BestResult]]
+) -> float:
+    """The second pass of self-collision (module docstring) over ``results``, solved by ``first`` without the
+    capsule pairs of ``scene``: the optimal answers whose pairs are ≥ d_safe apart are kept (their clearance and
+    their table's rows measured), the other poses solved again by ``solve`` with the pairs and replaced. Returns its
+    seconds (compiles not counted)."""
+    watch = Stopwatch()
+    with watch.paused():
+        scene.self_distances.build()
+    sm = first.selfmotion
+    kept = [i for i, r in enumerate(results) if r.status == "optimal"]
+    Q = np.concatenate([results[i].rows.q for i in kept]) if kept else np.zeros((0, sm.robot.dof))
+    d = scene.self_clearance(Q).reshape(len(kept), sm.searched)
+    redo = np.ones(len(results), bool)
+    for i, d_rows in zip(kept, d):
+        r = results[i]
+        best = r.rows.f.index(min(r.rows.f))
+        if d_rows[best] >= scene.d_safe:
+            r.self_collision, r.clearance, redo[i] = "clear", min(r.clearance, float(d_rows[best])), False
+            r.rows = replace(r.rows, collides=[f < math.inf and di < scene.d_safe for f, di in zip(r.rows.f, d_rows)])
+    seconds = watch.stop()
+    if redo.any():
+        run = BestRun(scene, sm, first.poses[redo], first.q_ref[redo])
+        run.counts += first.counts[redo]  # a branch's evaluations: both passes'
+        for i, r in zip(np.flatnonzero(redo).tolist(), solve(run)):
+            r.self_collision, results[i] = "re-solved", r
+        seconds += run.watch.stop()
+    return seconds
 
 
 def _verify(scene: Scene, T: np.ndarray, r: BestResult) -> None:

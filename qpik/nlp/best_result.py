@@ -34,6 +34,9 @@ class BranchOptimum:
         rounds: polish rounds (iterations) of its best local minimum.
         evaluations: objective evaluations spent on the branch.
         time: its share of the pose's solve time (by evaluations), s.
+        self_collides: its point brings two of the scene's capsule pairs closer than d_s: the row is the branch's
+            best without them (the answer's pass without them, :mod:`qpik.nlp.best`), a lower bound of its
+            objective with them, which was not searched.
     """
 
     branch: int
@@ -45,13 +48,15 @@ class BranchOptimum:
     rounds: int = 0
     evaluations: int = 0
     time: float = 0.0
+    self_collides: bool = False
 
 
 @dataclass(frozen=True, eq=False)
 class BranchRows:
     """What one pose's per-branch table is built from: the best point found per searched row, f (R,) (+inf where
     none), ψ (R,), q (R, n), its rounds (R,) and the evaluations per row (R,); ``columns`` the table's branches, per
-    branch (public id, its searched row, its shift (None: its own row), whether it was searched)."""
+    branch (public id, its searched row, its shift (None: its own row), whether it was searched); ``collides`` (R,)
+    whether a row's point brings the scene's capsule pairs closer than d_s (None: no row does)."""
 
     columns: list[tuple[int, int, float | None, bool]]
     f: list[float]
@@ -59,6 +64,7 @@ class BranchRows:
     q: np.ndarray
     rounds: list[int]
     counts: list[int]
+    collides: list[bool] | None = None
 
     def table(self, time: float) -> list[BranchOptimum]:
         """The rows, a branch's time its share (by evaluations) of the pose's ``time`` (s); plain floats, which
@@ -70,8 +76,9 @@ class BranchRows:
             ok = f[r] < math.inf
             param = (psi[r] if shift is None else float(wrap(psi[r] - shift))) if ok else None
             evals = counts[r] if shift is None else 0
+            collides = bool(self.collides and self.collides[r])
             out.append(BranchOptimum(bid, done, ok, param, f[r], q[r] if ok else None,
-                                     self.rounds[r] if shift is None else 0, evals, evals * per))  # fmt: skip
+                                     self.rounds[r] if shift is None else 0, evals, evals * per, collides))  # fmt: skip
         return out
 
 
@@ -98,6 +105,10 @@ class BestResult:
         message: why it is not certified, or what failed ("" otherwise).
         method: what found the answer: ``"levelset"`` (then a row of :attr:`branches` other than the best
             holds the best point evaluated on its branch, not the branch's optimum), ``"search"`` or ``"ipopt"``.
+        self_collision: how the scene's capsule pairs (:attr:`~qpik.scene.Scene.self_pairs`) were kept ≥ d_s apart
+            (:mod:`qpik.nlp.best`): ``"off"`` (the scene has none), ``"clear"`` (the answer solved without them
+            keeps them apart, so it is the answer with them), ``"re-solved"`` (the pose was solved again with them
+            as constraints: its answer without them came closer, or was not optimal).
         time: seconds of the solve, without building or compiling its functions (done before the clock starts;
             a batch: the solve's time divided by the number of poses).
         rows: what :attr:`branches` is built from (None: an empty table).
@@ -117,6 +128,7 @@ class BestResult:
     message: str = ""
     time: float = 0.0
     method: str = "search"
+    self_collision: str = "off"
     rows: BranchRows | None = field(default=None, repr=False)
     quantity: Quantity = field(default_factory=lambda: Quantity("objective"), repr=False)
 
@@ -146,11 +158,16 @@ class BestResult:
             shown = self.quantity.value(r.objective)
             val = f"{r.param:11.6f} {shown:{w}.8g}" if r.feasible else f"{'—':>11} {'—':>{w}}"
             feasible = ("yes" if r.feasible else "no") if r.searched else "skipped"
+            mark += " self-collides" if r.self_collides else ""
             lines.append(
                 f"{r.branch:>6} {feasible:>8} {val} {r.rounds:>6} {r.evaluations:>6} {r.time * 1e6:9.1f}{mark}"
             )
         if self.method == "levelset":
             lines.append("(level sets: a row other than the best holds the best point evaluated on its branch)")
+        if any(r.self_collides for r in self.branches):
+            lines.append("(self-collides: the branch's best point without the capsule pairs, closer than d_s there)")
+        if self.self_collision == "re-solved":
+            lines.append("(self-collision: solved again with the capsule pairs as constraints)")
         return "\n".join(lines)
 
     def summary(self) -> str:
@@ -167,6 +184,7 @@ class BestResult:
             return f"{self.status}: {self.message}"
         cert = f"certified (gap {self.gap:.2g})" if self.certified else f"not certified ({self.message})"
         value = self.quantity.text(self.objective, ".10g")
+        cert += ", re-solved with the capsule pairs" if self.self_collision == "re-solved" else ""
         return f"best: branch {self.branch}, {sym} = {self.param:.6f} rad, {value}, {self.quantity.sense}, {cert}"
 
 
@@ -215,3 +233,8 @@ class BestResults:
     @property
     def certified(self) -> np.ndarray:
         return np.array([r.certified for r in self.results])
+
+    @property
+    def self_collision(self) -> np.ndarray:
+        """(N,) :attr:`BestResult.self_collision` per pose."""
+        return np.array([r.self_collision for r in self.results])

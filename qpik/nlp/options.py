@@ -29,7 +29,8 @@ class BestOptions:
             margin objective without obstacles only), ``"search"`` (sampling and polish), ``"ipopt"`` (IPOPT from
             every interval), or ``"auto"``: ``"levelset"`` where it applies and the arm's feasible sets are in
             closed form (:attr:`~qpik.analytic.solver.AnalyticSolver.closed_form_sets`: S-R-S ψ, offset shoulder
-            δ), else ``"search"``.
+            δ), else ``"search"``. With self-collision, the method of the pass without the capsule pairs; a pose
+            solved again with them (:mod:`qpik.nlp.best`) goes through the search after the level sets.
         branches: public ids of the branches to search (None: all), e.g. the branch of the current configuration
             (:func:`qpik.redundancy_parameter`), which a continuous motion keeps unless it passes a singular
             configuration.

@@ -120,6 +120,14 @@ def default_allowed(robot: Robot, samples: int = SAMPLES, seed: int = 0, margin:
     return robot.cache.get(("self-collision allowed", samples, seed, margin), _allowed, robot, samples, seed, margin)
 
 
+def never_apart(robot: Robot, d_safe: float, samples: int = SAMPLES, seed: int = 0) -> frozenset[Pair]:
+    """The candidate pairs closer than ``d_safe`` (m) at every one of ``samples`` seeded configurations: MoveIt's
+    "always in collision" at the clearance d_safe (capsules fitted to meshes wrap a link around its neighbour's
+    neighbour), which no configuration keeps d_safe apart (the samples of :func:`default_allowed`)."""
+    d = robot.cache.get(("self-collision samples", samples, seed), _sampled, robot, samples, seed)
+    return frozenset(p for p, a in zip(candidate_pairs(robot), np.all(d < d_safe, axis=0)) if a)
+
+
 def always_in_collision(robot: Robot, samples: int = SAMPLES, seed: int = 0) -> frozenset[Pair]:
     """The candidate pairs in collision (d < 0) at every one of ``samples`` seeded configurations: capsules that
     overlap where a link's shape wraps its neighbour's; no controller can keep them apart (``robot.cache``)."""

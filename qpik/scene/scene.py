@@ -8,15 +8,17 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
+import casadi as ca
 import numpy as np
 
 from qpik.core.errors import InputError
 from qpik.core.validate import finite_array, number
 from qpik.geometry.distance import ObstacleSet
 from qpik.geometry.shapes import Shape
-from qpik.objectives import Objective, clearance, pair_count, resolve
+from qpik.native.compiled import RowMap
+from qpik.objectives import Context, Objective, clearance, pair_count, resolve
 from qpik.robots.robot import Robot, as_robot
-from qpik.robots.self_pairs import Pair, candidate_pairs, checked_pairs, pair_distances
+from qpik.robots.self_pairs import Pair, candidate_pairs, checked_pairs, never_apart
 from qpik.scene.bounds import BoundFunction, bound_function
 from qpik.scene.evaluator import Evaluator
 
@@ -38,7 +40,8 @@ class Scene:
         q_ref: (n,) the reference configuration of a :class:`~qpik.objectives.ReferenceDistance` term and of
             the controller's posture task, rad (None: the arm's home configuration).
         self_pairs: the pairs ``(c, e)`` of the arm's own capsules (indices of ``robot.capsules``) kept ≥ d_safe
-            apart (:func:`~qpik.robots.self_pairs.checked_pairs`); () when self-collision is not checked.
+            apart (:func:`~qpik.robots.self_pairs.checked_pairs`, by default); () when self-collision is turned
+            off.
     """
 
     robot: Robot
@@ -57,7 +60,7 @@ class Scene:
         d_safe: float = 0.02,
         objective: Objective | str | None = None,
         q_ref: np.ndarray | None = None,
-        self_collision: bool | Sequence[Pair] = False,
+        self_collision: bool | Sequence[Pair] = True,
     ) -> Scene:
         """The scene of ``robot`` with the arguments checked (:class:`~qpik.core.errors.InputError` naming the one that
         is not right) and the obstacles packed.
@@ -69,11 +72,13 @@ class Scene:
             objective: an :class:`~qpik.objectives.Objective`, a name of :data:`qpik.objectives.NAMES`, or None
                 (none: each solver's own default, e.g. the joint-limit margin for :func:`qpik.solve_best`).
             q_ref: (n,) reference configuration, rad, or None.
-            self_collision: keep the arm's own capsules ≥ d_safe apart: True for the pairs of
+            self_collision: keep the arm's own capsules ≥ d_safe apart: True (the default) for the pairs of
                 :func:`~qpik.robots.self_pairs.checked_pairs` (the non-adjacent pairs minus the default allowed
-                list), or the capsule pairs to keep apart (e.g. ``checked_pairs(robot, srdf=...)``); False: none.
-                Off by default: the solvers' exact methods without constraints (the level sets of the margin)
-                and every answer computed without it keep their meaning; see :attr:`self_pairs`.
+                list) less those never d_safe apart (:func:`~qpik.robots.self_pairs.never_apart`: every
+                configuration would violate them), or the capsule pairs to keep apart (e.g.
+                ``checked_pairs(robot, srdf=...)``); False: none.
+                On by default because an answer is a configuration sent to the arm, and a 7-DOF arm's best
+                configuration for a pose can fold two of its links into each other; see :attr:`self_pairs`.
         """
         robot = as_robot(robot)
         packed = obstacles if isinstance(obstacles, ObstacleSet) else ObstacleSet(obstacles)
@@ -82,7 +87,7 @@ class Scene:
             q_ref = finite_array(q_ref, "q_ref", (robot.dof,)).copy()
             q_ref.flags.writeable = False
         return cls(robot, packed, d_safe, None if objective is None else resolve(objective), q_ref,
-                   _self_pairs(robot, self_collision))  # fmt: skip
+                   _self_pairs(robot, self_collision, d_safe))  # fmt: skip
 
     def __post_init__(self) -> None:
         if not isinstance(self.robot, Robot) or not isinstance(self.obstacles, ObstacleSet):
@@ -127,19 +132,39 @@ class Scene:
         q = finite_array(q, "q", (None, self.robot.dof))
         return clearance(self.robot, q, self.obstacles)
 
+    @property
+    def self_distances(self) -> RowMap:
+        """The signed distances (P,) of the capsule pairs :attr:`self_pairs` at one configuration (n,), m
+        (:attr:`~qpik.objectives.Context.self_distances`), compiled over rows on its first call (or
+        :meth:`~qpik.native.compiled.RowMap.build`): ``self_distances(q)[0]`` is (M, P) for q (M, n); one map per
+        robot and pairs, kept in the robot's cache (so the scene still pickles)."""
+        return self.robot.cache.get(("self distances", self.self_pairs), _self_distance_map, self.robot,
+                                    self.self_pairs)  # fmt: skip
+
     def self_clearance(self, q: np.ndarray) -> np.ndarray:
         """(M,) the smallest distance of the capsule pairs :attr:`self_pairs` at configurations q (M, n), m
-        (:func:`~qpik.robots.self_pairs.pair_distances`); inf without any."""
+        (:attr:`self_distances`); inf without any."""
         q = finite_array(q, "q", (None, self.robot.dof))
-        if not self.self_pairs:
+        if not self.self_pairs or not len(q):
             return np.full(len(q), np.inf)
-        return pair_distances(self.robot, q, self.self_pairs).min(axis=1)
+        return self.self_distances(q)[0].min(axis=1)
 
 
-def _self_pairs(robot: Robot, self_collision: bool | Sequence[Pair]) -> tuple[Pair, ...]:
-    """:attr:`Scene.self_pairs` from :meth:`Scene.of`'s ``self_collision`` (checked: candidate pairs only)."""
+def _self_distance_map(robot: Robot, pairs: tuple[Pair, ...]) -> RowMap:
+    """:attr:`Scene.self_distances` of ``robot``'s capsule ``pairs``."""
+    q = ca.SX.sym("q", robot.dof)
+    ctx = Context(robot, q, q, ObstacleSet(()), ca.SX(0, 1), self_pairs=pairs)
+    return RowMap(ca.Function(f"self_distances_{robot.identifier}", [q], [ctx.self_distances]), chunks=(128, 16))
+
+
+def _self_pairs(robot: Robot, self_collision: bool | Sequence[Pair], d_safe: float) -> tuple[Pair, ...]:
+    """:attr:`Scene.self_pairs` from :meth:`Scene.of`'s ``self_collision`` (checked: candidate pairs only) and
+    ``d_safe`` (m)."""
     if isinstance(self_collision, (bool, np.bool_)):
-        return checked_pairs(robot) if self_collision else ()
+        if not self_collision:
+            return ()
+        never = never_apart(robot, d_safe)
+        return tuple(p for p in checked_pairs(robot) if p not in never)
     try:
         pairs = tuple(sorted({tuple(sorted((int(c), int(e)))) for c, e in self_collision}))
     except (TypeError, ValueError):

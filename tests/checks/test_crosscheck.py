@@ -36,11 +36,11 @@ def test_three_way_agreement(name, objective, obstacles):
 
 
 def test_three_way_agreement_with_self_collision_active():
-    """nammoto7, the smooth margin with self-collision, on seeded poses whose answer without it brings the arm's
-    capsules closer than d_s: (b)'s NLP and (c)'s self-collision dampers confirm (a), with the capsule-pair
+    """nammoto7, the smooth margin with self-collision (the default), on seeded poses whose answer without it brings
+    the arm's capsules closer than d_s: (b)'s NLP and (c)'s self-collision dampers confirm (a), with the capsule-pair
     constraint active (at d_s) on some of them."""
     robot = qpik.load_robot("nammoto7")
-    plain = qpik.Scene.of(robot, d_safe=0.02, objective="smooth-margin")
+    plain = qpik.Scene.of(robot, d_safe=0.02, objective="smooth-margin", self_collision=False)
     safe = plain.replace(self_collision=True)
     T = robot.fk(random_q(robot, 60, 3))
     res = qpik.solve_best(plain, T, options=BestOptions(certify=False))

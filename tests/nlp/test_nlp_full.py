@@ -20,16 +20,21 @@ from qpik.geometry import Sphere, distances
 from qpik.nlp import solve_best, solve_full
 from qpik.nlp.full import REACHED
 from qpik.nlp.options import BestOptions, FullOptions
+from qpik.scene import Scene
 
 
 @pytest.mark.parametrize("name", ["zheng7", "panda"])
 def test_reaches_every_seeded_pose(name):
-    """The issue asks ≥ 99.9 %; on this seeded set of 150 poses that means all of them."""
+    """The issue asks ≥ 99.9 %; on this seeded set of 150 poses that means all of them. Reach over the limits alone,
+    self-collision off: a pose whose every configuration brings two capsules closer than d_s has no answer with it,
+    and zheng7's capsules of links 3 and 5 are never more than 21 mm apart, so at d_s = 2 cm its clear
+    configurations are a sliver."""
     robot = qpik.load_robot(name)
+    scene = Scene.of(robot, self_collision=False)
     T = robot.fk(random_q(robot, 150, 21))
     starts = random_q(robot, 150, 22)
     for k in range(len(T)):
-        res = solve_full(robot, T[k], options=FullOptions(q0=starts[k], seed=k))
+        res = solve_full(scene, T[k], options=FullOptions(q0=starts[k], seed=k))
         assert res.status == "optimal", (k, res.message)
         assert np.linalg.norm(pose_error(T[k], robot.fk(res.q))) < REACHED
         assert robot.within_limits(res.q)
@@ -46,7 +51,9 @@ def test_objective_and_obstacles(name):
         np.testing.assert_allclose(robot.fk(res.q), T[k], atol=1e-9)
         moving = ~robot.fixed_capsules  # the clearance of the capsules a joint moves
         d = distances(robot.capsule_segments(res.q)[moving], robot.capsule_radii[moving], ball).d
-        assert d.min() >= 0.02 - 1e-8 and res.clearance == pytest.approx(d.min(), abs=1e-12)
+        own = Scene.of(robot).self_clearance(res.q[None])[0]  # the arm's own capsule pairs, kept by default
+        assert d.min() >= 0.02 - 1e-8 and own >= 0.02 - 1e-8
+        assert res.clearance == pytest.approx(min(d.min(), own), abs=1e-12)
         assert res.kkt <= 1e-8
 
 

@@ -2,7 +2,8 @@
 certificate, against dense sampling, and against the super-level sets themselves.
 
 The 500-pose comparison with dense sampling of tests/nlp/test_nlp_best.py runs through this method too (the default
-for the margin)."""
+for the margin, then the search for the poses whose answer comes too close to itself). Here the arms' scenes are
+without self-collision (:func:`_plain`): the level sets' own problem, the margin over the limits alone."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from qpik.nlp import levelset, solve_best
 from qpik.nlp.options import BestOptions
 from qpik.nlp.selfmotion import selfmotion_of
 from qpik.objectives import JointLimitMargin
+from qpik.scene import Scene
 
 ARMS = ("iiwa14", "nammoto7")
 
@@ -25,6 +27,10 @@ ARMS = ("iiwa14", "nammoto7")
 def _margin(robot, q):
     half = 0.5 * (robot.q_max - robot.q_min)
     return np.minimum((q - robot.q_min) / half, (robot.q_max - q) / half).min(axis=-1)
+
+
+def _plain(robot, objective=None):
+    return Scene.of(robot, objective=objective, self_collision=False)
 
 
 def _poses(robot, n, seed):
@@ -37,8 +43,8 @@ def test_levelset_meets_the_search_and_its_certificate(name):
     search's certified lower bound, and prove it on nearly every pose with the gap ε."""
     robot = qpik.load_robot(name)
     T = _poses(robot, 60, 5)
-    fast = solve_best(robot, T, options=BestOptions(method="levelset"))
-    slow = solve_best(robot, T, options=BestOptions(method="search"))
+    fast = solve_best(_plain(robot), T, options=BestOptions(method="levelset"))
+    slow = solve_best(_plain(robot), T, options=BestOptions(method="search"))
     for k, (a, b) in enumerate(zip(fast, slow)):
         assert a.status == b.status == "optimal", (k, a.summary(), b.summary())
         assert a.objective <= b.objective + 1e-8, (k, a.objective, b.objective)
@@ -58,7 +64,7 @@ def test_the_answer_tops_its_super_level_set(name):
     robot = qpik.load_robot(name)
     solver = closed_form_for(robot)
     T = _poses(robot, 25, 6)
-    for k, res in enumerate(solve_best(robot, T)):
+    for k, res in enumerate(solve_best(_plain(robot), T)):
         mu = -res.objective
         above = solver.feasible_intervals(T[k], margin=mu + 1e-7)
         assert not any(above.intervals), (k, mu)
@@ -73,7 +79,7 @@ def test_poses_the_level_sets_leave_go_to_the_search(monkeypatch):
     robot = qpik.load_robot("nammoto7")
     solver = closed_form_for(robot)
     T = _poses(robot, 12, 7)
-    results = solve_best(robot, T, options=BestOptions(method="levelset"))
+    results = solve_best(_plain(robot), T, options=BestOptions(method="levelset"))
     psi = np.linspace(-np.pi, np.pi, 3000, endpoint=False)
     for k, res in enumerate(results):
         sol = solver.solve_batch(np.repeat(T[k : k + 1], len(psi), axis=0), psi)
@@ -88,8 +94,8 @@ def test_weight_and_methods():
     solve; "auto" picks them for the margin alone."""
     robot = qpik.load_robot("iiwa14")
     T = _poses(robot, 1, 8)[0]
-    one = solve_best(robot, T)
-    three = solve_best(robot, T, 3.0 * JointLimitMargin(), options=BestOptions(method="levelset"))
+    one = solve_best(_plain(robot), T)
+    three = solve_best(_plain(robot, 3.0 * JointLimitMargin()), T, options=BestOptions(method="levelset"))
     assert three.objective == pytest.approx(3.0 * one.objective, abs=1e-12)
     np.testing.assert_allclose(three.q, one.q, atol=1e-9)
     assert three.gap == pytest.approx(3.0 * levelset.EPS, rel=1e-6)
@@ -113,9 +119,9 @@ def test_the_c_rounds_give_the_python_rounds_answers(name, monkeypatch):
     if levelset._native(selfmotion_of(robot)) is None:
         pytest.skip(f"no C rounds for {name} here (no compiler, or no native feasible sets)")
     T = _poses(robot, 40, 9)
-    fast = solve_best(robot, T)
+    fast = solve_best(_plain(robot), T)
     monkeypatch.setattr(levelset, "_native", lambda selfmotion: None)
-    slow = solve_best(robot, T)
+    slow = solve_best(_plain(robot), T)
     np.testing.assert_allclose(fast.objective, slow.objective, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(fast.certified, slow.certified)
     for res in (fast, slow):  # each answer has the optimal margin

@@ -1,4 +1,4 @@
-"""qpik.plan_self_motion with self-collision (``Scene.of(..., self_collision=True)``) on seeded short paths of
+"""qpik.plan_self_motion with self-collision (on by default; ``self_collision=False`` turns it off) on seeded paths of
 nammoto7 whose plan without it brings the arm's own capsules closer than d_s (2 paths by default, 8 with
 ``QPIK_TESTS_LARGE=1``): with it, every waypoint of the plan, and of the DP's plan it was refined from, keeps
 the checked capsule pairs ≥ d_s apart, measured by MuJoCo on the arm's twin (:mod:`self_clearance`)."""
@@ -46,7 +46,7 @@ def _colliding_paths(plain, count, seed, tries=400):
 @pytest.fixture(scope="module")
 def colliding():
     """nammoto7's margin without obstacles: the scene and its :data:`PATHS` seeded colliding paths and plans."""
-    plain = Scene.of(qpik.load_robot("nammoto7"), d_safe=D_SAFE, objective="margin")
+    plain = Scene.of(qpik.load_robot("nammoto7"), d_safe=D_SAFE, objective="margin", self_collision=False)
     return plain, _colliding_paths(plain, PATHS, 7)
 
 

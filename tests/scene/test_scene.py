@@ -90,9 +90,10 @@ def test_the_solvers_take_the_scene_or_its_pieces_never_both():
             qpik.solve_best(scene, pose, **{name: value})
 
 
-def test_self_collision_is_off_by_default_and_names_its_pairs():
+def test_self_collision_is_on_by_default_and_names_its_pairs():
     nammoto = qpik.load_robot("nammoto7")
-    assert Scene.of(nammoto).self_pairs == ()
+    assert Scene.of(nammoto).self_pairs == checked_pairs(nammoto) and Scene.of(nammoto).self_pairs
+    assert Scene.of(nammoto, self_collision=False).self_pairs == ()
     scene = Scene.of(nammoto, self_collision=True)
     assert scene.self_pairs == checked_pairs(nammoto) and scene.self_pairs
     assert scene.replace(d_safe=0.05).self_pairs == scene.self_pairs
@@ -101,6 +102,17 @@ def test_self_collision_is_off_by_default_and_names_its_pairs():
     for bad in ([(0, 1)], [(0, 9)], "pairs", [1, 2]):  # adjacent links, no such capsule, not pairs
         with pytest.raises(InputError, match="self_collision"):
             Scene.of(nammoto, self_collision=bad)
+
+
+def test_the_default_pairs_leave_out_those_never_d_safe_apart():
+    """With d_s = 0.4 m nammoto7's pairs whose distance never reaches it (seeded configurations, numpy's kernel) are
+    left out and the others kept; at d_s = 0 none is; at d_s = 1 m every one is."""
+    nammoto = qpik.load_robot("nammoto7")
+    pairs = checked_pairs(nammoto)
+    widest = pair_distances(nammoto, random_q(nammoto, 5000, 9), pairs).max(axis=0)
+    assert widest.min() < 0.4 < widest.max()
+    assert Scene.of(nammoto, d_safe=0.4).self_pairs == tuple(p for p, w in zip(pairs, widest) if w >= 0.4)
+    assert Scene.of(nammoto, d_safe=0.0).self_pairs == pairs and Scene.of(nammoto, d_safe=1.0).self_pairs == ()
 
 
 def test_the_evaluator_appends_the_capsule_pairs_with_their_exact_gradient():
@@ -114,6 +126,8 @@ def test_the_evaluator_appends_the_capsule_pairs_with_their_exact_gradient():
     np.testing.assert_allclose(d[:, n_obs:], pair_distances(nammoto, q, scene.self_pairs), atol=1e-12)
     np.testing.assert_allclose(d[:, :n_obs].min(axis=1), scene.clearance(q), atol=1e-12)
     np.testing.assert_allclose(d[:, n_obs:].min(axis=1), scene.self_clearance(q), atol=1e-12)
+    np.testing.assert_allclose(scene.self_distances(q)[0], pair_distances(nammoto, q, scene.self_pairs), atol=1e-12)
+    assert scene.replace(self_collision=False).self_clearance(q).min() == np.inf
     gaps = np.sort(d, axis=1)
     clear = np.flatnonzero((d.argmin(axis=1) >= n_obs) & (gaps[:, 1] - gaps[:, 0] > 1e-3) & (d.min(axis=1) > 1e-3))
     assert len(clear) >= 20
