@@ -26,8 +26,8 @@ def run_all(out: Path, only: list[str] | None = None) -> None:
     cache, cc = cache_dir(), compiler()
     if cc and not any(cache.glob("*.so")):
         print(
-            f"first run: qpik compiles its functions with {cc} as they are first used (about 5 min on"
-            f" 2 cores), cached in {cache}; later runs take about half a minute"
+            f"first run: qpik compiles its functions with {cc} as they are first used (the whole tour takes"
+            f" about a minute and a half on 2 cores), cached in {cache}; later runs skip the compiles"
         )
     reason = unavailable_reason()
     if reason:
