@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import LARGE
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -37,9 +38,10 @@ IIWA, NAMMOTO, PANDA = (qpik.load_robot(n) for n in ("iiwa14", "nammoto7", "pand
 ROBOTS = tuple(qpik.load_robot(n) for n in qpik.CATALOG)
 STATUSES = {"ok", "recovering", "penetrating", "yielding", "failed"}
 FUZZ = settings(
-    max_examples=80, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow], database=None
+    max_examples=200 if LARGE else 40, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow],
+    database=None,
 )
-FEW = settings(FUZZ, max_examples=15)
+FEW = settings(FUZZ, max_examples=30 if LARGE else 8)
 """For the calls that solve several problems each (:data:`SLOW_CASES`)."""
 
 # ---- bad values -------------------------------------------------------------------------
