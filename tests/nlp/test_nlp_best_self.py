@@ -232,7 +232,7 @@ def test_panda_without_self_collision_keeps_the_unconstrained_answer(panda):
     safe, T = panda
     robot, plain = safe.robot, safe.replace(self_collision=False)
     assert plain.self_pairs == ()
-    res = qpik.solve_best(plain, T[0])
+    res = qpik.solve_best(plain, T[0], options=BestOptions(method="levelset"))  # "auto" searches on the Panda
     assert res.self_collision == "off" and res.method == "levelset"
     q, ok = _feasible(plain, T[0])
     assert res.objective <= _margin(robot, q[ok]).min() + 1e-8
