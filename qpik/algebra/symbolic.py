@@ -184,6 +184,25 @@ def matmul(A: Mat, B: Mat) -> Mat:
     return tuple(tuple(dot(A[i], Bt[j]) for j in range(3)) for i in range(3))  # type: ignore[return-value]
 
 
+def solve_spd(A: list[list[Scalar]], b: list[Scalar]) -> list[Scalar]:
+    r"""x with :math:`A x = b` for a symmetric positive definite A (m × m, its lower triangle read; rows of scalars)
+    and b (m scalars), by :math:`A = L D L^T` (no square root, no pivoting)."""
+    n = len(b)
+    L: list[list[Scalar]] = [[0.0] * n for _ in range(n)]
+    d: list[Scalar] = [0.0] * n
+    for j in range(n):
+        d[j] = A[j][j] - sum((L[j][k] * L[j][k] * d[k] for k in range(j)), 0.0)
+        for i in range(j + 1, n):
+            L[i][j] = (A[i][j] - sum((L[i][k] * L[j][k] * d[k] for k in range(j)), 0.0)) / d[j]
+    y: list[Scalar] = [0.0] * n
+    for i in range(n):
+        y[i] = b[i] - sum((L[i][k] * y[k] for k in range(i)), 0.0)
+    x: list[Scalar] = [0.0] * n
+    for i in reversed(range(n)):
+        x[i] = y[i] / d[i] - sum((L[k][i] * x[k] for k in range(i + 1, n)), 0.0)
+    return x
+
+
 Frame = tuple[Mat, Vec]
 
 

@@ -8,13 +8,14 @@ file's own chain by about that deviation (µm, µrad). :func:`polish` removes it
 .. math:: (J^T J + \lambda I)\,\Delta q = J^T e,\qquad
           e = \begin{pmatrix} p^* - p(q) \\ \tfrac12\,\mathrm{vee}\big(R^* R(q)^T - R(q) R^{*T}\big) \end{pmatrix},
 
-with J the geometric Jacobian's columns 1-6 (base frame, ``[v; ω]`` of the end-effector origin) and
-:math:`\lambda` = :data:`DAMPING` (Levenberg 1944: the step stays bounded where J is singular; elsewhere it changes
-the step by a relative :math:`\lambda/\sigma_{\min}^2`). The linear system is solved by :math:`LDL^T` (symmetric
-positive definite: no pivoting), so that the steps are written once against :mod:`qpik.algebra.symbolic` and run
-on numpy batches and CasADi symbols alike. Newton converges quadratically from a start within about the deviation:
-:data:`STEPS` steps take a 1e-4 error to round-off. The residual after the last step (the largest entry of
-:math:`p^* - p(q)` and :math:`R^* - R(q)`) is returned, for the caller's validity flag.
+with J the geometric Jacobian's columns 1-6 (base frame, ``[v; ω]`` of the end-effector origin) and :math:`\lambda` =
+:data:`DAMPING` (Levenberg 1944: the step stays bounded where J is singular; elsewhere it changes the step by a
+relative :math:`\lambda/\sigma_{\min}^2`). The linear system is solved by :math:`LDL^T`
+(:func:`qpik.algebra.symbolic.solve_spd`; symmetric positive definite: no pivoting), so that the steps are written
+once against :mod:`qpik.algebra.symbolic` and run on numpy batches and CasADi symbols alike. Newton converges
+quadratically from a start within about the deviation: :data:`STEPS` steps take a 1e-4 error to round-off. The
+residual after the last step (the largest entry of :math:`p^* - p(q)` and :math:`R^* - R(q)`) is returned, for the
+caller's validity flag.
 """
 
 from __future__ import annotations
@@ -50,24 +51,6 @@ def _error(chain: SerialChain, R: Mat, p: Vec, q: list[Scalar], ops: Ops) -> tup
     return frames, [*dp, *w], residual
 
 
-def _solve_spd(A: list[list[Scalar]], b: list[Scalar]) -> list[Scalar]:
-    """x with A x = b, A symmetric positive definite (its lower triangle is read), by :math:`LDL^T`."""
-    n = len(b)
-    L = [[0.0] * n for _ in range(n)]
-    d: list[Scalar] = [0.0] * n
-    for j in range(n):
-        d[j] = A[j][j] - sum((L[j][k] * L[j][k] * d[k] for k in range(j)), 0.0)
-        for i in range(j + 1, n):
-            L[i][j] = (A[i][j] - sum((L[i][k] * L[j][k] * d[k] for k in range(j)), 0.0)) / d[j]
-    y: list[Scalar] = [0.0] * n
-    for i in range(n):
-        y[i] = b[i] - sum((L[i][k] * y[k] for k in range(i)), 0.0)
-    x: list[Scalar] = [0.0] * n
-    for i in reversed(range(n)):
-        x[i] = y[i] / d[i] - sum((L[k][i] * x[k] for k in range(i + 1, n)), 0.0)
-    return x
-
-
 def polish(chain: SerialChain, R: Mat, p: Vec, q: list[Scalar], ops: Ops) -> tuple[list[Scalar], Scalar]:
     """:data:`STEPS` Newton steps on ``chain``'s FK toward the pose ``(R, p)`` (base frame) from ``q`` (7 scalars,
     rad), the last joint held; returns the joints (not wrapped) and the residual (m and rad) at them."""
@@ -79,7 +62,7 @@ def polish(chain: SerialChain, R: Mat, p: Vec, q: list[Scalar], ops: Ops) -> tup
         A = [[sum((a * b for a, b in zip(cols[i], cols[j])), 0.0) for j in range(i + 1)] for i in range(6)]
         for i in range(6):
             A[i][i] = A[i][i] + DAMPING
-        dq = _solve_spd(A, [sum((a * b for a, b in zip(cols[i], e)), 0.0) for i in range(6)])
+        dq = sy.solve_spd(A, [sum((a * b for a, b in zip(cols[i], e)), 0.0) for i in range(6)])
         q = [q[j] + ops.fmax(ops.fmin(dq[j], STEP_MAX), -STEP_MAX) for j in range(6)] + q[6:]
         frames, e, residual = _error(chain, R, p, q, ops)
     return q, residual

@@ -53,6 +53,7 @@ from typing import TYPE_CHECKING, Literal
 import casadi as ca
 import numpy as np
 
+from qpik.algebra import symbolic as sy
 from qpik.algebra.lie import pose_error_expr, so3_ljacinv_expr
 from qpik.analytic.api import closed_form_for as closed_form_solver
 from qpik.analytic.api import ik
@@ -136,23 +137,6 @@ def residual_expr(robot: Robot, q: ca.SX, target: ca.SX) -> tuple[ca.SX, ca.SX]:
     return e, G
 
 
-def _cholesky_solve(A: ca.SX, b: ca.SX) -> ca.SX:
-    """x with ``A x = b`` for a symmetric positive definite SX ``A`` (m, m), by Cholesky ``A = L Lᵀ``."""
-    m = A.shape[0]
-    L = [[None] * m for _ in range(m)]
-    for i in range(m):
-        for j in range(i + 1):
-            s = A[i, j] - sum((L[i][k] * L[j][k] for k in range(j)), ca.SX(0))
-            L[i][j] = ca.sqrt(s) if i == j else s / L[j][j]
-    y = []
-    for i in range(m):
-        y.append((b[i] - sum((L[i][k] * y[k] for k in range(i)), ca.SX(0))) / L[i][i])
-    x: list = [None] * m
-    for i in reversed(range(m)):
-        x[i] = (y[i] - sum((L[k][i] * x[k] for k in range(i + 1, m)), ca.SX(0))) / L[i][i]
-    return ca.vertcat(*x)
-
-
 def step_expr(robot: Robot, q: ca.SX, target: ca.SX) -> ca.SX:
     """One Levenberg–Marquardt iteration (module docstring) as SX: the next q (n,), inside the limits, from q (n,)
     toward the pose ``target`` (4, 4)."""
@@ -165,7 +149,8 @@ def step_expr(robot: Robot, q: ca.SX, target: ca.SX) -> ca.SX:
     dq = held
     for _ in range(PASSES):
         Gf = G * ca.repmat(free.T, 6, 1)
-        y = _cholesky_solve(ca.mtimes(Gf, Gf.T) + damping * ca.SX.eye(6), e - ca.mtimes(G, held))
+        A, r = ca.mtimes(Gf, Gf.T) + damping * ca.SX.eye(6), e - ca.mtimes(G, held)
+        y = ca.vertcat(*sy.solve_spd([[A[i, j] for j in range(6)] for i in range(6)], [r[i] for i in range(6)]))
         dq = held + free * ca.mtimes(Gf.T, y)
         nxt = q + dq
         cross = free * ca.logic_or(nxt < lo, nxt > hi)

@@ -127,3 +127,23 @@ def test_ops_of_and_stack():
     out = sy.stack([1.0, np.arange(3.0)], sy.NUMPY, (3,))
     np.testing.assert_array_equal(out, [[1, 0], [1, 1], [1, 2]])
     assert sy.stack([x, 1.0], sy.CASADI).shape == (2, 1)
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=SEEDS)
+def test_solve_spd_matches_numpy_on_every_backend(seed):
+    """sy.solve_spd on numpy batches and on CasADi symbols against numpy.linalg.solve, for SPD matrices of sizes 1-7
+    down to a condition number of about 1e8."""
+    rng = np.random.default_rng(seed)
+    for m in range(1, 8):
+        M = rng.normal(size=(m, m))
+        A = M @ M.T + 10.0 ** rng.uniform(-8, 0) * np.eye(m)
+        b = rng.normal(size=m)
+        want = np.linalg.solve(A, b)
+        scale = np.linalg.cond(A) * max(1.0, np.abs(want).max())
+        batch = sy.solve_spd([[np.full(3, A[i, j]) for j in range(m)] for i in range(m)], [np.full(3, v) for v in b])
+        np.testing.assert_allclose(np.array(batch).T, np.tile(want, (3, 1)), atol=1e-13 * scale)
+        S, r = ca.SX.sym("A", m, m), ca.SX.sym("b", m)
+        x = ca.vertcat(*sy.solve_spd([[S[i, j] for j in range(m)] for i in range(m)], [r[i] for i in range(m)]))
+        got = np.asarray(ca.Function("f", [S, r], [x])(A, b)).ravel()
+        np.testing.assert_allclose(got, want, atol=1e-13 * scale)
