@@ -30,6 +30,7 @@ the range's size.
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Sequence
 
 import casadi as ca
@@ -38,6 +39,7 @@ from qpik.algebra import angle_tags as angles
 from qpik.algebra import interval_rules as iv
 from qpik.algebra import taylor_models as tm
 from qpik.core.errors import InputError
+from qpik.native.stored import derived
 
 
 def interval_function(fn: ca.Function, intervals: Sequence[int], name: str | None = None) -> ca.Function:
@@ -56,6 +58,11 @@ def interval_function(fn: ca.Function, intervals: Sequence[int], name: str | Non
     if not fn.is_a("SXFunction"):
         raise InputError(f"fn: interval_function needs an SX function, got {fn.class_name()}")
     boxed = list(dict.fromkeys(int(i) for i in intervals))
+    return derived(fn, f"interval {boxed} {name}", lambda: _interval(fn, boxed, name), _DERIVING)
+
+
+def _interval(fn: ca.Function, boxed: list[int], name: str | None) -> ca.Function:
+    """:func:`interval_function`'s derivation (``boxed``: the interval inputs, without repeats)."""
     lo_in = [
         ca.SX.sym(f"{fn.name_in(i)}_lo" if i in boxed else fn.name_in(i), fn.sparsity_in(i)) for i in range(fn.n_in())
     ]
@@ -125,6 +132,11 @@ def taylor_function(fn: ca.Function, models: Sequence[int], name: str | None = N
     if not fn.is_a("SXFunction"):
         raise InputError(f"fn: taylor_function needs an SX function, got {fn.class_name()}")
     boxed = list(dict.fromkeys(int(i) for i in models))
+    return derived(fn, f"taylor {boxed} {name}", lambda: _taylor(fn, boxed, name), _DERIVING)
+
+
+def _taylor(fn: ca.Function, boxed: list[int], name: str | None) -> ca.Function:
+    """:func:`taylor_function`'s derivation (``boxed``: the model inputs, without repeats)."""
     centre = [ca.SX.sym(fn.name_in(i), fn.sparsity_in(i)) for i in range(fn.n_in())]
     extra = {
         i: [ca.SX.sym(f"{fn.name_in(i)}_{part}", fn.sparsity_in(i)) for part in ("slope", "radius", "lo", "hi")]
@@ -169,3 +181,7 @@ def taylor_function(fn: ca.Function, models: Sequence[int], name: str | None = N
         slot[res[0]] = k
     inputs = centre + [x for i in boxed for x in extra[i]]
     return ca.Function(name or f"{fn.name()}_taylor", inputs, [x for part in out for x in part])
+
+
+_DERIVING = (angles, iv, tm, sys.modules[__name__])
+"""The modules whose source a derived function depends on (:func:`qpik.native.stored.derived`'s key)."""
