@@ -15,7 +15,7 @@ from qpik.robots.packaged import packaged_model
 
 ROBOT = qpik.load_robot("iiwa14")
 RNG = np.random.default_rng(1)
-PATHS = [ROBOT.fk(ROBOT.q_home + RNG.uniform(-0.3, 0.3, 7) + np.linspace(0, 0.15, 5)[:, None]) for _ in range(50)]
+PATHS = [ROBOT.fk(ROBOT.q_home + RNG.uniform(-0.3, 0.3, 7) + np.linspace(0, 0.15, 5)[:, None]) for _ in range(12)]
 OPTIONS = qpik.PlanOptions(resolution=72, mujoco=False)
 
 
