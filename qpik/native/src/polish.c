@@ -127,11 +127,11 @@ static int independent(const double *H, int M, int *W, int k, double *G) {
     return rank;
 }
 
-#define ABAR(i, j) AbarT[(size_t)(j) * M + (i)] /* Abar (M, n) stored column-major: AbarT (n, M) row-major */
+#define ABAR(i, j) Abar[(size_t)(i) * n + (j)] /* Abar (M, n) row-major */
 
 /* Column j of H, H[i, j] = Abar_i . C_j with C_j = P^-1 Abar_j (row j of C, (M, n)), 0 where row i or j is not
  * live; computed on first use (known[j]). */
-static void column(int n, int M, const double *AbarT, const double *L, const unsigned char *live,
+static void column(int n, int M, const double *Abar, const double *L, const unsigned char *live,
                    unsigned char *known, double *C, double *H, int j) {
     if (known[j]) return;
     known[j] = 1;
@@ -152,7 +152,7 @@ static void column(int n, int M, const double *AbarT, const double *L, const uns
 
 /* The polish; 1 with the answer in out, 0 for no answer, -1 out of memory. */
 
-static int polish(int n, int M, const double *P, const double *c, const double *AbarT, const double *lo,
+static int polish(int n, int M, const double *P, const double *c, const double *Abar, const double *lo,
                   const double *hi, const double *x, const double *y, double tol, int max_steps, double *out) {
     size_t V = (size_t)M + 1; /* room of each vector over the rows (W holds at most M + 1) */
     size_t need = (size_t)n * n + 2 * (size_t)n + (size_t)n * M + (size_t)M * M + 7 * V + V * V;
@@ -204,7 +204,7 @@ static int polish(int n, int M, const double *P, const double *c, const double *
     /* A row bounded by +-inf on both sides (a damper beyond its influence distance) can be neither violated nor
        active: its part of H stays 0. */
     for (int i = 0; i < M; ++i) live[i] = isfinite(lo[i]) || isfinite(hi[i]), known[i] = 0;
-    for (int i = 0; i < ng; ++i) column(n, M, AbarT, L, live, known, C, H, guess[i]);
+    for (int i = 0; i < ng; ++i) column(n, M, Abar, L, live, known, C, H, guess[i]);
     for (int i = 0; i < M; ++i) b[i] = lower[i] ? lo[i] : hi[i];
     memcpy(W, guess, sizeof(int) * (size_t)ng);
     k = independent(H, M, W, ng, G);
@@ -241,7 +241,7 @@ static int polish(int n, int M, const double *P, const double *c, const double *
             if (v > vp) vp = v, p = i;
         }
         if (vp <= scale) break;
-        column(n, M, AbarT, L, live, known, C, H, p);
+        column(n, M, Abar, L, live, known, C, H, p);
         double sp = lo[p] - z[p] > 0.0 ? 1.0 : -1.0;
         b[p] = sp > 0.0 ? lo[p] : hi[p];
         double gap = vp, nu_p = 0.0;
@@ -305,48 +305,74 @@ done:
     return status;
 }
 
-/* The data of a float64 C-contiguous array of `size` entries, or NULL with a TypeError naming it. */
-static const double *data_of(PyObject *a, npy_intp size, const char *name) {
+/* a as a float64 C-contiguous array (a new reference: itself where it is one) of `size` entries (any if < 0), or
+ * NULL with an error naming it. */
+static PyArrayObject *array_of(PyObject *a, npy_intp size, const char *name) {
     PyArrayObject *arr = (PyArrayObject *)a;
-    if (!PyArray_Check(a) || PyArray_TYPE(arr) != NPY_DOUBLE || !PyArray_IS_C_CONTIGUOUS(arr) ||
-        PyArray_SIZE(arr) != size) {
-        PyErr_Format(PyExc_TypeError, "polish: %s must be a float64 C-contiguous array of %zd entries", name,
-                     (Py_ssize_t)size);
-        return NULL;
+    if (PyArray_CheckExact(a) && PyArray_TYPE(arr) == NPY_DOUBLE && PyArray_ISCARRAY_RO(arr) && PyArray_ISNOTSWAPPED(arr))
+        Py_INCREF(a); /* the common case, without numpy's conversion machinery */
+    else
+        arr = (PyArrayObject *)PyArray_FROM_OTF(a, NPY_DOUBLE, NPY_ARRAY_IN_ARRAY);
+    if (arr && size >= 0 && PyArray_SIZE(arr) != size) {
+        PyErr_Format(PyExc_ValueError, "polish: %s must have %zd entries, got %zd", name, (Py_ssize_t)size,
+                     (Py_ssize_t)PyArray_SIZE(arr));
+        Py_CLEAR(arr);
     }
-    return (const double *)PyArray_DATA(arr);
+    return arr;
 }
 
-/* polish(P (n, n), c (n,), AbarT (n, M): Abar transposed, lo (M,), hi (M,), x (n,), y (M,), tol, max_steps)
- * -> x (n,) or None */
+/* polish(P (n, n), c (n,), A (m, n), lb (n,), ub (n,), l (m,), u (m,), x (n,), y (n + m,), tol, max_steps)
+ * -> x (n,) or None: the QP with the box lb <= x <= ub and the rows l <= A x <= u, as Abar = [I; A],
+ * lo = [lb; l], hi = [ub; u] (M = n + m rows; y the multipliers of those rows). */
 static PyObject *py_polish(PyObject *mod, PyObject *const *args, Py_ssize_t nargs) {
-    if (nargs != 9) {
-        PyErr_SetString(PyExc_TypeError, "polish takes 9 arguments");
+    static const char *names[] = {"P", "c", "A", "lb", "ub", "l", "u", "x", "y"};
+    if (nargs != 11) {
+        PyErr_SetString(PyExc_TypeError, "polish takes 11 arguments");
         return NULL;
     }
-    if (!PyArray_Check(args[1]) || !PyArray_Check(args[3])) {
-        PyErr_SetString(PyExc_TypeError, "polish: c and lo must be arrays");
-        return NULL;
+    double tol = PyFloat_AsDouble(args[9]);
+    long steps = PyLong_AsLong(args[10]);
+    if (PyErr_Occurred()) return NULL;
+    PyArrayObject *arr[9] = {NULL};
+    PyObject *out = NULL;
+    double *Abar = NULL;
+    npy_intp n = 0, m = 0; /* c's size and l's, then every array's checked against them */
+    if (!(arr[1] = array_of(args[1], -1, "c")) || !(arr[5] = array_of(args[5], -1, "l"))) goto fail;
+    n = PyArray_SIZE(arr[1]), m = PyArray_SIZE(arr[5]);
+    npy_intp M = n + m, sizes[9] = {n * n, n, m * n, n, n, m, m, n, M};
+    for (int k = 0; k < 9; ++k)
+        if (!arr[k] && !(arr[k] = array_of(args[k], sizes[k], names[k]))) goto fail;
+    const double *d[9];
+    for (int k = 0; k < 9; ++k) d[k] = (const double *)PyArray_DATA(arr[k]);
+    Abar = malloc(sizeof(double) * (size_t)(M * n + 2 * M)); /* Abar (M, n) row-major, then lo, hi */
+    if (!Abar) {
+        PyErr_NoMemory();
+        goto fail;
     }
-    npy_intp n = PyArray_SIZE((PyArrayObject *)args[1]), M = PyArray_SIZE((PyArrayObject *)args[3]);
-    const double *P = data_of(args[0], n * n, "P"), *c = data_of(args[1], n, "c"), *A = data_of(args[2], M * n, "AbarT");
-    const double *lo = data_of(args[3], M, "lo"), *hi = data_of(args[4], M, "hi"), *x = data_of(args[5], n, "x");
-    const double *y = data_of(args[6], M, "y");
-    double tol = PyFloat_AsDouble(args[7]);
-    long steps = PyLong_AsLong(args[8]);
-    if (!P || !c || !A || !lo || !hi || !x || !y || PyErr_Occurred()) return NULL;
-    PyObject *out = PyArray_SimpleNew(1, &n, NPY_DOUBLE);
-    if (!out) return NULL;
-    int status = polish((int)n, (int)M, P, c, A, lo, hi, x, y, tol, (int)steps, PyArray_DATA((PyArrayObject *)out));
-    if (status == 1) return out;
-    Py_DECREF(out);
-    if (status < 0) return PyErr_NoMemory();
-    Py_RETURN_NONE;
+    double *lo = Abar + M * n, *hi = lo + M;
+    for (npy_intp i = 0; i < n; ++i)
+        for (npy_intp j = 0; j < n; ++j) Abar[i * n + j] = i == j ? 1.0 : 0.0;
+    memcpy(Abar + n * n, d[2], sizeof(double) * (size_t)(m * n));
+    memcpy(lo, d[3], sizeof(double) * (size_t)n), memcpy(lo + n, d[5], sizeof(double) * (size_t)m);
+    memcpy(hi, d[4], sizeof(double) * (size_t)n), memcpy(hi + n, d[6], sizeof(double) * (size_t)m);
+    out = PyArray_SimpleNew(1, &n, NPY_DOUBLE);
+    if (!out) goto fail;
+    int status = polish((int)n, (int)M, d[0], d[1], Abar, lo, hi, d[7], d[8], tol, (int)steps,
+                        PyArray_DATA((PyArrayObject *)out));
+    if (status != 1) {
+        Py_CLEAR(out);
+        if (status < 0) PyErr_NoMemory();
+        else Py_INCREF(Py_None), out = Py_None;
+    }
+fail:
+    free(Abar);
+    for (int k = 0; k < 9; ++k) Py_XDECREF(arr[k]);
+    return out;
 }
 
 static PyMethodDef methods[] = {
     {"polish", (PyCFunction)(void (*)(void))py_polish, METH_FASTCALL,
-     "polish(P, c, AbarT, lo, hi, x, y, tol, max_steps): the exact QP answer, or None"},
+     "polish(P, c, A, lb, ub, l, u, x, y, tol, max_steps): the exact QP answer, or None"},
     {NULL, NULL, 0, NULL},
 };
 
