@@ -171,7 +171,8 @@ class OSQPSolver(Solver):
 @cache
 def _compiled_polish():
     """:func:`polish` in C (``polish.c``, the same steps; a CPython extension, :func:`qpik.native.sources.load_source`),
-    or None without a compiler."""
+    or None without a compiler. It takes the QP's own arrays, ``polish(P, c, A, lb, ub, l, u, x, y, tol, max_steps)``
+    (Ā = [I; A], lo = [lb; l], hi = [ub; u] formed in C)."""
     module = load_source("qpik_polish", "extension", ["polish.c"])
     return None if module is None else module.polish
 
