@@ -180,8 +180,7 @@ class Controller:
         for lim in self.obstacle_limits:
             moving = np.repeat(~self.robot.fixed_capsules, len(lim.obstacles))  # pair (c, o) at c·O + o
             checked = capsule_pairs(self.robot, lim.obstacles).ravel() & moving
-            on = np.where(checked, 0.0, np.inf)
-            mask = s.parameter(len(checked), lambda state, on=on: on)
+            mask = s.constant(np.where(checked, 0.0, np.inf))
             clearance.append(ca.mmin(lim.distances_expr(s) + mask) if len(checked) else ca.SX(np.inf))
         past = ca.SX(0.0)
         for lim in self.config_limits:
