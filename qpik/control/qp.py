@@ -37,6 +37,10 @@ from qpik.native.build import native_library
 from qpik.native.compiled import Compiled
 
 REGULARIZATION = 1e-12
+LARGE = 512_000
+"""Bytes of generated C up to which the step function is compiled at ``-O2``
+(:func:`qpik.native.build.optimisation`; above, ``-O1``): it runs at every control step, and ``-O2`` makes it faster
+at a compile cost that stays moderate up to this size (gcc's memory grows faster than the source beyond it)."""
 
 
 @dataclass
@@ -125,7 +129,7 @@ class Assembler:
         entry = kin.composed.get(key)
         if entry is None:
             traced = self._compose(kin, extra, trace=True)
-            entry = kin.composed[key] = (traced, native_library(traced))
+            entry = kin.composed[key] = (traced, native_library(traced, large=LARGE))
         fn, lib = entry
         self._inputs = Filler(inputs)  # this assembler's numbers of the inputs, in the function's order
         self._fn = Compiled(fn, compile=False, library=lib)
