@@ -8,7 +8,9 @@ Each input is an SX column (:attr:`Input.symbol`) and how its numbers are found:
 - :class:`Owned`: a task's or limit's parameters, ``owner.param_values()`` by name in its ``param_layout``.
 
 :class:`Filler` gives a function's inputs one buffer, a block each (laid out by :class:`~qpik.core.layout.Layout`),
-and writes their numbers in place: a constant once, the others at every call, each straight into its block.
+and writes their numbers in place: a constant once, the others at every call, each straight into its block (an
+owner's parameters by name, in C where the extension of :mod:`qpik.native.fastcall` loads: ``scatter``, which
+writes as ``view[...] = value`` does).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from qpik.core.layout import Layout
+from qpik.native.fastcall import extension
 
 if TYPE_CHECKING:
     import casadi as ca
@@ -76,8 +79,13 @@ class Owned(Input):
         self.owner, self.layout = owner, layout
 
     def writer(self, block: np.ndarray) -> Callable[[], object]:
-        pack, values = self.layout.packer(block), self.owner.param_values
-        return lambda: pack(values())
+        values, fast = self.owner.param_values, extension()
+        if fast is None:
+            pack = self.layout.packer(block)
+            return lambda: pack(values())
+        scatter, names = fast.scatter, self.layout.names
+        views = tuple(self.layout.views(block)[name] for name in names)
+        return lambda: scatter(values(), names, views)
 
 
 class Filler:
