@@ -14,6 +14,7 @@ happened is :attr:`Controller.last` (:class:`~qpik.control.step_info.StepInfo`).
 
 from __future__ import annotations
 
+import operator
 import time
 from collections.abc import Sequence
 
@@ -88,7 +89,6 @@ class Controller:
         self.frame_task = next((t for t in self.tasks if isinstance(t, FrameTask)), None)
         self.obstacle_limits = tuple(lim for lim in self.limits if isinstance(lim, ObstacleLimit))
         self.self_limits = tuple(lim for lim in self.limits if isinstance(lim, SelfCollisionLimit))
-        self._d_safe_self = [lim.d_safe for lim in self.self_limits]
         self.config_limits = tuple(lim for lim in self.limits if isinstance(lim, ConfigurationLimit))
         self.caps = tuple(lim for lim in self.limits if isinstance(lim, VelocityLimit))
         # one compiled call per step: the QP and the step's summary (_summary)
@@ -97,7 +97,7 @@ class Controller:
         self._past, self._task_error, self._own = summary.past, summary.task_error, summary.own
         self._caps = (summary.cap_lo, summary.cap_hi)
         self._clearance, self._recovery = summary.clearance, summary.recovery
-        self._d_safe = [lim.d_safe for lim in self.obstacle_limits]
+        self._d_safe = [lim.d_safe for lim in (*self.obstacle_limits, *self.self_limits)]  # as clearance + own
         self.last = StepInfo()
 
     @classmethod
@@ -180,8 +180,7 @@ class Controller:
         for lim in self.obstacle_limits:
             moving = np.repeat(~self.robot.fixed_capsules, len(lim.obstacles))  # pair (c, o) at c·O + o
             checked = capsule_pairs(self.robot, lim.obstacles).ravel() & moving
-            on = np.where(checked, 0.0, np.inf)
-            mask = s.parameter(len(checked), lambda state, on=on: on)
+            mask = s.constant(np.where(checked, 0.0, np.inf))
             clearance.append(ca.mmin(lim.distances_expr(s) + mask) if len(checked) else ca.SX(np.inf))
         past = ca.SX(0.0)
         for lim in self.config_limits:
@@ -216,7 +215,8 @@ class Controller:
         t2 = time.perf_counter()
         info = StepInfo(solver_status=sol.status, solve_time=t2 - t1, relaxation=relaxation)
         if sol.found:
-            v = np.minimum(np.maximum(sol.x, qp.lb), qp.ub)  # remove the solver's tolerance-level box violations
+            v = np.maximum(sol.x, qp.lb)  # remove the solver's tolerance-level box violations
+            np.minimum(v, qp.ub, out=v)
             info.activity = (v, self.assembler.snapshot(qp), self.caps)
         else:
             if self.raise_on_failure:
@@ -237,7 +237,7 @@ class Controller:
                 info.status = "yielding"
             elif min(info.min_clearance, info.min_self_distance) < 0.0:
                 info.status = "penetrating"
-            elif past or any(d < ds for d, ds in zip(clearances + own, self._d_safe + self._d_safe_self)):
+            elif past or any(map(operator.lt, clearances + own, self._d_safe)):
                 info.status = "recovering"
         info.total_time = time.perf_counter() - t0
         self.last = info

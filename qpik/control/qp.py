@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from qpik.control.inputs import Constant, Filler
 from qpik.control.limits.base import BoxLimit, Limit, RowLimit
 from qpik.control.state import SymState, kinematics_of
 from qpik.control.tasks import Task
@@ -36,6 +37,10 @@ from qpik.native.build import native_library
 from qpik.native.compiled import Compiled
 
 REGULARIZATION = 1e-12
+LARGE = 512_000
+"""Bytes of generated C up to which the step function is compiled at ``-O2``
+(:func:`qpik.native.build.optimisation`; above, ``-O1``): it runs at every control step, and ``-O2`` makes it faster
+at a compile cost that stays moderate up to this size (gcc's memory grows faster than the source beyond it)."""
 
 
 @dataclass
@@ -120,15 +125,13 @@ class Assembler:
         self.m = m
         self.row_names = tuple(nm for lim in self.row_limits for nm in lim.row_names(robot))
         kin = kinematics_of(robot)
-        values, sizes, key = self._compose(kin, extra, trace=False)
+        inputs, sizes, key = self._compose(kin, extra, trace=False)
         entry = kin.composed.get(key)
         if entry is None:
             traced = self._compose(kin, extra, trace=True)
-            entry = kin.composed[key] = (traced, native_library(traced))
+            entry = kin.composed[key] = (traced, native_library(traced, large=LARGE))
         fn, lib = entry
-        self._params = np.empty(sum(size for size, _ in values))
-        ends = np.cumsum([size for size, _ in values], dtype=int)
-        self._fills = [(self._params[end - size : end], value) for (size, value), end in zip(values, ends)]
+        self._inputs = Filler(inputs)  # this assembler's numbers of the inputs, in the function's order
         self._fn = Compiled(fn, compile=False, library=lib)
         out = self._output_layout(sizes).views(self._fn.outputs[0])
         self._flat = out.qp
@@ -149,13 +152,13 @@ class Assembler:
         return QP(**self._qp_layout().views(flat), n=self.n, row_names=self.row_names)
 
     def _compose(self, kin, extra, trace: bool):
-        """The step function (``trace``), else ``(values, extra sizes, key)`` from free symbols."""
+        """The step function (``trace``), else ``(inputs, extra sizes, key)`` from free symbols (the inputs
+        beyond q: :class:`~qpik.control.inputs.Input` s bound to this assembler's tasks, limits and obstacles)."""
         n = self.n
         q = ca.SX.sym("q", n)
         dt = ca.SX.sym("dt")
         s = SymState.of(kin, q, dt, trace)
-        dt_value = np.array((self.dt,))
-        s.inputs.append((dt, lambda state: dt_value))
+        s.inputs.append(Constant(dt, (self.dt,)))
         P = REGULARIZATION * ca.SX.eye(n)
         c = ca.SX.zeros(n)
         for task in self.tasks:
@@ -183,11 +186,11 @@ class Assembler:
         if not trace:
             objects = (*self.tasks, *self.boxes, *self.caps, *self.row_limits)
             structure = tuple((type(o).__module__, type(o).__qualname__, o.structure()) for o in objects)
-            key = (structure, tuple(sym.numel() for sym, _ in s.inputs), tuple(sizes.items()), A.shape)
-            return [(sym.numel(), value) for sym, value in s.inputs], sizes, key
+            key = (structure, tuple(inp.size for inp in s.inputs), tuple(sizes.items()), A.shape)
+            return s.inputs, sizes, key
         qp = self._qp_layout().pack(P=P, c=c, lb=lb, ub=ub, A=A, l=lo, u=hi)
         out = ca.densify(self._output_layout(sizes).pack(qp=qp, **more))
-        prm = ca.vertcat(*[sym for sym, _ in s.inputs])
+        prm = ca.vertcat(*[inp.symbol for inp in s.inputs])
         tag = hashlib.sha256(repr(self._compose(kin, extra, trace=False)[2]).encode()).hexdigest()[:12]
         # cse: the self-collision rows and the summary trace the frames again; one evaluation of each subexpression
         return ca.Function(f"qp_{kin.robot.identifier}_{tag}", [q, prm], [out], {"cse": True})
@@ -202,7 +205,5 @@ class Assembler:
 
     def build(self, q: np.ndarray) -> QP:
         """Fill the QP for configuration ``q`` (n,), rad, and return it (the same object every call)."""
-        for view, value in self._fills:  # the parameters written in place into one buffer
-            view[:] = value(None)
-        self._fn(q, self._params)
+        self._fn(q, self._inputs())
         return self.qp

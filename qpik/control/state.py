@@ -33,6 +33,7 @@ import casadi as ca
 import numpy as np
 
 from qpik.algebra import symbolic as sy
+from qpik.control.inputs import Constant, Input, Owned
 from qpik.core.errors import InputError
 from qpik.core.layout import Blocks, Layout
 from qpik.core.validate import joint_vector, number
@@ -300,8 +301,8 @@ class SymState:
     Attributes:
         q: (n,) joint positions, rad; dt: control period, s (both SX).
         pose: (4, 4) end-effector pose; J: (6, n) geometric Jacobian ``[v; ω]`` (SX, world frame).
-        inputs: ``[(symbol, value)]`` of every input beyond ``q``: ``value(state)`` gives its
-            numbers (state: a numeric :class:`State` or None in the controller).
+        inputs: every input beyond ``q`` (:class:`~qpik.control.inputs.Input` s: a symbol and how its numbers
+            are found), in order.
         caps: ``(lo, hi)`` (n,) SX, the box of the cap limits alone (velocity, acceleration, jerk), which
             every command must stay in; set by the controller's assembler before the rows (None elsewhere).
     """
@@ -313,7 +314,7 @@ class SymState:
         self._grad = (blocks.grad[0, :].T, blocks.grad[1, :].T)
         self._pairs_of = pairs_of
         self._pairs: dict[ObstacleSet, Blocks] = {}
-        self.inputs: list = []
+        self.inputs: list[Input] = []
         self.caps: tuple[ca.SX, ca.SX] | None = None  # the caps' own box (n,) each, set by the assembler
         self._owned: dict[int, Blocks] = {}
         self.packed: dict[ObstacleSet, ca.SX] = {}  # the obstacles' packed parameters, where declared
@@ -348,13 +349,21 @@ class SymState:
             return s.parameter(kin.pair_layout(obstacles.kinds).size, lambda state: state.pairs(obstacles))
 
         s = cls(kin, ca.SX.sym("q", kin.n), ca.SX.sym("dt"), base, pairs_of)
-        s.inputs += [(s.q, lambda state: state.q), (s.dt, lambda state: state.dt), (base, lambda state: state.base)]
+        s.inputs += [Input(s.q, lambda state: state.q), Input(s.dt, lambda state: state.dt),
+                     Input(base, lambda state: state.base)]  # fmt: skip
         return s
 
     def parameter(self, size: int, value) -> ca.SX:
-        """A new input of ``size`` numbers, ``value(state)`` giving them (state: numeric State or None)."""
+        """A new input of ``size`` numbers, ``value(state)`` giving them at every call (state: numeric State or
+        None)."""
         sym = ca.SX.sym(f"p{len(self.inputs)}", size)
-        self.inputs.append((sym, value))
+        self.inputs.append(Input(sym, value))
+        return sym
+
+    def constant(self, numbers: np.ndarray) -> ca.SX:
+        """A new input whose numbers are ``numbers`` (a vector, copied) at every call."""
+        sym = ca.SX.sym(f"p{len(self.inputs)}", np.size(numbers))
+        self.inputs.append(Constant(sym, numbers))
         return sym
 
     def params_of(self, owner: Traced) -> Blocks:
@@ -363,8 +372,8 @@ class SymState:
         blocks = self._owned.get(owner.token)
         if blocks is None:
             layout = owner.param_layout(self.n)
-            pack = layout.packer()
-            sym = self.parameter(layout.size, lambda state: pack(owner.param_values()))
+            sym = ca.SX.sym(f"p{len(self.inputs)}", layout.size)
+            self.inputs.append(Owned(sym, owner, layout))
             blocks = self._owned[owner.token] = layout.symbols(sym)
         return blocks
 
@@ -425,7 +434,7 @@ def evaluate(owner, state: State, build, *extra: np.ndarray) -> list[np.ndarray]
         s = SymState.free(state.kin)
         syms = [ca.SX.sym(f"x{i}", len(x)) for i, x in enumerate(extra)]
         outs = build(s, *syms)
-        fn = ca.Function("evaluate", [sym for sym, _ in s.inputs] + syms, outs)
-        entry = owner.evaluators[key] = (fn, [value for _, value in s.inputs])
+        fn = ca.Function("evaluate", [inp.symbol for inp in s.inputs] + syms, outs)
+        entry = owner.evaluators[key] = (fn, [inp.value for inp in s.inputs])
     fn, values = entry
     return [np.asarray(x) for x in fn.call([value(state) for value in values] + list(extra))]

@@ -94,11 +94,18 @@ class Layout:
         column = self.pack(**parts)
         return [column[i] for i in range(column.numel())]
 
-    def packer(self) -> Callable[[Mapping[str, Any]], np.ndarray]:
+    def packer(self, buffer: np.ndarray | None = None) -> Callable[[Mapping[str, Any]], np.ndarray]:
         """A function writing parts by name (arrays or numbers of the blocks' shapes) into one buffer of this
         layout and returning it: the same buffer every call, overwritten by the next (a control loop's
-        parameters, packed without allocating)."""
-        buffer = np.empty(self.size)
+        parameters, packed without allocating).
+
+        ``buffer``: the vector written into (float64, :attr:`size` entries), e.g. a view of this layout's block
+        in a larger buffer, which then receives the parts in place; default a new one."""
+        if buffer is None:
+            buffer = np.empty(self.size)
+        elif buffer.shape != (self.size,) or buffer.dtype != np.float64:
+            raise ValueError(f"packer: expected a float64 buffer of shape ({self.size},), got {buffer.dtype} "
+                             f"{buffer.shape}")  # fmt: skip
         views = [(name, buffer[span].reshape(self.shape(name))) for name, span in self._spans.items()]
 
         def pack(parts: Mapping[str, Any]) -> np.ndarray:

@@ -67,13 +67,18 @@ def compiler() -> str | None:
 
 
 def shared_library(
-    name: str, source: bytes, flags: Sequence[str] = (), fatal: bool = True, files: Sequence[Path] = ()
+    name: str,
+    source: bytes,
+    flags: Sequence[str] = (),
+    fatal: bool = True,
+    files: Sequence[Path] = (),
+    large: int | None = None,
 ) -> Path | None:
     """C ``source`` compiled once into a shared library cached in :func:`cache_dir`, or None.
 
     With ``files``, those C files are compiled together instead (:func:`qpik.native.sources.load_source`), and
     ``source`` is only what identifies them: their text and that of every header they include. The library is keyed
-    by a hash of the source, the flags (:func:`optimisation` for the source's size,
+    by a hash of the source, the flags (:func:`optimisation` for the source's size and ``large``,
     :data:`CFLAGS` and ``flags``, e.g. include folders) and CasADi's version. Processes that need the same
     library at once compile it once: the others wait on a lock file beside it. A compilation that takes
     longer than :data:`QUIET` seconds says so on stderr, and again every :data:`TICK` seconds. None when
@@ -84,7 +89,7 @@ def shared_library(
     cc = compiler()
     if cc is None:
         return None
-    cflags = (optimisation(len(source)), *CFLAGS, *flags)
+    cflags = (optimisation(len(source), large), *CFLAGS, *flags)
     key = hashlib.sha256(source + " ".join(cflags).encode() + ca.__version__.encode()).hexdigest()[:20]
     try:
         folder = cache_dir()
@@ -126,11 +131,12 @@ LEVELS = ("-O0", "-O1", "-O2", "-O3", "-Os")
 """The values ``$QPIK_OPTIMISE`` may take."""
 
 
-def optimisation(size: int) -> str:
-    """The optimisation flag for a C source of ``size`` bytes: ``-O2``, or ``-O1`` for a source over :data:`LARGE`
-    bytes. The large sources are CasADi's straight-line code of big expressions (the Taylor models of a
-    distance kernel), for which gcc's ``-O2`` costs several times the time and memory of ``-O1`` and gives no
-    faster code.
+def optimisation(size: int, large: int | None = None) -> str:
+    """The optimisation flag for a C source of ``size`` bytes: ``-O2``, or ``-O1`` for a source over ``large``
+    bytes (default :data:`LARGE`). The large sources are CasADi's straight-line code of big expressions (the
+    Taylor models of a distance kernel), for which gcc's ``-O2`` costs several times the time and memory of
+    ``-O1`` and gives no faster code; a caller whose code runs often enough to repay ``-O2`` over a larger
+    size gives its own ``large`` (the controller's QP, :data:`qpik.control.qp.LARGE`).
 
     ``$QPIK_OPTIMISE`` (one of :data:`LEVELS`) sets the flag of every source instead: ``-O1`` compiles faster than
     ``-O2`` and gives slower code (the test suite uses it). The arithmetic is the same IEEE
@@ -141,7 +147,7 @@ def optimisation(size: int) -> str:
         if forced not in LEVELS:
             raise InputError(f"QPIK_OPTIMISE: {forced!r} is not one of {', '.join(LEVELS)}")
         return forced
-    return "-O1" if size > LARGE else "-O2"
+    return "-O1" if size > (LARGE if large is None else large) else "-O2"
 
 
 def _compile(cc: str, cflags: Sequence[str], name: str, source: bytes, lib: Path, files: Sequence[Path]) -> None:
@@ -196,9 +202,9 @@ def describe(name: str) -> str:
     return next((what for prefix, what in _WHAT.items() if name.startswith(prefix)), "a generated function")
 
 
-def native_library(*fns: ca.Function) -> Path | None:
+def native_library(*fns: ca.Function, large: int | None = None) -> Path | None:
     """The shared library holding ``fns`` as machine code (each exported under its ``name()``; the functions
-    they call are emitted once), or None.
+    they call are emitted once), or None. ``large``: as in :func:`optimisation`.
 
     None when :func:`compiler` is None or code generation or compilation fails
     (then a warning says why, once, and native code stays off in this process).
@@ -212,7 +218,7 @@ def native_library(*fns: ca.Function) -> Path | None:
             for fn in fns:
                 gen.add(fn)
             gen.generate(tmp + os.sep)
-            return shared_library(name, Path(tmp, f"{name}.c").read_bytes())
+            return shared_library(name, Path(tmp, f"{name}.c").read_bytes(), large=large)
     except RuntimeError as exc:  # CasADi's code generation failed
         return _off(exc)
 

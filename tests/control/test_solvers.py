@@ -173,12 +173,39 @@ def test_compiled_polish_equals_daqp(recorded, guess):
             want = ref.solve(qp).x
             Abar, lo, hi = _stacked(qp)
             x, y = _guess(qp, want, guess)
-            got = compiled(qp.P, qp.c, np.ascontiguousarray(Abar.T), lo, hi, x, y, 1e-9, 100)
+            got = compiled(qp.P, qp.c, qp.A, qp.lb, qp.ub, qp.l, qp.u, x, y, 1e-9, 100)
             assert got is not None
             np.testing.assert_allclose(got, want, atol=1e-8)
             none = polish(qp.P, qp.c, Abar, lo, hi, (np.zeros(qp.n), y), max_steps=0) is None
-            cold = compiled(qp.P, qp.c, np.ascontiguousarray(Abar.T), lo, hi, np.zeros(qp.n), y, 1e-9, 0)
+            cold = compiled(qp.P, qp.c, qp.A, qp.lb, qp.ub, qp.l, qp.u, np.zeros(qp.n), y, 1e-9, 0)
             assert none == (cold is None)
+
+
+def test_compiled_polish_reads_the_qp_in_any_array_layout(recorded):
+    """polish.c reads the QP's own arrays (box and rows apart) in any memory layout, or as lists: the same answer
+    to the last bit, the numpy polish's to 1e-8 from the same guess; an array of the wrong size is a ValueError."""
+    from qpik.control.solvers.osqp import _compiled_polish
+
+    compiled = _compiled_polish()
+    if compiled is None:
+        pytest.skip("no C compiler or Python headers (QPIK_NATIVE=0): the numpy polish is the only one")
+    ref = QpsolversSolver("daqp")
+    compared = 0
+    for run in recorded[::3]:
+        for qp, _ in run[::4]:
+            Abar, lo, hi = _stacked(qp)
+            x, y = _guess(qp, ref.solve(qp).x, "every bound met")
+            want = polish(qp.P, qp.c, Abar, lo, hi, (x, y), max_steps=100)
+            got = compiled(qp.P, qp.c, qp.A, qp.lb, qp.ub, qp.l, qp.u, x, y, 1e-9, 100)
+            np.testing.assert_allclose(got, want, rtol=0, atol=1e-8)
+            other = (np.asfortranarray(qp.P), qp.c.tolist(), np.asfortranarray(qp.A), qp.lb[::-1].copy()[::-1],
+                     qp.ub.tolist(), np.repeat(qp.l, 2)[::2], qp.u)  # fmt: skip
+            assert np.array_equal(compiled(*other, x, y, 1e-9, 100), got)
+            compared += 1
+    assert compared > 10
+    qp = recorded[0][0][0]
+    with pytest.raises(ValueError, match="A must have"):
+        compiled(qp.P, qp.c, qp.A[:-1], qp.lb, qp.ub, qp.l, qp.u, np.zeros(qp.n), np.zeros(qp.n + len(qp.l)), 1e-9, 9)
 
 
 def test_polish_rejects_an_infeasible_qp():

@@ -75,3 +75,22 @@ def test_split_reads_a_sequence_as_views_read_the_buffer(blocks, seed):
         assert np.array_equal(np.array(parts[name], dtype=float).reshape(view.shape), view)
     with pytest.raises(ValueError, match="split"):
         layout.split([0.0] * (layout.size + 1))
+
+
+def test_packer_writes_into_a_block_of_a_larger_buffer():
+    """packer(buffer) writes the parts in place into the given block (as pack orders them), nothing else; a buffer
+    of another size or dtype is refused."""
+    inner = Layout(a=2, b=(2, 2), s=())
+    outer = Layout(head=3, inner=inner, tail=2)
+    buf = np.full(outer.size, -1.0)
+    pack = inner.packer(outer.views(buf).inner)
+    parts = {"a": [1.0, 2.0], "b": np.array([[3.0, 4.0], [5.0, 6.0]]), "s": 7.0}
+    assert np.shares_memory(pack(parts), buf)
+    assert buf.tolist() == [-1.0] * 3 + [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0] + [-1.0] * 2
+    parts["s"] = 8.0
+    pack(parts)
+    assert buf[9] == 8.0 and np.array_equal(np.asarray(ca.evalf(inner.pack(**parts))).ravel(), buf[3:10])
+    with pytest.raises(ValueError, match="shape"):
+        inner.packer(np.zeros(inner.size + 1))
+    with pytest.raises(ValueError, match="float64"):
+        inner.packer(np.zeros(inner.size, dtype=np.float32))

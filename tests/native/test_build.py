@@ -14,9 +14,13 @@ from qpik.native import build
 def test_the_level_is_the_variables_or_else_by_size(monkeypatch):
     monkeypatch.delenv("QPIK_OPTIMISE", raising=False)
     assert build.optimisation(1000) == "-O2" and build.optimisation(build.LARGE + 1) == "-O1"
+    # a caller's own threshold (the controller's QP): -O2 up to it, -O1 beyond
+    assert build.optimisation(build.LARGE + 1, large=build.LARGE + 1) == "-O2"
+    assert build.optimisation(build.LARGE + 2, large=build.LARGE + 1) == "-O1"
     for level in build.LEVELS:
         monkeypatch.setenv("QPIK_OPTIMISE", level)
         assert build.optimisation(1000) == level == build.optimisation(build.LARGE + 1)
+        assert build.optimisation(build.LARGE + 1, large=build.LARGE + 1) == level
     monkeypatch.setenv("QPIK_OPTIMISE", "-Ofast")
     with pytest.raises(InputError, match="QPIK_OPTIMISE"):
         build.optimisation(1000)

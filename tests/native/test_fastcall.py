@@ -174,3 +174,47 @@ def test_circle_lists_rejects_what_it_does_not_take():
         circle_lists(np.zeros(4), count.astype(float), np.zeros(2), np.zeros(2, np.intc), 1)
     with pytest.raises(ValueError, match="scount"):
         circle_lists(np.zeros(4), count, np.zeros(2), np.full(2, 2, np.intc), 1)
+
+
+def _assigned(view: np.ndarray, value: object) -> object:
+    """``view[...] = value`` in numpy: "ok" or the exception's type."""
+    try:
+        view[...] = value
+    except Exception as exc:  # the kind of error is what is compared
+        return type(exc)
+    return "ok"
+
+
+def test_scatter_writes_as_numpy_assignment_does():
+    """scatter(parts, names, views) leaves every view as ``view[...] = parts[name]`` does (the peer: numpy), for the
+    values C writes itself (floats, numpy floats, float64 arrays of the view's shape) and for those it hands to
+    numpy (ints, bools, lists, other dtypes and layouts, broadcasts, wrong shapes: the same error)."""
+    scatter = extension().scatter
+    values = [2.5, np.float64(-1.25), np.nan, 3, True, [1.0, 2.0, 3.0], np.arange(3.0), np.arange(3, dtype=np.float32),
+              np.arange(6.0)[::2], np.arange(6.0).reshape(2, 3), np.ones((3, 1)), np.ones(4), np.array(7.0),
+              "x"]  # fmt: skip
+    shapes = [(), (1,), (3,), (2, 3), (1, 3)]
+    for shape in shapes:
+        for value in values:
+            want_buf, got_buf = np.full(20, -9.0), np.full(20, -9.0)
+            size = int(np.prod(shape))
+            want = _assigned(want_buf[4 : 4 + size].reshape(shape), value)
+            view = got_buf[4 : 4 + size].reshape(shape)
+            try:
+                scatter({"a": value}, ("a",), (view,))
+                got = "ok"
+            except Exception as exc:
+                got = type(exc)
+            assert got == want, (shape, value)
+            assert np.array_equal(got_buf, want_buf, equal_nan=True), (shape, value)  # the view's entries, no other
+    views = (np.zeros(()), np.zeros(2))
+    scatter({"b": [3.0, 4.0], "a": 1.0}, ("a", "b"), views)  # by name, whatever the order of the mapping
+    assert views[0] == 1.0 and views[1].tolist() == [3.0, 4.0]
+    with pytest.raises(KeyError, match="c"):
+        scatter({"a": 1.0}, ("c",), (np.zeros(()),))
+    read_only = np.zeros(2)
+    read_only.flags.writeable = False
+    with pytest.raises(ValueError):
+        scatter({"a": np.ones(2)}, ("a",), (read_only,))
+    with pytest.raises(TypeError):
+        scatter({"a": 1.0}, ("a", "b"), (np.zeros(()),))

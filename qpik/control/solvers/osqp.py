@@ -122,18 +122,15 @@ class OSQPSolver(Solver):
         if self._shape != (N, qp.A.shape[0]):
             self._setup(qp)
         else:
-            self._AbarT[:, N:] = qp.A.T
-            l, u = self._l, self._u
-            l[:N], l[N:] = qp.lb, qp.l
-            u[:N], u[N:] = qp.ub, qp.u
             self._stale += 1
             if self._guess is not None:  # the previous step's active set first (see the module docstring)
                 x = self._polish(qp, *self._guess)
                 if x is not None:
                     self._guess = (x, self._guess[1])
                     return Solution(x, True, REUSED, 0)
+            self._load(qp)
             self._raw.update_data_vec(
-                q=qp.c, l=np.maximum(l, -INFTY, out=self._lc), u=np.minimum(u, INFTY, out=self._uc)
+                q=qp.c, l=np.maximum(self._l, -INFTY, out=self._lc), u=np.minimum(self._u, INFTY, out=self._uc)
             )
             if self._stale >= REFRESH_EVERY:
                 self._refresh(qp)
@@ -148,10 +145,21 @@ class OSQPSolver(Solver):
         self._guess = None if x is None else (x, y.copy())
         return Solution(x, x is not None, info.status, int(info.iter))
 
+    def _load(self, qp: QP) -> None:
+        """Copy the QP's rows and bounds into Ā (:attr:`_AbarT`, column-major) and its bounds ``[lb; l]``,
+        ``[ub; u]``, as OSQP takes them."""
+        N = qp.P.shape[0]
+        self._AbarT[:, N:] = qp.A.T
+        l, u = self._l, self._u
+        l[:N], l[N:] = qp.lb, qp.l
+        u[:N], u[N:] = qp.ub, qp.u
+
     def _polish(self, qp: QP, x: np.ndarray, y: np.ndarray) -> np.ndarray | None:
-        """:func:`polish` (in C where it compiles) of the current QP from the guess of ``(x, y)``."""
+        """:func:`polish` (in C where it compiles: it reads the QP itself) of the current QP from the guess of
+        ``(x, y)``."""
         if (compiled := _compiled_polish()) is not None:
-            return compiled(qp.P, qp.c, self._AbarT, self._l, self._u, x, y, POLISH_TOL, MAX_POLISH_STEPS)
+            return compiled(qp.P, qp.c, qp.A, qp.lb, qp.ub, qp.l, qp.u, x, y, POLISH_TOL, MAX_POLISH_STEPS)
+        self._load(qp)
         return polish(qp.P, qp.c, self._AbarT.T, self._l, self._u, (x, y), POLISH_TOL, MAX_POLISH_STEPS)
 
     def _refresh(self, qp: QP) -> None:
@@ -163,7 +171,8 @@ class OSQPSolver(Solver):
 @cache
 def _compiled_polish():
     """:func:`polish` in C (``polish.c``, the same steps; a CPython extension, :func:`qpik.native.sources.load_source`),
-    or None without a compiler."""
+    or None without a compiler. It takes the QP's own arrays, ``polish(P, c, A, lb, ub, l, u, x, y, tol, max_steps)``
+    (Ā = [I; A], lo = [lb; l], hi = [ub; u] formed in C)."""
     module = load_source("qpik_polish", "extension", ["polish.c"])
     return None if module is None else module.polish
 

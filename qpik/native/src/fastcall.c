@@ -18,6 +18,9 @@
  *   (float64, C-contiguous, of the outputs' shapes). Returns outs, or None as fresh does.
  *
  * Arguments left out keep their buffer's content (constant inputs are written once by the caller).
+ *
+ * The module's scatter(parts, names, views) writes parts by name into numpy views (qpik.control.inputs: a task's or
+ * limit's parameters into the controller's buffer), as `view[...] = parts[name]` does.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -455,7 +458,63 @@ fail:
     return NULL;
 }
 
+/* Whether a is a float64 array in native byte order, C-contiguous and aligned (and writeable if asked). */
+static int plain_doubles(PyObject *a, int writeable) {
+    PyArrayObject *arr = (PyArrayObject *)a;
+    return PyArray_Check(a) && PyArray_TYPE(arr) == NPY_DOUBLE && PyArray_ISCARRAY_RO(arr) &&
+           PyArray_ISNOTSWAPPED(arr) && (!writeable || PyArray_ISWRITEABLE(arr));
+}
+
+/* x written into the numpy array view as `view[...] = x`: a float (numpy's float64 too) into a float64 view of one
+ * entry, and a float64 array of the view's shape, in C; anything else by the view's own assignment (numpy's
+ * conversions, broadcasting and errors). 0, or -1 with the exception set. */
+static int write_into(PyObject *view, PyObject *x) {
+    if (plain_doubles(view, 1)) {
+        PyArrayObject *v = (PyArrayObject *)view;
+        if (PyFloat_Check(x) && PyArray_SIZE(v) == 1) {
+            *(double *)PyArray_DATA(v) = PyFloat_AS_DOUBLE(x);
+            return 0;
+        }
+        PyArrayObject *a = (PyArrayObject *)x;
+        if (plain_doubles(x, 0) && PyArray_NDIM(a) == PyArray_NDIM(v) &&
+            PyArray_CompareLists(PyArray_DIMS(a), PyArray_DIMS(v), PyArray_NDIM(v))) {
+            memmove(PyArray_DATA(v), PyArray_DATA(a), sizeof(double) * (size_t)PyArray_SIZE(v));
+            return 0;
+        }
+    }
+    return PyObject_SetItem(view, Py_Ellipsis, x);
+}
+
+/* scatter(parts, names, views): view[...] = parts[name] for each name of the tuple names and view of the tuple
+ * views (write_into), parts a dict or another mapping; a name missing from parts is a KeyError. Returns None. */
+static PyObject *module_scatter(PyObject *mod, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 3 || !PyTuple_Check(args[1]) || !PyTuple_Check(args[2]) ||
+        PyTuple_GET_SIZE(args[1]) != PyTuple_GET_SIZE(args[2])) {
+        PyErr_SetString(PyExc_TypeError, "scatter(parts, names, views): names and views tuples of one length");
+        return NULL;
+    }
+    PyObject *parts = args[0];
+    int dict = PyDict_CheckExact(parts);
+    for (Py_ssize_t i = 0; i < PyTuple_GET_SIZE(args[1]); ++i) {
+        PyObject *name = PyTuple_GET_ITEM(args[1], i), *x;
+        if (dict) {
+            x = PyDict_GetItemWithError(parts, name);
+            if (!x && !PyErr_Occurred()) PyErr_SetObject(PyExc_KeyError, name);
+            Py_XINCREF(x);
+        } else {
+            x = PyObject_GetItem(parts, name);
+        }
+        if (!x) return NULL;
+        int failed = write_into(PyTuple_GET_ITEM(args[2], i), x);
+        Py_DECREF(x);
+        if (failed) return NULL;
+    }
+    Py_RETURN_NONE;
+}
+
 static PyMethodDef module_methods[] = {
+    {"scatter", (PyCFunction)(void (*)(void))module_scatter, METH_FASTCALL,
+     "scatter(parts, names, views): view[...] = parts[name] for each name and view."},
     {"circle_lists", (PyCFunction)(void (*)(void))module_circle_lists, METH_FASTCALL,
      "The feasible sets and singular values of qpik_circle_sets as lists, per row."},
     {"vector_ok", (PyCFunction)(void (*)(void))module_vector_ok, METH_FASTCALL,

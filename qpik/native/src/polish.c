@@ -1,7 +1,8 @@
 /* The exact QP answer from an ADMM iterate's active-set guess: qpik.control.solvers.osqp.polish in C.
  *
  * The same steps as the numpy version (its docstring has the math): P = L L^T, x0 = -P^-1 c,
- * H = Abar P^-1 Abar^T; the guessed rows (OSQP's rule on z + y), reduced to independent ones by a
+ * H = Abar P^-1 Abar^T, of which only the columns of the rows that are ever in W are computed (when a row
+ * first enters: the guess, then each row a dual step adds; H's other entries are never read); the guessed rows (OSQP's rule on z + y), reduced to independent ones by a
  * pivoted Cholesky of H_WW scaled to unit diagonal; negative multipliers dropped; then Goldfarb-Idnani
  * dual active-set steps while a bound is violated; the answer checked (every bound within tol, every
  * multiplier >= -tol, both scaled by 1 + max|c| + the largest finite bound). Returns None where the numpy
@@ -46,10 +47,13 @@ static void chol_solve(const double *L, int n, double *x) {
     }
 }
 
+/* Entry (i, j) of the (M, M) matrix H stored column by column (column j contiguous). */
+#define HC(i, j) H[(size_t)(j) * M + (i)]
+
 /* Solve H[W, W] sol = rhs (k = |W|) by LU with partial pivoting; 0 if a pivot is exactly zero. */
 static int solve_w(const double *H, int M, const int *W, int k, const double *rhs, double *sol, double *G) {
     for (int i = 0; i < k; ++i) {
-        for (int j = 0; j < k; ++j) G[i * k + j] = H[W[i] * M + W[j]];
+        for (int j = 0; j < k; ++j) G[i * k + j] = HC(W[i], W[j]);
         sol[i] = rhs[i];
     }
     for (int c = 0; c < k; ++c) {
@@ -91,7 +95,7 @@ static int independent(const double *H, int M, int *W, int k, double *G) {
     for (int i = 0; i < k; ++i) {
         perm[i] = i;
         for (int j = 0; j < k; ++j)
-            G[i * k + j] = H[W[i] * M + W[j]] / sqrt(H[W[i] * M + W[i]] * H[W[j] * M + W[j]]);
+            G[i * k + j] = HC(W[i], W[j]) / sqrt(HC(W[i], W[i]) * HC(W[j], W[j]));
     }
     int rank = 0;
     for (; rank < k; ++rank) { /* G holds the Schur complement in rows/columns rank..k-1 (permuted) */
@@ -123,16 +127,39 @@ static int independent(const double *H, int M, int *W, int k, double *G) {
     return rank;
 }
 
-/* The polish; 1 with the answer in out, 0 for no answer, -1 out of memory. */
-#define ABAR(i, j) AbarT[(size_t)(j) * M + (i)] /* Abar (M, n) stored column-major: AbarT (n, M) row-major */
+#define ABAR(i, j) Abar[(size_t)(i) * n + (j)] /* Abar (M, n) row-major */
 
-static int polish(int n, int M, const double *P, const double *c, const double *AbarT, const double *lo,
+/* Column j of H, H[i, j] = Abar_i . C_j with C_j = P^-1 Abar_j (row j of C, (M, n)), 0 where row i or j is not
+ * live; computed on first use (known[j]). */
+static void column(int n, int M, const double *Abar, const double *L, const unsigned char *live,
+                   unsigned char *known, double *C, double *H, int j) {
+    if (known[j]) return;
+    known[j] = 1;
+    double *Cj = C + (size_t)j * n;
+    if (!live[j]) {
+        for (int i = 0; i < M; ++i) HC(i, j) = 0.0;
+        return;
+    }
+    for (int t = 0; t < n; ++t) Cj[t] = ABAR(j, t);
+    chol_solve(L, n, Cj);
+    for (int i = 0; i < M; ++i) {
+        double s = 0.0;
+        if (live[i])
+            for (int t = 0; t < n; ++t) s += ABAR(i, t) * Cj[t];
+        HC(i, j) = s;
+    }
+}
+
+/* The polish; 1 with the answer in out, 0 for no answer, -1 out of memory. */
+
+static int polish(int n, int M, const double *P, const double *c, const double *Abar, const double *lo,
                   const double *hi, const double *x, const double *y, double tol, int max_steps, double *out) {
     size_t V = (size_t)M + 1; /* room of each vector over the rows (W holds at most M + 1) */
-    size_t need = (size_t)n * n + 2 * (size_t)n + (size_t)n * M + 2 * (size_t)M * M + 7 * V + V * V;
+    size_t need = (size_t)n * n + 2 * (size_t)n + (size_t)n * M + (size_t)M * M + 7 * V + V * V;
     double *L = malloc(sizeof(double) * need);
     int *W = malloc(sizeof(int) * 2 * ((size_t)M + 1));
-    unsigned char *lower = malloc(2 * ((size_t)M + 1)), *live = lower + M + 1; /* live: a finite bound */
+    unsigned char *lower = malloc(3 * ((size_t)M + 1)), *live = lower + M + 1; /* live: a finite bound */
+    unsigned char *known = live + M + 1; /* known[j]: column j of H (and row j of C) computed */
     if (!L || !W || !lower) {
         free(L), free(W), free(lower);
         return -1;
@@ -175,20 +202,9 @@ static int polish(int n, int M, const double *P, const double *c, const double *
         goto done;
     }
     /* A row bounded by +-inf on both sides (a damper beyond its influence distance) can be neither violated nor
-       active: its part of H stays 0, which saves most of the M^2 n work when many rows are inactive. */
-    for (int i = 0; i < M; ++i) live[i] = isfinite(lo[i]) || isfinite(hi[i]);
-    for (int i = 0; i < M; ++i) { /* C[:, i] = P^-1 Abar_i, stored row i of C as (M, n) */
-        if (!live[i]) continue;
-        for (int j = 0; j < n; ++j) C[(size_t)i * n + j] = ABAR(i, j);
-        chol_solve(L, n, C + (size_t)i * n);
-    }
-    for (int i = 0; i < M; ++i)
-        for (int j = 0; j < M; ++j) {
-            double s = 0.0;
-            if (live[i] && live[j])
-                for (int t = 0; t < n; ++t) s += ABAR(i, t) * C[(size_t)j * n + t];
-            H[(size_t)i * M + j] = s;
-        }
+       active: its part of H stays 0. */
+    for (int i = 0; i < M; ++i) live[i] = isfinite(lo[i]) || isfinite(hi[i]), known[i] = 0;
+    for (int i = 0; i < ng; ++i) column(n, M, Abar, L, live, known, C, H, guess[i]);
     for (int i = 0; i < M; ++i) b[i] = lower[i] ? lo[i] : hi[i];
     memcpy(W, guess, sizeof(int) * (size_t)ng);
     k = independent(H, M, W, ng, G);
@@ -214,7 +230,7 @@ static int polish(int n, int M, const double *P, const double *c, const double *
     }
     for (int i = 0; i < M; ++i) {
         double s = r0[i];
-        for (int t = 0; t < k; ++t) s += H[(size_t)i * M + W[t]] * nu[t];
+        for (int t = 0; t < k; ++t) s += HC(i, W[t]) * nu[t];
         z[i] = s;
     }
     for (;;) {
@@ -225,23 +241,24 @@ static int polish(int n, int M, const double *P, const double *c, const double *
             if (v > vp) vp = v, p = i;
         }
         if (vp <= scale) break;
+        column(n, M, Abar, L, live, known, C, H, p);
         double sp = lo[p] - z[p] > 0.0 ? 1.0 : -1.0;
         b[p] = sp > 0.0 ? lo[p] : hi[p];
         double gap = vp, nu_p = 0.0;
         for (;;) { /* raise p's multiplier until p is met (it joins W) or a constraint of W leaves */
             if (++steps > max_steps) goto done;
             if (k) {
-                for (int i = 0; i < k; ++i) rhs[i] = H[(size_t)W[i] * M + p];
+                for (int i = 0; i < k; ++i) rhs[i] = HC(W[i], p);
                 if (!solve_w(H, M, W, k, rhs, g, G)) goto done;
                 for (int i = 0; i < k; ++i) g[i] = -g[i];
             }
             for (int i = 0; i < M; ++i) {
-                double s = H[(size_t)i * M + p];
-                for (int t = 0; t < k; ++t) s += H[(size_t)i * M + W[t]] * g[t];
+                double s = HC(i, p);
+                for (int t = 0; t < k; ++t) s += HC(i, W[t]) * g[t];
                 dz[i] = sp * s;
             }
             double rate = sp * dz[p];
-            double full = rate > 1e-10 * H[(size_t)p * M + p] ? gap / rate : INFINITY;
+            double full = rate > 1e-10 * HC(p, p) ? gap / rate : INFINITY;
             int j = -1;
             double ratio = INFINITY;
             for (int i = 0; i < k; ++i) {
@@ -288,48 +305,74 @@ done:
     return status;
 }
 
-/* The data of a float64 C-contiguous array of `size` entries, or NULL with a TypeError naming it. */
-static const double *data_of(PyObject *a, npy_intp size, const char *name) {
+/* a as a float64 C-contiguous array (a new reference: itself where it is one) of `size` entries (any if < 0), or
+ * NULL with an error naming it. */
+static PyArrayObject *array_of(PyObject *a, npy_intp size, const char *name) {
     PyArrayObject *arr = (PyArrayObject *)a;
-    if (!PyArray_Check(a) || PyArray_TYPE(arr) != NPY_DOUBLE || !PyArray_IS_C_CONTIGUOUS(arr) ||
-        PyArray_SIZE(arr) != size) {
-        PyErr_Format(PyExc_TypeError, "polish: %s must be a float64 C-contiguous array of %zd entries", name,
-                     (Py_ssize_t)size);
-        return NULL;
+    if (PyArray_CheckExact(a) && PyArray_TYPE(arr) == NPY_DOUBLE && PyArray_ISCARRAY_RO(arr) && PyArray_ISNOTSWAPPED(arr))
+        Py_INCREF(a); /* the common case, without numpy's conversion machinery */
+    else
+        arr = (PyArrayObject *)PyArray_FROM_OTF(a, NPY_DOUBLE, NPY_ARRAY_IN_ARRAY);
+    if (arr && size >= 0 && PyArray_SIZE(arr) != size) {
+        PyErr_Format(PyExc_ValueError, "polish: %s must have %zd entries, got %zd", name, (Py_ssize_t)size,
+                     (Py_ssize_t)PyArray_SIZE(arr));
+        Py_CLEAR(arr);
     }
-    return (const double *)PyArray_DATA(arr);
+    return arr;
 }
 
-/* polish(P (n, n), c (n,), AbarT (n, M): Abar transposed, lo (M,), hi (M,), x (n,), y (M,), tol, max_steps)
- * -> x (n,) or None */
+/* polish(P (n, n), c (n,), A (m, n), lb (n,), ub (n,), l (m,), u (m,), x (n,), y (n + m,), tol, max_steps)
+ * -> x (n,) or None: the QP with the box lb <= x <= ub and the rows l <= A x <= u, as Abar = [I; A],
+ * lo = [lb; l], hi = [ub; u] (M = n + m rows; y the multipliers of those rows). */
 static PyObject *py_polish(PyObject *mod, PyObject *const *args, Py_ssize_t nargs) {
-    if (nargs != 9) {
-        PyErr_SetString(PyExc_TypeError, "polish takes 9 arguments");
+    static const char *names[] = {"P", "c", "A", "lb", "ub", "l", "u", "x", "y"};
+    if (nargs != 11) {
+        PyErr_SetString(PyExc_TypeError, "polish takes 11 arguments");
         return NULL;
     }
-    if (!PyArray_Check(args[1]) || !PyArray_Check(args[3])) {
-        PyErr_SetString(PyExc_TypeError, "polish: c and lo must be arrays");
-        return NULL;
+    double tol = PyFloat_AsDouble(args[9]);
+    long steps = PyLong_AsLong(args[10]);
+    if (PyErr_Occurred()) return NULL;
+    PyArrayObject *arr[9] = {NULL};
+    PyObject *out = NULL;
+    double *Abar = NULL;
+    npy_intp n = 0, m = 0; /* c's size and l's, then every array's checked against them */
+    if (!(arr[1] = array_of(args[1], -1, "c")) || !(arr[5] = array_of(args[5], -1, "l"))) goto fail;
+    n = PyArray_SIZE(arr[1]), m = PyArray_SIZE(arr[5]);
+    npy_intp M = n + m, sizes[9] = {n * n, n, m * n, n, n, m, m, n, M};
+    for (int k = 0; k < 9; ++k)
+        if (!arr[k] && !(arr[k] = array_of(args[k], sizes[k], names[k]))) goto fail;
+    const double *d[9];
+    for (int k = 0; k < 9; ++k) d[k] = (const double *)PyArray_DATA(arr[k]);
+    Abar = malloc(sizeof(double) * (size_t)(M * n + 2 * M)); /* Abar (M, n) row-major, then lo, hi */
+    if (!Abar) {
+        PyErr_NoMemory();
+        goto fail;
     }
-    npy_intp n = PyArray_SIZE((PyArrayObject *)args[1]), M = PyArray_SIZE((PyArrayObject *)args[3]);
-    const double *P = data_of(args[0], n * n, "P"), *c = data_of(args[1], n, "c"), *A = data_of(args[2], M * n, "AbarT");
-    const double *lo = data_of(args[3], M, "lo"), *hi = data_of(args[4], M, "hi"), *x = data_of(args[5], n, "x");
-    const double *y = data_of(args[6], M, "y");
-    double tol = PyFloat_AsDouble(args[7]);
-    long steps = PyLong_AsLong(args[8]);
-    if (!P || !c || !A || !lo || !hi || !x || !y || PyErr_Occurred()) return NULL;
-    PyObject *out = PyArray_SimpleNew(1, &n, NPY_DOUBLE);
-    if (!out) return NULL;
-    int status = polish((int)n, (int)M, P, c, A, lo, hi, x, y, tol, (int)steps, PyArray_DATA((PyArrayObject *)out));
-    if (status == 1) return out;
-    Py_DECREF(out);
-    if (status < 0) return PyErr_NoMemory();
-    Py_RETURN_NONE;
+    double *lo = Abar + M * n, *hi = lo + M;
+    for (npy_intp i = 0; i < n; ++i)
+        for (npy_intp j = 0; j < n; ++j) Abar[i * n + j] = i == j ? 1.0 : 0.0;
+    memcpy(Abar + n * n, d[2], sizeof(double) * (size_t)(m * n));
+    memcpy(lo, d[3], sizeof(double) * (size_t)n), memcpy(lo + n, d[5], sizeof(double) * (size_t)m);
+    memcpy(hi, d[4], sizeof(double) * (size_t)n), memcpy(hi + n, d[6], sizeof(double) * (size_t)m);
+    out = PyArray_SimpleNew(1, &n, NPY_DOUBLE);
+    if (!out) goto fail;
+    int status = polish((int)n, (int)M, d[0], d[1], Abar, lo, hi, d[7], d[8], tol, (int)steps,
+                        PyArray_DATA((PyArrayObject *)out));
+    if (status != 1) {
+        Py_CLEAR(out);
+        if (status < 0) PyErr_NoMemory();
+        else Py_INCREF(Py_None), out = Py_None;
+    }
+fail:
+    free(Abar);
+    for (int k = 0; k < 9; ++k) Py_XDECREF(arr[k]);
+    return out;
 }
 
 static PyMethodDef methods[] = {
     {"polish", (PyCFunction)(void (*)(void))py_polish, METH_FASTCALL,
-     "polish(P, c, AbarT, lo, hi, x, y, tol, max_steps): the exact QP answer, or None"},
+     "polish(P, c, A, lb, ub, l, u, x, y, tol, max_steps): the exact QP answer, or None"},
     {NULL, NULL, 0, NULL},
 };
 
