@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import functools
 import io
 import socket
 import threading
@@ -273,14 +272,17 @@ class Viewer:
             self._certifier.join()
 
     def _certify_later(self) -> None:
-        """Certify the current pose in a thread of its own (its first certificate builds the arm's bounds); where
-        the level sets certified it, build the search instead (:func:`~qpik.viewer.state.prepare_search`)."""
+        """Certify the current pose in a thread of its own (its first certificate builds the arm's bounds) unless
+        the level sets certified it, then build the search (:func:`~qpik.viewer.state.prepare_search`)."""
         state = self._state
         if state.best is None:
             return
-        work = self.update
-        if state.best.certified:
-            work = functools.partial(prepare_search, self.robot, state, self._objective, self.obstacles, self.d_safe)
+
+        def work() -> None:
+            if not state.best.certified:
+                self.update()
+            prepare_search(self.robot, state, self._objective, self.obstacles, self.d_safe)
+
         self._certifier = threading.Thread(target=work, name="qpik-view-certify", daemon=True)
         self._certifier.start()
 
