@@ -123,6 +123,9 @@ class Viewer:
         self._stop = threading.Event()
         self.latencies: collections.deque[float] = collections.deque(maxlen=LATENCIES)
         """Seconds from each drag update's callback to its scene messages flushed (the latest :data:`LATENCIES`)."""
+        self.cpu_times: collections.deque[float] = collections.deque(maxlen=LATENCIES)
+        """CPU seconds of the thread drawing each drag update, over the same span as :attr:`latencies` (less than it
+        by the time other threads and processes held the CPU)."""
         self.updates = 0
         """Drag updates drawn."""
         self._state: ViewState | None = None
@@ -267,7 +270,7 @@ class Viewer:
         self._stop_server()
 
     def wait(self) -> None:
-        """Wait until the certificate of the first pose is drawn."""
+        """Wait until the certificate of the first pose is drawn and the search of later poses is built."""
         if self._certifier is not None:
             self._certifier.join()
 
@@ -336,8 +339,10 @@ class Viewer:
                 if item is None:
                     self._busy = False
                     return
+            cpu = time.thread_time()
             self.update(item[0], certify=False)
             self.latencies.append(time.perf_counter() - item[1])
+            self.cpu_times.append(time.thread_time() - cpu)
             self.updates += 1
 
     def _on_param(self) -> None:
