@@ -158,6 +158,36 @@ def solve_best(
     return BestResults(results, n) if batched else results[0]
 
 
+def build_search(
+    robot: Robot,
+    pose: np.ndarray,
+    objective: Objective | str | None = None,
+    obstacles=None,
+    q_ref: np.ndarray | None = None,
+    *,
+    d_safe: float | None = None,
+) -> None:
+    """Trace and compile now what :func:`solve_best`'s search may call for this scene (arguments as there; ``pose``
+    (4, 4), base frame, is where the feasible sets are first evaluated): the functions of the pass without the
+    capsule pairs and, with self-collision, those of the pass with them and the pairs' distances. A call of
+    :func:`solve_best` builds only what it uses, so without this the first pose that needs the other pass (one the
+    level sets do not settle, or whose answer comes too close to itself) would build it inside its call."""
+    problem = scene_of(robot, obstacles, d_safe, objective, q_ref).with_objective("margin")
+    if problem.robot.closed_form is None:
+        raise NoClosedFormError(f"{problem.robot.name} has no closed-form IK, so no search over δ/ψ to build")
+    T = check_pose(pose, "pose")[0]
+    if T.ndim != 2:
+        raise InputError(f"pose: expected one pose (4, 4), got shape {T.shape}")
+    ref = np.zeros((1, problem.robot.dof)) if problem.q_ref is None else finite_array(problem.q_ref, "q_ref")[None]
+    sm = selfmotion_of(problem.robot)
+    scenes = [problem.replace(self_collision=False)] + ([problem] if problem.self_pairs else [])
+    with sm.solver.lock:
+        for scene in scenes:
+            BestRun(scene, sm, T[None], ref).build_search()
+        if problem.self_pairs:
+            problem.self_distances.build()
+
+
 def _solve(
     run: BestRun, certify: bool, tol: float, method: str, rows: list[int], weight: float | None
 ) -> list[BestResult]:

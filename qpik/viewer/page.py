@@ -176,8 +176,9 @@ class Page:
         if sol is None:
             return
         show = sol.valid & self.ghost_box.value & (np.abs(sol.q - solid).max(axis=1) > 1e-9)
-        F = self.robot.frames(sol.q)  # (B, n+2, 4, 4): the labels sit at the middle link's frame
-        spots = F[:, (self.robot.dof + 1) // 2, :3, 3]
+        # the labels sit at the middle link's frame; one configuration at a time is the compiled FK (a batch this
+        # small is slower through the numpy path)
+        spots = np.array([self.robot.frames(q)[(self.robot.dof + 1) // 2, :3, 3] for q in sol.q])
         texts: dict[int, list[str]] = {}
         for k, frames in enumerate(self.ghosts):
             root = self.server.scene.get_handle_by_name(f"/ghost{self.branch_ids[k]}")

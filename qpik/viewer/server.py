@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import functools
 import io
 import socket
 import threading
@@ -124,6 +123,9 @@ class Viewer:
         self._stop = threading.Event()
         self.latencies: collections.deque[float] = collections.deque(maxlen=LATENCIES)
         """Seconds from each drag update's callback to its scene messages flushed (the latest :data:`LATENCIES`)."""
+        self.cpu_times: collections.deque[float] = collections.deque(maxlen=LATENCIES)
+        """CPU seconds of the thread drawing each drag update, over the same span as :attr:`latencies` (less than it
+        by the time other threads and processes held the CPU)."""
         self.updates = 0
         """Drag updates drawn."""
         self._state: ViewState | None = None
@@ -268,19 +270,22 @@ class Viewer:
         self._stop_server()
 
     def wait(self) -> None:
-        """Wait until the certificate of the first pose is drawn."""
+        """Wait until the certificate of the first pose is drawn and the search of later poses is built."""
         if self._certifier is not None:
             self._certifier.join()
 
     def _certify_later(self) -> None:
-        """Certify the current pose in a thread of its own (its first certificate builds the arm's bounds); where
-        the level sets certified it, build the search instead (:func:`~qpik.viewer.state.prepare_search`)."""
+        """Certify the current pose in a thread of its own (its first certificate builds the arm's bounds) unless
+        the level sets certified it, then build the search (:func:`~qpik.viewer.state.prepare_search`)."""
         state = self._state
         if state.best is None:
             return
-        work = self.update
-        if state.best.certified:
-            work = functools.partial(prepare_search, self.robot, state, self._objective, self.obstacles, self.d_safe)
+
+        def work() -> None:
+            if not state.best.certified:
+                self.update()
+            prepare_search(self.robot, state, self._objective, self.obstacles, self.d_safe)
+
         self._certifier = threading.Thread(target=work, name="qpik-view-certify", daemon=True)
         self._certifier.start()
 
@@ -334,8 +339,10 @@ class Viewer:
                 if item is None:
                     self._busy = False
                     return
+            cpu = time.thread_time()
             self.update(item[0], certify=False)
             self.latencies.append(time.perf_counter() - item[1])
+            self.cpu_times.append(time.thread_time() - cpu)
             self.updates += 1
 
     def _on_param(self) -> None:

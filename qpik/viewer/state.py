@@ -17,6 +17,7 @@ import numpy as np
 from qpik.analytic import FeasibleIntervals, IKSolutions, feasible_intervals, ik
 from qpik.geometry.distance import Distances, ObstacleSet, distances
 from qpik.nlp import BestResult, solve_best
+from qpik.nlp.best import build_search
 from qpik.nlp.ik import IKResult
 from qpik.nlp.ik import ik_solver_for as ik_solver
 from qpik.nlp.options import BestOptions
@@ -86,9 +87,11 @@ def solve_view(
 def prepare_search(robot: Robot, state: ViewState, objective: str, obstacles: ObstacleSet, d_safe: float) -> None:
     """Build what a later drag may call that ``state`` (``robot``'s answer of :func:`solve_view`) did not: the
     search of :func:`qpik.solve_best`, for poses its level sets do not settle (out of reach, or among obstacles),
-    by one search without certificate at ``state``'s pose; its answer is not kept."""
+    without and with the arm's capsule pairs (:func:`qpik.nlp.best.build_search`), then one search without
+    certificate at ``state``'s pose; its answer is not kept."""
     if state.best is None:
         return
     q_ref = state.q if objective == "distance" else None
+    build_search(robot, state.pose, objective, obstacles, q_ref, d_safe=d_safe)
     options = BestOptions(method="search", certify=False)
     solve_best(robot, state.pose, objective, obstacles, q_ref, d_safe=d_safe, options=options)

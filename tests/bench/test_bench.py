@@ -124,6 +124,7 @@ def test_bench_prints_every_row(name, monkeypatch):
         assert all("numpy scalar / float: " in row.note for row in rows if "numpy.float64" in row.label)
     if name == "view":  # every arm's drag updates were timed, with their p95 against the 50 ms budget
         assert all("p95" in row.note and "/20 ≤ 50 ms" in row.note and "/20 poses reached" in row.note for row in rows)
+        assert all("CPU of the update median" in row.note for row in rows)
         bent = next(row for row in rows if row.label.startswith("URDF pybullet kuka_iiwa, bent"))
         assert "20/20 poses reached" in bent.note  # the bent drag stays in reach
     if name == "plan":  # the planned path passes every check, and the quoted peer says it is quoted

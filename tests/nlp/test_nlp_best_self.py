@@ -22,6 +22,7 @@ from self_clearance import mujoco_self_clearance
 import qpik
 from qpik.analytic import closed_form_for
 from qpik.geometry import Sphere, distances
+from qpik.nlp.best import build_search
 from qpik.nlp.options import BestOptions
 from qpik.objectives import resolve
 from qpik.robots.self_pairs import pair_distances
@@ -239,3 +240,24 @@ def test_panda_without_self_collision_keeps_the_unconstrained_answer(panda):
     assert safe.self_clearance(res.q[None])[0] < D_SAFE
     search = qpik.solve_best(plain, T[0], options=BestOptions(method="search"))
     assert search.self_collision == "off" and search.objective == pytest.approx(res.objective, abs=1e-8)
+
+
+def test_build_search_builds_the_passes_without_and_with_the_pairs():
+    """``build_search`` compiles what both passes of the search call (the objective and clearance maps without and
+    with the capsule pairs, the pairs' distances), which a first solve whose answer is clear of itself leaves
+    unbuilt."""
+    robot = qpik.load_robot("panda")
+    safe = Scene.of(robot, d_safe=D_SAFE, objective="margin")
+    plain = safe.replace(self_collision=False)
+    T = robot.fk(robot.q_home)
+
+    def built(scene):
+        maps = scene.evaluator._maps
+        return maps.rows.built and maps.values.built
+
+    qpik.solve_best(safe, T, options=BestOptions(method="search", certify=False))
+    assert built(plain) and not built(safe)
+    build_search(robot, T, "margin", d_safe=D_SAFE)
+    assert built(plain) and built(safe) and safe.self_distances.built
+    res = qpik.solve_best(safe, T, options=BestOptions(method="search", certify=False))
+    assert res.status == "optimal" and res.self_collision == "clear", res.summary()

@@ -49,7 +49,8 @@ def test_drag_event_moves_the_target_and_the_answers(iiwa):
     x, y, z, w = Rotation.from_matrix(pose[:3, :3]).as_quat()
     before = iiwa.updates
     iiwa._on_drag(SimpleNamespace(phase="update", target=SimpleNamespace(position=pose[:3, 3], wxyz=(w, x, y, z))))
-    assert iiwa.updates == before + 1 and len(iiwa.latencies) >= 1
+    assert iiwa.updates == before + 1 and len(iiwa.latencies) >= 1 and len(iiwa.cpu_times) == len(iiwa.latencies)
+    assert 0.0 < iiwa.cpu_times[-1] <= iiwa.latencies[-1]  # the drawing thread's CPU time within the span
     np.testing.assert_allclose(iiwa.pose, pose, atol=1e-12)
     assert not iiwa.state.certify  # during a drag: the certificate follows at its end
     np.testing.assert_allclose(robot.fk(iiwa.state.q), pose, atol=1e-9)
