@@ -15,8 +15,8 @@ writes as ``view[...] = value`` does).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -26,7 +26,12 @@ from qpik.native.fastcall import extension
 if TYPE_CHECKING:
     import casadi as ca
 
-    from qpik.control.state import State, Traced
+
+class Parametrised(Protocol):
+    """What :class:`Owned` reads of a task or limit (a :class:`~qpik.control.state.Traced`): its parameters'
+    numbers by name."""
+
+    def param_values(self) -> Mapping[str, Any]: ...
 
 
 class Input:
@@ -38,7 +43,7 @@ class Input:
         value: the function giving its numbers.
     """
 
-    def __init__(self, symbol: ca.SX, value: Callable[[State | None], Any]):
+    def __init__(self, symbol: ca.SX, value: Callable[[Any], Any]):
         self.symbol, self.value = symbol, value
 
     @property
@@ -73,7 +78,7 @@ class Owned(Input):
     """The parameters of a task or limit (``owner``): ``owner.param_values()`` by name, laid out by ``layout``
     (the owner's ``param_layout``), read at every call."""
 
-    def __init__(self, symbol: ca.SX, owner: Traced, layout: Layout):
+    def __init__(self, symbol: ca.SX, owner: Parametrised, layout: Layout):
         pack = layout.packer()
         super().__init__(symbol, lambda state: pack(owner.param_values()))
         self.owner, self.layout = owner, layout
