@@ -2,8 +2,12 @@
 
 For each arm a viewer (:class:`qpik.viewer.server.Viewer`) serves on a free local port, with a page of it
 open in a headless Chromium when one can be started (then the messages are really serialised and sent
-to a browser while the bench runs; the note says whether). A scripted drag of :data:`POSES` target poses
-(a loop of 8 cm around an end-effector pose, turning ±0.3 rad about z) goes through
+to a browser while the bench runs; the note says whether). The browser's processes run at the lowest CPU
+priority (:func:`~qpik.viewer.browser.lower_priority`, Linux): its software-GL redraw of the page takes most of
+a core of a small machine, and in use the page is on the user's own machine (a remote viewer is reached through
+a forwarded port), so the server is timed with the CPU it would have; the note says when the priority could not
+be lowered. A scripted drag of :data:`POSES` target poses (a loop of 8 cm around an end-effector pose,
+turning ±0.3 rad about z) goes through
 :meth:`~qpik.viewer.server.Viewer.receive`, the path of the target's drag callback: every branch at the
 slider's ψ/δ, the feasible sets, :func:`qpik.solve_best` without its certificate (which follows when a
 drag ends) or the numerical IK, the clearances, every scene and panel message, and the flush of the
@@ -82,7 +86,7 @@ def _arms() -> list[tuple[str, object, tuple, np.ndarray | None, str]]:
 
 def run(args: argparse.Namespace) -> list[Row]:
     from qpik.viewer import ViewerError
-    from qpik.viewer.browser import browser, open_page
+    from qpik.viewer.browser import browser, lower_priority, open_page
     from qpik.viewer.options import ViewOptions
     from qpik.viewer.server import Viewer
 
@@ -99,6 +103,7 @@ def run(args: argparse.Namespace) -> list[Row]:
             with Viewer(robot, obstacles=obstacles, options=ViewOptions(port=0)) as viewer:
                 viewer.wait()
                 page = open_page(chromium, viewer, PAGE) if chromium is not None else None
+                lowered = lower_priority() if page is not None else 0
                 reached = 0
                 for pose in drag(robot, min(POSES, args.repeat), centre):
                     viewer.receive(pose, time.perf_counter())
@@ -114,7 +119,8 @@ def run(args: argparse.Namespace) -> list[Row]:
                 if robot.closed_form is None
                 else f"{len(viewer.state.branches)} branches, feasible sets, solve_best {viewer.state.best.method}"
             )
-            seen = "a page open in headless Chromium" if page is not None else f"no page ({why})"
+            priority = "at the lowest CPU priority" if lowered else "its priority not lowered"
+            seen = f"a page open in headless Chromium ({priority})" if page is not None else f"no page ({why})"
             rows.append(
                 Row(
                     f"{label}: pose → scene",

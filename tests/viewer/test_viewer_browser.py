@@ -8,6 +8,14 @@ feasible-set chart) and its pixels. Skips with one line where viser, Playwright 
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
 import mujoco
 import numpy as np
 import pytest
@@ -19,7 +27,7 @@ import qpik
 from qpik.cli import main
 from qpik.problems import find_problem, load
 from qpik.viewer import ViewerError
-from qpik.viewer.browser import browser, open_page, settle
+from qpik.viewer.browser import browser, lower_priority, open_page, settle
 from qpik.viewer.server import Viewer
 
 # --dist loadgroup: one worker runs the whole module, so its module- and session-scoped fixtures are built once
@@ -142,3 +150,37 @@ def test_cli_writes_a_screenshot(chromium, tmp_path, capsys):
 
     picture = np.asarray(Image.open(out).convert("RGB"))
     assert picture.shape == (480, 640, 3) and picture.std() > 20
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="lower_priority reads /proc (Linux)")
+def test_lower_priority_lowers_the_processes_started_here_and_not_this_one():
+    own = os.getpriority(os.PRIO_PROCESS, 0)
+    # a child that starts a grandchild: both are this process's descendants
+    child = subprocess.Popen([sys.executable, "-c", "import subprocess, sys; "
+                              "subprocess.run([sys.executable, '-c', 'import time; time.sleep(30)'])"])  # fmt: skip
+    grandchildren: list[int] = []
+    try:
+        for _ in range(200):  # until the grandchild runs
+            stat = [p for p in Path("/proc").iterdir() if p.name.isdigit()]
+            grandchildren = [int(p.name) for p in stat if _parent(p) == child.pid]
+            if grandchildren:
+                break
+            time.sleep(0.05)
+        assert grandchildren, "the grandchild did not start"
+        assert lower_priority(15) >= 2
+        for pid in (child.pid, *grandchildren):
+            assert os.getpriority(os.PRIO_PROCESS, pid) == max(15, own)
+        assert os.getpriority(os.PRIO_PROCESS, 0) == own
+    finally:
+        for pid in grandchildren:
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
+        child.kill()
+        child.wait()
+
+
+def _parent(entry: Path) -> int | None:
+    try:
+        return int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+    except (OSError, IndexError, ValueError):
+        return None
