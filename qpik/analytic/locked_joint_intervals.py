@@ -62,7 +62,7 @@ from qpik.algebra import symbolic as sy
 from qpik.algebra.enclosure import taylor_function
 from qpik.analytic import trig
 from qpik.analytic.intervals import FeasibleIntervals, SetAssembler, shrunk_limits, wrap
-from qpik.native.compiled import RowMap
+from qpik.native.compiled import RowMap, cores
 
 if TYPE_CHECKING:
     from qpik.analytic.locked_joint import LockedJointSolver
@@ -108,9 +108,10 @@ class Q7Intervals:
         (row,), (valid,) = solver.joint_trig(R, p, q7, sy.CASADI, one), solver.validity(R, p, q7, sy.CASADI, one)
         out = ca.vertcat(*[row[j][0] for j in self._joints], *[row[j][1] for j in self._joints], valid)
         columns = ca.Function(f"columns_{solver.kind}", [T, q7, sign], [out])
-        self._model = RowMap(taylor_function(columns, [1]), shared=[0])
+        self._model = RowMap(taylor_function(columns, [1]), shared=[0], threads=cores())
         """The Taylor models of one branch's outputs (inputs: T, the centre of a cell of q7, the branch's
-        :data:`SIGNS`, then the cell's half-width, radius 0 and its ends) over rows of cells and branches."""
+        :data:`SIGNS`, then the cell's half-width, radius 0 and its ends) over rows of cells and branches, the
+        rows of a round shared among the cores."""
         self._last: tuple[bytes, float, FeasibleIntervals] | None = None
 
     def native_sets(self) -> None:

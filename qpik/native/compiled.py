@@ -11,7 +11,9 @@ batched numpy path and the symbolic path (:mod:`qpik.algebra.symbolic`), as mach
 
 from __future__ import annotations
 
+import concurrent.futures
 import ctypes
+import os
 import threading
 from collections.abc import Sequence
 from pathlib import Path
@@ -162,33 +164,46 @@ class RowMap:
     chunk, the loop over rows in machine code (:class:`Compiled`). Both sizes are compiled
     into one library on first use (``fn`` once in it).
 
+    With ``threads`` > 1, a call of at least ``threads · chunks[0]`` rows is split into that many runs of
+    consecutive rows, one in the calling thread and the others in a pool shared by every map
+    (:func:`pool`), each with buffers of its own: the compiled code runs without Python's lock, so the runs
+    take the machine's cores at once. The results are those of one thread, bit for bit (each row is computed
+    alone). One call at a time per map: the buffers are the map's.
+
     Args:
         fn: dense inputs (a matrix input is given per row as its entries in CasADi's
             column-major order) and dense column-vector outputs.
         shared: indices of the inputs that are the same for every row (given once, 1-D).
         chunks: rows per call, large then small.
+        threads: runs a large call is split into (at most the cores this process may use).
     """
 
-    def __init__(self, fn: ca.Function, shared: Sequence[int] = (), chunks: tuple[int, int] = (32, 4)):
+    def __init__(
+        self, fn: ca.Function, shared: Sequence[int] = (), chunks: tuple[int, int] = (32, 4), threads: int = 1
+    ):
         self.fn, self.shared, self.chunks = fn, tuple(shared), chunks
+        self.threads = max(1, min(int(threads), cores()))
         self._lock = threading.Lock()
-        self._compiled: dict[int, tuple[Compiled, list[np.ndarray | None], list[np.ndarray]]] | None = None
+        self._library: tuple[Path | None, list[tuple[int, ca.Function]]] | None = None
+        self._runs: list[dict[int, tuple[Compiled, list[np.ndarray | None], list[np.ndarray]]]] = []
 
-    def _maps(self) -> dict[int, tuple[Compiled, list[np.ndarray | None], list[np.ndarray]]]:
-        """Per size, the compiled map and views (size, nnz) of its per-row input and output buffers, compiled on the
-        first call under this map's own lock (a ``functools.cached_property`` would hold one lock for every
-        instance on Python 3.11 and serialise the compiles of :func:`qpik.native.build.concurrently`)."""
+    def _maps(self, run: int = 0) -> dict[int, tuple[Compiled, list[np.ndarray | None], list[np.ndarray]]]:
+        """Per size, the compiled map and views (size, nnz) of its per-row input and output buffers of run ``run``
+        (the library compiled on the first call under this map's own lock: a ``functools.cached_property`` would
+        hold one lock for every instance on Python 3.11 and serialise the compiles of
+        :func:`qpik.native.build.concurrently`)."""
         with self._lock:
-            if self._compiled is None:
-                self._compiled = self._compile()
-            return self._compiled
+            if self._library is None:
+                name, shared, sizes = self.fn.name(), list(self.shared), sorted(set(self.chunks), reverse=True)
+                maps = [(n, self.fn.map(f"{name}_rows{n}", "serial", n, shared, [])) for n in sizes]
+                self._library = (native_library(*(fn for _, fn in maps)), maps)
+            while len(self._runs) <= run:
+                self._runs.append(self._buffers(*self._library))
+            return self._runs[run]
 
-    def _compile(self) -> dict[int, tuple[Compiled, list[np.ndarray | None], list[np.ndarray]]]:
-        sizes = sorted(set(self.chunks), reverse=True)
-        fns = [self.fn.map(f"{self.fn.name()}_rows{size}", "serial", size, list(self.shared), []) for size in sizes]
-        lib = native_library(*fns)
+    def _buffers(self, lib: Path | None, fns: list[tuple[int, ca.Function]]):
         maps = {}
-        for size, fn in zip(sizes, fns):
+        for size, fn in fns:
             call = Compiled(fn, compile=False, library=lib)
             # column-major (nnz, size) buffers: one row's entries are contiguous
             ins = [None if k in self.shared else a.reshape(size, -1) for k, a in enumerate(call.arguments)]
@@ -198,7 +213,7 @@ class RowMap:
     @property
     def built(self) -> bool:
         """Whether the maps are compiled (:meth:`build` would return at once)."""
-        return self._compiled is not None
+        return self._library is not None
 
     def build(self) -> None:
         """Compile the maps now (else on the first call): a solve that starts its clock after this times
@@ -211,12 +226,24 @@ class RowMap:
         per_row = [(k, np.asarray(a, dtype=float).reshape(len(a), -1)) for k, a in enumerate(args) if k not in shared]
         M = len(per_row[0][1]) if per_row else 1
         outs = [np.empty((M, self.fn.nnz_out(k))) for k in range(self.fn.n_out())]
-        big, small = self.chunks
-        maps = self._maps()
-        i = 0
-        while i < M:
-            size = big if M - i > 3 * big // 4 else small
-            m = min(size, M - i)
+        big = self.chunks[0]
+        runs = self.threads if self.threads * big <= M else 1
+        ends = [big * round(M * r / (runs * big)) for r in range(runs)] + [M]  # runs of whole big chunks
+        work = [(self._maps(r), ends[r], ends[r + 1]) for r in range(runs)]
+        others = [pool().submit(self._fill, maps, args, per_row, outs, i, j) for maps, i, j in work[1:]]
+        maps, i, j = work[0]
+        self._fill(maps, args, per_row, outs, i, j)
+        for other in others:
+            other.result()
+        return outs
+
+    def _fill(self, maps, args, per_row, outs: list[np.ndarray], start: int, stop: int) -> None:
+        """Rows ``start:stop`` of ``outs`` from the buffers ``maps`` of one run."""
+        shared, (big, small) = self.shared, self.chunks
+        i = start
+        while i < stop:
+            size = big if stop - i > 3 * big // 4 else small
+            m = min(size, stop - i)
             call, ins, res = maps[size]
             for k in shared:
                 call.arguments[k][:] = np.ravel(args[k])
@@ -229,4 +256,22 @@ class RowMap:
             for out, r in zip(outs, res):
                 out[i : i + m] = r[:m]
             i += m
-        return outs
+
+
+_pool: concurrent.futures.ThreadPoolExecutor | None = None
+_pool_lock = threading.Lock()
+
+
+def cores() -> int:
+    """The CPUs this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+def pool() -> concurrent.futures.ThreadPoolExecutor:
+    """The threads that run the other runs of a :class:`RowMap` call (one fewer than :func:`cores`, made on first
+    use; idle threads cost nothing, and they end with the process)."""
+    global _pool
+    with _pool_lock:
+        if _pool is None:
+            _pool = concurrent.futures.ThreadPoolExecutor(max(1, cores() - 1), thread_name_prefix="qpik-rows")
+        return _pool

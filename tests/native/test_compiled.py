@@ -83,3 +83,20 @@ def test_row_map_equals_one_call_per_row():
             want = [np.asarray(v).ravel() for v in fn(Ts[k], xs[k], pv)]
             np.testing.assert_allclose(a[k], want[0], rtol=1e-14)
             np.testing.assert_allclose(b[k], want[1], rtol=1e-14)
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=SEEDS)
+def test_row_map_split_among_threads_gives_the_rows_of_one_thread_bit_for_bit(seed):
+    from qpik.native.compiled import RowMap, cores
+
+    x, p = ca.SX.sym("x", 3), ca.SX.sym("p", 2)
+    fn = ca.Function("h", [x, p], [ca.vertcat(ca.sin(x[0]) * p[0] + x[1] * x[2], ca.sqrt(ca.sumsqr(x)) + p[1])])
+    one, split = RowMap(fn, shared=(1,), chunks=(8, 3)), RowMap(fn, shared=(1,), chunks=(8, 3), threads=4)
+    assert split.threads == min(4, cores())
+    rng = np.random.default_rng(seed)
+    for M in (5, 16, 17, 37, 200):  # below, at and above threads × chunk rows
+        xs, pv = rng.normal(size=(M, 3)), rng.normal(size=2)
+        want = one(xs, pv)[0]
+        np.testing.assert_array_equal(split(xs, pv)[0], want)
+        np.testing.assert_allclose(want[M // 2], np.asarray(fn(xs[M // 2], pv)).ravel(), rtol=1e-14)
