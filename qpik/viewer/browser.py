@@ -109,8 +109,10 @@ def lower_priority(niceness: int = 19) -> int:
     while todo:
         pid = todo.pop()
         todo += children.get(pid, [])
-        try:
-            os.setpriority(os.PRIO_PROCESS, pid, max(os.getpriority(os.PRIO_PROCESS, pid), niceness))
+        try:  # Linux keeps a niceness per thread: every thread of the process
+            threads = [int(t.name) for t in (proc / str(pid) / "task").iterdir()]
+            for tid in threads:
+                os.setpriority(os.PRIO_PROCESS, tid, max(os.getpriority(os.PRIO_PROCESS, tid), niceness))
             lowered += 1
         except OSError:  # gone meanwhile, or not ours
             continue

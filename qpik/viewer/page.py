@@ -76,9 +76,8 @@ class Page:
         from qpik.analytic.api import closed_form_for
 
         self.branch_ids = closed_form_for(robot).branch_array.tolist() if closed else []
-        self.ghosts = [self._add_arm(f"/ghost{b}", WITHIN, GHOST_OPACITY, visible=False) for b in self.branch_ids]
-        self.ghost_colour = [WITHIN] * len(self.ghosts)
-        self.labels = [scene.add_label(f"/ghost{b}/label", f"b{b}", visible=False) for b in self.branch_ids]
+        self.ghosts = self._add_ghosts(len(self.branch_ids))
+        self.labels = [scene.add_label(f"/ghosts/label{b}", f"b{b}", visible=False) for b in self.branch_ids]
         self.capsules = []
         for c, cap in enumerate(robot.capsules):
             part, local = capsule_part(cap, CAPSULE, 0.25)
@@ -107,6 +106,24 @@ class Page:
                 self._mesh(f"{root}/b{body.body}/p{i}", part)
             frames.append(frame)
         return frames
+
+    def _add_ghosts(self, count: int) -> list:
+        """The ghosts of ``count`` branches: per part of every body, one batched mesh ``/ghosts/b<body>/p<i>`` of
+        ``count`` instances (instance k: branch k, scale 0 while hidden); returns ``(body index, handle)`` pairs."""
+        if not count:
+            return []
+        scene, out = self.server.scene, []
+        for j, body in enumerate(self.geometry.bodies):
+            for i, part in enumerate(body.parts):
+                handle = scene.add_batched_meshes_simple(
+                    f"/ghosts/b{body.body}/p{i}", part.vertices, part.faces,
+                    batched_wxyzs=np.tile(np.array([1.0, 0.0, 0.0, 0.0], np.float32), (count, 1)),
+                    batched_positions=np.zeros((count, 3), np.float32), batched_scales=np.zeros(count, np.float32),
+                    batched_colors=np.tile(np.array(WITHIN, np.uint8), (count, 1)), opacity=GHOST_OPACITY,
+                    lod="off", side="front", cast_shadow=False, receive_shadow=False,
+                )  # fmt: skip
+                out.append((j, handle))
+        return out
 
     def _mesh(self, name: str, part: Part, position=(0.0, 0.0, 0.0), quat=(1.0, 0.0, 0.0, 0.0)):
         return self.server.scene.add_mesh_simple(
@@ -171,7 +188,8 @@ class Page:
     def draw_ghosts(self, state: ViewState, solid: np.ndarray) -> None:
         """A ghost per branch that reaches the pose, but not one that is the solid arm itself; a label per place
         (branches whose middle link frames coincide, as the shoulder and wrist flips of an S-R-S arm do, share one);
-        ``solid``: (n,) the solid arm's configuration."""
+        ``solid``: (n,) the solid arm's configuration. One message per part and property for every branch at once
+        (:meth:`_add_ghosts`)."""
         sol = state.branches
         if sol is None:
             return
@@ -179,23 +197,21 @@ class Page:
         # the labels sit at the middle link's frame; one configuration at a time is the compiled FK (a batch this
         # small is slower through the numpy path)
         spots = np.array([self.robot.frames(q)[(self.robot.dof + 1) // 2, :3, 3] for q in sol.q])
+        count, bodies = len(self.branch_ids), len(self.geometry.bodies)
+        pos = np.zeros((count, bodies, 3), np.float32)
+        quat = np.zeros((count, bodies, 4), np.float32)
+        quat[..., 0] = 1.0
         texts: dict[int, list[str]] = {}
-        for k, frames in enumerate(self.ghosts):
-            root = self.server.scene.get_handle_by_name(f"/ghost{self.branch_ids[k]}")
-            if root.visible != bool(show[k]):
-                root.visible = bool(show[k])
-            if not show[k]:
-                continue
-            colour = WITHIN if sol.within_limits[k] else OUTSIDE
-            if colour != self.ghost_colour[k]:
-                self.ghost_colour[k] = colour
-                for body in self.geometry.bodies:
-                    for i in range(len(body.parts)):
-                        handle = self.server.scene.get_handle_by_name(f"/ghost{self.branch_ids[k]}/b{body.body}/p{i}")
-                        handle.color = colour
-            self.place(frames, sol.q[k])
+        for k in np.flatnonzero(show):
+            pos[k], quat[k] = self.geometry.poses(sol.q[k])
             first = next((j for j in texts if np.linalg.norm(spots[j] - spots[k]) < 0.01), k)
             texts.setdefault(first, []).append(f"b{self.branch_ids[k]}")
+        colours = np.where(sol.within_limits[:, None], WITHIN, OUTSIDE).astype(np.uint8)
+        scales = show.astype(np.float32)
+        for j, handle in self.ghosts:
+            handle.batched_positions, handle.batched_wxyzs, handle.batched_scales = pos[:, j], quat[:, j], scales
+            if not np.array_equal(handle.batched_colors, colours):
+                handle.batched_colors = colours
         for k, label in enumerate(self.labels):
             label.visible = k in texts
             if k in texts:
@@ -259,5 +275,6 @@ def best_text(state: ViewState, symbol: str) -> str:
     else:
         cert = f"not certified: {best.message}"
     clear = f", clearance {best.clearance * 1e3:.1f} mm" if math.isfinite(best.clearance) else ""
-    return (f"solid arm: branch **{best.branch}**, {symbol} = {best.param:.4f} rad, objective {best.objective:.6g}"
+    value = best.quantity.text(best.objective)  # the margin as itself, not the −margin qpik minimises
+    return (f"solid arm: branch **{best.branch}**, {symbol} = {best.param:.4f} rad, {value} ({best.quantity.sense})"
             f"{clear}  \n{cert} ({best.method}, {best.time * 1e3:.1f} ms)")  # fmt: skip

@@ -79,6 +79,23 @@ def _check_arm(viewer: Viewer, root: str, q: np.ndarray) -> None:
         assert np.allclose(handle.wxyz, w, atol=1e-9) or np.allclose(handle.wxyz, -w, atol=1e-9)
 
 
+def _ghost_shown(viewer: Viewer, k: int) -> bool:
+    """Whether branch k's ghost is drawn: its instance of every ghost mesh at scale 1 (hidden: 0)."""
+    scales = {float(handle.batched_scales[k]) for _, handle in viewer.page.ghosts}
+    assert len(scales) == 1 and scales <= {0.0, 1.0}, scales
+    return scales == {1.0}
+
+
+def _check_ghost(viewer: Viewer, k: int, q: np.ndarray) -> None:
+    """Branch k's instance of every ghost mesh is where MuJoCo puts its body at q (to float32, as viser sends it)."""
+    _, data = _body_poses(viewer.robot, q)
+    for j, handle in viewer.page.ghosts:
+        body = viewer.geometry.bodies[j].body
+        np.testing.assert_allclose(handle.batched_positions[k], data.xpos[body], atol=1e-6)
+        w, got = data.xquat[body], handle.batched_wxyzs[k]
+        assert np.allclose(got, w, atol=1e-6) or np.allclose(got, -w, atol=1e-6)
+
+
 def test_page_loads_without_console_errors(scene):
     _, page, messages = scene
     settle(page)
@@ -96,12 +113,12 @@ def test_scene_holds_the_arm_the_ghosts_the_target_and_the_obstacles(scene):
     assert all(get(f"/obstacles/o{o}") is not None for o in range(len(viewer.obstacles)))
     assert all(get(f"/capsules/c{c}") is not None for c in range(len(robot.capsules)))
     ids = state.branches.branch.tolist()
-    assert len(ids) == 8
-    for k, b in enumerate(ids):  # a ghost per branch that reaches the pose, except the solid arm's own
+    assert len(ids) == 8 and ids == viewer.page.branch_ids  # instance k of the ghost meshes: branch ids[k]
+    for k in range(len(ids)):  # a ghost per branch that reaches the pose, except the solid arm's own
         same = np.abs(state.branches.q[k] - state.q).max() <= 1e-9
-        assert get(f"/ghost{b}").visible == bool(state.branches.valid[k] and not same)
-        if get(f"/ghost{b}").visible:
-            _check_arm(viewer, f"/ghost{b}", state.branches.q[k])
+        assert _ghost_shown(viewer, k) == bool(state.branches.valid[k] and not same)
+        if _ghost_shown(viewer, k):
+            _check_ghost(viewer, k, state.branches.q[k])
 
 
 def test_page_draws_the_feasible_sets(scene):
@@ -125,9 +142,9 @@ def test_moving_the_target_changes_the_branches(scene):
     assert valid.any()
     reached = viewer.robot.fk(state.branches.q[valid])
     np.testing.assert_allclose(reached, np.broadcast_to(pose, reached.shape), atol=1e-9)
-    for k, b in enumerate(state.branches.branch.tolist()):
-        if viewer.server.scene.get_handle_by_name(f"/ghost{b}").visible:
-            _check_arm(viewer, f"/ghost{b}", state.branches.q[k])
+    for k in range(len(state.branches.branch)):
+        if _ghost_shown(viewer, k):
+            _check_ghost(viewer, k, state.branches.q[k])
     after = settle(page)
     changed = np.any(np.abs(after.astype(int) - before.astype(int)) > 24, axis=2).mean()
     assert changed > 0.002, f"only {changed:.4%} of the page changed"
@@ -155,8 +172,9 @@ def test_cli_writes_a_screenshot(chromium, tmp_path, capsys):
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="lower_priority reads /proc (Linux)")
 def test_lower_priority_lowers_the_processes_started_here_and_not_this_one():
     own = os.getpriority(os.PRIO_PROCESS, 0)
-    # a child that starts a grandchild: both are this process's descendants
-    child = subprocess.Popen([sys.executable, "-c", "import subprocess, sys; "
+    # a child with a second thread that starts a grandchild: both are this process's descendants
+    child = subprocess.Popen([sys.executable, "-c", "import subprocess, sys, threading, time; "
+                              "threading.Thread(target=time.sleep, args=(30,), daemon=True).start(); "
                               "subprocess.run([sys.executable, '-c', 'import time; time.sleep(30)'])"])  # fmt: skip
     grandchildren: list[int] = []
     try:
@@ -168,8 +186,10 @@ def test_lower_priority_lowers_the_processes_started_here_and_not_this_one():
             time.sleep(0.05)
         assert grandchildren, "the grandchild did not start"
         assert lower_priority(15) >= 2
-        for pid in (child.pid, *grandchildren):
-            assert os.getpriority(os.PRIO_PROCESS, pid) == max(15, own)
+        threads = [int(t.name) for pid in (child.pid, *grandchildren) for t in Path(f"/proc/{pid}/task").iterdir()]
+        assert len(threads) >= 3  # the child's two threads, the grandchild's
+        for tid in threads:
+            assert os.getpriority(os.PRIO_PROCESS, tid) == max(15, own)
         assert os.getpriority(os.PRIO_PROCESS, 0) == own
     finally:
         for pid in grandchildren:

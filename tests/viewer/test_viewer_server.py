@@ -117,3 +117,16 @@ def test_a_taken_port_is_named():
         assert not port_free("127.0.0.1", port)
         with pytest.raises(ViewerError, match=f"port {port} is taken"):
             Viewer(qpik.load_robot("panda"), options=qpik.ViewOptions(port=port))
+
+
+def test_panel_shows_the_margin_as_itself(iiwa):
+    """The maximised margin is shown as the margin (≥ 0 for an answer inside the limits), not as the −margin that
+    solve_best minimises; checked against the joint limits directly."""
+    best = iiwa.state.best
+    assert best.status == "optimal"
+    robot, q = iiwa.robot, best.q
+    half = 0.5 * (robot.q_max - robot.q_min)
+    margin = float(np.min(np.minimum(q - robot.q_min, robot.q_max - q) / half))
+    text = iiwa.page.best_md.content
+    assert f"margin {margin:.6g}" in text and "maximised" in text, text
+    assert margin > 0 and "-" not in text.split("margin", 1)[1].split("(", 1)[0]
