@@ -267,6 +267,16 @@ def cores() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
+def _forget_pool() -> None:
+    """In a child made by ``fork``, the parent's pool threads do not exist: the child makes its own."""
+    global _pool, _pool_lock
+    _pool, _pool_lock = None, threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_pool)
+
+
 def pool() -> concurrent.futures.ThreadPoolExecutor:
     """The threads that run the other runs of a :class:`RowMap` call (one fewer than :func:`cores`, made on first
     use; idle threads cost nothing, and they end with the process)."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
+import pytest
 from conftest import SEEDS, matrix_function
 from hypothesis import given, settings
 
@@ -100,3 +101,31 @@ def test_row_map_split_among_threads_gives_the_rows_of_one_thread_bit_for_bit(se
         want = one(xs, pv)[0]
         np.testing.assert_array_equal(split(xs, pv)[0], want)
         np.testing.assert_allclose(want[M // 2], np.asarray(fn(xs[M // 2], pv)).ravel(), rtol=1e-14)
+
+
+def test_row_map_threads_work_in_a_forked_child():
+    """A child forked after the pool's threads started makes its own (the parent's do not exist there)."""
+    import multiprocessing
+
+    from qpik.native.compiled import RowMap, cores
+
+    if cores() < 2 or "fork" not in multiprocessing.get_all_start_methods():
+        pytest.skip("needs 2 cores and fork")
+    x = ca.SX.sym("x", 2)
+    rows = RowMap(ca.Function("k", [x], [ca.sin(x) * x[1]]), chunks=(4, 2), threads=2)
+    xs = np.random.default_rng(1).normal(size=(40, 2))
+    want = rows(xs)[0].copy()  # the pool's threads now run in this process
+    _FORKED["rows"] = rows  # the child has it by fork (a map is not pickled)
+    try:
+        with multiprocessing.get_context("fork").Pool(1) as child:
+            got = child.apply_async(_row_map_in_child, (xs,)).get(timeout=60)
+    finally:
+        _FORKED.clear()
+    np.testing.assert_array_equal(got, want)
+
+
+_FORKED: dict = {}
+
+
+def _row_map_in_child(xs):
+    return _FORKED["rows"](xs)[0].copy()
