@@ -50,7 +50,7 @@ from qpik.core.validate import finite_array, flag, number
 from qpik.core.validate import pose as check_pose
 from qpik.nlp.best_result import BestResult, BestResults
 from qpik.nlp.best_search import solve_poses
-from qpik.nlp.least_violating import least_violating
+from qpik.nlp.least_violating import build_sweep, least_violating
 from qpik.nlp.levelset import margin_weight
 from qpik.nlp.options import BestOptions
 from qpik.nlp.run import BestRun
@@ -169,7 +169,8 @@ def build_search(
 ) -> None:
     """Trace and compile now what :func:`solve_best`'s search may call for this scene (arguments as there; ``pose``
     (4, 4), base frame, is where the feasible sets are first evaluated): the functions of the pass without the
-    capsule pairs and, with self-collision, those of the pass with them and the pairs' distances. A call of
+    capsule pairs and, with self-collision, those of the pass with them and the pairs' distances, and the sweep of
+    the answer for a pose without a feasible point (:func:`~qpik.nlp.least_violating.build_sweep`). A call of
     :func:`solve_best` builds only what it uses, so without this the first pose that needs the other pass (one the
     level sets do not settle, or whose answer comes too close to itself) would build it inside its call."""
     problem = scene_of(robot, obstacles, d_safe, objective, q_ref).with_objective("margin")
@@ -184,6 +185,7 @@ def build_search(
     with sm.solver.lock:
         for scene in scenes:
             BestRun(scene, sm, T[None], ref).build_search()
+        build_sweep(BestRun(scenes[0], sm, T[None], ref))
         if problem.self_pairs:
             problem.self_distances.build()
 

@@ -26,7 +26,7 @@ def least_violating(
 ) -> BestResult:
     """The answer for pose i when the search has none: unreachable, or the least-violating configuration.
 
-    Every branch's closed form (numpy, :meth:`~qpik.analytic.solver.AnalyticSolver.solve_batch`) at
+    Every branch's closed form (compiled, :meth:`~qpik.analytic.solver.AnalyticSolver.solve_many`) at
     :data:`VIOLATION_SAMPLES` parameters. If no branch reaches the pose, the status is
     ``"unreachable"`` and q is the configuration (the closed form clamps what it cannot reach) whose
     pose error (:func:`qpik.algebra.lie.pose_error`) has the smallest norm, its norm the violation. Otherwise
@@ -39,7 +39,7 @@ def least_violating(
     name = sm.solver.param_name
     psi = np.linspace(-np.pi, np.pi, VIOLATION_SAMPLES, endpoint=False)
     T = scene.poses[i]
-    sol = sm.solver.solve_batch(np.broadcast_to(T, (len(psi), 4, 4)), psi)
+    sol = sm.solver.solve_many(T, psi)
     if not sol.valid.any():
         k, b, err = _closest(robot, T, sol.q)
         why = message or "no branch reaches the pose at any parameter"
@@ -64,6 +64,12 @@ def least_violating(
     why += " and its capsules apart" if scene.self_pairs else ""
     return BestResult(status or "no feasible branch", int(sm.branch_ids[br]), float(wrap(at)), q.copy(), np.inf,
                       violation=violation, rows=rows, param_name=name, message=message or why)  # fmt: skip
+
+
+def build_sweep(scene: BestRun) -> None:
+    """Compile now the sweep :func:`least_violating` evaluates (else the first pose without a feasible point compiles
+    it inside its solve)."""
+    scene.selfmotion.solver.solve_many(scene.poses[0], np.zeros(VIOLATION_SAMPLES))
 
 
 def _closest(robot: Robot, target: np.ndarray, Q: np.ndarray, stride: int = 8) -> tuple[int, int, float]:
