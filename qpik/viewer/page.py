@@ -276,5 +276,5 @@ def best_text(state: ViewState, symbol: str) -> str:
         cert = f"not certified: {best.message}"
     clear = f", clearance {best.clearance * 1e3:.1f} mm" if math.isfinite(best.clearance) else ""
     value = best.quantity.text(best.objective)  # the margin as itself, not the −margin qpik minimises
-    return (f"solid arm: branch **{best.branch}**, {symbol} = {best.param:.4f} rad, {value} ({best.quantity.sense})"
+    return (f"solid arm: branch **{best.branch}**, {symbol} = {best.param:.4f} rad, {value}, {best.quantity.sense}"
             f"{clear}  \n{cert} ({best.method}, {best.time * 1e3:.1f} ms)")  # fmt: skip
