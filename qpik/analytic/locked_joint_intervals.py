@@ -212,16 +212,17 @@ class Q7Intervals:
         row[order] = np.cumsum(new) - 1
         x, y = a[first, None], b[first, None]
         out = self._model(Tf, 0.5 * (x + y), SIGNS[br[first]], 0.5 * (y - x), np.zeros_like(x), x, y)
-        at = (row[:, None], np.stack([i1, i2, np.full(a.size, P - 1)], axis=1))
-        c0, c1, r, lo, hi = (v[at][:, :2] for v in out)
-        valid_hi = out[4][at][:, 2]
+        at1, at2 = row * P + i1, row * P + i2  # each column's two outputs in the flattened (rows, P) results
+        c0, c1, r, lo, hi = (np.stack([v.ravel()[at1], v.ravel()[at2]], axis=1) for v in out)
+        valid_hi = out[4].ravel()[row * P + P - 1]
         w = np.stack([w1, w2], axis=1)
         used = w != 0.0
         with np.errstate(invalid="ignore", over="ignore"):  # inf or nan (a free joint): the cell stays undecided
             f0, f1 = np.where(used, w * c0, 0.0).sum(axis=1), np.where(used, w * c1, 0.0).sum(axis=1)
             rest = np.where(used, np.abs(w) * r, 0.0).sum(axis=1) + SLACK
-            low = np.where(used, np.minimum(w * lo, w * hi), 0.0).sum(axis=1)
-            high = np.where(used, np.maximum(w * lo, w * hi), 0.0).sum(axis=1)
+            wlo, whi = w * lo, w * hi
+            low = np.where(used, np.minimum(wlo, whi), 0.0).sum(axis=1)
+            high = np.where(used, np.maximum(wlo, whi), 0.0).sum(axis=1)
             cos_hi = np.maximum(w1 * lo[:, 1], w1 * hi[:, 1]) + np.maximum(-w2 * lo[:, 0], -w2 * hi[:, 0])
         far = joint & ((valid_hi < -SLACK) | (cos_hi < -SLACK))
         return f0, f1, rest, far | (low > SLACK) | (high < -SLACK)
