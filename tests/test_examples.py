@@ -251,6 +251,91 @@ def test_iiwa_feasible_intervals(run_example) -> None:
     assert_picture(result.out / "selfmotion.png")
 
 
+# ---- examples/panda_q7_branches.py ---------------------------------------------------------
+
+# Franka Emika Panda datasheet: joint limits (rad)
+PANDA_Q_MIN = np.array([-2.8973, -1.7628, -2.8973, -3.0718, -2.8973, -0.0175, -2.8973])
+PANDA_Q_MAX = np.array([2.8973, 1.7628, 2.8973, -0.0698, 2.8973, 3.7525, 2.8973])
+
+
+def panda_branch(q: np.ndarray) -> int:
+    """The Panda's branch number of qpik.analytic.locked_joint: 4·[q2 < 0] + 2·[q4 > −0.467] + wrist, the wrist bit
+    [cos q5 > 0] for q4 in Franka's range (−π, 0) and beyond 2.6308 rad, [cos q5 < 0] between (where the shoulder
+    point changes side of the forearm axis)."""
+    flip = 0.0 < q[3] < 2.6308
+    return 4 * int(q[1] < 0) + 2 * int(q[3] > -0.467) + int((np.cos(q[4]) > 0) != flip)
+
+
+def test_panda_q7_branches(run_example) -> None:
+    result = run_example("panda_q7_branches")
+    text = result.stdout
+    vec = r"\[([^\]]*)\] rad"
+    q0 = np.array([float(v) for v in re.search(rf"q0 = {vec}", text).group(1).split()])
+    q7, branch0 = re.search(rf"q0 has q7 = ({FLOAT}) rad on branch (\d)", text).groups()
+    assert float(q7) == pytest.approx(q0[6], abs=1e-6) and int(branch0) == panda_branch(q0)
+
+    robot = qpik.load_robot("panda")  # its MuJoCo twin's site "ee" is the flange: MuJoCo's FK, not qpik's
+    model = robot.mj_model()
+    data = mujoco.MjData(model)
+    site = model.site("ee").id
+
+    def fk(q: np.ndarray) -> np.ndarray:
+        for name, value in zip(robot.joint_names, q):
+            data.qpos[model.jnt_qposadr[model.joint(name).id]] = value
+        mujoco.mj_kinematics(model, data)
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = data.site_xmat[site].reshape(3, 3), data.site_xpos[site]
+        return T
+
+    def inside(q: np.ndarray) -> bool:
+        return bool(np.all(q >= PANDA_Q_MIN) and np.all(q <= PANDA_Q_MAX))
+
+    pose = fk(q0)
+    state = r"\((reaches the pose|does not reach the pose)(, inside the limits)?\)"
+    rows = re.findall(rf"branch (\d): q = {vec}  {state}", text)
+    assert len(rows) == 8
+    found = False
+    for b, values, reach, within in rows:
+        q = np.array([float(v) for v in values.split()])
+        if reach == "reaches the pose":
+            assert max(pose_gap(fk(q), pose)) < 1e-5 and q[6] == pytest.approx(q0[6], abs=1e-6)
+            assert panda_branch(q) == int(b) and bool(within) == inside(q), (b, q)
+            found |= int(b) == int(branch0) and np.abs(q - q0).max() < 1e-5
+    assert found  # q0 among the branches, under its own number
+
+    intervals = {}
+    for b, spans in re.findall(r"  branch (\d): ((?:\[.*?\] ?)+|none)  \(", text):
+        intervals[int(b)] = [(float(lo), float(hi)) for lo, hi in re.findall(rf"\[({FLOAT}), ({FLOAT})\]", spans)]
+    assert sorted(intervals) == list(range(8)) and "proved: True" in text
+    # Dense sampling of q7: every branch that reaches the pose, checked by MuJoCo's FK and the datasheet's limits.
+    q7s = np.linspace(-np.pi, np.pi, 2001)
+    sols = qpik.ik(robot, np.broadcast_to(pose, (len(q7s), 4, 4)), q7s)
+    margin_best = -np.inf
+    for col, b in enumerate(sols.branch):
+        ok = np.array([sols.valid[i, col] and max(pose_gap(fk(sols.q[i, col]), pose)) < 1e-8 for i in range(len(q7s))])
+        assert np.array_equal(ok, sols.valid[:, col])
+        feasible = ok & np.array([inside(q) for q in sols.q[:, col]])
+        listed = np.zeros(len(q7s), bool)
+        edges = [np.inf]
+        for lo, hi in intervals[int(b)]:
+            listed |= (q7s >= lo) & (q7s <= hi)
+            edges += [lo, hi]
+        away = np.min(np.abs(q7s[:, None] - np.array(edges)[None]), axis=1) > 1e-4
+        assert np.array_equal(listed[away], feasible[away]), f"branch {b}"
+        half = 0.5 * (PANDA_Q_MAX - PANDA_Q_MIN)
+        for q in sols.q[feasible, col]:
+            margin_best = max(margin_best, float(np.min(np.minimum(q - PANDA_Q_MIN, PANDA_Q_MAX - q) / half)))
+
+    b, q7b, margin = re.search(rf"best: branch (\d), q7 = ({FLOAT}) rad, margin ({FLOAT}), maximised", text).groups()
+    assert any(lo - 1e-6 <= float(q7b) <= hi + 1e-6 for lo, hi in intervals[int(b)])
+    qb = np.array([float(v) for v in re.search(rf"\n  q = {vec}", text).group(1).split()])
+    assert "certified" in text.split("best:", 1)[1].splitlines()[0]
+    assert max(pose_gap(fk(qb), pose)) < 1e-5 and panda_branch(qb) == int(b) and inside(qb)
+    assert qb[6] == pytest.approx(float(q7b), abs=1e-6)
+    assert float(margin) >= margin_best - 1e-6  # no sample beats the certified best
+    assert_picture(result.out / "selfmotion.png")
+
+
 # ---- examples/controller_obstacles.py -------------------------------------------------------
 
 
