@@ -118,10 +118,10 @@ def test_a_raising_job_and_a_killed_worker_lose_no_other_result(cluster, client_
     argv = [sys.executable, "-c", code, "plan", "files", "-o", "out", "--scheduler", cluster.address]
     run = subprocess.Popen(argv, cwd=client_folder, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     out = client_folder / "out"
-    for _ in range(1200):  # kill a worker once the first result is back: the others are still running
-        if out.is_dir() and any(out.iterdir()):
-            break
+    deadline = time.monotonic() + 600  # kill a worker once the first result is back: the others are still running
+    while not (out.is_dir() and any(out.iterdir())) and run.poll() is None and time.monotonic() < deadline:
         time.sleep(0.05)
+    assert out.is_dir() and any(out.iterdir()), f"no result within 600 s: {run.poll()=}"
     assert run.poll() is None and len(list(out.iterdir())) < 7  # the batch is still running
     cluster.kill_worker(0)
     stdout, stderr = run.communicate(timeout=600)
