@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import re
 
 import numpy as np
 import pytest
@@ -30,6 +31,8 @@ EXPECTED = {
         "iiwa14 q3 locked: qpik.ik, 8 branches",
         "iiwa14 q3 locked: EAIK IK (6R)",
         "iiwa14 q3 locked: ik-geo get_ik (6R)",
+        "xArm7 q7 locked: qpik.ik, 8 branches",
+        "xArm7: ssik solve (q7 sampled)",
     ],
     "controller": [
         "no obstacles, hot: mink + osqp (rebuilt each call)",
@@ -122,6 +125,9 @@ def test_bench_prints_every_row(name, monkeypatch):
         )
     if name == "analytic":  # the numpy scalar rows give their ratio to the float call of the same run
         assert all("numpy scalar / float: " in row.note for row in rows if "numpy.float64" in row.label)
+        xarm = next(row for row in rows if row.label.startswith("xArm7 q7 locked"))  # every branch checked by FK
+        good, total = map(int, re.search(r"\((\d+)/(\d+) solutions", xarm.note).groups())
+        assert good == total > 0 and "q among them 64/64" in xarm.note
     if name == "view":  # every arm's drag updates were timed, with their p95 against the 50 ms budget
         assert all("p95" in row.note and "/20 ≤ 50 ms" in row.note and "/20 poses reached" in row.note for row in rows)
         assert all("CPU of the update median" in row.note for row in rows)

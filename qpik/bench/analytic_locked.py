@@ -1,7 +1,8 @@
-"""Bench rows of the Panda's locked-q7 closed form beside the Panda solvers of others (``qpik bench analytic``).
+"""Bench rows of the locked-q7 closed form beside others' solvers of the same arms (``qpik bench analytic``).
 
-Poses are ``fk(q)`` of the catalog Panda's flange for configurations drawn uniformly inside Franka's limits (seed 2),
-each solved at its own q7. Timed interleaved, blocks of :data:`~qpik.bench.analytic.BLOCK` calls ("hot"):
+**The Panda** (:func:`panda_rows`). Poses are ``fk(q)`` of the catalog Panda's flange for configurations drawn
+uniformly inside Franka's limits (seed 2), each solved at its own q7. Timed interleaved, blocks of
+:data:`~qpik.bench.analytic.BLOCK` calls ("hot"):
 
 - ``qpik.ik`` (all 8 branches, flags and limit test);
 - frankik's ``ik_full(T, None, q7)`` (Tittel 2021: the flange pose; up to 4 solutions inside the limits, NaN rows
@@ -9,6 +10,11 @@ each solved at its own q7. Timed interleaved, blocks of :data:`~qpik.bench.analy
 - GeoFIK's ``franka_ik_q7(r, R, q7)`` (geofikpy: the pose of frame E, the flange turned by −π/4 about z and moved
   0.1034 m along it; up to 8 solutions, NaN entries outside the limits);
 - ssik's ``panda_ik.solve(T)`` (it samples q7: a larger question, the issue's reference for speed).
+
+**Other arms beside ssik** (:func:`ssik_rows`): every arm of :data:`SSIK_ARMS` whose model file is installed (the
+test extra) and whose ssik solver imports: ``qpik.ik`` (all 8 branches at the configuration's q7) and ssik's
+``solve(T)`` (its prebuilt solver of the same arm, which samples q7: the issue's reference for speed), on ``fk(q)`` of
+the file's arm for configurations drawn inside its limits (seed 3), timed interleaved.
 
 Every peer's answers are first checked by qpik's FK: each row's note says how many of its finite solutions reach the
 pose to 1e-9, and how many of the generating configurations are among them. A peer that does not import is left
@@ -21,6 +27,7 @@ import numpy as np
 
 from qpik.analytic.api import ik
 from qpik.bench import Row, import_peer, time_interleaved
+from qpik.core.errors import QpikError
 from qpik.robots.loader import load_robot
 
 POSES = 64
@@ -86,6 +93,40 @@ def panda_rows(repeat: int, block: int, row) -> list[Row]:
     fastest = min((k for k in ("frankik", "geofik") if k in t), key=lambda k: np.median(t[k]), default=None)
     ref = None if fastest is None else labels[fastest]
     return [row(labels[k], t[k], None if k == fastest or k == "ssik" else ref, notes[k]) for k in peers]
+
+
+SSIK_ARMS = {"xArm7": ("erd/xarm7", "ssik.prebuilt.ufactory.xarm7_ik")}
+"""Arm → (packaged model key, ssik's module of the same arm, whose FK matches the file's)."""
+
+
+def ssik_rows(repeat: int, block: int, row) -> list[Row]:
+    """The rows of :data:`SSIK_ARMS` (module docstring); ``row(label, seconds, ref, note)`` makes one."""
+    from qpik.robots.packaged import packaged_model
+
+    rows = []
+    for arm, (key, module) in SSIK_ARMS.items():
+        try:
+            robot = load_robot(str(packaged_model(key)))
+            ssik = import_peer(module)
+        except (QpikError, ImportError) as exc:
+            print(f"qpik bench analytic: {arm} beside ssik left out: {exc}")
+            continue
+        rows += _beside_ssik(arm, robot, ssik, max(20, repeat // block), block, row)
+    return rows
+
+
+def _beside_ssik(arm: str, robot, ssik, samples: int, block: int, row) -> list[Row]:
+    """qpik.ik and ssik's ``solve`` on the same poses of ``robot``, checked, then timed interleaved."""
+    q = np.random.default_rng(3).uniform(robot.q_min, robot.q_max, (POSES, robot.dof))
+    T = robot.fk(q)
+    peers = {
+        "qpik": (lambda i: ik(robot, T[i], float(q[i, 6])), _qpik_solutions),
+        "ssik": (lambda i: ssik.solve(T[i]), lambda out: [s.q for s in out]),
+    }
+    notes = {k: _check(robot, T, q, fn, solutions) for k, (fn, solutions) in peers.items()}
+    t = time_interleaved({k: _cycle(fn, list(range(POSES))) for k, (fn, _) in peers.items()}, samples, block=block)
+    ours, theirs = f"{arm} q7 locked: qpik.ik, 8 branches", f"{arm}: ssik solve (q7 sampled)"
+    return [row(ours, t["qpik"], theirs, notes["qpik"]), row(theirs, t["ssik"], None, notes["ssik"])]
 
 
 def _qpik_solutions(sols) -> list[np.ndarray]:
