@@ -11,7 +11,7 @@ import gc
 import importlib
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from types import ModuleType
 
@@ -38,6 +38,19 @@ def import_peer(name: str) -> ModuleType:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
         return importlib.import_module(name)
+
+
+def cycle(fn: Callable[[object], object], items: Sequence) -> Callable[[], object]:
+    """A no-argument callable that applies ``fn`` to the next item of ``items`` each call (round robin): the
+    single-pose rows time distinct poses, hot."""
+    state = {"i": 0}
+
+    def call():
+        i = state["i"]
+        state["i"] = (i + 1) % len(items)
+        return fn(items[i])
+
+    return call
 
 
 def time_calls(fn: Callable[[], object], repeat: int, warmup: int = 20, block: int = 1) -> np.ndarray:

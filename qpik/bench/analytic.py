@@ -36,7 +36,7 @@ import argparse
 import numpy as np
 
 from qpik.analytic.api import closed_form_for, feasible_intervals, ik, redundancy_parameter, symbol
-from qpik.bench import Row, time_calls, time_interleaved
+from qpik.bench import Row, cycle, time_calls, time_interleaved
 from qpik.bench.analytic_locked import panda_rows, ssik_rows
 from qpik.robots.loader import load_robot
 
@@ -55,18 +55,6 @@ take :data:`BATCH` poses per call."""
 EAIK_THREADS = 2
 SSIK = "ssik iiwa14_ik.solve (iiwa14)"
 PAPER_NOTE = "(paper: 31.3 µs, compiled, 2012 Core i7 965; quoted, not measured)"
-
-
-def _cycle(fn, items):
-    """A no-argument callable that applies ``fn`` to the next item of ``items`` each call."""
-    state = {"i": 0}
-
-    def call():
-        i = state["i"]
-        state["i"] = (i + 1) % len(items)
-        return fn(items[i])
-
-    return call
 
 
 def run(args: argparse.Namespace) -> list[Row]:
@@ -90,8 +78,8 @@ def _arm_rows(name: str, repeat: int, ref: str | None) -> list[Row]:
     scalars = list(zip(T[:POSES], par[:POSES]))  # the same parameters as numpy.float64
     single = time_interleaved(
         {
-            "float": _cycle(lambda c: ik(robot, c[0], c[1]), cases),
-            "numpy": _cycle(lambda c: ik(robot, c[0], c[1]), scalars),
+            "float": cycle(lambda c: ik(robot, c[0], c[1]), cases),
+            "numpy": cycle(lambda c: ik(robot, c[0], c[1]), scalars),
         },
         max(20, repeat // BLOCK),
         block=BLOCK,
@@ -99,7 +87,7 @@ def _arm_rows(name: str, repeat: int, ref: str | None) -> list[Row]:
     t1 = single["float"]
     tb = time_calls(lambda: ik(robot, T, par), max(BATCH_CALLS, repeat // 100), warmup=1) / BATCH
     ti = time_calls(
-        _cycle(lambda c: feasible_intervals(robot, c[0]), cases), max(10, repeat // (2 * BLOCK)), warmup=3, block=BLOCK
+        cycle(lambda c: feasible_intervals(robot, c[0]), cases), max(10, repeat // (2 * BLOCK)), warmup=3, block=BLOCK
     )
     sym = symbol(closed_form_for(robot).param_name)
     ratio = float(np.median(single["numpy"]) / np.median(t1))
@@ -129,7 +117,7 @@ def _ssik_row(repeat: int) -> Row | None:
     robot = load_robot("iiwa14")
     q = np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (POSES, robot.dof))
     T = list(robot.fk(q))
-    t = time_calls(_cycle(iiwa14_ik.solve, T), max(10, repeat // (10 * BLOCK)), warmup=5, block=BLOCK)
+    t = time_calls(cycle(iiwa14_ik.solve, T), max(10, repeat // (10 * BLOCK)), warmup=5, block=BLOCK)
     return _row(SSIK, t, None)
 
 
@@ -177,9 +165,9 @@ def _locked_rows(repeat: int) -> list[Row]:
     cases = list(zip(T[:POSES], par[:POSES].tolist()))
     t = time_interleaved(
         {
-            "qpik": _cycle(lambda c: ik(robot, c[0], c[1]), cases),
-            "eaik": _cycle(bot.IK, list(T[:POSES])),
-            "geo": _cycle(lambda c: geo.get_ik(*c), geo_poses),
+            "qpik": cycle(lambda c: ik(robot, c[0], c[1]), cases),
+            "eaik": cycle(bot.IK, list(T[:POSES])),
+            "geo": cycle(lambda c: geo.get_ik(*c), geo_poses),
         },
         max(20, repeat // BLOCK),
         block=BLOCK,

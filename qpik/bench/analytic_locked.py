@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from qpik.analytic.api import ik
-from qpik.bench import Row, import_peer, time_interleaved
+from qpik.bench import Row, cycle, import_peer, time_interleaved
 from qpik.core.errors import QpikError
 from qpik.robots.loader import load_robot
 
@@ -42,17 +42,6 @@ def _hand() -> np.ndarray:
     E[:2, :2] = [[c, c], [-c, c]]
     E[2, 3] = 0.1034
     return E
-
-
-def _cycle(fn, items):
-    state = {"i": 0}
-
-    def call():
-        i = state["i"]
-        state["i"] = (i + 1) % len(items)
-        return fn(items[i])
-
-    return call
 
 
 def panda_rows(repeat: int, block: int, row) -> list[Row]:
@@ -82,7 +71,7 @@ def panda_rows(repeat: int, block: int, row) -> list[Row]:
     if missing:
         print("qpik bench analytic: Panda peers left out: " + "; ".join(missing))
     notes = {key: _check(robot, T, q, fn, solutions) for key, (fn, solutions) in peers.items()}
-    calls = {key: _cycle(fn, list(range(POSES))) for key, (fn, _) in peers.items()}
+    calls = {key: cycle(fn, list(range(POSES))) for key, (fn, _) in peers.items()}
     t = time_interleaved(calls, max(20, repeat // block), block=block)
     labels = {
         "qpik": "panda q7 locked: qpik.ik, 8 branches",
@@ -124,7 +113,7 @@ def _beside_ssik(arm: str, robot, ssik, samples: int, block: int, row) -> list[R
         "ssik": (lambda i: ssik.solve(T[i]), lambda out: [s.q for s in out]),
     }
     notes = {k: _check(robot, T, q, fn, solutions) for k, (fn, solutions) in peers.items()}
-    t = time_interleaved({k: _cycle(fn, list(range(POSES))) for k, (fn, _) in peers.items()}, samples, block=block)
+    t = time_interleaved({k: cycle(fn, list(range(POSES))) for k, (fn, _) in peers.items()}, samples, block=block)
     ours, theirs = f"{arm} q7 locked: qpik.ik, 8 branches", f"{arm}: ssik solve (q7 sampled)"
     return [row(ours, t["qpik"], theirs, notes["qpik"]), row(theirs, t["ssik"], None, notes["ssik"])]
 
