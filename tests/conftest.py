@@ -117,6 +117,8 @@ MODELS: dict[str, Callable[[], tuple[Path, dict]]] = {
     "erd_panda": lambda: (packaged("erd/panda"), {}),
     "erd_xarm7": lambda: (packaged("erd/xarm7"), {}),
     "robosuite_iiwa": lambda: (MODEL_DIR / "robosuite_iiwa/robot.xml", {"meshes": MeshOptions(collision_only=True)}),
+    "robosuite_gen3": lambda: (MODEL_DIR / "robosuite_gen3/robot.xml", {"meshes": MeshOptions(collision_only=True)}),
+    "robosuite_sawyer": lambda: (MODEL_DIR / "robosuite_sawyer/robot.xml", {"meshes": MeshOptions(collision_only=True)}),
     "pusher": lambda: (MODEL_DIR / "gymnasium_pusher/pusher_v5.xml", {"tip": "tips_arm"}),
 }
 MADE: dict[str, Callable[[], tuple[Path, dict]]] = {"xarm7_offset": xarm7_offset}
