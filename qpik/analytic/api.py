@@ -15,11 +15,11 @@ from qpik.core.validate import finite_array, joint_vector, number
 from qpik.core.validate import pose as check_pose
 from qpik.robots.robot import Robot, as_robot
 
-_SOLVERS = {  # family -> (solver, its feasible sets), each as (module, class)
+_SOLVERS = {  # family -> (solver, its feasible sets), each as (module, class or factory)
     "offset_shoulder": (("qpik.analytic.offset_shoulder", "OffsetShoulderSolver"),
                         ("qpik.analytic.offset_shoulder_intervals", "DeltaIntervals")),
     "srs": (("qpik.analytic.srs", "SRSSolver"), ("qpik.analytic.srs_intervals", "PsiIntervals")),
-    "locked_joint": (("qpik.analytic.locked_joint", "LockedJointSolver"),
+    "locked_joint": (("qpik.analytic.locked_joint", "locked_joint_solver"),
                      ("qpik.analytic.locked_joint_intervals", "Q7Intervals")),
 }  # fmt: skip
 SYMBOL = {"delta": "δ", "psi": "ψ"}
