@@ -8,8 +8,8 @@ the helpers with ``from conftest import ...``):
 - ``MODELS``: arms from model files written by others (URDFs of the ``pybullet`` and
   ``example-robot-data`` packages of the test extra, MJCF copied into ``tests/models``);
   ``model_robot(key)`` loads one (cached), the ``loaded`` fixture is parametrised over them. ``MADE``: files
-  made from them, ``"xarm7_offset"`` (an arm of no closed-form family) and ``"gen3_spherical"`` (the Gen3 with a
-  spherical wrist), which ``model_robot`` loads too.
+  made from them, ``"xarm7_offset"`` (an arm of no closed-form family), ``"gen3_spherical"`` (the Gen3 with a
+  spherical wrist) and ``"sawyer_exact"`` (the Sawyer's quaternions unrounded), which ``model_robot`` loads too.
 - ``random_q(robot, n, seed, margin=0.0)``: ``(n, 7)`` configurations drawn
   uniformly inside ``[q_min + margin, q_max - margin]`` (a numpy generator
   seeded with ``seed``). Draw many at once so that 10,000 configurations cost
@@ -145,6 +145,20 @@ def gen3_spherical() -> tuple[Path, dict]:
     return folder / "robot.xml", robosuite("gen3")[1]
 
 
+def sawyer_exact() -> tuple[Path, dict]:
+    """robosuite's Sawyer with joint 7's quaternion written exactly ((0.06163, 0.06163, -0.704416, 0.704416) for the
+    file's 0.0616248 first entry, whose rounding puts axes 6 and 7 0.8 µm apart): an exact member of the geometry of
+    the 1-D search (qpik.analytic.locked_search), written to a temporary folder."""
+    import tempfile
+
+    text = (MODEL_DIR / "robosuite_sawyer/robot.xml").read_text()
+    old = 'quat="0.0616248 0.06163 -0.704416 0.704416"'
+    assert text.count(old) == 1
+    out = Path(tempfile.mkdtemp(prefix="qpik-sawyer-exact-")) / "robot.xml"
+    out.write_text(text.replace(old, 'quat="0.06163 0.06163 -0.704416 0.704416"'))
+    return out, robosuite("sawyer")[1]
+
+
 MODELS: dict[str, Callable[[], tuple[Path, dict]]] = {
     "pybullet_iiwa": lambda: (packaged("pybullet/iiwa"), {}),
     "pybullet_panda": lambda: (packaged("pybullet/panda"), {}),
@@ -155,7 +169,11 @@ MODELS: dict[str, Callable[[], tuple[Path, dict]]] = {
     "robosuite_sawyer": lambda: robosuite("sawyer"),
     "pusher": lambda: (MODEL_DIR / "gymnasium_pusher/pusher_v5.xml", {"tip": "tips_arm"}),
 }
-MADE: dict[str, Callable[[], tuple[Path, dict]]] = {"xarm7_offset": xarm7_offset, "gen3_spherical": gen3_spherical}
+MADE: dict[str, Callable[[], tuple[Path, dict]]] = {
+    "xarm7_offset": xarm7_offset,
+    "gen3_spherical": gen3_spherical,
+    "sawyer_exact": sawyer_exact,
+}
 """Model files made for the tests (``model_robot`` loads them too; not among the ``loaded`` arms)."""
 _loaded: dict[str, qpik.Robot] = {}
 

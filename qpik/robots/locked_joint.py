@@ -148,11 +148,13 @@ def _off_line(x: np.ndarray, p: np.ndarray, u: np.ndarray) -> float:
 
 
 def find_locked_joint(
-    chain: SerialChain, tol: float = MEET_TOL, reversed: bool = False
+    chain: SerialChain, tol: float = MEET_TOL, reversed: bool = False, shoulder: int = 3
 ) -> tuple[LockedJointGeometry | None, str]:
     """The locked-q7 geometry of ``chain`` (7 revolute joints), or None and the reason in one line; ``tol`` (m):
     the largest miss of axes that meet (:data:`MEET_TOL`; :data:`NEAR_TOL` for a near member); ``reversed``: ``chain``
-    is :func:`reversed_chain` of the arm (its axis k the arm's axis 8 − k, said so in the reason)."""
+    is :func:`reversed_chain` of the arm (its axis k the arm's axis 8 − k, said so in the reason). ``shoulder`` 2:
+    only axes 1 and 2 meet in S, axis 3 passes S at a distance (the geometry of the 1-D search,
+    :mod:`qpik.analytic.locked_search`; axes 2-3 may be offset)."""
     h, o = chain.axes(np.zeros(7))
     h = h / np.linalg.norm(h, axis=1, keepdims=True)
     feet = [_feet(o[i], h[i], o[i + 1], h[i + 1]) for i in range(6)]
@@ -162,13 +164,15 @@ def find_locked_joint(
     def pair(i: int) -> str:
         return f"axes {k(i + 1)}-{k(i + 2)}"
 
-    for i in (0, 1, 4):
+    for i in (0, 1, 4) if shoulder == 3 else (0, 4):
         if feet[i] is None:
             return None, f"{pair(i)} are parallel"
         if gap[i] > tol:
             return None, f"{pair(i)} do not meet ({1000 * gap[i]:.4g} mm apart)"
     S, W = feet[0][0], feet[4][0]
-    if (d := _off_line(S, o[2], h[2])) > tol:
+    if shoulder == 2 and _off_line(S, o[2], h[2]) < 1e3 * MEET_TOL:
+        return None, f"axis {k(3)} passes through the point where axes {k(1)}-{k(2)} meet"
+    if shoulder == 3 and (d := _off_line(S, o[2], h[2])) > tol:
         group = f"axes {k(1)}-{k(2)}-{k(3)}"
         return None, f"{group} do not meet in one point (axis {k(3)} passes {1000 * d:.4g} mm from it)"
     if min(_off_line(S, o[3], h[3]), _off_line(W, o[3], h[3])) < 1e3 * MEET_TOL:
@@ -198,10 +202,10 @@ def reversed_chain(chain: SerialChain) -> SerialChain:
     return SerialChain(joints, np.linalg.inv(chain.tool), np.linalg.inv(chain.base))
 
 
-def ideal_chain(chain: SerialChain, reversed: bool = False) -> tuple[SerialChain | None, str]:
+def ideal_chain(chain: SerialChain, reversed: bool = False, shoulder: int = 3) -> tuple[SerialChain | None, str]:
     r"""The family's chain nearest to ``chain`` (7 revolute joints) whose axes miss by at most :data:`NEAR_TOL`, and
     the misses in words; None and the reason otherwise. ``reversed``: ``chain`` is :func:`reversed_chain` of the arm,
-    whose axis numbers the words use.
+    whose axis numbers the words use; ``shoulder``: as :func:`find_locked_joint` (2: axis 3 is not moved).
 
     Axes 1 and 2 are moved parallel to themselves through the midpoint S of their common normal, axis 3 through S,
     axes 5 and 6 through the midpoint W of theirs (each by at most its miss; directions, the other axes, the base and
@@ -209,14 +213,14 @@ def ideal_chain(chain: SerialChain, reversed: bool = False) -> tuple[SerialChain
     :math:`\delta_k`, so :math:`P'_k = T(R_{k-1}^T(\delta_k - \delta_{k-1}))\,P_k` (:math:`R_{k-1}` the rotation
     of link frame k-1 at q = 0, :math:`T` a translation) and the tool takes :math:`-\delta_7`.
     """
-    geometry, why = find_locked_joint(chain, NEAR_TOL, reversed)
+    geometry, why = find_locked_joint(chain, NEAR_TOL, reversed, shoulder)
     if geometry is None:
         return None, why
     h, o = geometry.h, geometry.o
     n = (lambda i: 8 - i) if reversed else (lambda i: i)  # the arm's number of the chain's axis i
     shift = np.zeros((8, 3))  # δ_k of joint k = 1..7; row 0 the base's
     misses = []
-    for a, b, rows, name in ((0, 1, (1, 2, 3), "wrist" if reversed else "shoulder"),
+    for a, b, rows, name in ((0, 1, (1, 2, 3)[:shoulder], "wrist" if reversed else "shoulder"),
                              (4, 5, (5, 6), "shoulder" if reversed else "wrist")):  # fmt: skip
         fa, fb = _feet(o[a], h[a], o[b], h[b])  # type: ignore[misc]
         point = 0.5 * (fa + fb)
@@ -225,7 +229,7 @@ def ideal_chain(chain: SerialChain, reversed: bool = False) -> tuple[SerialChain
         for k in rows:
             v = point - o[k - 1]
             shift[k] = v - (v @ h[k - 1]) * h[k - 1]
-        if a == 0 and (d := _off_line(fa, o[2], h[2])) > MEET_TOL:
+        if a == 0 and shoulder == 3 and (d := _off_line(fa, o[2], h[2])) > MEET_TOL:
             misses.append(f"axis {n(3)} passes {1e6 * d:.4g} µm from the {name} point")
     F = chain.frames(np.zeros(7))
     joints = []
