@@ -34,7 +34,7 @@ import numpy as np
 from qpik.core.errors import InputError
 from qpik.robots.chain import SerialChain
 from qpik.robots.dh import DHChain
-from qpik.robots.locked_joint import find_locked_joint, ideal_chain, layout_words, reversed_chain
+from qpik.robots.locked_joint import NEAR_TOL, find_locked_joint, ideal_chain, layout_words, reversed_chain
 
 TOL = 1e-9
 """m and rad: an a or d below this is zero, an α within this of ±π/2 is ±π/2."""
@@ -157,7 +157,21 @@ def recognize(chain: SerialChain, redundancy: str | None = None) -> tuple[Canoni
         if found is not None:
             return found, ""
         reasons.append(why)
-    return None, f"{layout_words(chain)}; " + "; ".join(reasons)
+    return None, f"{layout_words(chain)}; " + "; ".join(reasons) + _search(chain)
+
+
+def _search(chain: SerialChain) -> str:
+    """What serves an arm of no closed form: the 1-D search (:mod:`qpik.analytic.locked_search`) where its geometry
+    (:func:`~qpik.robots.locked_joint.find_locked_joint` with ``shoulder=2``, exactly or within
+    :data:`~qpik.robots.locked_joint.NEAR_TOL`) holds with q1 locked (the chain read from the flange) or q7 locked."""
+    for rev in (True, False):
+        turned = reversed_chain(chain) if rev else chain
+        if find_locked_joint(turned, NEAR_TOL, rev, shoulder=2)[0] is not None:
+            return (
+                f"; IK by a certified 1-D search over q4 with q{1 if rev else 7} locked "
+                "(qpik.analytic.locked_search.LockedSearch; not behind qpik.ik)"
+            )
+    return ""
 
 
 def _locked(chain: SerialChain, directions: tuple[bool, ...]) -> tuple[Canonical | None, str]:

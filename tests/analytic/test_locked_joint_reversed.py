@@ -76,6 +76,8 @@ def test_the_sawyer_notes_name_its_offsets_and_why_no_closed_form():
     assert "not locked-q7: axes 1-2 do not meet (81 mm apart)" in notes
     assert "not locked-q1: axes 7-6-5 do not meet in one point (axis 5 passes 136.3 mm from it)" in notes
     assert "perpendicular" not in notes
+    assert "IK by a certified 1-D search over q4 with q1 locked (qpik.analytic.locked_search.LockedSearch" in notes
+    assert "1-D search over q4 with q7 locked" in model_robot("xarm7_offset").notes
     with pytest.raises(NoClosedFormError, match="81 mm apart"):
         qpik.ik(robot, robot.fk(robot.q_home), 0.0)
 

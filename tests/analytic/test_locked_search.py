@@ -32,27 +32,30 @@ def angle_diff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.abs((np.asarray(a) - b + np.pi) % (2 * np.pi) - np.pi)
 
 
-@pytest.mark.parametrize("key", ["robosuite_sawyer", "sawyer_exact", "robosuite_gen3"])
+@pytest.mark.parametrize("key", ["robosuite_sawyer", "sawyer_exact", "robosuite_gen3", "xarm7_offset"])
 def test_the_search_finds_q_and_every_solution_reaches_the_pose_by_mujoco(key):
     """Over random q inside the limits: one solution is q to 1e-9 rad; every solution reaches the pose to 1e-10 by
     MuJoCo's FK of the file, at most 16 and no two the same; the searches of the exact members (the Sawyer unrounded,
-    the Gen3 file) are proved. The Sawyer file (a near member: the ideal chain's roots polished on the file's) may
-    miss q where the chain of joints 2-7 is near singular (σ_min < 1e-3; 3 of 2,000 on this seed, σ_min < 2e-4)."""
+    the Gen3 file, the xArm7 with axis 3 moved 1 mm, q7 locked) are proved. The Sawyer file (a near member: the ideal
+    chain's roots polished on the file's) may miss q where the chain of joints 2-7 is near singular (σ_min < 1e-3; 3
+    of 2,000 on this seed, σ_min < 2e-4)."""
     robot = model_robot(key)
     s = search(key)
-    assert s.locked == 1 and s.reversed and s.exact == (key != "robosuite_sawyer")
+    assert s.locked == (7 if key == "xarm7_offset" else 1) and s.reversed == (s.locked == 1)
+    assert s.exact == (key != "robosuite_sawyer")
     q = random_q(robot, BATCH, 11)
     T = mujoco_poses(robot, q)
-    sigma = np.linalg.svd(robot.jacobian(q)[:, :, 1:], compute_uv=False)[:, -1]
+    others = [j for j in range(7) if j != s.locked - 1]
+    sigma = np.linalg.svd(robot.jacobian(q)[:, :, others], compute_uv=False)[:, -1]
     missed = 0
     for qi, Ti, si in zip(q, T, sigma):
-        sol = s.solve(Ti, qi[0])
+        sol = s.solve(Ti, qi[s.locked - 1])
         assert 0 < len(sol.q) <= 16 and sol.proved == s.exact
         if angle_diff(sol.q, qi).max(axis=1).min() >= 1e-9:
             assert not s.exact and si < 1e-3
             missed += 1
         assert np.abs(mujoco_poses(robot, sol.q) - Ti).max() < 1e-10
-        assert np.all(angle_diff(sol.q[:, 0], qi[0]) < 1e-15)
+        assert np.all(angle_diff(sol.q[:, s.locked - 1], qi[s.locked - 1]) < 1e-15)
         apart = angle_diff(sol.q[:, None], sol.q[None]).max(axis=2) + np.eye(len(sol.q))
         assert apart.min() > 1e-8
     assert missed <= max(2, BATCH // 400)
