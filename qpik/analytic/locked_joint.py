@@ -59,6 +59,15 @@ those of the ideal chain (:attr:`~LockedJointSolver.table`), each then polished 
 
 An unreachable pose gives ``valid = 0`` (a negative discriminant beyond round-off, ``EPS`` relative); the square
 roots are clamped at 0, so q stays finite.
+
+**Read from the flange** (:class:`ReversedLockedJointSolver`; the Kinova Gen3): an arm whose axes 7-6-5 meet and
+whose axes 3-2 meet is of this geometry read backwards (:func:`~qpik.robots.locked_joint.reversed_chain`: joint k is
+the arm's joint 8 − k at the same angle, FK inverted; ``robot.canonical.reversed``, its ``table`` that chain). Its
+solver is this one on that chain (:attr:`ReversedLockedJointSolver.inner`, a robot with the limits reversed) at
+:math:`T^{-1}`, the rows reversed: the parameter is the arm's q1 (``param_name`` ``"q1"``), the branch ids are
+the inner solver's (*shoulder* the arm's wrist 7-6-5, *wrist* its axes 3-2), and the feasible sets are the inner
+solver's (:mod:`qpik.analytic.locked_joint_intervals` unchanged, its limits and levels those of the reversed robot,
+its q7 the arm's q1). :func:`locked_joint_solver` picks the solver of a robot.
 """
 
 from __future__ import annotations

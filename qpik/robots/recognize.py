@@ -132,7 +132,8 @@ REDUNDANCY = {"psi": "srs", "delta": "offset_shoulder", "q7": "locked_joint", "q
 
 def recognize(chain: SerialChain, redundancy: str | None = None) -> tuple[Canonical | None, str]:
     """The first closed form ``chain`` fits, or None and the reason (one line): the patterns of :data:`PATTERNS`,
-    then q7 locked (:mod:`qpik.robots.locked_joint`), exactly or as a near member (its axes miss by at most
+    then q7 locked, then q1 locked (the chain read from the flange; :mod:`qpik.robots.locked_joint`), exactly or as a
+    near member (its axes miss by at most
     :data:`~qpik.robots.locked_joint.NEAR_TOL`: the closed form of its ideal chain, polished on its own).
     ``redundancy`` (a key of :data:`REDUNDANCY`) tries only the family of that parameter."""
     if redundancy is not None and redundancy not in REDUNDANCY:
