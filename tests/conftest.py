@@ -167,6 +167,7 @@ MODELS: dict[str, Callable[[], tuple[Path, dict]]] = {
     "robosuite_iiwa": lambda: robosuite("iiwa"),
     "robosuite_gen3": lambda: robosuite("gen3"),
     "robosuite_sawyer": lambda: robosuite("sawyer"),
+    "robosuite_jaco": lambda: robosuite("jaco"),
     "pusher": lambda: (MODEL_DIR / "gymnasium_pusher/pusher_v5.xml", {"tip": "tips_arm"}),
 }
 MADE: dict[str, Callable[[], tuple[Path, dict]]] = {

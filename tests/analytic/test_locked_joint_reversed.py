@@ -1,8 +1,8 @@
 """The locked-joint closed form read from the flange (q1 locked; qpik.analytic.locked_joint.ReversedLockedJointSolver)
-on robosuite's Kinova Gen3, against MuJoCo's FK of the model file: the file itself (a near member: its axes 5 and 7
-pass 0.35 mm apart) and the file with a spherical wrist (an exact member, proved feasible sets); and the notes of the
-Gen3 and of the Sawyer (no closed form), with their real offsets. 200 configurations per arm and seed by default,
-2,000 with QPIK_TESTS_LARGE=1."""
+on robosuite's Kinova Gen3 and Jaco, against MuJoCo's FK of the model files: the Gen3 file itself (a near member: its
+axes 5 and 7 pass 0.35 mm apart), the Gen3 file with a spherical wrist and the Jaco file (exact members, proved
+feasible sets); and the notes of the Gen3, the Jaco and the Sawyer (no closed form), with their real offsets. 200
+configurations per arm and seed by default, 2,000 with QPIK_TESTS_LARGE=1."""
 
 from __future__ import annotations
 
@@ -40,7 +40,7 @@ def sigma_2_7(robot: qpik.Robot, q: np.ndarray) -> np.ndarray:
 
 @settings(max_examples=5, deadline=None)
 @given(seed=SEEDS)
-@pytest.mark.parametrize("key", ["robosuite_gen3", "robosuite_sawyer", "erd_panda"])
+@pytest.mark.parametrize("key", ["robosuite_gen3", "robosuite_sawyer", "robosuite_jaco", "erd_panda"])
 def test_the_reversed_chain_has_the_inverse_fk(key, seed):
     """FK of the chain read from the flange at the joints reversed is the inverse of the arm's, to 1e-12."""
     robot = model_robot(key)
@@ -64,6 +64,9 @@ def test_the_gen3_notes_name_its_offsets_and_the_reversed_closed_form():
     exact = model_robot("gen3_spherical")
     assert exact.canonical.reversed and exact.canonical.exact and "axis 6" not in exact.notes
     assert "polish" not in exact.notes and closed_form_for(exact).sets_proved
+    jaco = model_robot("robosuite_jaco")
+    assert jaco.canonical.reversed and jaco.canonical.exact and "q1 locked" in jaco.notes
+    assert "along axis 2 1.6 mm, axis 3 410 mm, axis 4 11.4 mm, axis 5 311.1 mm between" in jaco.notes
 
 
 def test_the_sawyer_notes_name_its_offsets_and_why_no_closed_form():
@@ -95,11 +98,12 @@ def test_the_q1_override():
 
 @PROPERTY
 @given(seed=SEEDS)
-def test_ik_of_the_spherical_gen3_holds_q_and_every_branch_reaches_the_pose(seed):
-    """The exact member: ``ik(fk(q), q1)`` holds q as branch ``redundancy_parameter(q)`` to 1e-9 rad (or 1e-14/σ_min
+@pytest.mark.parametrize("key", ["gen3_spherical", "robosuite_jaco"])
+def test_ik_of_an_exact_member_holds_q_and_every_branch_reaches_the_pose(key, seed):
+    """The exact members: ``ik(fk(q), q1)`` holds q as branch ``redundancy_parameter(q)`` to 1e-9 rad (or 1e-14/σ_min
     where the 6-R chain of joints 2-7 is that close to singular), within limits; every valid branch reaches the pose
     to 1e-10 by MuJoCo's FK of the file, and its own parameter and branch id are (q1, its id)."""
-    robot = model_robot("gen3_spherical")
+    robot = model_robot(key)
     q = random_q(robot, BATCH, seed)
     T = mujoco_poses(robot, q)
     param, branch = qpik.redundancy_parameter(robot, q)
@@ -191,13 +195,13 @@ def dense_mismatch(robot: qpik.Robot, T: np.ndarray, fi, margin: float, near_end
 
 
 @pytest.mark.parametrize("margin", [0.0, 0.3])
-@pytest.mark.parametrize("key", ["gen3_spherical", "robosuite_gen3"])
-def test_the_gen3s_feasible_q1_sets_match_dense_sampling(key, margin):
+@pytest.mark.parametrize("key", ["gen3_spherical", "robosuite_jaco", "robosuite_gen3"])
+def test_the_feasible_q1_sets_match_dense_sampling(key, margin):
     """The sets of the exact member are proved and exact to 1e-9 rad at their ends; the file's (a near member) are
     not proved, exact away from NEAR_END of their ends but where the polished branch is invalid (at most 0.1% of the
     samples). They hold the configuration the pose came from. Two poses per margin (six in the large run)."""
     robot = model_robot(key)
-    exact = key == "gen3_spherical"
+    exact = key != "robosuite_gen3"
     lo, hi = shrunk_limits(robot.q_min, robot.q_max, margin)
     q = np.random.default_rng(21).uniform(lo, hi, (6 if LARGE else 2, 7))
     for T, param, branch in zip(robot.fk(q), *qpik.redundancy_parameter(robot, q)):
