@@ -154,7 +154,8 @@ def find_locked_joint(
     the largest miss of axes that meet (:data:`MEET_TOL`; :data:`NEAR_TOL` for a near member); ``reversed``: ``chain``
     is :func:`reversed_chain` of the arm (its axis k the arm's axis 8 − k, said so in the reason). ``shoulder`` 2:
     only axes 1 and 2 meet in S, axis 3 passes S at a distance (the geometry of the 1-D search,
-    :mod:`qpik.analytic.locked_search`; axes 2-3 may be offset)."""
+    :mod:`qpik.analytic.locked_search`; axes 2-3 may be offset; farther than :data:`NEAR_TOL` from S, else the
+    closed form serves the chain and the search's subproblem 3 about axis 3 degenerates)."""
     h, o = chain.axes(np.zeros(7))
     h = h / np.linalg.norm(h, axis=1, keepdims=True)
     feet = [_feet(o[i], h[i], o[i + 1], h[i + 1]) for i in range(6)]
@@ -170,8 +171,8 @@ def find_locked_joint(
         if gap[i] > tol:
             return None, f"{pair(i)} do not meet ({1000 * gap[i]:.4g} mm apart)"
     S, W = feet[0][0], feet[4][0]
-    if shoulder == 2 and _off_line(S, o[2], h[2]) < 1e3 * MEET_TOL:
-        return None, f"axis {k(3)} passes through the point where axes {k(1)}-{k(2)} meet"
+    if shoulder == 2 and (d := _off_line(S, o[2], h[2])) <= NEAR_TOL:  # the closed form's; subproblem 3 degenerates
+        return None, f"axis {k(3)} passes {_mm(d)} from the point where axes {k(1)}-{k(2)} meet (the closed form's)"
     if shoulder == 3 and (d := _off_line(S, o[2], h[2])) > tol:
         group = f"axes {k(1)}-{k(2)}-{k(3)}"
         return None, f"{group} do not meet in one point (axis {k(3)} passes {1000 * d:.4g} mm from it)"

@@ -190,7 +190,8 @@ def _locked(chain: SerialChain, directions: tuple[bool, ...]) -> tuple[Canonical
         ideal, near = ideal_chain(c, rev)
         geometry, reasons[rev] = (None, near) if ideal is None else find_locked_joint(ideal, reversed=rev)
         if geometry is not None:
-            return Canonical("locked_joint", ideal, identity, geometry.describe(layout, near), False, rev), ""
+            notes = geometry.describe(layout, near) + _search(chain)  # a near member: the search may be exact
+            return Canonical("locked_joint", ideal, identity, notes, False, rev), ""
     return None, "; ".join(f"not locked-q{1 if rev else 7}: {why}" for rev, why in reasons.items())
 
 

@@ -1,8 +1,8 @@
-"""The certified 1-D search with q1 locked (qpik.analytic.locked_search) on robosuite's Sawyer (and the Gen3 file,
-an exact member, its 0.35 mm wrist offset included), against MuJoCo's FK of the model files: the configuration a
-pose came from is among the solutions, every solution reaches the pose, and on the exact Sawyer every sign change of
-every error function on a dense grid of q4 (numpy, not the Taylor models) has its solution. 200 configurations per
-arm by default, 2,000 with QPIK_TESTS_LARGE=1."""
+"""The certified 1-D search with q1 locked (qpik.analytic.locked_search) on robosuite's Sawyer (and, q7 locked,
+the Gen3 file, an exact member, its 0.35 mm wrist offset included), against MuJoCo's FK of the model files: the
+configuration a pose came from is among the solutions, every solution reaches the pose, and on the exact Sawyer
+every sign change of every error function on a dense grid of q4 (numpy, not the Taylor models) has its solution.
+200 configurations per arm by default, 2,000 with QPIK_TESTS_LARGE=1."""
 
 from __future__ import annotations
 
@@ -35,13 +35,13 @@ def angle_diff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 @pytest.mark.parametrize("key", ["robosuite_sawyer", "sawyer_exact", "robosuite_gen3", "xarm7_offset"])
 def test_the_search_finds_q_and_every_solution_reaches_the_pose_by_mujoco(key):
     """Over random q inside the limits: one solution is q to 1e-9 rad; every solution reaches the pose to 1e-10 by
-    MuJoCo's FK of the file, at most 16 and no two the same; the searches of the exact members (the Sawyer unrounded,
-    the Gen3 file, the xArm7 with axis 3 moved 1 mm, q7 locked) are proved. The Sawyer file (a near member: the ideal
-    chain's roots polished on the file's) may miss q where the chain of joints 2-7 is near singular (σ_min < 1e-3; 3
-    of 2,000 on this seed, σ_min < 2e-4)."""
+    MuJoCo's FK of the file, at most 16 and no two the same; the searches of the exact members (the Sawyer
+    unrounded, and, q7 locked, the Gen3 file and the xArm7 with axis 3 moved 1 mm) are proved. The Sawyer file (a
+    near member: the ideal chain's roots polished on the file's) may miss q where the chain of joints 2-7 is near
+    singular (σ_min < 1e-3; 3 of 2,000 on this seed, σ_min < 2e-4)."""
     robot = model_robot(key)
     s = search(key)
-    assert s.locked == (7 if key == "xarm7_offset" else 1) and s.reversed == (s.locked == 1)
+    assert s.locked == (7 if key in ("xarm7_offset", "robosuite_gen3") else 1) and s.reversed == (s.locked == 1)
     assert s.exact == (key != "robosuite_sawyer")
     q = random_q(robot, BATCH, 11)
     T = mujoco_poses(robot, q)
@@ -105,7 +105,7 @@ def test_the_search_gives_no_solution_for_an_unreachable_pose_and_says_when_its_
 def test_the_search_locks_q7_where_only_the_chain_itself_fits():
     """The Gen3 with a spherical wrist read from the flange has axis 5 through the point where axes 7 and 6 meet (the
     closed form's geometry, no search), but not read forwards (axis 3 passes 11.75 mm from where axes 1-2 meet): q7 is
-    locked, and the search finds q. The Panda fits neither way."""
+    locked, and the search finds q. The Panda fits neither way (its axis 3 through that point)."""
     robot = model_robot("gen3_spherical")
     s = LockedSearch(robot.chain)
     assert s.locked == 7 and not s.reversed and s.exact
@@ -114,6 +114,6 @@ def test_the_search_locks_q7_where_only_the_chain_itself_fits():
         sol = s.solve(Ti, qi[6])
         assert sol.proved and angle_diff(sol.q, qi).max(axis=1).min() < 1e-9
         assert np.abs(mujoco_poses(robot, sol.q) - Ti).max() < 1e-10
-    why = "q1 locked: axes 7-6 do not meet (88 mm apart); q7 locked: axis 3 passes through the point where axes 1-2"
+    why = "q1 locked: axes 7-6 do not meet (88 mm apart); q7 locked: axis 3 passes 0 µm from the point where axes 1-2"
     with pytest.raises(NoClosedFormError, match=re.escape(why)):
         LockedSearch(model_robot("erd_panda").chain)
