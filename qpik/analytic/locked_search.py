@@ -57,6 +57,7 @@ from qpik.analytic.locked_joint import _v, rotate, rotation, subproblem1, subpro
 from qpik.analytic.polish import RESIDUAL_TOL, polish
 from qpik.analytic.trig import EPS
 from qpik.core.errors import NoClosedFormError
+from qpik.core.validate import number, single_pose
 from qpik.native.compiled import RowMap
 from qpik.robots.chain import SerialChain
 from qpik.robots.locked_joint import find_locked_joint, ideal_chain, reversed_chain
@@ -197,10 +198,16 @@ class LockedSearch:
 
     def solve(self, T: np.ndarray, param: float, rounds: int = ROUNDS) -> SearchSolutions:
         """Every IK solution of the pose ``T`` (4, 4; the arm's base frame) with the locked joint at ``param`` (rad);
-        ``rounds``: the search's budget (:data:`ROUNDS`)."""
-        T = np.asarray(T, float)
+        ``rounds``: the search's budget (:data:`ROUNDS`).
+
+        Raises:
+            InputError: ``T`` is not one pose (:func:`~qpik.core.validate.single_pose`) or ``param`` not a finite
+                number.
+        """
+        T = single_pose(T, "T")
+        param = number(param, "param", minimum=None)
         Ts = np.linalg.inv(T) if self.reversed else T
-        found, branch, left = self._isolate(Ts, float(param), rounds)
+        found, branch, left = self._isolate(Ts, param, rounds)
         if not found.size:
             return SearchSolutions(np.zeros((0, 7)), np.zeros(0, int), np.zeros(0), not left and self.exact)
         R, p = sy.frame_of_batch(np.broadcast_to(Ts, (found.size, 4, 4)))

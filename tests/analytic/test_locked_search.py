@@ -15,7 +15,7 @@ from hypothesis import given, settings
 
 from qpik.algebra import symbolic as sy
 from qpik.analytic.locked_search import SIGNS, LockedSearch
-from qpik.core.errors import NoClosedFormError
+from qpik.core.errors import InputError, NoClosedFormError
 
 BATCH = 2000 if LARGE else 200
 GRID = 20_000
@@ -96,6 +96,10 @@ def test_the_search_gives_no_solution_for_an_unreachable_pose_and_says_when_its_
     T[:3, 3] = (2.0, 0.0, 0.5)
     sol = s.solve(T, 0.3)
     assert sol.q.shape == (0, 7) and sol.proved
+    with pytest.raises(InputError, match="param"):
+        s.solve(T, float("nan"))
+    with pytest.raises(InputError, match="T"):
+        s.solve(np.ones((4, 4)), 0.3)
     q = random_q(robot, 1, 4)[0]
     short = s.solve(robot.fk(q), q[0], rounds=2)
     assert not short.proved
