@@ -8,7 +8,8 @@ the helpers with ``from conftest import ...``):
 - ``MODELS``: arms from model files written by others (URDFs of the ``pybullet`` and
   ``example-robot-data`` packages of the test extra, MJCF copied into ``tests/models``);
   ``model_robot(key)`` loads one (cached), the ``loaded`` fixture is parametrised over them. ``MADE``: files
-  made from them, ``"xarm7_offset"`` (an arm of no closed-form family), which ``model_robot`` loads too.
+  made from them, ``"xarm7_offset"`` (an arm of no closed-form family), ``"gen3_spherical"`` (the Gen3 with a
+  spherical wrist) and ``"sawyer_exact"`` (the Sawyer's quaternions unrounded), which ``model_robot`` loads too.
 - ``random_q(robot, n, seed, margin=0.0)``: ``(n, 7)`` configurations drawn
   uniformly inside ``[q_min + margin, q_max - margin]`` (a numpy generator
   seeded with ``seed``). Draw many at once so that 10,000 configurations cost
@@ -99,7 +100,7 @@ def packaged(key: str) -> Path:
 
 def xarm7_offset() -> tuple[Path, dict]:
     """example-robot-data's xArm7 with joint 3 moved 1 mm along link 2's x (axis 3 then passes 1 mm from the shoulder
-    point, ten times the near tolerance): a 7-R arm of no closed-form family, written to a temporary folder."""
+    point, twice the near tolerance): a 7-R arm of no closed-form family, written to a temporary folder."""
     import tempfile
 
     path = packaged("erd/xarm7")
@@ -111,15 +112,69 @@ def xarm7_offset() -> tuple[Path, dict]:
     return out, {"meshes": MeshOptions(package_map={"example-robot-data": path.parents[3]})}
 
 
+def robosuite(arm: str) -> tuple[Path, dict]:
+    """A robosuite arm copied into tests/models (its visual meshes left out) and its load options."""
+    return MODEL_DIR / f"robosuite_{arm}/robot.xml", {"meshes": MeshOptions(collision_only=True)}
+
+
+def gen3_spherical() -> tuple[Path, dict]:
+    """robosuite's Kinova Gen3 with the 0.175 mm offsets of joints 6 and 7 removed (axes 5, 6, 7 then meet in one
+    point, the spherical wrist of Kinova's DH table) and its quarter turns exact (the file's quaternions, such as
+    (0.707105, 0.707108, 0, 0), are 4e-6 rad off): an exact member of the locked-q1 family, written with its meshes to
+    a temporary folder."""
+    import shutil
+    import tempfile
+
+    source = MODEL_DIR / "robosuite_gen3"
+    text = (source / "robot.xml").read_text()
+    offsets = {
+        'pos="0 0.00017505 -0.10593"': 'pos="0 0 -0.10593"',
+        'pos="0 -0.10593 -0.00017505"': 'pos="0 -0.10593 0"',
+        'quat="-3.67321e-06 1 0 0"': 'quat="0 1 0 0"',
+        'quat="0 0.707105 -0.707108 0"': 'quat="0 1 -1 0"',
+    }
+    folder = Path(tempfile.mkdtemp(prefix="qpik-gen3-spherical-"))
+    shutil.copytree(source / "meshes", folder / "meshes")
+    for old, new in offsets.items():
+        assert text.count(old) == 1
+        text = text.replace(old, new)
+    text = text.replace('quat="0.707105 0.707108 0 0"', 'quat="1 1 0 0"').replace(
+        'quat="0.707105 -0.707108 0 0"', 'quat="1 -1 0 0"'
+    )
+    (folder / "robot.xml").write_text(text)
+    return folder / "robot.xml", robosuite("gen3")[1]
+
+
+def sawyer_exact() -> tuple[Path, dict]:
+    """robosuite's Sawyer with joint 7's quaternion written exactly ((0.06163, 0.06163, -0.704416, 0.704416) for the
+    file's 0.0616248 first entry, whose rounding puts axes 6 and 7 0.8 µm apart): an exact member of the geometry of
+    the 1-D search (qpik.analytic.locked_search), written to a temporary folder."""
+    import tempfile
+
+    text = (MODEL_DIR / "robosuite_sawyer/robot.xml").read_text()
+    old = 'quat="0.0616248 0.06163 -0.704416 0.704416"'
+    assert text.count(old) == 1
+    out = Path(tempfile.mkdtemp(prefix="qpik-sawyer-exact-")) / "robot.xml"
+    out.write_text(text.replace(old, 'quat="0.06163 0.06163 -0.704416 0.704416"'))
+    return out, robosuite("sawyer")[1]
+
+
 MODELS: dict[str, Callable[[], tuple[Path, dict]]] = {
     "pybullet_iiwa": lambda: (packaged("pybullet/iiwa"), {}),
     "pybullet_panda": lambda: (packaged("pybullet/panda"), {}),
     "erd_panda": lambda: (packaged("erd/panda"), {}),
     "erd_xarm7": lambda: (packaged("erd/xarm7"), {}),
-    "robosuite_iiwa": lambda: (MODEL_DIR / "robosuite_iiwa/robot.xml", {"meshes": MeshOptions(collision_only=True)}),
+    "robosuite_iiwa": lambda: robosuite("iiwa"),
+    "robosuite_gen3": lambda: robosuite("gen3"),
+    "robosuite_sawyer": lambda: robosuite("sawyer"),
+    "robosuite_jaco": lambda: robosuite("jaco"),
     "pusher": lambda: (MODEL_DIR / "gymnasium_pusher/pusher_v5.xml", {"tip": "tips_arm"}),
 }
-MADE: dict[str, Callable[[], tuple[Path, dict]]] = {"xarm7_offset": xarm7_offset}
+MADE: dict[str, Callable[[], tuple[Path, dict]]] = {
+    "xarm7_offset": xarm7_offset,
+    "gen3_spherical": gen3_spherical,
+    "sawyer_exact": sawyer_exact,
+}
 """Model files made for the tests (``model_robot`` loads them too; not among the ``loaded`` arms)."""
 _loaded: dict[str, qpik.Robot] = {}
 

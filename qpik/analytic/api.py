@@ -15,11 +15,11 @@ from qpik.core.validate import finite_array, joint_vector, number
 from qpik.core.validate import pose as check_pose
 from qpik.robots.robot import Robot, as_robot
 
-_SOLVERS = {  # family -> (solver, its feasible sets), each as (module, class)
+_SOLVERS = {  # family -> (solver, its feasible sets), each as (module, class or factory)
     "offset_shoulder": (("qpik.analytic.offset_shoulder", "OffsetShoulderSolver"),
                         ("qpik.analytic.offset_shoulder_intervals", "DeltaIntervals")),
     "srs": (("qpik.analytic.srs", "SRSSolver"), ("qpik.analytic.srs_intervals", "PsiIntervals")),
-    "locked_joint": (("qpik.analytic.locked_joint", "LockedJointSolver"),
+    "locked_joint": (("qpik.analytic.locked_joint", "locked_joint_solver"),
                      ("qpik.analytic.locked_joint_intervals", "Q7Intervals")),
 }  # fmt: skip
 SYMBOL = {"delta": "δ", "psi": "ψ"}
@@ -46,7 +46,7 @@ def _new_solver(robot: Robot) -> AnalyticSolver:
         why = (
             robot.notes
             if robot.notes.startswith("no closed form")
-            else "only offset-shoulder, S-R-S, locked-q7 arms do"
+            else "only offset-shoulder, S-R-S, locked-q7 and locked-q1 arms do"
         )
         raise NoClosedFormError(f"{robot.name} has no closed-form IK ({why}); use qpik.solve_ik instead")
     (module, cls), (sets_module, sets) = _SOLVERS[robot.closed_form]
@@ -162,7 +162,7 @@ def redundancy_parameter(robot: Robot, q: np.ndarray) -> tuple[float | np.ndarra
 
 
 def feasible_intervals(robot: Robot, pose: np.ndarray, project: bool = False, margin: float = 0.0) -> FeasibleIntervals:
-    r"""Per branch, the set of the parameter (δ, ψ or q7; rad) keeping all joints in limits; see
+    r"""Per branch, the set of the parameter (δ, ψ, q7 or q1; rad) keeping all joints in limits; see
     :class:`FeasibleIntervals`. Exact for the S-R-S and offset-shoulder families; the locked-q7 family's are proved
     per pose by a bounded search, and ``proved`` says whether it ended (:mod:`qpik.analytic.locked_joint_intervals`;
     never for a near member, a file polished onto the family).

@@ -13,7 +13,7 @@ import numpy as np
 
 from qpik.core.errors import UnknownRobotError
 from qpik.robots.dh import DHChain
-from qpik.robots.locked_joint import find_locked_joint
+from qpik.robots.locked_joint import find_locked_joint, layout_words
 from qpik.robots.robot import Robot, default_capsules
 
 PI = np.pi
@@ -139,7 +139,7 @@ def locked_joint_notes(chain: DHChain) -> str:
     found, why = find_locked_joint(chain)
     if found is None:
         raise ValueError(f"not a locked-q7 arm: {why}")
-    return found.describe()
+    return found.describe(layout_words(chain))
 
 
 CATALOG: dict[str, Callable[[], Robot]] = {

@@ -125,8 +125,9 @@ def load_robot(
         name: the robot's name (default the model's name; any text: ``robot.identifier`` is its C-safe form).
         meshes: how the meshes are read: ``package_map``, ``collision_only``, ``allow_outside``
             (:class:`~qpik.robots.model_files.MeshOptions`; default its defaults).
-        redundancy: the closed form's parameter, ``"psi"``, ``"delta"`` or ``"q7"`` (q7 locked), instead of the
-            first family that fits (:func:`~qpik.robots.recognize.recognize`); a catalog arm takes only its own.
+        redundancy: the closed form's parameter, ``"psi"``, ``"delta"``, ``"q7"`` (q7 locked) or ``"q1"`` (q1
+            locked, the chain read from the flange), instead of the first family that fits
+            (:func:`~qpik.robots.recognize.recognize`); a catalog arm takes only its own (none locks q1).
 
     Raises:
         UnknownRobotError: neither a catalog name nor an existing file; a name that looks like a file
@@ -148,7 +149,7 @@ def load_robot(
         if any(o is not None for o in options):
             raise InputError(f"load_robot: {text!r} is a catalog arm; the options are for model files")
         robot = catalog_robot(text)
-        if redundancy is not None and REDUNDANCY[redundancy] != robot.closed_form:
+        if redundancy is not None and (REDUNDANCY[redundancy] != robot.closed_form or redundancy == "q1"):
             raise InputError(
                 f"redundancy: {text!r} has no closed form in {redundancy} (its family: {robot.closed_form})"
             )

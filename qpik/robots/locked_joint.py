@@ -1,4 +1,5 @@
-r"""Recognising a 7-R arm that becomes a Pieper-type 6-R chain when its last joint is locked (Franka Panda, xArm7).
+r"""Recognising a 7-R arm that becomes a Pieper-type 6-R chain when its last (or first) joint is locked (Franka Panda,
+xArm7; Kinova Gen3 read backwards).
 
 With q7 given, the flange pose fixes the remaining 6-R chain (joints 1-6). That chain has a closed form
 (:mod:`qpik.analytic.locked_joint`; He & Liu 2021, Tittel 2021, the subproblems of Elias & Wen 2022) when
@@ -11,6 +12,11 @@ Axes 3-4, 4-5 and 6-7 may be offset (Panda: 82.5, 82.5 and 88 mm). The test is o
 q = 0 (:meth:`~qpik.robots.chain.SerialChain.axes`, base frame): intersections hold for every q since
 consecutive axes keep their relative placement; S and W are each fixed in a link (S in the base, W in link 4).
 No Panda number is used: :func:`find_locked_joint` reads everything from the chain.
+
+**Reversed.** An arm whose axes 7, 6, 5 meet (a spherical wrist) and whose axes 3 and 2 meet is the same geometry
+read from the flange: :func:`reversed_chain` (joints in the opposite order, FK inverted) is then of the family, and
+locking its last joint locks the arm's q1 (:attr:`LockedJointGeometry.reversed`; the Kinova Gen3, all of whose
+consecutive axes meet, with its meeting points on axes 2, 4 and 6 apart by 11.75, 12.75 and 0.35 mm in its files).
 """
 
 from __future__ import annotations
@@ -20,18 +26,21 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from qpik.robots.chain import SerialChain
+from qpik.robots.joint import Joint
 
 MEET_TOL = 1e-10
 """Largest distance (m) between two axes that meet; above it they are offset."""
-NEAR_TOL = 1e-4
+NEAR_TOL = 5e-4
 """Largest distance (m) by which the axes that should meet may miss for the chain to count as a near member: it gets
 the closed form of its :func:`ideal_chain`, polished on its own FK (:mod:`qpik.analytic.polish`). A file's
 rounding gives such misses: an rpy written as 1.571 (2e-4 rad off a quarter turn) over a 0.5 m link puts an axis
-1e-4 m from where it should pass; the closed form's start is then about 1e-4/0.1 rad from the answer (links of
-~0.1 m), which Newton's quadratic steps take to round-off in the polish's four. Not near a singular Jacobian of
-joints 1-6 (smallest singular value σ_min): the file's answer lies about miss/σ_min from the ideal one, beyond the
-polish's reach where σ_min is below about 1e-4, and a branch may be missed there (flagged invalid, or the polish
-reaching another answer)."""
+1e-4 m from where it should pass; so do small offsets a file keeps where the maker's table has none (the Kinova Gen3's
+files put its axes 5 and 7 0.35 mm apart, joint origins offset by 0.175 mm, where Kinova's DH table has a spherical
+wrist). The closed form's start is then about miss/0.1 rad from the answer (links of ~0.1 m), which Newton's
+quadratic steps take to round-off in the polish's four. Not near a singular Jacobian of the six joints left
+(smallest singular value σ_min): the file's answer lies about miss/σ_min from the ideal one, beyond the polish's
+reach where σ_min is below about miss, and a branch may be missed there (flagged invalid, or the polish reaching
+another answer)."""
 PARALLEL_TOL = 1e-9
 """Smallest sine of the angle between two axes that are not parallel."""
 
@@ -47,6 +56,8 @@ class LockedJointGeometry:
         wrist: (3,) W, where axes 5-6 meet.
         home: (4, 4) the end-effector pose at q = 0.
         offsets: ``{(i, j): m}``, the distances between consecutive axes i, j (1-based) that do not meet.
+        reversed: the geometry is that of :func:`reversed_chain` of the arm (its axis k is the arm's axis 8 − k):
+            the arm's q1 is locked.
     """
 
     h: np.ndarray
@@ -55,22 +66,68 @@ class LockedJointGeometry:
     wrist: np.ndarray
     home: np.ndarray
     offsets: dict[tuple[int, int], float]
+    reversed: bool = False
 
-    def describe(self, near: str = "") -> str:
-        """One line for ``robot.notes``: the geometry found (offsets in mm) and the solver serving it; ``near``, the
-        deviations of a file from its :func:`ideal_chain` in words (empty for a chain of the family)."""
-        off = ", ".join(f"{i}-{j} {1000 * d:.4g} mm" for (i, j), d in self.offsets.items()) or "none"
+    def describe(self, layout: str, near: str = "") -> str:
+        """One line for ``robot.notes``: the geometry found, in the arm's own axis numbers, ``layout`` (the axes in
+        words, :func:`layout_words` of the arm's chain), and the solver serving it; ``near``, the deviations of a file
+        from its :func:`ideal_chain` in words (empty for a chain of the family)."""
         ideal = (
             f" on its nearest ideal geometry ({near}), polished by Newton on the file's chain (a branch may be missed"
-            " near a singular Jacobian of joints 1-6; feasible sets not proved)"
+            f" near a singular Jacobian of joints {'2-7' if self.reversed else '1-6'}; feasible sets not proved)"
             if near
             else ""
         )
+        if self.reversed:
+            lock, groups = (
+                "q1 locked (the chain read from the flange; parameter q1, 8 branches)",
+                "axes 7-6-5 meet (spherical wrist), axes 3-2 meet",
+            )
+        else:
+            lock, groups = "q7 locked (parameter q7, 8 branches)", "axes 1-2-3 meet (spherical shoulder), axes 5-6 meet"
+        pairs = {((8 - j, 8 - i) if self.reversed else (i, j)): d for (i, j), d in self.offsets.items()}
+        off = ", ".join(f"{i}-{j} {1000 * d:.4g} mm" for (i, j), d in sorted(pairs.items())) or "none"
         return (
-            f"closed form with q7 locked (parameter q7, 8 branches){ideal}: axes 1-2-3 meet (spherical shoulder), "
-            f"axes 5-6 meet; offsets between axes {off}; solved by subproblems 3, 2, 2 and 1 "
+            f"closed form with {lock}{ideal}: {groups}; offsets between axes {off} ({layout}); solved by subproblems "
+            "3, 2, 2 and 1 "
             "(qpik.analytic.locked_joint" + (", qpik.analytic.polish)" if near else ")")
         )
+
+
+def _mm(x: float) -> str:
+    """A length (m) in words: mm, or µm below 0.01 mm."""
+    return f"{1e6 * x:.4g} µm" if x < 1e-5 else f"{1000 * x:.4g} mm"
+
+
+def layout_words(chain: SerialChain) -> str:
+    """The axes of a revolute ``chain`` in words, from its axis lines at q = 0: which consecutive axes meet, the
+    distance (mm) between those that do not (their common normal), and along each axis between the feet of its two
+    common normals (the DH d; where both neighbours meet it, the distance between the points where they do)."""
+    h, o = chain.axes(np.zeros(chain.dof))
+    h = h / np.linalg.norm(h, axis=1, keepdims=True)
+    n = len(h)
+    feet = [_feet(o[i], h[i], o[i + 1], h[i + 1]) for i in range(n - 1)]
+    meet, apart, parallel = [], [], []
+    for i, f in enumerate(feet):
+        name = f"{i + 1}-{i + 2}"
+        if f is None:
+            parallel.append(f"{name} parallel ({_mm(_off_line(o[i + 1], o[i], h[i]))} apart)")
+        elif (gap := float(np.linalg.norm(f[1] - f[0]))) <= MEET_TOL:
+            meet.append(name)
+        else:
+            apart.append(f"{name} {_mm(gap)} apart")
+    along = [
+        f"axis {k + 1} {_mm(abs(d))}"
+        for k in range(1, n - 1)
+        if feet[k - 1] is not None
+        and feet[k] is not None
+        and abs(d := float((feet[k][0] - feet[k - 1][1]) @ h[k])) > MEET_TOL
+    ]
+    parts = [f"axes {', '.join(meet)} meet"] if meet else []
+    parts += [f"axes {x}" for x in apart + parallel]
+    if along:
+        parts.append("along " + ", ".join(along) + " between the feet of its common normals with its neighbours")
+    return ", ".join(parts)
 
 
 def _feet(p: np.ndarray, u: np.ndarray, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
@@ -90,31 +147,66 @@ def _off_line(x: np.ndarray, p: np.ndarray, u: np.ndarray) -> float:
     return float(np.linalg.norm(np.cross(x - p, u)))
 
 
-def find_locked_joint(chain: SerialChain, tol: float = MEET_TOL) -> tuple[LockedJointGeometry | None, str]:
+def find_locked_joint(
+    chain: SerialChain, tol: float = MEET_TOL, reversed: bool = False, shoulder: int = 3
+) -> tuple[LockedJointGeometry | None, str]:
     """The locked-q7 geometry of ``chain`` (7 revolute joints), or None and the reason in one line; ``tol`` (m):
-    the largest miss of axes that meet (:data:`MEET_TOL`; :data:`NEAR_TOL` for a near member)."""
+    the largest miss of axes that meet (:data:`MEET_TOL`; :data:`NEAR_TOL` for a near member); ``reversed``: ``chain``
+    is :func:`reversed_chain` of the arm (its axis k the arm's axis 8 − k, said so in the reason). ``shoulder`` 2:
+    only axes 1 and 2 meet in S, axis 3 passes S at a distance (the geometry of the 1-D search,
+    :mod:`qpik.analytic.locked_search`; axes 2-3 may be offset; farther than :data:`NEAR_TOL` from S, else the
+    closed form serves the chain and the search's subproblem 3 about axis 3 degenerates)."""
     h, o = chain.axes(np.zeros(7))
     h = h / np.linalg.norm(h, axis=1, keepdims=True)
     feet = [_feet(o[i], h[i], o[i + 1], h[i + 1]) for i in range(6)]
     gap = {i: (np.inf if f is None else float(np.linalg.norm(f[1] - f[0]))) for i, f in enumerate(feet)}
-    for i in (0, 1, 4):
+    k = (lambda i: 8 - i) if reversed else (lambda i: i)  # the arm's number of the chain's axis i
+
+    def pair(i: int) -> str:
+        return f"axes {k(i + 1)}-{k(i + 2)}"
+
+    for i in (0, 1, 4) if shoulder == 3 else (0, 4):
         if feet[i] is None:
-            return None, f"axes {i + 1}-{i + 2} are parallel"
+            return None, f"{pair(i)} are parallel"
         if gap[i] > tol:
-            return None, f"axes {i + 1}-{i + 2} do not meet ({1000 * gap[i]:.4g} mm apart)"
+            return None, f"{pair(i)} do not meet ({1000 * gap[i]:.4g} mm apart)"
     S, W = feet[0][0], feet[4][0]
-    if (d := _off_line(S, o[2], h[2])) > tol:
-        return None, f"axes 1-2-3 do not meet in one point (axis 3 passes {1000 * d:.4g} mm from it)"
+    if shoulder == 2 and (d := _off_line(S, o[2], h[2])) <= NEAR_TOL:  # the closed form's; subproblem 3 degenerates
+        return None, f"axis {k(3)} passes {_mm(d)} from the point where axes {k(1)}-{k(2)} meet (the closed form's)"
+    if shoulder == 3 and (d := _off_line(S, o[2], h[2])) > tol:
+        group = f"axes {k(1)}-{k(2)}-{k(3)}"
+        return None, f"{group} do not meet in one point (axis {k(3)} passes {1000 * d:.4g} mm from it)"
     if min(_off_line(S, o[3], h[3]), _off_line(W, o[3], h[3])) < 1e3 * MEET_TOL:
         return None, "the shoulder or wrist point lies on axis 4"
     offsets = {(i + 1, i + 2): gap[i] for i in range(6) if gap[i] > tol and np.isfinite(gap[i])}
     home = chain.fk(np.zeros(7))
-    return LockedJointGeometry(h, o, S, W, home, offsets), ""
+    return LockedJointGeometry(h, o, S, W, home, offsets, reversed), ""
 
 
-def ideal_chain(chain: SerialChain) -> tuple[SerialChain | None, str]:
+FLIP = np.diag([1.0, -1.0, -1.0, 1.0])
+"""A half turn about x: :math:`R_z(-x) = F R_z(x) F`."""
+
+
+def reversed_chain(chain: SerialChain) -> SerialChain:
+    r"""The chain read from the end effector to the base: joint k of it is joint n + 1 − k of ``chain`` at the same
+    angle, and its FK is the inverse of ``chain``'s, :math:`T'(q_n, \ldots, q_1) = T(q_1, \ldots, q_n)^{-1}`
+    (every joint independent).
+
+    :math:`T = B \prod_k P_k R_z(q_k + o_k) S_k\, E`, so :math:`T^{-1} = E^{-1} \prod_{k = n}^{1} S_k^{-1}
+    R_z(-q_k - o_k) P_k^{-1}\, B^{-1}` and :math:`R_z(-x) = F R_z(x) F` (:data:`FLIP`): the reversed joint has
+    ``pre`` :math:`S_k^{-1} F`, the same offset, ``post`` :math:`F P_k^{-1}` (its axis the original turned
+    over); base :math:`E^{-1}`, tool :math:`B^{-1}`."""
+    joints = [
+        Joint(pre=np.linalg.inv(j.post) @ FLIP, post=FLIP @ np.linalg.inv(j.pre), offset=j.offset, name=j.name)
+        for j in reversed(chain.joints)
+    ]
+    return SerialChain(joints, np.linalg.inv(chain.tool), np.linalg.inv(chain.base))
+
+
+def ideal_chain(chain: SerialChain, reversed: bool = False, shoulder: int = 3) -> tuple[SerialChain | None, str]:
     r"""The family's chain nearest to ``chain`` (7 revolute joints) whose axes miss by at most :data:`NEAR_TOL`, and
-    the misses in words; None and the reason otherwise.
+    the misses in words; None and the reason otherwise. ``reversed``: ``chain`` is :func:`reversed_chain` of the arm,
+    whose axis numbers the words use; ``shoulder``: as :func:`find_locked_joint` (2: axis 3 is not moved).
 
     Axes 1 and 2 are moved parallel to themselves through the midpoint S of their common normal, axis 3 through S,
     axes 5 and 6 through the midpoint W of theirs (each by at most its miss; directions, the other axes, the base and
@@ -122,22 +214,24 @@ def ideal_chain(chain: SerialChain) -> tuple[SerialChain | None, str]:
     :math:`\delta_k`, so :math:`P'_k = T(R_{k-1}^T(\delta_k - \delta_{k-1}))\,P_k` (:math:`R_{k-1}` the rotation
     of link frame k-1 at q = 0, :math:`T` a translation) and the tool takes :math:`-\delta_7`.
     """
-    geometry, why = find_locked_joint(chain, NEAR_TOL)
+    geometry, why = find_locked_joint(chain, NEAR_TOL, reversed, shoulder)
     if geometry is None:
         return None, why
     h, o = geometry.h, geometry.o
+    n = (lambda i: 8 - i) if reversed else (lambda i: i)  # the arm's number of the chain's axis i
     shift = np.zeros((8, 3))  # δ_k of joint k = 1..7; row 0 the base's
     misses = []
-    for a, b, rows, name in ((0, 1, (1, 2, 3), "shoulder"), (4, 5, (5, 6), "wrist")):
+    for a, b, rows, name in ((0, 1, (1, 2, 3)[:shoulder], "wrist" if reversed else "shoulder"),
+                             (4, 5, (5, 6), "shoulder" if reversed else "wrist")):  # fmt: skip
         fa, fb = _feet(o[a], h[a], o[b], h[b])  # type: ignore[misc]
         point = 0.5 * (fa + fb)
         if (gap := float(np.linalg.norm(fb - fa))) > MEET_TOL:
-            misses.append(f"axes {a + 1}-{b + 1} pass {1e6 * gap:.4g} µm apart")
+            misses.append(f"axes {n(a + 1)}-{n(b + 1)} pass {1e6 * gap:.4g} µm apart")
         for k in rows:
             v = point - o[k - 1]
             shift[k] = v - (v @ h[k - 1]) * h[k - 1]
-        if name == "shoulder" and (d := _off_line(fa, o[2], h[2])) > MEET_TOL:
-            misses.append(f"axis 3 passes {1e6 * d:.4g} µm from the shoulder point")
+        if a == 0 and shoulder == 3 and (d := _off_line(fa, o[2], h[2])) > MEET_TOL:
+            misses.append(f"axis {n(3)} passes {1e6 * d:.4g} µm from the {name} point")
     F = chain.frames(np.zeros(7))
     joints = []
     for k, joint in enumerate(chain.joints, start=1):

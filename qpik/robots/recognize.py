@@ -34,10 +34,12 @@ import numpy as np
 from qpik.core.errors import InputError
 from qpik.robots.chain import SerialChain
 from qpik.robots.dh import DHChain
-from qpik.robots.locked_joint import find_locked_joint, ideal_chain
+from qpik.robots.locked_joint import NEAR_TOL, find_locked_joint, ideal_chain, layout_words, reversed_chain
 
 TOL = 1e-9
 """m and rad: an a or d below this is zero, an α within this of ±π/2 is ±π/2."""
+ROUGHLY = 1e-3
+"""rad: consecutive axes off perpendicular by more than this are reported before any offset."""
 VERIFY_TOL = 1e-10
 """Largest difference (m, and rotation-matrix entries) of the FK of the chain and of the mapped DH table."""
 PI = np.pi
@@ -113,22 +115,25 @@ class Canonical:
     locked-q7 family, which reads the axes of any chain, the chain itself and the identity); ``notes``, the
     geometry in words where the family says it. ``exact`` False: ``table`` is the family's chain nearest to one that
     misses it by a file's rounding (:func:`qpik.robots.locked_joint.ideal_chain`), whose branches the solver polishes
-    on the robot's own chain (:mod:`qpik.analytic.polish`)."""
+    on the robot's own chain (:mod:`qpik.analytic.polish`). ``reversed``: ``table`` is of the family read from the
+    flange (:func:`qpik.robots.locked_joint.reversed_chain`; its joint k is the robot's joint 8 − k, q1 locked)."""
 
     kind: str
     table: SerialChain
     joints: JointMap
     notes: str = ""
     exact: bool = True
+    reversed: bool = False
 
 
-REDUNDANCY = {"psi": "srs", "delta": "offset_shoulder", "q7": "locked_joint"}
+REDUNDANCY = {"psi": "srs", "delta": "offset_shoulder", "q7": "locked_joint", "q1": "locked_joint"}
 """The redundancy parameters a user can ask for (``load_robot(..., redundancy=)``) and their family."""
 
 
 def recognize(chain: SerialChain, redundancy: str | None = None) -> tuple[Canonical | None, str]:
     """The first closed form ``chain`` fits, or None and the reason (one line): the patterns of :data:`PATTERNS`,
-    then q7 locked (:mod:`qpik.robots.locked_joint`), exactly or as a near member (its axes miss by at most
+    then q7 locked, then q1 locked (the chain read from the flange; :mod:`qpik.robots.locked_joint`), exactly or as a
+    near member (its axes miss by at most
     :data:`~qpik.robots.locked_joint.NEAR_TOL`: the closed form of its ideal chain, polished on its own).
     ``redundancy`` (a key of :data:`REDUNDANCY`) tries only the family of that parameter."""
     if redundancy is not None and redundancy not in REDUNDANCY:
@@ -149,16 +154,45 @@ def recognize(chain: SerialChain, redundancy: str | None = None) -> tuple[Canoni
             return found, ""
         reasons.append(f"not {kind.replace('_', '-')}: {why}")
     if wanted in (None, "locked_joint"):
-        identity = JointMap(np.ones(7), np.zeros(7))
-        geometry, _ = find_locked_joint(chain)
+        found, why = _locked(chain, {None: (False, True), "q7": (False,), "q1": (True,)}[redundancy])
+        if found is not None:
+            return found, ""
+        reasons.append(why)
+    return None, f"{layout_words(chain)}; " + "; ".join(reasons) + _search(chain)
+
+
+def _search(chain: SerialChain) -> str:
+    """What serves an arm of no closed form: the 1-D search (:mod:`qpik.analytic.locked_search`) where its geometry
+    (:func:`~qpik.robots.locked_joint.find_locked_joint` with ``shoulder=2``, exactly or within
+    :data:`~qpik.robots.locked_joint.NEAR_TOL`) holds with q1 locked (the chain read from the flange) or q7 locked."""
+    for rev in (True, False):
+        turned = reversed_chain(chain) if rev else chain
+        if find_locked_joint(turned, NEAR_TOL, rev, shoulder=2)[0] is not None:
+            return (
+                f"; IK by a certified 1-D search over q4 with q{1 if rev else 7} locked "
+                "(qpik.analytic.locked_search.LockedSearch; not behind qpik.ik)"
+            )
+    return ""
+
+
+def _locked(chain: SerialChain, directions: tuple[bool, ...]) -> tuple[Canonical | None, str]:
+    """The locked-joint family (:mod:`qpik.robots.locked_joint`) in ``chain``: q7 locked (``False`` in ``directions``)
+    or q1 locked, the chain read from the flange (``True``), exactly, then as a near member; or the reasons."""
+    identity = JointMap(np.ones(7), np.zeros(7))
+    layout = layout_words(chain)
+    turned = {rev: reversed_chain(chain) if rev else chain for rev in directions}
+    for rev, c in turned.items():
+        geometry, _ = find_locked_joint(c, reversed=rev)
         if geometry is not None:
-            return Canonical("locked_joint", chain, identity, geometry.describe()), ""
-        ideal, near = ideal_chain(chain)
-        geometry, why = (None, near) if ideal is None else find_locked_joint(ideal)
-        if ideal is not None and geometry is not None:
-            return Canonical("locked_joint", ideal, identity, geometry.describe(near), exact=False), ""
-        reasons.append(f"not locked-q7: {why}")
-    return None, "; ".join(reasons)
+            return Canonical("locked_joint", c, identity, geometry.describe(layout), reversed=rev), ""
+    reasons = {}
+    for rev, c in turned.items():
+        ideal, near = ideal_chain(c, rev)
+        geometry, reasons[rev] = (None, near) if ideal is None else find_locked_joint(ideal, reversed=rev)
+        if geometry is not None:
+            notes = geometry.describe(layout, near) + _search(chain)  # a near member: the search may be exact
+            return Canonical("locked_joint", ideal, identity, notes, False, rev), ""
+    return None, "; ".join(f"not locked-q{1 if rev else 7}: {why}" for rev, why in reasons.items())
 
 
 def _fit(chain: SerialChain, kind: str, pattern: Pattern) -> tuple[Canonical | None, str]:
@@ -190,12 +224,19 @@ def _normal(u: np.ndarray, p: np.ndarray, v: np.ndarray, q: np.ndarray) -> tuple
 
 
 def _structure(z: np.ndarray, o: np.ndarray, pattern: Pattern) -> str:
-    """The sign-free conditions: perpendicular consecutive axes, the zero a's and d's; '' when they hold."""
-    for i in range(6):
-        angle = np.arccos(np.clip(abs(z[i] @ z[i + 1]), 0.0, 1.0))
-        if abs(angle - HALF) > TOL:
-            off = abs(angle - HALF)
-            return f"axes {i + 1}-{i + 2} are not perpendicular ({np.degrees(angle):.6g}°, {off:.1e} rad off)"
+    """The sign-free conditions: perpendicular consecutive axes, the zero a's and d's; '' when they hold. An axis pair
+    off perpendicular by less than :data:`ROUGHLY` is said only when the intersections hold (the file's rounding is
+    then what is left, not the reason)."""
+    angles = [np.arccos(np.clip(abs(z[i] @ z[i + 1]), 0.0, 1.0)) for i in range(6)]
+
+    def perpendicular(tol: float) -> str:
+        for i, angle in enumerate(angles):
+            if (off := abs(angle - HALF)) > tol:
+                return f"axes {i + 1}-{i + 2} are not perpendicular ({np.degrees(angle):.6g}°, {off:.1e} rad off)"
+        return ""
+
+    if why := perpendicular(ROUGHLY):
+        return why
     feet = [_normal(z[i], o[i], z[i + 1], o[i + 1]) for i in range(6)]
     offsets = {i: float(np.linalg.norm(b - a)) for i, (a, b) in enumerate(feet)}
     gaps = {i: float(abs((feet[i][0] - feet[i - 1][1]) @ z[i])) for i in range(1, 6)}
@@ -206,7 +247,7 @@ def _structure(z: np.ndarray, o: np.ndarray, pattern: Pattern) -> str:
         if bad:
             names = "-".join(str(i + 1) for i in g)
             return f"axes {names} do not intersect (offsets {', '.join(f'{x:.3g}' for x in bad)} m)"
-    return ""
+    return perpendicular(TOL)
 
 
 def _table(chain: SerialChain, u: np.ndarray, o: np.ndarray, pattern: Pattern) -> tuple[DHChain, np.ndarray] | None:

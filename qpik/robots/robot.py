@@ -59,7 +59,7 @@ class Robot:
         q_home: a home configuration (rad), shape (n,).
         capsules: one :class:`LinkCapsule` per moving link.
         closed_form: which analytic IK applies: ``"offset_shoulder"`` (δ),
-            ``"srs"`` (ψ), ``"locked_joint"`` (q7 locked) or ``None``.
+            ``"srs"`` (ψ), ``"locked_joint"`` (q7 locked, or q1 where ``canonical.reversed``) or ``None``.
         source: where the numbers come from.
         model: the MJCF/URDF model of a loaded robot (:func:`qpik.robots.loader.load_robot`),
             or None for a catalog arm (whose MuJoCo model is the twin).

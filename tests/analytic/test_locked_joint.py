@@ -266,7 +266,7 @@ def test_an_unreachable_pose_of_the_xarm7_gives_finite_invalid_branches():
 
 
 def test_an_arm_beyond_the_near_tolerance_has_no_closed_form():
-    """The xArm7 with axis 3 moved 1 mm (ten times NEAR_TOL) is refused, with the miss in the reason."""
+    """The xArm7 with axis 3 moved 1 mm (twice NEAR_TOL) is refused, with the miss in the reason."""
     robot = model_robot("xarm7_offset")
     assert robot.closed_form is None and "not locked-q7: axes 2-3 do not meet (1 mm apart)" in robot.notes
     with pytest.raises(NoClosedFormError, match="axes 2-3 do not meet"):

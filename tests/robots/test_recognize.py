@@ -37,7 +37,8 @@ def test_the_kuka_urdf_is_the_catalog_iiwa14():
 @pytest.mark.parametrize(
     ("key", "why"),
     [
-        ("xarm7_offset", "not srs: axes 1-2 are not perpendicular"),
+        ("xarm7_offset", "not srs: axes 1-2-3 do not intersect"),
+        ("robosuite_sawyer", "not locked-q7: axes 1-2 do not meet (81 mm apart)"),
     ],
 )
 def test_other_arms_say_why(key, why):

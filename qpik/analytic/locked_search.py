@@ -1,0 +1,278 @@
+r"""IK of a 7-R arm with one joint locked by a certified 1-D search (Elias & Wen 2022, IK-Geo): the Rethink Sawyer.
+
+The Sawyer's consecutive axes meet except axes 1-2 (81 mm apart), and no three meet in one point: with any joint
+locked the 6-R chain left has no closed form. Read from the flange (:func:`~qpik.robots.locked_joint.reversed_chain`,
+joint k the arm's joint 8 − k, pose :math:`T^{-1}`) with its last joint (the arm's q1) locked, it is the locked-q7
+geometry of :mod:`qpik.analytic.locked_joint` but for axis 3, which misses the point S where axes 1 and 2 meet
+(:func:`~qpik.robots.locked_joint.find_locked_joint` with ``shoulder=2``; the Sawyer: 136.3 mm). With the
+notation of that module (:math:`G = T M^{-1} e_7^{-1} = e_1 \cdots e_6`, W where axes 5 and 6 meet), for the search
+variable :math:`x = q_4`:
+
+- :math:`|e_3 e_4 W - S| = |G W - S| = D`: q3 by subproblem 3 on the point :math:`P = e_4(x) W` about axis 3
+  (two roots, sign :math:`\sigma_3`; :math:`a\cos q_3 + b\sin q_3 = c`, :math:`\cos q_3 = (ac - \sigma_3 b\sqrt{r^2 -
+  c^2})/r^2`, :math:`\sin q_3 = (bc + \sigma_3 a\sqrt{r^2-c^2})/r^2`, no angle formed);
+- :math:`R(h_1, q_1) R(h_2, q_2)\,u = v`, :math:`u = e_3 P - S`, :math:`v = G W - S`: q1, q2 by subproblem 2
+  (sign :math:`\sigma_{12}`) and subproblem 1;
+- what is left, :math:`R(h_5, q_5) R(h_6, q_6) = R_4^T R_G` (:math:`R_4 = R(h_1,q_1)\cdots R(h_4, x)`), exists iff
+  axis 6 turned by it keeps its angle to axis 5: the **error function**
+
+  .. math:: e_b(x) = (R_4 h_5)\cdot(R_G h_6) - h_5\cdot h_6,
+
+  one per branch :math:`b = 2\,[\sigma_3 < 0] + [\sigma_{12} < 0]` (4 functions of x), valid where both
+  discriminants are :math:`\ge 0` (the validity :math:`v_b(x)`, as :mod:`qpik.analytic.locked_joint`'s). Each root
+  of :math:`e_b` where :math:`v_b \ge 0` is an IK solution; q5 and q6 then follow by subproblem 1.
+
+**Every root.** :math:`e_b` and :math:`v_b` are written once against :mod:`qpik.algebra.symbolic`; their first-order
+Taylor models over cells of x (:func:`qpik.algebra.enclosure.taylor_function`, compiled and mapped over rows of
+cells and branches, :class:`~qpik.native.compiled.RowMap`) isolate the roots as
+:mod:`qpik.analytic.locked_joint_intervals` does (Moore 1966; Makino & Berz 2003): from :data:`CELLS` cells over the
+circle, a cell is discarded where the model's window :math:`|f_0 + f_1 t| \le r +` :data:`SLACK` is empty or the
+bounds exclude 0 or the branch's validity is below 0 over the cell, replaced by that window where it is at most
+half as wide, else halved; a window narrower than :data:`WINDOW` holds a root (its centre), and so do the ends of a
+cell where :math:`|e_b|` stays within :data:`TOUCH` of 0 (a double root). Every root of every :math:`e_b` is then
+within :data:`WINDOW` of a candidate, unless the search ran out of its budget (:data:`ROUNDS`, :data:`MAX_CELLS`;
+``proved`` False). Where the validity vanishes inside a window the square roots of the subproblems have no slope and
+the cell is halved down to :data:`WINDOW` like any other.
+
+**Machine precision.** Each candidate's joints (q5, q6 by subproblem 1 on the rotation left) start :data:`POLISH`
+rounds of Newton on the arm's own chain, the locked joint held (:func:`qpik.analytic.polish.polish`); a candidate is
+a solution where the residual is at most :data:`~qpik.analytic.polish.RESIDUAL_TOL`, and solutions within
+:data:`SAME` rad of each other are one. A file whose axes miss the geometry by at most
+:data:`~qpik.robots.locked_joint.NEAR_TOL` (the Sawyer's axes 6-7: 0.8 µm) is searched on its nearest ideal chain
+(:func:`~qpik.robots.locked_joint.ideal_chain`), the roots then polished on the file's: ``proved`` is then False (a
+root of the file's chain lies near, not within :data:`WINDOW` of, the ideal chain's).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from qpik.algebra import symbolic as sy
+from qpik.algebra.enclosure import taylor_function
+from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
+from qpik.analytic.locked_joint import _v, rotate, rotation, subproblem1, subproblem2
+from qpik.analytic.polish import RESIDUAL_TOL, polish
+from qpik.analytic.trig import EPS
+from qpik.core.errors import NoClosedFormError
+from qpik.core.validate import number, single_pose
+from qpik.native.compiled import RowMap
+from qpik.robots.chain import SerialChain
+from qpik.robots.locked_joint import find_locked_joint, ideal_chain, reversed_chain
+
+CELLS = 64
+"""Cells of x = q4 over the circle at the start of the search."""
+WINDOW = 1e-10
+"""Width (rad) of a window of roots that is a candidate."""
+SLACK = 1e-12
+"""Added to every remainder: the round-off of the enclosures of values of order 1."""
+TOUCH = 1e-12
+"""An error function within this of 0 over a whole cell makes the cell's ends candidates."""
+ROUNDS = 80
+"""Rounds of the search before the answer is left unproved."""
+MAX_CELLS = 4096
+"""Cells (of all branches) in a round above which the answer is left unproved."""
+POLISH = 3
+"""Rounds of :func:`~qpik.analytic.polish.polish` (each of its Newton steps) from a candidate."""
+SAME = 1e-8
+"""rad: solutions this close in every joint are one."""
+SIGNS = np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]])
+"""Per branch b, the signs (σ3, σ12) of its subproblems' roots."""
+
+
+@dataclass(frozen=True)
+class SearchSolutions:
+    """The IK solutions of one pose at one value of the locked joint.
+
+    Attributes:
+        q: (K, 7) rad, the arm's joint order, each reaching the pose by the arm's own FK (K ≤ 16; 0 if unreachable).
+        branch: (K,) the branch b (0-3) of the error function each root is of.
+        residual: (K,) the polish's residual (m and rotation-matrix entries).
+        proved: every root of every error function was isolated within the search's budget, on the arm's own chain
+            (not a near member's ideal one).
+    """
+
+    q: np.ndarray
+    branch: np.ndarray
+    residual: np.ndarray
+    proved: bool
+
+
+class LockedSearch:
+    """The certified 1-D search of a chain of the module docstring's geometry; see there.
+
+    Args:
+        chain: the arm's chain (7 revolute joints).
+
+    Raises:
+        NoClosedFormError: the geometry does not apply in either direction (the reasons in the message).
+    """
+
+    def __init__(self, chain: SerialChain):
+        reasons = []
+        for rev in (True, False):
+            turned = reversed_chain(chain) if rev else chain
+            table, near = turned, ""
+            geometry, why = find_locked_joint(turned, reversed=rev, shoulder=2)
+            if geometry is None:
+                table, near = ideal_chain(turned, rev, shoulder=2)
+                geometry, why = (None, near) if table is None else find_locked_joint(table, reversed=rev, shoulder=2)
+            if geometry is not None:
+                break
+            reasons.append(f"q{1 if rev else 7} locked: {why}")
+        else:
+            raise NoClosedFormError("no 1-D search applies: " + "; ".join(reasons))
+        self.reversed, self.exact, self.near = rev, not near, near
+        self.locked = 1 if rev else 7
+        """The arm's locked joint (1-based): the parameter."""
+        self.own = turned
+        """The arm's chain in the search's order (reversed where :attr:`reversed`): the polish's."""
+        g = geometry
+        h, o, S, W = g.h, g.o, g.shoulder, g.wrist
+        self.h = [_v(x) for x in h]
+        self.o3, self.S = _v(o[2]), _v(S)
+        self.o4, self.w4 = _v(o[3]), _v(W - o[3])
+        Rm, pm = g.home[:3, :3], g.home[:3, 3]
+        self.k7, self.c7, self.w7 = _v(Rm.T @ h[6]), _v(Rm.T @ (o[6] - pm)), _v(Rm.T @ (W - o[6]))
+        self.Rm_t = tuple(_v(r) for r in Rm.T)
+        a = np.cross(h[4], h[5])
+        self.a6 = _v(a / np.linalg.norm(a))  # a unit vector ⊥ h6 for q6's subproblem 1
+        self.h56 = float(h[4] @ h[5])
+        T, q7, x, sign = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("x"), ca.SX.sym("sign", 2)
+        R, p = sy.frame_of_batch(T)
+        e, valid, _ = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)
+        self._model = RowMap(taylor_function(ca.Function("locked_search", [T, q7, x, sign], [ca.vertcat(e, valid)]),
+                                             [2]), shared=[0, 1])  # fmt: skip
+
+    def error(
+        self, R: Mat, p: Vec, q7: Scalar, x: Scalar, signs: tuple[Scalar, Scalar], ops: Ops
+    ) -> tuple[Scalar, Scalar, list[tuple[Scalar, Scalar]]]:
+        """The error function :math:`e_b(x)` and validity :math:`v_b(x)` of the branch of ``signs`` (σ3, σ12) at the
+        search's pose ``(R, p)`` (the arm's :math:`T^{-1}` where :attr:`reversed`) and locked angle ``q7`` (rad), and
+        the (cos, sin) of its joints 1-6 (q5 and q6 meaningful at a root only)."""
+        h = self.h
+        c7, s7 = ops.cos(q7), ops.sin(q7)
+        RG = sy.matmul(R, sy.matmul(rotation(self.k7, c7, sy.neg(s7)), self.Rm_t))
+        GW = sy.vadd(sy.matvec(R, sy.vadd(self.c7, rotate(self.k7, c7, sy.neg(s7), self.w7))), p)
+        v = sy.vsub(GW, self.S)
+        c4, s4 = ops.cos(x), ops.sin(x)
+        P = sy.vadd(self.o4, rotate(h[3], c4, s4, self.w4))
+        pp, qq = sy.vsub(P, self.o3), sy.vsub(self.S, self.o3)
+        k = h[2]
+        kp, kq = sy.dot(k, pp), sy.dot(k, qq)
+        a = sy.dot(pp, qq) - kp * kq
+        b = sy.dot(qq, sy.cross(k, pp))
+        c = 0.5 * (sy.dot(pp, pp) + sy.dot(qq, qq) - sy.dot(v, v)) - kp * kq
+        r2 = a * a + b * b
+        disc = r2 - c * c
+        root = ops.safe_sqrt(disc)
+        inv = 1.0 / ops.fmax(r2, 1e-300)
+        c3 = (a * c - signs[0] * b * root) * inv
+        s3 = (b * c + signs[0] * a * root) * inv
+        u = sy.vsub(sy.vadd(self.o3, rotate(k, c3, s3, pp)), self.S)
+        (w,), m12, _ = subproblem2(h[1], u, h[0], v, ops, (signs[1],))
+        _, c2, s2 = subproblem1(h[1], u, w, ops)
+        _, c1, s1 = subproblem1(h[0], w, v, ops)
+
+        def turn(y: Vec) -> Vec:
+            """R_4 y = R(h1, q1) R(h2, q2) R(h3, q3) R(h4, x) y."""
+            y = rotate(h[3], c4, s4, y)
+            return rotate(h[0], c1, s1, rotate(h[1], c2, s2, rotate(h[2], c3, s3, y)))
+
+        h6 = sy.matvec(RG, h[5])
+        e = sy.dot(turn(h[4]), h6) - self.h56
+        valid = ops.fmin(disc * inv, m12) + EPS
+
+        def back(y: Vec) -> Vec:
+            """R_4^T y."""
+            y = rotate(h[0], c1, sy.neg(s1), y)
+            y = rotate(h[2], c3, sy.neg(s3), rotate(h[1], c2, sy.neg(s2), y))
+            return rotate(h[3], c4, sy.neg(s4), y)
+
+        _, c5, s5 = subproblem1(h[4], h[5], back(h6), ops)
+        end = rotate(h[4], c5, sy.neg(s5), back(sy.matvec(RG, self.a6)))
+        _, c6, s6 = subproblem1(h[5], self.a6, end, ops)
+        return e, valid, [(c1, s1), (c2, s2), (c3, s3), (c4, s4), (c5, s5), (c6, s6)]
+
+    def solve(self, T: np.ndarray, param: float, rounds: int = ROUNDS) -> SearchSolutions:
+        """Every IK solution of the pose ``T`` (4, 4; the arm's base frame) with the locked joint at ``param`` (rad);
+        ``rounds``: the search's budget (:data:`ROUNDS`).
+
+        Raises:
+            InputError: ``T`` is not one pose (:func:`~qpik.core.validate.single_pose`) or ``param`` not a finite
+                number.
+        """
+        T = single_pose(T, "T")
+        param = number(param, "param", minimum=None)
+        Ts = np.linalg.inv(T) if self.reversed else T
+        found, branch, left = self._isolate(Ts, param, rounds)
+        if not found.size:
+            return SearchSolutions(np.zeros((0, 7)), np.zeros(0, int), np.zeros(0), not left and self.exact)
+        R, p = sy.frame_of_batch(np.broadcast_to(Ts, (found.size, 4, 4)))
+        signs = SIGNS[branch]
+        _, _, trig = self.error(R, p, float(param), found, (signs[:, 0], signs[:, 1]), sy.NUMPY)
+        start = [np.arctan2(s, c) for c, s in trig] + [np.full(found.size, float(param))]
+        q, residual = self._polish(Ts, start)
+        ok = residual <= RESIDUAL_TOL
+        q, branch, residual = sy.NUMPY.wrap(q[ok]), branch[ok], residual[ok]
+        keep = []
+        for i in np.argsort(residual):
+            if all(np.abs(sy.NUMPY.wrap(q[i] - q[j])).max() > SAME for j in keep):
+                keep.append(i)
+        keep = np.array(sorted(keep), int)
+        q = q[keep]
+        return SearchSolutions(q[:, ::-1] if self.reversed else q, branch[keep], residual[keep],
+                               not left and self.exact)  # fmt: skip
+
+    def _polish(self, Ts: np.ndarray, start: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """:data:`POLISH` rounds of Newton on :attr:`own` from the joints ``start`` (7 arrays (K,)): (K, 7), (K,)."""
+        R, p = sy.frame_of_batch(np.broadcast_to(Ts, (start[0].size, 4, 4)))
+        q = list(start)
+        residual = np.full(start[0].size, np.inf)
+        for _ in range(POLISH):
+            q, residual = polish(self.own, R, p, q, sy.NUMPY)
+        return np.stack([np.broadcast_to(x, residual.shape) for x in q], axis=1), np.asarray(residual)
+
+    def _isolate(self, Ts: np.ndarray, q7: float, rounds: int) -> tuple[np.ndarray, np.ndarray, bool]:
+        """The candidates (centres of windows of roots, rad), their branches, and whether cells were left when the
+        budget ran out."""
+        edges = np.linspace(-np.pi, np.pi, CELLS + 1)
+        B = len(SIGNS)
+        a, b, k = np.repeat(edges[:-1], B), np.repeat(edges[1:], B), np.tile(np.arange(B), CELLS)
+        found, which = [], []
+        Tf = Ts.reshape(-1, order="F")
+        for _ in range(rounds):
+            if not a.size or a.size > MAX_CELLS:
+                break
+            x, y = a[:, None], b[:, None]
+            c0, c1, r, lo, hi = self._model(Tf, np.array([q7]), 0.5 * (x + y), SIGNS[k], 0.5 * (y - x),
+                                            np.zeros_like(x), x, y)  # fmt: skip
+            f0, f1, rest = c0[:, 0], c1[:, 0], r[:, 0] + SLACK
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                t1, t2 = (-f0 - rest) / f1, (-f0 + rest) / f1
+            flat = ~(np.abs(f1) > 0) | ~np.isfinite(rest)
+            t1, t2 = np.where(flat, -1.0, np.minimum(t1, t2)), np.where(flat, 1.0, np.maximum(t1, t2))
+            t1, t2 = np.maximum(t1, -1.0), np.minimum(t2, 1.0)
+            m, w = 0.5 * (a + b), 0.5 * (b - a)
+            x1, x2 = m + w * t1, m + w * t2
+            outside = (lo[:, 0] > SLACK) | (hi[:, 0] < -SLACK) | (hi[:, 1] < -SLACK)
+            gone = (t1 > t2) | outside | (flat & (np.abs(f0) > rest))
+            done = ~gone & (x2 - x1 <= WINDOW)
+            touch = ~gone & ~done & (np.abs(f0) + np.abs(f1) + rest <= TOUCH)
+            found += [0.5 * (x1 + x2)[done], a[touch], b[touch]]
+            which += [k[done], k[touch], k[touch]]
+            live = ~gone & ~done & ~touch
+            narrow = live & (x2 - x1 <= w)
+            halve = live & ~narrow
+            mid = 0.5 * (x1 + x2)[halve]
+            a = np.concatenate([x1[narrow], x1[halve], mid])
+            b = np.concatenate([x2[narrow], mid, x2[halve]])
+            k = np.concatenate([k[narrow], k[halve], k[halve]])
+        if a.size:  # the budget ran out: the cells left are candidates too
+            found += [0.5 * (a + b)]
+            which += [k]
+        if not found:
+            return np.zeros(0), np.zeros(0, int), bool(a.size)
+        return np.concatenate(found), np.concatenate(which).astype(int), bool(a.size)
