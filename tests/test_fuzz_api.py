@@ -38,7 +38,10 @@ IIWA, NAMMOTO, PANDA = (qpik.load_robot(n) for n in ("iiwa14", "nammoto7", "pand
 ROBOTS = tuple(qpik.load_robot(n) for n in qpik.CATALOG)
 STATUSES = {"ok", "recovering", "penetrating", "yielding", "failed"}
 FUZZ = settings(
-    max_examples=200 if LARGE else 40, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow],
+    max_examples=200 if LARGE else 40,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow],
     database=None,
 )
 FEW = settings(FUZZ, max_examples=30 if LARGE else 8)

@@ -30,9 +30,7 @@ FOLDER = "derived"
 """The sub-folder of the cache where derived functions are kept."""
 
 
-def derived(
-    fn: ca.Function, how: str, derive: Callable[[], ca.Function], modules: Sequence[ModuleType]
-) -> ca.Function:
+def derived(fn: ca.Function, how: str, derive: Callable[[], ca.Function], modules: Sequence[ModuleType]) -> ca.Function:
     """``derive()``, the function derived from ``fn`` by the code of ``modules`` as ``how`` says (text), or its copy
     stored on this machine by an earlier call with the same ``fn``, ``how`` and ``modules`` source.
 
