@@ -4,7 +4,8 @@ r"""The failure policy of :meth:`qpik.control.controller.Controller.step` (it ne
 1. the main solver; if it reports no solution (e.g. OSQP stopping on a degenerate QP),
 2. DAQP, an exact active-set solver (:data:`FALLBACK`), on the same QP;
 3. if the QP is truly infeasible while the box makes a joint move back from past a position
-   limit (``lb_j > 0`` or ``ub_j < 0``), the return conflicts with the obstacle rows and
+   limit (``lb_j > 0`` or ``ub_j < 0`` by a position bound, :func:`position_forced`; not a joint that only
+   its acceleration limit keeps from stopping in one step), the return conflicts with the obstacle rows and
    safety wins: the *yielding* QP keeps every row and the velocity caps, lets the joints
    past a limit stop (the box widened to contain ``v = 0``: never further out) and asks for
    the return in the cost, :math:`w \sum_{j\ \rm forced} (v_j - r_j)^2` with the box's
@@ -64,7 +65,7 @@ def solve_with_fallbacks(
     if not sol.found and fallback is not None:
         sol = fallback.solve(qp)
     if not sol.found:
-        forced = (qp.lb > 0.0) | (qp.ub < 0.0)
+        forced = position_forced(qp, *caps)
         if forced.any():  # the return from past a limit conflicts with the rows: safety wins
             qp, yielding = yielding_qp(qp, forced, *caps), True
             sol = exact.solve(qp)
@@ -78,6 +79,15 @@ def solve_with_fallbacks(
                     relaxation = 1.0 - kept
                     break
     return sol, qp, relaxation, yielding
+
+
+def position_forced(qp: QP, cap_lo: np.ndarray, cap_hi: np.ndarray) -> np.ndarray:
+    """(n,) bool: the joints whose box excludes ``v = 0`` by a bound that is not the caps' own (``cap_lo``,
+    ``cap_hi``, rad/s): a position limit that makes the joint move back. A joint whose caps alone exclude 0 (it
+    moves faster than its acceleration limit can stop in one step) is not forced: its box is the caps' own,
+    which the yielding QP could not widen, and pulling it toward the bound nearer 0 would brake the arm at its
+    acceleration limit whatever the rows ask."""
+    return ((qp.lb > 0.0) & (qp.lb > cap_lo)) | ((qp.ub < 0.0) & (qp.ub < cap_hi))
 
 
 def relax(solver: Solver, qp: QP, part: np.ndarray) -> tuple:
@@ -113,8 +123,8 @@ def yielding_qp(
 ) -> QP:
     r"""The QP of step 3 of the policy (module docstring), as a new QP.
 
-    ``forced`` (n,) bool marks the joints whose box excludes ``v = 0`` (past a position
-    limit, or an acceleration box that excludes 0). Their bounds are widened toward 0 within the caps' own
+    ``forced`` (n,) bool marks the joints whose box excludes ``v = 0`` by a position bound
+    (:func:`position_forced`). Their bounds are widened toward 0 within the caps' own
     box ``[cap_lo, cap_hi]`` (``lb ← max(min(lb, 0), cap_lo)``, ``ub ← min(max(ub, 0), cap_hi)``: they
     may stop, where the acceleration limit lets them, but not move further out), and the cost gains
     :math:`w (v_j - r_j)^2` toward the velocity :math:`r_j` the box demanded (its bound
