@@ -317,12 +317,11 @@ def test_failed_solve_brakes_at_the_acceleration_and_jerk_limits():
     assert np.all(np.sign(v) * np.sign(moving) >= 0)  # toward rest, never beyond it
 
 
-def test_conflicting_rows_of_a_moving_arm_relax_without_yielding():
+def test_conflicting_rows_of_a_moving_arm_brake_without_yielding():
     """An arm moving faster than its acceleration limit can stop in one step (its caps' box excludes 0 for
-    every moving joint), with a separating row it cannot meet: the row is relaxed and the joints follow the
-    tasks within their caps. The yielding QP (a return from past a position limit) is not used: it would pull
-    every moving joint toward its bound nearer 0, braking the arm at its acceleration limit whatever the rows
-    ask."""
+    every moving joint), with a separating row it cannot meet: the row is relaxed and the joints it does not
+    move brake at their acceleration limit (the yielding QP's pull toward the bound nearer 0), but no joint is
+    past a position limit, so the status is not "yielding"."""
     robot = qpik.load_robot("iiwa14")
     tasks = Controller.for_robot(robot, target=robot.fk(robot.q_home)).tasks
     dt = 1e-3
@@ -333,9 +332,9 @@ def test_conflicting_rows_of_a_moving_arm_relax_without_yielding():
     v = ctrl.step(robot.q_home + 0.1)
     assert ctrl.last.status == "ok" and 0.0 < ctrl.last.relaxation < 1.0
     a_step = robot.a_max * dt
-    braked = np.abs(v) <= np.abs(moving) - a_step * (1 - 1e-9)
-    assert not braked[1:].all()  # the joints the row does not move are not all braking at their limit
-    assert np.all(np.abs(v - moving) <= a_step * (1 + 1e-12))
+    assert np.all(np.abs(v[1:]) <= np.abs(moving[1:]) - 0.9 * a_step[1:])  # the tasks pull a little against it
+    assert np.all(np.sign(v) == np.sign(moving))
+    assert v[0] >= 10.0 * (1.0 - ctrl.last.relaxation) - 1e-9
 
 
 def test_unknown_solver():
