@@ -135,8 +135,8 @@ def escape(robot: qpik.Robot, q0: np.ndarray, start: np.ndarray, velocity: np.nd
     - Acceleration: ``v`` is reached from rest at the acceleration limits (after the jerk ramp
       :math:`\tau_j = \bar a_j/\bar j_j`) within :math:`T = 2 (g_0 - d_s)/(M s)`, with :math:`g_0` the start gap
       and ``s`` the sphere's speed: :math:`|v_j| \le \bar a_j (T - \tau_j)`. A retreat speed that ramps up
-      linearly to ``M s`` over ``T`` lets the sphere close at most :math:`s T/(2M) \le g_0 - d_s` before it
-      matches ``s`` (the arm and the sphere then part), so the margin M applies to the speed and to the time.
+      linearly to ``M s`` over ``T`` lets the sphere close :math:`s T/(2M) = (g_0 - d_s)/M^2` before it matches
+      ``s`` (the arm and the sphere then part): the margin M applies to the speed and to the time.
 
     The Jacobians are those of ``q0``; the arm's motion changes them, and the controller meets its rows at their
     bounds, not beyond: M covers that, it is not a proof.
