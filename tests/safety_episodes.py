@@ -9,7 +9,9 @@ caller may turn one off (``off``):
   (the hand is pulled into the arm);
 - ``sphere``: a sphere (radius 5 cm) starts 0–5 cm beyond d_i from a point of a moving link and moves
   toward it at 0.1–0.5 m/s until it would be 5 cm inside the link, then stops (the target: hold the start
-  pose);
+  pose); a sphere the arm could not escape within its limits (:func:`escape`: one joint velocity that
+  moves every link the sphere comes within d_i of away from it at 1.5 times its approach speed, reached in
+  time at the acceleration limits) is drawn again, since no controller could hold it;
 - ``limit``: the arm starts at full speed (its velocity limit) toward a joint limit, at the braking
   distance plus 0–20 % from it (the target: hold the start pose).
 
@@ -53,6 +55,8 @@ LOADED_A_MAX, LOADED_J_MAX = 10.0, 5000.0  # rad/s², rad/s³ given for loaded a
 PARK = np.array([3.0, 3.0, 3.0])  # m: the sphere out of the way
 SPHERE_RADIUS = 0.05
 BRAKE = 1.0  # m/s², the dampers' braking profile beyond d_i
+ESCAPE_MARGIN = 1.5  # the premise's margin M on the retreat speed and on the time to reach it (escape_factor)
+ESCAPE_SAMPLES = 41  # points of the sphere's path at which the threatened capsules are taken
 
 
 @dataclass
@@ -102,10 +106,84 @@ def _clear(robot: qpik.Robot, sc: SelfCollisionLimit, q: np.ndarray, v: np.ndarr
     return bool(np.all(clear | close))
 
 
+def _point_jacobians(robot: qpik.Robot, q: np.ndarray) -> np.ndarray:
+    """(C, 2, 3, n): the derivatives of every capsule's end points (m/rad) by central differences of the
+    model's forward kinematics (step 1e-6 rad)."""
+    h = 1e-6
+    steps = h * np.eye(robot.dof)
+    cols = [(robot.capsule_segments(q + e) - robot.capsule_segments(q - e)) / (2 * h) for e in steps]
+    return np.stack(cols, axis=-1)
+
+
+def escape(robot: qpik.Robot, q0: np.ndarray, start: np.ndarray, velocity: np.ndarray, moving_for: float,
+           margin: float = ESCAPE_MARGIN) -> tuple[float, np.ndarray]:  # fmt: skip
+    r"""The premise of a sphere episode, from the arm's limits and kinematics alone (not the controller's rows):
+    ``(t, v)``: the largest :math:`t` (at most 100; inf if the sphere threatens no capsule) such that one joint
+    velocity ``v`` (n,), rad/s, moves every threatened point of the arm away from the
+    sphere at :math:`t` times the sphere's speed toward it, a linear program (``scipy.optimize.linprog``) at
+    ``q0`` (n,), rad, with the sphere (radius :data:`SPHERE_RADIUS`) moving from ``start`` (3,), m, at
+    ``velocity`` (3,), m/s, for ``moving_for`` s. The episode is within the premise when :math:`t \ge M`
+    (``margin``, :data:`ESCAPE_MARGIN`).
+
+    - Threatened points: at :data:`ESCAPE_SAMPLES` points of the sphere's path (the arm held at ``q0``), the
+      point of every capsule nearest the sphere where the capsule is within d_i of it and the sphere moves toward
+      it at :math:`s_k = n_k^T \dot c > 0` (:math:`n_k` the unit normal from the sphere's centre to the point);
+      the row is :math:`n_k^T J_k v \ge t\, s_k`, :math:`J_k` its point Jacobian. Every capsule counts, those of
+      the base column too (no joint moves them: a sphere that comes within d_i of one cannot be escaped).
+    - Velocity: :math:`|v_j| \le \bar v_j`, and room to keep ``v`` while the sphere moves:
+      :math:`q_{min} \le q_0 + v\,T_{move} \le q_{max}`.
+    - Acceleration: ``v`` is reached from rest at the acceleration limits (after the jerk ramp
+      :math:`\tau_j = \bar a_j/\bar j_j`) within :math:`T = 2 (g_0 - d_s)/(M s)`, with :math:`g_0` the start gap
+      and ``s`` the sphere's speed: :math:`|v_j| \le \bar a_j (T - \tau_j)`. A retreat speed that ramps up
+      linearly to ``M s`` over ``T`` lets the sphere close :math:`s T/(2M) = (g_0 - d_s)/M^2` before it matches
+      ``s`` (the arm and the sphere then part): the margin M applies to the speed and to the time.
+
+    The Jacobians are those of ``q0``; the arm's motion changes them, and the controller meets its rows at their
+    bounds, not beyond: M covers that, it is not a proof.
+    """
+    from scipy.optimize import linprog
+
+    speed = float(np.linalg.norm(velocity))
+    seg, dseg = robot.capsule_segments(q0), _point_jacobians(robot, q0)
+    radii = robot.capsule_radii + SPHERE_RADIUS
+    rows, need = [], []
+    gap0 = np.inf
+    for i, t in enumerate(np.linspace(0.0, moving_for, ESCAPE_SAMPLES)):
+        centre = start + velocity * t
+        ab = seg[:, 1] - seg[:, 0]
+        lam = np.clip(np.einsum("ci,ci->c", centre - seg[:, 0], ab) / np.maximum(np.einsum("ci,ci->c", ab, ab), 1e-18),
+                      0.0, 1.0)  # fmt: skip
+        point = seg[:, 0] + lam[:, None] * ab
+        dist = np.linalg.norm(point - centre, axis=1)
+        d = dist - radii
+        if i == 0:
+            gap0 = float(d.min())
+        n = (point - centre) / np.maximum(dist, 1e-12)[:, None]
+        approach = n @ velocity
+        for c in np.flatnonzero((d < D_INFLUENCE_OBS) & (approach > 0.0)):
+            J = (1.0 - lam[c]) * dseg[c, 0] + lam[c] * dseg[c, 1]  # (3, n)
+            rows.append(n[c] @ J)
+            need.append(approach[c])
+    if not rows:
+        return np.inf, np.zeros(robot.dof)
+    T = 2.0 * (gap0 - D_SAFE_OBS) / (margin * speed)
+    amax, tau = a_max(robot), a_max(robot) / j_max(robot)
+    cap = np.minimum(robot.v_max, amax * np.maximum(T - tau, 0.0))
+    lo = np.maximum(-cap, (robot.q_min - q0) / moving_for)
+    hi = np.minimum(cap, (robot.q_max - q0) / moving_for)
+    n = robot.dof
+    # variables (v, t): maximise t subject to  -row·v + need·t <= 0
+    A = np.hstack([-np.array(rows), np.array(need)[:, None]])
+    res = linprog(np.r_[np.zeros(n), -1.0], A_ub=A, b_ub=np.zeros(len(rows)),
+                  bounds=[*zip(lo, hi), (0.0, 100.0)], method="highs")  # fmt: skip
+    return (float(res.x[-1]), res.x[:n]) if res.status == 0 else (0.0, np.zeros(n))
+
+
 def make_episode(robot: qpik.Robot, seed: int, family: str | None = None) -> Episode:
     """One episode (module docstring). Its start holds the premise of the safety checks: every self pair's
-    rows clear (:func:`_clear`; a start is drawn again until it is), and the sphere starts beyond d_i of every
-    link capsule (its direction is drawn again until it does)."""
+    rows clear (:func:`_clear`), the sphere starts beyond d_i of every link capsule (its direction is drawn
+    again until it does), and the arm can escape the sphere within its velocity, position and acceleration
+    limits (:func:`escape` ≥ :data:`ESCAPE_MARGIN`); a start that does not is drawn again."""
     rng = np.random.default_rng(seed)
     family = family or FAMILIES[seed % len(FAMILIES)]
     lo, hi = np.maximum(robot.q_min, -np.pi), np.minimum(robot.q_max, np.pi)
@@ -145,6 +223,8 @@ def make_episode(robot: qpik.Robot, seed: int, family: str | None = None) -> Epi
             q0[j] = robot.q_max[j] - room if up else robot.q_min[j] + room
             v0[j] = vmax if up else -vmax
             target = robot.fk(q0)
+        if family == "sphere" and escape(robot, q0, start, velocity, moving)[0] < ESCAPE_MARGIN:
+            continue  # outside the premise: the arm could not escape this sphere within its limits
         if _clear(robot, sc, q0, v0):
             return Episode(seed, robot, family, q0, v0, target, start, velocity, moving)
     raise AssertionError(f"{robot.identifier} seed {seed}: no clear start in 1000 draws")

@@ -3,14 +3,16 @@ r"""The failure policy of :meth:`qpik.control.controller.Controller.step` (it ne
 
 1. the main solver; if it reports no solution (e.g. OSQP stopping on a degenerate QP),
 2. DAQP, an exact active-set solver (:data:`FALLBACK`), on the same QP;
-3. if the QP is truly infeasible while the box makes a joint move back from past a position
-   limit (``lb_j > 0`` or ``ub_j < 0``), the return conflicts with the obstacle rows and
-   safety wins: the *yielding* QP keeps every row and the velocity caps, lets the joints
-   past a limit stop (the box widened to contain ``v = 0``: never further out) and asks for
-   the return in the cost, :math:`w \sum_{j\ \rm forced} (v_j - r_j)^2` with the box's
-   return velocity :math:`r_j` and ``w`` = :data:`YIELD_WEIGHT` × (1 + max diag P), above the
-   tasks: the limit is recovered as fast as the obstacle rows allow (``last.status ==
-   "yielding"``). The obstacle rows are bounded inside that widened box
+3. if the QP is truly infeasible while the box excludes ``v = 0`` for a joint (``lb_j > 0`` or ``ub_j < 0``),
+   safety wins: the *yielding* QP keeps every row and the caps, widens those joints' bounds to contain
+   ``v = 0`` where the caps allow and asks for the box's velocity in the cost,
+   :math:`w \sum_{j\ \rm forced} (v_j - r_j)^2` with :math:`r_j` the box's bound nearer 0 and ``w`` =
+   :data:`YIELD_WEIGHT` × (1 + max diag P), above the tasks. For a joint past a position limit
+   (:func:`position_forced`) the box's velocity is the return, recovered as fast as the obstacle rows allow
+   and never further out (``last.status == "yielding"``); for a joint whose caps alone exclude 0 (moving
+   faster than its acceleration limit can stop in one step) the caps cannot widen and it is braking at the
+   acceleration limit: while rows conflict, the arm sheds the speed whose narrow acceleration box makes them
+   conflict (the status is then the clearance's). The obstacle rows are bounded inside the widened box
    (:class:`~qpik.control.limits.obstacle.ObstacleLimit`), so only rows among themselves can still conflict;
 4. if obstacle rows demand separation and conflict (an arm inside the safety distance of two
    obstacles on opposite sides, or a moving obstacle the arm must flee from two sides), the parts of the
@@ -57,7 +59,8 @@ def solve_with_fallbacks(
     ``solver`` the main solver, ``fallback`` the exact one (None: the main solver is it), ``caps`` the caps' own
     box ``(lo, hi)`` (n,) each, rad/s, ``recovery`` (m,), m/s, per row the part of its lower bound that asks to
     recover from inside its safety distance; ``relaxation`` the part of the separating demand dropped (0 if
-    none), ``yielding`` whether the yielding QP was solved. The solution may be not found (then step 5)."""
+    none), ``yielding`` whether the yielding QP was solved for a joint past a position limit. The solution may be
+    not found (then step 5)."""
     sol = solver.solve(qp)
     exact = fallback or solver
     relaxation, yielding = 0.0, False
@@ -65,8 +68,9 @@ def solve_with_fallbacks(
         sol = fallback.solve(qp)
     if not sol.found:
         forced = (qp.lb > 0.0) | (qp.ub < 0.0)
-        if forced.any():  # the return from past a limit conflicts with the rows: safety wins
-            qp, yielding = yielding_qp(qp, forced, *caps), True
+        if forced.any():  # the return from past a limit, or the braking of the caps, conflicts with the rows
+            yielding = bool(position_forced(qp, *caps).any())
+            qp = yielding_qp(qp, forced, *caps)
             sol = exact.solve(qp)
     if not sol.found and (qp.l > 0).any():  # separating rows conflict: ask less of them, down to no approach
         demand = np.maximum(qp.l, 0.0)
@@ -78,6 +82,13 @@ def solve_with_fallbacks(
                     relaxation = 1.0 - kept
                     break
     return sol, qp, relaxation, yielding
+
+
+def position_forced(qp: QP, cap_lo: np.ndarray, cap_hi: np.ndarray) -> np.ndarray:
+    """(n,) bool: the joints whose box excludes ``v = 0`` by a bound that is not the caps' own (``cap_lo``,
+    ``cap_hi``, rad/s): a position limit that makes the joint move back. A joint whose caps alone exclude 0 (it
+    moves faster than its acceleration limit can stop in one step) is not: its box is the caps' own."""
+    return ((qp.lb > 0.0) & (qp.lb > cap_lo)) | ((qp.ub < 0.0) & (qp.ub < cap_hi))
 
 
 def relax(solver: Solver, qp: QP, part: np.ndarray) -> tuple:
@@ -113,8 +124,8 @@ def yielding_qp(
 ) -> QP:
     r"""The QP of step 3 of the policy (module docstring), as a new QP.
 
-    ``forced`` (n,) bool marks the joints whose box excludes ``v = 0`` (past a position
-    limit, or an acceleration box that excludes 0). Their bounds are widened toward 0 within the caps' own
+    ``forced`` (n,) bool marks the joints whose box excludes ``v = 0`` (past a position limit, or caps that
+    exclude 0). Their bounds are widened toward 0 within the caps' own
     box ``[cap_lo, cap_hi]`` (``lb ← max(min(lb, 0), cap_lo)``, ``ub ← min(max(ub, 0), cap_hi)``: they
     may stop, where the acceleration limit lets them, but not move further out), and the cost gains
     :math:`w (v_j - r_j)^2` toward the velocity :math:`r_j` the box demanded (its bound

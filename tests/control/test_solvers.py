@@ -317,6 +317,26 @@ def test_failed_solve_brakes_at_the_acceleration_and_jerk_limits():
     assert np.all(np.sign(v) * np.sign(moving) >= 0)  # toward rest, never beyond it
 
 
+def test_conflicting_rows_of_a_moving_arm_brake_without_yielding():
+    """An arm moving faster than its acceleration limit can stop in one step (its caps' box excludes 0 for
+    every moving joint), with a separating row it cannot meet: the row is relaxed and the joints it does not
+    move brake at their acceleration limit (the yielding QP's pull toward the bound nearer 0), but no joint is
+    past a position limit, so the status is not "yielding"."""
+    robot = qpik.load_robot("iiwa14")
+    tasks = Controller.for_robot(robot, target=robot.fk(robot.q_home)).tasks
+    dt = 1e-3
+    moving = np.linspace(1.0, -1.0, 7) + 0.05  # rad/s, every joint moving (joint 1 toward the row)
+    acc = AccelerationLimit()
+    ctrl = Controller(robot, tasks, [VelocityLimit(), acc, _Impossible(upper=False)], dt=dt)
+    acc.reset(moving)
+    v = ctrl.step(robot.q_home + 0.1)
+    assert ctrl.last.status == "ok" and 0.0 < ctrl.last.relaxation < 1.0
+    a_step = robot.a_max * dt
+    assert np.all(np.abs(v[1:]) <= np.abs(moving[1:]) - 0.9 * a_step[1:])  # the tasks pull a little against it
+    assert np.all(np.sign(v) == np.sign(moving))
+    assert v[0] >= 10.0 * (1.0 - ctrl.last.relaxation) - 1e-9
+
+
 def test_unknown_solver():
     with pytest.raises(SolverError, match="available"):
         get_solver("no-such-solver")

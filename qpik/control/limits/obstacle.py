@@ -88,11 +88,15 @@ class ObstacleLimit(RowLimit):
 
     Moving obstacles: an obstacle moving at :math:`v_o` and :math:`\omega_o` (:meth:`set_velocities`, or
     estimated from its poses by :meth:`move`) closes the row's height at :math:`n^T v_o(p_{obs})`, so the
-    row is :math:`n^T (J_p v - v_o(p_{obs})) \ge -\xi (h - d_s)/(d_i - d_s)`. It holds while the arm can move
-    that part away at the obstacle's speed, :math:`\max_{v \in B} n^T J_p v \ge n^T v_o` within the box B of
-    the velocity (and acceleration) limits; when it cannot, the row asks what the box allows (the least-bad
-    motion: the fastest retreat the limits permit), the clearance falls, and the status says so:
-    ``"recovering"`` inside d_s, ``"penetrating"`` at d < 0.
+    row is :math:`n^T (J_p v - v_o(p_{obs})) \ge -\xi (h - d_s)/(d_i - d_s)`. A row alone can hold only while
+    the arm can move that part away at the obstacle's speed, :math:`\max_{v \in B} n^T J_p v \ge n^T v_o`
+    within the box B of the velocity (and acceleration) limits. The rows share one ``v``: with an obstacle
+    near several links (between two of them, or past links that few joints move, as the shoulder) the
+    clearance holds only while one ``v`` within the limits meets every row at once, and the acceleration
+    limits reach it before the obstacle covers its gap to d_s; each row meeting its own condition is not
+    enough. When the rows cannot be met, each asks at most what the box allows and conflicting ones are
+    relaxed (the least-bad motion: the fastest retreat the limits permit), the clearance falls, and the
+    status says so: ``"recovering"`` inside d_s, ``"penetrating"`` at d < 0.
     """
 
     name = "obstacle"
