@@ -2,7 +2,7 @@
 the Gen3 file, an exact member, its 0.35 mm wrist offset included), against MuJoCo's FK of the model files: the
 configuration a pose came from is among the solutions, every solution reaches the pose, and on the exact Sawyer
 every sign change of every error function on a dense grid of q4 (numpy, not the Taylor models) has its solution.
-200 configurations per arm by default, 2,000 with QPIK_TESTS_LARGE=1."""
+60 configurations per arm by default (a search takes ~30 ms), 2,000 with QPIK_TESTS_LARGE=1."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from qpik.algebra import symbolic as sy
 from qpik.analytic.locked_search import SIGNS, LockedSearch
 from qpik.core.errors import InputError, NoClosedFormError
 
-BATCH = 2000 if LARGE else 200
+BATCH = 2000 if LARGE else 60
 GRID = 20_000
 _searches: dict[str, LockedSearch] = {}
 
