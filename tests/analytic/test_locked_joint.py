@@ -240,16 +240,18 @@ def test_the_xarm7s_sets_claim_no_proof_and_match_dense_sampling_of_its_file(mar
             assert np.array_equal(fi.contains(k, q7)[~near], inside[~near, k]), f"branch {k}: {fi[k]}"
 
 
-def test_the_xarm7s_batch_single_and_casadi_agree():
-    """The polish is in the one source: the compiled single pose, the CasADi function and numpy agree."""
-    robot = model_robot("erd_xarm7")
+@pytest.mark.parametrize("key, locked", [("erd_xarm7", 6), ("robosuite_gen3", 0)])
+def test_a_polished_near_members_batch_single_and_casadi_agree(key, locked):
+    """The polish is in the one source: the compiled single pose, the CasADi function and numpy agree (the xArm7
+    with q7 locked, the Gen3 read from the flange with q1 locked)."""
+    robot = model_robot(key)
     solver = closed_form_for(robot)
     q = random_q(robot, 30, 5)
     T = robot.fk(q)
-    batch = qpik.ik(robot, T, q[:, 6])
+    batch = qpik.ik(robot, T, q[:, locked])
     for n in range(len(T)):
-        one = qpik.ik(robot, T[n], q[n, 6])
-        Q, valid, _ = (np.array(x) for x in solver.casadi_function(ca.DM(T[n]), q[n, 6]))
+        one = qpik.ik(robot, T[n], q[n, locked])
+        Q, valid, _ = (np.array(x) for x in solver.casadi_function(ca.DM(T[n]), q[n, locked]))
         assert np.array_equal(one.valid, batch.valid[n]) and np.array_equal(valid.ravel() > 0.5, batch.valid[n])
         ok = batch.valid[n]  # the rows of invalid branches are meaningless (a polish that went nowhere)
         # near the stretched elbow (q4 ≈ 2.74) the polish's last step amplifies the paths' different round-off
@@ -257,8 +259,9 @@ def test_the_xarm7s_batch_single_and_casadi_agree():
         np.testing.assert_allclose(Q[ok], batch.q[n][ok], atol=1e-10, rtol=0)
 
 
-def test_an_unreachable_pose_of_the_xarm7_gives_finite_invalid_branches():
-    robot = model_robot("erd_xarm7")
+@pytest.mark.parametrize("key", ["erd_xarm7", "robosuite_gen3"])
+def test_an_unreachable_pose_of_a_polished_near_member_gives_finite_invalid_branches(key):
+    robot = model_robot(key)
     T = robot.fk(robot.q_home)
     T[:3, 3] = (2.0, 0.0, 0.5)
     sols = qpik.ik(robot, T, 0.3)

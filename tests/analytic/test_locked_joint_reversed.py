@@ -6,7 +6,6 @@ configurations per arm and seed by default, 2,000 with QPIK_TESTS_LARGE=1."""
 
 from __future__ import annotations
 
-import casadi as ca
 import numpy as np
 import pytest
 from conftest import LARGE, SEEDS, model_robot, mujoco_poses, random_q
@@ -148,29 +147,6 @@ def test_ik_of_the_gen3_file_holds_q_and_every_valid_branch_reaches_the_pose_by_
     assert np.isfinite(sols.q).all() and np.array_equal(sols.within_limits, sols.valid & inside)
     F = mujoco_poses(robot, sols.q[sols.valid])
     assert np.abs(F - np.repeat(T, sols.valid.sum(1), axis=0)).max() < 1e-10
-
-
-def test_the_gen3s_batch_single_and_casadi_agree():
-    robot = model_robot("robosuite_gen3")
-    solver = closed_form_for(robot)
-    q = random_q(robot, 20, 5)
-    T = robot.fk(q)
-    batch = qpik.ik(robot, T, q[:, 0])
-    for n in range(len(T)):
-        one = qpik.ik(robot, T[n], q[n, 0])
-        Q, valid, _ = (np.array(x) for x in solver.casadi_function(ca.DM(T[n]), q[n, 0]))
-        assert np.array_equal(one.valid, batch.valid[n]) and np.array_equal(valid.ravel() > 0.5, batch.valid[n])
-        ok = batch.valid[n]
-        np.testing.assert_allclose(one.q[ok], batch.q[n][ok], atol=1e-10, rtol=0)
-        np.testing.assert_allclose(Q[ok], batch.q[n][ok], atol=1e-10, rtol=0)
-
-
-def test_an_unreachable_pose_of_the_gen3_gives_finite_invalid_branches():
-    robot = model_robot("robosuite_gen3")
-    T = robot.fk(robot.q_home)
-    T[:3, 3] = (2.0, 0.0, 0.5)
-    sols = qpik.ik(robot, T, 0.3)
-    assert not sols.valid.any() and np.isfinite(sols.q).all()
 
 
 def dense_mismatch(robot: qpik.Robot, T: np.ndarray, fi, margin: float, near_end: float) -> int:
