@@ -33,7 +33,7 @@ from qpik.viewer.server import Viewer
 # --dist loadgroup: one worker runs the whole module, so its module- and session-scoped fixtures are built once
 pytestmark = pytest.mark.xdist_group("viewer_browser")
 
-SIZE = (960, 640)
+SIZE = (640, 400)
 
 
 @pytest.fixture(scope="module")
@@ -161,12 +161,12 @@ def test_screenshot_is_not_blank(scene, tmp_path):
 
 def test_cli_writes_a_screenshot(chromium, tmp_path, capsys):
     out = tmp_path / "panda.png"
-    assert main(["view", "panda", "--port", "0", "--screenshot", str(out), "--size", "640,480"]) == 0
+    assert main(["view", "panda", "--port", "0", "--screenshot", str(out), "--size", "320,240"]) == 0
     assert f"wrote {out}" in capsys.readouterr().out
     from PIL import Image
 
     picture = np.asarray(Image.open(out).convert("RGB"))
-    assert picture.shape == (480, 640, 3) and picture.std() > 20
+    assert picture.shape == (240, 320, 3) and picture.std() > 20
 
 
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="lower_priority reads /proc (Linux)")
