@@ -135,10 +135,14 @@ class Page:
     def _build_panel(self, track: Track | None, objective: str) -> None:
         robot, gui = self.robot, self.server.gui
         closed = robot.closed_form is not None
-        symbol = {"srs": "ψ", "offset_shoulder": "δ", "locked_joint": "q7"}.get(robot.closed_form or "", "")
+        from qpik.analytic.api import closed_form_for
+        from qpik.analytic.api import symbol as param_symbol
+
+        # the solver's own parameter: q7, or q1 for an arm read from the flange
+        symbol = param_symbol(closed_form_for(robot).param_name) if closed else ""
         self.symbol = symbol
         kind = {"srs": "S-R-S, closed form in the arm angle ψ", "offset_shoulder": "offset shoulder, closed form in δ",
-                "locked_joint": "closed form with q7 locked"}  # fmt: skip
+                "locked_joint": f"closed form with {symbol} locked"}  # fmt: skip
         what = kind.get(robot.closed_form or "", "no closed form")
         gui.add_markdown(f"**{robot.name}** ({robot.dof} joints): {what}")
         with gui.add_folder("Branches", visible=closed):

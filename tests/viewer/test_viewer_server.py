@@ -130,3 +130,31 @@ def test_panel_shows_the_margin_as_itself(iiwa):
     text = iiwa.page.best_md.content
     assert f"margin {margin:.6g}" in text and "maximised" in text, text
     assert margin > 0 and "-" not in text.split("margin", 1)[1].split("(", 1)[0]
+
+
+def test_the_panel_names_the_locked_joint_the_solver_takes():
+    """The Jaco file is of the locked-joint family read from the flange: its slider is q1, the solver's parameter
+    (checked against the solver's own name, and that q1 of the configuration is what redundancy_parameter gives)."""
+    import contextlib
+    import io
+
+    import viser
+    from conftest import model_robot
+
+    from qpik.analytic.api import closed_form_for
+    from qpik.geometry.distance import ObstacleSet
+    from qpik.viewer.page import Page
+
+    robot = model_robot("robosuite_jaco")
+    assert closed_form_for(robot).param_name == "q1"
+    q = random_q(robot, 1, 3)[0]
+    q1 = qpik.redundancy_parameter(robot, q)[0]  # wrapped: the Jaco's joint 1 turns past ±π
+    assert abs((q1 - q[0] + np.pi) % (2 * np.pi) - np.pi) < 1e-9
+    with contextlib.redirect_stdout(io.StringIO()):
+        server = viser.ViserServer(port=0, verbose=False)
+    try:
+        page = Page(server, robot, ObstacleSet(()), 0.02, robot.fk(robot.q_home), None, "margin")
+        assert page.symbol == "q1" and page.slider.label == "q1 [rad]"
+    finally:
+        with contextlib.redirect_stdout(io.StringIO()):
+            server.stop()
