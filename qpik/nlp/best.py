@@ -185,7 +185,7 @@ def build_search(
     with sm.solver.lock:
         for scene in scenes:
             BestRun(scene, sm, T[None], ref).build_search()
-        build_sweep(BestRun(scenes[0], sm, T[None], ref))
+        build_sweep(sm.solver, T)
         if problem.self_pairs:
             problem.self_distances.build()
 

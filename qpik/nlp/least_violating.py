@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from qpik.analytic.intervals import wrap
+from qpik.analytic.solver import AnalyticSolver
 from qpik.nlp.best_result import BestResult, BranchRows
 from qpik.nlp.run import BestRun
 from qpik.objectives import clearance
@@ -66,10 +67,10 @@ def least_violating(
                       violation=violation, rows=rows, param_name=name, message=message or why)  # fmt: skip
 
 
-def build_sweep(scene: BestRun) -> None:
-    """Compile now the sweep :func:`least_violating` evaluates (else the first pose without a feasible point compiles
-    it inside its solve)."""
-    scene.selfmotion.solver.solve_many(scene.poses[0], np.zeros(VIOLATION_SAMPLES))
+def build_sweep(solver: AnalyticSolver, pose: np.ndarray) -> None:
+    """Compile now the sweep :func:`least_violating` evaluates with ``solver`` (any pose (4, 4) will do), else the first
+    pose without a feasible point compiles it inside its solve."""
+    solver.solve_many(pose, np.zeros(VIOLATION_SAMPLES))
 
 
 def _closest(robot: Robot, target: np.ndarray, Q: np.ndarray, stride: int = 8) -> tuple[int, int, float]:
