@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from qpik.analytic.api import ik
+from qpik.analytic.intervals import wrap
 from qpik.bench import Row, cycle, import_peer, time_interleaved
 from qpik.core.errors import QpikError
 from qpik.robots.loader import load_robot
@@ -131,6 +132,6 @@ def _check(robot, T: np.ndarray, q: np.ndarray, fn, solutions) -> str:
         total += len(sols)
         reach = [x for x in sols if np.abs(robot.fk(x) - T[i]).max() <= REACH]
         good += len(reach)
-        found += any(np.abs((x - q[i] + np.pi) % (2 * np.pi) - np.pi).max() < 1e-7 for x in reach)
+        found += any(np.abs(wrap(x - q[i])).max() < 1e-7 for x in reach)
     n = len(T)
     return f"({good}/{total} solutions of {n} poses reach the pose to 1e-9 by qpik's FK; q among them {found}/{n})"
