@@ -52,9 +52,10 @@ from pathlib import Path
 # (then one scipy.linalg.expm of a 4 × 4 waits on threads for milliseconds). Set before numpy is first imported.
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
-# gcc's -O1 for every generated library: the same IEEE arithmetic as the default -O2, in less compile time (the
-# suite starts from an empty compile cache; `qpik demo` in CI part 1 compiles with the defaults)
-os.environ.setdefault("QPIK_OPTIMISE", "-O1")
+# gcc's -O0 for every generated library: the same IEEE arithmetic as the default -O2 in a third of -O1's compile
+# time; the suite builds hundreds of small libraries from an empty compile cache and runs most of them a few times.
+# `qpik demo` in CI part 1 compiles with the defaults.
+os.environ.setdefault("QPIK_OPTIMISE", "-O0")
 
 import casadi as ca
 import numpy as np
@@ -98,16 +99,26 @@ def packaged(key: str) -> Path:
         pytest.skip(str(exc))
 
 
+_SCRATCH: list = []
+
+
+def scratch(prefix: str) -> Path:
+    """A new folder for a model variant written by a test, inside one temporary folder removed when the session ends."""
+    import tempfile
+
+    if not _SCRATCH:
+        _SCRATCH.append(tempfile.TemporaryDirectory(prefix="qpik-tests-"))
+    return Path(tempfile.mkdtemp(prefix=prefix, dir=_SCRATCH[0].name))
+
+
 def xarm7_offset() -> tuple[Path, dict]:
     """example-robot-data's xArm7 with joint 3 moved 1 mm along link 2's x (axis 3 then passes 1 mm from the shoulder
     point, twice the near tolerance): a 7-R arm of no closed-form family, written to a temporary folder."""
-    import tempfile
-
     path = packaged("erd/xarm7")
     text = path.read_text()
     joint3 = '<origin rpy="1.5708 0 0" xyz="0 -0.293 0"/>'
     assert text.count(joint3) == 1
-    out = Path(tempfile.mkdtemp(prefix="qpik-xarm7-offset-")) / "xarm7_offset.urdf"
+    out = scratch("xarm7-offset-") / "xarm7_offset.urdf"
     out.write_text(text.replace(joint3, '<origin rpy="1.5708 0 0" xyz="0.001 -0.293 0"/>'))
     return out, {"meshes": MeshOptions(package_map={"example-robot-data": path.parents[3]})}
 
@@ -123,7 +134,6 @@ def gen3_spherical() -> tuple[Path, dict]:
     (0.707105, 0.707108, 0, 0), are 4e-6 rad off): an exact member of the locked-q1 family, written with its meshes to
     a temporary folder."""
     import shutil
-    import tempfile
 
     source = MODEL_DIR / "robosuite_gen3"
     text = (source / "robot.xml").read_text()
@@ -133,7 +143,7 @@ def gen3_spherical() -> tuple[Path, dict]:
         'quat="-3.67321e-06 1 0 0"': 'quat="0 1 0 0"',
         'quat="0 0.707105 -0.707108 0"': 'quat="0 1 -1 0"',
     }
-    folder = Path(tempfile.mkdtemp(prefix="qpik-gen3-spherical-"))
+    folder = scratch("gen3-spherical-")
     shutil.copytree(source / "meshes", folder / "meshes")
     for old, new in offsets.items():
         assert text.count(old) == 1
@@ -149,12 +159,10 @@ def sawyer_exact() -> tuple[Path, dict]:
     """robosuite's Sawyer with joint 7's quaternion written exactly ((0.06163, 0.06163, -0.704416, 0.704416) for the
     file's 0.0616248 first entry, whose rounding puts axes 6 and 7 0.8 µm apart): an exact member of the geometry of
     the 1-D search (qpik.analytic.locked_search), written to a temporary folder."""
-    import tempfile
-
     text = (MODEL_DIR / "robosuite_sawyer/robot.xml").read_text()
     old = 'quat="0.0616248 0.06163 -0.704416 0.704416"'
     assert text.count(old) == 1
-    out = Path(tempfile.mkdtemp(prefix="qpik-sawyer-exact-")) / "robot.xml"
+    out = scratch("sawyer-exact-") / "robot.xml"
     out.write_text(text.replace(old, 'quat="0.06163 0.06163 -0.704416 0.704416"'))
     return out, robosuite("sawyer")[1]
 

@@ -138,8 +138,8 @@ def optimisation(size: int, large: int | None = None) -> str:
     ``-O1`` and gives no faster code; a caller whose code runs often enough to repay ``-O2`` over a larger
     size gives its own ``large`` (the controller's QP, :data:`qpik.control.qp.LARGE`).
 
-    ``$QPIK_OPTIMISE`` (one of :data:`LEVELS`) sets the flag of every source instead: ``-O1`` compiles faster than
-    ``-O2`` and gives slower code (the test suite uses it). The arithmetic is the same IEEE
+    ``$QPIK_OPTIMISE`` (one of :data:`LEVELS`) sets the flag of every source instead: ``-O0`` and ``-O1`` compile
+    faster than ``-O2`` and give slower code (the test suite uses ``-O0``). The arithmetic is the same IEEE
     arithmetic at every level (no fast-math), so the results are too. Raises :class:`~qpik.core.errors.InputError`
     naming the variable for another value."""
     forced = os.environ.get("QPIK_OPTIMISE")
