@@ -41,11 +41,29 @@ a solution where the residual is at most :data:`~qpik.analytic.polish.RESIDUAL_T
 :data:`~qpik.robots.locked_joint.NEAR_TOL` (the Sawyer's axes 6-7: 0.8 µm) is searched on its nearest ideal chain
 (:func:`~qpik.robots.locked_joint.ideal_chain`), the roots then polished on the file's: ``proved`` is then False (a
 root of the file's chain lies near, not within :data:`WINDOW` of, the ideal chain's).
+
+**Behind** :func:`qpik.ik` (:class:`SearchSolver`, the family ``"locked_search"`` of
+:func:`~qpik.robots.recognize.recognize`: an arm of no closed form where this geometry holds). The parameter is the
+locked joint (``param_name`` ``"q1"`` for the Sawyer, read from the flange; ``"q7"`` read forwards), and every pose
+has :data:`BRANCHES` slots, public ids 0-15: the roots of error function b take the slots ``4 b + j``, j = 0-3, in
+increasing order of q4 in (−π, π] (the j-th root of :math:`e_b`, the arm's q4 being the search variable in either
+direction). A branch so keeps its id along the parameter while no root of the same :math:`e_b` appears, vanishes (in
+pairs, at a fold :math:`e_b = \partial e_b/\partial x = 0`) or crosses q4 = ±π below it: roots of one function
+meet only at such a fold, so they never swap. An error function with more than 4 roots at one pose and parameter (a
+few in 1,000 random ones on the Sawyer; up to 6 seen) puts the roots past its fourth in the lowest slots that no
+root has taken (no more than 16 solutions exist: a 6-R chain's bound). The other slots are ``valid`` False, their
+joints 0 but the locked one (the parameter). A double root is one solution, in one slot, not ``singular``. More
+than 16 solutions is a continuum (the Sawyer at q = 0, two axes aligned with q1 fixed: the search then runs out of
+its budget, seconds, with a thousand candidates): 16 of them fill the slots (4 per b, then the lowest slots left, in
+the order of b and q4), each ``singular``.
+The branch of a configuration (:meth:`SearchSolver.parameter`) is the slot of the solution nearest to it at its own
+pose and locked angle.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
@@ -55,12 +73,19 @@ from qpik.algebra.enclosure import taylor_function
 from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
 from qpik.analytic.locked_joint import _v, rotate, rotation, subproblem1, subproblem2
 from qpik.analytic.polish import RESIDUAL_TOL, polish
+from qpik.analytic.solver import BranchSolver, Solved
 from qpik.analytic.trig import EPS
 from qpik.core.errors import NoClosedFormError
 from qpik.core.validate import number, single_pose
 from qpik.native.compiled import RowMap
 from qpik.robots.chain import SerialChain
 from qpik.robots.locked_joint import find_locked_joint, ideal_chain, reversed_chain
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from qpik.analytic.intervals import ParameterSets
+    from qpik.robots.robot import Robot
 
 CELLS = 64
 """Cells of x = q4 over the circle at the start of the search."""
@@ -80,6 +105,10 @@ SAME = 1e-8
 """rad: solutions this close in every joint are one."""
 SIGNS = np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]])
 """Per branch b, the signs (σ3, σ12) of its subproblems' roots."""
+SLOTS = 4
+"""Slots of :class:`SearchSolver` per error function: ids 4 b to 4 b + 3 (module docstring)."""
+BRANCHES = 16
+"""Slots of :class:`SearchSolver` per pose: the most solutions a 6-R chain has."""
 
 
 @dataclass(frozen=True)
@@ -105,14 +134,16 @@ class LockedSearch:
 
     Args:
         chain: the arm's chain (7 revolute joints).
+        directions: the directions tried, in order: True reads the chain from the flange (q1 locked), False forwards
+            (q7 locked).
 
     Raises:
-        NoClosedFormError: the geometry does not apply in either direction (the reasons in the message).
+        NoClosedFormError: the geometry does not apply in any of the directions (the reasons in the message).
     """
 
-    def __init__(self, chain: SerialChain):
+    def __init__(self, chain: SerialChain, directions: tuple[bool, ...] = (True, False)):
         reasons = []
-        for rev in (True, False):
+        for rev in directions:
             turned = reversed_chain(chain) if rev else chain
             table, near = turned, ""
             geometry, why = find_locked_joint(turned, reversed=rev, shoulder=2)
@@ -276,3 +307,91 @@ class LockedSearch:
         if not found:
             return np.zeros(0), np.zeros(0, int), bool(a.size)
         return np.concatenate(found), np.concatenate(which).astype(int), bool(a.size)
+
+
+def slots(branch: np.ndarray, q4: np.ndarray) -> np.ndarray:
+    """The slots (K,) of :class:`SearchSolver` of K ≤ :data:`BRANCHES` solutions of error functions ``branch`` (K,)
+    at the arm's q4 (K,) rad: the j-th root of b in increasing q4 takes ``SLOTS·b + j`` for j < :data:`SLOTS`, the
+    others the lowest slots left (module docstring), in the order of b and q4; −1 for those left without (only where
+    K > :data:`BRANCHES`)."""
+    out = np.full(len(branch), -1)
+    taken = np.zeros(BRANCHES, bool)
+    order = np.lexsort((q4, branch))
+    rank = np.zeros(len(branch), int)
+    for i, k in enumerate(order[1:], 1):
+        rank[k] = rank[order[i - 1]] + 1 if branch[k] == branch[order[i - 1]] else 0
+    own = rank < SLOTS
+    out[own] = SLOTS * branch[own] + rank[own]
+    taken[out[own]] = True
+    for k, free in zip(order[~own[order]], np.flatnonzero(~taken)):
+        out[k] = free
+    return out
+
+
+class SearchSolver(BranchSolver):
+    """:func:`qpik.ik` and :func:`qpik.redundancy_parameter` of an arm of the ``"locked_search"`` family: the
+    :class:`LockedSearch` of its chain in the direction recognised (``robot.canonical.reversed``), its solutions in
+    :data:`BRANCHES` slots (module docstring). ``solve_batch`` and ``solve_many`` search each pose and parameter in
+    turn."""
+
+    kind = "locked_search"
+    param_name = "q1"
+    branch_ids = tuple(range(BRANCHES))
+    closed_form_sets = False
+    branch_functions = False
+
+    def __init__(self, robot: Robot, sets: Callable[[BranchSolver], ParameterSets] | None = None):
+        super().__init__(robot, sets)
+        canonical = robot.canonical
+        if canonical is None or canonical.kind != self.kind:
+            raise NoClosedFormError(f"{robot.name} is not of the 1-D search's family")
+        self.search = LockedSearch(robot.chain, (canonical.reversed,))
+        """The search of the arm's chain."""
+        self.param_name = f"q{self.search.locked}"
+        self.locked = self.search.locked - 1
+        """The locked joint's index (0-based): the parameter."""
+
+    def solve_one(self, T: np.ndarray, param: float) -> Solved:
+        """One pose (4, 4), one parameter (rad): q (B, n), valid, singular, within_limits (B,) bool."""
+        return self.place(self.search.solve(T, param), param)
+
+    def place(self, sol: SearchSolutions, param: float) -> Solved:
+        """The solutions ``sol`` of the locked angle ``param`` (rad) in their slots (:func:`slots`): q (B, n) (each
+        joint's representative inside its limits, :meth:`~qpik.analytic.solver.BranchSolver.representative`), valid,
+        singular (every valid slot where more than :data:`BRANCHES` solutions were found: a continuum), within_limits
+        (B,) bool."""
+        q = np.zeros((BRANCHES, self.robot.dof))
+        q[:, self.locked] = sy.NUMPY.wrap(np.array(float(param)))
+        at = slots(sol.branch, sol.q[:, 3])
+        q[at[at >= 0]] = sol.q[at >= 0]
+        for j in np.flatnonzero(self._wide):
+            q[:, j] = self.representative(int(j), q[:, j], sy.NUMPY)
+        valid = np.zeros(BRANCHES, bool)
+        valid[at[at >= 0]] = True
+        within = valid & np.all((q >= self.robot.q_min) & (q <= self.robot.q_max), axis=1)
+        return Solved(q, valid, valid & (len(at) > BRANCHES), within)
+
+    def solve_many(self, T: np.ndarray, params: np.ndarray, rows: int | None = None) -> Solved:
+        """One pose (4, 4), parameters (M,): q (M, B, n), valid, singular, within_limits (M, B) bool; ``rows``: only the
+        first ``rows`` slots."""
+        out = [self.solve_one(T, float(x)) for x in np.asarray(params, float).ravel()]
+        return Solved(*(np.stack(parts)[:, :rows] for parts in zip(*out)))
+
+    def solve_batch(self, T: np.ndarray, param: np.ndarray) -> Solved:
+        """Poses (N, 4, 4), parameters (N,): q (N, B, n), valid, singular, within_limits (N, B) bool."""
+        out = [self.solve_one(Ti, float(x)) for Ti, x in zip(T, param)]
+        return Solved(*(np.stack(parts) for parts in zip(*out)))
+
+    def parameter(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The locked joint (rad) and branch id of configurations q (N, n) wrapped to (−π, π]: ((N,), (N,) int). The
+        branch is the slot of the valid solution nearest q (largest joint difference, modulo 2π) at q's own pose (the
+        FK of :attr:`robot`'s chain) and locked angle; −1 where the search finds none there."""
+        q = np.asarray(q, dtype=float)
+        param = q[:, self.locked].copy()
+        branch = np.full(len(q), -1)
+        for i, (Ti, qi) in enumerate(zip(self.robot.fk(q), q)):
+            sol = self.solve_one(Ti, float(param[i]))
+            if sol.valid.any():
+                apart = np.abs(sy.NUMPY.wrap(sol.q - qi)).max(axis=1)
+                branch[i] = int(np.argmin(np.where(sol.valid, apart, np.inf)))
+        return param, branch

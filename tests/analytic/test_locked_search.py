@@ -2,7 +2,10 @@
 the Gen3 file, an exact member, its 0.35 mm wrist offset included), against MuJoCo's FK of the model files: the
 configuration a pose came from is among the solutions, every solution reaches the pose, and on the exact Sawyer
 every sign change of every error function on a dense grid of q4 (numpy, not the Taylor models) has its solution.
-60 configurations per arm by default (a search takes ~30 ms), 2,000 with QPIK_TESTS_LARGE=1."""
+60 configurations per arm by default (a search takes ~30 ms), 2,000 with QPIK_TESTS_LARGE=1. Behind qpik.ik (the
+"locked_search" family, SearchSolver): the slots of the Sawyer and of the xArm7 with axis 3 moved 1 mm, against
+MuJoCo's FK, the error functions and the solutions nearest along the parameter; 40 configurations per arm by
+default, 2,000 with QPIK_TESTS_LARGE=1."""
 
 from __future__ import annotations
 
@@ -13,9 +16,11 @@ import pytest
 from conftest import LARGE, SEEDS, model_robot, mujoco_poses, random_q
 from hypothesis import given, settings
 
+import qpik
 from qpik.algebra import symbolic as sy
 from qpik.analytic.locked_search import SIGNS, LockedSearch
 from qpik.core.errors import InputError, NoClosedFormError
+from qpik.robots.model_files import MeshOptions
 
 BATCH = 2000 if LARGE else 60
 GRID = 20_000
@@ -121,3 +126,93 @@ def test_the_search_locks_q7_where_only_the_chain_itself_fits():
     why = "q1 locked: axes 7-6 do not meet (88 mm apart); q7 locked: axis 3 passes 0 µm from the point where axes 1-2"
     with pytest.raises(NoClosedFormError, match=re.escape(why)):
         LockedSearch(model_robot("erd_panda").chain)
+
+
+# ---- behind qpik.ik: the "locked_search" family ---------------------------------
+
+API_BATCH = 2000 if LARGE else 40
+
+
+@pytest.mark.parametrize("key", ["robosuite_sawyer", "xarm7_offset"])
+def test_ik_holds_q_in_its_slot_and_every_valid_slot_reaches_the_pose_by_mujoco(key):
+    """qpik.ik on random q inside the limits (the Sawyer: q1 locked, its file a near member; the xArm7 with axis 3
+    moved 1 mm: q7 locked, exact): 16 finite slots; the slot redundancy_parameter names holds q to 1e-9 rad (modulo
+    2π), within limits, except where the chain without the locked joint is near singular (σ_min < 1e-3); every valid
+    slot reaches the pose to 1e-10 by MuJoCo's FK of the file and holds the locked joint at the parameter; the slots
+    follow the documented numbering: slot 4b + j holds a root of e_b (within 1e-7; on the Sawyer, polished on the
+    file's chain 0.8 µm from the searched ideal one, within 1e-3), the roots of one b in increasing q4."""
+    robot = model_robot(key)
+    locked = 0 if key == "robosuite_sawyer" else 6
+    assert robot.closed_form == "locked_search" and robot.canonical.reversed == (locked == 0)
+    assert robot.notes.startswith(f"served by a certified 1-D search over q4 with q{locked + 1} locked")
+    assert not robot.branch_functions
+    s = search(key)
+    q = random_q(robot, API_BATCH, 21)
+    T = mujoco_poses(robot, q)
+    sigma = np.linalg.svd(np.delete(robot.jacobian(q), locked, axis=2), compute_uv=False)[:, -1]
+    param, branch = qpik.redundancy_parameter(robot, q)
+    np.testing.assert_array_equal(param, sy.NUMPY.wrap(q[:, locked]))
+    missed = 0
+    for qi, Ti, si, pi, bi in zip(q, T, sigma, param, branch):
+        sols = qpik.ik(robot, Ti, float(pi))
+        assert sols.q.shape == (16, 7) and np.isfinite(sols.q).all() and sols.param_name == f"q{locked + 1}"
+        assert list(sols.branch) == list(range(16)) and not sols.singular.any()
+        assert 0 < sols.valid.sum() <= 16 and not (sols.within_limits & ~sols.valid).any()
+        if angle_diff(sols.q[bi], qi).max() >= 1e-9:
+            assert si < 1e-3, (qi, si)
+            missed += 1
+        else:
+            assert sols.within_limits[bi]
+        good = sols.q[sols.valid]
+        assert np.abs(mujoco_poses(robot, good) - Ti).max() < 1e-10
+        assert np.all(angle_diff(sols.q[:, locked], pi) < 1e-15)
+        Ts = np.linalg.inv(Ti) if locked == 0 else Ti
+        for b in range(4):
+            own = [k for k in range(4 * b, 4 * b + 4) if sols.valid[k]]
+            q4 = sy.NUMPY.wrap(sols.q[own, 3])  # the search's angle, not a representative past ±π
+            assert np.all(np.diff(q4) > 0)
+            if own:
+                R, p = sy.frame_of_batch(np.broadcast_to(Ts, (len(own), 4, 4)))
+                e, _, _ = s.error(R, p, float(pi), q4, tuple(SIGNS[b]), sy.NUMPY)
+                assert np.abs(e).max() < (1e-3 if locked == 0 else 1e-7)  # the Sawyer's: its ideal chain's e_b
+    assert missed <= max(2, API_BATCH // 400)
+    lost = sum(angle_diff(qpik.ik(robot, Ti, float(pi)).q[bi], qi).max() >= 1e-9 for qi, Ti, pi, bi in
+               zip(q[:3], T[:3], param[:3], branch[:3]))  # fmt: skip
+    batch = qpik.ik(robot, T[:3], param[:3])
+    assert lost == 0 and batch.q.shape == (3, 16, 7)
+    for i in range(3):
+        np.testing.assert_array_equal(batch.q[i], qpik.ik(robot, T[i], float(param[i])).q)
+    assert qpik.redundancy_parameter(robot, q[0]) == (float(param[0]), int(branch[0]))
+
+
+def test_a_slot_keeps_its_solution_along_the_parameter():
+    """Along small steps of q1 (2e-3 rad) at poses of random q of the Sawyer: wherever the set of valid slots does not
+    change, each valid slot's next solution is the one nearest to its last (the numbering follows the roots)."""
+    robot = model_robot("robosuite_sawyer")
+    steps = 0
+    for qi in random_q(robot, 3, 5):
+        T = robot.fk(qi)
+        last = None
+        for x in qi[0] + np.linspace(-0.02, 0.02, 21):
+            sols = qpik.ik(robot, T, float(x))
+            if last is not None and np.array_equal(last.valid, sols.valid):
+                for k in np.flatnonzero(sols.valid):
+                    apart = np.where(sols.valid, angle_diff(sols.q, last.q[k]).max(axis=1), np.inf)
+                    assert np.argmin(apart) == k
+                    steps += 1
+            last = sols
+    assert steps > 200
+
+
+def test_the_searched_family_says_what_it_does_not_serve():
+    """An unreachable pose: 16 invalid finite slots. solve_best needs branches as expressions of the parameter: it
+    says the arm's branches are found by a search. load_robot's override: asked for ψ, the Sawyer has no closed form."""
+    robot = model_robot("robosuite_sawyer")
+    T = robot.fk(robot.q_home)
+    T[:3, 3] = (2.0, 0.0, 0.5)
+    sols = qpik.ik(robot, T, 0.3)
+    assert not sols.valid.any() and np.isfinite(sols.q).all() and np.all(sols.q[:, 0] == 0.3)
+    with pytest.raises(NoClosedFormError, match="found by a 1-D search"):
+        qpik.solve_best(robot, robot.fk(robot.q_home))
+    psi = qpik.load_robot(robot.model.path, redundancy="psi", meshes=MeshOptions(collision_only=True))
+    assert psi.closed_form is None and "not srs" in psi.notes
