@@ -84,7 +84,7 @@ from qpik.robots.locked_joint import find_locked_joint, ideal_chain, reversed_ch
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    from qpik.analytic.intervals import ParameterSets
+    from qpik.analytic.intervals import FeasibleIntervals, ParameterSets
     from qpik.robots.robot import Robot
 
 CELLS = 64
@@ -354,6 +354,14 @@ class SearchSolver(BranchSolver):
     def solve_one(self, T: np.ndarray, param: float) -> Solved:
         """One pose (4, 4), one parameter (rad): q (B, n), valid, singular, within_limits (B,) bool."""
         return self.place(self.search.solve(T, param), param)
+
+    def feasible_intervals(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
+        """Not computed for this family: raises :class:`~qpik.core.errors.NoClosedFormError` (the sets' ends are roots
+        of 2-D systems in the locked angle and q4, which no module isolates yet)."""
+        raise NoClosedFormError(
+            f"{self.robot.name}: the feasible {self.param_name} sets of the 1-D search's branches are not computed "
+            "(qpik.analytic.locked_search); qpik.ik and qpik.redundancy_parameter are"
+        )
 
     def place(self, sol: SearchSolutions, param: float) -> Solved:
         """The solutions ``sol`` of the locked angle ``param`` (rad) in their slots (:func:`slots`): q (B, n) (each

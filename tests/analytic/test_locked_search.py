@@ -206,7 +206,8 @@ def test_a_slot_keeps_its_solution_along_the_parameter():
 
 def test_the_searched_family_says_what_it_does_not_serve():
     """An unreachable pose: 16 invalid finite slots. solve_best needs branches as expressions of the parameter: it
-    says the arm's branches are found by a search. load_robot's override: asked for ψ, the Sawyer has no closed form."""
+    says the arm's branches are found by a search; feasible_intervals says that it has no sets for them. load_robot's
+    override: asked for ψ, the Sawyer has no closed form."""
     robot = model_robot("robosuite_sawyer")
     T = robot.fk(robot.q_home)
     T[:3, 3] = (2.0, 0.0, 0.5)
@@ -214,5 +215,7 @@ def test_the_searched_family_says_what_it_does_not_serve():
     assert not sols.valid.any() and np.isfinite(sols.q).all() and np.all(sols.q[:, 0] == 0.3)
     with pytest.raises(NoClosedFormError, match="found by a 1-D search"):
         qpik.solve_best(robot, robot.fk(robot.q_home))
+    with pytest.raises(NoClosedFormError, match="feasible q1 sets of the 1-D search's branches are not computed"):
+        qpik.feasible_intervals(robot, robot.fk(robot.q_home))
     psi = qpik.load_robot(robot.model.path, redundancy="psi", meshes=MeshOptions(collision_only=True))
     assert psi.closed_form is None and "not srs" in psi.notes
