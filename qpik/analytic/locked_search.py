@@ -35,8 +35,9 @@ within :data:`WINDOW` of a candidate, unless the search ran out of its budget (:
 the cell is halved down to :data:`WINDOW` like any other.
 
 **Machine precision.** Each candidate's joints (q5, q6 by subproblem 1 on the rotation left) start :data:`POLISH`
-rounds of Newton on the arm's own chain, the locked joint held (:func:`qpik.analytic.polish.polish`); a candidate is
-a solution where the residual is at most :data:`~qpik.analytic.polish.RESIDUAL_TOL`, and solutions within
+rounds of Newton on the arm's own chain, the locked joint held (:func:`qpik.analytic.polish.polish`, compiled and
+mapped over the candidates); a candidate is a solution where the residual is at most
+:data:`~qpik.analytic.polish.RESIDUAL_TOL`, and solutions within
 :data:`SAME` rad of each other are one. A file whose axes miss the geometry by at most
 :data:`~qpik.robots.locked_joint.NEAR_TOL` (the Sawyer's axes 6-7: 0.8 µm) is searched on its nearest ideal chain
 (:func:`~qpik.robots.locked_joint.ideal_chain`), the roots then polished on the file's: ``proved`` is then False (a
@@ -176,6 +177,15 @@ class LockedSearch:
         e, valid, _ = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)
         self._model = RowMap(taylor_function(ca.Function("locked_search", [T, q7, x, sign], [ca.vertcat(e, valid)]),
                                              [2]), shared=[0, 1])  # fmt: skip
+        _, _, trig = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)
+        joints, residual = [ca.atan2(s, c) for c, s in trig] + [q7], None
+        for _ in range(POLISH):
+            joints, residual = polish(self.own, R, p, joints, sy.CASADI)
+        self._polished = RowMap(ca.Function("locked_search_polish", [T, q7, x, sign], [ca.vertcat(*joints), residual]),
+                                shared=[0, 1])  # fmt: skip
+        """The solution of a candidate: its joints by the subproblems (:meth:`error`) at the candidate's x and signs,
+        then :data:`POLISH` rounds of :func:`~qpik.analytic.polish.polish`; compiled, over rows of candidates (the
+        pose and the locked angle shared)."""
 
     def error(
         self, R: Mat, p: Vec, q7: Scalar, x: Scalar, signs: tuple[Scalar, Scalar], ops: Ops
@@ -241,11 +251,8 @@ class LockedSearch:
         found, branch, left = self._isolate(Ts, param, rounds)
         if not found.size:
             return SearchSolutions(np.zeros((0, 7)), np.zeros(0, int), np.zeros(0), not left and self.exact)
-        R, p = sy.frame_of_batch(np.broadcast_to(Ts, (found.size, 4, 4)))
-        signs = SIGNS[branch]
-        _, _, trig = self.error(R, p, float(param), found, (signs[:, 0], signs[:, 1]), sy.NUMPY)
-        start = [np.arctan2(s, c) for c, s in trig] + [np.full(found.size, float(param))]
-        q, residual = self._polish(Ts, start)
+        q, residual = self._polished(Ts.reshape(-1, order="F"), np.array([param]), found, SIGNS[branch])
+        residual = residual[:, 0]
         ok = residual <= RESIDUAL_TOL
         q, branch, residual = sy.NUMPY.wrap(q[ok]), branch[ok], residual[ok]
         keep = []
@@ -256,15 +263,6 @@ class LockedSearch:
         q = q[keep]
         return SearchSolutions(q[:, ::-1] if self.reversed else q, branch[keep], residual[keep],
                                not left and self.exact)  # fmt: skip
-
-    def _polish(self, Ts: np.ndarray, start: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """:data:`POLISH` rounds of Newton on :attr:`own` from the joints ``start`` (7 arrays (K,)): (K, 7), (K,)."""
-        R, p = sy.frame_of_batch(np.broadcast_to(Ts, (start[0].size, 4, 4)))
-        q = list(start)
-        residual = np.full(start[0].size, np.inf)
-        for _ in range(POLISH):
-            q, residual = polish(self.own, R, p, q, sy.NUMPY)
-        return np.stack([np.broadcast_to(x, residual.shape) for x in q], axis=1), np.asarray(residual)
 
     def _isolate(self, Ts: np.ndarray, q7: float, rounds: int) -> tuple[np.ndarray, np.ndarray, bool]:
         """The candidates (centres of windows of roots, rad), their branches, and whether cells were left when the

@@ -2,7 +2,7 @@
 the Gen3 file, an exact member, its 0.35 mm wrist offset included), against MuJoCo's FK of the model files: the
 configuration a pose came from is among the solutions, every solution reaches the pose, and on the exact Sawyer
 every sign change of every error function on a dense grid of q4 (numpy, not the Taylor models) has its solution.
-60 configurations per arm by default (a search takes ~30 ms), 2,000 with QPIK_TESTS_LARGE=1. Behind qpik.ik (the
+60 configurations per arm by default, 2,000 with QPIK_TESTS_LARGE=1. Behind qpik.ik (the
 "locked_search" family, SearchSolver): the slots of the Sawyer and of the xArm7 with axis 3 moved 1 mm, against
 MuJoCo's FK, the error functions and the solutions nearest along the parameter; 40 configurations per arm by
 default, 2,000 with QPIK_TESTS_LARGE=1."""
