@@ -55,7 +55,7 @@ few in 1,000 random ones on the Sawyer; up to 6 seen) puts the roots past its fo
 root has taken (no more than 16 solutions exist: a 6-R chain's bound). The other slots are ``valid`` False, their
 joints 0 but the locked one (the parameter). A double root is one solution, in one slot, not ``singular``. More
 than 16 solutions is a continuum (the Sawyer at q = 0, two axes aligned with q1 fixed: the search then runs out of
-its budget, seconds, with a thousand candidates): 16 of them fill the slots (4 per b, then the lowest slots left, in
+its budget with thousands of candidates): 16 of them fill the slots (4 per b, then the lowest slots left, in
 the order of b and q4), each ``singular``.
 The branch of a configuration (:meth:`SearchSolver.parameter`) is the slot of the solution nearest to it at its own
 pose and locked angle.
@@ -255,11 +255,11 @@ class LockedSearch:
         residual = residual[:, 0]
         ok = residual <= RESIDUAL_TOL
         q, branch, residual = sy.NUMPY.wrap(q[ok]), branch[ok], residual[ok]
-        keep = []
-        for i in np.argsort(residual):
-            if all(np.abs(sy.NUMPY.wrap(q[i] - q[j])).max() > SAME for j in keep):
-                keep.append(i)
-        keep = np.array(sorted(keep), int)
+        keep = np.zeros(0, int)
+        for i in np.argsort(residual):  # each solution against those kept: one numpy pass, not one per pair
+            if not keep.size or np.abs(sy.NUMPY.wrap(q[keep] - q[i])).max(axis=1).min() > SAME:
+                keep = np.append(keep, i)
+        keep.sort()
         q = q[keep]
         return SearchSolutions(q[:, ::-1] if self.reversed else q, branch[keep], residual[keep],
                                not left and self.exact)  # fmt: skip
