@@ -53,7 +53,10 @@ pairs, at a fold :math:`e_b = \partial e_b/\partial x = 0`) or crosses q4 = ±π
 meet only at such a fold, so they never swap. An error function with more than 4 roots at one pose and parameter (a
 few in 1,000 random ones on the Sawyer; up to 6 seen) puts the roots past its fourth in the lowest slots that no
 root has taken (no more than 16 solutions exist: a 6-R chain's bound). The other slots are ``valid`` False, their
-joints 0 but the locked one (the parameter). A double root is one solution, in one slot, not ``singular``. More
+joints 0 but the locked one (the parameter). A root where the two roots of a subproblem meet (σ3's or σ12's: it is
+then a root of two error functions, :attr:`SearchSolutions.double`) is one solution, in the slots of the smaller b
+where both find it, and ``singular``: its b may change with round-off of the pose, and the slots of the other roots
+of its error functions with it. More
 than 16 solutions is a continuum (the Sawyer at q = 0, two axes aligned with q1 fixed: the search then runs out of
 its budget with thousands of candidates): 16 of them fill the slots (4 per b, then the lowest slots left, in
 the order of b and q4), each ``singular``.
@@ -104,6 +107,9 @@ POLISH = 3
 """Rounds of :func:`~qpik.analytic.polish.polish` (each of its Newton steps) from a candidate."""
 SAME = 1e-8
 """rad: solutions this close in every joint are one."""
+DOUBLE = 1e-9
+"""A root where the validity :math:`v_b` (the subproblems' smaller discriminant, relative) is at most this is at a
+double root of a subproblem (:attr:`SearchSolutions.double`)."""
 SIGNS = np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]])
 """Per branch b, the signs (σ3, σ12) of its subproblems' roots."""
 SLOTS = 4
@@ -122,12 +128,16 @@ class SearchSolutions:
         residual: (K,) the polish's residual (m and rotation-matrix entries).
         proved: every root of every error function was isolated within the search's budget, on the arm's own chain
             (not a near member's ideal one).
+        double: (K,) bool, the root is where the two roots of a subproblem (σ3's or σ12's) meet, so that it is a root
+            of two error functions: found by both, or its validity :math:`v_b` at most :data:`DOUBLE` there; its b is
+            then the smaller of the two where both found it.
     """
 
     q: np.ndarray
     branch: np.ndarray
     residual: np.ndarray
     proved: bool
+    double: np.ndarray
 
 
 class LockedSearch:
@@ -181,8 +191,8 @@ class LockedSearch:
         joints, residual = [ca.atan2(s, c) for c, s in trig] + [q7], None
         for _ in range(POLISH):
             joints, residual = polish(self.own, R, p, joints, sy.CASADI)
-        self._polished = RowMap(ca.Function("locked_search_polish", [T, q7, x, sign], [ca.vertcat(*joints), residual]),
-                                shared=[0, 1])  # fmt: skip
+        self._polished = RowMap(ca.Function("locked_search_polish", [T, q7, x, sign],
+                                            [ca.vertcat(*joints), residual, valid]), shared=[0, 1])  # fmt: skip
         """The solution of a candidate: its joints by the subproblems (:meth:`error`) at the candidate's x and signs,
         then :data:`POLISH` rounds of :func:`~qpik.analytic.polish.polish`; compiled, over rows of candidates (the
         pose and the locked angle shared)."""
@@ -249,20 +259,24 @@ class LockedSearch:
         param = number(param, "param", minimum=None)
         Ts = np.linalg.inv(T) if self.reversed else T
         found, branch, left = self._isolate(Ts, param, rounds)
+        proved = not left and self.exact
         if not found.size:
-            return SearchSolutions(np.zeros((0, 7)), np.zeros(0, int), np.zeros(0), not left and self.exact)
-        q, residual = self._polished(Ts.reshape(-1, order="F"), np.array([param]), found, SIGNS[branch])
-        residual = residual[:, 0]
-        ok = residual <= RESIDUAL_TOL
-        q, branch, residual = sy.NUMPY.wrap(q[ok]), branch[ok], residual[ok]
+            return SearchSolutions(np.zeros((0, 7)), np.zeros(0, int), np.zeros(0), proved, np.zeros(0, bool))
+        q, residual, valid = self._polished(Ts.reshape(-1, order="F"), np.array([param]), found, SIGNS[branch])
+        ok = residual[:, 0] <= RESIDUAL_TOL
+        q, branch, residual = sy.NUMPY.wrap(q[ok]), branch[ok], residual[ok, 0]
+        double = valid[ok, 0] - EPS <= DOUBLE
         keep = np.zeros(0, int)
-        for i in np.argsort(residual):  # each solution against those kept: one numpy pass, not one per pair
-            if not keep.size or np.abs(sy.NUMPY.wrap(q[keep] - q[i])).max(axis=1).min() > SAME:
+        for i in np.lexsort((residual, branch)):  # against those kept (the smaller b first): one numpy pass each
+            apart = np.abs(sy.NUMPY.wrap(q[keep] - q[i])).max(axis=1) if keep.size else np.ones(1)
+            if apart.min() > SAME:
                 keep = np.append(keep, i)
+            elif branch[j := keep[np.argmin(apart)]] != branch[i]:  # the same root of two error functions
+                double[j] = True
         keep.sort()
         q = q[keep]
-        return SearchSolutions(q[:, ::-1] if self.reversed else q, branch[keep], residual[keep],
-                               not left and self.exact)  # fmt: skip
+        return SearchSolutions(q[:, ::-1] if self.reversed else q, branch[keep], residual[keep], proved,
+                               double[keep])  # fmt: skip
 
     def _isolate(self, Ts: np.ndarray, q7: float, rounds: int) -> tuple[np.ndarray, np.ndarray, bool]:
         """The candidates (centres of windows of roots, rad), their branches, and whether cells were left when the
@@ -364,8 +378,8 @@ class SearchSolver(BranchSolver):
     def place(self, sol: SearchSolutions, param: float) -> Solved:
         """The solutions ``sol`` of the locked angle ``param`` (rad) in their slots (:func:`slots`): q (B, n) (each
         joint's representative inside its limits, :meth:`~qpik.analytic.solver.BranchSolver.representative`), valid,
-        singular (every valid slot where more than :data:`BRANCHES` solutions were found: a continuum), within_limits
-        (B,) bool."""
+        singular (a root at a subproblem's double root, :attr:`SearchSolutions.double`; every valid slot where more
+        than :data:`BRANCHES` solutions were found: a continuum), within_limits (B,) bool."""
         q = np.zeros((BRANCHES, self.robot.dof))
         q[:, self.locked] = sy.NUMPY.wrap(np.array(float(param)))
         at = slots(sol.branch, sol.q[:, 3])
@@ -375,7 +389,9 @@ class SearchSolver(BranchSolver):
         valid = np.zeros(BRANCHES, bool)
         valid[at[at >= 0]] = True
         within = valid & np.all((q >= self.robot.q_min) & (q <= self.robot.q_max), axis=1)
-        return Solved(q, valid, valid & (len(at) > BRANCHES), within)
+        singular = valid & (len(at) > BRANCHES)
+        singular[at[at >= 0]] |= sol.double[at >= 0]
+        return Solved(q, valid, singular, within)
 
     def solve_many(self, T: np.ndarray, params: np.ndarray, rows: int | None = None) -> Solved:
         """One pose (4, 4), parameters (M,): q (M, B, n), valid, singular, within_limits (M, B) bool; ``rows``: only the
