@@ -48,20 +48,21 @@ root of the file's chain lies near, not within :data:`WINDOW` of, the ideal chai
 locked joint (``param_name`` ``"q1"`` for the Sawyer, read from the flange; ``"q7"`` read forwards), and every pose
 has :data:`BRANCHES` slots, public ids 0-15: the roots of error function b take the slots ``4 b + j``, j = 0-3, in
 increasing order of q4 in (−π, π] (the j-th root of :math:`e_b`, the arm's q4 being the search variable in either
-direction). A branch so keeps its id along the parameter while no root of the same :math:`e_b` appears, vanishes (in
-pairs, at a fold :math:`e_b = \partial e_b/\partial x = 0`) or crosses q4 = ±π below it: roots of one function
-meet only at such a fold, so they never swap. An error function with more than 4 roots at one pose and parameter (a
-few in 1,000 random ones on the Sawyer; up to 6 seen) puts the roots past its fourth in the lowest slots that no
-root has taken (no more than 16 solutions exist: a 6-R chain's bound). The other slots are ``valid`` False, their
-joints 0 but the locked one (the parameter). A root where the two roots of a subproblem meet (σ3's or σ12's: it is
-then a root of two error functions, :attr:`SearchSolutions.double`) is one solution, in the slots of the smaller b
-where both find it, and ``singular``: its b may change with round-off of the pose, and the slots of the other roots
-of its error functions with it. More
-than 16 solutions is a continuum (the Sawyer at q = 0, two axes aligned with q1 fixed: the search then runs out of
-its budget with thousands of candidates): 16 of them fill the slots (4 per b, then the lowest slots left, in
-the order of b and q4), each ``singular``.
-The branch of a configuration (:meth:`SearchSolver.parameter`) is the slot of the solution nearest to it at its own
-pose and locked angle.
+direction). A branch so keeps its id along the parameter while no root of the same :math:`e_b` below it appears or
+vanishes (in pairs at a fold, :math:`e_b = \partial e_b/\partial x = 0`, or one at the edge of the validity, where
+it passes to the error function of the other sign) and none crosses q4 = ±π: roots of one function meet only at a
+fold, so they never swap. An error function with more than 4 roots at one pose and parameter (rare; 6 seen on the
+Sawyer) puts the roots past its fourth in the lowest slots that no root has taken (no more than 16 solutions exist:
+a 6-R chain's bound). The other slots are ``valid`` False, their joints 0 but the locked one (the parameter).
+
+A root where the two roots of a subproblem meet (σ3's or σ12's: it is then a root of two error functions,
+:attr:`SearchSolutions.double`) is one solution, in the slots of the smaller b where both find it, and ``singular``:
+its b may change with the round-off of the pose, and the slots of the other roots of its error functions with it.
+More than 16 solutions is a continuum (the Sawyer at q = 0, two axes aligned with q1 fixed: the search then runs
+out of its budget with thousands of candidates): 16 of them fill the slots (4 per b, then the lowest slots left, in
+the order of b and q4), each ``singular``. The branch of a configuration (:meth:`SearchSolver.parameter`) is the
+slot of the solution nearest to it at its own pose and locked angle. The feasible sets of the parameter are not
+computed for this family (:meth:`SearchSolver.feasible_intervals` raises).
 """
 
 from __future__ import annotations
