@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from qpik.analytic.intervals import FeasibleIntervals, wrap
-from qpik.analytic.solver import AnalyticSolver
+from qpik.analytic.solver import BranchSolver
 from qpik.core.errors import InputError, NoClosedFormError
 from qpik.core.validate import finite_array, joint_vector, number
 from qpik.core.validate import pose as check_pose
@@ -21,6 +21,7 @@ _SOLVERS = {  # family -> (solver, its feasible sets), each as (module, class or
     "srs": (("qpik.analytic.srs", "SRSSolver"), ("qpik.analytic.srs_intervals", "PsiIntervals")),
     "locked_joint": (("qpik.analytic.locked_joint", "locked_joint_solver"),
                      ("qpik.analytic.locked_joint_intervals", "Q7Intervals")),
+    "locked_search": (("qpik.analytic.locked_search", "SearchSolver"), None),
 }  # fmt: skip
 SYMBOL = {"delta": "δ", "psi": "ψ"}
 """The Greek letter of each redundancy parameter name (:attr:`IKSolutions.param_name`)."""
@@ -31,7 +32,7 @@ def symbol(param_name: str) -> str:
     return SYMBOL.get(param_name, param_name)
 
 
-def closed_form_for(robot: Robot) -> AnalyticSolver:
+def closed_form_for(robot: Robot) -> BranchSolver:
     """The closed-form solver of ``robot`` (cached per robot object).
 
     Raises:
@@ -41,16 +42,16 @@ def closed_form_for(robot: Robot) -> AnalyticSolver:
     return as_robot(robot).cache.get("closed form", _new_solver, robot)
 
 
-def _new_solver(robot: Robot) -> AnalyticSolver:
+def _new_solver(robot: Robot) -> BranchSolver:
     if robot.closed_form not in _SOLVERS:
         why = (
             robot.notes
             if robot.notes.startswith("no closed form")
-            else "only offset-shoulder, S-R-S, locked-q7 and locked-q1 arms do"
+            else "only offset-shoulder, S-R-S, locked-q7 and locked-q1 arms and those of the 1-D search do"
         )
         raise NoClosedFormError(f"{robot.name} has no closed-form IK ({why}); use qpik.solve_ik instead")
-    (module, cls), (sets_module, sets) = _SOLVERS[robot.closed_form]
-    make_sets = getattr(importlib.import_module(sets_module), sets)
+    (module, cls), sets = _SOLVERS[robot.closed_form]
+    make_sets = None if sets is None else getattr(importlib.import_module(sets[0]), sets[1])
     return getattr(importlib.import_module(module), cls)(robot, sets=make_sets)
 
 
@@ -64,10 +65,11 @@ class IKSolutions:
         valid: (B,) or (N, B) bool, the branch reaches the pose.
         within_limits: (B,) or (N, B) bool, valid and inside the joint limits.
         singular: (B,) or (N, B) bool, a singular case (defined, documented result).
-        branch: (B,) public branch ids (Nammoto & Kosuge 2012 Table 2 numbers 1-16, or S-R-S 0-7); read-only,
-            shared by every result of the arm.
+        branch: (B,) public branch ids (Nammoto & Kosuge 2012 Table 2 numbers 1-16, S-R-S 0-7, locked joint 0-7,
+            or the 1-D search's slots 0-15, :mod:`qpik.analytic.locked_search`); read-only, shared by every result of
+            the arm.
         param: the redundancy parameter (rad): float or (N,).
-        param_name: ``"delta"`` or ``"psi"``.
+        param_name: ``"delta"``, ``"psi"``, or the locked joint ``"q7"`` or ``"q1"``.
     """
 
     q: np.ndarray
@@ -98,7 +100,9 @@ def ik(robot: Robot, pose: np.ndarray, param: float | np.ndarray, project: bool 
     """All closed-form branches for ``pose`` at redundancy parameter ``param``.
 
     Args:
-        robot: an arm with a closed form (``nammoto7``: δ, ``iiwa14``: ψ).
+        robot: an arm with a closed form (``nammoto7``: δ, ``iiwa14``: ψ, ``panda``: q7) or served by the 1-D search
+            (``robot.closed_form`` ``"locked_search"``, the Sawyer: q1; the branches are its roots, milliseconds per
+            pose, :mod:`qpik.analytic.locked_search`).
         pose: end-effector pose in the base frame, (4, 4) or (N, 4, 4).
         param: δ or ψ in rad: a real number (a float or an int, a numpy scalar, a 0-d array: one compiled
             path for all), or (N,) for a batch (a number is broadcast over the batch).

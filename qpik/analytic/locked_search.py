@@ -35,17 +35,40 @@ within :data:`WINDOW` of a candidate, unless the search ran out of its budget (:
 the cell is halved down to :data:`WINDOW` like any other.
 
 **Machine precision.** Each candidate's joints (q5, q6 by subproblem 1 on the rotation left) start :data:`POLISH`
-rounds of Newton on the arm's own chain, the locked joint held (:func:`qpik.analytic.polish.polish`); a candidate is
-a solution where the residual is at most :data:`~qpik.analytic.polish.RESIDUAL_TOL`, and solutions within
+rounds of Newton on the arm's own chain, the locked joint held (:func:`qpik.analytic.polish.polish`, compiled and
+mapped over the candidates); a candidate is a solution where the residual is at most
+:data:`~qpik.analytic.polish.RESIDUAL_TOL`, and solutions within
 :data:`SAME` rad of each other are one. A file whose axes miss the geometry by at most
 :data:`~qpik.robots.locked_joint.NEAR_TOL` (the Sawyer's axes 6-7: 0.8 µm) is searched on its nearest ideal chain
 (:func:`~qpik.robots.locked_joint.ideal_chain`), the roots then polished on the file's: ``proved`` is then False (a
 root of the file's chain lies near, not within :data:`WINDOW` of, the ideal chain's).
+
+**Behind** :func:`qpik.ik` (:class:`SearchSolver`, the family ``"locked_search"`` of
+:func:`~qpik.robots.recognize.recognize`: an arm of no closed form where this geometry holds). The parameter is the
+locked joint (``param_name`` ``"q1"`` for the Sawyer, read from the flange; ``"q7"`` read forwards), and every pose
+has :data:`BRANCHES` slots, public ids 0-15: the roots of error function b take the slots ``4 b + j``, j = 0-3, in
+increasing order of q4 in (−π, π] (the j-th root of :math:`e_b`, the arm's q4 being the search variable in either
+direction). A branch so keeps its id along the parameter while no root of the same :math:`e_b` below it appears or
+vanishes (in pairs at a fold, :math:`e_b = \partial e_b/\partial x = 0`, or one at the edge of the validity, where
+it passes to the error function of the other sign) and none crosses q4 = ±π: roots of one function meet only at a
+fold, so they never swap. An error function with more than 4 roots at one pose and parameter (rare; 6 seen on the
+Sawyer) puts the roots past its fourth in the lowest slots that no root has taken (no more than 16 solutions exist:
+a 6-R chain's bound). The other slots are ``valid`` False, their joints 0 but the locked one (the parameter).
+
+A root where the two roots of a subproblem meet (σ3's or σ12's: it is then a root of two error functions,
+:attr:`SearchSolutions.double`) is one solution, in the slots of the smaller b where both find it, and ``singular``:
+its b may change with the round-off of the pose, and the slots of the other roots of its error functions with it.
+More than 16 solutions is a continuum (the Sawyer at q = 0, two axes aligned with q1 fixed: the search then runs
+out of its budget with thousands of candidates): 16 of them fill the slots (4 per b, then the lowest slots left, in
+the order of b and q4), each ``singular``. The branch of a configuration (:meth:`SearchSolver.parameter`) is the
+slot of the solution nearest to it at its own pose and locked angle. The feasible sets of the parameter are not
+computed for this family (:meth:`SearchSolver.feasible_intervals` raises).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
@@ -55,12 +78,19 @@ from qpik.algebra.enclosure import taylor_function
 from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
 from qpik.analytic.locked_joint import _v, rotate, rotation, subproblem1, subproblem2
 from qpik.analytic.polish import RESIDUAL_TOL, polish
+from qpik.analytic.solver import BranchSolver, Solved
 from qpik.analytic.trig import EPS
 from qpik.core.errors import NoClosedFormError
 from qpik.core.validate import number, single_pose
 from qpik.native.compiled import RowMap
 from qpik.robots.chain import SerialChain
 from qpik.robots.locked_joint import find_locked_joint, ideal_chain, reversed_chain
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from qpik.analytic.intervals import FeasibleIntervals, ParameterSets
+    from qpik.robots.robot import Robot
 
 CELLS = 64
 """Cells of x = q4 over the circle at the start of the search."""
@@ -78,8 +108,15 @@ POLISH = 3
 """Rounds of :func:`~qpik.analytic.polish.polish` (each of its Newton steps) from a candidate."""
 SAME = 1e-8
 """rad: solutions this close in every joint are one."""
+DOUBLE = 1e-9
+"""A root where the validity :math:`v_b` (the subproblems' smaller discriminant, relative) is at most this is at a
+double root of a subproblem (:attr:`SearchSolutions.double`)."""
 SIGNS = np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]])
 """Per branch b, the signs (σ3, σ12) of its subproblems' roots."""
+SLOTS = 4
+"""Slots of :class:`SearchSolver` per error function: ids 4 b to 4 b + 3 (module docstring)."""
+BRANCHES = 16
+"""Slots of :class:`SearchSolver` per pose: the most solutions a 6-R chain has."""
 
 
 @dataclass(frozen=True)
@@ -92,12 +129,16 @@ class SearchSolutions:
         residual: (K,) the polish's residual (m and rotation-matrix entries).
         proved: every root of every error function was isolated within the search's budget, on the arm's own chain
             (not a near member's ideal one).
+        double: (K,) bool, the root is where the two roots of a subproblem (σ3's or σ12's) meet, so that it is a root
+            of two error functions: found by both, or its validity :math:`v_b` at most :data:`DOUBLE` there; its b is
+            then the smaller of the two where both found it.
     """
 
     q: np.ndarray
     branch: np.ndarray
     residual: np.ndarray
     proved: bool
+    double: np.ndarray
 
 
 class LockedSearch:
@@ -105,14 +146,16 @@ class LockedSearch:
 
     Args:
         chain: the arm's chain (7 revolute joints).
+        directions: the directions tried, in order: True reads the chain from the flange (q1 locked), False forwards
+            (q7 locked).
 
     Raises:
-        NoClosedFormError: the geometry does not apply in either direction (the reasons in the message).
+        NoClosedFormError: the geometry does not apply in any of the directions (the reasons in the message).
     """
 
-    def __init__(self, chain: SerialChain):
+    def __init__(self, chain: SerialChain, directions: tuple[bool, ...] = (True, False)):
         reasons = []
-        for rev in (True, False):
+        for rev in directions:
             turned = reversed_chain(chain) if rev else chain
             table, near = turned, ""
             geometry, why = find_locked_joint(turned, reversed=rev, shoulder=2)
@@ -145,6 +188,15 @@ class LockedSearch:
         e, valid, _ = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)
         self._model = RowMap(taylor_function(ca.Function("locked_search", [T, q7, x, sign], [ca.vertcat(e, valid)]),
                                              [2]), shared=[0, 1])  # fmt: skip
+        _, _, trig = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)
+        joints, residual = [ca.atan2(s, c) for c, s in trig] + [q7], None
+        for _ in range(POLISH):
+            joints, residual = polish(self.own, R, p, joints, sy.CASADI)
+        self._polished = RowMap(ca.Function("locked_search_polish", [T, q7, x, sign],
+                                            [ca.vertcat(*joints), residual, valid]), shared=[0, 1])  # fmt: skip
+        """The solution of a candidate: its joints by the subproblems (:meth:`error`) at the candidate's x and signs,
+        then :data:`POLISH` rounds of :func:`~qpik.analytic.polish.polish`; compiled, over rows of candidates (the
+        pose and the locked angle shared)."""
 
     def error(
         self, R: Mat, p: Vec, q7: Scalar, x: Scalar, signs: tuple[Scalar, Scalar], ops: Ops
@@ -208,32 +260,24 @@ class LockedSearch:
         param = number(param, "param", minimum=None)
         Ts = np.linalg.inv(T) if self.reversed else T
         found, branch, left = self._isolate(Ts, param, rounds)
+        proved = not left and self.exact
         if not found.size:
-            return SearchSolutions(np.zeros((0, 7)), np.zeros(0, int), np.zeros(0), not left and self.exact)
-        R, p = sy.frame_of_batch(np.broadcast_to(Ts, (found.size, 4, 4)))
-        signs = SIGNS[branch]
-        _, _, trig = self.error(R, p, float(param), found, (signs[:, 0], signs[:, 1]), sy.NUMPY)
-        start = [np.arctan2(s, c) for c, s in trig] + [np.full(found.size, float(param))]
-        q, residual = self._polish(Ts, start)
-        ok = residual <= RESIDUAL_TOL
-        q, branch, residual = sy.NUMPY.wrap(q[ok]), branch[ok], residual[ok]
-        keep = []
-        for i in np.argsort(residual):
-            if all(np.abs(sy.NUMPY.wrap(q[i] - q[j])).max() > SAME for j in keep):
-                keep.append(i)
-        keep = np.array(sorted(keep), int)
+            return SearchSolutions(np.zeros((0, 7)), np.zeros(0, int), np.zeros(0), proved, np.zeros(0, bool))
+        q, residual, valid = self._polished(Ts.reshape(-1, order="F"), np.array([param]), found, SIGNS[branch])
+        ok = residual[:, 0] <= RESIDUAL_TOL
+        q, branch, residual = sy.NUMPY.wrap(q[ok]), branch[ok], residual[ok, 0]
+        double = valid[ok, 0] - EPS <= DOUBLE
+        keep = np.zeros(0, int)
+        for i in np.lexsort((residual, branch)):  # against those kept (the smaller b first): one numpy pass each
+            apart = np.abs(sy.NUMPY.wrap(q[keep] - q[i])).max(axis=1) if keep.size else np.ones(1)
+            if apart.min() > SAME:
+                keep = np.append(keep, i)
+            elif branch[j := keep[np.argmin(apart)]] != branch[i]:  # the same root of two error functions
+                double[j] = True
+        keep.sort()
         q = q[keep]
-        return SearchSolutions(q[:, ::-1] if self.reversed else q, branch[keep], residual[keep],
-                               not left and self.exact)  # fmt: skip
-
-    def _polish(self, Ts: np.ndarray, start: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """:data:`POLISH` rounds of Newton on :attr:`own` from the joints ``start`` (7 arrays (K,)): (K, 7), (K,)."""
-        R, p = sy.frame_of_batch(np.broadcast_to(Ts, (start[0].size, 4, 4)))
-        q = list(start)
-        residual = np.full(start[0].size, np.inf)
-        for _ in range(POLISH):
-            q, residual = polish(self.own, R, p, q, sy.NUMPY)
-        return np.stack([np.broadcast_to(x, residual.shape) for x in q], axis=1), np.asarray(residual)
+        return SearchSolutions(q[:, ::-1] if self.reversed else q, branch[keep], residual[keep], proved,
+                               double[keep])  # fmt: skip
 
     def _isolate(self, Ts: np.ndarray, q7: float, rounds: int) -> tuple[np.ndarray, np.ndarray, bool]:
         """The candidates (centres of windows of roots, rad), their branches, and whether cells were left when the
@@ -276,3 +320,101 @@ class LockedSearch:
         if not found:
             return np.zeros(0), np.zeros(0, int), bool(a.size)
         return np.concatenate(found), np.concatenate(which).astype(int), bool(a.size)
+
+
+def slots(branch: np.ndarray, q4: np.ndarray) -> np.ndarray:
+    """The slots (K,) of :class:`SearchSolver` of K ≤ :data:`BRANCHES` solutions of error functions ``branch`` (K,)
+    at the arm's q4 (K,) rad: the j-th root of b in increasing q4 takes ``SLOTS·b + j`` for j < :data:`SLOTS`, the
+    others the lowest slots left (module docstring), in the order of b and q4; −1 for those left without (only where
+    K > :data:`BRANCHES`)."""
+    out = np.full(len(branch), -1)
+    taken = np.zeros(BRANCHES, bool)
+    order = np.lexsort((q4, branch))
+    rank = np.zeros(len(branch), int)
+    for i, k in enumerate(order[1:], 1):
+        rank[k] = rank[order[i - 1]] + 1 if branch[k] == branch[order[i - 1]] else 0
+    own = rank < SLOTS
+    out[own] = SLOTS * branch[own] + rank[own]
+    taken[out[own]] = True
+    for k, free in zip(order[~own[order]], np.flatnonzero(~taken)):
+        out[k] = free
+    return out
+
+
+class SearchSolver(BranchSolver):
+    """:func:`qpik.ik` and :func:`qpik.redundancy_parameter` of an arm of the ``"locked_search"`` family: the
+    :class:`LockedSearch` of its chain in the direction recognised (``robot.canonical.reversed``), its solutions in
+    :data:`BRANCHES` slots (module docstring). ``solve_batch`` and ``solve_many`` search each pose and parameter in
+    turn."""
+
+    kind = "locked_search"
+    param_name = "q1"
+    branch_ids = tuple(range(BRANCHES))
+    closed_form_sets = False
+    branch_functions = False
+
+    def __init__(self, robot: Robot, sets: Callable[[BranchSolver], ParameterSets] | None = None):
+        super().__init__(robot, sets)
+        canonical = robot.canonical
+        if canonical is None or canonical.kind != self.kind:
+            raise NoClosedFormError(f"{robot.name} is not of the 1-D search's family")
+        self.search = LockedSearch(robot.chain, (canonical.reversed,))
+        """The search of the arm's chain."""
+        self.param_name = f"q{self.search.locked}"
+        self.locked = self.search.locked - 1
+        """The locked joint's index (0-based): the parameter."""
+
+    def solve_one(self, T: np.ndarray, param: float) -> Solved:
+        """One pose (4, 4), one parameter (rad): q (B, n), valid, singular, within_limits (B,) bool."""
+        return self.place(self.search.solve(T, param), param)
+
+    def feasible_intervals(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
+        """Not computed for this family: raises :class:`~qpik.core.errors.NoClosedFormError` (the sets' ends are roots
+        of 2-D systems in the locked angle and q4, which no module isolates yet)."""
+        raise NoClosedFormError(
+            f"{self.robot.name}: the feasible {self.param_name} sets of the 1-D search's branches are not computed "
+            "(qpik.analytic.locked_search); qpik.ik and qpik.redundancy_parameter are"
+        )
+
+    def place(self, sol: SearchSolutions, param: float) -> Solved:
+        """The solutions ``sol`` of the locked angle ``param`` (rad) in their slots (:func:`slots`): q (B, n) (each
+        joint's representative inside its limits, :meth:`~qpik.analytic.solver.BranchSolver.representative`), valid,
+        singular (a root at a subproblem's double root, :attr:`SearchSolutions.double`; every valid slot where more
+        than :data:`BRANCHES` solutions were found: a continuum), within_limits (B,) bool."""
+        q = np.zeros((BRANCHES, self.robot.dof))
+        q[:, self.locked] = sy.NUMPY.wrap(np.array(float(param)))
+        at = slots(sol.branch, sol.q[:, 3])
+        q[at[at >= 0]] = sol.q[at >= 0]
+        for j in np.flatnonzero(self._wide):
+            q[:, j] = self.representative(int(j), q[:, j], sy.NUMPY)
+        valid = np.zeros(BRANCHES, bool)
+        valid[at[at >= 0]] = True
+        within = valid & np.all((q >= self.robot.q_min) & (q <= self.robot.q_max), axis=1)
+        singular = valid & (len(at) > BRANCHES)
+        singular[at[at >= 0]] |= sol.double[at >= 0]
+        return Solved(q, valid, singular, within)
+
+    def solve_many(self, T: np.ndarray, params: np.ndarray, rows: int | None = None) -> Solved:
+        """One pose (4, 4), parameters (M,): q (M, B, n), valid, singular, within_limits (M, B) bool; ``rows``: only the
+        first ``rows`` slots."""
+        out = [self.solve_one(T, float(x)) for x in np.asarray(params, float).ravel()]
+        return Solved(*(np.stack(parts)[:, :rows] for parts in zip(*out)))
+
+    def solve_batch(self, T: np.ndarray, param: np.ndarray) -> Solved:
+        """Poses (N, 4, 4), parameters (N,): q (N, B, n), valid, singular, within_limits (N, B) bool."""
+        out = [self.solve_one(Ti, float(x)) for Ti, x in zip(T, param)]
+        return Solved(*(np.stack(parts) for parts in zip(*out)))
+
+    def parameter(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The locked joint (rad) and branch id of configurations q (N, n) wrapped to (−π, π]: ((N,), (N,) int). The
+        branch is the slot of the valid solution nearest q (largest joint difference, modulo 2π) at q's own pose (the
+        FK of :attr:`robot`'s chain) and locked angle; −1 where the search finds none there."""
+        q = np.asarray(q, dtype=float)
+        param = q[:, self.locked].copy()
+        branch = np.full(len(q), -1)
+        for i, (Ti, qi) in enumerate(zip(self.robot.fk(q), q)):
+            sol = self.solve_one(Ti, float(param[i]))
+            if sol.valid.any():
+                apart = np.abs(sy.NUMPY.wrap(sol.q - qi)).max(axis=1)
+                branch[i] = int(np.argmin(np.where(sol.valid, apart, np.inf)))
+        return param, branch

@@ -18,6 +18,10 @@ configuration (:meth:`AnalyticSolver.parameter`).
 
 One pose goes through compiled code and a batch of poses through numpy vectorised across
 poses (the design notes give the measurements). The tests check that all of them agree.
+
+What the public functions call of a solver is :class:`BranchSolver`, of which :class:`AnalyticSolver` is one kind and
+the 1-D search of :mod:`qpik.analytic.locked_search` (:class:`~qpik.analytic.locked_search.SearchSolver`, branches
+found as roots, no expressions) another.
 """
 
 from __future__ import annotations
@@ -74,24 +78,21 @@ class Solved(NamedTuple):
     within_limits: np.ndarray
 
 
-class AnalyticSolver(ABC):
-    r"""Closed-form IK of one arm family for a given redundancy parameter.
+class BranchSolver(ABC):
+    r"""The IK of one arm family for a given redundancy parameter, as the public functions
+    (:mod:`qpik.analytic.api`) call it: a fixed number B of branch slots per pose (``branch_ids``, the public
+    number of each slot), each valid or not, and the parameter and branch of a configuration.
 
-    Subclasses set ``kind`` (the ``Robot.closed_form`` value), ``param_name``
-    (``"delta"`` or ``"psi"``), ``branch_ids`` (the public number of each
-    branch, in output order) and implement :meth:`table_branches` and
-    :meth:`table_parameter_expr`; the exact feasible sets of the parameter come from ``sets``, built from
-    the solver on first use (:class:`~qpik.analytic.intervals.ParameterSets`: ``DeltaIntervals``,
-    ``PsiIntervals``), so the solver does not depend on the module that computes them.
+    :class:`AnalyticSolver` writes its branches once as expressions (closed forms, and their CasADi functions for
+    the NLPs); :class:`~qpik.analytic.locked_search.SearchSolver` finds them as the roots of a certified 1-D search
+    (no expressions: ``branch_functions`` False). Subclasses set ``kind`` (the ``Robot.closed_form`` value),
+    ``param_name`` and ``branch_ids``; the feasible sets of the parameter come from ``sets``, built from the solver on
+    first use (:class:`~qpik.analytic.intervals.ParameterSets`), so the solver does not depend on the module that
+    computes them.
 
-    They are written for the catalog's DH table of their family (:attr:`table`: the
-    robot's chain, or for a loaded arm the table found in it, ``robot.canonical``).
-    :meth:`branches` turns the table's joint angles into the robot's, once, for every
-    evaluation: :math:`q = s \odot (q^{DH} - c)` (:class:`~qpik.robots.recognize.JointMap`)
-    wrapped to (−π, π]; a joint whose limits reach past ±π gets the representative
-    :math:`q + 2\pi k` inside its limits when the wrapped angle is outside them (the nearest
-    one), so that ``within_limits`` holds when any representative is inside (the others,
-    q ± 2π inside the limits, are the same pose).
+    A joint whose limits reach past ±π gets the representative :math:`q + 2\pi k` inside its limits when the
+    wrapped angle is outside them (the nearest one, :meth:`representative`), so that ``within_limits`` holds when any
+    representative is inside (the others, q ± 2π inside the limits, are the same pose).
     """
 
     kind: str
@@ -101,13 +102,13 @@ class AnalyticSolver(ABC):
     """Whether the feasible sets are roots of closed-form functions of the parameter (found in microseconds), not a
     certified root isolation (milliseconds): :func:`qpik.solve_best`'s ``"auto"`` method runs the level sets, which
     ask for the sets at several margins per pose, only where they are."""
+    branch_functions: bool = True
+    """Whether the branches are expressions of the pose and parameter (:attr:`AnalyticSolver.casadi_function`, which
+    the path NLP, the DP and :func:`qpik.solve_best` differentiate), not roots found by a search."""
 
-    def __init__(self, robot: Robot, sets: Callable[[AnalyticSolver], ParameterSets] | None = None):
+    def __init__(self, robot: Robot, sets: Callable[[BranchSolver], ParameterSets] | None = None):
         self.robot = robot
         self._make_sets = sets
-        canonical = robot.canonical
-        self.table = robot.chain if canonical is None else canonical.table
-        self.joint_map = None if canonical is None or canonical.joints.identity else canonical.joints
         lo, hi = np.asarray(robot.q_min, float), np.asarray(robot.q_max, float)
         self._wide = (lo < -np.pi) | (hi > np.pi)  # joints whose representatives are chosen
         self.lock = threading.RLock()
@@ -125,61 +126,37 @@ class AnalyticSolver(ABC):
         out.flags.writeable = False
         return out
 
-    # ---- the one source -----------------------------------------------------
-
-    @abstractmethod
-    def table_branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
-        """All branches for end-effector rotation ``R`` and position ``p`` (world frame), in :attr:`table`'s angles."""
-
-    @abstractmethod
-    def table_parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
-        """Redundancy parameter (rad) and branch id (a scalar holding an integer) of the configuration ``q``
-        (n scalars) of :attr:`table`: the inverse of :meth:`table_branches`."""
-
-    def branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
-        """All branches for end-effector rotation ``R`` and position ``p`` (world frame), in the robot's angles."""
-        br = self.table_branches(R, p, param, ops)
-        if self.joint_map is None and not self._wide.any():
-            return br
-        return Branches([[self._joint(j, x, ops) for j, x in enumerate(row)] for row in br.q], br.valid, br.singular)
-
-    def _joint(self, j: int, x: Scalar, ops: Ops) -> Scalar:
-        """The robot's joint j from the table's angle x (see the class docstring)."""
-        if self.joint_map is not None:
-            s, c = float(self.joint_map.sign[j]), float(self.joint_map.shift[j])
-            x = ops.wrap(sy.mul(s, sy.sub(x, c)))
+    def representative(self, j: int, x: Scalar, ops: Ops) -> Scalar:
+        """The robot's joint j at the angle x (rad, wrapped): x itself, or for a joint whose limits reach past ±π the
+        representative x + 2πk inside them where x is outside (the nearest; see the class docstring)."""
         if not self._wide[j]:
             return x
         lo, hi, turn = float(self.robot.q_min[j]), float(self.robot.q_max[j]), 2.0 * np.pi
         x = ops.where(x > hi, x + turn * ops.floor((hi - x) / turn), x)  # the largest x - 2πk <= hi
         return ops.where(x < lo, x - turn * ops.floor((x - lo) / turn), x)  # the smallest x + 2πk >= lo
 
-    def parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
-        r"""Redundancy parameter (rad) and branch id of the robot's configuration ``q`` (n scalars): the
-        inverse of :meth:`branches`, through the table's angles :math:`s \odot q + c` (wrapped)."""
-        if self.joint_map is not None:
-            sign, shift = self.joint_map.sign, self.joint_map.shift
-            q = [ops.wrap(sy.add(sy.mul(float(s), x), float(c))) for x, s, c in zip(q, sign, shift)]
-        return self.table_parameter_expr(q, ops)
+    @property
+    def fresh_one(self):
+        """A call ``fresh(T, param) -> (q (B, n), flags (3, B) bool)`` of one pose through compiled code, or None
+        (:attr:`AnalyticSolver.fresh_one`); None here."""
+        return None
 
-    def levels(self, j: int) -> list[float]:
-        """The angles of :attr:`table`'s joint j (rad) where the robot's joint j can change feasibility.
+    @abstractmethod
+    def solve_one(self, T: np.ndarray, param: float) -> Solved:
+        """One pose (4, 4), one parameter (rad): q (B, n), valid, singular, within_limits (B,) bool."""
 
-        Its limits and, where a limit reaches ±π, the wrap at π, mapped to the table's angles; none
-        for a joint whose range spans a whole turn (some representative is always inside).
-        """
-        lo, hi = float(self.robot.q_min[j]), float(self.robot.q_max[j])
-        if hi - lo >= 2.0 * np.pi:
-            return []
-        out = [x for x in (lo, hi) if -np.pi < x < np.pi or self._wide[j]]
-        if lo <= -np.pi or hi >= np.pi:
-            out.append(np.pi)
-        if self.joint_map is not None:
-            s, c = float(self.joint_map.sign[j]), float(self.joint_map.shift[j])
-            out = [float(sy.NUMPY.wrap(np.array(s * x + c))) for x in out]
-        elif self._wide[j]:
-            out = [float(sy.NUMPY.wrap(np.array(x))) for x in out]
-        return out
+    @abstractmethod
+    def solve_many(self, T: np.ndarray, params: np.ndarray, rows: int | None = None) -> Solved:
+        """One pose (4, 4), parameters (M,): q (M, B, n), valid, singular, within_limits (M, B) bool; ``rows``: only
+        the first ``rows`` branches."""
+
+    @abstractmethod
+    def solve_batch(self, T: np.ndarray, param: np.ndarray) -> Solved:
+        """Poses (N, 4, 4), parameters (N,): q (N, B, n), valid, singular, within_limits (N, B) bool."""
+
+    @abstractmethod
+    def parameter(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Redundancy parameter (rad) and branch id of configurations q (N, n) wrapped to (−π, π]: ((N,), (N,) int)."""
 
     @cached_property
     def _sets(self) -> ParameterSets:
@@ -209,6 +186,82 @@ class AnalyticSolver(ABC):
         (:class:`~qpik.analytic.native_sets.NativeSets`), for C code that calls it in a loop; None where there is no
         such call (no compiler)."""
         return self._sets.native_sets()
+
+
+class AnalyticSolver(BranchSolver):
+    r"""Closed-form IK of one arm family for a given redundancy parameter.
+
+    Subclasses set ``kind`` (the ``Robot.closed_form`` value), ``param_name``
+    (``"delta"`` or ``"psi"``), ``branch_ids`` (the public number of each
+    branch, in output order) and implement :meth:`table_branches` and
+    :meth:`table_parameter_expr`; the exact feasible sets of the parameter come from ``sets``
+    (:class:`BranchSolver`: ``DeltaIntervals``, ``PsiIntervals``).
+
+    They are written for the catalog's DH table of their family (:attr:`table`: the
+    robot's chain, or for a loaded arm the table found in it, ``robot.canonical``).
+    :meth:`branches` turns the table's joint angles into the robot's, once, for every
+    evaluation: :math:`q = s \odot (q^{DH} - c)` (:class:`~qpik.robots.recognize.JointMap`)
+    wrapped to (−π, π], then each joint's representative inside its limits
+    (:meth:`BranchSolver.representative`).
+    """
+
+    def __init__(self, robot: Robot, sets: Callable[[BranchSolver], ParameterSets] | None = None):
+        super().__init__(robot, sets)
+        canonical = robot.canonical
+        self.table = robot.chain if canonical is None else canonical.table
+        self.joint_map = None if canonical is None or canonical.joints.identity else canonical.joints
+
+    # ---- the one source -----------------------------------------------------
+
+    @abstractmethod
+    def table_branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
+        """All branches for end-effector rotation ``R`` and position ``p`` (world frame), in :attr:`table`'s angles."""
+
+    @abstractmethod
+    def table_parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
+        """Redundancy parameter (rad) and branch id (a scalar holding an integer) of the configuration ``q``
+        (n scalars) of :attr:`table`: the inverse of :meth:`table_branches`."""
+
+    def branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
+        """All branches for end-effector rotation ``R`` and position ``p`` (world frame), in the robot's angles."""
+        br = self.table_branches(R, p, param, ops)
+        if self.joint_map is None and not self._wide.any():
+            return br
+        return Branches([[self._joint(j, x, ops) for j, x in enumerate(row)] for row in br.q], br.valid, br.singular)
+
+    def _joint(self, j: int, x: Scalar, ops: Ops) -> Scalar:
+        """The robot's joint j from the table's angle x (see the class docstring)."""
+        if self.joint_map is not None:
+            s, c = float(self.joint_map.sign[j]), float(self.joint_map.shift[j])
+            x = ops.wrap(sy.mul(s, sy.sub(x, c)))
+        return self.representative(j, x, ops)
+
+    def parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
+        r"""Redundancy parameter (rad) and branch id of the robot's configuration ``q`` (n scalars): the
+        inverse of :meth:`branches`, through the table's angles :math:`s \odot q + c` (wrapped)."""
+        if self.joint_map is not None:
+            sign, shift = self.joint_map.sign, self.joint_map.shift
+            q = [ops.wrap(sy.add(sy.mul(float(s), x), float(c))) for x, s, c in zip(q, sign, shift)]
+        return self.table_parameter_expr(q, ops)
+
+    def levels(self, j: int) -> list[float]:
+        """The angles of :attr:`table`'s joint j (rad) where the robot's joint j can change feasibility.
+
+        Its limits and, where a limit reaches ±π, the wrap at π, mapped to the table's angles; none
+        for a joint whose range spans a whole turn (some representative is always inside).
+        """
+        lo, hi = float(self.robot.q_min[j]), float(self.robot.q_max[j])
+        if hi - lo >= 2.0 * np.pi:
+            return []
+        out = [x for x in (lo, hi) if -np.pi < x < np.pi or self._wide[j]]
+        if lo <= -np.pi or hi >= np.pi:
+            out.append(np.pi)
+        if self.joint_map is not None:
+            s, c = float(self.joint_map.sign[j]), float(self.joint_map.shift[j])
+            out = [float(sy.NUMPY.wrap(np.array(s * x + c))) for x in out]
+        elif self._wide[j]:
+            out = [float(sy.NUMPY.wrap(np.array(x))) for x in out]
+        return out
 
     # ---- evaluations -----------------------------------------------------------
 

@@ -116,7 +116,7 @@ def run(args: argparse.Namespace) -> list[Row]:
             within = int(np.sum(t <= BUDGET))
             what = (
                 "numerical IK"
-                if robot.closed_form is None
+                if not robot.branch_functions
                 else f"{len(viewer.state.branches)} branches, feasible sets, solve_best {viewer.state.best.method}"
             )
             priority = "at the lowest CPU priority" if lowered else "its priority not lowered"

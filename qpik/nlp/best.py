@@ -109,10 +109,8 @@ def solve_best(
     problem = scene_of(robot, obstacles, d_safe, objective, None if per_pose else q_ref).with_objective("margin")
     robot, obj, obs = problem.robot, problem.objective, problem.obstacles
     q_ref = q_ref if per_pose else problem.q_ref
-    if robot.closed_form is None:
-        raise NoClosedFormError(
-            f"{robot.name} has no closed-form IK, so no δ/ψ to search; use qpik.nlp.solve_full (7 joint variables)"
-        )
+    if not robot.branch_functions:
+        raise NoClosedFormError(f"{robot.name} has {_why_not(robot)}; use qpik.nlp.solve_full (7 joint variables)")
     T, batched = check_pose(pose, "pose", project)
     T = T if batched else T[None]
     n = robot.dof
@@ -174,8 +172,8 @@ def build_search(
     :func:`solve_best` builds only what it uses, so without this the first pose that needs the other pass (one the
     level sets do not settle, or whose answer comes too close to itself) would build it inside its call."""
     problem = scene_of(robot, obstacles, d_safe, objective, q_ref).with_objective("margin")
-    if problem.robot.closed_form is None:
-        raise NoClosedFormError(f"{problem.robot.name} has no closed-form IK, so no search over δ/ψ to build")
+    if not problem.robot.branch_functions:
+        raise NoClosedFormError(f"{problem.robot.name} has {_why_not(problem.robot)} to build")
     T = check_pose(pose, "pose")[0]
     if T.ndim != 2:
         raise InputError(f"pose: expected one pose (4, 4), got shape {T.shape}")
@@ -188,6 +186,14 @@ def build_search(
         build_sweep(sm.solver, T)
         if problem.self_pairs:
             problem.self_distances.build()
+
+
+def _why_not(robot: Robot) -> str:
+    """Why :func:`solve_best` does not take ``robot``: no closed form, or branches found by a search (no expressions
+    of the parameter to search over)."""
+    if robot.closed_form is None:
+        return "no closed-form IK, so no δ/ψ to search"
+    return "branches found by a 1-D search (qpik.ik), not expressions of the parameter to search over"
 
 
 def _solve(

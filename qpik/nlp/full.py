@@ -238,7 +238,7 @@ def _not_found(robot: Robot, T: np.ndarray) -> str:
 def _starts(robot: Robot, T: np.ndarray, first: np.ndarray, seed: int):
     """``first``, then one closed-form start per branch with a feasible interval, then seeded random ones."""
     yield from first
-    if robot.closed_form is not None:
+    if robot.branch_functions:
         from qpik.analytic import feasible_intervals, ik
 
         fi = feasible_intervals(robot, T)

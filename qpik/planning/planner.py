@@ -112,7 +112,7 @@ def plan_self_motion(
     if not isinstance(reconfigure, str) or reconfigure not in RECONFIGURE:
         raise InputError(f"reconfigure: expected one of {RECONFIGURE}, got {reconfigure!r}")
     refine, mujoco = flag(options.refine, "refine"), flag(options.mujoco, "mujoco")
-    if setup.robot.closed_form is None:
+    if not setup.robot.branch_functions:
         return _plan_joints(setup, refine, mujoco)
     res = int(number(resolution, "resolution", 8))
     if res % 2 or res != resolution or res > MAX_RESOLUTION:

@@ -175,11 +175,11 @@ def baselines(job: PlanJob, robot: Robot, plan: Plan, mujoco: bool = True) -> li
         out.append(plan.dp_plan)
     if plan.status == "failed" or not len(plan.q):
         return out
-    if robot.closed_form is not None and job.params is not None:
+    if robot.branch_functions and job.params is not None:
         branch = job.solver["baseline_branch"]
         branch = int(plan.branch[0]) if branch is None else branch
         out += [constant_parameter(plan, float(v), branch, mujoco) for v in job.params]
-    if robot.closed_form is not None:
+    if robot.branch_functions:
         out.append(online(plan, mujoco))
     return out
 

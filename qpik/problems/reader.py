@@ -167,7 +167,7 @@ class Reader:
         for key in ("branch", "baseline_branch"):
             if solver[key] is None:
                 continue
-            if robot.closed_form is None:
+            if not robot.branch_functions:
                 raise self.fail(f"solver.{key}", f"{robot.name} has no closed form, so no branches")
             ids = _branch_ids(robot.closed_form)
             if solver[key] not in ids:

@@ -27,7 +27,7 @@ fewest flips; the first that fits the pattern is verified by FK at random q (to
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -127,15 +127,18 @@ class Canonical:
 
 
 REDUNDANCY = {"psi": "srs", "delta": "offset_shoulder", "q7": "locked_joint", "q1": "locked_joint"}
-"""The redundancy parameters a user can ask for (``load_robot(..., redundancy=)``) and their family."""
+"""The redundancy parameters a user can ask for (``load_robot(..., redundancy=)``) and their family (q7, q1: the
+locked-joint closed form, else the 1-D search of the same locked joint, ``"locked_search"``)."""
 
 
 def recognize(chain: SerialChain, redundancy: str | None = None) -> tuple[Canonical | None, str]:
     """The first closed form ``chain`` fits, or None and the reason (one line): the patterns of :data:`PATTERNS`,
     then q7 locked, then q1 locked (the chain read from the flange; :mod:`qpik.robots.locked_joint`), exactly or as a
     near member (its axes miss by at most
-    :data:`~qpik.robots.locked_joint.NEAR_TOL`: the closed form of its ideal chain, polished on its own).
-    ``redundancy`` (a key of :data:`REDUNDANCY`) tries only the family of that parameter."""
+    :data:`~qpik.robots.locked_joint.NEAR_TOL`: the closed form of its ideal chain, polished on its own), then the
+    1-D search's geometry (``"locked_search"``, q1 locked, then q7; :func:`_searched`), whose notes say that it is
+    served by the search and why there is no closed form. ``redundancy`` (a key of :data:`REDUNDANCY`) tries only the
+    family of that parameter (and for q1 or q7, the search with that joint locked)."""
     if redundancy is not None and redundancy not in REDUNDANCY:
         raise InputError(f"redundancy: expected one of {', '.join(REDUNDANCY)} or None, got {redundancy!r}"[:200])
     if len(chain.joints) != chain.dof:
@@ -153,26 +156,44 @@ def recognize(chain: SerialChain, redundancy: str | None = None) -> tuple[Canoni
         if found is not None:
             return found, ""
         reasons.append(f"not {kind.replace('_', '-')}: {why}")
+    directions = {"q7": (False,), "q1": (True,)}.get(redundancy or "", (True, False))
     if wanted in (None, "locked_joint"):
-        found, why = _locked(chain, {None: (False, True), "q7": (False,), "q1": (True,)}[redundancy])
+        found, why = _locked(chain, directions[::-1])
         if found is not None:
             return found, ""
         reasons.append(why)
-    return None, f"{layout_words(chain)}; " + "; ".join(reasons) + _search(chain)
+    why = f"{layout_words(chain)}; " + "; ".join(reasons)
+    searched = _searched(chain, directions) if wanted in (None, "locked_joint") else None
+    if searched is None:
+        return None, why
+    words = f"served by a certified 1-D search over q4 with q{1 if searched.reversed else 7} locked"
+    return replace(searched, notes=f"{words} (qpik.analytic.locked_search), no closed form: {why}"), ""
+
+
+def _searched(chain: SerialChain, directions: tuple[bool, ...]) -> Canonical | None:
+    """The family of the 1-D search (:mod:`qpik.analytic.locked_search`, ``"locked_search"``) in ``chain``: its
+    geometry (:func:`~qpik.robots.locked_joint.find_locked_joint` with ``shoulder=2``, exactly or within
+    :data:`~qpik.robots.locked_joint.NEAR_TOL`) with q1 locked (``True`` in ``directions``, the chain read from the
+    flange) or q7 locked (``False``), in that order; None where it holds in neither. ``table`` is the chain itself
+    (the search finds its ideal chain), ``exact`` whether the geometry holds without the tolerance."""
+    for rev in directions:
+        turned = reversed_chain(chain) if rev else chain
+        if find_locked_joint(turned, NEAR_TOL, rev, shoulder=2)[0] is not None:
+            exact = find_locked_joint(turned, reversed=rev, shoulder=2)[0] is not None
+            return Canonical("locked_search", chain, JointMap(np.ones(7), np.zeros(7)), exact=exact, reversed=rev)
+    return None
 
 
 def _search(chain: SerialChain) -> str:
-    """What serves an arm of no closed form: the 1-D search (:mod:`qpik.analytic.locked_search`) where its geometry
-    (:func:`~qpik.robots.locked_joint.find_locked_joint` with ``shoulder=2``, exactly or within
-    :data:`~qpik.robots.locked_joint.NEAR_TOL`) holds with q1 locked (the chain read from the flange) or q7 locked."""
-    for rev in (True, False):
-        turned = reversed_chain(chain) if rev else chain
-        if find_locked_joint(turned, NEAR_TOL, rev, shoulder=2)[0] is not None:
-            return (
-                f"; IK by a certified 1-D search over q4 with q{1 if rev else 7} locked "
-                "(qpik.analytic.locked_search.LockedSearch; not behind qpik.ik)"
-            )
-    return ""
+    """For a near member of the locked-joint family, served by its ideal chain's closed form: the 1-D search
+    (:mod:`qpik.analytic.locked_search`) that would find the file's own roots, where its geometry holds."""
+    found = _searched(chain, (True, False))
+    if found is None:
+        return ""
+    return (
+        f"; IK by a certified 1-D search over q4 with q{1 if found.reversed else 7} locked "
+        "(qpik.analytic.locked_search.LockedSearch; qpik.ik uses the closed form)"
+    )
 
 
 def _locked(chain: SerialChain, directions: tuple[bool, ...]) -> tuple[Canonical | None, str]:

@@ -72,7 +72,7 @@ class Page:
         self.geometry = ArmGeometry(robot)
         self.arm = self._add_arm("/arm", None, 1.0)
         self.best = self._add_arm("/best", BEST, 0.45, visible=False)
-        closed = robot.closed_form is not None
+        closed = robot.branch_functions
         from qpik.analytic.api import closed_form_for
 
         self.branch_ids = closed_form_for(robot).branch_array.tolist() if closed else []
@@ -134,7 +134,7 @@ class Page:
 
     def _build_panel(self, track: Track | None, objective: str) -> None:
         robot, gui = self.robot, self.server.gui
-        closed = robot.closed_form is not None
+        closed = robot.branch_functions
         from qpik.analytic.api import closed_form_for
         from qpik.analytic.api import symbol as param_symbol
 

@@ -69,7 +69,7 @@ def solve_view(
     """
     obstacles = obstacles if obstacles is not None else ObstacleSet(())
     seed = robot.q_home if q_seed is None else np.asarray(q_seed, dtype=float)
-    if robot.closed_form is None:
+    if not robot.branch_functions:
         found = ik_solver(robot).solve(pose, seed)  # its iteration budget, not a time: the same answer on any machine
         q, branches, intervals, best, numerical, param_ = found.q, None, None, None, found, None
     else:

@@ -16,8 +16,9 @@ from qpik.analytic.api import closed_form_for
 from qpik.analytic.intervals import shrunk_limits
 from qpik.analytic.locked_joint import ReversedLockedJointSolver
 from qpik.analytic.polish import RESIDUAL_TOL
-from qpik.core.errors import InputError, NoClosedFormError
+from qpik.core.errors import InputError
 from qpik.robots.locked_joint import reversed_chain
+from qpik.robots.model_files import MeshOptions
 
 BATCH = 2000 if LARGE else 200
 DENSE = 20_000
@@ -70,27 +71,32 @@ def test_the_gen3_notes_name_its_offsets_and_the_reversed_closed_form():
 
 
 def test_the_sawyer_notes_name_its_offsets_and_why_no_closed_form():
-    """The Sawyer: axis 1 81 mm from axis 2, every other consecutive pair meets, no three in one point."""
+    """The Sawyer: axis 1 81 mm from axis 2, every other consecutive pair meets, no three in one point: no closed form,
+    served by the 1-D search with q1 locked; asked for q7, the same search with q7 locked."""
     robot = model_robot("robosuite_sawyer")
-    assert robot.closed_form is None
+    assert robot.closed_form == "locked_search" and robot.canonical.reversed
     notes = robot.notes
-    assert notes.startswith("no closed form: axes 2-3, 3-4, 4-5, 5-6 meet, axes 1-2 81 mm apart")
+    assert notes.startswith(
+        "served by a certified 1-D search over q4 with q1 locked (qpik.analytic.locked_search), no closed form: "
+        "axes 2-3, 3-4, 4-5, 5-6 meet, axes 1-2 81 mm apart"
+    )
     assert "along axis 2 192.5 mm, axis 3 400 mm, axis 4 168.5 mm, axis 5 400 mm, axis 6 136.3 mm" in notes
     assert "not locked-q7: axes 1-2 do not meet (81 mm apart)" in notes
     assert "not locked-q1: axes 7-6-5 do not meet in one point (axis 5 passes 136.3 mm from it)" in notes
     assert "perpendicular" not in notes
-    assert "IK by a certified 1-D search over q4 with q1 locked (qpik.analytic.locked_search.LockedSearch" in notes
     assert "1-D search over q4 with q7 locked" in model_robot("xarm7_offset").notes
-    with pytest.raises(NoClosedFormError, match="81 mm apart"):
-        qpik.ik(robot, robot.fk(robot.q_home), 0.0)
+    q = random_q(robot, 1, 3)[0]
+    assert qpik.ik(robot, robot.fk(q), float(q[0])).param_name == "q1"
+    q7 = qpik.load_robot(robot.model.path, redundancy="q7", meshes=MeshOptions(collision_only=True))
+    assert q7.closed_form is None and "not locked-q7: axes 1-2 do not meet (81 mm apart)" in q7.notes
 
 
 def test_the_q1_override():
     """``redundancy="q1"`` asks for the reversed family only; no catalog arm locks q1."""
     path = model_robot("robosuite_gen3").model.path
     gen3 = qpik.load_robot(path, redundancy="q7")
-    assert gen3.closed_form is None and "not locked-q7: axes 1-2-3 do not meet in one point" in gen3.notes
-    assert "locked-q1" not in gen3.notes
+    assert gen3.closed_form == "locked_search" and not gen3.canonical.reversed  # its q7 by the search
+    assert "not locked-q7: axes 1-2-3 do not meet in one point" in gen3.notes and "locked-q1" not in gen3.notes
     assert qpik.load_robot(path, redundancy="q1").canonical.reversed
     with pytest.raises(InputError, match="redundancy"):
         qpik.load_robot("panda", redundancy="q1")

@@ -2,7 +2,10 @@
 the Gen3 file, an exact member, its 0.35 mm wrist offset included), against MuJoCo's FK of the model files: the
 configuration a pose came from is among the solutions, every solution reaches the pose, and on the exact Sawyer
 every sign change of every error function on a dense grid of q4 (numpy, not the Taylor models) has its solution.
-60 configurations per arm by default (a search takes ~30 ms), 2,000 with QPIK_TESTS_LARGE=1."""
+60 configurations per arm by default, 2,000 with QPIK_TESTS_LARGE=1. Behind qpik.ik (the
+"locked_search" family, SearchSolver): the slots of the Sawyer and of the xArm7 with axis 3 moved 1 mm, against
+MuJoCo's FK, the error functions and the solutions nearest along the parameter; 40 configurations per arm by
+default, 2,000 with QPIK_TESTS_LARGE=1."""
 
 from __future__ import annotations
 
@@ -13,9 +16,11 @@ import pytest
 from conftest import LARGE, SEEDS, model_robot, mujoco_poses, random_q
 from hypothesis import given, settings
 
+import qpik
 from qpik.algebra import symbolic as sy
 from qpik.analytic.locked_search import SIGNS, LockedSearch
 from qpik.core.errors import InputError, NoClosedFormError
+from qpik.robots.model_files import MeshOptions
 
 BATCH = 2000 if LARGE else 60
 GRID = 20_000
@@ -121,3 +126,114 @@ def test_the_search_locks_q7_where_only_the_chain_itself_fits():
     why = "q1 locked: axes 7-6 do not meet (88 mm apart); q7 locked: axis 3 passes 0 µm from the point where axes 1-2"
     with pytest.raises(NoClosedFormError, match=re.escape(why)):
         LockedSearch(model_robot("erd_panda").chain)
+
+
+# ---- behind qpik.ik: the "locked_search" family ---------------------------------
+
+API_BATCH = 2000 if LARGE else 40
+
+
+@pytest.mark.parametrize("key", ["robosuite_sawyer", "xarm7_offset"])
+def test_ik_holds_q_in_its_slot_and_every_valid_slot_reaches_the_pose_by_mujoco(key):
+    """qpik.ik on random q inside the limits (the Sawyer: q1 locked, its file a near member; the xArm7 with axis 3
+    moved 1 mm: q7 locked, exact): 16 finite slots; one valid slot holds q to 1e-9 rad (modulo 2π), within limits,
+    except where the chain without the locked joint is near singular (σ_min < 1e-3), and it is the slot that
+    redundancy_parameter names (from qpik's FK of q, not MuJoCo's pose) unless the pose has a singular slot (a root of
+    two error functions, whose b round-off decides); every valid slot reaches the pose to 1e-10 by MuJoCo's FK of the
+    file and holds the locked joint at the parameter; the slots hold the search's roots as documented (the j-th of b in
+    increasing q4 in slot 4b + j, those past the fourth in the lowest slots left; singular where the search says a
+    root is double), and on the exact xArm7 every other root is a root of its e_b (within 1e-7)."""
+    robot = model_robot(key)
+    locked = 0 if key == "robosuite_sawyer" else 6
+    assert robot.closed_form == "locked_search" and robot.canonical.reversed == (locked == 0)
+    assert robot.notes.startswith(f"served by a certified 1-D search over q4 with q{locked + 1} locked")
+    assert not robot.branch_functions
+    s = search(key)
+    q = random_q(robot, API_BATCH, 21)
+    T = mujoco_poses(robot, q)
+    sigma = np.linalg.svd(np.delete(robot.jacobian(q), locked, axis=2), compute_uv=False)[:, -1]
+    param, branch = qpik.redundancy_parameter(robot, q)
+    np.testing.assert_array_equal(param, sy.NUMPY.wrap(q[:, locked]))
+    missed = 0
+    for qi, Ti, si, pi, bi in zip(q, T, sigma, param, branch):
+        sols = qpik.ik(robot, Ti, float(pi))
+        assert sols.q.shape == (16, 7) and np.isfinite(sols.q).all() and sols.param_name == f"q{locked + 1}"
+        assert list(sols.branch) == list(range(16)) and not (sols.singular & ~sols.valid).any()
+        assert 0 < sols.valid.sum() <= 16 and not (sols.within_limits & ~sols.valid).any()
+        apart = np.where(sols.valid, angle_diff(sols.q, qi).max(axis=1), np.inf)
+        if apart.min() >= 1e-9:
+            assert si < 1e-3, (qi, si)
+            missed += 1
+        else:
+            assert sols.within_limits[np.argmin(apart)]
+            assert bi == np.argmin(apart) or sols.singular.any()
+        good = sols.q[sols.valid]
+        assert np.abs(mujoco_poses(robot, good) - Ti).max() < 1e-10
+        assert np.all(angle_diff(sols.q[:, locked], pi) < 1e-15)
+        sol = s.solve(Ti, float(pi))  # the documented numbering of the search's roots
+        want, rank, spill = np.full(16, -1), [0] * 4, []
+        for i in sorted(range(len(sol.q)), key=lambda i: (sol.branch[i], sol.q[i, 3])):
+            b = sol.branch[i]
+            if rank[b] < 4:
+                want[4 * b + rank[b]] = i
+            else:
+                spill.append(i)
+            rank[b] += 1
+        want[np.flatnonzero(want < 0)[: len(spill)]] = spill
+        np.testing.assert_array_equal(sols.valid, want >= 0)
+        assert angle_diff(sols.q[want >= 0], sol.q[want[want >= 0]]).max() < 1e-15
+        np.testing.assert_array_equal(sols.singular[want >= 0], sol.double[want[want >= 0]])
+        regular = ~sol.double
+        if robot.canonical.exact and regular.any():  # each regular root is a root of its e_b
+            Ts = np.linalg.inv(Ti) if locked == 0 else Ti
+            R, p = sy.frame_of_batch(np.broadcast_to(Ts, (int(regular.sum()), 4, 4)))
+            signs = SIGNS[sol.branch[regular]]
+            e, _, _ = s.error(R, p, float(pi), sol.q[regular, 3], (signs[:, 0], signs[:, 1]), sy.NUMPY)
+            assert np.abs(e).max() < 1e-7
+    assert missed <= max(2, API_BATCH // 400)
+    batch = qpik.ik(robot, T[:3], param[:3])
+    assert batch.q.shape == (3, 16, 7)
+    for i in range(3):
+        np.testing.assert_array_equal(batch.q[i], qpik.ik(robot, T[i], float(param[i])).q)
+    assert qpik.redundancy_parameter(robot, q[0]) == (float(param[0]), int(branch[0]))
+
+
+def test_a_slot_keeps_its_solution_along_the_parameter():
+    """Along small steps of q1 (2e-3 rad) at poses of random q of the Sawyer: wherever the set of valid slots does not
+    change, each valid slot's next solution is the one nearest to its last (the numbering follows the roots)."""
+    robot = model_robot("robosuite_sawyer")
+    steps = 0
+    for qi in random_q(robot, 3, 5):
+        T = robot.fk(qi)
+        last = None
+        for x in qi[0] + np.linspace(-0.02, 0.02, 21):
+            sols = qpik.ik(robot, T, float(x))
+            if last is not None and np.array_equal(last.valid, sols.valid):
+                for k in np.flatnonzero(sols.valid):
+                    apart = np.where(sols.valid, angle_diff(sols.q, last.q[k]).max(axis=1), np.inf)
+                    assert np.argmin(apart) == k
+                    steps += 1
+            last = sols
+    assert steps > 200
+
+
+def test_the_searched_family_says_what_it_does_not_serve():
+    """An unreachable pose: 16 invalid finite slots; the home pose, q = 0, where a continuum of configurations reaches
+    it at q1 = 0: 16 valid singular slots, each reaching it by MuJoCo's FK. solve_best needs branches as expressions of
+    the parameter: it says the arm's branches are found by a search; feasible_intervals says that it has no sets for
+    them. load_robot's override: asked for ψ, the Sawyer has no closed form."""
+    robot = model_robot("robosuite_sawyer")
+    T = robot.fk(robot.q_home)
+    T[:3, 3] = (2.0, 0.0, 0.5)
+    sols = qpik.ik(robot, T, 0.3)
+    assert not sols.valid.any() and np.isfinite(sols.q).all() and np.all(sols.q[:, 0] == 0.3)
+    with pytest.raises(NoClosedFormError, match="found by a 1-D search"):
+        qpik.solve_best(robot, robot.fk(robot.q_home))
+    with pytest.raises(NoClosedFormError, match="feasible q1 sets of the 1-D search's branches are not computed"):
+        qpik.feasible_intervals(robot, robot.fk(robot.q_home))
+    home = mujoco_poses(robot, robot.q_home[None])[0]  # q = 0: axes aligned, a continuum of solutions at q1 = 0
+    sols = qpik.ik(robot, home, 0.0)
+    assert sols.valid.all() and sols.singular.all()
+    assert np.abs(mujoco_poses(robot, sols.q) - home).max() < 1e-10
+    psi = qpik.load_robot(robot.model.path, redundancy="psi", meshes=MeshOptions(collision_only=True))
+    assert psi.closed_form is None and "not srs" in psi.notes

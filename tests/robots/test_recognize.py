@@ -10,7 +10,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import MODEL_DIR, model_robot, mujoco_poses, random_q
+from conftest import MADE, MODEL_DIR, MODELS, model_robot, mujoco_poses, random_q
 
 import qpik
 from qpik.core.errors import NoClosedFormError
@@ -35,14 +35,16 @@ def test_the_kuka_urdf_is_the_catalog_iiwa14():
 
 
 @pytest.mark.parametrize(
-    ("key", "why"),
+    ("key", "redundancy", "why"),
     [
-        ("xarm7_offset", "not srs: axes 1-2-3 do not intersect"),
-        ("robosuite_sawyer", "not locked-q7: axes 1-2 do not meet (81 mm apart)"),
+        ("xarm7_offset", "psi", "not srs: axes 1-2-3 do not intersect"),
+        ("robosuite_sawyer", "q7", "not locked-q7: axes 1-2 do not meet (81 mm apart)"),
     ],
 )
-def test_other_arms_say_why(key, why):
-    robot = model_robot(key)
+def test_other_arms_say_why(key, redundancy, why):
+    """Asked for a parameter of no family they fit (neither a closed form nor the 1-D search), arms say why."""
+    path, options = (MODELS | MADE)[key]()
+    robot = qpik.load_robot(path, redundancy=redundancy, **options)
     assert robot.closed_form is None and why in robot.notes
     with pytest.raises(NoClosedFormError, match=why.split(":")[1].strip()[:20]):
         qpik.ik(robot, robot.fk(robot.q_home), 0.0)
