@@ -63,7 +63,8 @@ def test_another_derivation_is_another_file_and_a_damaged_file_is_derived_again(
     for f in files:
         f.write_text("not a serialized function")
     box = enclosure.interval_function(fn, [0])  # inputs: x_lo, y, x_hi
-    lo, hi = (np.asarray(v).ravel() for v in np.split(np.concatenate([o.full().ravel() for o in box(0.2, 0.5, 0.4)]), 2))
+    bounds = np.concatenate([o.full().ravel() for o in box(0.2, 0.5, 0.4)])
+    lo, hi = np.split(bounds, 2)
     xs = np.linspace(0.2, 0.4, 201)
     vals = np.array([np.ravel(np.concatenate([o.full().ravel() for o in fn(x, 0.5)])) for x in xs])
     assert np.all(vals >= lo - 1e-12) and np.all(vals <= hi + 1e-12)
