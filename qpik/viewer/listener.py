@@ -5,9 +5,11 @@ server's address, subprotocol ``viser-v<viser's version>``, which the server che
 (:data:`CAMERA`), as the page sends once it has drawn: viser counts a client from its first camera, and needs
 nothing else from it, sending the scene and then every update) from a process of its own
 (``python -m qpik.viewer.listener URL``), so that the server's messages are serialised, compressed and sent as they
-are to a page, and the client's work (receiving and decoding) takes no time of the server's process. The
+are to a page, and the client's work (receiving and decoding) runs beside the server's process, not in it. The
 process writes one JSON line per websocket frame it receives (:func:`decode`: viser's frame of messages) to
-its standard output, which a thread of the server's process reads into :attr:`Listener.frames`.
+its standard output, which a thread of the server's process reads into :attr:`Listener.frames`;
+:meth:`Listener.sync` queues a mark (a hidden scene node moved, :data:`MARK`) after the messages queued so far and
+waits until the client has it.
 
 Times are :func:`time.perf_counter` seconds: on Linux the machine's monotonic clock, the same in both processes.
 """
@@ -98,7 +100,7 @@ def _mark_of(messages: list[dict[str, Any]]) -> int | None:
     return found
 
 
-def receive(url: str, out=sys.stdout) -> None:
+def listen(url: str, out=sys.stdout) -> None:
     """The client's process: connect to the viewer at ``url`` (``http://HOST:PORT``), then write ``{"connected":
     time}`` and, per frame received, its :class:`Frame` fields, as JSON lines to ``out``; return when the server
     closes the connection or the parent process ends."""
@@ -153,8 +155,8 @@ class Listener:
         root = str(Path(__file__).resolve().parents[2])  # the qpik the server runs
         env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)}
         self._process = subprocess.Popen(
-            [sys.executable, "-m", "qpik.viewer.listener", viewer.url], stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE, text=True, env=env,
+            [sys.executable, "-m", "qpik.viewer.listener", viewer.url], stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
         )  # fmt: skip
         self._reader = threading.Thread(target=self._read, name="qpik-listener", daemon=True)
         self._reader.start()
@@ -233,4 +235,4 @@ class Listener:
 
 
 if __name__ == "__main__":
-    receive(sys.argv[1])
+    listen(sys.argv[1])
