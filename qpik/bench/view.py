@@ -172,7 +172,10 @@ def _client(kind: str, chromium, why: str, viewer):
             yield None, f"no client ({exc})"
             return
         with listener:
-            yield listener, "a websocket client in another process receiving every message, drawing nothing"
+            yield (
+                listener,
+                "a websocket client in another process, receiving and decoding every message, drawing nothing",
+            )
         return
     if chromium is None:
         yield None, f"no page ({why})"
