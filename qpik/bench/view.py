@@ -119,9 +119,9 @@ def run(args: argparse.Namespace) -> list[Row]:
                 with _client(args.client, chromium, why, viewer) as (listener, seen):
                     reached, delivered, process = 0, [], []
                     for pose in drag(robot, min(POSES, args.repeat), centre):
-                        received, cpu = time.perf_counter(), time.process_time()
+                        received, start = time.perf_counter(), time.process_time()
                         viewer.receive(pose, received)
-                        process.append(time.process_time() - cpu)
+                        process.append(time.process_time() - start)
                         if listener is not None:
                             delivered.append(listener.sync() - received)
                         best, numerical = viewer.state.best, viewer.state.numerical
