@@ -8,8 +8,9 @@ whether it connected):
   that connects as viser's page does and receives and decodes every message, drawing nothing: in use the page is
   on the user's own machine (a remote viewer is reached through a forwarded port), so the server is timed with
   the CPU it would have. Each pose is sent once the client has every message of the update before (a mark after
-  them, :meth:`~qpik.viewer.listener.Listener.sync`), and the note also gives each update's time to that mark's
-  arrival at the client: the messages sent, not only flushed.
+  them, :meth:`~qpik.viewer.listener.Listener.sync`; viser's page sends a dragged pose at most every 50 ms, so the
+  drag is no slower than a user's), and the note also gives each update's time to that mark's arrival at the client:
+  the messages sent, not only flushed.
 - ``browser``: a page of the viewer in headless Chromium (:mod:`qpik.viewer.browser`), drawn in software GL; its
   processes run at the lowest CPU priority (:func:`~qpik.viewer.browser.lower_priority`, Linux), but the page
   redraws continuously and takes most of a core of a small machine, which then stalls the server now and then.
