@@ -52,21 +52,19 @@ class Frame:
 
     Attributes:
         arrived: s, :func:`time.perf_counter` when the client had it.
-        sent: s, viser's ``timestampSec``: the server's :func:`time.perf_counter` when it serialised the frame.
         size: bytes on the wire.
         types: messages per viser message type (``"SetPositionMessage"``, ``"GuiUpdateMessage"``, …).
         mark: the count of the latest mark (:meth:`Listener.sync`) in the frame, or None.
     """
 
     arrived: float
-    sent: float
     size: int
     types: dict[str, int]
     mark: int | None
 
 
-def decode(frame: bytes) -> tuple[float, list[dict[str, Any]]]:
-    """viser's websocket frame → (its ``timestampSec``, its messages as dicts, each with its ``"type"``).
+def decode(frame: bytes) -> list[dict[str, Any]]:
+    """viser's websocket frame → its messages as dicts, each with its ``"type"``.
 
     The layout (viser's ``_message_producer``): the msgpack payload's size (8 bytes, little-endian), its
     zstd-compressed size (8 bytes), the compressed msgpack of ``{"messages", "timestampSec", "binaryBufferLengths"}``
@@ -88,7 +86,7 @@ def decode(frame: bytes) -> tuple[float, list[dict[str, Any]]]:
         body = msgspec.msgpack.decode(zstandard.ZstdDecompressor().decompress(frame[16 : 16 + packed], size))
     except (msgspec.DecodeError, zstandard.ZstdError) as exc:
         raise ViewerError(f"a viser frame does not decode: {exc}") from None
-    return float(body["timestampSec"]), list(body["messages"])
+    return list(body["messages"])
 
 
 def _mark_of(messages: list[dict[str, Any]]) -> int | None:
@@ -124,9 +122,9 @@ def listen(url: str, out=sys.stdout) -> None:
             except ConnectionClosed:
                 return
             arrived = time.perf_counter()
-            sent, messages = decode(data)
+            messages = decode(data)
             types = collections.Counter(message["type"] for message in messages)
-            line = {"arrived": arrived, "sent": sent, "size": len(data), "types": types, "mark": _mark_of(messages)}
+            line = {"arrived": arrived, "size": len(data), "types": types, "mark": _mark_of(messages)}
             out.write(json.dumps(line) + "\n")
             out.flush()
 
