@@ -1,21 +1,32 @@
 """Bench: ``qpik view``'s update latency, from a dragged target pose received to the scene messages sent.
 
-For each arm a viewer (:class:`qpik.viewer.server.Viewer`) serves on a free local port, with a page of it
-open in a headless Chromium when one can be started (then the messages are really serialised and sent
-to a browser while the bench runs; the note says whether). The browser's processes run at the lowest CPU
-priority (:func:`~qpik.viewer.browser.lower_priority`, Linux): its software-GL redraw of the page takes most of
-a core of a small machine, and in use the page is on the user's own machine (a remote viewer is reached through
-a forwarded port), so the server is timed with the CPU it would have; the note says when the priority could not
-be lowered. A scripted drag of :data:`POSES` target poses (a loop of 8 cm around an end-effector pose,
-turning ±0.3 rad about z) goes through
-:meth:`~qpik.viewer.server.Viewer.receive`, the path of the target's drag callback: every branch at the
-slider's ψ/δ, the feasible sets, :func:`qpik.solve_best` without its certificate (which follows when a
+For each arm a viewer (:class:`qpik.viewer.server.Viewer`) serves on a free local port to one client, so that its
+messages are really serialised, compressed and sent while the bench runs (``--client``, the note says which and
+whether it connected):
+
+- ``socket`` (the default): :class:`qpik.viewer.listener.Listener`, a websocket client in a process of its own
+  that connects as viser's page does and receives and decodes every message, drawing nothing: in use the page is
+  on the user's own machine (a remote viewer is reached through a forwarded port), so the server is timed with
+  the CPU it would have. Each pose is sent once the client has every message of the update before (a mark after
+  them, :meth:`~qpik.viewer.listener.Listener.sync`; viser's page sends a dragged pose at most every 50 ms, so the
+  drag is no slower than a user's), and the note also gives each update's time to that mark's arrival at the client:
+  the messages sent, not only flushed.
+- ``browser``: a page of the viewer in headless Chromium (:mod:`qpik.viewer.browser`), drawn in software GL; its
+  processes run at the lowest CPU priority (:func:`~qpik.viewer.browser.lower_priority`, Linux), but the page
+  redraws continuously and takes most of a core of a small machine, which then stalls the server now and then.
+  The poses follow each other at once.
+
+A scripted drag of :data:`POSES` target poses (a loop of 8 cm around an end-effector pose, turning ±0.3 rad about
+z) goes through :meth:`~qpik.viewer.server.Viewer.receive`, the path of the target's drag callback: every branch at
+the slider's ψ/δ, the feasible sets, :func:`qpik.solve_best` without its certificate (which follows when a
 drag ends) or the numerical IK, the clearances, every scene and panel message, and the flush of the
 websocket buffers. Each update's time is from the pose's arrival to the flush. Every update is timed, the
 first one after the viewer's start included: its one-time preparation (compiles, traces) is done by then, the bench
 waiting for it as a user waits for the page (:meth:`~qpik.viewer.server.Viewer.wait`). The note also gives the CPU
-time of the thread drawing the updates: the latency less the time other threads and processes (the browser's page,
-which redraws continuously, and whatever else runs) held the CPU, so a latency far above it is load, not work.
+time of the thread drawing the updates (the latency less the time other threads and processes held the CPU, so a
+latency far above it is load, not work) and that of the server's whole process over each update, every thread: the
+feasible sets of a large search share their rows with a second thread (:class:`qpik.native.compiled.RowMap`), and
+viser's thread serialises and sends the messages.
 Arms: the catalog iiwa14
 (alone, and with the ball and table of ``problems/iiwa_obstacle_reach.toml``), the catalog Panda (closed form
 with q7 locked, its sets by a sweep), the KUKA iiwa URDF of ``pybullet_data`` (meshes, closed form found
@@ -41,8 +52,10 @@ from qpik.core.errors import QpikError
 TITLE = "Viewer update: target pose received → scene messages sent (qpik view, scripted drag poses)"
 POSES = 100
 BUDGET = 0.050  # s per update, the issue's target
+CLIENTS = ("socket", "browser")
+"""The clients ``--client`` chooses from (module docstring); the first is the default."""
 PAGE = (1280, 800)
-"""(width, height) px of the page open in Chromium while an arm is dragged."""
+"""(width, height) px of the page open in Chromium while an arm is dragged (``--client browser``)."""
 BENT = np.array([0.0, 0.6, 0.0, -1.4, 0.0, 0.8, 0.0])
 """(7,) rad: the bent configuration the URDF arm is also dragged around (shoulder, elbow and wrist bent)."""
 
@@ -86,32 +99,42 @@ def _arms() -> list[tuple[str, object, tuple, np.ndarray | None, str]]:
 
 def run(args: argparse.Namespace) -> list[Row]:
     from qpik.viewer import ViewerError
-    from qpik.viewer.browser import browser, lower_priority, open_page
+    from qpik.viewer.browser import browser
     from qpik.viewer.options import ViewOptions
     from qpik.viewer.server import Viewer
 
     rows = []
     with contextlib.ExitStack() as stack:
-        try:
-            chromium = stack.enter_context(browser())
-        except ViewerError as exc:
-            chromium, why = None, str(exc)
+        chromium, why = None, ""
+        if args.client == "browser":
+            try:
+                chromium = stack.enter_context(browser())
+            except ViewerError as exc:
+                why = str(exc)
         for label, robot, obstacles, centre, missing in _arms():
             if robot is None:
                 rows[-1].note += f"; {label} left out: {missing}"
                 continue
             with Viewer(robot, obstacles=obstacles, options=ViewOptions(port=0)) as viewer:
                 viewer.wait()
-                page = open_page(chromium, viewer, PAGE) if chromium is not None else None
-                lowered = lower_priority() if page is not None else 0
-                reached = 0
-                for pose in drag(robot, min(POSES, args.repeat), centre):
-                    viewer.receive(pose, time.perf_counter())
-                    best, numerical = viewer.state.best, viewer.state.numerical
-                    reached += numerical.status == "ok" if best is None else best.status != "unreachable"
+                with _client(args.client, chromium, why, viewer) as (listener, seen):
+                    reached, delivered, process = 0, [], []
+                    for pose in drag(robot, min(POSES, args.repeat), centre):
+                        received, start = time.perf_counter(), time.process_time()
+                        viewer.receive(pose, received)
+                        process.append(time.process_time() - start)
+                        if listener is not None:
+                            delivered.append(listener.sync() - received)
+                        best, numerical = viewer.state.best, viewer.state.numerical
+                        reached += numerical.status == "ok" if best is None else best.status != "unreachable"
+                    if listener is not None:
+                        frames = listener.frames
+                        mb = sum(f.size for f in frames) / 1e6
+                        d = np.array(delivered)
+                        seen += (f"; pose → the update's last message at the client: median {np.median(d) * 1e3:.1f}"
+                                 f" ms, worst {d.max() * 1e3:.1f} ms, {int(np.sum(d <= BUDGET))}/{len(d)} ≤ "
+                                 f"{BUDGET * 1e3:.0f} ms ({len(frames)} frames, {mb:.1f} MB received)")  # fmt: skip
                 t, cpu = np.array(viewer.latencies), np.array(viewer.cpu_times)
-                if page is not None:
-                    page.close()
             p95 = float(np.percentile(t, 95))
             within = int(np.sum(t <= BUDGET))
             what = (
@@ -119,8 +142,6 @@ def run(args: argparse.Namespace) -> list[Row]:
                 if not robot.branch_functions
                 else f"{len(viewer.state.branches)} branches, feasible sets, solve_best {viewer.state.best.method}"
             )
-            priority = "at the lowest CPU priority" if lowered else "its priority not lowered"
-            seen = f"a page open in headless Chromium ({priority})" if page is not None else f"no page ({why})"
             rows.append(
                 Row(
                     f"{label}: pose → scene",
@@ -128,8 +149,41 @@ def run(args: argparse.Namespace) -> list[Row]:
                     p99=float(np.percentile(t, 99)),
                     worst=float(t.max()),
                     note=f"p95 {p95 * 1e3:.1f} ms; {within}/{len(t)} ≤ {BUDGET * 1e3:.0f} ms; CPU of the update "
-                    f"median {np.median(cpu) * 1e3:.1f} ms, worst {cpu.max() * 1e3:.1f} ms; {reached}/{len(t)} poses "
-                    f"reached; {what}; {seen}",
+                    f"median {np.median(cpu) * 1e3:.1f} ms, worst {cpu.max() * 1e3:.1f} ms (the drawing thread; the "
+                    f"server's process, every thread: median {np.median(process) * 1e3:.1f} ms, worst "
+                    f"{max(process) * 1e3:.1f} ms); {reached}/{len(t)} poses reached; {what}; {seen}",
                 )
             )
     return rows
+
+
+@contextlib.contextmanager
+def _client(kind: str, chromium, why: str, viewer):
+    """The client of ``viewer`` while it is dragged (module docstring): yields the
+    :class:`~qpik.viewer.listener.Listener` (None with the browser or without a client) and the note's words on
+    the client; ``chromium``: the browser of ``--client browser`` (None: it did not start, ``why``)."""
+    from qpik.viewer import ViewerError
+    from qpik.viewer.browser import lower_priority, open_page
+    from qpik.viewer.listener import Listener
+
+    if kind == "socket":
+        try:
+            listener = Listener(viewer)
+        except ViewerError as exc:
+            yield None, f"no client ({exc})"
+            return
+        with listener:
+            yield (
+                listener,
+                "a websocket client in another process, receiving and decoding every message, drawing nothing",
+            )
+        return
+    if chromium is None:
+        yield None, f"no page ({why})"
+        return
+    page = open_page(chromium, viewer, PAGE)
+    priority = "at the lowest CPU priority" if lower_priority() else "its priority not lowered"
+    try:
+        yield None, f"a page open in headless Chromium ({priority}), the poses at once"
+    finally:
+        page.close()

@@ -10,6 +10,7 @@ from qpik.cli.args import Subcommands
 
 def register(sub: Subcommands) -> None:
     from qpik.bench import BENCHES
+    from qpik.bench.view import CLIENTS
 
     p = sub.add_parser("bench", help="time qpik next to mink, ssik and other solvers")
     p.add_argument("which", nargs="*", metavar="BENCH", help=f"benches to run: {', '.join(BENCHES)} (default: all)")
@@ -18,6 +19,14 @@ def register(sub: Subcommands) -> None:
         type=int,
         default=2000,
         help="the benches' size: timed calls of the fast rows, fewer of the slow ones (default: 2000)",
+    )
+    p.add_argument(
+        "--client",
+        choices=CLIENTS,
+        default=CLIENTS[0],
+        help="the view bench's client of the viewer: a websocket client in another process that receives and decodes "
+        "every message, drawing nothing (socket, default), or the page in headless Chromium, drawn in software GL "
+        "(browser)",
     )
     p.set_defaults(func=_run)
 

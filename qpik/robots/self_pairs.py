@@ -123,7 +123,13 @@ def default_allowed(robot: Robot, samples: int = SAMPLES, seed: int = 0, margin:
 def never_apart(robot: Robot, d_safe: float, samples: int = SAMPLES, seed: int = 0) -> frozenset[Pair]:
     """The candidate pairs closer than ``d_safe`` (m) at every one of ``samples`` seeded configurations: MoveIt's
     "always in collision" at the clearance d_safe (capsules fitted to meshes wrap a link around its neighbour's
-    neighbour), which no configuration keeps d_safe apart (the samples of :func:`default_allowed`)."""
+    neighbour), which no configuration keeps d_safe apart (the samples of :func:`default_allowed`); built once per
+    robot and arguments (``robot.cache``: every :meth:`qpik.Scene.of` asks for it)."""
+    key = ("self-collision never apart", float(d_safe), samples, seed)
+    return robot.cache.get(key, _never_apart, robot, float(d_safe), samples, seed)
+
+
+def _never_apart(robot: Robot, d_safe: float, samples: int, seed: int) -> frozenset[Pair]:
     d = robot.cache.get(("self-collision samples", samples, seed), _sampled, robot, samples, seed)
     return frozenset(p for p, a in zip(candidate_pairs(robot), np.all(d < d_safe, axis=0)) if a)
 

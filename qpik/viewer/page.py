@@ -235,13 +235,13 @@ class Page:
 
     def draw_capsules(self, q: np.ndarray, dist: Distances | None) -> None:
         """The capsules at q (n,) and, per obstacle, the segment to its nearest capsule with the distance:
-        ``dist`` (computed at q when None)."""
+        ``dist`` (computed at q when None). Nothing without obstacles: the capsules are shown only with them."""
+        if not len(self.obstacles):
+            return
         F = self.robot.frames(q)
         for handle, link, local in self.capsules:
             T = F[link] @ local
             handle.position, handle.wxyz = T[:3, 3], wxyz(T[:3, :3])
-        if not len(self.obstacles):
-            return
         if dist is None:
             from qpik.geometry.distance import distances
 

@@ -100,8 +100,6 @@ def test_bench_prints_every_row(name, monkeypatch):
     expected = EXPECTED[name]
     if name == "view":
         pytest.importorskip("viser", reason="viser is not installed (pip install 'qpik[view]')")
-        # a small page: its software-rendered pictures (the wait until it is drawn) cost a fraction of the full size's
-        monkeypatch.setattr(module, "PAGE", (480, 300))
         if not LARGE:
             arms = module._arms
             monkeypatch.setattr(module, "_arms", lambda: [arm for arm in arms() if arm[0] not in VIEW_LARGE])
@@ -111,7 +109,8 @@ def test_bench_prints_every_row(name, monkeypatch):
         expected = [label for label in expected if not label.startswith("xArm7")]
     if name == "controller" and not LARGE:  # the URDF's rows (not in EXPECTED) in the large run only
         monkeypatch.setattr(module, "LOADED", "pybullet/no such arm")
-    rows = module.run(argparse.Namespace(repeat=20 if name == "view" else 100))
+    args = argparse.Namespace(repeat=20, client="socket") if name == "view" else argparse.Namespace(repeat=100)
+    rows = module.run(args)
     labels = [row.label for row in rows]
     for want in expected:
         assert want in labels, f"{name}: no row {want!r}"
@@ -139,6 +138,8 @@ def test_bench_prints_every_row(name, monkeypatch):
     if name == "view":  # every arm's drag updates were timed, with their p95 against the 50 ms budget
         assert all("p95" in row.note and "/20 ≤ 50 ms" in row.note and "/20 poses reached" in row.note for row in rows)
         assert all("CPU of the update median" in row.note for row in rows)
+        # the websocket client received every update: the time to its last message is given for each pose
+        assert all("drawing nothing" in row.note and "/20 ≤ 50 ms (" in row.note for row in rows)
         for bent in (row for row in rows if row.label.startswith("URDF pybullet kuka_iiwa, bent")):
             assert "20/20 poses reached" in bent.note  # the bent drag stays in reach
     if name == "plan":  # the planned path passes every check, and the quoted peer says it is quoted

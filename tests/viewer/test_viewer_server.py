@@ -1,4 +1,5 @@
-"""qpik.viewer.server without a browser: a drag event, playback of a simulation log, live mode, the port check.
+"""qpik.viewer.server without a browser: a drag event, playback of a simulation log, live mode, the port check, a
+websocket client (qpik.viewer.listener).
 
 The scene is read from viser's server-side handles and checked against MuJoCo's kinematics of the model
 and qpik's forward kinematics; quaternions of the drag events are made by scipy.
@@ -158,3 +159,40 @@ def test_the_panel_names_the_locked_joint_the_solver_takes():
     finally:
         with contextlib.redirect_stdout(io.StringIO()):
             server.stop()
+
+
+def test_websocket_client_receives_the_scene_and_every_update(iiwa):
+    """A Listener (viser's websocket from another process) is counted by the server as a client and receives the
+    page's scene, counted from the arm's model: a mesh per part of the solid arm, of the gold best answer and per
+    capsule, a batched mesh per ghost part, one target control; then, for a drag update, before its mark, a new
+    orientation of every moving body of the solid arm and the ghosts' new poses. Closed, it is no client."""
+    from collections import Counter
+
+    from qpik.viewer.listener import Listener
+
+    robot, bodies = iiwa.robot, iiwa.geometry.bodies
+    parts = sum(len(body.parts) for body in bodies)
+    before = len(iiwa.server.get_clients())
+    with Listener(iiwa) as client:
+        assert len(iiwa.server.get_clients()) == before + 1
+        client.sync()
+        scene = Counter()
+        for frame in client.frames:
+            scene.update(frame.types)
+        assert scene["MeshMessage"] == 2 * parts + len(robot.capsules)
+        assert scene["BatchedMeshesMessage"] == parts
+        assert scene["TransformControlsMessage"] == 1
+        seen = len(client.frames)
+        received = time.perf_counter()
+        iiwa.receive(robot.fk(random_q(robot, 1, 5)[0]), received)
+        assert client.sync() > received
+        update = Counter()
+        for frame in client.frames[seen:]:
+            update.update(frame.types)
+        assert update["SetOrientationMessage"] >= sum(body.moving for body in bodies)
+        assert update["SceneNodeUpdateMessage"] >= parts  # per ghost part, its instances' poses
+        assert client.frames[-1].mark == 2
+    deadline = time.monotonic() + 10.0  # the server drops the client once its process has ended
+    while len(iiwa.server.get_clients()) > before and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert len(iiwa.server.get_clients()) == before
