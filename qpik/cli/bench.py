@@ -25,8 +25,8 @@ def register(sub: Subcommands) -> None:
         choices=CLIENTS,
         default=CLIENTS[0],
         help="the view bench's client of the viewer: a websocket client in another process that receives and decodes "
-        "every message, drawing nothing (socket, default), or the page in headless Chromium, drawn in software GL "
-        "(browser)",
+        "every message, drawing nothing (socket), or the page in headless Chromium, drawn in software GL (browser); "
+        f"default: {CLIENTS[0]}",
     )
     p.set_defaults(func=_run)
 
