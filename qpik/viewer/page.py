@@ -142,7 +142,8 @@ class Page:
         symbol = param_symbol(closed_form_for(robot).param_name) if closed else ""
         self.symbol = symbol
         kind = {"srs": "S-R-S, closed form in the arm angle ψ", "offset_shoulder": "offset shoulder, closed form in δ",
-                "locked_joint": f"closed form with {symbol} locked"}  # fmt: skip
+                "locked_joint": f"closed form with {symbol} locked",
+                "locked_search": "no closed form (qpik.ik: a 1-D search); shown by the numerical IK"}  # fmt: skip
         what = kind.get(robot.closed_form or "", "no closed form")
         gui.add_markdown(f"**{robot.name}** ({robot.dof} joints): {what}")
         with gui.add_folder("Branches", visible=closed):
