@@ -30,7 +30,11 @@ import casadi as ca
 from qpik.core.errors import InputError
 from qpik.core.progress import QUIET, TICK
 
-CFLAGS = ("-shared", "-fPIC")
+CFLAGS = ("-shared", "-fPIC", "-fno-semantic-interposition")
+"""Flags of every library. ``-fno-semantic-interposition`` lets the compiler inline the small helpers that CasADi's
+generated C defines with external linkage (``casadi_fmin``, ``casadi_fabs``, ``casadi_sq``, ...), which a
+position-independent library otherwise calls through its procedure linkage table at every use: a Taylor model's
+code is mostly such calls. It changes no result (no arithmetic is reordered or contracted by it)."""
 _native_failed: str | None = None  # why native compilation is off in this process
 
 
