@@ -104,6 +104,11 @@ ROUNDS = 80
 """Rounds of the search before the answer is left unproved."""
 MAX_CELLS = 4096
 """Cells (of all branches) in a round above which the answer is left unproved."""
+GONE, DONE, TOUCHED, NARROW, HALVE = range(5)
+"""The fates of a cell in a round (:func:`step_function`): discarded, a window of roots (a candidate), its ends
+candidates, replaced by its window, its window halved."""
+CHUNKS = (64, 16, 4)
+"""Rows per compiled call of the step (:class:`~qpik.native.compiled.RowMap`)."""
 POLISH = 3
 """Rounds of :func:`~qpik.analytic.polish.polish` (each of its Newton steps) from a candidate."""
 SAME = 1e-8
@@ -186,8 +191,10 @@ class LockedSearch:
         T, q7, x, sign = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("x"), ca.SX.sym("sign", 2)
         R, p = sy.frame_of_batch(T)
         e, valid, _ = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)
-        self._model = RowMap(taylor_function(ca.Function("locked_search", [T, q7, x, sign], [ca.vertcat(e, valid)]),
-                                             [2]), shared=[0, 1])  # fmt: skip
+        model = taylor_function(ca.Function("locked_search", [T, q7, x, sign], [ca.vertcat(e, valid)]), [2])
+        self._step = RowMap(step_function(model), shared=[0, 1], chunks=CHUNKS)
+        """One round's step of a cell of a branch (:func:`step_function`), compiled, over rows of cells (the pose and
+        the locked angle shared)."""
         _, _, trig = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)
         joints, residual = [ca.atan2(s, c) for c, s in trig] + [q7], None
         for _ in range(POLISH):
@@ -286,30 +293,16 @@ class LockedSearch:
         B = len(SIGNS)
         a, b, k = np.repeat(edges[:-1], B), np.repeat(edges[1:], B), np.tile(np.arange(B), CELLS)
         found, which = [], []
-        Tf = Ts.reshape(-1, order="F")
+        Tf, angle = Ts.reshape(-1, order="F"), np.array([q7])
         for _ in range(rounds):
             if not a.size or a.size > MAX_CELLS:
                 break
-            x, y = a[:, None], b[:, None]
-            c0, c1, r, lo, hi = self._model(Tf, np.array([q7]), 0.5 * (x + y), SIGNS[k], 0.5 * (y - x),
-                                            np.zeros_like(x), x, y)  # fmt: skip
-            f0, f1, rest = c0[:, 0], c1[:, 0], r[:, 0] + SLACK
-            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-                t1, t2 = (-f0 - rest) / f1, (-f0 + rest) / f1
-            flat = ~(np.abs(f1) > 0) | ~np.isfinite(rest)
-            t1, t2 = np.where(flat, -1.0, np.minimum(t1, t2)), np.where(flat, 1.0, np.maximum(t1, t2))
-            t1, t2 = np.maximum(t1, -1.0), np.minimum(t2, 1.0)
-            m, w = 0.5 * (a + b), 0.5 * (b - a)
-            x1, x2 = m + w * t1, m + w * t2
-            outside = (lo[:, 0] > SLACK) | (hi[:, 0] < -SLACK) | (hi[:, 1] < -SLACK)
-            gone = (t1 > t2) | outside | (flat & (np.abs(f0) > rest))
-            done = ~gone & (x2 - x1 <= WINDOW)
-            touch = ~gone & ~done & (np.abs(f0) + np.abs(f1) + rest <= TOUCH)
+            (out,) = self._step(Tf, angle, a, b, SIGNS[k])
+            x1, x2, fate = out.T
+            done, touch = fate == DONE, fate == TOUCHED
             found += [0.5 * (x1 + x2)[done], a[touch], b[touch]]
             which += [k[done], k[touch], k[touch]]
-            live = ~gone & ~done & ~touch
-            narrow = live & (x2 - x1 <= w)
-            halve = live & ~narrow
+            narrow, halve = fate == NARROW, fate == HALVE
             mid = 0.5 * (x1 + x2)[halve]
             a = np.concatenate([x1[narrow], x1[halve], mid])
             b = np.concatenate([x2[narrow], mid, x2[halve]])
@@ -320,6 +313,40 @@ class LockedSearch:
         if not found:
             return np.zeros(0), np.zeros(0, int), bool(a.size)
         return np.concatenate(found), np.concatenate(which).astype(int), bool(a.size)
+
+
+def step_function(model: ca.Function) -> ca.Function:
+    r"""One round of the search on one cell of one branch (module docstring), from ``model``, the Taylor models
+    (:func:`~qpik.algebra.enclosure.taylor_function` in x) of :math:`(e_b, v_b)` of inputs (T, q7, x, signs).
+
+    Inputs: T (4, 4; the search's pose, column-major per row), q7 (rad), the cell's ends a < b (rad), the branch's
+    signs (σ3, σ12). Output (3,): the window :math:`[x_1, x_2]` of the cell where :math:`|f_0 + f_1 t| \le r +`
+    :data:`SLACK` (the whole cell where the model has no slope, no finite remainder or no centre) and the cell's fate:
+    :data:`GONE` (the window is empty, or the bounds of :math:`e_b` exclude 0, or :math:`v_b < 0` over the cell),
+    :data:`DONE` (the window is at most :data:`WINDOW` wide), :data:`TOUCHED` (:math:`|e_b| \le` :data:`TOUCH`
+    over the cell), :data:`NARROW` (the window is at most half the cell) or :data:`HALVE`.
+    """
+    T, q7, a, b, sign = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("a"), ca.SX.sym("b"), ca.SX.sym("sign", 2)
+    m, w = 0.5 * (a + b), 0.5 * (b - a)
+    c, s, r, lo, hi = model(T, q7, m, sign, w, 0.0, a, b)
+    f0, f1, rest = c[0], s[0], r[0] + SLACK
+    t1, t2 = (-f0 - rest) / f1, (-f0 + rest) / f1
+    flat = ca.logic_or(ca.logic_not(ca.fabs(f1) > 0), ca.logic_not(ca.fabs(rest) < ca.inf))
+    t1, t2 = ca.if_else(flat, -1.0, ca.fmin(t1, t2)), ca.if_else(flat, 1.0, ca.fmax(t1, t2))
+    t1, t2 = ca.fmax(t1, -1.0), ca.fmin(t2, 1.0)
+    x1, x2 = m + w * t1, m + w * t2
+    outside = ca.logic_or(ca.logic_or(lo[0] > SLACK, hi[0] < -SLACK), hi[1] < -SLACK)
+    gone = ca.logic_or(ca.logic_or(t1 > t2, outside), ca.logic_and(flat, ca.fabs(f0) > rest))
+    fate = ca.if_else(
+        gone,
+        GONE,
+        ca.if_else(
+            x2 - x1 <= WINDOW,
+            DONE,
+            ca.if_else(ca.fabs(f0) + ca.fabs(f1) + rest <= TOUCH, TOUCHED, ca.if_else(x2 - x1 <= w, NARROW, HALVE)),
+        ),
+    )
+    return ca.Function("locked_search_step", [T, q7, a, b, sign], [ca.vertcat(x1, x2, fate)])
 
 
 def slots(branch: np.ndarray, q4: np.ndarray) -> np.ndarray:
