@@ -183,6 +183,7 @@ class RowMap:
         self, fn: ca.Function, shared: Sequence[int] = (), chunks: tuple[int, ...] = (32, 4), threads: int = 1
     ):
         self.fn, self.shared, self.chunks = fn, tuple(shared), chunks
+        self._widths = [fn.nnz_out(k) for k in range(fn.n_out())]
         self.threads = max(1, min(int(threads), cores()))
         self._lock = threading.Lock()
         self._library: tuple[Path | None, list[tuple[int, ca.Function]]] | None = None
@@ -226,7 +227,7 @@ class RowMap:
         shared = self.shared
         per_row = [(k, np.asarray(a, dtype=float).reshape(len(a), -1)) for k, a in enumerate(args) if k not in shared]
         M = len(per_row[0][1]) if per_row else 1
-        outs = [np.empty((M, self.fn.nnz_out(k))) for k in range(self.fn.n_out())]
+        outs = [np.empty((M, width)) for width in self._widths]
         big = self.chunks[0]
         runs = self.threads if self.threads * big <= M else 1
         ends = [big * round(M * r / (runs * big)) for r in range(runs)] + [M]  # runs of whole big chunks
@@ -241,13 +242,16 @@ class RowMap:
     def _fill(self, maps, args, per_row, outs: list[np.ndarray], start: int, stop: int) -> None:
         """Rows ``start:stop`` of ``outs`` from the buffers ``maps`` of one run."""
         shared, chunks = self.shared, self.chunks
+        given = set()  # the sizes whose buffers hold this call's shared inputs
         i = start
         while i < stop:
             size = next((n for n in chunks[:-1] if stop - i > 3 * n // 4), chunks[-1])
             m = min(size, stop - i)
             call, ins, res = maps[size]
-            for k in shared:
-                call.arguments[k][:] = np.ravel(args[k])
+            if size not in given:
+                given.add(size)
+                for k in shared:
+                    call.arguments[k][:] = np.ravel(args[k])
             for k, rows in per_row:
                 buf = ins[k]
                 buf[:m] = rows[i : i + m]
