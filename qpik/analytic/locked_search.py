@@ -76,7 +76,7 @@ import casadi as ca
 import numpy as np
 
 from qpik.algebra import symbolic as sy
-from qpik.algebra.enclosure import taylor_function
+from qpik.algebra.enclosure import DONE, HALVE, NARROW, TOUCHED, isolation_step, taylor_function
 from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
 from qpik.analytic.locked_joint import _v, rotate, rotation, subproblem1, subproblem2
 from qpik.analytic.polish import RESIDUAL_TOL, polish
@@ -106,9 +106,6 @@ ROUNDS = 80
 """Rounds of the search before the answer is left unproved."""
 MAX_CELLS = 4096
 """Cells (of all branches) in a round above which the answer is left unproved."""
-GONE, DONE, TOUCHED, NARROW, HALVE = range(5)
-"""The fates of a cell in a round (:func:`step_function`): discarded, a window of roots (a candidate), its ends
-candidates, replaced by its window, its window halved."""
 CHUNKS = (64, 16, 4)
 """Rows per compiled call of the step (:class:`~qpik.native.compiled.RowMap`)."""
 POLISH = 3
@@ -197,12 +194,10 @@ class LockedSearch:
         self._step = RowMap(step_function(model), shared=[0, 1], chunks=CHUNKS)
         """One round's step of a cell of a branch (:func:`step_function`), compiled, over rows of cells (the pose and
         the locked angle shared)."""
-        reach = taylor_function(ca.Function("locked_search_reach", [T, q7, x], [self.reach(R, p, q7, x, sy.CASADI)]),
-                                [2])  # fmt: skip
+        reach = ca.Function("locked_search_reach", [T, q7, x], [self.reach(R, p, q7, x, sy.CASADI)])
         a, b = ca.SX.sym("a"), ca.SX.sym("b")
-        top = reach(T, q7, 0.5 * (a + b), 0.5 * (b - a), 0.0, a, b)[4] + EPS
-        self._reach = RowMap(ca.Function("locked_search_reach_cells", [T, q7, a, b], [top]), shared=[0, 1],
-                             chunks=CHUNKS)  # fmt: skip
+        top = taylor_function(reach, [2])(T, q7, 0.5 * (a + b), 0.5 * (b - a), 0.0, a, b)[4] + EPS
+        self._reach = RowMap(ca.Function("locked_search_reach_cells", [T, q7, a, b], [top]), [0, 1], CHUNKS)
         """The upper bound over a cell [a, b] of x of :meth:`reach` + :data:`~qpik.analytic.trig.EPS` (its Taylor
         model's), which bounds every branch's validity: compiled, over rows of cells."""
         _, _, trig = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)
@@ -347,37 +342,14 @@ class LockedSearch:
 
 
 def step_function(model: ca.Function) -> ca.Function:
-    r"""One round of the search on one cell of one branch (module docstring), from ``model``, the Taylor models
-    (:func:`~qpik.algebra.enclosure.taylor_function` in x) of :math:`(e_b, v_b)` of inputs (T, q7, x, signs).
-
-    Inputs: T (4, 4; the search's pose, column-major per row), q7 (rad), the cell's ends a < b (rad), the branch's
-    signs (σ3, σ12). Output (3,): the window :math:`[x_1, x_2]` of the cell where :math:`|f_0 + f_1 t| \le r +`
-    :data:`SLACK` (the whole cell where the model has no slope, no finite remainder or no centre) and the cell's fate:
-    :data:`GONE` (the window is empty, or the bounds of :math:`e_b` exclude 0, or :math:`v_b < 0` over the cell),
-    :data:`DONE` (the window is at most :data:`WINDOW` wide), :data:`TOUCHED` (:math:`|e_b| \le` :data:`TOUCH`
-    over the cell), :data:`NARROW` (the window is at most half the cell) or :data:`HALVE`.
-    """
+    """One round of the search on a cell of a branch (:func:`~qpik.algebra.enclosure.isolation_step` with :data:`SLACK`,
+    :data:`WINDOW`, :data:`TOUCH`; gone too where :math:`v_b < 0` over the cell) from ``model``, the Taylor models in x
+    of :math:`(e_b, v_b)` of inputs (T, q7, x, signs). Inputs: T (4, 4; the search's pose, column-major), q7 (rad),
+    the cell's ends a < b (rad), the signs (σ3, σ12). Output (3,): the window's ends (rad), the cell's fate."""
     T, q7, a, b, sign = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("a"), ca.SX.sym("b"), ca.SX.sym("sign", 2)
-    m, w = 0.5 * (a + b), 0.5 * (b - a)
-    c, s, r, lo, hi = model(T, q7, m, sign, w, 0.0, a, b)
-    f0, f1, rest = c[0], s[0], r[0] + SLACK
-    t1, t2 = (-f0 - rest) / f1, (-f0 + rest) / f1
-    flat = ca.logic_or(ca.logic_not(ca.fabs(f1) > 0), ca.logic_not(ca.fabs(rest) < ca.inf))
-    t1, t2 = ca.if_else(flat, -1.0, ca.fmin(t1, t2)), ca.if_else(flat, 1.0, ca.fmax(t1, t2))
-    t1, t2 = ca.fmax(t1, -1.0), ca.fmin(t2, 1.0)
-    x1, x2 = m + w * t1, m + w * t2
-    outside = ca.logic_or(ca.logic_or(lo[0] > SLACK, hi[0] < -SLACK), hi[1] < -SLACK)
-    gone = ca.logic_or(ca.logic_or(t1 > t2, outside), ca.logic_and(flat, ca.fabs(f0) > rest))
-    fate = ca.if_else(
-        gone,
-        GONE,
-        ca.if_else(
-            x2 - x1 <= WINDOW,
-            DONE,
-            ca.if_else(ca.fabs(f0) + ca.fabs(f1) + rest <= TOUCH, TOUCHED, ca.if_else(x2 - x1 <= w, NARROW, HALVE)),
-        ),
-    )
-    return ca.Function("locked_search_step", [T, q7, a, b, sign], [ca.vertcat(x1, x2, fate)])
+    c, s, r, lo, hi = model(T, q7, 0.5 * (a + b), sign, 0.5 * (b - a), 0.0, a, b)
+    step = isolation_step(a, b, (c[0], s[0], r[0], lo[0], hi[0]), hi[1] < -SLACK, SLACK, WINDOW, TOUCH)
+    return ca.Function("locked_search_step", [T, q7, a, b, sign], [ca.vertcat(*step)])
 
 
 def slots(branch: np.ndarray, q4: np.ndarray) -> np.ndarray:
