@@ -230,6 +230,9 @@ class RowMap:
         outs = [np.empty((M, width)) for width in self._widths]
         big = self.chunks[0]
         runs = self.threads if self.threads * big <= M else 1
+        if runs == 1:
+            self._fill(self._maps(), args, per_row, outs, 0, M)
+            return outs
         ends = [big * round(M * r / (runs * big)) for r in range(runs)] + [M]  # runs of whole big chunks
         work = [(self._maps(r), ends[r], ends[r + 1]) for r in range(runs)]
         others = [pool().submit(self._fill, maps, args, per_row, outs, i, j) for maps, i, j in work[1:]]
