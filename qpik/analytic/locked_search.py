@@ -107,7 +107,7 @@ ROUNDS = 80
 MAX_CELLS = 4096
 """Cells (of all branches) in a round above which the answer is left unproved."""
 CHUNKS = (64, 16, 4)
-"""Rows per compiled call of the step (:class:`~qpik.native.compiled.RowMap`)."""
+"""Rows per compiled call of the step and of the reach (:class:`~qpik.native.compiled.RowMap`)."""
 POLISH = 3
 """Rounds of :func:`~qpik.analytic.polish.polish` (each of its Newton steps) from a candidate."""
 SAME = 1e-8
