@@ -25,7 +25,8 @@ wide ones.
 models, Makino & Berz 2003, in one variable: :mod:`qpik.algebra.taylor_models`, with the angle
 tags of :mod:`qpik.algebra.angle_tags`) beside its interval bounds, so that the
 correlation of every value with t survives, and the width of the bounds is second order in
-the range's size.
+the range's size. :func:`isolation_step` is one round of the isolation of a function's roots over a cell by
+such a model (its window of roots and what becomes of the cell).
 """
 
 from __future__ import annotations
@@ -181,6 +182,38 @@ def _taylor(fn: ca.Function, boxed: list[int], name: str | None) -> ca.Function:
         slot[res[0]] = k
     inputs = centre + [x for i in boxed for x in extra[i]]
     return ca.Function(name or f"{fn.name()}_taylor", inputs, [x for part in out for x in part])
+
+
+GONE, DONE, TOUCHED, NARROW, HALVE = range(5)
+"""The fates of a cell in a round of :func:`isolation_step`."""
+
+
+def isolation_step(
+    a: ca.SX, b: ca.SX, model: tuple[ca.SX, ...], away: ca.SX, slack: float, window: float, touch: float
+) -> tuple[ca.SX, ca.SX, ca.SX]:
+    r"""One round of the isolation of the roots of a function f over the cell [a, b] (Moore 1966; Makino & Berz
+    2003), in SX: its window and its fate.
+
+    ``model`` is f's Taylor model over the cell (:func:`taylor_function`, the cell ``(a + b)/2 + (b − a)/2·t``):
+    centre :math:`f_0`, slope :math:`f_1`, remainder r, bounds lo, hi; ``away`` is true where the cell surely holds
+    no root of interest on other grounds. The window is the part of the cell where :math:`|f_0 + f_1 t| \le r +`
+    ``slack``, its ends :math:`x_1 \le x_2` (the whole cell where the model has no slope, no finite remainder or no
+    centre), and the fate :data:`GONE` (the window is empty, or the bounds exclude 0 by more than ``slack``, or
+    ``away``), :data:`DONE` (the window is at most ``window`` wide: it holds the roots), :data:`TOUCHED` (:math:`|f|
+    \le` ``touch`` over the cell: its ends are roots), :data:`NARROW` (the window is at most half the cell: the next
+    cell) or :data:`HALVE` (the window's halves are the next cells). Returns :math:`(x_1, x_2,` fate).
+    """
+    f0, f1, rest, lo, hi = model[0], model[1], model[2] + slack, model[3], model[4]
+    m, w = 0.5 * (a + b), 0.5 * (b - a)
+    t1, t2 = (-f0 - rest) / f1, (-f0 + rest) / f1
+    flat = ca.logic_or(ca.logic_not(ca.fabs(f1) > 0), ca.logic_not(ca.fabs(rest) < ca.inf))
+    t1, t2 = ca.if_else(flat, -1.0, ca.fmin(t1, t2)), ca.if_else(flat, 1.0, ca.fmax(t1, t2))
+    t1, t2 = ca.fmax(t1, -1.0), ca.fmin(t2, 1.0)
+    x1, x2 = m + w * t1, m + w * t2
+    outside = ca.logic_or(ca.logic_or(lo > slack, hi < -slack), away)
+    gone = ca.logic_or(ca.logic_or(t1 > t2, outside), ca.logic_and(flat, ca.fabs(f0) > rest))
+    small = ca.if_else(ca.fabs(f0) + ca.fabs(f1) + rest <= touch, TOUCHED, ca.if_else(x2 - x1 <= w, NARROW, HALVE))
+    return x1, x2, ca.if_else(gone, GONE, ca.if_else(x2 - x1 <= window, DONE, small))
 
 
 _DERIVING = (angles, iv, tm, sys.modules[__name__])

@@ -26,12 +26,14 @@ variable :math:`x = q_4`:
 Taylor models over cells of x (:func:`qpik.algebra.enclosure.taylor_function`, compiled and mapped over rows of
 cells and branches, :class:`~qpik.native.compiled.RowMap`) isolate the roots as
 :mod:`qpik.analytic.locked_joint_intervals` does (Moore 1966; Makino & Berz 2003): from :data:`CELLS` cells over the
-circle, a cell is discarded where the model's window :math:`|f_0 + f_1 t| \le r +` :data:`SLACK` is empty or the
-bounds exclude 0 or the branch's validity is below 0 over the cell, replaced by that window where it is at most
-half as wide, else halved; a window narrower than :data:`WINDOW` holds a root (its centre), and so do the ends of a
-cell where :math:`|e_b|` stays within :data:`TOUCH` of 0 (a double root). Every root of every :math:`e_b` is then
-within :data:`WINDOW` of a candidate, unless the search ran out of its budget (:data:`ROUNDS`, :data:`MAX_CELLS`;
-``proved`` False). Where the validity vanishes inside a window the square roots of the subproblems have no slope and
+circle, less those where the Taylor model of q3's relative discriminant (:meth:`LockedSearch.reach`, a bound of every
+branch's validity) is below 0 (no branch has a q3 there: the elbow cannot reach the wrist; most of the circle), a
+cell is discarded where the model's window :math:`|f_0 + f_1 t| \le r +` :data:`SLACK` is empty or the bounds
+exclude 0 or the branch's validity is below 0 over the cell, replaced by that window where it is at most half as
+wide, else halved; a window narrower than :data:`WINDOW` holds a root (its centre), and so do the ends of a cell where
+:math:`|e_b|` stays within :data:`TOUCH` of 0 (a double root). Every root of every :math:`e_b` is then within
+:data:`WINDOW` of a candidate, unless the search ran out of its budget (:data:`ROUNDS`, :data:`MAX_CELLS`; ``proved``
+False). Where the validity vanishes inside a window the square roots of the subproblems have no slope and
 the cell is halved down to :data:`WINDOW` like any other.
 
 **Machine precision.** Each candidate's joints (q5, q6 by subproblem 1 on the rotation left) start :data:`POLISH`
@@ -74,7 +76,7 @@ import casadi as ca
 import numpy as np
 
 from qpik.algebra import symbolic as sy
-from qpik.algebra.enclosure import taylor_function
+from qpik.algebra.enclosure import DONE, HALVE, NARROW, TOUCHED, isolation_step, taylor_function
 from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
 from qpik.analytic.locked_joint import _v, rotate, rotation, subproblem1, subproblem2
 from qpik.analytic.polish import RESIDUAL_TOL, polish
@@ -104,6 +106,8 @@ ROUNDS = 80
 """Rounds of the search before the answer is left unproved."""
 MAX_CELLS = 4096
 """Cells (of all branches) in a round above which the answer is left unproved."""
+CHUNKS = (64, 16, 4)
+"""Rows per compiled call of the step and of the reach (:class:`~qpik.native.compiled.RowMap`)."""
 POLISH = 3
 """Rounds of :func:`~qpik.analytic.polish.polish` (each of its Newton steps) from a candidate."""
 SAME = 1e-8
@@ -186,8 +190,16 @@ class LockedSearch:
         T, q7, x, sign = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("x"), ca.SX.sym("sign", 2)
         R, p = sy.frame_of_batch(T)
         e, valid, _ = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)
-        self._model = RowMap(taylor_function(ca.Function("locked_search", [T, q7, x, sign], [ca.vertcat(e, valid)]),
-                                             [2]), shared=[0, 1])  # fmt: skip
+        model = taylor_function(ca.Function("locked_search", [T, q7, x, sign], [ca.vertcat(e, valid)]), [2])
+        self._step = RowMap(step_function(model), shared=[0, 1], chunks=CHUNKS)
+        """One round's step of a cell of a branch (:func:`step_function`), compiled, over rows of cells (the pose and
+        the locked angle shared)."""
+        reach = ca.Function("locked_search_reach", [T, q7, x], [self.reach(R, p, q7, x, sy.CASADI)])
+        a, b = ca.SX.sym("a"), ca.SX.sym("b")
+        top = taylor_function(reach, [2])(T, q7, 0.5 * (a + b), 0.5 * (b - a), 0.0, a, b)[4] + EPS
+        self._reach = RowMap(ca.Function("locked_search_reach_cells", [T, q7, a, b], [top]), [0, 1], CHUNKS)
+        """The upper bound over a cell [a, b] of x of :meth:`reach` + :data:`~qpik.analytic.trig.EPS` (its Taylor
+        model's), which bounds every branch's validity: compiled, over rows of cells."""
         _, _, trig = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)
         joints, residual = [ca.atan2(s, c) for c, s in trig] + [q7], None
         for _ in range(POLISH):
@@ -198,12 +210,12 @@ class LockedSearch:
         then :data:`POLISH` rounds of :func:`~qpik.analytic.polish.polish`; compiled, over rows of candidates (the
         pose and the locked angle shared)."""
 
-    def error(
-        self, R: Mat, p: Vec, q7: Scalar, x: Scalar, signs: tuple[Scalar, Scalar], ops: Ops
-    ) -> tuple[Scalar, Scalar, list[tuple[Scalar, Scalar]]]:
-        """The error function :math:`e_b(x)` and validity :math:`v_b(x)` of the branch of ``signs`` (σ3, σ12) at the
-        search's pose ``(R, p)`` (the arm's :math:`T^{-1}` where :attr:`reversed`) and locked angle ``q7`` (rad), and
-        the (cos, sin) of its joints 1-6 (q5 and q6 meaningful at a root only)."""
+    def _elbow(
+        self, R: Mat, p: Vec, q7: Scalar, x: Scalar, ops: Ops
+    ) -> tuple[Mat, Vec, tuple[Scalar, Scalar], Vec, tuple[Scalar, Scalar, Scalar]]:
+        r"""At the search's pose ``(R, p)``, locked angle ``q7`` and ``x`` (rad): :math:`R_G`, :math:`v = GW - S`,
+        (cos x, sin x), :math:`P - o_3`, and q3's subproblem 3 :math:`a\cos q_3 + b\sin q_3 = c` as (a, b, c) (module
+        docstring)."""
         h = self.h
         c7, s7 = ops.cos(q7), ops.sin(q7)
         RG = sy.matmul(R, sy.matmul(rotation(self.k7, c7, sy.neg(s7)), self.Rm_t))
@@ -217,6 +229,25 @@ class LockedSearch:
         a = sy.dot(pp, qq) - kp * kq
         b = sy.dot(qq, sy.cross(k, pp))
         c = 0.5 * (sy.dot(pp, pp) + sy.dot(qq, qq) - sy.dot(v, v)) - kp * kq
+        return RG, v, (c4, s4), pp, (a, b, c)
+
+    def reach(self, R: Mat, p: Vec, q7: Scalar, x: Scalar, ops: Ops) -> Scalar:
+        """The relative discriminant :math:`(a^2 + b^2 - c^2)/(a^2 + b^2)` of q3's subproblem 3 at ``x`` (rad; the
+        pose and locked angle as :meth:`error`'s): where it is negative no branch has a q3, and the validity
+        :math:`v_b` of every branch is at most it + :data:`~qpik.analytic.trig.EPS`."""
+        _, _, _, _, (a, b, c) = self._elbow(R, p, q7, x, ops)
+        r2 = a * a + b * b
+        return (r2 - c * c) * (1.0 / ops.fmax(r2, 1e-300))
+
+    def error(
+        self, R: Mat, p: Vec, q7: Scalar, x: Scalar, signs: tuple[Scalar, Scalar], ops: Ops
+    ) -> tuple[Scalar, Scalar, list[tuple[Scalar, Scalar]]]:
+        """The error function :math:`e_b(x)` and validity :math:`v_b(x)` of the branch of ``signs`` (σ3, σ12) at the
+        search's pose ``(R, p)`` (the arm's :math:`T^{-1}` where :attr:`reversed`) and locked angle ``q7`` (rad), and
+        the (cos, sin) of its joints 1-6 (q5 and q6 meaningful at a root only)."""
+        h = self.h
+        RG, v, (c4, s4), pp, (a, b, c) = self._elbow(R, p, q7, x, ops)
+        k = h[2]
         r2 = a * a + b * b
         disc = r2 - c * c
         root = ops.safe_sqrt(disc)
@@ -283,33 +314,21 @@ class LockedSearch:
         """The candidates (centres of windows of roots, rad), their branches, and whether cells were left when the
         budget ran out."""
         edges = np.linspace(-np.pi, np.pi, CELLS + 1)
-        B = len(SIGNS)
-        a, b, k = np.repeat(edges[:-1], B), np.repeat(edges[1:], B), np.tile(np.arange(B), CELLS)
+        Tf, angle = Ts.reshape(-1, order="F"), np.array([q7])
+        (top,) = self._reach(Tf, angle, edges[:-1], edges[1:])
+        near = ~(top[:, 0] < -SLACK)  # not surely out of reach for every branch
+        B, n = len(SIGNS), int(near.sum())
+        a, b, k = np.repeat(edges[:-1][near], B), np.repeat(edges[1:][near], B), np.tile(np.arange(B), n)
         found, which = [], []
-        Tf = Ts.reshape(-1, order="F")
         for _ in range(rounds):
             if not a.size or a.size > MAX_CELLS:
                 break
-            x, y = a[:, None], b[:, None]
-            c0, c1, r, lo, hi = self._model(Tf, np.array([q7]), 0.5 * (x + y), SIGNS[k], 0.5 * (y - x),
-                                            np.zeros_like(x), x, y)  # fmt: skip
-            f0, f1, rest = c0[:, 0], c1[:, 0], r[:, 0] + SLACK
-            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-                t1, t2 = (-f0 - rest) / f1, (-f0 + rest) / f1
-            flat = ~(np.abs(f1) > 0) | ~np.isfinite(rest)
-            t1, t2 = np.where(flat, -1.0, np.minimum(t1, t2)), np.where(flat, 1.0, np.maximum(t1, t2))
-            t1, t2 = np.maximum(t1, -1.0), np.minimum(t2, 1.0)
-            m, w = 0.5 * (a + b), 0.5 * (b - a)
-            x1, x2 = m + w * t1, m + w * t2
-            outside = (lo[:, 0] > SLACK) | (hi[:, 0] < -SLACK) | (hi[:, 1] < -SLACK)
-            gone = (t1 > t2) | outside | (flat & (np.abs(f0) > rest))
-            done = ~gone & (x2 - x1 <= WINDOW)
-            touch = ~gone & ~done & (np.abs(f0) + np.abs(f1) + rest <= TOUCH)
+            (out,) = self._step(Tf, angle, a, b, SIGNS[k])
+            x1, x2, fate = out.T
+            done, touch = fate == DONE, fate == TOUCHED
             found += [0.5 * (x1 + x2)[done], a[touch], b[touch]]
             which += [k[done], k[touch], k[touch]]
-            live = ~gone & ~done & ~touch
-            narrow = live & (x2 - x1 <= w)
-            halve = live & ~narrow
+            narrow, halve = fate == NARROW, fate == HALVE
             mid = 0.5 * (x1 + x2)[halve]
             a = np.concatenate([x1[narrow], x1[halve], mid])
             b = np.concatenate([x2[narrow], mid, x2[halve]])
@@ -320,6 +339,17 @@ class LockedSearch:
         if not found:
             return np.zeros(0), np.zeros(0, int), bool(a.size)
         return np.concatenate(found), np.concatenate(which).astype(int), bool(a.size)
+
+
+def step_function(model: ca.Function) -> ca.Function:
+    """One round of the search on a cell of a branch (:func:`~qpik.algebra.enclosure.isolation_step` with :data:`SLACK`,
+    :data:`WINDOW`, :data:`TOUCH`; gone too where :math:`v_b < 0` over the cell) from ``model``, the Taylor models in x
+    of :math:`(e_b, v_b)` of inputs (T, q7, x, signs). Inputs: T (4, 4; the search's pose, column-major), q7 (rad),
+    the cell's ends a < b (rad), the signs (σ3, σ12). Output (3,): the window's ends (rad), the cell's fate."""
+    T, q7, a, b, sign = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("a"), ca.SX.sym("b"), ca.SX.sym("sign", 2)
+    c, s, r, lo, hi = model(T, q7, 0.5 * (a + b), sign, 0.5 * (b - a), 0.0, a, b)
+    step = isolation_step(a, b, (c[0], s[0], r[0], lo[0], hi[0]), hi[1] < -SLACK, SLACK, WINDOW, TOUCH)
+    return ca.Function("locked_search_step", [T, q7, a, b, sign], [ca.vertcat(*step)])
 
 
 def slots(branch: np.ndarray, q4: np.ndarray) -> np.ndarray:

@@ -30,7 +30,11 @@ import casadi as ca
 from qpik.core.errors import InputError
 from qpik.core.progress import QUIET, TICK
 
-CFLAGS = ("-shared", "-fPIC")
+CFLAGS = ("-shared", "-fPIC", "-fno-semantic-interposition")
+"""Flags of every library. ``-fno-semantic-interposition`` lets the compiler inline the small helpers that CasADi's
+generated C defines with external linkage (``casadi_fmin``, ``casadi_fabs``, ``casadi_sq``, ...), which a
+position-independent library otherwise calls through its procedure linkage table at every use: a Taylor model's
+code is mostly such calls. It changes no result (no arithmetic is reordered or contracted by it)."""
 _native_failed: str | None = None  # why native compilation is off in this process
 
 
@@ -202,9 +206,21 @@ def describe(name: str) -> str:
     return next((what for prefix, what in _WHAT.items() if name.startswith(prefix)), "a generated function")
 
 
+PRELUDE = b"""#include <math.h>
+static inline double qpik_fmin(double x, double y) { return y < x ? y : (x != x ? y : x); }
+static inline double qpik_fmax(double x, double y) { return y > x ? y : (x != x ? y : x); }
+#define fmin qpik_fmin
+#define fmax qpik_fmax
+"""
+"""C put before CasADi's generated code (:func:`native_library`): its ``casadi_fmin`` and ``casadi_fmax`` call C99's
+``fmin`` and ``fmax``, which compilers leave as calls into the maths library (inline only under fast-math), a
+Taylor model's most frequent operations. These inline versions give glibc's results for every argument: the other
+argument where one is NaN, the first of two equal ones (so −0 or +0 as given, which C99 leaves open)."""
+
+
 def native_library(*fns: ca.Function, large: int | None = None) -> Path | None:
     """The shared library holding ``fns`` as machine code (each exported under its ``name()``; the functions
-    they call are emitted once), or None. ``large``: as in :func:`optimisation`.
+    they call are emitted once; :data:`PRELUDE` first), or None. ``large``: as in :func:`optimisation`.
 
     None when :func:`compiler` is None or code generation or compilation fails
     (then a warning says why, once, and native code stays off in this process).
@@ -218,7 +234,7 @@ def native_library(*fns: ca.Function, large: int | None = None) -> Path | None:
             for fn in fns:
                 gen.add(fn)
             gen.generate(tmp + os.sep)
-            return shared_library(name, Path(tmp, f"{name}.c").read_bytes(), large=large)
+            return shared_library(name, PRELUDE + Path(tmp, f"{name}.c").read_bytes(), large=large)
     except RuntimeError as exc:  # CasADi's code generation failed
         return _off(exc)
 

@@ -160,9 +160,10 @@ class RowMap:
     """A CasADi function of one row, evaluated over M rows in compiled chunks.
 
     ``fn.map`` over ``chunks[0]`` rows per call while more than 3/4 of that is left, then
-    over ``chunks[1]`` (the last call padded with copies of its first row): one call per
-    chunk, the loop over rows in machine code (:class:`Compiled`). Both sizes are compiled
-    into one library on first use (``fn`` once in it).
+    over the next size while more than 3/4 of it is left, and so on, the last size to the end
+    (the last call padded with copies of its first row): one call per chunk, the loop over rows in
+    machine code (:class:`Compiled`). Every size is compiled into one library on first use
+    (``fn`` once in it).
 
     With ``threads`` > 1, a call of at least ``threads · chunks[0]`` rows is split into that many runs of
     consecutive rows, one in the calling thread and the others in a pool shared by every map
@@ -174,14 +175,15 @@ class RowMap:
         fn: dense inputs (a matrix input is given per row as its entries in CasADi's
             column-major order) and dense column-vector outputs.
         shared: indices of the inputs that are the same for every row (given once, 1-D).
-        chunks: rows per call, large then small.
+        chunks: rows per call, from the largest to the smallest (two sizes or more).
         threads: runs a large call is split into (at most the cores this process may use).
     """
 
     def __init__(
-        self, fn: ca.Function, shared: Sequence[int] = (), chunks: tuple[int, int] = (32, 4), threads: int = 1
+        self, fn: ca.Function, shared: Sequence[int] = (), chunks: tuple[int, ...] = (32, 4), threads: int = 1
     ):
         self.fn, self.shared, self.chunks = fn, tuple(shared), chunks
+        self._widths = [fn.nnz_out(k) for k in range(fn.n_out())]
         self.threads = max(1, min(int(threads), cores()))
         self._lock = threading.Lock()
         self._library: tuple[Path | None, list[tuple[int, ca.Function]]] | None = None
@@ -225,9 +227,12 @@ class RowMap:
         shared = self.shared
         per_row = [(k, np.asarray(a, dtype=float).reshape(len(a), -1)) for k, a in enumerate(args) if k not in shared]
         M = len(per_row[0][1]) if per_row else 1
-        outs = [np.empty((M, self.fn.nnz_out(k))) for k in range(self.fn.n_out())]
+        outs = [np.empty((M, width)) for width in self._widths]
         big = self.chunks[0]
         runs = self.threads if self.threads * big <= M else 1
+        if runs == 1:
+            self._fill(self._maps(), args, per_row, outs, 0, M)
+            return outs
         ends = [big * round(M * r / (runs * big)) for r in range(runs)] + [M]  # runs of whole big chunks
         work = [(self._maps(r), ends[r], ends[r + 1]) for r in range(runs)]
         others = [pool().submit(self._fill, maps, args, per_row, outs, i, j) for maps, i, j in work[1:]]
@@ -239,14 +244,17 @@ class RowMap:
 
     def _fill(self, maps, args, per_row, outs: list[np.ndarray], start: int, stop: int) -> None:
         """Rows ``start:stop`` of ``outs`` from the buffers ``maps`` of one run."""
-        shared, (big, small) = self.shared, self.chunks
+        shared, chunks = self.shared, self.chunks
+        given = set()  # the sizes whose buffers hold this call's shared inputs
         i = start
         while i < stop:
-            size = big if stop - i > 3 * big // 4 else small
+            size = next((n for n in chunks[:-1] if stop - i > 3 * n // 4), chunks[-1])
             m = min(size, stop - i)
             call, ins, res = maps[size]
-            for k in shared:
-                call.arguments[k][:] = np.ravel(args[k])
+            if size not in given:
+                given.add(size)
+                for k in shared:
+                    call.arguments[k][:] = np.ravel(args[k])
             for k, rows in per_row:
                 buf = ins[k]
                 buf[:m] = rows[i : i + m]

@@ -19,6 +19,7 @@ from hypothesis import given, settings
 import qpik
 from qpik.algebra import symbolic as sy
 from qpik.analytic.locked_search import SIGNS, LockedSearch
+from qpik.analytic.trig import EPS
 from qpik.core.errors import InputError, NoClosedFormError
 from qpik.robots.model_files import MeshOptions
 
@@ -92,6 +93,25 @@ def test_every_sign_change_of_the_error_functions_has_its_solution(seed):
         R1, p1 = sy.frame_of_batch(np.broadcast_to(Ts, (q4.size, 4, 4)))
         at, _, _ = s.error(R1, p1, param, q4, (s3, s12), sy.NUMPY)
         assert np.all(np.abs(at) < 1e-12)
+
+
+def test_the_reach_that_discards_cells_first_holds_every_configuration_and_bounds_every_validity():
+    """LockedSearch.reach, by which the search discards cells of q4 for every branch at once: at the pose (MuJoCo's FK)
+    and q1 of random configurations of the exact Sawyer it is not negative at their own q4; on a dense grid of q4 it
+    bounds every branch's validity (minus EPS)."""
+    robot = model_robot("sawyer_exact")
+    s = search("sawyer_exact")
+    q = random_q(robot, BATCH, 13)
+    Ts = np.linalg.inv(mujoco_poses(robot, q))
+    R, p = sy.frame_of_batch(Ts)
+    assert np.all(s.reach(R, p, q[:, 0], q[:, 3], sy.NUMPY) > -1e-12)
+    x = np.linspace(-np.pi, np.pi, GRID + 1)
+    R, p = sy.frame_of_batch(np.broadcast_to(Ts[0], (x.size, 4, 4)))
+    top = s.reach(R, p, q[0, 0], x, sy.NUMPY)
+    assert (top < 0).any() and (top > 0).any()
+    for s3, s12 in SIGNS:
+        _, valid, _ = s.error(R, p, q[0, 0], x, (s3, s12), sy.NUMPY)
+        assert np.all(valid - EPS <= top + 1e-15)
 
 
 def test_the_search_gives_no_solution_for_an_unreachable_pose_and_says_when_its_budget_ran_out():

@@ -41,3 +41,22 @@ def test_each_level_is_its_own_library_with_the_same_answers(monkeypatch, tmp_pa
     assert libs[0] != libs[1] and all(lib.exists() for lib in libs)
     for a, b in zip(*outs):
         assert np.array_equal(a, b)
+
+
+@pytest.mark.skipif(build.compiler() is None, reason="no C compiler, or QPIK_NATIVE=0")
+@pytest.mark.parametrize("level", ["-O0", "-O2"])
+def test_compiled_fmin_and_fmax_give_the_virtual_machines_bits(monkeypatch, tmp_path, level):
+    """The inline fmin and fmax of the generated libraries (build.PRELUDE) against CasADi's virtual machine (the
+    maths library's): every pair of ±0, ±1, ±inf and NaN, the sign of a zero and NaN included."""
+    monkeypatch.setenv("QPIK_CACHE", str(tmp_path))
+    monkeypatch.setenv("QPIK_OPTIMISE", level)
+    x, y = ca.SX.sym("x"), ca.SX.sym("y")
+    fn = ca.Function("extremes", [x, y], [ca.fmin(x, y), ca.fmax(x, y)])
+    compiled = ca.external("extremes", str(build.native_library(fn)))
+    values = [-0.0, 0.0, 1.0, -1.0, np.inf, -np.inf, np.nan]
+    for a in values:
+        for b in values:
+            want = [float(v) for v in fn(a, b)]
+            got = [float(v) for v in compiled(a, b)]
+            for w, g in zip(want, got):
+                assert (np.isnan(w) and np.isnan(g)) or (w == g and np.signbit(w) == np.signbit(g)), (a, b, w, g)

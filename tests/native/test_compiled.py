@@ -70,14 +70,17 @@ def test_native_code_equals_the_virtual_machine_and_can_be_turned_off(monkeypatc
     assert build.native(f) is f
 
 
-def test_row_map_equals_one_call_per_row():
+@pytest.mark.parametrize("chunks", [(8, 3), (16, 5, 2)])
+def test_row_map_equals_one_call_per_row(chunks):
+    """Every row as one call of the function, with two chunk sizes and with three, over counts of rows that take
+    each size, padded or not."""
     from qpik.native.compiled import RowMap
 
     T, x, p = ca.SX.sym("T", 2, 2), ca.SX.sym("x", 3), ca.SX.sym("p", 2)
     fn = ca.Function("g", [T, x, p], [ca.vertcat(ca.mtimes(T, x[:2]) * p[0], ca.sum1(x) + p[1]), ca.sin(x)])
-    rows = RowMap(fn, shared=(2,), chunks=(8, 3))
+    rows = RowMap(fn, shared=(2,), chunks=chunks)
     rng = np.random.default_rng(0)
-    for M in (1, 2, 7, 8, 13):
+    for M in (1, 2, 7, 8, 13, 29, 40):
         Ts, xs, pv = rng.normal(size=(M, 2, 2)), rng.normal(size=(M, 3)), rng.normal(size=2)
         a, b = rows(np.swapaxes(Ts, 1, 2).reshape(M, 4), xs, pv)  # matrices per row in column-major order
         for k in range(M):
