@@ -30,11 +30,14 @@ import casadi as ca
 from qpik.core.errors import InputError
 from qpik.core.progress import QUIET, TICK
 
-CFLAGS = ("-shared", "-fPIC", "-fno-semantic-interposition")
-"""Flags of every library. ``-fno-semantic-interposition`` lets the compiler inline the small helpers that CasADi's
-generated C defines with external linkage (``casadi_fmin``, ``casadi_fabs``, ``casadi_sq``, ...), which a
-position-independent library otherwise calls through its procedure linkage table at every use: a Taylor model's
-code is mostly such calls. It changes no result (no arithmetic is reordered or contracted by it)."""
+CFLAGS = ("-shared", "-fPIC")
+"""Flags of every library."""
+INLINE_FLAGS = ("-fno-semantic-interposition",)
+"""Flags added where the compiler accepts them (:func:`accepts`). ``-fno-semantic-interposition`` lets it inline the
+small helpers that CasADi's generated C defines with external linkage (``casadi_fmin``, ``casadi_fabs``,
+``casadi_sq``, ...), which a position-independent library otherwise calls through its procedure linkage table at
+every use: a Taylor model's code is mostly such calls. It changes no result (no arithmetic is reordered or
+contracted by it)."""
 _native_failed: str | None = None  # why native compilation is off in this process
 
 
@@ -70,6 +73,17 @@ def compiler() -> str | None:
     return found
 
 
+@cache
+def accepts(cc: str, flag: str) -> bool:
+    """Whether the compiler ``cc`` accepts ``flag``: it compiles an empty C unit with it (once per process)."""
+    try:
+        subprocess.run([cc, flag, "-x", "c", "-c", "-o", os.devnull, "-"], input=b"", capture_output=True,
+                       check=True, timeout=60)  # fmt: skip
+    except (OSError, subprocess.SubprocessError):
+        return False
+    return True
+
+
 def shared_library(
     name: str,
     source: bytes,
@@ -81,19 +95,19 @@ def shared_library(
     """C ``source`` compiled once into a shared library cached in :func:`cache_dir`, or None.
 
     With ``files``, those C files are compiled together instead (:func:`qpik.native.sources.load_source`), and
-    ``source`` is only what identifies them: their text and that of every header they include. The library is keyed
-    by a hash of the source, the flags (:func:`optimisation` for the source's size and ``large``,
-    :data:`CFLAGS` and ``flags``, e.g. include folders) and CasADi's version. Processes that need the same
-    library at once compile it once: the others wait on a lock file beside it. A compilation that takes
+    ``source`` is only what identifies them: their text and that of every header they include. The library is keyed by a
+    hash of the source, the flags (:func:`optimisation` for the source's size and ``large``, :data:`CFLAGS`, the
+    :data:`INLINE_FLAGS` the compiler accepts and ``flags``, e.g. include folders) and CasADi's version. Processes that
+    need the same library at once compile it once: the others wait on a lock file beside it. A compilation that takes
     longer than :data:`QUIET` seconds says so on stderr, and again every :data:`TICK` seconds. None when
-    :func:`compiler` is None or compilation fails: then a warning says why, once, and with ``fatal`` native
-    code stays off in this process (without it only this library is missing).
+    :func:`compiler` is None or compilation fails: then a warning says why, once, and with ``fatal`` native code stays
+    off in this process (without it only this library is missing).
     """
     global _native_failed
     cc = compiler()
     if cc is None:
         return None
-    cflags = (optimisation(len(source), large), *CFLAGS, *flags)
+    cflags = (optimisation(len(source), large), *CFLAGS, *(f for f in INLINE_FLAGS if accepts(cc, f)), *flags)
     key = hashlib.sha256(source + " ".join(cflags).encode() + ca.__version__.encode()).hexdigest()[:20]
     try:
         folder = cache_dir()

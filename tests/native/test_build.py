@@ -1,4 +1,5 @@
-"""qpik.native.build: the optimisation level of the generated libraries ($QPIK_OPTIMISE)."""
+"""qpik.native.build: the optimisation level of the generated libraries ($QPIK_OPTIMISE), the flags a compiler accepts,
+the inline fmin and fmax."""
 
 from __future__ import annotations
 
@@ -60,3 +61,31 @@ def test_compiled_fmin_and_fmax_give_the_virtual_machines_bits(monkeypatch, tmp_
             got = [float(v) for v in compiled(a, b)]
             for w, g in zip(want, got):
                 assert (np.isnan(w) and np.isnan(g)) or (w == g and np.signbit(w) == np.signbit(g)), (a, b, w, g)
+
+
+@pytest.mark.skipif(build.compiler() is None, reason="no C compiler, or QPIK_NATIVE=0")
+def test_a_compiler_that_rejects_the_inline_flag_builds_without_it(monkeypatch, tmp_path):
+    """build.INLINE_FLAGS go only to a compiler that accepts them: one that rejects them still builds every library
+    (with the same answers), and native code stays on."""
+    cc = build.compiler()
+    assert all(build.accepts(cc, flag) for flag in build.INLINE_FLAGS)  # gcc >= 5 and clang do
+    assert not build.accepts(cc, "-fno-such-option-qpik")
+    strict = tmp_path / "strict-cc"
+    rejected = " ".join(build.INLINE_FLAGS)
+    loop = f'for a in "$@"; do case " {rejected} " in *" $a "*) exit 1;; esac; done'
+    strict.write_text(f'#!/bin/sh\n{loop}\nexec {cc} "$@"\n')
+    strict.chmod(0o755)
+    assert not build.accepts(str(strict), build.INLINE_FLAGS[0])
+    monkeypatch.setenv("QPIK_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(build, "_native_failed", None)
+    fn = matrix_function("strict")
+    rng = np.random.default_rng(4)
+    A, x = rng.normal(size=(2, 3)), rng.normal(size=3)
+    libs, outs = [], []
+    for compiler in (cc, str(strict)):
+        monkeypatch.setenv("CC", compiler)
+        libs.append(build.native_library(fn))
+        outs.append([np.asarray(o) for o in ca.external("strict", str(libs[-1]))(A, x)])
+    assert libs[0] != libs[1] and build.compiler() is not None
+    for a, b in zip(*outs):
+        assert np.array_equal(a, b)
