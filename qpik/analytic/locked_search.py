@@ -191,13 +191,13 @@ class LockedSearch:
         R, p = sy.frame_of_batch(T)
         e, valid, _ = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)
         model = taylor_function(ca.Function("locked_search", [T, q7, x, sign], [ca.vertcat(e, valid)]), [2])
-        self._step = RowMap(step_function(model), shared=[0, 1], chunks=CHUNKS)
+        self._step = RowMap(step_function(model), shared=[0, 1], chunks=CHUNKS, inline=True)
         """One round's step of a cell of a branch (:func:`step_function`), compiled, over rows of cells (the pose and
         the locked angle shared)."""
         reach = ca.Function("locked_search_reach", [T, q7, x], [self.reach(R, p, q7, x, sy.CASADI)])
         a, b = ca.SX.sym("a"), ca.SX.sym("b")
-        top = taylor_function(reach, [2])(T, q7, 0.5 * (a + b), 0.5 * (b - a), 0.0, a, b)[4] + EPS
-        self._reach = RowMap(ca.Function("locked_search_reach_cells", [T, q7, a, b], [top]), [0, 1], CHUNKS)
+        top = [taylor_function(reach, [2])(T, q7, 0.5 * (a + b), 0.5 * (b - a), 0.0, a, b)[4] + EPS]
+        self._reach = RowMap(ca.Function("locked_search_reach_cells", [T, q7, a, b], top), [0, 1], CHUNKS, inline=True)
         """The upper bound over a cell [a, b] of x of :meth:`reach` + :data:`~qpik.analytic.trig.EPS` (its Taylor
         model's), which bounds every branch's validity: compiled, over rows of cells."""
         _, _, trig = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)

@@ -33,11 +33,12 @@ from qpik.core.progress import QUIET, TICK
 CFLAGS = ("-shared", "-fPIC")
 """Flags of every library."""
 INLINE_FLAGS = ("-fno-semantic-interposition",)
-"""Flags added where the compiler accepts them (:func:`accepts`). ``-fno-semantic-interposition`` lets it inline the
-small helpers that CasADi's generated C defines with external linkage (``casadi_fmin``, ``casadi_fabs``,
-``casadi_sq``, ...), which a position-independent library otherwise calls through its procedure linkage table at
-every use: a Taylor model's code is mostly such calls. It changes no result (no arithmetic is reordered or
-contracted by it)."""
+"""Flags of a library whose caller asks for them (``inline``), where the compiler accepts them (:func:`accepts`).
+``-fno-semantic-interposition`` lets it inline the small helpers that CasADi's generated C defines with external
+linkage (``casadi_fmin``, ``casadi_fabs``, ``casadi_sq``, ...), which a position-independent library otherwise calls
+through its procedure linkage table at every use: a Taylor model's code is mostly such calls. It changes no result
+(no arithmetic is reordered or contracted by it), but at ``-O2`` it multiplies the compile time of a map of many
+rows, so only maps called often enough to repay it ask for it (the 1-D search's)."""
 _native_failed: str | None = None  # why native compilation is off in this process
 
 
@@ -91,23 +92,25 @@ def shared_library(
     fatal: bool = True,
     files: Sequence[Path] = (),
     large: int | None = None,
+    inline: bool = False,
 ) -> Path | None:
     """C ``source`` compiled once into a shared library cached in :func:`cache_dir`, or None.
 
     With ``files``, those C files are compiled together instead (:func:`qpik.native.sources.load_source`), and
     ``source`` is only what identifies them: their text and that of every header they include. The library is keyed by a
-    hash of the source, the flags (:func:`optimisation` for the source's size and ``large``, :data:`CFLAGS`, the
-    :data:`INLINE_FLAGS` the compiler accepts and ``flags``, e.g. include folders) and CasADi's version. Processes that
-    need the same library at once compile it once: the others wait on a lock file beside it. A compilation that takes
-    longer than :data:`QUIET` seconds says so on stderr, and again every :data:`TICK` seconds. None when
-    :func:`compiler` is None or compilation fails: then a warning says why, once, and with ``fatal`` native code stays
-    off in this process (without it only this library is missing).
+    hash of the source, the flags (:func:`optimisation` for the source's size and ``large``, :data:`CFLAGS`, with
+    ``inline`` the :data:`INLINE_FLAGS` the compiler accepts, and ``flags``, e.g. include folders) and CasADi's version.
+    Processes that need the same library at once compile it once: the others wait on a lock file beside it. A
+    compilation that takes longer than :data:`QUIET` seconds says so on stderr, and again every :data:`TICK` seconds.
+    None when :func:`compiler` is None or compilation fails: then a warning says why, once, and with ``fatal`` native
+    code stays off in this process (without it only this library is missing).
     """
     global _native_failed
     cc = compiler()
     if cc is None:
         return None
-    cflags = (optimisation(len(source), large), *CFLAGS, *(f for f in INLINE_FLAGS if accepts(cc, f)), *flags)
+    extra = (f for f in INLINE_FLAGS if inline and accepts(cc, f))
+    cflags = (optimisation(len(source), large), *CFLAGS, *extra, *flags)
     key = hashlib.sha256(source + " ".join(cflags).encode() + ca.__version__.encode()).hexdigest()[:20]
     try:
         folder = cache_dir()
@@ -232,9 +235,10 @@ Taylor model's most frequent operations. These inline versions give glibc's resu
 argument where one is NaN, the first of two equal ones (so −0 or +0 as given, which C99 leaves open)."""
 
 
-def native_library(*fns: ca.Function, large: int | None = None) -> Path | None:
+def native_library(*fns: ca.Function, large: int | None = None, inline: bool = False) -> Path | None:
     """The shared library holding ``fns`` as machine code (each exported under its ``name()``; the functions
-    they call are emitted once; :data:`PRELUDE` first), or None. ``large``: as in :func:`optimisation`.
+    they call are emitted once; :data:`PRELUDE` first), or None. ``large``: as in :func:`optimisation`; ``inline``:
+    with :data:`INLINE_FLAGS`.
 
     None when :func:`compiler` is None or code generation or compilation fails
     (then a warning says why, once, and native code stays off in this process).
@@ -248,7 +252,7 @@ def native_library(*fns: ca.Function, large: int | None = None) -> Path | None:
             for fn in fns:
                 gen.add(fn)
             gen.generate(tmp + os.sep)
-            return shared_library(name, PRELUDE + Path(tmp, f"{name}.c").read_bytes(), large=large)
+            return shared_library(name, PRELUDE + Path(tmp, f"{name}.c").read_bytes(), large=large, inline=inline)
     except RuntimeError as exc:  # CasADi's code generation failed
         return _off(exc)
 

@@ -177,12 +177,18 @@ class RowMap:
         shared: indices of the inputs that are the same for every row (given once, 1-D).
         chunks: rows per call, from the largest to the smallest (two sizes or more).
         threads: runs a large call is split into (at most the cores this process may use).
+        inline: compile with :data:`qpik.native.build.INLINE_FLAGS` (a hot map whose calls repay the compile time).
     """
 
     def __init__(
-        self, fn: ca.Function, shared: Sequence[int] = (), chunks: tuple[int, ...] = (32, 4), threads: int = 1
+        self,
+        fn: ca.Function,
+        shared: Sequence[int] = (),
+        chunks: tuple[int, ...] = (32, 4),
+        threads: int = 1,
+        inline: bool = False,
     ):
-        self.fn, self.shared, self.chunks = fn, tuple(shared), chunks
+        self.fn, self.shared, self.chunks, self.inline = fn, tuple(shared), chunks, inline
         self._widths = [fn.nnz_out(k) for k in range(fn.n_out())]
         self.threads = max(1, min(int(threads), cores()))
         self._lock = threading.Lock()
@@ -198,7 +204,7 @@ class RowMap:
             if self._library is None:
                 name, shared, sizes = self.fn.name(), list(self.shared), sorted(set(self.chunks), reverse=True)
                 maps = [(n, self.fn.map(f"{name}_rows{n}", "serial", n, shared, [])) for n in sizes]
-                self._library = (native_library(*(fn for _, fn in maps)), maps)
+                self._library = (native_library(*(fn for _, fn in maps), inline=self.inline), maps)
             while len(self._runs) <= run:
                 self._runs.append(self._buffers(*self._library))
             return self._runs[run]

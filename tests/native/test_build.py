@@ -65,8 +65,8 @@ def test_compiled_fmin_and_fmax_give_the_virtual_machines_bits(monkeypatch, tmp_
 
 @pytest.mark.skipif(build.compiler() is None, reason="no C compiler, or QPIK_NATIVE=0")
 def test_a_compiler_that_rejects_the_inline_flag_builds_without_it(monkeypatch, tmp_path):
-    """build.INLINE_FLAGS go only to a compiler that accepts them: one that rejects them still builds every library
-    (with the same answers), and native code stays on."""
+    """build.INLINE_FLAGS (asked with inline=True) go only to a compiler that accepts them: one that rejects them
+    still builds every library (with the same answers), and native code stays on."""
     cc = build.compiler()
     assert all(build.accepts(cc, flag) for flag in build.INLINE_FLAGS)  # gcc >= 5 and clang do
     assert not build.accepts(cc, "-fno-such-option-qpik")
@@ -84,7 +84,7 @@ def test_a_compiler_that_rejects_the_inline_flag_builds_without_it(monkeypatch, 
     libs, outs = [], []
     for compiler in (cc, str(strict)):
         monkeypatch.setenv("CC", compiler)
-        libs.append(build.native_library(fn))
+        libs.append(build.native_library(fn, inline=True))
         outs.append([np.asarray(o) for o in ca.external("strict", str(libs[-1]))(A, x)])
     assert libs[0] != libs[1] and build.compiler() is not None
     for a, b in zip(*outs):
