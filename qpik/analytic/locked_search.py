@@ -381,7 +381,6 @@ class SearchSolver(BranchSolver):
     param_name = "q1"
     branch_ids = tuple(range(BRANCHES))
     closed_form_sets = False
-    branch_functions = False
 
     def __init__(self, robot: Robot, sets: Callable[[BranchSolver], ParameterSets] | None = None):
         super().__init__(robot, sets)

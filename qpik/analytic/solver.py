@@ -85,7 +85,7 @@ class BranchSolver(ABC):
 
     :class:`AnalyticSolver` writes its branches once as expressions (closed forms, and their CasADi functions for
     the NLPs); :class:`~qpik.analytic.locked_search.SearchSolver` finds them as the roots of a certified 1-D search
-    (no expressions: ``branch_functions`` False). Subclasses set ``kind`` (the ``Robot.closed_form`` value),
+    (no expressions: ``Robot.branch_functions`` False). Subclasses set ``kind`` (the ``Robot.closed_form`` value),
     ``param_name`` and ``branch_ids``; the feasible sets of the parameter come from ``sets``, built from the solver on
     first use (:class:`~qpik.analytic.intervals.ParameterSets`), so the solver does not depend on the module that
     computes them.
@@ -102,9 +102,6 @@ class BranchSolver(ABC):
     """Whether the feasible sets are roots of closed-form functions of the parameter (found in microseconds), not a
     certified root isolation (milliseconds): :func:`qpik.solve_best`'s ``"auto"`` method runs the level sets, which
     ask for the sets at several margins per pose, only where they are."""
-    branch_functions: bool = True
-    """Whether the branches are expressions of the pose and parameter (:attr:`AnalyticSolver.casadi_function`, which
-    the path NLP, the DP and :func:`qpik.solve_best` differentiate), not roots found by a search."""
 
     def __init__(self, robot: Robot, sets: Callable[[BranchSolver], ParameterSets] | None = None):
         self.robot = robot
