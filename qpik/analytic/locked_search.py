@@ -426,8 +426,8 @@ class SearchSolver(BranchSolver):
     def solve_many(self, T: np.ndarray, params: np.ndarray, rows: int | None = None) -> Solved:
         """One pose (4, 4), parameters (M,): q (M, B, n), valid, singular, within_limits (M, B) bool; ``rows``: only the
         first ``rows`` slots."""
-        out = [self.solve_one(T, float(x)) for x in np.asarray(params, float).ravel()]
-        return Solved(*(np.stack(parts)[:, :rows] for parts in zip(*out)))
+        params = np.asarray(params, float).ravel()
+        return Solved(*(x[:, :rows] for x in self.solve_batch(np.broadcast_to(T, (len(params), 4, 4)), params)))
 
     def solve_batch(self, T: np.ndarray, param: np.ndarray) -> Solved:
         """Poses (N, 4, 4), parameters (N,): q (N, B, n), valid, singular, within_limits (N, B) bool."""
