@@ -108,7 +108,7 @@ class Q7Intervals:
         (row,), (valid,) = solver.joint_trig(R, p, q7, sy.CASADI, one), solver.validity(R, p, q7, sy.CASADI, one)
         out = ca.vertcat(*[row[j][0] for j in self._joints], *[row[j][1] for j in self._joints], valid)
         columns = ca.Function(f"columns_{solver.kind}", [T, q7, sign], [out])
-        self._model = RowMap(taylor_function(columns, [1]), shared=[0], threads=cores())
+        self._model = RowMap(taylor_function(columns, [1]), shared=[0], threads=cores(), inline=True)
         """The Taylor models of one branch's outputs (inputs: T, the centre of a cell of q7, the branch's
         :data:`SIGNS`, then the cell's half-width, radius 0 and its ends) over rows of cells and branches, the
         rows of a round shared among the cores."""
