@@ -14,7 +14,8 @@ is a pure IK (the feasibility problem).
 
 A local method: :func:`solve_full` starts it from several configurations — ``q0`` (given),
 then, for an arm with a closed form, the within-limits branches of the pose at the middle of
-each branch's feasible interval (:func:`qpik.feasible_intervals`, one start per branch),
+each branch's feasible interval (:func:`qpik.feasible_intervals`, one start per branch; for an arm whose branches
+are found by a search, :func:`qpik.ik`'s within-limits branches at a few values of its parameter),
 then configurations drawn uniformly inside the limits from a generator seeded with ``seed`` —
 and keeps the best start that reaches the pose (pure IK: the first). Its KKT residual
 (:attr:`FullResult.kkt`) is the ∞-norm of the Lagrangian's gradient and of the constraint
@@ -54,6 +55,9 @@ OPTIONS = {
     "calc_lam_p": False,
 }
 """IPOPT options of the full-joint NLP."""
+SEARCHED = np.pi * np.array([0.0, 1.0, 0.5, -0.5, 0.25, -0.75, 0.75, -0.25])
+"""rad: the parameter values whose branches start :func:`solve_full` on an arm whose branches are found by a search
+(no expressions of the parameter, no feasible sets): spread over the circle, the widest gaps first."""
 
 
 @dataclass
@@ -236,11 +240,13 @@ def _not_found(robot: Robot, T: np.ndarray) -> str:
 
 
 def _starts(robot: Robot, T: np.ndarray, first: np.ndarray, seed: int):
-    """``first``, then one closed-form start per branch with a feasible interval, then seeded random ones."""
+    """``first``, then one closed-form start per branch with a feasible interval (an arm whose branches are found by
+    a search instead: its branches within the limits at :data:`SEARCHED` values of the parameter), then seeded random
+    ones."""
     yield from first
-    if robot.branch_functions:
-        from qpik.analytic import feasible_intervals, ik
+    from qpik.analytic import feasible_intervals, ik
 
+    if robot.branch_functions:
         fi = feasible_intervals(robot, T)
         for b, ivs in zip(fi.branch, fi.intervals):
             if ivs:
@@ -249,6 +255,10 @@ def _starts(robot: Robot, T: np.ndarray, first: np.ndarray, seed: int):
                 k = int(np.flatnonzero(sols.branch == b)[0])
                 if sols.within_limits[k]:
                     yield sols.q[k]
+    elif robot.closed_form is not None:
+        for param in SEARCHED:
+            sols = ik(robot, T, param)
+            yield from sols.q[sols.within_limits]
     rng = np.random.default_rng(seed)
     while True:
         yield rng.uniform(robot.q_min, robot.q_max)

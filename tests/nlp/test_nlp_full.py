@@ -133,3 +133,28 @@ def test_threads_sharing_an_nlp_get_the_answers_of_one_thread() -> None:
     serial = [answers(k) for k in range(4)]
     with ThreadPoolExecutor(4) as pool:
         assert list(pool.map(answers, range(4))) == serial
+
+
+def test_an_arm_of_the_search_starts_from_its_branches():
+    """The Sawyer's branches are found by the 1-D search (no feasible sets): after q0, solve_full's starts are
+    qpik.ik's within-limits branches at the parameters of SEARCHED, in that order, each reaching the pose by MuJoCo's
+    FK of the file, before any random start; and an answer from them reaches the pose too."""
+    from conftest import mujoco_poses
+
+    from qpik.nlp.full import SEARCHED, _starts
+
+    robot = model_robot("robosuite_sawyer")
+    assert robot.closed_form == "locked_search" and not robot.branch_functions
+    scene = Scene.of(robot, objective="smooth-margin", self_collision=False)
+    for k, q in enumerate(random_q(robot, 3, 24)):
+        T = mujoco_poses(robot, q[None])[0]
+        expected = [x for p in SEARCHED for x in qpik.ik(robot, T, p).q[qpik.ik(robot, T, p).within_limits]]
+        assert len(expected) >= 2
+        queue = _starts(robot, T, q[None], k)
+        np.testing.assert_array_equal(next(queue), q)
+        got = np.array([next(queue) for _ in expected])
+        np.testing.assert_array_equal(got, expected)
+        np.testing.assert_allclose(mujoco_poses(robot, got), np.broadcast_to(T, (len(got), 4, 4)), atol=1e-10)
+        res = solve_full(scene, T, options=FullOptions(starts=2, seed=k))
+        assert res.status == "optimal", res.message
+        np.testing.assert_allclose(mujoco_poses(robot, res.q[None])[0], T, atol=1e-9)
