@@ -72,10 +72,9 @@ class Page:
         self.geometry = ArmGeometry(robot)
         self.arm = self._add_arm("/arm", None, 1.0)
         self.best = self._add_arm("/best", BEST, 0.45, visible=False)
-        closed = robot.branch_functions
         from qpik.analytic.api import closed_form_for
 
-        self.branch_ids = closed_form_for(robot).branch_array.tolist() if closed else []
+        self.branch_ids = closed_form_for(robot).branch_array.tolist() if robot.closed_form is not None else []
         self.ghosts = self._add_ghosts(len(self.branch_ids))
         self.labels = [scene.add_label(f"/ghosts/label{b}", f"b{b}", visible=False) for b in self.branch_ids]
         self.capsules = []
@@ -134,25 +133,26 @@ class Page:
 
     def _build_panel(self, track: Track | None, objective: str) -> None:
         robot, gui = self.robot, self.server.gui
-        closed = robot.branch_functions
+        closed, branches = robot.branch_functions, robot.closed_form is not None
         from qpik.analytic.api import closed_form_for
         from qpik.analytic.api import symbol as param_symbol
 
         # the solver's own parameter: q7, or q1 for an arm read from the flange
-        symbol = param_symbol(closed_form_for(robot).param_name) if closed else ""
+        symbol = param_symbol(closed_form_for(robot).param_name) if branches else ""
         self.symbol = symbol
         kind = {"srs": "S-R-S, closed form in the arm angle ψ", "offset_shoulder": "offset shoulder, closed form in δ",
                 "locked_joint": f"closed form with {symbol} locked",
-                "locked_search": "no closed form (qpik.ik: a 1-D search); shown by the numerical IK"}  # fmt: skip
+                "locked_search": f"no closed form: qpik.ik's branches by a 1-D search at {symbol} (no feasible sets, "
+                                 "no certified best answer)"}  # fmt: skip
         what = kind.get(robot.closed_form or "", "no closed form")
         gui.add_markdown(f"**{robot.name}** ({robot.dof} joints): {what}")
-        with gui.add_folder("Branches", visible=closed):
+        with gui.add_folder("Branches", visible=branches):
             self.slider = gui.add_slider(f"{symbol or 'param'} [rad]", -math.pi, math.pi, 0.001, 0.0,
                                          marks=((-math.pi, "−π"), (0.0, "0"), (math.pi, "π")))  # fmt: skip
             self.chart = gui.add_html("")
             self.ghost_box = gui.add_checkbox("ghosts", True)
             self.branch_md = gui.add_markdown("")
-        with gui.add_folder("Best answer" if closed else "Numerical IK"):
+        with gui.add_folder("Best answer" if closed else "Solid arm"):
             self.objective_dd = gui.add_dropdown("objective", NAMES, initial_value=objective, visible=closed)
             self.best_md = gui.add_markdown("")
             self.to_best = gui.add_button(f"{symbol or 'param'} ← best", visible=closed)
@@ -270,6 +270,10 @@ def best_text(state: ViewState, symbol: str) -> str:
         r = state.numerical
         return (f"numerical IK (Levenberg–Marquardt from the last configuration): **{r.status}**, "
                 f"pose error {r.residual:.2e} (m, rad)")  # fmt: skip
+    if state.slot is not None:
+        b = int(state.branches.branch[state.slot])
+        return (f"solid arm: branch **{b}** at {symbol} = {state.param:.4f} rad, the branch inside the joint limits "
+                "nearest the last configuration")  # fmt: skip
     best = state.best
     if best.status != "optimal":
         return f"**{best.status}**: {best.summary()}"

@@ -3,16 +3,18 @@ r"""The viewer's web server: a viser scene of the arm, its branches, its best an
 :class:`Viewer` runs the server, answers the page's controls and runs live mode and playback; the page
 (:mod:`qpik.viewer.page`, viser's client served on ``http://HOST:PORT``) shows:
 
-- the arm drawn solid (:mod:`qpik.viewer.geometry`): :func:`qpik.solve_best`'s answer for the target
-  (the numerical IK's for an arm without a closed form), the controller's configuration in live mode,
-  the played configuration in playback;
+- the arm drawn solid (:mod:`qpik.viewer.geometry`): :func:`qpik.solve_best`'s answer for the target (for an arm
+  whose branches :func:`qpik.ik` finds by a search, the branch at the slider's parameter inside the limits nearest
+  the last configuration, so that the slider moves it along its self-motion; the numerical IK's for an arm without
+  either), the controller's configuration in live mode, the played configuration in playback;
 - a target frame to drag (viser's transform controls); every drag update recomputes the branches, the
   feasible sets and the best answer without its certificate, and the certificate follows when the drag
   ends (:data:`Viewer.latencies` times each drag update from its callback to the flushed scene messages);
-- every closed-form branch at the slider's δ/ψ as a translucent ghost labelled with its branch id: green
+- every branch of :func:`qpik.ik` at the slider's parameter as a translucent ghost labelled with its branch id: green
   where it is inside the joint limits, orange where it reaches the pose outside them (a branch that does
   not reach the pose is hidden);
-- the slider of δ/ψ with the exact feasible sets of every branch under it (:mod:`qpik.viewer.chart`);
+- the slider of the parameter with the exact feasible sets of every branch under it (:mod:`qpik.viewer.chart`; none
+  for an arm of the search);
 - the obstacles (red), the link capsules (blue) and, per obstacle, the segment from it to the nearest
   capsule with the distance in mm, red when it is below ``d_safe``;
 - a playback folder with a time slider (:mod:`qpik.viewer.playback`) and a live folder: the QP
@@ -350,6 +352,9 @@ class Viewer:
             self._param = float(self.page.slider.value)
             state = self._state
             if state.branches is None:
+                return
+            if not self.robot.branch_functions:  # the solid arm is a branch at the slider's parameter: it follows
+                self.update(certify=False)
                 return
             from qpik.analytic import ik
 

@@ -85,12 +85,37 @@ def test_view_state_of_a_pose_reaches_it():
 
 
 def test_view_state_of_an_arm_without_closed_form_is_the_numerical_ik():
-    robot = model_robot("xarm7_offset")  # example-robot-data's xArm7 with axis 3 moved 1 mm: no closed form
+    robot = qpik.load_robot("zheng7")  # the offset wrist of Zheng et al. 2019: no family of qpik.ik
+    assert robot.closed_form is None
     q = random_q(robot, 1, 5)[0]
     st = solve_view(robot, robot.fk(q), 0.0, q_seed=q + 0.05)
-    assert st.branches is None and st.intervals is None and st.best is None
+    assert st.branches is None and st.intervals is None and st.best is None and st.slot is None
     assert st.numerical.status == "ok"
     np.testing.assert_allclose(robot.fk(st.q), robot.fk(q), atol=1e-8)
+
+
+@pytest.mark.parametrize("key", ["robosuite_sawyer", "xarm7_offset"])
+def test_view_state_of_a_searched_arm_is_the_branch_nearest_the_last_configuration(key):
+    """An arm whose branches the 1-D search finds (robosuite's Sawyer, q1; the xArm7 with axis 3 moved 1 mm, q7):
+    the ghosts are qpik.ik's branches at the parameter, each valid one reaching the pose by MuJoCo's FK of the file;
+    the solid configuration is, among those inside the limits, the one nearest the seed (brute force over the
+    slots), here the configuration the pose came from; no feasible sets, no best answer."""
+    from conftest import mujoco_poses
+
+    robot = model_robot(key)
+    j = 0 if key == "robosuite_sawyer" else 6
+    for q in random_q(robot, 3, 8):
+        T = mujoco_poses(robot, q[None])[0]
+        st = solve_view(robot, T, q[j], q_seed=q + 0.02)
+        assert st.intervals is None and st.best is None and st.numerical is None
+        sols = qpik.ik(robot, T, q[j])
+        np.testing.assert_array_equal(st.branches.q, sols.q)
+        valid = sols.q[sols.valid]
+        np.testing.assert_allclose(mujoco_poses(robot, valid), np.broadcast_to(T, (len(valid), 4, 4)), atol=1e-9)
+        inside = np.flatnonzero(sols.within_limits)
+        apart = [np.abs((sols.q[k] - q - 0.02 + np.pi) % (2 * np.pi) - np.pi).max() for k in inside]
+        assert st.slot == inside[int(np.argmin(apart))]
+        np.testing.assert_allclose((st.q - q + np.pi) % (2 * np.pi) - np.pi, 0.0, atol=1e-9)
 
 
 def test_plan_file_is_played_as_written(tmp_path):

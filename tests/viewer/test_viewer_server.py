@@ -196,3 +196,31 @@ def test_websocket_client_receives_the_scene_and_every_update(iiwa):
     while len(iiwa.server.get_clients()) > before and time.monotonic() < deadline:
         time.sleep(0.05)
     assert len(iiwa.server.get_clients()) == before
+
+
+def test_the_slider_moves_a_searched_arm_along_its_self_motion():
+    """robosuite's Sawyer (qpik.ik by the 1-D search, q1): the slider is q1 and the page has a ghost per slot (16);
+    moving the slider puts the solid arm, drawn where MuJoCo puts its bodies, on the branch inside the limits
+    nearest the last configuration at the new q1, reaching the target by MuJoCo's FK of the file, and its panel says
+    which branch; the ghosts are qpik.ik's branches there."""
+    from conftest import model_robot, mujoco_poses
+
+    robot = model_robot("robosuite_sawyer")
+    q = random_q(robot, 1, 9)[0]
+    T = mujoco_poses(robot, q[None])[0]
+    with Viewer(robot, T, options=qpik.ViewOptions(port=0)) as viewer:
+        assert viewer.page.slider.label == "q1 [rad]" and len(viewer.page.branch_ids) == 16
+        last = viewer.state.q
+        for value in (q[0], q[0] + 0.05, q[0] + 0.1):
+            viewer.set_param(value)
+            st = viewer.state
+            assert st.slot is not None and abs(st.q[0] - value) < 1e-9
+            sols = qpik.ik(robot, T, value)
+            np.testing.assert_array_equal(st.branches.q, sols.q)
+            inside = np.flatnonzero(sols.within_limits)
+            apart = [np.abs((sols.q[k] - last + np.pi) % (2 * np.pi) - np.pi).max() for k in inside]
+            assert st.slot == inside[int(np.argmin(apart))]
+            np.testing.assert_allclose(mujoco_poses(robot, st.q[None])[0], T, atol=1e-9)
+            _arm_at(viewer, st.q)
+            assert f"branch **{int(sols.branch[st.slot])}**" in viewer.page.best_md.content
+            last = st.q
