@@ -1,4 +1,5 @@
-"""Bench rows of the locked-q7 closed form beside others' solvers of the same arms (``qpik bench analytic``).
+"""Bench rows of the locked-q7 closed form and of the 1-D search beside others' solvers of the same arms
+(``qpik bench analytic``).
 
 **The Panda** (:func:`panda_rows`). Poses are ``fk(q)`` of the catalog Panda's flange for configurations drawn
 uniformly inside Franka's limits (seed 2), each solved at its own q7. Timed interleaved, blocks of
@@ -16,12 +17,30 @@ test extra) and whose ssik solver imports: ``qpik.ik`` (all 8 branches at the co
 ``solve(T)`` (its prebuilt solver of the same arm, which samples q7: the issue's reference for speed), on ``fk(q)`` of
 the file's arm for configurations drawn inside its limits (seed 3), timed interleaved.
 
+**The 1-D search** (:func:`search_rows`): example-robot-data's Baxter, its right arm (:data:`SEARCHED`; left out with
+a note when the package is not installed), served by the certified 1-D search over q4 with q1 locked
+(:mod:`qpik.analytic.locked_search`). Poses are ``fk(q)`` for configurations drawn inside its limits (seed 4), timed
+interleaved, blocks of :data:`~qpik.bench.analytic.BLOCK` calls, fewer samples than the closed forms' rows (a call
+takes milliseconds):
+
+- ``qpik.ik`` (all 16 slots at the configuration's q1; its note gives the configurations found of the poses);
+- ik-geo's ``Robot.two_intersecting`` (the 6R family of IK-Geo whose axes 5 and 6 meet, solved by a 1-D search over
+  its q4) of joints 2-7 at q1 = 0, built once; each pose turned about axis 1 by −q1 before the timing (the locked
+  joint folded into the pose), then ``get_ik``. The installed ik-geo (PyPI ``ik-geo`` 1.0.3, the Rust crate 0.1.2)
+  searches by minimising each branch's squared error with NLopt's MLSL (low-discrepancy starts, Nelder-Mead local
+  runs) over budgets of 50, 200, 1,000 and 2,000 evaluations, stopping at the first budget that finds a root, and
+  keeps at most one root per branch whose squared error is below 1e-8: neither a fixed grid nor a certificate.
+  qpik's search is certified (every root of every branch, or says it is not proved).
+
 Every peer's answers are first checked by qpik's FK: each row's note says how many of its finite solutions reach the
-pose to 1e-9, and how many of the generating configurations are among them. A peer that does not import is left
-out with a note.
+pose to 1e-9, and how many of the generating configurations are among them (ik-geo's also gives the FK errors of its
+solutions, how often q is among them to 1e-3 rad, how many it flags as least-squares, and how far its own FK at q is
+from the pose it is given: the conversion's check). A peer that does not import is left out with a note.
 """
 
 from __future__ import annotations
+
+import itertools
 
 import numpy as np
 
@@ -117,6 +136,91 @@ def _beside_ssik(arm: str, robot, ssik, samples: int, block: int, row) -> list[R
     t = time_interleaved({k: cycle(fn, list(range(POSES))) for k, (fn, _) in peers.items()}, samples, block=block)
     ours, theirs = f"{arm} q7 locked: qpik.ik, 8 branches", f"{arm}: ssik solve (q7 sampled)"
     return [row(ours, t["qpik"], theirs, notes["qpik"]), row(theirs, t["ssik"], None, notes["ssik"])]
+
+
+SEARCHED = ("erd/baxter", {"base": "right_arm_mount", "tip": "right_wrist"})
+"""The arm of the 1-D search's rows: example-robot-data's Baxter, its right arm (packaged model key, load options)."""
+
+
+def search_rows(repeat: int, block: int, row) -> list[Row]:
+    """The rows of the 1-D search (module docstring); ``row(label, seconds, ref, note)`` makes one."""
+    from qpik.robots.packaged import packaged_model
+
+    key, options = SEARCHED
+    try:
+        robot = load_robot(str(packaged_model(key)), **options)
+    except QpikError as exc:
+        print(f"qpik bench analytic: the 1-D search's rows left out: {exc}")
+        return []
+    q = np.random.default_rng(4).uniform(robot.q_min, robot.q_max, (POSES, robot.dof))
+    T = robot.fk(q)
+    calls = {"qpik": lambda i: ik(robot, T[i], float(q[i, 0]))}
+    notes = {"qpik": _check(robot, T, q, calls["qpik"], _qpik_solutions)}
+    try:
+        geo, poses = _geo_locked_q1(robot, T, q[:, 0], import_peer("ik_geo"))
+        calls["geo"] = lambda i: geo.get_ik(*poses[i])
+
+        def answers(i: int) -> list[np.ndarray]:
+            return [np.insert(np.asarray(x, float), 0, q[i, 0]) for x, _ in calls["geo"](i)]
+
+        flagged = sum(ls for i in range(POSES) for _, ls in calls["geo"](i))
+        fk = max(  # ik-geo's own FK at q against the pose it is given: the conversion, checked
+            max(np.abs(np.asarray(geo.forward_kinematics(q[i, 1:])[k]) - poses[i][k]).max() for k in (0, 1))
+            for i in range(POSES)
+        )
+        notes["geo"] = _check(robot, T, q, answers, list) + _worst(robot, T, q, answers)
+        notes["geo"] += f" (flagged least-squares by ik-geo: {flagged}; its FK at q: the pose given to {fk:.0e})"
+    except ImportError as exc:
+        print(f"qpik bench analytic: ik-geo left out of the 1-D search's rows ({exc})")
+    t = time_interleaved(
+        {k: cycle(fn, list(range(POSES))) for k, fn in calls.items()}, max(10, repeat // (10 * block)), block=block
+    )
+    ours = "baxter q1 locked: qpik.ik, 16 slots (certified 1-D search)"
+    theirs = "baxter q1 locked: ik-geo two_intersecting get_ik (6R, 1-D search by NLopt MLSL)"
+    rows = [row(ours, t["qpik"], theirs if "geo" in t else None, notes["qpik"])]
+    return rows + ([row(theirs, t["geo"], None, notes["geo"])] if "geo" in t else [])
+
+
+def _worst(robot, T: np.ndarray, q: np.ndarray, answers) -> str:
+    """The FK errors of a peer's answers (qpik's FK: median and largest entry of the pose's difference) and how often
+    q is among them to 1e-3 rad."""
+    errors, near = [], 0
+    for i in range(len(T)):
+        sols = answers(i)
+        errors += [float(np.abs(robot.fk(x) - T[i]).max()) for x in sols]
+        near += any(np.abs(wrap(x - q[i])).max() < 1e-3 for x in sols)
+    if not errors:
+        return " (no solutions)"
+    return f" (FK error median {np.median(errors):.0e}, max {max(errors):.0e}; q within 1e-3 rad {near}/{len(T)})"
+
+
+def _geo_locked_q1(robot, T: np.ndarray, q1: np.ndarray, ik_geo) -> tuple:
+    """ik-geo's ``two_intersecting`` robot of the arm's joints 2-7 at q1 = 0 (product of exponentials: axes and the
+    offsets between points on them, base frame; the points of axes 6 and 7 where they meet) and the poses turned about
+    axis 1 by −q1 (the locked joint folded into the pose, outside the timing), as ``get_ik`` takes them: rotation
+    relative to the flange's at q = 0, transposed (its convention), and position."""
+    zero = np.zeros(robot.dof)
+    h, o = robot.chain.axes(zero)
+    s, t = np.linalg.lstsq(np.stack([h[5], -h[6]], axis=1), o[6] - o[5], rcond=None)[0]
+    wrist = 0.5 * (o[5] + s * h[5] + o[6] + t * h[6])
+    points = [o[1], o[2], o[3], o[4], wrist, wrist]
+    home = robot.fk(zero)
+    offsets = [points[0]] + [b - a for a, b in itertools.pairwise(points)] + [home[:3, 3] - points[-1]]
+    geo = ik_geo.Robot.two_intersecting(np.array(h[1:]), np.array(offsets))
+    poses = []
+    for Ti, a in zip(T, q1):
+        M = np.eye(4)
+        M[:3, :3] = _rotation(h[0], -a)
+        M[:3, 3] = o[0] - M[:3, :3] @ o[0]
+        Tz = M @ Ti
+        poses.append(((Tz[:3, :3] @ home[:3, :3].T).T.copy(), Tz[:3, 3].copy()))
+    return geo, poses
+
+
+def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """Rodrigues: the rotation by ``angle`` (rad) about the unit ``axis``."""
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
 
 
 def _qpik_solutions(sols) -> list[np.ndarray]:

@@ -1,11 +1,12 @@
-"""The certified 1-D search with q1 locked (qpik.analytic.locked_search) on robosuite's Sawyer (and, q7 locked,
-the Gen3 file, an exact member, its 0.35 mm wrist offset included), against MuJoCo's FK of the model files: the
-configuration a pose came from is among the solutions, every solution reaches the pose, and on the exact Sawyer
-every sign change of every error function on a dense grid of q4 (numpy, not the Taylor models) has its solution.
-60 configurations per arm by default, 2,000 with QPIK_TESTS_LARGE=1. Behind qpik.ik (the
-"locked_search" family, SearchSolver): the slots of the Sawyer and of the xArm7 with axis 3 moved 1 mm, against
-MuJoCo's FK, the error functions and the solutions nearest along the parameter; 40 configurations per arm by
-default, 2,000 with QPIK_TESTS_LARGE=1."""
+"""The certified 1-D search with q1 locked (qpik.analytic.locked_search) on robosuite's Sawyer and example-robot-data's
+Baxter (right arm, an exact member) (and, q7 locked, the Gen3 file, an exact member, its 0.35 mm wrist offset
+included), against MuJoCo's FK of the model files: the configuration a pose came from is among the solutions, every
+solution reaches the pose, and on the exact Sawyer every sign change of every error function on a dense grid of q4
+(numpy, not the Taylor models) has its solution. 60 configurations per arm by default, 2,000 with QPIK_TESTS_LARGE=1.
+Behind qpik.ik (the "locked_search" family, SearchSolver): the slots of the Sawyer, of Baxter and of the xArm7 with
+axis 3 moved 1 mm, against MuJoCo's FK, the error functions and the solutions nearest along the parameter; 40
+configurations per arm by default, 2,000 with QPIK_TESTS_LARGE=1. Baxter's notes give the offsets of its axes as
+MuJoCo places them."""
 
 from __future__ import annotations
 
@@ -38,11 +39,12 @@ def angle_diff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.abs((np.asarray(a) - b + np.pi) % (2 * np.pi) - np.pi)
 
 
-@pytest.mark.parametrize("key", ["robosuite_sawyer", "sawyer_exact", "robosuite_gen3", "xarm7_offset"])
+@pytest.mark.parametrize("key", ["robosuite_sawyer", "sawyer_exact", "erd_baxter", "robosuite_gen3", "xarm7_offset"])
 def test_the_search_finds_q_and_every_solution_reaches_the_pose_by_mujoco(key):
     """Over random q inside the limits: one solution is q to 1e-9 rad; every solution reaches the pose to 1e-10 by
     MuJoCo's FK of the file, at most 16 and no two the same; the searches of the exact members (the Sawyer
-    unrounded, and, q7 locked, the Gen3 file and the xArm7 with axis 3 moved 1 mm) are proved. The Sawyer file (a
+    unrounded, example-robot-data's Baxter (right arm), and, q7 locked, the Gen3 file and the xArm7 with axis 3 moved
+    1 mm) are proved. The Sawyer file (a
     near member: the ideal chain's roots polished on the file's) may miss q where the chain of joints 2-7 is near
     singular (σ_min < 1e-3; 3 of 2,000 on this seed, σ_min < 2e-4)."""
     robot = model_robot(key)
@@ -148,23 +150,61 @@ def test_the_search_locks_q7_where_only_the_chain_itself_fits():
         LockedSearch(model_robot("erd_panda").chain)
 
 
+def test_baxter_says_it_is_searched_with_the_offsets_of_its_axes_by_mujoco():
+    """Baxter's right arm (example-robot-data): served by the search with q1 locked, and its notes give the distances
+    between consecutive joint axes (mm) as MuJoCo places the axes at q = 0: axes 2-3, 4-5, 6-7 meet (< 1 µm apart),
+    axes 1-2, 3-4 and 5-6 do not (69, 69 and 10 mm in the file), and along axes 3 and 5 the distance between the feet
+    of the common normals with their neighbours (364.4 and 374.3 mm in the file)."""
+    import mujoco
+
+    robot = model_robot("erd_baxter")
+    assert robot.closed_form == "locked_search" and robot.dof == 7
+    assert robot.notes.startswith("served by a certified 1-D search over q4 with q1 locked")
+    model = robot.mj_model()
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    ids = [model.joint(n).id for n in robot.joint_names]
+    point, axis = data.xanchor[ids], data.xaxis[ids]
+
+    def normal(i: int, j: int) -> tuple[float, np.ndarray, np.ndarray]:
+        """Distance between axes i and j (0-based) and the feet of their common normal on each."""
+        n = np.cross(axis[i], axis[j])
+        d = point[j] - point[i]
+        a = np.array([[axis[i] @ axis[i], -axis[i] @ axis[j]], [axis[i] @ axis[j], -axis[j] @ axis[j]]])
+        s, t = np.linalg.solve(a, [d @ axis[i], d @ axis[j]])
+        return abs(d @ n) / np.linalg.norm(n), point[i] + s * axis[i], point[j] + t * axis[j]
+
+    gaps = [normal(i, i + 1)[0] for i in range(6)]
+    assert max(gaps[1], gaps[3], gaps[5]) < 1e-6
+    assert robot.notes.count("axes 2-3, 4-5, 6-7 meet") == 1
+    for i in (0, 2, 4):
+        assert gaps[i] > 5e-3
+        assert f"axes {i + 1}-{i + 2} {gaps[i] * 1e3:.0f} mm apart" in robot.notes
+    for k in (2, 4):  # axes 3 and 5 (0-based): the feet of the normals with axes k-1 and k+1
+        along = np.linalg.norm(normal(k - 1, k)[2] - normal(k, k + 1)[1])
+        assert f"axis {k + 1} {along * 1e3:.1f} mm" in robot.notes
+    assert [round(g * 1e3) for g in gaps[::2]] == [69, 69, 10]
+
+
 # ---- behind qpik.ik: the "locked_search" family ---------------------------------
 
 API_BATCH = 2000 if LARGE else 40
 
 
-@pytest.mark.parametrize("key", ["robosuite_sawyer", "xarm7_offset"])
+@pytest.mark.parametrize("key", ["robosuite_sawyer", "erd_baxter", "xarm7_offset"])
 def test_ik_holds_q_in_its_slot_and_every_valid_slot_reaches_the_pose_by_mujoco(key):
-    """qpik.ik on random q inside the limits (the Sawyer: q1 locked, its file a near member; the xArm7 with axis 3
-    moved 1 mm: q7 locked, exact): 16 finite slots; one valid slot holds q to 1e-9 rad (modulo 2π), within limits,
-    except where the chain without the locked joint is near singular (σ_min < 1e-3), and it is the slot that
-    redundancy_parameter names (from qpik's FK of q, not MuJoCo's pose) unless the pose has a singular slot (a root of
-    two error functions, whose b round-off decides); every valid slot reaches the pose to 1e-10 by MuJoCo's FK of the
-    file and holds the locked joint at the parameter; the slots hold the search's roots as documented (the j-th of b in
-    increasing q4 in slot 4b + j, those past the fourth in the lowest slots left; singular where the search says a
-    root is double), and on the exact xArm7 every other root is a root of its e_b (within 1e-7)."""
+    """qpik.ik on random q inside the limits (the Sawyer: q1 locked, its file a near member; Baxter's right arm: q1
+    locked, exact; the xArm7 with axis 3 moved 1 mm: q7 locked, exact): 16 finite slots; one valid slot holds q to
+    1e-9 rad (modulo 2π), within limits, except where the chain without the locked joint is near singular (σ_min <
+    1e-3), and it is the slot that redundancy_parameter names (from qpik's FK of q, not MuJoCo's pose) unless the
+    pose has a singular slot (a root of two error functions, whose b round-off decides); every valid slot reaches
+    the pose to 1e-10 by MuJoCo's FK of the file and holds the locked joint at the parameter; the slots hold the
+    search's roots as documented (the j-th of b in increasing q4 in slot 4b + j, those past the fourth in the lowest
+    slots left; singular where the search says a root is double), and on the exact arms (Baxter, the xArm7) every
+    regular root is a root of its e_b: e_b there over its slope (a forward difference) below 1e-7 rad (e_b loses
+    digits near some roots: on Baxter |e_b| 1e-7 at roots that reach their pose to 1e-10)."""
     robot = model_robot(key)
-    locked = 0 if key == "robosuite_sawyer" else 6
+    locked = 6 if key == "xarm7_offset" else 0
     assert robot.closed_form == "locked_search" and robot.canonical.reversed == (locked == 0)
     assert robot.notes.startswith(f"served by a certified 1-D search over q4 with q{locked + 1} locked")
     assert not robot.branch_functions
@@ -208,8 +248,12 @@ def test_ik_holds_q_in_its_slot_and_every_valid_slot_reaches_the_pose_by_mujoco(
             Ts = np.linalg.inv(Ti) if locked == 0 else Ti
             R, p = sy.frame_of_batch(np.broadcast_to(Ts, (int(regular.sum()), 4, 4)))
             signs = SIGNS[sol.branch[regular]]
-            e, _, _ = s.error(R, p, float(pi), sol.q[regular, 3], (signs[:, 0], signs[:, 1]), sy.NUMPY)
-            assert np.abs(e).max() < 1e-7
+            e, slope = (
+                s.error(R, p, float(pi), sol.q[regular, 3] + h, (signs[:, 0], signs[:, 1]), sy.NUMPY)[0]
+                for h in (0.0, 1e-6)
+            )
+            slope = (slope - e) / 1e-6
+            assert np.all(np.abs(e) <= 1e-7 * np.abs(slope))  # a Newton step of e_b below 1e-7 rad
     assert missed <= max(2, API_BATCH // 400)
     batch = qpik.ik(robot, T[:3], param[:3])
     assert batch.q.shape == (3, 16, 7)

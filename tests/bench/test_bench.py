@@ -33,6 +33,8 @@ EXPECTED = {
         "iiwa14 q3 locked: ik-geo get_ik (6R)",
         "xArm7 q7 locked: qpik.ik, 8 branches",
         "xArm7: ssik solve (q7 sampled)",
+        "baxter q1 locked: qpik.ik, 16 slots (certified 1-D search)",
+        "baxter q1 locked: ik-geo two_intersecting get_ik (6R, 1-D search by NLopt MLSL)",
     ],
     "controller": [
         "no obstacles, hot: mink + osqp (rebuilt each call)",
@@ -135,6 +137,11 @@ def test_bench_prints_every_row(name, monkeypatch):
         for xarm in (row for row in rows if row.label.startswith("xArm7 q7 locked")):  # every branch checked by FK
             good, total = map(int, re.search(r"\((\d+)/(\d+) solutions", xarm.note).groups())
             assert good == total > 0 and "q among them 64/64" in xarm.note
+        searched = [row for row in rows if row.label.startswith("baxter q1 locked")]
+        for row in searched:  # every answer of both searches checked by FK, q's count given
+            assert re.search(r"\(\d+/\d+ solutions of 64 poses reach the pose to 1e-9 by qpik's FK; q among", row.note)
+        good, total = map(int, re.search(r"\((\d+)/(\d+) solutions", searched[0].note).groups())
+        assert good == total > 0 and "q among them 64/64" in searched[0].note  # qpik's search: all, and q every time
     if name == "view":  # every arm's drag updates were timed, with their p95 against the 50 ms budget
         assert all("p95" in row.note and "/20 ≤ 50 ms" in row.note and "/20 poses reached" in row.note for row in rows)
         assert all("CPU of the update median" in row.note for row in rows)
