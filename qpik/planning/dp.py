@@ -33,6 +33,7 @@ from functools import cache
 
 import numpy as np
 
+from qpik.analytic.api import symbol
 from qpik.core.progress import Progress
 from qpik.native.sources import load_source
 from qpik.planning.grid import Grid, Layers
@@ -344,10 +345,13 @@ def _backtrack(layers: _Layers, src, jumped, V, J, last: int, grid: Grid):
 
 def _empty(grid: Grid, layers: _Layers, k: int) -> str:
     """Why waypoint k has no feasible state (words)."""
-    sym = "δ" if grid.param_name == "delta" else "ψ"
+    sym = symbol(grid.param_name)
     if not grid.inside[k].any():
         if _proved_empty(grid, k):
             return f"no branch reaches this pose with every joint inside its limits at any {sym}"
+        if grid.intervals is None:
+            return (f"the search finds no branch inside the joint limits at the {grid.G} grid values of {sym} (no "
+                    "feasible sets for this arm: a narrower one may exist between them)")  # fmt: skip
         return f"its feasible {sym} intervals hold no grid value (narrower than the grid step {grid.spacing:.3g} rad)"
     what = "an obstacle or, for a checked capsule pair, to itself" if grid.self_pairs else "an obstacle"
     return (f"every configuration inside the joint limits is closer than d_s = {grid.d_safe:g} m to {what}"
@@ -355,7 +359,10 @@ def _empty(grid: Grid, layers: _Layers, k: int) -> str:
 
 
 def _proved_empty(grid: Grid, k: int) -> bool:
-    """Whether the exact feasible intervals of waypoint k (every branch) are empty, and proved so."""
+    """Whether the exact feasible intervals of waypoint k (every branch) are empty, and proved so (never without
+    sets)."""
+    if grid.intervals is None:
+        return False
     fi = grid.intervals[k]
     return fi.proved and not any(fi.intervals[b] for b in range(grid.rows))
 

@@ -80,8 +80,10 @@ class Grid:
     Attributes:
         values: (G,) the parameter values ψ_i, rad.
         rows: B, the branches gridded (the closed form's first B output rows).
-        intervals: per waypoint, its :class:`FeasibleIntervals`.
-        inside: (N, B, G) the grid values inside each branch's exact feasible set.
+        intervals: per waypoint, its :class:`FeasibleIntervals` (None for a
+            :class:`~qpik.planning.search_grid.SearchGrid`: no sets).
+        inside: (N, B, G) the grid values inside each branch's exact feasible set (a ``SearchGrid``'s: the branches
+            the search finds inside the joint limits).
     """
 
     def __init__(self, scene: Scene, poses: np.ndarray, resolution: int):
@@ -94,13 +96,14 @@ class Grid:
         self.values = -np.pi + (np.arange(self.G) + 0.5) * (2.0 * np.pi / self.G)
         self.rows = MIRRORED.get(self.solver.kind, self.solver.n_branches)
         self.mirrored = self.rows < self.solver.n_branches
-        self.intervals: list[FeasibleIntervals] = [feasible_intervals(robot, T) for T in poses]
-        self.inside = self._inside()
+        self.intervals, self.inside = self._feasible()
 
-    def _inside(self) -> np.ndarray:
-        """(N, B, G): the grid values inside each branch's exact feasible set at each waypoint."""
-        N, B, G = len(self.intervals), self.rows, self.G
-        cells = [(k * B + b, lo, hi) for k, fi in enumerate(self.intervals) for b in range(B)
+    def _feasible(self) -> tuple[list[FeasibleIntervals] | None, np.ndarray]:
+        """:attr:`intervals` and :attr:`inside`: the exact feasible sets at every waypoint and the grid values inside
+        them, (N, B, G)."""
+        intervals = [feasible_intervals(self.robot, T) for T in self.poses]
+        N, B, G = len(intervals), self.rows, self.G
+        cells = [(k * B + b, lo, hi) for k, fi in enumerate(intervals) for b in range(B)
                  for lo, hi in fi.intervals[b]]  # fmt: skip
         inside = np.zeros((N * B, G), bool)
         if cells:
@@ -108,7 +111,7 @@ class Grid:
             start, stop = np.searchsorted(self.values, lo, "left"), np.searchsorted(self.values, hi, "right")
             for r, a, b in zip(row.tolist(), start.tolist(), stop.tolist()):
                 inside[r, a:b] = True
-        return inside.reshape(N, B, G)
+        return intervals, inside.reshape(N, B, G)
 
     @property
     def spacing(self) -> float:
@@ -178,12 +181,18 @@ class Grid:
             ok = valid[b]
             for j in range(n):
                 ok = ok * (ctx.q[j] >= robot.q_min[j]) * (ctx.q[j] <= robot.q_max[j])
-            f = self.objective.expr(ctx, p) if self.objective is not None else ca.SX(0.0)
-            clear = ca.vertcat(ctx.distances + unchecked, ctx.self_distances)
+            f, clear = self.point_terms(ctx, p, unchecked)
             d = ca.mmin(clear) if clear.numel() and root[b] == b else ca.SX(np.inf)
             out.append(self.state_layout.pack(q=ctx.q, valid=ok, f=f, clearance=d))
         name = f"plan_states_{self.solver.kind}_{robot.identifier}"
         return ca.Function(name, [T, psi, p, q_ref, prm], [ca.densify(ca.vertcat(*out))])
+
+    def point_terms(self, ctx: Context, p: ca.SX, unchecked: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """At a state's configuration ``ctx.q``: the point objective f (0 without one; its parameters ``p``) and the
+        clearances (m), capsule–obstacle (plus ``unchecked`` for the pairs :mod:`qpik.geometry.contacts` leaves
+        out) then the checked capsule pairs."""
+        f = self.objective.expr(ctx, p) if self.objective is not None else ca.SX(0.0)
+        return f, ca.vertcat(ctx.distances + unchecked, ctx.self_distances)
 
     @cached_property
     def state_layout(self) -> Layout:

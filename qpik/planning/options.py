@@ -21,7 +21,8 @@ class PlanOptions:
         reconfigure: ``"forbid"`` (report the first waypoint with no continuous continuation) or ``"fewest"``
             (the fewest reconfigurations, then the least J).
         a_max: (n,) or a number, rad/s² (needs ``times``), or None.
-        resolution: parameter values per branch in the DP's grid (even, ≥ 8).
+        resolution: parameter values per branch in the DP's grid (even, ≥ 8; None: 720, or 64 on an arm whose
+            branches the 1-D search finds, where each value at each waypoint is a search of milliseconds).
         window: the largest parameter change (rad) between consecutive waypoints the DP searches on one branch
             (None: three times the largest joint-step bound: on an S-R-S arm
             :math:`\sum_{j \le 3} |\Delta q_j| \ge |\Delta\psi|` allows a change of up to three bounds); moves to
@@ -36,7 +37,7 @@ class PlanOptions:
     max_joint_step: float | np.ndarray = 0.1
     reconfigure: str = "forbid"
     a_max: float | np.ndarray | None = None
-    resolution: int = 720
+    resolution: int | None = None
     window: float | None = None
     branches: Sequence[int] | None = None
     refine: bool = True

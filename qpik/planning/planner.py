@@ -15,7 +15,12 @@ Closed-form arms (``nammoto7`` in δ, ``iiwa14`` in ψ, and loaded arms of those
 
 Every configuration is the closed form at its waypoint, so the path is followed exactly.
 
-Arms without a closed form (``zheng7``, ``panda``): the QP controller tracks the path
+Arms whose branches :func:`qpik.ik` finds by the 1-D search (the Sawyer, Baxter: no expressions of the parameter,
+no feasible sets): the same DP over the branches the search finds inside the limits at every grid value of the locked
+joint (:class:`~qpik.planning.search_grid.SearchGrid`; ``"infeasible"`` is then never proved), refined by the NLP over
+the joints.
+
+Arms of no family (``zheng7``): the QP controller tracks the path
 (:func:`qpik.planning.track.track`, also the online baseline), and the same NLP over the joints, with the pose as
 an equality at every waypoint, refines its configurations at the waypoints.
 
@@ -48,12 +53,18 @@ from qpik.planning.grid import Grid
 from qpik.planning.options import PlanOptions
 from qpik.planning.plan import Plan, Profile, make_plan, measure
 from qpik.planning.refine import PathNLP
+from qpik.planning.search_grid import SearchGrid
 from qpik.planning.setup import Setup
 from qpik.planning.track import track
 from qpik.robots.robot import Robot
 from qpik.scene.scene import Scene, scene_of
 
 RECONFIGURE = ("forbid", "fewest")
+RESOLUTION = 720
+"""``resolution`` None: the grid's values per branch of an arm whose branches are expressions of the parameter."""
+SEARCH_RESOLUTION = 64
+"""``resolution`` None for an arm whose branches the 1-D search finds: each value of each waypoint is a search
+(milliseconds)."""
 MAX_RESOLUTION = 16_384
 """The largest ``resolution``."""
 MAX_STATES = 4_000_000
@@ -112,8 +123,10 @@ def plan_self_motion(
     if not isinstance(reconfigure, str) or reconfigure not in RECONFIGURE:
         raise InputError(f"reconfigure: expected one of {RECONFIGURE}, got {reconfigure!r}")
     refine, mujoco = flag(options.refine, "refine"), flag(options.mujoco, "mujoco")
-    if not setup.robot.branch_functions:
+    if setup.robot.closed_form is None:
         return _plan_joints(setup, refine, mujoco)
+    if resolution is None:
+        resolution = RESOLUTION if setup.robot.branch_functions else SEARCH_RESOLUTION
     res = int(number(resolution, "resolution", 8))
     if res % 2 or res != resolution or res > MAX_RESOLUTION:
         raise InputError(f"resolution: expected an even integer in [8, {MAX_RESOLUTION}], got {resolution!r}")
@@ -126,8 +139,9 @@ def plan_self_motion(
 def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fewest: bool, refine: bool,
                       mujoco: bool) -> Plan:  # fmt: skip
     watch = Stopwatch()  # the DP's time: its functions are built with the clock paused
-    with watch.paused():
-        feasible_intervals(setup.robot, setup.poses[0])  # the exact sets' functions, built on their first call
+    if setup.robot.branch_functions:
+        with watch.paused():
+            feasible_intervals(setup.robot, setup.poses[0])  # the exact sets' functions, built on their first call
     grid = _grid(setup, resolution, branches)
     with watch.paused():
         dp.build(grid)
@@ -167,6 +181,8 @@ def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fe
     measure(plan, mujoco)
     if not refine:
         return plan
+    if grid.intervals is None:  # no expressions of the parameter: the NLP over the joints, from the DP's plan
+        return _refine_joints(setup, plan, result, continuous, mujoco)
     nlp = PathNLP(setup.scene, setup.poses, setup.tr, continuous, grid, result.rows)
     out = nlp.solve(grid.values[result.index])
     plan.timings["nlp"] = out.time
@@ -182,9 +198,26 @@ def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fe
     return plan
 
 
+def _refine_joints(setup: Setup, plan: Plan, result: dp.DPResult, continuous: np.ndarray, mujoco: bool) -> Plan:
+    """The DP's ``plan`` of an arm of the 1-D search refined by the NLP over the joints (the pose an equality at
+    every waypoint), kept when better and passing every check."""
+    nlp = PathNLP(setup.scene, setup.poses, setup.tr, continuous)
+    out = nlp.solve(result.q)
+    plan.timings["nlp"] = out.time
+    if out.cost >= result.cost - IMPROVED * max(1.0, abs(result.cost)):
+        return plan
+    better = make_plan(setup, out.q, "optimal", param_name=plan.param_name, cost=out.cost, dp_cost=result.cost,
+                       reconfigurations=result.reconfigurations, timings=plan.timings, profile=plan.profile,
+                       label="NLP", dp_plan=plan)  # fmt: skip
+    measure(better, mujoco)
+    return better if better.ok else plan
+
+
 def _grid(setup: Setup, resolution: int, branches) -> Grid:
-    """The DP's grid of ``resolution`` values per branch, restricted to ``branches`` (public ids, or None)."""
-    grid = Grid(setup.scene, setup.poses, resolution)
+    """The DP's grid of ``resolution`` values per branch, restricted to ``branches`` (public ids, or None): a
+    :class:`~qpik.planning.search_grid.SearchGrid` for an arm whose branches the 1-D search finds."""
+    kind = Grid if setup.robot.branch_functions else SearchGrid
+    grid = kind(setup.scene, setup.poses, resolution)
     if branches is not None:
         ids = [int(b) for b in np.atleast_1d(finite_array(branches, "branches"))]
         known = list(grid.solver.branch_ids)
@@ -239,7 +272,10 @@ def _profile(grid: Grid, result: dp.DPResult) -> Profile:
 
 
 def _least_violating(setup: Setup, k: int) -> str:
-    """What :func:`qpik.solve_best` says about waypoint k: unreachable, or the least-violating branch."""
+    """What :func:`qpik.solve_best` says about waypoint k: unreachable, or the least-violating branch (nothing for an
+    arm of the 1-D search, which it does not serve)."""
+    if not setup.robot.branch_functions:
+        return ""
     from qpik.nlp import solve_best
 
     best = solve_best(setup.scene.replace(objective="margin"), setup.poses[k], options=BestOptions(certify=False))
