@@ -200,17 +200,30 @@ def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fe
 
 def _refine_joints(setup: Setup, plan: Plan, result: dp.DPResult, continuous: np.ndarray, mujoco: bool) -> Plan:
     """The DP's ``plan`` of an arm of the 1-D search refined by the NLP over the joints (the pose an equality at
-    every waypoint), kept when better and passing every check."""
+    every waypoint), kept when better and passing every check; without reconfigurations, the same NLP from the QP
+    controller's run (:func:`_plan_joints`) is a second start, kept instead where its plan passes every check at a
+    lower J (the DP's grid of the locked joint is coarse: 64 values by default)."""
     nlp = PathNLP(setup.scene, setup.poses, setup.tr, continuous)
     out = nlp.solve(result.q)
     plan.timings["nlp"] = out.time
-    if out.cost >= result.cost - IMPROVED * max(1.0, abs(result.cost)):
-        return plan
-    better = make_plan(setup, out.q, "optimal", param_name=plan.param_name, cost=out.cost, dp_cost=result.cost,
-                       reconfigurations=result.reconfigurations, timings=plan.timings, profile=plan.profile,
-                       label="NLP", dp_plan=plan)  # fmt: skip
-    measure(better, mujoco)
-    return better if better.ok else plan
+    best = plan
+    if out.cost < result.cost - IMPROVED * max(1.0, abs(result.cost)):
+        better = make_plan(setup, out.q, "optimal", param_name=plan.param_name, cost=out.cost, dp_cost=result.cost,
+                           reconfigurations=result.reconfigurations, timings=plan.timings, profile=plan.profile,
+                           label="NLP", dp_plan=plan)  # fmt: skip
+        measure(better, mujoco)
+        best = better if better.ok else plan
+    if result.reconfigurations:
+        return best
+    other = _plan_joints(setup, True, mujoco)
+    if not other.ok or other.cost >= best.cost - IMPROVED * max(1.0, abs(best.cost)):
+        return best
+    timings = {**plan.timings, **{f"second start: {k}": v for k, v in other.timings.items()}}
+    second = make_plan(setup, other.q, "optimal", param_name=plan.param_name, cost=other.cost, dp_cost=result.cost,
+                       timings=timings, profile=plan.profile, label="NLP from the QP controller's run",
+                       dp_plan=plan)  # fmt: skip
+    measure(second, mujoco)
+    return second if second.ok else best
 
 
 def _grid(setup: Setup, resolution: int, branches) -> Grid:
