@@ -9,6 +9,11 @@ import numpy as np
 
 WAYPOINTS = 101
 """Waypoints sampled from a timed path when no ``times`` are given."""
+RESOLUTION = 720
+"""``resolution`` None: the grid's values per branch of an arm whose branches are expressions of the parameter."""
+SEARCH_RESOLUTION = 64
+"""``resolution`` None for an arm whose branches the 1-D search finds: each value of each waypoint is a search
+(milliseconds)."""
 
 
 @dataclass(frozen=True)

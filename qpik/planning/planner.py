@@ -50,7 +50,7 @@ from qpik.nlp.options import BestOptions
 from qpik.objectives import Objective
 from qpik.planning import dp
 from qpik.planning.grid import Grid
-from qpik.planning.options import PlanOptions
+from qpik.planning.options import RESOLUTION, SEARCH_RESOLUTION, PlanOptions
 from qpik.planning.plan import Plan, Profile, make_plan, measure
 from qpik.planning.refine import PathNLP
 from qpik.planning.search_grid import SearchGrid
@@ -60,11 +60,6 @@ from qpik.robots.robot import Robot
 from qpik.scene.scene import Scene, scene_of
 
 RECONFIGURE = ("forbid", "fewest")
-RESOLUTION = 720
-"""``resolution`` None: the grid's values per branch of an arm whose branches are expressions of the parameter."""
-SEARCH_RESOLUTION = 64
-"""``resolution`` None for an arm whose branches the 1-D search finds: each value of each waypoint is a search
-(milliseconds)."""
 MAX_RESOLUTION = 16_384
 """The largest ``resolution``."""
 MAX_STATES = 4_000_000

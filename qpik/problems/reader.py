@@ -22,6 +22,7 @@ from qpik.core.validate import finite_array
 from qpik.core.validate import pose as check_pose
 from qpik.geometry.paths import TargetPath
 from qpik.geometry.shapes import Shape, shape_from_spec
+from qpik.planning.options import RESOLUTION, SEARCH_RESOLUTION
 from qpik.problems.paths import PATHS
 from qpik.problems.schema import KINDS, MAX_COUNT, MAX_GRID, SOLVER_KEYS, Problem, Setting
 from qpik.robots.loader import load_robot
@@ -160,8 +161,9 @@ class Reader:
     def plan_sizes(self, solver: dict[str, Any], robot: Robot, poses: int | None) -> None:
         """A ``plan`` problem's grid within :data:`MAX_GRID`, and its branches among the closed form's."""
         waypoints = solver["waypoints"] if poses is None else poses
-        if waypoints * solver["resolution"] > MAX_GRID:
-            size = f"{waypoints} waypoints × resolution {solver['resolution']}"
+        resolution = solver["resolution"] or (RESOLUTION if robot.branch_functions else SEARCH_RESOLUTION)
+        if waypoints * resolution > MAX_GRID:
+            size = f"{waypoints} waypoints × resolution {resolution}"
             raise self.fail("solver.resolution", f"{size} is over {MAX_GRID:,} grid points per branch; use fewer "
                             "waypoints or a lower resolution")  # fmt: skip
         for key in ("branch", "baseline_branch"):

@@ -154,8 +154,8 @@ SOLVER_KEYS: dict[str, dict[str, Setting]] = {
         "max_joint_step": Setting(0.1, "largest move of any joint between consecutive waypoints, rad", positive=True),
         "d_safe": Setting(0.02, "smallest capsule–obstacle distance, m", positive=True),
         "resolution": Setting(
-            720,
-            "parameter values per branch in the DP's grid (even)",
+            None,
+            "parameter values per branch in the DP's grid (even; default 720, 64 on an arm of the 1-D search)",
             integer=True,
             positive=True,
             minimum=8,
