@@ -612,3 +612,41 @@ def test_plan_path(run_example) -> None:
     lines = {m.group(1): int(m.group(2)) for m in re.finditer(r"δ = (0\.\d\d) held on branch 1: (\d+) waypoints", out)}
     assert lines["0.00"] > 0 and lines["0.70"] == 0
     assert "FAIL" not in out
+
+
+# ---- examples/baxter_search_plan.py ---------------------------------------------------------------------------
+
+
+def test_baxter_search_plan(run_example) -> None:
+    """Baxter's right arm (no closed form, the 1-D search): the slots printed reach the pose (their FK errors and
+    the configuration the pose came from among them); the plan's CSV rows reach the example's path (its formula
+    written here) by MuJoCo's kinematics of the URDF to 1e-9, inside the URDF's limits (read here from the file) and
+    within the joint-step bound."""
+    import xml.etree.ElementTree as ET
+
+    from conftest import model_robot, mujoco_poses
+
+    result = run_example("baxter_search_plan")
+    out = result.stdout
+    assert "family locked_search" in out and "axes 1-2 69 mm apart" in out and "FAIL" not in out
+    errors = [float(x) for x in re.findall(rf"FK error ({FLOAT})", out)]
+    assert len(errors) >= 2 and max(errors) < 1e-12
+    q0 = np.array([0.3, -0.4, 0.5, 1.2, -0.3, 0.8, 0.2])
+    slot = re.search(r"came from is slot (\d+) \(to (" + FLOAT + r") rad\)", out)
+    assert float(slot.group(2)) < 1e-9
+    printed = re.search(rf"slot +{slot.group(1)}: q = \[([^\]]*)\]", out).group(1)
+    np.testing.assert_allclose(np.array(printed.split(), float), q0, atol=1e-3)
+    robot = model_robot("erd_baxter")
+    path = mujoco_poses(robot, q0 + np.linspace(0.0, 1.0, 15)[:, None] * np.array([0.4, 0.3, -0.3, -0.4, 0.3, -0.3,
+                                                                                     0.4]))  # fmt: skip
+    with open(result.out / "baxter_plan.csv") as f:
+        rows = list(csv.reader(f))[1:]
+    q = np.array([[float(v) for v in row[2:9]] for row in rows])
+    assert q.shape == (15, 7)
+    np.testing.assert_allclose(mujoco_poses(robot, q), path, atol=1e-9)
+    urdf = ET.parse(robot.model.path).getroot()
+    names = ["right_s0", "right_s1", "right_e0", "right_e1", "right_w0", "right_w1", "right_w2"]
+    limits = {j.get("name"): j.find("limit") for j in urdf.iter("joint")}
+    lo, hi = (np.array([float(limits[n].get(k)) for n in names]) for k in ("lower", "upper"))
+    assert np.all(q >= lo - 1e-12) and np.all(q <= hi + 1e-12)
+    assert np.all(np.abs(np.diff(q, axis=0)) <= 0.1 + 1e-9)
