@@ -46,6 +46,7 @@ import numpy as np
 
 from qpik.analytic.api import ik
 from qpik.analytic.intervals import wrap
+from qpik.analytic.locked_joint import rotation
 from qpik.bench import Row, cycle, import_peer, time_interleaved
 from qpik.core.errors import QpikError
 from qpik.robots.loader import load_robot
@@ -210,17 +211,11 @@ def _geo_locked_q1(robot, T: np.ndarray, q1: np.ndarray, ik_geo) -> tuple:
     poses = []
     for Ti, a in zip(T, q1):
         M = np.eye(4)
-        M[:3, :3] = _rotation(h[0], -a)
+        M[:3, :3] = np.array(rotation(tuple(h[0]), np.cos(a), -np.sin(a)), float)
         M[:3, 3] = o[0] - M[:3, :3] @ o[0]
         Tz = M @ Ti
         poses.append(((Tz[:3, :3] @ home[:3, :3].T).T.copy(), Tz[:3, 3].copy()))
     return geo, poses
-
-
-def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
-    """Rodrigues: the rotation by ``angle`` (rad) about the unit ``axis``."""
-    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
 
 
 def _qpik_solutions(sols) -> list[np.ndarray]:
