@@ -11,12 +11,10 @@ r"""The viewer's web server: a viser scene of the arm, its branches, its best an
   feasible sets and the best answer without its certificate, and the certificate follows when the drag
   ends (:data:`Viewer.latencies` times each drag update from its callback to the flushed scene messages);
 - every branch of :func:`qpik.ik` at the slider's parameter as a translucent ghost labelled with its branch id: green
-  where it is inside the joint limits, orange where it reaches the pose outside them (a branch that does
-  not reach the pose is hidden);
-- the slider of the parameter with the exact feasible sets of every branch under it (:mod:`qpik.viewer.chart`; none
-  for an arm of the search);
-- the obstacles (red), the link capsules (blue) and, per obstacle, the segment from it to the nearest
-  capsule with the distance in mm, red when it is below ``d_safe``;
+  inside the joint limits, orange outside them (a branch that does not reach the pose is hidden);
+- the slider of the parameter with the exact feasible sets of every branch under it (:mod:`qpik.viewer.chart`);
+- the obstacles (red), the link capsules (blue) and, per obstacle, the segment from it to the nearest capsule with
+  the distance in mm, red when it is below ``d_safe``;
 - a playback folder with a time slider (:mod:`qpik.viewer.playback`) and a live folder: the QP
   controller (:meth:`qpik.Controller.for_robot`, posture toward the best answer) tracks the target in
   real time, integrated at its control period ``dt``, with its status.
