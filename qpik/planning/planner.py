@@ -203,9 +203,9 @@ def _refine_joints(setup: Setup, plan: Plan, result: dp.DPResult, continuous: np
     plan.timings["nlp"] = out.time
     best = plan
     if out.cost < result.cost - IMPROVED * max(1.0, abs(result.cost)):
-        better = make_plan(setup, out.q, "optimal", param_name=plan.param_name, cost=out.cost, dp_cost=result.cost,
-                           reconfigurations=result.reconfigurations, timings=plan.timings, profile=plan.profile,
-                           label="NLP", dp_plan=plan)  # fmt: skip
+        better = make_plan(setup, out.q, "optimal", **_slots(setup, out.q), param_name=plan.param_name,
+                           cost=out.cost, dp_cost=result.cost, reconfigurations=result.reconfigurations,
+                           timings=plan.timings, profile=plan.profile, label="NLP", dp_plan=plan)  # fmt: skip
         measure(better, mujoco)
         best = better if better.ok else plan
     if result.reconfigurations:
@@ -214,11 +214,20 @@ def _refine_joints(setup: Setup, plan: Plan, result: dp.DPResult, continuous: np
     if not other.ok or other.cost >= best.cost - IMPROVED * max(1.0, abs(best.cost)):
         return best
     timings = {**plan.timings, **{f"second start: {k}": v for k, v in other.timings.items()}}
-    second = make_plan(setup, other.q, "optimal", param_name=plan.param_name, cost=other.cost, dp_cost=result.cost,
-                       timings=timings, profile=plan.profile, label="NLP from the QP controller's run",
-                       dp_plan=plan)  # fmt: skip
+    second = make_plan(setup, other.q, "optimal", **_slots(setup, other.q), param_name=plan.param_name,
+                       cost=other.cost, dp_cost=result.cost, timings=timings, profile=plan.profile,
+                       label="NLP from the QP controller's run", dp_plan=plan)  # fmt: skip
     measure(second, mujoco)
     return second if second.ok else best
+
+
+def _slots(setup: Setup, q: np.ndarray) -> dict[str, np.ndarray]:
+    """``param``, the locked joint (rad), and ``branch``, the slot, of configurations q (N, n) of an arm of the 1-D
+    search (:func:`qpik.redundancy_parameter`: one search per configuration)."""
+    from qpik.analytic import redundancy_parameter
+
+    param, branch = redundancy_parameter(setup.robot, q)
+    return {"param": param, "branch": branch}
 
 
 def _grid(setup: Setup, resolution: int, branches) -> Grid:

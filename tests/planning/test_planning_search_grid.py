@@ -82,6 +82,10 @@ def test_plan_self_motion_on_the_sawyer_runs_the_dp_and_follows_the_path():
     assert dp_plan.label == "DP" and plan.cost <= dp_plan.cost
     np.testing.assert_allclose(mujoco_poses(robot, plan.q), path, atol=1e-9)
     assert robot.within_limits(plan.q).all()
+    np.testing.assert_allclose(plan.param, (plan.q[:, 0] + np.pi) % (2 * np.pi) - np.pi, atol=1e-15)
+    for k in range(len(path)):  # each waypoint's slot holds its configuration
+        sols = qpik.ik(robot, path[k], plan.q[k, 0])
+        assert np.abs((sols.q[plan.branch[k]] - plan.q[k] + np.pi) % (2 * np.pi) - np.pi).max() < 1e-9
     assert (np.abs(np.diff(plan.q, axis=0)) <= 0.1 + 1e-9).all()
 
 
