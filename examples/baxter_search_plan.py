@@ -24,7 +24,10 @@ out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("qpik-out/examples/baxter
 out.mkdir(parents=True, exist_ok=True)
 
 # 1. the arm and its branches at one pose
-robot = qpik.load_robot(packaged_model("erd/baxter"), base="right_arm_mount", tip="right_wrist")
+try:
+    robot = qpik.load_robot(packaged_model("erd/baxter"), base="right_arm_mount", tip="right_wrist")
+except qpik.InputError as error:  # example-robot-data not installed: say so in one line
+    sys.exit(f"{Path(__file__).name}: {error}")
 print(f"{robot.name} right arm, family {robot.closed_form}: {robot.notes.split('; not srs')[0]}")
 q = np.array([0.3, -0.4, 0.5, 1.2, -0.3, 0.8, 0.2])
 T = robot.fk(q)
