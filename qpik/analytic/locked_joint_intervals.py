@@ -80,6 +80,9 @@ ROUNDS = 80
 """Rounds of the search before the answer is left unproved."""
 MAX_CELLS = 2048
 """Cells of q7 in a round above which the answer is left unproved."""
+REACH = 1e-6
+"""Relative margin beyond the elbow's reach, :math:`|c| > r(1 +` REACH), over a start cell of q7 that leaves the
+cell out of the search (every branch invalid over it, with room for round-off)."""
 ELBOW = 3
 """Index of q4, whose levels are solved exactly."""
 SIGNS = np.array([[1 - 2 * (k >> bit & 1) for bit in (2, 1, 0)] for k in range(8)], float)
@@ -160,19 +163,26 @@ class Q7Intervals:
 
     def _isolate(self, T: np.ndarray, cols: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray]:
         """The breakpoints of the columns ``cols`` (:meth:`_columns`) at the pose T: the centres of the windows of
-        their roots (rad, wrapped), and the ends of the cells left when the budget ran out (empty: proved)."""
+        their roots (rad, wrapped), and the ends of the cells left when the budget ran out (empty: proved). The
+        start cells where the elbow surely cannot reach (:meth:`_reach`: no branch is valid, so no column has a root
+        of interest) are left out."""
         edges = np.linspace(-np.pi, np.pi, CELLS + 1)
-        F = cols[0].size
-        a, b, k = np.repeat(edges[:-1], F), np.repeat(edges[1:], F), np.tile(np.arange(F), CELLS)
+        near = self._reach(T, edges[:-1], edges[1:])
+        n, F, B = int(near.sum()), cols[0].size, self._solver.n_branches
+        a, b, k = np.repeat(edges[:-1][near], F), np.repeat(edges[1:][near], F), np.tile(np.arange(F), n)
+        # the first round's rows: (cell, branch) in that order; column b of a cell is branch b's validity
+        rows = (np.arange(n)[:, None] * F + np.arange(B)).ravel(), np.repeat(np.arange(n) * B, F) + np.tile(cols[0], n)
         found = []
         Tf = np.asarray(T, float).reshape(-1, order="F")
         for _ in range(self._rounds):
             if not a.size:
                 break
-            bounds = self._bounds(Tf, a, b, [c[k] for c in cols])
+            bounds = self._bounds(Tf, a, b, [c[k] for c in cols], rows)
             if bounds is None:
                 break
-            f0, f1, rest, outside = bounds
+            rows = None
+            kept, f0, f1, rest, outside = bounds
+            a, b, k = a[kept], b[kept], k[kept]
             with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
                 t1, t2 = (-f0 - rest) / f1, (-f0 + rest) / f1
             flat = ~(np.abs(f1) > 0) | ~np.isfinite(rest)  # no slope, or no model: the whole cell
@@ -194,27 +204,33 @@ class Q7Intervals:
         found = wrap(np.concatenate(found)) if found else np.zeros(0)
         return found, wrap(np.concatenate([a, b]))
 
-    def _bounds(self, Tf: np.ndarray, a: np.ndarray, b: np.ndarray, cols: list[np.ndarray]):
-        """Over the cells [a, b] (K,) of the columns ``cols`` (:meth:`_columns`, (K,) each): the Taylor model
-        ``f0 + f1·t ± rest`` (t ∈ [−1, 1]; rest with :data:`SLACK`) and where the column surely has no root of
-        interest (its bounds exclude 0, or its branch is invalid, or cos(q_j − L) < 0); None above
-        :data:`MAX_CELLS` cells (of all the branches). ``Tf``: the pose, column-major (16,). One call of the
-        model for the distinct (branch, cell) pairs."""
+    def _bounds(self, Tf: np.ndarray, a: np.ndarray, b: np.ndarray, cols: list[np.ndarray], rows=None):
+        """Over the cells [a, b] (K,) of the columns ``cols`` (:meth:`_columns`, (K,) each): the columns that may
+        have a root of interest (indices, (K',): not those of a joint of a branch surely invalid over the cell), and
+        for them the Taylor model ``f0 + f1·t ± rest`` (t ∈ [−1, 1]; rest with :data:`SLACK`) and where the column
+        surely has no root of interest (its bounds exclude 0, or cos(q_j − L) < 0); None above :data:`MAX_CELLS`
+        cells (of all the branches). ``Tf``: the pose, column-major (16,). One call of the model for the distinct
+        (branch, cell) pairs: ``rows`` (one column of each, (R,); each column's row, (K,)) when known, else found
+        by sorting."""
         br, i1, w1, i2, w2, joint = cols
         P = 2 * len(self._joints) + 1  # outputs per branch, its validity last
-        order = np.lexsort((b, a, br))
-        new = np.ones(a.size, bool)
-        new[1:] = (np.diff(br[order]) != 0) | (np.diff(a[order]) != 0) | (np.diff(b[order]) != 0)
-        first = order[new]  # one column of each distinct (branch, cell)
+        if rows is None:
+            order = np.lexsort((b, a, br))
+            new = np.ones(a.size, bool)
+            new[1:] = (np.diff(br[order]) != 0) | (np.diff(a[order]) != 0) | (np.diff(b[order]) != 0)
+            first = order[new]  # one column of each distinct (branch, cell)
+            row = np.empty(a.size, int)
+            row[order] = np.cumsum(new) - 1
+        else:
+            first, row = rows
         if first.size > MAX_CELLS:
             return None
-        row = np.empty(a.size, int)
-        row[order] = np.cumsum(new) - 1
         x, y = a[first, None], b[first, None]
         out = self._model(Tf, 0.5 * (x + y), SIGNS[br[first]], 0.5 * (y - x), np.zeros_like(x), x, y)
+        kept = np.flatnonzero(~joint | ~(out[4][row, P - 1] < -SLACK))  # where the branch may be valid
+        row, i1, w1, i2, w2 = row[kept], i1[kept], w1[kept], i2[kept], w2[kept]
         at1, at2 = row * P + i1, row * P + i2  # each column's two outputs in the flattened (rows, P) results
         c0, c1, r, lo, hi = (np.stack([v.ravel()[at1], v.ravel()[at2]], axis=1) for v in out)
-        valid_hi = out[4].ravel()[row * P + P - 1]
         w = np.stack([w1, w2], axis=1)
         used = w != 0.0
         with np.errstate(invalid="ignore", over="ignore"):  # inf or nan (a free joint): the cell stays undecided
@@ -224,11 +240,23 @@ class Q7Intervals:
             low = np.where(used, np.minimum(wlo, whi), 0.0).sum(axis=1)
             high = np.where(used, np.maximum(wlo, whi), 0.0).sum(axis=1)
             cos_hi = np.maximum(w1 * lo[:, 1], w1 * hi[:, 1]) + np.maximum(-w2 * lo[:, 0], -w2 * hi[:, 0])
-        far = joint & ((valid_hi < -SLACK) | (cos_hi < -SLACK))
-        return f0, f1, rest, far | (low > SLACK) | (high < -SLACK)
+        far = joint[kept] & (cos_hi < -SLACK)
+        return kept, f0, f1, rest, far | (low > SLACK) | (high < -SLACK)
 
-    def _elbow_roots(self, T: np.ndarray, levels: np.ndarray) -> np.ndarray:
-        """The q7 (rad) where q4 meets one of ``levels`` or the elbow's discriminant vanishes (module docstring)."""
+    def _reach(self, T: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Over the cells [a, b] (K,) of q7 (rad, within [−π, π]), False where the elbow surely cannot reach: the
+        sinusoid c(q7) (:meth:`_elbow`) stays beyond ±r(1 + :data:`REACH`) over the cell, so every branch's
+        validity (at most the elbow's relative discriminant + EPS) is below 0 there."""
+        K, P, Q = self._elbow(T)
+        rho, theta = np.hypot(P, Q), np.arctan2(Q, P)
+        ca_, cb_ = K + P * np.cos(a) + Q * np.sin(a), K + P * np.cos(b) + Q * np.sin(b)
+        top = np.where(np.mod(theta - a, 2.0 * np.pi) < b - a, K + rho, np.maximum(ca_, cb_))
+        bottom = np.where(np.mod(theta + np.pi - a, 2.0 * np.pi) < b - a, K - rho, np.minimum(ca_, cb_))
+        far = (1.0 + REACH) * self._solver.r4
+        return ~((bottom > far) | (top < -far))
+
+    def _elbow(self, T: np.ndarray) -> tuple[float, float, float]:
+        r"""The elbow's :math:`c(q_7) = K + P\cos q_7 + Q\sin q_7` at the pose T (module docstring): (K, P, Q)."""
         s = self._solver
         R, p = np.asarray(T, float)[:3, :3], np.asarray(T, float)[:3, 3]
         k7, c7, w7 = (np.array(x, float) for x in (s.k7, s.c7, s.w7))
@@ -236,9 +264,15 @@ class Q7Intervals:
         e = np.array(s.S) - p - R @ (c7 + w_par)
         A = e @ e + (w7 - w_par) @ (w7 - w_par)
         B, C = -2.0 * e @ (R @ (w7 - w_par)), 2.0 * e @ (R @ np.cross(k7, w7))
-        # c(q7) = k − A/2 − (B/2) cos q7 − (C/2) sin q7 = target  <=>  (B/2) cos + (C/2) sin = k − A/2 − target
+        return s.k4 - 0.5 * A, -0.5 * B, -0.5 * C
+
+    def _elbow_roots(self, T: np.ndarray, levels: np.ndarray) -> np.ndarray:
+        """The q7 (rad) where q4 meets one of ``levels`` or the elbow's discriminant vanishes (module docstring)."""
+        s = self._solver
+        K, P, Q = self._elbow(T)
+        # c(q7) = K + P cos q7 + Q sin q7 = target  <=>  −P cos + −Q sin = K − target
         targets = np.concatenate([s.r4 * np.cos(levels - s.phi), [s.r4, -s.r4]])
-        plus, minus, ok = trig.solve_cos_sin(0.5 * B, 0.5 * C, s.k4 - 0.5 * A - targets, sy.NUMPY)
+        plus, minus, ok = trig.solve_cos_sin(-P, -Q, K - targets, sy.NUMPY)
         return wrap(np.concatenate([plus[ok], minus[ok]]))
 
 
