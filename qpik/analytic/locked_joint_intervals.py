@@ -31,7 +31,9 @@ the bounds exclude 0, or, for a joint, the branch's validity is below 0 over it)
 the window is at most half as wide (near a simple root the window shrinks quadratically from round to round), else
 halved. A window narrower than :data:`WINDOW` is a breakpoint (its centre); so are the ends of a cell over which a
 column stays within :data:`TOUCH` of 0 (a tangency: a joint touching a level over a whole cell, to round-off).
-The search starts from :data:`CELLS` cells over the circle and stops after :data:`ROUNDS` rounds or above
+The search starts from :data:`CELLS` cells over the circle, less those where the elbow surely cannot reach
+(:math:`|c(q_7)| > r(1 +` :data:`REACH`) over the cell, from the sinusoid's exact range: every branch's validity is
+below 0 there, so no column has a root of interest), and stops after :data:`ROUNDS` rounds or above
 :data:`MAX_CELLS` cells in a round: then the cells left are breakpoints too (their ends), and the answer is not
 proved. The gaps between the breakpoints are classified as for the other families
 (:class:`~qpik.analytic.intervals.SetAssembler`: one IK evaluation at each midpoint).
