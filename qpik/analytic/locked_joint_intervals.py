@@ -118,6 +118,8 @@ class Q7Intervals:
         :data:`SIGNS`, then the cell's half-width, radius 0 and its ends) over rows of cells and branches, the
         rows of a round shared among the cores."""
         self._last: tuple[bytes, float, FeasibleIntervals] | None = None
+        self._cols: tuple[float, tuple[np.ndarray, ...]] | None = None
+        """The last margin and its columns (:meth:`_columns`)."""
 
     def native_sets(self) -> None:
         """No single C call for this family."""
@@ -141,7 +143,9 @@ class Q7Intervals:
                                      [[] for _ in s.branch_ids])  # fmt: skip
         lo, hi = shrunk_limits(s.robot.q_min, s.robot.q_max, margin)
         levels = _levels(lo, hi)
-        found, left = self._isolate(T, self._columns(levels))
+        if self._cols is None or self._cols[0] != margin:
+            self._cols = (margin, self._columns(levels))
+        found, left = self._isolate(T, self._cols[1])
         breaks = np.concatenate([found, left, self._elbow_roots(T, levels[ELBOW]), levels[-1]])
         sets, sing = self._assemble(T, breaks, found, (lo, hi))
         return FeasibleIntervals(s.param_name, s.branch_array, sets, sing, proved=not left.size and s.polished is None)
@@ -176,10 +180,11 @@ class Q7Intervals:
         rows = (np.arange(n)[:, None] * F + np.arange(B)).ravel(), np.repeat(np.arange(n) * B, F) + np.tile(cols[0], n)
         found = []
         Tf = np.asarray(T, float).reshape(-1, order="F")
+        ints, w, joint = self._packed(cols)
         for _ in range(self._rounds):
             if not a.size:
                 break
-            bounds = self._bounds(Tf, a, b, [c[k] for c in cols], rows)
+            bounds = self._bounds(Tf, a, b, (ints[:, k], w[:, k], joint[k]), rows)
             if bounds is None:
                 break
             rows = None
@@ -206,20 +211,22 @@ class Q7Intervals:
         found = wrap(np.concatenate(found)) if found else np.zeros(0)
         return found, wrap(np.concatenate([a, b]))
 
-    def _bounds(self, Tf: np.ndarray, a: np.ndarray, b: np.ndarray, cols: list[np.ndarray], rows=None):
-        """Over the cells [a, b] (K,) of the columns ``cols`` (:meth:`_columns`, (K,) each): the columns that may
+    def _bounds(self, Tf: np.ndarray, a: np.ndarray, b: np.ndarray, cols: tuple[np.ndarray, ...], rows=None):
+        """Over the cells [a, b] (K,) of the columns ``cols`` (:meth:`_packed`, with K columns): the columns that may
         have a root of interest (indices, (K',): not those of a joint of a branch surely invalid over the cell), and
         for them the Taylor model ``f0 + f1·t ± rest`` (t ∈ [−1, 1]; rest with :data:`SLACK`) and where the column
         surely has no root of interest (its bounds exclude 0, or cos(q_j − L) < 0); None above :data:`MAX_CELLS`
         cells (of all the branches). ``Tf``: the pose, column-major (16,). One call of the model for the distinct
         (branch, cell) pairs: ``rows`` (one column of each, (R,); each column's row, (K,)) when known, else found
         by sorting."""
-        br, i1, w1, i2, w2, joint = cols
+        (br, i1, i2), w, joint = cols
         P = 2 * len(self._joints) + 1  # outputs per branch, its validity last
         if rows is None:
-            order = np.lexsort((b, a, br))
+            keys = np.stack([b, a, br])
+            order = np.lexsort(keys)  # by branch, then a, then b
+            ranked = keys[:, order]
             new = np.ones(a.size, bool)
-            new[1:] = (np.diff(br[order]) != 0) | (np.diff(a[order]) != 0) | (np.diff(b[order]) != 0)
+            new[1:] = (ranked[:, 1:] != ranked[:, :-1]).any(axis=0)
             first = order[new]  # one column of each distinct (branch, cell)
             row = np.empty(a.size, int)
             row[order] = np.cumsum(new) - 1
@@ -230,20 +237,29 @@ class Q7Intervals:
         x, y = a[first, None], b[first, None]
         out = self._model(Tf, 0.5 * (x + y), SIGNS[br[first]], 0.5 * (y - x), np.zeros_like(x), x, y)
         kept = np.flatnonzero(~joint | ~(out[4][row, P - 1] < -SLACK))  # where the branch may be valid
-        row, i1, w1, i2, w2 = row[kept], i1[kept], w1[kept], i2[kept], w2[kept]
-        at1, at2 = row * P + i1, row * P + i2  # each column's two outputs in the flattened (rows, P) results
-        c0, c1, r, lo, hi = (np.stack([v.ravel()[at1], v.ravel()[at2]], axis=1) for v in out)
-        w = np.stack([w1, w2], axis=1)
-        used = w != 0.0
+        row, i1, i2, w, joint = row[kept], i1[kept], i2[kept], w[:, kept], joint[kept]
+        end = first.size * P
+        vals = np.empty((5, end + 1))  # the flattened (rows, P) results, then 0: a validity's second output
+        for v, o in zip(vals, out):
+            v[:end] = o.ravel()
+        vals[:, end] = 0.0
+        g = np.take(vals, np.stack([row * P + i1, np.where(joint, row * P + i2, end)]), axis=1)  # (5, 2, K')
         with np.errstate(invalid="ignore", over="ignore"):  # inf or nan (a free joint): the cell stays undecided
-            f0, f1 = np.where(used, w * c0, 0.0).sum(axis=1), np.where(used, w * c1, 0.0).sum(axis=1)
-            rest = np.where(used, np.abs(w) * r, 0.0).sum(axis=1) + SLACK
-            wlo, whi = w * lo, w * hi
-            low = np.where(used, np.minimum(wlo, whi), 0.0).sum(axis=1)
-            high = np.where(used, np.maximum(wlo, whi), 0.0).sum(axis=1)
-            cos_hi = np.maximum(w1 * lo[:, 1], w1 * hi[:, 1]) + np.maximum(-w2 * lo[:, 0], -w2 * hi[:, 0])
-        far = joint[kept] & (cos_hi < -SLACK)
+            c0, c1, lo, hi = w * g[[0, 1, 3, 4]]
+            r = np.abs(w) * g[2]
+            low, high = np.minimum(lo, hi), np.maximum(lo, hi)
+            cos_hi = np.maximum(w[0] * g[3, 1], w[0] * g[4, 1]) + np.maximum(-w[1] * g[3, 0], -w[1] * g[4, 0])
+            f0, f1, rest = c0[0] + c0[1], c1[0] + c1[1], r[0] + r[1] + SLACK
+            low, high = low[0] + low[1], high[0] + high[1]
+        far = joint & (cos_hi < -SLACK)
         return kept, f0, f1, rest, far | (low > SLACK) | (high < -SLACK)
+
+    @staticmethod
+    def _packed(cols: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+        """:meth:`_columns` as the search gathers them: the branches and the two outputs' indices (3, F), the weights
+        (2, F; a validity's second weight +0), joint (F,)."""
+        br, i1, w1, i2, w2, joint = cols
+        return np.stack([br, i1, i2]), np.stack([w1, np.where(joint, w2, 0.0)]), joint
 
     def _reach(self, T: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Over the cells [a, b] (K,) of q7 (rad, within [−π, π]), False where the elbow surely cannot reach: the
