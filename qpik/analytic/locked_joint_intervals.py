@@ -211,7 +211,14 @@ class Q7Intervals:
         found = wrap(np.concatenate(found)) if found else np.zeros(0)
         return found, wrap(np.concatenate([a, b]))
 
-    def _bounds(self, Tf: np.ndarray, a: np.ndarray, b: np.ndarray, cols: tuple[np.ndarray, ...], rows=None):
+    def _bounds(
+        self,
+        Tf: np.ndarray,
+        a: np.ndarray,
+        b: np.ndarray,
+        cols: tuple[np.ndarray, np.ndarray, np.ndarray],
+        rows: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> tuple[np.ndarray, ...] | None:
         """Over the cells [a, b] (K,) of the columns ``cols`` (:meth:`_packed`, with K columns): the columns that may
         have a root of interest (indices, (K',): not those of a joint of a branch surely invalid over the cell), and
         for them the Taylor model ``f0 + f1·t ± rest`` (t ∈ [−1, 1]; rest with :data:`SLACK`) and where the column
