@@ -31,7 +31,9 @@ the bounds exclude 0, or, for a joint, the branch's validity is below 0 over it)
 the window is at most half as wide (near a simple root the window shrinks quadratically from round to round), else
 halved. A window narrower than :data:`WINDOW` is a breakpoint (its centre); so are the ends of a cell over which a
 column stays within :data:`TOUCH` of 0 (a tangency: a joint touching a level over a whole cell, to round-off).
-The search starts from :data:`CELLS` cells over the circle and stops after :data:`ROUNDS` rounds or above
+The search starts from :data:`CELLS` cells over the circle, less those where the elbow surely cannot reach
+(:math:`|c(q_7)| > r(1 +` :data:`REACH`) over the cell, from the sinusoid's exact range: every branch's validity is
+below 0 there, so no column has a root of interest), and stops after :data:`ROUNDS` rounds or above
 :data:`MAX_CELLS` cells in a round: then the cells left are breakpoints too (their ends), and the answer is not
 proved. The gaps between the breakpoints are classified as for the other families
 (:class:`~qpik.analytic.intervals.SetAssembler`: one IK evaluation at each midpoint).
@@ -80,6 +82,9 @@ ROUNDS = 80
 """Rounds of the search before the answer is left unproved."""
 MAX_CELLS = 2048
 """Cells of q7 in a round above which the answer is left unproved."""
+REACH = 1e-6
+"""Relative margin beyond the elbow's reach, :math:`|c| > r(1 +` REACH), over a start cell of q7 that leaves the
+cell out of the search (every branch invalid over it, with room for round-off)."""
 ELBOW = 3
 """Index of q4, whose levels are solved exactly."""
 SIGNS = np.array([[1 - 2 * (k >> bit & 1) for bit in (2, 1, 0)] for k in range(8)], float)
@@ -113,6 +118,8 @@ class Q7Intervals:
         :data:`SIGNS`, then the cell's half-width, radius 0 and its ends) over rows of cells and branches, the
         rows of a round shared among the cores."""
         self._last: tuple[bytes, float, FeasibleIntervals] | None = None
+        self._cols: tuple[float, tuple[np.ndarray, ...]] | None = None
+        """The last margin and its columns (:meth:`_columns`)."""
 
     def native_sets(self) -> None:
         """No single C call for this family."""
@@ -136,7 +143,9 @@ class Q7Intervals:
                                      [[] for _ in s.branch_ids])  # fmt: skip
         lo, hi = shrunk_limits(s.robot.q_min, s.robot.q_max, margin)
         levels = _levels(lo, hi)
-        found, left = self._isolate(T, self._columns(levels))
+        if self._cols is None or self._cols[0] != margin:
+            self._cols = (margin, self._columns(levels))
+        found, left = self._isolate(T, self._cols[1])
         breaks = np.concatenate([found, left, self._elbow_roots(T, levels[ELBOW]), levels[-1]])
         sets, sing = self._assemble(T, breaks, found, (lo, hi))
         return FeasibleIntervals(s.param_name, s.branch_array, sets, sing, proved=not left.size and s.polished is None)
@@ -160,19 +169,27 @@ class Q7Intervals:
 
     def _isolate(self, T: np.ndarray, cols: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray]:
         """The breakpoints of the columns ``cols`` (:meth:`_columns`) at the pose T: the centres of the windows of
-        their roots (rad, wrapped), and the ends of the cells left when the budget ran out (empty: proved)."""
+        their roots (rad, wrapped), and the ends of the cells left when the budget ran out (empty: proved). The
+        start cells where the elbow surely cannot reach (:meth:`_reach`: no branch is valid, so no column has a root
+        of interest) are left out."""
         edges = np.linspace(-np.pi, np.pi, CELLS + 1)
-        F = cols[0].size
-        a, b, k = np.repeat(edges[:-1], F), np.repeat(edges[1:], F), np.tile(np.arange(F), CELLS)
+        near = self._reach(T, edges[:-1], edges[1:])
+        n, F, B = int(near.sum()), cols[0].size, self._solver.n_branches
+        a, b, k = np.repeat(edges[:-1][near], F), np.repeat(edges[1:][near], F), np.tile(np.arange(F), n)
+        # the first round's rows: (cell, branch) in that order; column b of a cell is branch b's validity
+        rows = (np.arange(n)[:, None] * F + np.arange(B)).ravel(), np.repeat(np.arange(n) * B, F) + np.tile(cols[0], n)
         found = []
         Tf = np.asarray(T, float).reshape(-1, order="F")
+        ints, w, joint = self._packed(cols)
         for _ in range(self._rounds):
             if not a.size:
                 break
-            bounds = self._bounds(Tf, a, b, [c[k] for c in cols])
+            bounds = self._bounds(Tf, a, b, (ints[:, k], w[:, k], joint[k]), rows)
             if bounds is None:
                 break
-            f0, f1, rest, outside = bounds
+            rows = None
+            kept, f0, f1, rest, outside = bounds
+            a, b, k = a[kept], b[kept], k[kept]
             with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
                 t1, t2 = (-f0 - rest) / f1, (-f0 + rest) / f1
             flat = ~(np.abs(f1) > 0) | ~np.isfinite(rest)  # no slope, or no model: the whole cell
@@ -194,41 +211,77 @@ class Q7Intervals:
         found = wrap(np.concatenate(found)) if found else np.zeros(0)
         return found, wrap(np.concatenate([a, b]))
 
-    def _bounds(self, Tf: np.ndarray, a: np.ndarray, b: np.ndarray, cols: list[np.ndarray]):
-        """Over the cells [a, b] (K,) of the columns ``cols`` (:meth:`_columns`, (K,) each): the Taylor model
-        ``f0 + f1·t ± rest`` (t ∈ [−1, 1]; rest with :data:`SLACK`) and where the column surely has no root of
-        interest (its bounds exclude 0, or its branch is invalid, or cos(q_j − L) < 0); None above
-        :data:`MAX_CELLS` cells (of all the branches). ``Tf``: the pose, column-major (16,). One call of the
-        model for the distinct (branch, cell) pairs."""
-        br, i1, w1, i2, w2, joint = cols
+    def _bounds(
+        self,
+        Tf: np.ndarray,
+        a: np.ndarray,
+        b: np.ndarray,
+        cols: tuple[np.ndarray, np.ndarray, np.ndarray],
+        rows: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> tuple[np.ndarray, ...] | None:
+        """Over the cells [a, b] (K,) of the columns ``cols`` (:meth:`_packed`, with K columns): the columns that may
+        have a root of interest (indices, (K',): not those of a joint of a branch surely invalid over the cell), and
+        for them the Taylor model ``f0 + f1·t ± rest`` (t ∈ [−1, 1]; rest with :data:`SLACK`) and where the column
+        surely has no root of interest (its bounds exclude 0, or cos(q_j − L) < 0); None above :data:`MAX_CELLS`
+        cells (of all the branches). ``Tf``: the pose, column-major (16,). One call of the model for the distinct
+        (branch, cell) pairs: ``rows`` (one column of each, (R,); each column's row, (K,)) when known, else found
+        by sorting."""
+        (br, i1, i2), w, joint = cols
         P = 2 * len(self._joints) + 1  # outputs per branch, its validity last
-        order = np.lexsort((b, a, br))
-        new = np.ones(a.size, bool)
-        new[1:] = (np.diff(br[order]) != 0) | (np.diff(a[order]) != 0) | (np.diff(b[order]) != 0)
-        first = order[new]  # one column of each distinct (branch, cell)
+        if rows is None:
+            keys = np.stack([b, a, br])
+            order = np.lexsort(keys)  # by branch, then a, then b
+            ranked = keys[:, order]
+            new = np.ones(a.size, bool)
+            new[1:] = (ranked[:, 1:] != ranked[:, :-1]).any(axis=0)
+            first = order[new]  # one column of each distinct (branch, cell)
+            row = np.empty(a.size, int)
+            row[order] = np.cumsum(new) - 1
+        else:
+            first, row = rows
         if first.size > MAX_CELLS:
             return None
-        row = np.empty(a.size, int)
-        row[order] = np.cumsum(new) - 1
         x, y = a[first, None], b[first, None]
         out = self._model(Tf, 0.5 * (x + y), SIGNS[br[first]], 0.5 * (y - x), np.zeros_like(x), x, y)
-        at1, at2 = row * P + i1, row * P + i2  # each column's two outputs in the flattened (rows, P) results
-        c0, c1, r, lo, hi = (np.stack([v.ravel()[at1], v.ravel()[at2]], axis=1) for v in out)
-        valid_hi = out[4].ravel()[row * P + P - 1]
-        w = np.stack([w1, w2], axis=1)
-        used = w != 0.0
+        kept = np.flatnonzero(~joint | ~(out[4][row, P - 1] < -SLACK))  # where the branch may be valid
+        row, i1, i2, w, joint = row[kept], i1[kept], i2[kept], w[:, kept], joint[kept]
+        end = first.size * P
+        vals = np.empty((5, end + 1))  # the flattened (rows, P) results, then 0: a validity's second output
+        for v, o in zip(vals, out):
+            v[:end] = o.ravel()
+        vals[:, end] = 0.0
+        g = np.take(vals, np.stack([row * P + i1, np.where(joint, row * P + i2, end)]), axis=1)  # (5, 2, K')
         with np.errstate(invalid="ignore", over="ignore"):  # inf or nan (a free joint): the cell stays undecided
-            f0, f1 = np.where(used, w * c0, 0.0).sum(axis=1), np.where(used, w * c1, 0.0).sum(axis=1)
-            rest = np.where(used, np.abs(w) * r, 0.0).sum(axis=1) + SLACK
-            wlo, whi = w * lo, w * hi
-            low = np.where(used, np.minimum(wlo, whi), 0.0).sum(axis=1)
-            high = np.where(used, np.maximum(wlo, whi), 0.0).sum(axis=1)
-            cos_hi = np.maximum(w1 * lo[:, 1], w1 * hi[:, 1]) + np.maximum(-w2 * lo[:, 0], -w2 * hi[:, 0])
-        far = joint & ((valid_hi < -SLACK) | (cos_hi < -SLACK))
-        return f0, f1, rest, far | (low > SLACK) | (high < -SLACK)
+            c0, c1, lo, hi = w * g[[0, 1, 3, 4]]
+            r = np.abs(w) * g[2]
+            low, high = np.minimum(lo, hi), np.maximum(lo, hi)
+            cos_hi = np.maximum(w[0] * g[3, 1], w[0] * g[4, 1]) + np.maximum(-w[1] * g[3, 0], -w[1] * g[4, 0])
+            f0, f1, rest = c0[0] + c0[1], c1[0] + c1[1], r[0] + r[1] + SLACK
+            low, high = low[0] + low[1], high[0] + high[1]
+        far = joint & (cos_hi < -SLACK)
+        return kept, f0, f1, rest, far | (low > SLACK) | (high < -SLACK)
 
-    def _elbow_roots(self, T: np.ndarray, levels: np.ndarray) -> np.ndarray:
-        """The q7 (rad) where q4 meets one of ``levels`` or the elbow's discriminant vanishes (module docstring)."""
+    @staticmethod
+    def _packed(cols: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+        """:meth:`_columns` as the search gathers them: the branches and the two outputs' indices (3, F), the weights
+        (2, F; a validity's second weight +0), joint (F,)."""
+        br, i1, w1, i2, w2, joint = cols
+        return np.stack([br, i1, i2]), np.stack([w1, np.where(joint, w2, 0.0)]), joint
+
+    def _reach(self, T: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Over the cells [a, b] (K,) of q7 (rad, within [−π, π]), False where the elbow surely cannot reach: the
+        sinusoid c(q7) (:meth:`_elbow`) stays beyond ±r(1 + :data:`REACH`) over the cell, so every branch's
+        validity (at most the elbow's relative discriminant + EPS) is below 0 there."""
+        K, P, Q = self._elbow(T)
+        rho, theta = np.hypot(P, Q), np.arctan2(Q, P)
+        ca_, cb_ = K + P * np.cos(a) + Q * np.sin(a), K + P * np.cos(b) + Q * np.sin(b)
+        top = np.where(np.mod(theta - a, 2.0 * np.pi) < b - a, K + rho, np.maximum(ca_, cb_))
+        bottom = np.where(np.mod(theta + np.pi - a, 2.0 * np.pi) < b - a, K - rho, np.minimum(ca_, cb_))
+        far = (1.0 + REACH) * self._solver.r4
+        return ~((bottom > far) | (top < -far))
+
+    def _elbow(self, T: np.ndarray) -> tuple[float, float, float]:
+        r"""The elbow's :math:`c(q_7) = K + P\cos q_7 + Q\sin q_7` at the pose T (module docstring): (K, P, Q)."""
         s = self._solver
         R, p = np.asarray(T, float)[:3, :3], np.asarray(T, float)[:3, 3]
         k7, c7, w7 = (np.array(x, float) for x in (s.k7, s.c7, s.w7))
@@ -236,9 +289,15 @@ class Q7Intervals:
         e = np.array(s.S) - p - R @ (c7 + w_par)
         A = e @ e + (w7 - w_par) @ (w7 - w_par)
         B, C = -2.0 * e @ (R @ (w7 - w_par)), 2.0 * e @ (R @ np.cross(k7, w7))
-        # c(q7) = k − A/2 − (B/2) cos q7 − (C/2) sin q7 = target  <=>  (B/2) cos + (C/2) sin = k − A/2 − target
+        return s.k4 - 0.5 * A, -0.5 * B, -0.5 * C
+
+    def _elbow_roots(self, T: np.ndarray, levels: np.ndarray) -> np.ndarray:
+        """The q7 (rad) where q4 meets one of ``levels`` or the elbow's discriminant vanishes (module docstring)."""
+        s = self._solver
+        K, P, Q = self._elbow(T)
+        # c(q7) = K + P cos q7 + Q sin q7 = target  <=>  −P cos + −Q sin = K − target
         targets = np.concatenate([s.r4 * np.cos(levels - s.phi), [s.r4, -s.r4]])
-        plus, minus, ok = trig.solve_cos_sin(0.5 * B, 0.5 * C, s.k4 - 0.5 * A - targets, sy.NUMPY)
+        plus, minus, ok = trig.solve_cos_sin(-P, -Q, K - targets, sy.NUMPY)
         return wrap(np.concatenate([plus[ok], minus[ok]]))
 
 
