@@ -31,19 +31,29 @@ branch's validity) is below 0 (no branch has a q3 there: the elbow cannot reach 
 cell is discarded where the model's window :math:`|f_0 + f_1 t| \le r +` :data:`SLACK` is empty or the bounds
 exclude 0 or the branch's validity is below 0 over the cell, replaced by that window where it is at most half as
 wide, else halved; a window narrower than :data:`WINDOW` holds a root (its centre), and so do the ends of a cell where
-:math:`|e_b|` stays within :data:`TOUCH` of 0 (a double root). Every root of every :math:`e_b` is then within
-:data:`WINDOW` of a candidate, unless the search ran out of its budget (:data:`ROUNDS`, :data:`MAX_CELLS`; ``proved``
-False). Where the validity vanishes inside a window the square roots of the subproblems have no slope and
-the cell is halved down to :data:`WINDOW` like any other.
+:math:`|e_b|` stays within :data:`TOUCH` of 0 (a double root, where the window stays the whole cell however often it
+is halved: such a cell is a few µm wide when it is touched). Every root of every :math:`e_b` is then within
+:data:`WINDOW` of a candidate, or inside a touched cell whose ends are candidates, unless the search ran out of its
+budget (:data:`ROUNDS`, :data:`MAX_CELLS`; ``proved`` False). Where the validity vanishes inside a window the square
+roots of the subproblems have no slope and the cell is halved down to :data:`WINDOW` like any other.
 
 **Machine precision.** Each candidate's joints (q5, q6 by subproblem 1 on the rotation left) start :data:`POLISH`
 rounds of Newton on the arm's own chain, the locked joint held (:func:`qpik.analytic.polish.polish`, compiled and
 mapped over the candidates); a candidate is a solution where the residual is at most
 :data:`~qpik.analytic.polish.RESIDUAL_TOL`, and solutions within
-:data:`SAME` rad of each other are one. A file whose axes miss the geometry by at most
-:data:`~qpik.robots.locked_joint.NEAR_TOL` (the Sawyer's axes 6-7: 0.8 µm) is searched on its nearest ideal chain
-(:func:`~qpik.robots.locked_joint.ideal_chain`), the roots then polished on the file's: ``proved`` is then False (a
-root of the file's chain lies near, not within :data:`WINDOW` of, the ideal chain's).
+:data:`SAME` rad of each other are one.
+
+**Near members.** A file whose axes miss the geometry by at most :data:`~qpik.robots.locked_joint.NEAR_TOL` (the
+Sawyer's axes 6-7: 0.8 µm) is searched on its nearest ideal chain (:func:`~qpik.robots.locked_joint.ideal_chain`),
+the candidates then polished on the file's: ``proved`` is then False. The ideal chain's rotations are the file's at
+every q and its end's position at most :attr:`LockedSearch.deviation` D away (:func:`deviation`), so the file's
+roots are the roots of the ideal chain's :math:`e_b` at a pose whose position is at most D away: within
+:math:`D\,|\nabla_p e_b|_1` of 0 on the ideal chain, to first order. Near a fold of :math:`e_b` (a double root) the
+file's chain may have two roots where the ideal chain's :math:`e_b` only nears 0, or none where it has two. So the
+search keeps every cell where :math:`|e_b|` may be within that bound (times :data:`NEAR_GAIN`, the gradient at the
+cell's centre) of 0, its slack and touch, and a window of :data:`NEAR_WINDOW` ends the cell: its candidates are the
+root of the window's linear model and the window's two ends (a touched cell's likewise), each polished on the file's
+chain, which decides (a candidate whose polish does not reach the pose is dropped).
 
 **Behind** :func:`qpik.ik` (:class:`SearchSolver`, the family ``"locked_search"`` of
 :func:`~qpik.robots.recognize.recognize`: an arm of no closed form where this geometry holds). The parameter is the
@@ -100,8 +110,18 @@ WINDOW = 1e-10
 """Width (rad) of a window of roots that is a candidate."""
 SLACK = 1e-12
 """Added to every remainder: the round-off of the enclosures of values of order 1."""
-TOUCH = 1e-12
-"""An error function within this of 0 over a whole cell makes the cell's ends candidates."""
+TOUCH = 4 * SLACK
+r"""An error function within this of 0 over a whole cell makes the cell's ends candidates: its model
+:math:`|f_0| + |f_1| + r` then lies within the round-off :data:`SLACK` of each of its terms and of the window's test,
+so that no round can tell the cell from a root (a double root, where the window stays the whole cell however it is
+halved; above :data:`SLACK`, so that such a cell is touched before it is halved to nothing)."""
+NEAR_WINDOW = 1e-3
+"""Width (rad) of a window of roots that is a candidate on a near member's ideal chain: its roots are not the file's,
+and each candidate is polished on the file's chain from the root of the window's linear model."""
+NEAR_GAIN = 2.0
+r"""Safety factor on the first-order bound :math:`D\,|
+abla_p e_b|_1` (at a cell's centre) of the change of an error
+function of a near member between its ideal chain and the file's (:attr:`LockedSearch.deviation`)."""
 ROUNDS = 80
 """Rounds of the search before the answer is left unproved."""
 MAX_CELLS = 4096
@@ -191,7 +211,14 @@ class LockedSearch:
         R, p = sy.frame_of_batch(T)
         e, valid, _ = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)
         model = taylor_function(ca.Function("locked_search", [T, q7, x, sign], [ca.vertcat(e, valid)]), [2])
-        self._step = RowMap(step_function(model), shared=[0, 1], chunks=CHUNKS, inline=True)
+        self.deviation = 0.0 if self.exact else deviation(turned, table)
+        """m: a bound of the change of the end's position between the file's chain and the ideal one the search runs
+        on, at every q (0 for an exact member; :func:`deviation`)."""
+        gain = None
+        if not self.exact:  # |∂e_b/∂p|_1: the file's roots are those of the ideal chain's e_b at a pose D away
+            grad = ca.jacobian(e, ca.vertcat(T[0, 3], T[1, 3], T[2, 3]))
+            gain = ca.Function("locked_search_gain", [T, q7, x, sign], [ca.sum2(ca.fabs(grad))])
+        self._step = RowMap(step_function(model, gain, self.deviation), shared=[0, 1], chunks=CHUNKS, inline=True)
         """One round's step of a cell of a branch (:func:`step_function`), compiled, over rows of cells (the pose and
         the locked angle shared)."""
         reach = ca.Function("locked_search_reach", [T, q7, x], [self.reach(R, p, q7, x, sy.CASADI)])
@@ -324,10 +351,15 @@ class LockedSearch:
             if not a.size or a.size > MAX_CELLS:
                 break
             (out,) = self._step(Tf, angle, a, b, SIGNS[k])
-            x1, x2, fate = out.T
+            x1, x2, fate, best = out.T
             done, touch = fate == DONE, fate == TOUCHED
-            found += [0.5 * (x1 + x2)[done], a[touch], b[touch]]
-            which += [k[done], k[touch], k[touch]]
+            if self.exact:
+                found += [0.5 * (x1 + x2)[done], a[touch], b[touch]]
+                which += [k[done], k[touch], k[touch]]
+            else:  # the ideal chain's roots and near-roots: where the file's may be
+                ended = done | touch
+                found += [best[ended], x1[ended], x2[ended]]
+                which += [k[ended]] * 3
             narrow, halve = fate == NARROW, fate == HALVE
             mid = 0.5 * (x1 + x2)[halve]
             a = np.concatenate([x1[narrow], x1[halve], mid])
@@ -341,15 +373,40 @@ class LockedSearch:
         return np.concatenate(found), np.concatenate(which).astype(int), bool(a.size)
 
 
-def step_function(model: ca.Function) -> ca.Function:
-    """One round of the search on a cell of a branch (:func:`~qpik.algebra.enclosure.isolation_step` with :data:`SLACK`,
-    :data:`WINDOW`, :data:`TOUCH`; gone too where :math:`v_b < 0` over the cell) from ``model``, the Taylor models in x
-    of :math:`(e_b, v_b)` of inputs (T, q7, x, signs). Inputs: T (4, 4; the search's pose, column-major), q7 (rad),
-    the cell's ends a < b (rad), the signs (σ3, σ12). Output (3,): the window's ends (rad), the cell's fate."""
+def step_function(model: ca.Function, gain: ca.Function | None = None, deviation: float = 0.0) -> ca.Function:
+    r"""One round of the search on a cell of a branch (:func:`~qpik.algebra.enclosure.isolation_step` with
+    :data:`SLACK`, :data:`WINDOW`, :data:`TOUCH`; gone too where :math:`v_b < 0` over the cell) from ``model``, the
+    Taylor models in x of :math:`(e_b, v_b)` of inputs (T, q7, x, signs). Inputs: T (4, 4; the search's pose,
+    column-major), q7 (rad), the cell's ends a < b (rad), the signs (σ3, σ12). Output (4,): the window's ends (rad),
+    the cell's fate, and the point of the window where the model's linear part :math:`|f_0 + f_1 t|` is least (rad).
+
+    A near member (``gain``, :math:`|\nabla_p e_b|_1` of the same inputs, and ``deviation`` D > 0, m): the file's
+    roots are the roots of the ideal chain's :math:`e_b` at a pose whose position is at most D away, so its slack and
+    touch are :data:`SLACK` + :data:`NEAR_GAIN` :math:`D\,|\nabla_p e_b|_1` at the cell's centre (a cell goes only
+    where the file's :math:`e_b` has no root either, to first order in D) and its window :data:`NEAR_WINDOW`."""
     T, q7, a, b, sign = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("a"), ca.SX.sym("b"), ca.SX.sym("sign", 2)
     c, s, r, lo, hi = model(T, q7, 0.5 * (a + b), sign, 0.5 * (b - a), 0.0, a, b)
-    step = isolation_step(a, b, (c[0], s[0], r[0], lo[0], hi[0]), hi[1] < -SLACK, SLACK, WINDOW, TOUCH)
-    return ca.Function("locked_search_step", [T, q7, a, b, sign], [ca.vertcat(*step)])
+    if gain is None:
+        slack, window, touch = SLACK, WINDOW, TOUCH
+    else:
+        slack = SLACK + NEAR_GAIN * deviation * gain(T, q7, 0.5 * (a + b), sign)
+        window, touch = NEAR_WINDOW, slack
+    x1, x2, fate = isolation_step(a, b, (c[0], s[0], r[0], lo[0], hi[0]), hi[1] < -SLACK, slack, window, touch)
+    m, w = 0.5 * (a + b), 0.5 * (b - a)
+    t = ca.if_else(ca.fabs(s[0]) > 0, -c[0] / s[0], 0.0)
+    best = ca.fmin(ca.fmax(m + w * t, x1), x2)
+    return ca.Function("locked_search_step", [T, q7, a, b, sign], [ca.vertcat(x1, x2, fate, best)])
+
+
+def deviation(chain: SerialChain, ideal: SerialChain) -> float:
+    r"""A bound (m) of :math:`|p(q) - p'(q)|` over every q, the end's positions by ``chain`` and by ``ideal``, a chain
+    that differs from it only in the translations of its joints' ``pre`` and ``post`` transforms, base and tool
+    (:func:`~qpik.robots.locked_joint.ideal_chain`): the rotations are the same at every q, and each translation
+    changed by :math:`d_k` moves the end by :math:`|d_k|`, turned."""
+    pairs = [(x.pre, y.pre) for x, y in zip(chain.joints, ideal.joints)]
+    pairs += [(x.post, y.post) for x, y in zip(chain.joints, ideal.joints)]
+    pairs += [(chain.tool, ideal.tool), (chain.base, ideal.base)]
+    return float(sum(np.linalg.norm(x[:3, 3] - y[:3, 3]) for x, y in pairs))
 
 
 def slots(branch: np.ndarray, q4: np.ndarray) -> np.ndarray:
