@@ -325,6 +325,10 @@ class LockedSearch:
         ok = residual[:, 0] <= RESIDUAL_TOL
         q, branch, residual = sy.NUMPY.wrap(q[ok]), branch[ok], residual[ok, 0]
         double = valid[ok, 0] - EPS <= DOUBLE
+        if not self.exact and q.size:  # the polish may take a candidate of one b to a root of another
+            own, validity = self.branch_of(Ts, param, q)
+            double = (validity - EPS <= DOUBLE) | (own != branch)
+            branch = own
         keep = np.zeros(0, int)
         for i in np.lexsort((residual, branch)):  # against those kept (the smaller b first): one numpy pass each
             apart = np.abs(sy.NUMPY.wrap(q[keep] - q[i])).max(axis=1) if keep.size else np.ones(1)
@@ -336,6 +340,20 @@ class LockedSearch:
         q = q[keep]
         return SearchSolutions(q[:, ::-1] if self.reversed else q, branch[keep], residual[keep], proved,
                                double[keep])  # fmt: skip
+
+    def branch_of(self, Ts: np.ndarray, q7: float, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The error function b (K,) of solutions ``q`` (K, 7; rad, the search's order) of the search's pose ``Ts``
+        (4, 4) at the locked angle ``q7`` (rad), and its validity :math:`v_b` (K,) there: the b whose subproblems at
+        each solution's q4 give the joints 1-3 nearest to its own (largest difference, modulo 2π)."""
+        R, p = sy.frame_of_batch(np.broadcast_to(Ts, (len(q), 4, 4)))
+        apart, validity = [], []
+        for s3, s12 in SIGNS:
+            _, valid, trig = self.error(R, p, q7, q[:, 3], (s3, s12), sy.NUMPY)
+            joints = np.stack([np.arctan2(sn, c) for c, sn in trig[:3]], axis=1)
+            apart.append(np.abs(sy.NUMPY.wrap(joints - q[:, :3])).max(axis=1))
+            validity.append(np.broadcast_to(valid, len(q)))
+        b = np.argmin(np.stack(apart), axis=0)
+        return b, np.stack(validity)[b, np.arange(len(q))]
 
     def _isolate(self, Ts: np.ndarray, q7: float, rounds: int) -> tuple[np.ndarray, np.ndarray, bool]:
         """The candidates (centres of windows of roots, rad), their branches, and whether cells were left when the
