@@ -132,11 +132,11 @@ def test_ik_of_an_exact_member_holds_q_and_every_branch_reaches_the_pose(key, se
 @PROPERTY
 @given(seed=SEEDS)
 def test_ik_of_the_gen3_file_holds_q_and_every_valid_branch_reaches_the_pose_by_mujoco(seed):
-    """The file (a near member, polished): every valid branch reaches the pose to 1e-10 by MuJoCo's FK of the file;
-    the branch ``redundancy_parameter(q)`` holds q to 1e-9 rad, or to RESIDUAL_TOL/σ_min, unless the chain of joints
-    2-7 is near singular (σ_min < 2e-3: the file's answers there lie ~0.35 mm/σ_min from the ideal chain's, beyond
-    the polish's reach). q is missed for at most 2.5% of the configurations (1.2% of 20,000 on other seeds, all at
-    σ_min < 1.1e-3)."""
+    """The file (a near member, corrected and polished): every valid branch reaches the pose to 1e-10 by MuJoCo's FK
+    of the file; the branch ``redundancy_parameter(q)`` holds q to 1e-9 rad, or to RESIDUAL_TOL/σ_min, unless the
+    chain of joints 2-7 is all but singular (σ_min < 5e-4: the file's answers there lie ~0.35 mm/σ_min from the
+    ideal chain's, where the corrections converge slowly). q is missed for at most 0.25% of the configurations (2
+    of 4,000 on seeds 2026 and 11, at σ_min 4e-6 and 1.3e-4)."""
     robot = model_robot("robosuite_gen3")
     q = random_q(robot, BATCH, seed)
     T = mujoco_poses(robot, q)
@@ -147,8 +147,8 @@ def test_ik_of_the_gen3_file_holds_q_and_every_valid_branch_reaches_the_pose_by_
     sigma = sigma_2_7(robot, q)
     own = err[np.arange(BATCH), branch]
     held = (own < 1e-9) | (own * sigma < RESIDUAL_TOL)
-    assert np.all(held | (sigma < 2e-3)), (own[~held], sigma[~held])
-    assert (~held).sum() <= max(5, BATCH // 40)
+    assert np.all(held | (sigma < 5e-4)), (own[~held], sigma[~held])
+    assert (~held).sum() <= max(1, BATCH // 400)
     inside = robot.within_limits(sols.q.reshape(-1, 7)).reshape(BATCH, 8)
     assert np.isfinite(sols.q).all() and np.array_equal(sols.within_limits, sols.valid & inside)
     F = mujoco_poses(robot, sols.q[sols.valid])
