@@ -97,7 +97,7 @@ if TYPE_CHECKING:
     from qpik.analytic.intervals import FeasibleIntervals, ParameterSets
     from qpik.analytic.native_sets import NativeSets
 
-CORRECTIONS = 8
+CORRECTIONS = 4
 r"""Rounds of the correction of a near member's branch before its polish (module docstring): each takes the ideal
 chain's branch at the pose moved by :math:`-\Delta(q)`, the difference of the two chains' end positions at the last
 round's q (their rotations are the same at every q), a contraction where that difference changes slowly against the
