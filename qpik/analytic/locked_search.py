@@ -227,6 +227,19 @@ class LockedSearch:
         self._reach = RowMap(ca.Function("locked_search_reach_cells", [T, q7, a, b], top), [0, 1], CHUNKS, inline=True)
         """The upper bound over a cell [a, b] of x of :meth:`reach` + :data:`~qpik.analytic.trig.EPS` (its Taylor
         model's), which bounds every branch's validity: compiled, over rows of cells."""
+        self._branches = None
+        """Per row of (x, the search's joints 1-3 of a solution at its x = q4): for each branch b, the largest
+        difference (modulo 2π) of its subproblems' joints 1-3 at x from the solution's, and its validity (8,); compiled,
+        over rows of solutions (the pose and the locked angle shared); a near member's only (:meth:`branch_of`)."""
+        if not self.exact:
+            own, rows = ca.SX.sym("own", 3), []
+            for s3, s12 in SIGNS:
+                _, v_b, trig_b = self.error(R, p, q7, x, (s3, s12), sy.CASADI)
+                turns = [ca.atan2(sn * ca.cos(o) - c * ca.sin(o), c * ca.cos(o) + sn * ca.sin(o))
+                         for (c, sn), o in zip(trig_b[:3], ca.vertsplit(own))]  # fmt: skip
+                rows += [ca.mmax(ca.fabs(ca.vertcat(*turns))), v_b]
+            fn = ca.Function("locked_search_branches", [T, q7, x, own], [ca.vertcat(*rows)])
+            self._branches = RowMap(fn, shared=[0, 1])
         _, _, trig = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)
         joints, residual = [ca.atan2(s, c) for c, s in trig] + [q7], None
         for _ in range(POLISH):
@@ -345,15 +358,10 @@ class LockedSearch:
         """The error function b (K,) of solutions ``q`` (K, 7; rad, the search's order) of the search's pose ``Ts``
         (4, 4) at the locked angle ``q7`` (rad), and its validity :math:`v_b` (K,) there: the b whose subproblems at
         each solution's q4 give the joints 1-3 nearest to its own (largest difference, modulo 2π)."""
-        R, p = sy.frame_of_batch(np.broadcast_to(Ts, (len(q), 4, 4)))
-        apart, validity = [], []
-        for s3, s12 in SIGNS:
-            _, valid, trig = self.error(R, p, q7, q[:, 3], (s3, s12), sy.NUMPY)
-            joints = np.stack([np.arctan2(sn, c) for c, sn in trig[:3]], axis=1)
-            apart.append(np.abs(sy.NUMPY.wrap(joints - q[:, :3])).max(axis=1))
-            validity.append(np.broadcast_to(valid, len(q)))
-        b = np.argmin(np.stack(apart), axis=0)
-        return b, np.stack(validity)[b, np.arange(len(q))]
+        assert self._branches is not None
+        (out,) = self._branches(Ts.reshape(-1, order="F"), np.array([q7]), q[:, 3], q[:, :3])
+        b = np.argmin(out[:, 0::2], axis=1)
+        return b, out[np.arange(len(q)), 2 * b + 1]
 
     def _isolate(self, Ts: np.ndarray, q7: float, rounds: int) -> tuple[np.ndarray, np.ndarray, bool]:
         """The candidates (centres of windows of roots, rad), their branches, and whether cells were left when the
