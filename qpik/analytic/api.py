@@ -21,7 +21,7 @@ _SOLVERS = {  # family -> (solver, its feasible sets), each as (module, class or
     "srs": (("qpik.analytic.srs", "SRSSolver"), ("qpik.analytic.srs_intervals", "PsiIntervals")),
     "locked_joint": (("qpik.analytic.locked_joint", "locked_joint_solver"),
                      ("qpik.analytic.locked_joint_intervals", "Q7Intervals")),
-    "locked_search": (("qpik.analytic.locked_search", "SearchSolver"), None),
+    "locked_search": (("qpik.analytic.search_solver", "SearchSolver"), None),
 }  # fmt: skip
 SYMBOL = {"delta": "δ", "psi": "ψ"}
 """The Greek letter of each redundancy parameter name (:attr:`IKSolutions.param_name`)."""

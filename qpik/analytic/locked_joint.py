@@ -55,7 +55,13 @@ The parameter is q7 itself: :meth:`LockedJointSolver.table_parameter_expr` retur
 :data:`~qpik.robots.locked_joint.NEAR_TOL`, :func:`~qpik.robots.locked_joint.ideal_chain`): the branches above are
 those of the ideal chain (:attr:`~LockedJointSolver.table`), each then polished by Newton on the file's chain
 (:mod:`qpik.analytic.polish`) and valid where the polish reaches the pose; :meth:`~LockedJointSolver.validity` and
-:meth:`~LockedJointSolver.joint_trig` stay the ideal chain's.
+:meth:`~LockedJointSolver.joint_trig` stay the ideal chain's. The ideal chain differs from the file's only in the
+translations of its joint frames, so its end's rotation is the file's at every q and its position differs by
+:math:`\Delta(q)`: a file's solution q is the ideal chain's at the pose moved by :math:`-\Delta(q)`, a fixed point.
+Near a singular Jacobian of the six joints it lies far from the ideal chain's solution at the pose itself (about
+the deviation over the smallest singular value, beyond Newton's reach), so each branch first takes
+:data:`CORRECTIONS` rounds of that map (the ideal chain's branch of the same signs at :math:`p - \Delta(q)`), then the
+polish.
 
 An unreachable pose gives ``valid = 0`` (a negative discriminant beyond round-off, ``EPS`` relative); the square
 roots are clamped at 0, so q stays finite.
@@ -91,6 +97,11 @@ if TYPE_CHECKING:
     from qpik.analytic.intervals import FeasibleIntervals, ParameterSets
     from qpik.analytic.native_sets import NativeSets
 
+CORRECTIONS = 4
+r"""Rounds of the correction of a near member's branch before its polish (module docstring): each takes the ideal
+chain's branch at the pose moved by :math:`-\Delta(q)`, the difference of the two chains' end positions at the last
+round's q (their rotations are the same at every q), a contraction where that difference changes slowly against the
+branch's sensitivity to the pose (about the deviation over the smallest singular value of the six joints)."""
 BRANCH_TOL = 1e-13
 """Relative squared distance between two roots (of one subproblem) below which they are one: ``singular``."""
 Signs = tuple[Scalar, ...]
@@ -217,7 +228,12 @@ class LockedJointSolver(AnalyticSolver):
         if self.polished is None:
             return br
         q, valid = [], []
-        for row in br.q:
+        for k, row in enumerate(br.q):
+            signs = ((BOTH[k // 4],), (BOTH[k // 2 % 2],), (BOTH[k % 2],))
+            for _ in range(CORRECTIONS):  # the fixed point of q -> the ideal chain's branch at p - Δ(q)
+                end, ideal = self.polished.frames_expr(row, ops)[-1][1], self.table.frames_expr(row, ops)[-1][1]
+                moved = tuple(p[i] - (end[i] - ideal[i]) for i in range(3))
+                row = self._solve(R, moved, param, ops, signs)[0].q[0]  # type: ignore[arg-type]
             qk, residual = polish(self.polished, R, p, row, ops)
             q.append([ops.wrap(x) for x in qk[:6]] + qk[6:])
             valid.append(residual <= RESIDUAL_TOL)

@@ -31,46 +31,37 @@ branch's validity) is below 0 (no branch has a q3 there: the elbow cannot reach 
 cell is discarded where the model's window :math:`|f_0 + f_1 t| \le r +` :data:`SLACK` is empty or the bounds
 exclude 0 or the branch's validity is below 0 over the cell, replaced by that window where it is at most half as
 wide, else halved; a window narrower than :data:`WINDOW` holds a root (its centre), and so do the ends of a cell where
-:math:`|e_b|` stays within :data:`TOUCH` of 0 (a double root). Every root of every :math:`e_b` is then within
-:data:`WINDOW` of a candidate, unless the search ran out of its budget (:data:`ROUNDS`, :data:`MAX_CELLS`; ``proved``
-False). Where the validity vanishes inside a window the square roots of the subproblems have no slope and
-the cell is halved down to :data:`WINDOW` like any other.
+:math:`|e_b|` stays within :data:`TOUCH` of 0 (a double root, where the window stays the whole cell however often it
+is halved: such a cell is a few µm wide when it is touched). Every root of every :math:`e_b` is then within
+:data:`WINDOW` of a candidate, or inside a touched cell whose ends are candidates, unless the search ran out of its
+budget (:data:`ROUNDS`, :data:`MAX_CELLS`; ``proved`` False). Where the validity vanishes inside a window the square
+roots of the subproblems have no slope and the cell is halved down to :data:`WINDOW` like any other.
 
 **Machine precision.** Each candidate's joints (q5, q6 by subproblem 1 on the rotation left) start :data:`POLISH`
 rounds of Newton on the arm's own chain, the locked joint held (:func:`qpik.analytic.polish.polish`, compiled and
 mapped over the candidates); a candidate is a solution where the residual is at most
 :data:`~qpik.analytic.polish.RESIDUAL_TOL`, and solutions within
-:data:`SAME` rad of each other are one. A file whose axes miss the geometry by at most
-:data:`~qpik.robots.locked_joint.NEAR_TOL` (the Sawyer's axes 6-7: 0.8 µm) is searched on its nearest ideal chain
-(:func:`~qpik.robots.locked_joint.ideal_chain`), the roots then polished on the file's: ``proved`` is then False (a
-root of the file's chain lies near, not within :data:`WINDOW` of, the ideal chain's).
+:data:`SAME` rad of each other are one.
 
-**Behind** :func:`qpik.ik` (:class:`SearchSolver`, the family ``"locked_search"`` of
-:func:`~qpik.robots.recognize.recognize`: an arm of no closed form where this geometry holds). The parameter is the
-locked joint (``param_name`` ``"q1"`` for the Sawyer, read from the flange; ``"q7"`` read forwards), and every pose
-has :data:`BRANCHES` slots, public ids 0-15: the roots of error function b take the slots ``4 b + j``, j = 0-3, in
-increasing order of q4 in (−π, π] (the j-th root of :math:`e_b`, the arm's q4 being the search variable in either
-direction). A branch so keeps its id along the parameter while no root of the same :math:`e_b` below it appears or
-vanishes (in pairs at a fold, :math:`e_b = \partial e_b/\partial x = 0`, or one at the edge of the validity, where
-it passes to the error function of the other sign) and none crosses q4 = ±π: roots of one function meet only at a
-fold, so they never swap. An error function with more than 4 roots at one pose and parameter (rare; 6 seen on the
-Sawyer) puts the roots past its fourth in the lowest slots that no root has taken (no more than 16 solutions exist:
-a 6-R chain's bound). The other slots are ``valid`` False, their joints 0 but the locked one (the parameter).
+**Near members.** A file whose axes miss the geometry by at most :data:`~qpik.robots.locked_joint.NEAR_TOL` (the
+Sawyer's axes 6-7: 0.8 µm) is searched on its nearest ideal chain (:func:`~qpik.robots.locked_joint.ideal_chain`),
+the candidates then polished on the file's: ``proved`` is then False. The ideal chain's rotations are the file's at
+every q and its end's position at most :attr:`LockedSearch.deviation` D away (:func:`deviation`), so the file's
+roots are the roots of the ideal chain's :math:`e_b` at a pose whose position is at most D away: within
+:math:`D\,|\nabla_p e_b|_1` of 0 on the ideal chain, to first order. Near a fold of :math:`e_b` (a double root) the
+file's chain may have two roots where the ideal chain's :math:`e_b` only nears 0, or none where it has two. So the
+search keeps every cell where :math:`|e_b|` may be within that bound (times :data:`NEAR_GAIN`, the gradient at the
+cell's centre) of 0, its slack and touch, and a window of :data:`NEAR_WINDOW` ends the cell: its candidates are the
+root of the window's linear model and the window's two ends (a touched cell's likewise), each polished on the file's
+chain, which decides (a candidate whose polish does not reach the pose is dropped).
 
-A root where the two roots of a subproblem meet (σ3's or σ12's: it is then a root of two error functions,
-:attr:`SearchSolutions.double`) is one solution, in the slots of the smaller b where both find it, and ``singular``:
-its b may change with the round-off of the pose, and the slots of the other roots of its error functions with it.
-More than 16 solutions is a continuum (the Sawyer at q = 0, two axes aligned with q1 fixed: the search then runs
-out of its budget with thousands of candidates): 16 of them fill the slots (4 per b, then the lowest slots left, in
-the order of b and q4), each ``singular``. The branch of a configuration (:meth:`SearchSolver.parameter`) is the
-slot of the solution nearest to it at its own pose and locked angle. The feasible sets of the parameter are not
-computed for this family (:meth:`SearchSolver.feasible_intervals` raises).
+**Behind** :func:`qpik.ik`: :mod:`qpik.analytic.search_solver` puts the solutions in 16 slots with identities along
+the parameter.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
@@ -80,7 +71,6 @@ from qpik.algebra.enclosure import DONE, HALVE, NARROW, TOUCHED, isolation_step,
 from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
 from qpik.analytic.locked_joint import _v, rotate, rotation, subproblem1, subproblem2
 from qpik.analytic.polish import RESIDUAL_TOL, polish
-from qpik.analytic.solver import BranchSolver, Solved
 from qpik.analytic.trig import EPS
 from qpik.core.errors import NoClosedFormError
 from qpik.core.validate import number, single_pose
@@ -88,20 +78,24 @@ from qpik.native.compiled import RowMap
 from qpik.robots.chain import SerialChain
 from qpik.robots.locked_joint import find_locked_joint, ideal_chain, reversed_chain
 
-if TYPE_CHECKING:
-    from collections.abc import Callable
-
-    from qpik.analytic.intervals import FeasibleIntervals, ParameterSets
-    from qpik.robots.robot import Robot
-
 CELLS = 64
 """Cells of x = q4 over the circle at the start of the search."""
 WINDOW = 1e-10
 """Width (rad) of a window of roots that is a candidate."""
 SLACK = 1e-12
 """Added to every remainder: the round-off of the enclosures of values of order 1."""
-TOUCH = 1e-12
-"""An error function within this of 0 over a whole cell makes the cell's ends candidates."""
+TOUCH = 4 * SLACK
+r"""An error function within this of 0 over a whole cell makes the cell's ends candidates: its model
+:math:`|f_0| + |f_1| + r` then lies within the round-off :data:`SLACK` of each of its terms and of the window's test,
+so that no round can tell the cell from a root (a double root, where the window stays the whole cell however it is
+halved; above :data:`SLACK`, so that such a cell is touched before it is halved to nothing)."""
+NEAR_WINDOW = 1e-3
+"""Width (rad) of a window of roots that is a candidate on a near member's ideal chain: its roots are not the file's,
+and each candidate is polished on the file's chain from the root of the window's linear model."""
+NEAR_GAIN = 2.0
+r"""Safety factor on the first-order bound :math:`D\,|
+abla_p e_b|_1` (at a cell's centre) of the change of an error
+function of a near member between its ideal chain and the file's (:attr:`LockedSearch.deviation`)."""
 ROUNDS = 80
 """Rounds of the search before the answer is left unproved."""
 MAX_CELLS = 4096
@@ -117,10 +111,6 @@ DOUBLE = 1e-9
 double root of a subproblem (:attr:`SearchSolutions.double`)."""
 SIGNS = np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]])
 """Per branch b, the signs (σ3, σ12) of its subproblems' roots."""
-SLOTS = 4
-"""Slots of :class:`SearchSolver` per error function: ids 4 b to 4 b + 3 (module docstring)."""
-BRANCHES = 16
-"""Slots of :class:`SearchSolver` per pose: the most solutions a 6-R chain has."""
 
 
 @dataclass(frozen=True)
@@ -191,7 +181,14 @@ class LockedSearch:
         R, p = sy.frame_of_batch(T)
         e, valid, _ = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)
         model = taylor_function(ca.Function("locked_search", [T, q7, x, sign], [ca.vertcat(e, valid)]), [2])
-        self._step = RowMap(step_function(model), shared=[0, 1], chunks=CHUNKS, inline=True)
+        self.deviation = 0.0 if self.exact else deviation(turned, table)
+        """m: a bound of the change of the end's position between the file's chain and the ideal one the search runs
+        on, at every q (0 for an exact member; :func:`deviation`)."""
+        gain = None
+        if not self.exact:  # |∂e_b/∂p|_1: the file's roots are those of the ideal chain's e_b at a pose D away
+            grad = ca.jacobian(e, ca.vertcat(T[0, 3], T[1, 3], T[2, 3]))
+            gain = ca.Function("locked_search_gain", [T, q7, x, sign], [ca.sum2(ca.fabs(grad))])
+        self._step = RowMap(step_function(model, gain, self.deviation), shared=[0, 1], chunks=CHUNKS, inline=True)
         """One round's step of a cell of a branch (:func:`step_function`), compiled, over rows of cells (the pose and
         the locked angle shared)."""
         reach = ca.Function("locked_search_reach", [T, q7, x], [self.reach(R, p, q7, x, sy.CASADI)])
@@ -200,6 +197,19 @@ class LockedSearch:
         self._reach = RowMap(ca.Function("locked_search_reach_cells", [T, q7, a, b], top), [0, 1], CHUNKS, inline=True)
         """The upper bound over a cell [a, b] of x of :meth:`reach` + :data:`~qpik.analytic.trig.EPS` (its Taylor
         model's), which bounds every branch's validity: compiled, over rows of cells."""
+        self._branches = None
+        """Per row of (x, the search's joints 1-3 of a solution at its x = q4): for each branch b, the largest
+        difference (modulo 2π) of its subproblems' joints 1-3 at x from the solution's, and its validity (8,); compiled,
+        over rows of solutions (the pose and the locked angle shared); a near member's only (:meth:`branch_of`)."""
+        if not self.exact:
+            own, rows = ca.SX.sym("own", 3), []
+            for s3, s12 in SIGNS:
+                _, v_b, trig_b = self.error(R, p, q7, x, (s3, s12), sy.CASADI)
+                turns = [ca.atan2(sn * ca.cos(o) - c * ca.sin(o), c * ca.cos(o) + sn * ca.sin(o))
+                         for (c, sn), o in zip(trig_b[:3], ca.vertsplit(own))]  # fmt: skip
+                rows += [ca.mmax(ca.fabs(ca.vertcat(*turns))), v_b]
+            fn = ca.Function("locked_search_branches", [T, q7, x, own], [ca.vertcat(*rows)])
+            self._branches = RowMap(fn, shared=[0, 1])
         _, _, trig = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)
         joints, residual = [ca.atan2(s, c) for c, s in trig] + [q7], None
         for _ in range(POLISH):
@@ -298,6 +308,10 @@ class LockedSearch:
         ok = residual[:, 0] <= RESIDUAL_TOL
         q, branch, residual = sy.NUMPY.wrap(q[ok]), branch[ok], residual[ok, 0]
         double = valid[ok, 0] - EPS <= DOUBLE
+        if not self.exact and q.size:  # the polish may take a candidate of one b to a root of another
+            own, validity = self.branch_of(Ts, param, q)
+            double = (validity - EPS <= DOUBLE) | (own != branch)
+            branch = own
         keep = np.zeros(0, int)
         for i in np.lexsort((residual, branch)):  # against those kept (the smaller b first): one numpy pass each
             apart = np.abs(sy.NUMPY.wrap(q[keep] - q[i])).max(axis=1) if keep.size else np.ones(1)
@@ -309,6 +323,15 @@ class LockedSearch:
         q = q[keep]
         return SearchSolutions(q[:, ::-1] if self.reversed else q, branch[keep], residual[keep], proved,
                                double[keep])  # fmt: skip
+
+    def branch_of(self, Ts: np.ndarray, q7: float, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The error function b (K,) of solutions ``q`` (K, 7; rad, the search's order) of the search's pose ``Ts``
+        (4, 4) at the locked angle ``q7`` (rad), and its validity :math:`v_b` (K,) there: the b whose subproblems at
+        each solution's q4 give the joints 1-3 nearest to its own (largest difference, modulo 2π)."""
+        assert self._branches is not None
+        (out,) = self._branches(Ts.reshape(-1, order="F"), np.array([q7]), q[:, 3], q[:, :3])
+        b = np.argmin(out[:, 0::2], axis=1)
+        return b, out[np.arange(len(q)), 2 * b + 1]
 
     def _isolate(self, Ts: np.ndarray, q7: float, rounds: int) -> tuple[np.ndarray, np.ndarray, bool]:
         """The candidates (centres of windows of roots, rad), their branches, and whether cells were left when the
@@ -324,10 +347,15 @@ class LockedSearch:
             if not a.size or a.size > MAX_CELLS:
                 break
             (out,) = self._step(Tf, angle, a, b, SIGNS[k])
-            x1, x2, fate = out.T
+            x1, x2, fate, best = out.T
             done, touch = fate == DONE, fate == TOUCHED
-            found += [0.5 * (x1 + x2)[done], a[touch], b[touch]]
-            which += [k[done], k[touch], k[touch]]
+            if self.exact:
+                found += [0.5 * (x1 + x2)[done], a[touch], b[touch]]
+                which += [k[done], k[touch], k[touch]]
+            else:  # the ideal chain's roots and near-roots: where the file's may be
+                ended = done | touch
+                found += [best[ended], x1[ended], x2[ended]]
+                which += [k[ended]] * 3
             narrow, halve = fate == NARROW, fate == HALVE
             mid = 0.5 * (x1 + x2)[halve]
             a = np.concatenate([x1[narrow], x1[halve], mid])
@@ -341,109 +369,37 @@ class LockedSearch:
         return np.concatenate(found), np.concatenate(which).astype(int), bool(a.size)
 
 
-def step_function(model: ca.Function) -> ca.Function:
-    """One round of the search on a cell of a branch (:func:`~qpik.algebra.enclosure.isolation_step` with :data:`SLACK`,
-    :data:`WINDOW`, :data:`TOUCH`; gone too where :math:`v_b < 0` over the cell) from ``model``, the Taylor models in x
-    of :math:`(e_b, v_b)` of inputs (T, q7, x, signs). Inputs: T (4, 4; the search's pose, column-major), q7 (rad),
-    the cell's ends a < b (rad), the signs (σ3, σ12). Output (3,): the window's ends (rad), the cell's fate."""
+def step_function(model: ca.Function, gain: ca.Function | None = None, deviation: float = 0.0) -> ca.Function:
+    r"""One round of the search on a cell of a branch (:func:`~qpik.algebra.enclosure.isolation_step` with
+    :data:`SLACK`, :data:`WINDOW`, :data:`TOUCH`; gone too where :math:`v_b < 0` over the cell) from ``model``, the
+    Taylor models in x of :math:`(e_b, v_b)` of inputs (T, q7, x, signs). Inputs: T (4, 4; the search's pose,
+    column-major), q7 (rad), the cell's ends a < b (rad), the signs (σ3, σ12). Output (4,): the window's ends (rad),
+    the cell's fate, and the point of the window where the model's linear part :math:`|f_0 + f_1 t|` is least (rad).
+
+    A near member (``gain``, :math:`|\nabla_p e_b|_1` of the same inputs, and ``deviation`` D > 0, m): the file's
+    roots are the roots of the ideal chain's :math:`e_b` at a pose whose position is at most D away, so its slack and
+    touch are :data:`SLACK` + :data:`NEAR_GAIN` :math:`D\,|\nabla_p e_b|_1` at the cell's centre (a cell goes only
+    where the file's :math:`e_b` has no root either, to first order in D) and its window :data:`NEAR_WINDOW`."""
     T, q7, a, b, sign = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("a"), ca.SX.sym("b"), ca.SX.sym("sign", 2)
     c, s, r, lo, hi = model(T, q7, 0.5 * (a + b), sign, 0.5 * (b - a), 0.0, a, b)
-    step = isolation_step(a, b, (c[0], s[0], r[0], lo[0], hi[0]), hi[1] < -SLACK, SLACK, WINDOW, TOUCH)
-    return ca.Function("locked_search_step", [T, q7, a, b, sign], [ca.vertcat(*step)])
+    if gain is None:
+        slack, window, touch = SLACK, WINDOW, TOUCH
+    else:
+        slack = SLACK + NEAR_GAIN * deviation * gain(T, q7, 0.5 * (a + b), sign)
+        window, touch = NEAR_WINDOW, slack
+    x1, x2, fate = isolation_step(a, b, (c[0], s[0], r[0], lo[0], hi[0]), hi[1] < -SLACK, slack, window, touch)
+    m, w = 0.5 * (a + b), 0.5 * (b - a)
+    t = ca.if_else(ca.fabs(s[0]) > 0, -c[0] / s[0], 0.0)
+    best = ca.fmin(ca.fmax(m + w * t, x1), x2)
+    return ca.Function("locked_search_step", [T, q7, a, b, sign], [ca.vertcat(x1, x2, fate, best)])
 
 
-def slots(branch: np.ndarray, q4: np.ndarray) -> np.ndarray:
-    """The slots (K,) of :class:`SearchSolver` of K ≤ :data:`BRANCHES` solutions of error functions ``branch`` (K,)
-    at the arm's q4 (K,) rad: the j-th root of b in increasing q4 takes ``SLOTS·b + j`` for j < :data:`SLOTS`, the
-    others the lowest slots left (module docstring), in the order of b and q4; −1 for those left without (only where
-    K > :data:`BRANCHES`)."""
-    out = np.full(len(branch), -1)
-    taken = np.zeros(BRANCHES, bool)
-    order = np.lexsort((q4, branch))
-    rank = np.zeros(len(branch), int)
-    for i, k in enumerate(order[1:], 1):
-        rank[k] = rank[order[i - 1]] + 1 if branch[k] == branch[order[i - 1]] else 0
-    own = rank < SLOTS
-    out[own] = SLOTS * branch[own] + rank[own]
-    taken[out[own]] = True
-    for k, free in zip(order[~own[order]], np.flatnonzero(~taken)):
-        out[k] = free
-    return out
-
-
-class SearchSolver(BranchSolver):
-    """:func:`qpik.ik` and :func:`qpik.redundancy_parameter` of an arm of the ``"locked_search"`` family: the
-    :class:`LockedSearch` of its chain in the direction recognised (``robot.canonical.reversed``), its solutions in
-    :data:`BRANCHES` slots (module docstring). ``solve_batch`` and ``solve_many`` search each pose and parameter in
-    turn."""
-
-    kind = "locked_search"
-    param_name = "q1"
-    branch_ids = tuple(range(BRANCHES))
-    closed_form_sets = False
-
-    def __init__(self, robot: Robot, sets: Callable[[BranchSolver], ParameterSets] | None = None):
-        super().__init__(robot, sets)
-        canonical = robot.canonical
-        if canonical is None or canonical.kind != self.kind:
-            raise NoClosedFormError(f"{robot.name} is not of the 1-D search's family")
-        self.search = LockedSearch(robot.chain, (canonical.reversed,))
-        """The search of the arm's chain."""
-        self.param_name = f"q{self.search.locked}"
-        self.locked = self.search.locked - 1
-        """The locked joint's index (0-based): the parameter."""
-
-    def solve_one(self, T: np.ndarray, param: float) -> Solved:
-        """One pose (4, 4), one parameter (rad): q (B, n), valid, singular, within_limits (B,) bool."""
-        return self.place(self.search.solve(T, param), param)
-
-    def feasible_intervals(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
-        """Not computed for this family: raises :class:`~qpik.core.errors.NoClosedFormError` (the sets' ends are roots
-        of 2-D systems in the locked angle and q4, which no module isolates yet)."""
-        raise NoClosedFormError(
-            f"{self.robot.name}: the feasible {self.param_name} sets of the 1-D search's branches are not computed "
-            "(qpik.analytic.locked_search); qpik.ik and qpik.redundancy_parameter are"
-        )
-
-    def place(self, sol: SearchSolutions, param: float) -> Solved:
-        """The solutions ``sol`` of the locked angle ``param`` (rad) in their slots (:func:`slots`): q (B, n) (each
-        joint's representative inside its limits, :meth:`~qpik.analytic.solver.BranchSolver.representative`), valid,
-        singular (a root at a subproblem's double root, :attr:`SearchSolutions.double`; every valid slot where more
-        than :data:`BRANCHES` solutions were found: a continuum), within_limits (B,) bool."""
-        q = np.zeros((BRANCHES, self.robot.dof))
-        q[:, self.locked] = sy.NUMPY.wrap(np.array(float(param)))
-        at = slots(sol.branch, sol.q[:, 3])
-        q[at[at >= 0]] = sol.q[at >= 0]
-        for j in np.flatnonzero(self._wide):
-            q[:, j] = self.representative(int(j), q[:, j], sy.NUMPY)
-        valid = np.zeros(BRANCHES, bool)
-        valid[at[at >= 0]] = True
-        within = valid & np.all((q >= self.robot.q_min) & (q <= self.robot.q_max), axis=1)
-        singular = valid & (len(at) > BRANCHES)
-        singular[at[at >= 0]] |= sol.double[at >= 0]
-        return Solved(q, valid, singular, within)
-
-    def solve_many(self, T: np.ndarray, params: np.ndarray, rows: int | None = None) -> Solved:
-        """One pose (4, 4), parameters (M,): q (M, B, n), valid, singular, within_limits (M, B) bool; ``rows``: only the
-        first ``rows`` slots."""
-        params = np.asarray(params, float).ravel()
-        return Solved(*(x[:, :rows] for x in self.solve_batch(np.broadcast_to(T, (len(params), 4, 4)), params)))
-
-    def solve_batch(self, T: np.ndarray, param: np.ndarray) -> Solved:
-        """Poses (N, 4, 4), parameters (N,): q (N, B, n), valid, singular, within_limits (N, B) bool."""
-        out = [self.solve_one(Ti, float(x)) for Ti, x in zip(T, param)]
-        return Solved(*(np.stack(parts) for parts in zip(*out)))
-
-    def parameter(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The locked joint (rad) and branch id of configurations q (N, n) wrapped to (−π, π]: ((N,), (N,) int). The
-        branch is the slot of the valid solution nearest q (largest joint difference, modulo 2π) at q's own pose (the
-        FK of :attr:`robot`'s chain) and locked angle; −1 where the search finds none there."""
-        q = np.asarray(q, dtype=float)
-        param = q[:, self.locked].copy()
-        branch = np.full(len(q), -1)
-        for i, (Ti, qi) in enumerate(zip(self.robot.fk(q), q)):
-            sol = self.solve_one(Ti, float(param[i]))
-            if sol.valid.any():
-                apart = np.abs(sy.NUMPY.wrap(sol.q - qi)).max(axis=1)
-                branch[i] = int(np.argmin(np.where(sol.valid, apart, np.inf)))
-        return param, branch
+def deviation(chain: SerialChain, ideal: SerialChain) -> float:
+    r"""A bound (m) of :math:`|p(q) - p'(q)|` over every q, the end's positions by ``chain`` and by ``ideal``, a chain
+    that differs from it only in the translations of its joints' ``pre`` and ``post`` transforms, base and tool
+    (:func:`~qpik.robots.locked_joint.ideal_chain`): the rotations are the same at every q, and each translation
+    changed by :math:`d_k` moves the end by :math:`|d_k|`, turned."""
+    pairs = [(x.pre, y.pre) for x, y in zip(chain.joints, ideal.joints)]
+    pairs += [(x.post, y.post) for x, y in zip(chain.joints, ideal.joints)]
+    pairs += [(chain.tool, ideal.tool), (chain.base, ideal.base)]
+    return float(sum(np.linalg.norm(x[:3, 3] - y[:3, 3]) for x, y in pairs))

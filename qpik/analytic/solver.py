@@ -20,7 +20,7 @@ One pose goes through compiled code and a batch of poses through numpy vectorise
 poses (the design notes give the measurements). The tests check that all of them agree.
 
 What the public functions call of a solver is :class:`BranchSolver`, of which :class:`AnalyticSolver` is one kind and
-the 1-D search of :mod:`qpik.analytic.locked_search` (:class:`~qpik.analytic.locked_search.SearchSolver`, branches
+the 1-D search of :mod:`qpik.analytic.locked_search` (:class:`~qpik.analytic.search_solver.SearchSolver`, branches
 found as roots, no expressions) another.
 """
 
@@ -84,7 +84,7 @@ class BranchSolver(ABC):
     number of each slot), each valid or not, and the parameter and branch of a configuration.
 
     :class:`AnalyticSolver` writes its branches once as expressions (closed forms, and their CasADi functions for
-    the NLPs); :class:`~qpik.analytic.locked_search.SearchSolver` finds them as the roots of a certified 1-D search
+    the NLPs); :class:`~qpik.analytic.search_solver.SearchSolver` finds them as the roots of a certified 1-D search
     (no expressions: ``Robot.branch_functions`` False). Subclasses set ``kind`` (the ``Robot.closed_form`` value),
     ``param_name`` and ``branch_ids``; the feasible sets of the parameter come from ``sets``, built from the solver on
     first use (:class:`~qpik.analytic.intervals.ParameterSets`), so the solver does not depend on the module that

@@ -37,10 +37,11 @@ rounding gives such misses: an rpy written as 1.571 (2e-4 rad off a quarter turn
 1e-4 m from where it should pass; so do small offsets a file keeps where the maker's table has none (the Kinova Gen3's
 files put its axes 5 and 7 0.35 mm apart, joint origins offset by 0.175 mm, where Kinova's DH table has a spherical
 wrist). The closed form's start is then about miss/0.1 rad from the answer (links of ~0.1 m), which Newton's
-quadratic steps take to round-off in the polish's four. Not near a singular Jacobian of the six joints left
-(smallest singular value σ_min): the file's answer lies about miss/σ_min from the ideal one, beyond the polish's
-reach where σ_min is below about miss, and a branch may be missed there (flagged invalid, or the polish reaching
-another answer)."""
+quadratic steps take to round-off in the polish's four. Near a singular Jacobian of the six joints left (smallest
+singular value σ_min) the file's answer lies about miss/σ_min from the ideal one, beyond the polish's reach where
+σ_min is below about miss: the closed form's branches are then first corrected toward the file's
+(:data:`qpik.analytic.locked_joint.CORRECTIONS`), and a branch may still be missed where σ_min is far below the miss
+(flagged invalid, or the polish reaching another answer)."""
 PARALLEL_TOL = 1e-9
 """Smallest sine of the angle between two axes that are not parallel."""
 

@@ -213,7 +213,7 @@ def _locked(chain: SerialChain, directions: tuple[bool, ...]) -> tuple[Canonical
         if geometry is not None:
             notes = geometry.describe(layout, near) + _search(chain)  # a near member: the search may be exact
             return Canonical("locked_joint", ideal, identity, notes, False, rev), ""
-    return None, "; ".join(f"not locked-q{1 if rev else 7}: {why}" for rev, why in reasons.items())
+    return None, "; ".join(f"not the locked-q{1 if rev else 7} closed form: {why}" for rev, why in reasons.items())
 
 
 def _fit(chain: SerialChain, kind: str, pattern: Pattern) -> tuple[Canonical | None, str]:

@@ -272,7 +272,8 @@ def test_an_arm_beyond_the_near_tolerance_has_no_closed_form():
     """The xArm7 with axis 3 moved 1 mm (twice NEAR_TOL) is refused, with the miss in the reason (it is served by
     the 1-D search, qpik.analytic.locked_search)."""
     robot = model_robot("xarm7_offset")
-    assert robot.closed_form == "locked_search" and "not locked-q7: axes 2-3 do not meet (1 mm apart)" in robot.notes
+    assert robot.closed_form == "locked_search"
+    assert "not the locked-q7 closed form: axes 2-3 do not meet (1 mm apart)" in robot.notes
 
 
 # ---- feasible q7 sets --------------------------------------------------------

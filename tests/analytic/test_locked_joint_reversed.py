@@ -81,14 +81,14 @@ def test_the_sawyer_notes_name_its_offsets_and_why_no_closed_form():
         "axes 2-3, 3-4, 4-5, 5-6 meet, axes 1-2 81 mm apart"
     )
     assert "along axis 2 192.5 mm, axis 3 400 mm, axis 4 168.5 mm, axis 5 400 mm, axis 6 136.3 mm" in notes
-    assert "not locked-q7: axes 1-2 do not meet (81 mm apart)" in notes
-    assert "not locked-q1: axes 7-6-5 do not meet in one point (axis 5 passes 136.3 mm from it)" in notes
+    assert "not the locked-q7 closed form: axes 1-2 do not meet (81 mm apart)" in notes
+    assert "not the locked-q1 closed form: axes 7-6-5 do not meet in one point (axis 5 passes 136.3 mm" in notes
     assert "perpendicular" not in notes
     assert "1-D search over q4 with q7 locked" in model_robot("xarm7_offset").notes
     q = random_q(robot, 1, 3)[0]
     assert qpik.ik(robot, robot.fk(q), float(q[0])).param_name == "q1"
     q7 = qpik.load_robot(robot.model.path, redundancy="q7", meshes=MeshOptions(collision_only=True))
-    assert q7.closed_form is None and "not locked-q7: axes 1-2 do not meet (81 mm apart)" in q7.notes
+    assert q7.closed_form is None and "not the locked-q7 closed form: axes 1-2 do not meet (81 mm apart)" in q7.notes
 
 
 def test_the_q1_override():
@@ -96,7 +96,8 @@ def test_the_q1_override():
     path = model_robot("robosuite_gen3").model.path
     gen3 = qpik.load_robot(path, redundancy="q7")
     assert gen3.closed_form == "locked_search" and not gen3.canonical.reversed  # its q7 by the search
-    assert "not locked-q7: axes 1-2-3 do not meet in one point" in gen3.notes and "locked-q1" not in gen3.notes
+    assert "not the locked-q7 closed form: axes 1-2-3 do not meet in one point" in gen3.notes
+    assert "locked-q1" not in gen3.notes
     assert qpik.load_robot(path, redundancy="q1").canonical.reversed
     with pytest.raises(InputError, match="redundancy"):
         qpik.load_robot("panda", redundancy="q1")
@@ -132,11 +133,11 @@ def test_ik_of_an_exact_member_holds_q_and_every_branch_reaches_the_pose(key, se
 @PROPERTY
 @given(seed=SEEDS)
 def test_ik_of_the_gen3_file_holds_q_and_every_valid_branch_reaches_the_pose_by_mujoco(seed):
-    """The file (a near member, polished): every valid branch reaches the pose to 1e-10 by MuJoCo's FK of the file;
-    the branch ``redundancy_parameter(q)`` holds q to 1e-9 rad, or to RESIDUAL_TOL/σ_min, unless the chain of joints
-    2-7 is near singular (σ_min < 2e-3: the file's answers there lie ~0.35 mm/σ_min from the ideal chain's, beyond
-    the polish's reach). q is missed for at most 2.5% of the configurations (1.2% of 20,000 on other seeds, all at
-    σ_min < 1.1e-3)."""
+    """The file (a near member, corrected and polished): every valid branch reaches the pose to 1e-10 by MuJoCo's FK
+    of the file; the branch ``redundancy_parameter(q)`` holds q to 1e-9 rad, or to RESIDUAL_TOL/σ_min, unless the
+    chain of joints 2-7 is all but singular (σ_min < 5e-4: the file's answers there lie ~0.35 mm/σ_min from the
+    ideal chain's, where the corrections converge slowly). q is missed in its branch for at most 0.5% of the
+    configurations (7 of 2,000 on one seed, each at σ_min < 5e-4)."""
     robot = model_robot("robosuite_gen3")
     q = random_q(robot, BATCH, seed)
     T = mujoco_poses(robot, q)
@@ -147,8 +148,8 @@ def test_ik_of_the_gen3_file_holds_q_and_every_valid_branch_reaches_the_pose_by_
     sigma = sigma_2_7(robot, q)
     own = err[np.arange(BATCH), branch]
     held = (own < 1e-9) | (own * sigma < RESIDUAL_TOL)
-    assert np.all(held | (sigma < 2e-3)), (own[~held], sigma[~held])
-    assert (~held).sum() <= max(5, BATCH // 40)
+    assert np.all(held | (sigma < 5e-4)), (own[~held], sigma[~held])
+    assert (~held).sum() <= max(2, BATCH // 200)
     inside = robot.within_limits(sols.q.reshape(-1, 7)).reshape(BATCH, 8)
     assert np.isfinite(sols.q).all() and np.array_equal(sols.within_limits, sols.valid & inside)
     F = mujoco_poses(robot, sols.q[sols.valid])

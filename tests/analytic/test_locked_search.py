@@ -44,29 +44,23 @@ def test_the_search_finds_q_and_every_solution_reaches_the_pose_by_mujoco(key):
     """Over random q inside the limits: one solution is q to 1e-9 rad; every solution reaches the pose to 1e-10 by
     MuJoCo's FK of the file, at most 16 and no two the same; the searches of the exact members (the Sawyer
     unrounded, example-robot-data's Baxter (right arm), and, q7 locked, the Gen3 file and the xArm7 with axis 3 moved
-    1 mm) are proved. The Sawyer file (a
-    near member: the ideal chain's roots polished on the file's) may miss q where the chain of joints 2-7 is near
-    singular (σ_min < 1e-3; 3 of 2,000 on this seed, σ_min < 2e-4)."""
+    1 mm) are proved. The Sawyer file (a near member: the ideal chain's roots and near-roots polished on the file's)
+    is not proved, and holds q too, also where the chain of joints 2-7 is near singular (σ_min down to 1e-5 among
+    these q), where the ideal chain's error function only nears 0 at the file's pair of roots."""
     robot = model_robot(key)
     s = search(key)
     assert s.locked == (7 if key in ("xarm7_offset", "robosuite_gen3") else 1) and s.reversed == (s.locked == 1)
     assert s.exact == (key != "robosuite_sawyer")
     q = random_q(robot, BATCH, 11)
     T = mujoco_poses(robot, q)
-    others = [j for j in range(7) if j != s.locked - 1]
-    sigma = np.linalg.svd(robot.jacobian(q)[:, :, others], compute_uv=False)[:, -1]
-    missed = 0
-    for qi, Ti, si in zip(q, T, sigma):
+    for qi, Ti in zip(q, T):
         sol = s.solve(Ti, qi[s.locked - 1])
         assert 0 < len(sol.q) <= 16 and sol.proved == s.exact
-        if angle_diff(sol.q, qi).max(axis=1).min() >= 1e-9:
-            assert not s.exact and si < 1e-3
-            missed += 1
+        assert angle_diff(sol.q, qi).max(axis=1).min() < 1e-9
         assert np.abs(mujoco_poses(robot, sol.q) - Ti).max() < 1e-10
         assert np.all(angle_diff(sol.q[:, s.locked - 1], qi[s.locked - 1]) < 1e-15)
         apart = angle_diff(sol.q[:, None], sol.q[None]).max(axis=2) + np.eye(len(sol.q))
         assert apart.min() > 1e-8
-    assert missed <= max(2, BATCH // 400)
 
 
 @settings(max_examples=4, deadline=None)
@@ -195,14 +189,14 @@ API_BATCH = 2000 if LARGE else 40
 def test_ik_holds_q_in_its_slot_and_every_valid_slot_reaches_the_pose_by_mujoco(key):
     """qpik.ik on random q inside the limits (the Sawyer: q1 locked, its file a near member; Baxter's right arm: q1
     locked, exact; the xArm7 with axis 3 moved 1 mm: q7 locked, exact): 16 finite slots; one valid slot holds q to
-    1e-9 rad (modulo 2π), within limits, except where the chain without the locked joint is near singular (σ_min <
-    1e-3), and it is the slot that redundancy_parameter names (from qpik's FK of q, not MuJoCo's pose) unless the
-    pose has a singular slot (a root of two error functions, whose b round-off decides); every valid slot reaches
-    the pose to 1e-10 by MuJoCo's FK of the file and holds the locked joint at the parameter; the slots hold the
-    search's roots as documented (the j-th of b in increasing q4 in slot 4b + j, those past the fourth in the lowest
-    slots left; singular where the search says a root is double), and on the exact arms (Baxter, the xArm7) every
-    regular root is a root of its e_b: e_b there over its slope (a forward difference) below 1e-7 rad (e_b loses
-    digits near some roots: on Baxter |e_b| 1e-7 at roots that reach their pose to 1e-10)."""
+    1e-9 rad (modulo 2π), within limits, and it is the slot that redundancy_parameter names (from qpik's FK of q, not
+    MuJoCo's pose) unless the pose has a singular slot (a root of two error functions, whose b round-off decides);
+    every valid slot reaches the pose to 1e-10 by MuJoCo's FK of the file and holds the locked joint at the
+    parameter; the slots hold the search's roots as documented (the j-th of b in increasing q4 in slot 4b + j, those
+    past the fourth in the lowest slots left; singular where the search says a root is double), and on the exact
+    arms (Baxter, the xArm7) every regular root is a root of its e_b: e_b there over its slope (a forward difference)
+    below 1e-7 rad (e_b loses digits near some roots: on Baxter |e_b| 1e-7 at roots that reach their pose to
+    1e-10)."""
     robot = model_robot(key)
     locked = 6 if key == "xarm7_offset" else 0
     assert robot.closed_form == "locked_search" and robot.canonical.reversed == (locked == 0)
@@ -211,22 +205,16 @@ def test_ik_holds_q_in_its_slot_and_every_valid_slot_reaches_the_pose_by_mujoco(
     s = search(key)
     q = random_q(robot, API_BATCH, 21)
     T = mujoco_poses(robot, q)
-    sigma = np.linalg.svd(np.delete(robot.jacobian(q), locked, axis=2), compute_uv=False)[:, -1]
     param, branch = qpik.redundancy_parameter(robot, q)
     np.testing.assert_array_equal(param, sy.NUMPY.wrap(q[:, locked]))
-    missed = 0
-    for qi, Ti, si, pi, bi in zip(q, T, sigma, param, branch):
+    for qi, Ti, pi, bi in zip(q, T, param, branch):
         sols = qpik.ik(robot, Ti, float(pi))
         assert sols.q.shape == (16, 7) and np.isfinite(sols.q).all() and sols.param_name == f"q{locked + 1}"
         assert list(sols.branch) == list(range(16)) and not (sols.singular & ~sols.valid).any()
         assert 0 < sols.valid.sum() <= 16 and not (sols.within_limits & ~sols.valid).any()
         apart = np.where(sols.valid, angle_diff(sols.q, qi).max(axis=1), np.inf)
-        if apart.min() >= 1e-9:
-            assert si < 1e-3, (qi, si)
-            missed += 1
-        else:
-            assert sols.within_limits[np.argmin(apart)]
-            assert bi == np.argmin(apart) or sols.singular.any()
+        assert apart.min() < 1e-9 and sols.within_limits[np.argmin(apart)]
+        assert bi == np.argmin(apart) or sols.singular.any()
         good = sols.q[sols.valid]
         assert np.abs(mujoco_poses(robot, good) - Ti).max() < 1e-10
         assert np.all(angle_diff(sols.q[:, locked], pi) < 1e-15)
@@ -254,7 +242,6 @@ def test_ik_holds_q_in_its_slot_and_every_valid_slot_reaches_the_pose_by_mujoco(
             )
             slope = (slope - e) / 1e-6
             assert np.all(np.abs(e) <= 1e-7 * np.abs(slope))  # a Newton step of e_b below 1e-7 rad
-    assert missed <= max(2, API_BATCH // 400)
     batch = qpik.ik(robot, T[:3], param[:3])
     assert batch.q.shape == (3, 16, 7)
     for i in range(3):
