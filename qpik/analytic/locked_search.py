@@ -93,8 +93,7 @@ NEAR_WINDOW = 1e-3
 """Width (rad) of a window of roots that is a candidate on a near member's ideal chain: its roots are not the file's,
 and each candidate is polished on the file's chain from the root of the window's linear model."""
 NEAR_GAIN = 2.0
-r"""Safety factor on the first-order bound :math:`D\,|
-abla_p e_b|_1` (at a cell's centre) of the change of an error
+r"""Safety factor on the first-order bound :math:`D\,|\nabla_p e_b|_1` (at a cell's centre) of the change of an error
 function of a near member between its ideal chain and the file's (:attr:`LockedSearch.deviation`)."""
 ROUNDS = 80
 """Rounds of the search before the answer is left unproved."""
