@@ -4,8 +4,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from qpik.robots.robot import Robot
 
 WAYPOINTS = 101
 """Waypoints sampled from a timed path when no ``times`` are given."""
@@ -14,6 +18,12 @@ RESOLUTION = 720
 SEARCH_RESOLUTION = 64
 """``resolution`` None for an arm whose branches the 1-D search finds: each value of each waypoint is a search
 (milliseconds)."""
+
+
+def default_resolution(robot: Robot) -> int:
+    """``resolution`` None for ``robot``: :data:`RESOLUTION`, or :data:`SEARCH_RESOLUTION` where its branches are
+    found by the 1-D search (``Robot.branch_functions`` False)."""
+    return RESOLUTION if robot.branch_functions else SEARCH_RESOLUTION
 
 
 @dataclass(frozen=True)

@@ -50,7 +50,7 @@ from qpik.nlp.options import BestOptions
 from qpik.objectives import Objective
 from qpik.planning import dp
 from qpik.planning.grid import Grid
-from qpik.planning.options import RESOLUTION, SEARCH_RESOLUTION, PlanOptions
+from qpik.planning.options import PlanOptions, default_resolution
 from qpik.planning.plan import Plan, Profile, make_plan, measure
 from qpik.planning.refine import PathNLP
 from qpik.planning.search_grid import SearchGrid
@@ -121,7 +121,7 @@ def plan_self_motion(
     if setup.robot.closed_form is None:
         return _plan_joints(setup, refine, mujoco)
     if resolution is None:
-        resolution = RESOLUTION if setup.robot.branch_functions else SEARCH_RESOLUTION
+        resolution = default_resolution(setup.robot)
     res = int(number(resolution, "resolution", 8))
     if res % 2 or res != resolution or res > MAX_RESOLUTION:
         raise InputError(f"resolution: expected an even integer in [8, {MAX_RESOLUTION}], got {resolution!r}")

@@ -44,9 +44,8 @@ class SearchGrid(Grid):
         said = Progress(f"the 1-D search at {G} values of {self.param_name} per waypoint, waypoint", N, self._progress)
         for k, T in enumerate(self.poses):
             said(k)
-            for i, value in enumerate(self.values):
-                sol = self.solver.solve_one(T, float(value))
-                self._q[k, :, i], inside[k, :, i] = sol.q, sol.within_limits
+            sol = self.solver.solve_many(T, self.values)  # (G, B, n), (G, B)
+            self._q[k], inside[k] = sol.q.transpose(1, 0, 2), sol.within_limits.T
         said.finish()
         return None, inside
 

@@ -22,7 +22,7 @@ from qpik.core.validate import finite_array
 from qpik.core.validate import pose as check_pose
 from qpik.geometry.paths import TargetPath
 from qpik.geometry.shapes import Shape, shape_from_spec
-from qpik.planning.options import RESOLUTION, SEARCH_RESOLUTION
+from qpik.planning.options import default_resolution
 from qpik.problems.paths import PATHS
 from qpik.problems.schema import KINDS, MAX_COUNT, MAX_GRID, SOLVER_KEYS, Problem, Setting
 from qpik.robots.loader import load_robot
@@ -161,7 +161,7 @@ class Reader:
     def plan_sizes(self, solver: dict[str, Any], robot: Robot, poses: int | None) -> None:
         """A ``plan`` problem's grid within :data:`MAX_GRID`, and its branches among the closed form's."""
         waypoints = solver["waypoints"] if poses is None else poses
-        resolution = solver["resolution"] or (RESOLUTION if robot.branch_functions else SEARCH_RESOLUTION)
+        resolution = solver["resolution"] or default_resolution(robot)
         if waypoints * resolution > MAX_GRID:
             size = f"{waypoints} waypoints × resolution {resolution}"
             raise self.fail("solver.resolution", f"{size} is over {MAX_GRID:,} grid points per branch; use fewer "
