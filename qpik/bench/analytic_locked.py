@@ -161,10 +161,12 @@ def search_rows(repeat: int, block: int, row) -> list[Row]:
         geo, poses = _geo_locked_q1(robot, T, q[:, 0], import_peer("ik_geo"))
         calls["geo"] = lambda i: geo.get_ik(*poses[i])
 
-        def answers(i: int) -> list[np.ndarray]:
-            return [np.insert(np.asarray(x, float), 0, q[i, 0]) for x, _ in calls["geo"](i)]
+        solved = [calls["geo"](i) for i in range(POSES)]  # its answers, once per pose: every note reads the same
 
-        flagged = sum(ls for i in range(POSES) for _, ls in calls["geo"](i))
+        def answers(i: int) -> list[np.ndarray]:
+            return [np.insert(np.asarray(x, float), 0, q[i, 0]) for x, _ in solved[i]]
+
+        flagged = sum(ls for sols in solved for _, ls in sols)
         fk = max(  # ik-geo's own FK at q against the pose it is given: the conversion, checked
             max(np.abs(np.asarray(geo.forward_kinematics(q[i, 1:])[k]) - poses[i][k]).max() for k in (0, 1))
             for i in range(POSES)
