@@ -57,11 +57,11 @@ those of the ideal chain (:attr:`~LockedJointSolver.table`), each then polished 
 (:mod:`qpik.analytic.polish`) and valid where the polish reaches the pose; :meth:`~LockedJointSolver.validity` and
 :meth:`~LockedJointSolver.joint_trig` stay the ideal chain's. The ideal chain differs from the file's only in the
 translations of its joint frames, so its end's rotation is the file's at every q and its position differs by
-:math:`\Delta(q)`: a file's solution q is the ideal chain's at the pose moved by :math:`-\Delta(q)`, a fixed point.
-Near a singular Jacobian of the six joints it lies far from the ideal chain's solution at the pose itself (about
-the deviation over the smallest singular value, beyond Newton's reach), so each branch first takes
-:data:`CORRECTIONS` rounds of that map (the ideal chain's branch of the same signs at :math:`p - \Delta(q)`), then the
-polish.
+:math:`\Delta(q)` (:class:`~qpik.robots.locked_joint.ChainGap`, at most D = its ``bound``): a file's solution q is
+the ideal chain's at the pose moved by :math:`-\Delta(q)`, a fixed point. Near a singular Jacobian of the six joints
+it lies far from the ideal chain's solution at the pose itself (about D over the smallest singular value, beyond
+Newton's reach), so each branch first takes rounds of that map (the ideal chain's branch of the same signs at
+:math:`p - \Delta(q)`), then as many Newton steps of the polish (:func:`correction_rounds`: more for a larger D).
 
 An unreachable pose gives ``valid = 0`` (a negative discriminant beyond round-off, ``EPS`` relative); the square
 roots are clamped at 0, so q stays finite.
@@ -78,6 +78,7 @@ its q7 the arm's q1). :func:`locked_joint_solver` picks the solver of a robot.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -89,7 +90,7 @@ from qpik.analytic.polish import RESIDUAL_TOL, polish
 from qpik.analytic.solver import AnalyticSolver, Branches
 from qpik.analytic.trig import EPS, angle
 from qpik.core.errors import NoClosedFormError
-from qpik.robots.locked_joint import find_locked_joint, reversed_chain
+from qpik.robots.locked_joint import ChainGap, find_locked_joint, reversed_chain
 from qpik.robots.recognize import Canonical
 from qpik.robots.robot import Robot
 
@@ -97,11 +98,29 @@ if TYPE_CHECKING:
     from qpik.analytic.intervals import FeasibleIntervals, ParameterSets
     from qpik.analytic.native_sets import NativeSets
 
-CORRECTIONS = 4
-r"""Rounds of the correction of a near member's branch before its polish (module docstring): each takes the ideal
-chain's branch at the pose moved by :math:`-\Delta(q)`, the difference of the two chains' end positions at the last
-round's q (their rotations are the same at every q), a contraction where that difference changes slowly against the
-branch's sensitivity to the pose (about the deviation over the smallest singular value of the six joints)."""
+SCALE = 0.1
+"""m per rad: the singular value of the six joints' position Jacobian that :func:`correction_rounds` sizes the rounds
+for (smaller ones, near a singular configuration, get the same rounds, which then remove less)."""
+MAX_ROUNDS = 8
+"""The most rounds :func:`correction_rounds` gives."""
+
+
+def correction_rounds(deviation: float) -> int:
+    r"""Rounds of the correction of a near member's branch, and Newton steps of its polish, for the bound D =
+    ``deviation`` (m) of the difference :math:`\Delta(q)` of the two chains' end positions (module docstring). Each
+    round takes the ideal chain's branch at the pose moved by :math:`-\Delta(q)` at the last round's q: a contraction
+    by about :math:`\kappa = D/\sigma`, :math:`\sigma` the smallest singular value of the six joints' position
+    Jacobian, from a start about D/σ away. The fewest k ≥ 1 with :math:`D\kappa^k \le` ``RESIDUAL_TOL`` at σ =
+    :data:`SCALE` (at most :data:`MAX_ROUNDS`), and the polish as many steps, so that near a singular configuration
+    (σ ≪ :data:`SCALE`) the polish takes over from a start the rounds brought as close as they can."""
+    if deviation <= RESIDUAL_TOL:
+        return 1
+    kappa = deviation / SCALE
+    if kappa >= 1.0:
+        return MAX_ROUNDS
+    return int(min(MAX_ROUNDS, max(1, math.ceil(math.log(RESIDUAL_TOL / deviation) / math.log(kappa)))))
+
+
 BRANCH_TOL = 1e-13
 """Relative squared distance between two roots (of one subproblem) below which they are one: ``singular``."""
 Signs = tuple[Scalar, ...]
@@ -200,6 +219,8 @@ class LockedJointSolver(AnalyticSolver):
         self.polished = None if canonical is None or canonical.exact else robot.chain
         """The chain the branches are polished on (:mod:`qpik.analytic.polish`): the robot's own, where
         :attr:`table` is its nearest ideal chain (a near member, :func:`qpik.robots.locked_joint.ideal_chain`)."""
+        self.gap = None if self.polished is None else ChainGap.between(self.polished, self.table)
+        """A near member's :class:`~qpik.robots.locked_joint.ChainGap` of its chain over :attr:`table`."""
         h, o, S, W = g.h, g.o, g.shoulder, g.wrist
         self.h = [_v(x) for x in h]
         Rm, pm = g.home[:3, :3], g.home[:3, 3]
@@ -228,13 +249,13 @@ class LockedJointSolver(AnalyticSolver):
         if self.polished is None:
             return br
         q, valid = [], []
+        rounds = correction_rounds(self.gap.bound)
         for k, row in enumerate(br.q):
             signs = ((BOTH[k // 4],), (BOTH[k // 2 % 2],), (BOTH[k % 2],))
-            for _ in range(CORRECTIONS):  # the fixed point of q -> the ideal chain's branch at p - Δ(q)
-                end, ideal = self.polished.frames_expr(row, ops)[-1][1], self.table.frames_expr(row, ops)[-1][1]
-                moved = tuple(p[i] - (end[i] - ideal[i]) for i in range(3))
-                row = self._solve(R, moved, param, ops, signs)[0].q[0]  # type: ignore[arg-type]
-            qk, residual = polish(self.polished, R, p, row, ops)
+            for _ in range(rounds):  # the fixed point of q -> the ideal chain's branch at p - Δ(q)
+                moved = sy.vsub(p, self.gap.expr(self.polished.frames_expr(row, ops)))
+                row = self._solve(R, moved, param, ops, signs)[0].q[0]
+            qk, residual = polish(self.polished, R, p, row, ops, rounds)
             q.append([ops.wrap(x) for x in qk[:6]] + qk[6:])
             valid.append(residual <= RESIDUAL_TOL)
         return Branches(q, valid, br.singular)

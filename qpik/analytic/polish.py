@@ -25,7 +25,7 @@ from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
 from qpik.robots.chain import SerialChain
 
 STEPS = 4
-"""Newton steps of :func:`polish`."""
+"""Newton steps of :func:`polish` by default."""
 DAMPING = 1e-12
 r""":math:`\lambda` of :func:`polish` (m² and rad², the units of :math:`J^T J`'s entries)."""
 RESIDUAL_TOL = 1e-11
@@ -51,12 +51,14 @@ def _error(chain: SerialChain, R: Mat, p: Vec, q: list[Scalar], ops: Ops) -> tup
     return frames, [*dp, *w], residual
 
 
-def polish(chain: SerialChain, R: Mat, p: Vec, q: list[Scalar], ops: Ops) -> tuple[list[Scalar], Scalar]:
-    """:data:`STEPS` Newton steps on ``chain``'s FK toward the pose ``(R, p)`` (base frame) from ``q`` (7 scalars,
+def polish(
+    chain: SerialChain, R: Mat, p: Vec, q: list[Scalar], ops: Ops, steps: int = STEPS
+) -> tuple[list[Scalar], Scalar]:
+    """``steps`` (≥ 1) Newton steps on ``chain``'s FK toward the pose ``(R, p)`` (base frame) from ``q`` (7 scalars,
     rad), the last joint held; returns the joints (not wrapped) and the residual (m and rad) at them."""
     q = list(q)
     frames, e, _ = _error(chain, R, p, q, ops)
-    for _ in range(STEPS):
+    for _ in range(steps):
         jv, jw = chain.jacobian_expr(frames)
         cols = [(*jv[j], *jw[j]) for j in range(6)]
         A = [[sum((a * b for a, b in zip(cols[i], cols[j])), 0.0) for j in range(i + 1)] for i in range(6)]

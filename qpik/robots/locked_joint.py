@@ -25,6 +25,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from qpik.algebra import symbolic as sy
+from qpik.algebra.symbolic import Frame, Vec
 from qpik.robots.chain import SerialChain
 from qpik.robots.joint import Joint
 
@@ -37,11 +39,11 @@ rounding gives such misses: an rpy written as 1.571 (2e-4 rad off a quarter turn
 1e-4 m from where it should pass; so do small offsets a file keeps where the maker's table has none (the Kinova Gen3's
 files put its axes 5 and 7 0.35 mm apart, joint origins offset by 0.175 mm, where Kinova's DH table has a spherical
 wrist). The closed form's start is then about miss/0.1 rad from the answer (links of ~0.1 m), which Newton's
-quadratic steps take to round-off in the polish's four. Near a singular Jacobian of the six joints left (smallest
+quadratic steps take to round-off in the polish. Near a singular Jacobian of the six joints left (smallest
 singular value σ_min) the file's answer lies about miss/σ_min from the ideal one, beyond the polish's reach where
 σ_min is below about miss: the closed form's branches are then first corrected toward the file's
-(:data:`qpik.analytic.locked_joint.CORRECTIONS`), and a branch may still be missed where σ_min is far below the miss
-(flagged invalid, or the polish reaching another answer)."""
+(:func:`qpik.analytic.locked_joint.correction_rounds`), and a branch may still be missed where σ_min is far below the
+miss (flagged invalid, or the polish reaching another answer)."""
 PARALLEL_TOL = 1e-9
 """Smallest sine of the angle between two axes that are not parallel."""
 
@@ -242,3 +244,53 @@ def ideal_chain(chain: SerialChain, reversed: bool = False, shoulder: int = 3) -
     tool = chain.tool.copy()
     tool[:3, 3] -= F[7, :3, :3].T @ shift[7]
     return SerialChain(joints, chain.base, tool), "; ".join(misses)
+
+
+@dataclass(frozen=True)
+class ChainGap:
+    r"""The end's position on a chain less that on a chain which differs from it only in the translations of its
+    joints' ``pre`` and ``post`` transforms, base and tool (a near member's :func:`ideal_chain`), at the same q:
+
+    .. math:: \Delta(q) = p(q) - p'(q) = d_0 + \sum_k \big(R_{k-1}(q)\,d^{pre}_k
+              + R_k(q)\,S_k^T d^{post}_k\big) + R_n(q)\,d^{tool},
+
+    :math:`R_k` the rotation of link frame k (the same on both chains), :math:`S_k` the rotation of joint k's
+    ``post`` and the d's the differences of the translations (base frame for :math:`d_0`, each transform's own
+    parent frame otherwise). Attributes: ``base`` (3,) m; ``pre``, ``post``: (k, d) pairs (1-based joints, d (3,) m)
+    of the joints whose translations differ; ``tool`` (3,) m."""
+
+    base: np.ndarray
+    pre: tuple[tuple[int, np.ndarray], ...]
+    post: tuple[tuple[int, np.ndarray, np.ndarray], ...]
+    tool: np.ndarray
+
+    @classmethod
+    def between(cls, chain: SerialChain, ideal: SerialChain) -> ChainGap:
+        """The gap of ``chain`` over ``ideal`` (same joints, rotations and types; translations may differ)."""
+        pre = [(k, x.pre[:3, 3] - y.pre[:3, 3]) for k, (x, y) in enumerate(zip(chain.joints, ideal.joints), 1)]
+        post = [(k, x.post[:3, 3] - y.post[:3, 3], x.post[:3, :3]) for k, (x, y) in
+                enumerate(zip(chain.joints, ideal.joints), 1)]  # fmt: skip
+        return cls(
+            chain.base[:3, 3] - ideal.base[:3, 3],
+            tuple((k, d) for k, d in pre if d.any()),
+            tuple((k, d, S) for k, d, S in post if d.any()),
+            chain.tool[:3, 3] - ideal.tool[:3, 3],
+        )
+
+    @property
+    def bound(self) -> float:
+        r"""m: a bound of :math:`|\Delta(q)|` over every q, the sum of the differences' lengths (each is turned)."""
+        parts = [self.base, self.tool, *(d for _, d in self.pre), *(d for _, d, _ in self.post)]
+        return float(sum(np.linalg.norm(d) for d in parts))
+
+    def expr(self, frames: list[Frame]) -> Vec:
+        r""":math:`\Delta(q)` (m, base frame) from the chain's frames at q
+        (:meth:`~qpik.robots.chain.SerialChain.frames_expr`: base, links 1..n, end; numpy or CasADi)."""
+        out: Vec = tuple(float(x) for x in self.base)  # type: ignore[assignment]
+        for k, d in self.pre:
+            out = sy.vadd(out, sy.matvec(frames[k - 1][0], tuple(float(x) for x in d)))
+        for k, d, S in self.post:
+            out = sy.vadd(out, sy.matvec(frames[k][0], tuple(float(x) for x in S.T @ d)))
+        if self.tool.any():
+            out = sy.vadd(out, sy.matvec(frames[-2][0], tuple(float(x) for x in self.tool)))
+        return out

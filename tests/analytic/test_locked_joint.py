@@ -12,10 +12,12 @@ import numpy as np
 import pytest
 from conftest import LARGE, SEEDS, model_robot, mujoco_poses, random_q
 from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import qpik
 from qpik.analytic.api import closed_form_for
 from qpik.analytic.intervals import shrunk_limits
+from qpik.analytic.locked_joint import MAX_ROUNDS, SCALE, correction_rounds
 from qpik.analytic.polish import RESIDUAL_TOL
 from qpik.core.errors import InputError
 
@@ -299,3 +301,16 @@ def test_feasible_sets_match_dense_sampling(seed, margin):
         ends = np.array([x for iv in fi[k] for x in iv])
         near = np.abs(q7[:, None] - ends[None, :]).min(axis=1, initial=np.inf) < 1e-9
         assert np.array_equal(fi.contains(k, q7)[~near], inside[~near, k]), f"branch {k}: {fi[k]}"
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(-14.0, 0.0), st.floats(-14.0, 0.0))
+def test_the_correction_rounds_grow_with_the_deviation_and_reach_the_residual_at_the_scale(e1, e2):
+    """At least one round, more for a larger deviation D (10^-14 to 1 m), and the fewest such that D (D/SCALE)^k
+    reaches the polish's residual unless capped."""
+    lo, hi = sorted((10.0**e1, 10.0**e2))
+    k_lo, k_hi = correction_rounds(lo), correction_rounds(hi)
+    assert 1 <= k_lo <= k_hi <= MAX_ROUNDS
+    if k_hi < MAX_ROUNDS and hi > 0:
+        assert hi * (hi / SCALE) ** k_hi <= RESIDUAL_TOL * (1 + 1e-9)
+        assert k_hi == 1 or hi * (hi / SCALE) ** (k_hi - 1) > RESIDUAL_TOL * (1 - 1e-9)
