@@ -61,7 +61,8 @@ translations of its joint frames, so its end's rotation is the file's at every q
 the ideal chain's at the pose moved by :math:`-\Delta(q)`, a fixed point. Near a singular Jacobian of the six joints
 it lies far from the ideal chain's solution at the pose itself (about D over the smallest singular value, beyond
 Newton's reach), so each branch first takes rounds of that map (the ideal chain's branch of the same signs at
-:math:`p - \Delta(q)`), then as many Newton steps of the polish (:func:`correction_rounds`: more for a larger D).
+:math:`p - \Delta(q)`), then twice as many Newton steps of the polish (:func:`correction_rounds`: more for a larger
+D).
 
 An unreachable pose gives ``valid = 0`` (a negative discriminant beyond round-off, ``EPS`` relative); the square
 roots are clamped at 0, so q stays finite.
@@ -106,13 +107,13 @@ MAX_ROUNDS = 8
 
 
 def correction_rounds(deviation: float) -> int:
-    r"""Rounds of the correction of a near member's branch, and Newton steps of its polish, for the bound D =
-    ``deviation`` (m) of the difference :math:`\Delta(q)` of the two chains' end positions (module docstring). Each
-    round takes the ideal chain's branch at the pose moved by :math:`-\Delta(q)` at the last round's q: a contraction
-    by about :math:`\kappa = D/\sigma`, :math:`\sigma` the smallest singular value of the six joints' position
-    Jacobian, from a start about D/σ away. The fewest k ≥ 1 with :math:`D\kappa^k \le` ``RESIDUAL_TOL`` at σ =
-    :data:`SCALE` (at most :data:`MAX_ROUNDS`), and the polish as many steps, so that near a singular configuration
-    (σ ≪ :data:`SCALE`) the polish takes over from a start the rounds brought as close as they can."""
+    r"""Rounds of the correction of a near member's branch for the bound D = ``deviation`` (m) of the difference
+    :math:`\Delta(q)` of the two chains' end positions (module docstring); its polish then takes twice as many Newton
+    steps. Each round takes the ideal chain's branch at the pose moved by :math:`-\Delta(q)` at the last round's q: a
+    contraction by about :math:`\kappa = D/\sigma`, :math:`\sigma` the smallest singular value of the six joints'
+    position Jacobian, from a start about D/σ away. The fewest k ≥ 1 with :math:`D\kappa^k \le` ``RESIDUAL_TOL`` at
+    σ = :data:`SCALE` (at most :data:`MAX_ROUNDS`). Near a singular configuration (σ ≪ :data:`SCALE`) the rounds
+    contract less and Newton converges only linearly (about halving the error per step), hence the polish's 2k."""
     if deviation <= RESIDUAL_TOL:
         return 1
     kappa = deviation / SCALE
@@ -255,7 +256,7 @@ class LockedJointSolver(AnalyticSolver):
             for _ in range(rounds):  # the fixed point of q -> the ideal chain's branch at p - Δ(q)
                 moved = sy.vsub(p, self.gap.expr(self.polished.frames_expr(row, ops)))
                 row = self._solve(R, moved, param, ops, signs)[0].q[0]
-            qk, residual = polish(self.polished, R, p, row, ops, rounds)
+            qk, residual = polish(self.polished, R, p, row, ops, 2 * rounds)
             q.append([ops.wrap(x) for x in qk[:6]] + qk[6:])
             valid.append(residual <= RESIDUAL_TOL)
         return Branches(q, valid, br.singular)
