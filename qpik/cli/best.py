@@ -1,8 +1,13 @@
-"""``qpik best``: the globally best closed-form branch and δ/ψ for one pose, with the per-branch table.
+"""``qpik best``: the globally best closed-form branch and redundancy parameter (δ, ψ, or a locked joint's angle) for
+one pose, with the per-branch table.
 
 The pose options are those of ``qpik ik``. Obstacles come from a problem file (``--problem``,
 its obstacles only) or from ``--sphere x,y,z,r`` options (m, world frame). ``--plot FILE``
-also draws the objective against δ/ψ for every branch (:mod:`qpik.plots.objective`).
+also draws the objective against the parameter for every branch (:mod:`qpik.plots.objective`).
+
+An arm whose branches are not expressions of the parameter (no closed form, or the 1-D search's arms) gets the
+joint-space NLP instead (:func:`qpik.nlp.solve_full`: the best of its starts, a local optimum, never certified), and
+the output says so and why.
 """
 
 from __future__ import annotations
@@ -19,7 +24,11 @@ from qpik.scene import Scene
 def register(sub: Subcommands) -> None:
     from qpik.objectives import NAMES
 
-    p = sub.add_parser("best", help="the globally best branch and δ/ψ for a pose (certified NLP over every branch)")
+    p = sub.add_parser(
+        "best",
+        help="the globally best branch and redundancy parameter for a pose (certified NLP over every branch; the "
+        "joint-space NLP on an arm without a closed form)",
+    )
     add_robot(p)
     add_pose(p)
     p.add_argument(
@@ -51,7 +60,7 @@ def register(sub: Subcommands) -> None:
         choices=("auto", "levelset", "search", "ipopt"),
         help="auto: the margin's level sets for the margin alone, else the search (default: auto)",
     )
-    p.add_argument("--plot", type=Path, help="also write the objective against δ/ψ (PNG)")
+    p.add_argument("--plot", type=Path, help="also write the objective against the redundancy parameter (PNG)")
     p.set_defaults(func=_run)
 
 
@@ -59,7 +68,7 @@ def _run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from qpik import solve_best
-    from qpik.core.errors import InputError
+    from qpik.core.errors import InputError, NoClosedFormError
     from qpik.core.validate import pose as check_pose
     from qpik.geometry import Sphere
 
@@ -76,9 +85,12 @@ def _run(args: argparse.Namespace) -> int:
         obstacles.append(Sphere(s[:3], s[3]))
     scene = Scene.of(robot, obstacles, d_safe=args.d_safe, objective=args.objective, q_ref=args.q_ref,
                      self_collision=not args.no_self_collision)  # fmt: skip
-    best = solve_best(scene, T, options=BestOptions(certify=not args.no_certify, tol=args.tol, method=args.method))
     p = np.array2string(T[:3, 3], precision=4)
     extra = f", {len(obstacles)} obstacle(s), d_s = {args.d_safe:g} m" if obstacles else ""
+    try:
+        best = solve_best(scene, T, options=BestOptions(certify=not args.no_certify, tol=args.tol, method=args.method))
+    except NoClosedFormError as exc:
+        return _joint_space(scene, T, f"{robot.name}: {scene.objective.quantity.goal} at p = {p} m{extra}", exc, args)
     print(f"{robot.name}: {best.quantity.goal} at p = {p} m{extra}")
     print(best.table())
     print(best.summary())
@@ -91,3 +103,26 @@ def _run(args: argparse.Namespace) -> int:
         save(objective_map(scene, T, best), args.plot)
         print(f"{best.quantity.name} against the redundancy parameter written to {args.plot}")
     return 0 if best.status in ("optimal", "no feasible branch", "unreachable") else 2
+
+
+def _joint_space(scene: Scene, T, head: str, why: Exception, args: argparse.Namespace) -> int:
+    """``qpik best`` on an arm whose branches are not expressions of the parameter: :func:`qpik.nlp.solve_full`."""
+    import numpy as np
+
+    from qpik.nlp import solve_full
+
+    print(head)
+    print(f"no search over the redundancy parameter: {why}")
+    ignored = [name for name, given in (("--plot", args.plot), ("--no-certify", args.no_certify)) if given]
+    ignored += ["--method"] if args.method != "auto" else []
+    if ignored:
+        print(f"ignored here: {', '.join(ignored)} (they apply to the search over the parameter)")
+    full = solve_full(scene, T)
+    print(f"joint-space NLP (qpik.nlp.solve_full, {full.starts} starts): a local optimum, not certified")
+    if full.status != "optimal":
+        print(f"{full.status}: {full.message or 'no start reached the pose inside the limits'}")
+        return 0 if full.status == "unreachable" else 2
+    quantity = scene.objective.quantity
+    print(f"best: {quantity.text(full.objective, '.10g')}, {quantity.sense}; pose error {full.pose_error:.1e}")
+    print("q* = " + np.array2string(full.q, precision=6, max_line_width=200) + " rad")
+    return 0

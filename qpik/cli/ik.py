@@ -18,14 +18,17 @@ from qpik.core.errors import InputError
 
 
 def register(sub: Subcommands) -> None:
-    p = sub.add_parser("ik", help="closed-form IK: all branches at one δ/ψ, checked by forward kinematics")
+    p = sub.add_parser(
+        "ik", help="closed-form IK: all branches at one redundancy parameter, checked by forward kinematics"
+    )
     add_robot(p)
     add_pose(p)
     p.add_argument(
         "--param",
         "-p",
         type=float,
-        help="redundancy parameter δ (offset shoulder) or ψ (S-R-S), rad (default with --q: the parameter of q)",
+        help="redundancy parameter, rad: δ (offset shoulder), ψ (S-R-S) or the locked joint's angle (q7 or q1, as "
+        "the output names it); default with --q: the parameter of q",
     )
     p.set_defaults(func=_run)
 
@@ -65,6 +68,7 @@ def pose_from_args(args: argparse.Namespace, robot) -> np.ndarray:
 def _run(args: argparse.Namespace) -> int:
     from qpik import feasible_intervals, ik, redundancy_parameter
     from qpik.analytic.api import symbol
+    from qpik.core.errors import NoClosedFormError
     from qpik.core.validate import pose as check_pose
     from qpik.problems.ik import branch_table
 
@@ -81,7 +85,12 @@ def _run(args: argparse.Namespace) -> int:
     p = np.array2string(T[:3, 3], precision=4)
     print(f"{robot.name}: {len(sols)} branches at {sym} = {param:.6f} rad; p = {p} m")
     print(branch_table(robot, sols, T))
-    fi = feasible_intervals(robot, T)
+    try:
+        fi = feasible_intervals(robot, T)
+    except NoClosedFormError as exc:
+        print(f"feasible {sym} ranges: {exc}")
+        return 0
     ok = [f"{b}" for b in fi.branch if fi.measure(int(b)) > 0]
-    print(f"branches with a feasible {sym} range inside the limits: {', '.join(ok) or 'none'}")
+    proof = "" if fi.proved else " (not proved: qpik.feasible_intervals)"
+    print(f"branches with a feasible {sym} range inside the limits: {', '.join(ok) or 'none'}{proof}")
     return 0

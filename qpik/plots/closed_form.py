@@ -1,10 +1,10 @@
 r"""Pictures of the closed form: every function returns a matplotlib ``Figure`` (no pyplot state).
 
 - :func:`selfmotion_map` — the self-motion of one pose: each joint against the
-  redundancy parameter (δ or ψ) over (-π, π], one curve per branch, the joint
+  redundancy parameter (δ, ψ, or a locked joint's angle) over (-π, π], one curve per branch, the joint
   limits, the parameter ranges where a chosen branch leaves the limits (the
   complement of :func:`qpik.feasible_intervals`) shaded, singular values marked,
-  and a panel with every branch's feasible set.
+  and a panel with every branch's feasible set (:mod:`qpik.plots.feasible`).
 - :func:`sweep_figure` — joint angles of one branch along a sweep (a position
   coordinate or the parameter), one panel per curve set (Nammoto & Kosuge 2012, Figs. 15/16).
 - :func:`stick_grid` — one 3-D stick figure per configuration (Nammoto & Kosuge 2012, Fig. 10).
@@ -30,6 +30,8 @@ from matplotlib.figure import Figure
 
 from qpik.analytic.api import IKSolutions, feasible_intervals, ik, symbol
 from qpik.analytic.intervals import FeasibleIntervals, Interval, wrap
+from qpik.core.errors import NoClosedFormError
+from qpik.plots.feasible import feasible_panel, sampled_panel
 from qpik.plots.files import save
 from qpik.robots.robot import Robot
 
@@ -91,7 +93,9 @@ def selfmotion_map(
         shade_branch: the branch whose infeasible parameter ranges are shaded
             (grey spans, ``gid="infeasible"``; default: the first drawn branch).
             They are the complement in [-π, π] of ``feasible_intervals(robot, pose)``
-            for that branch — exact breakpoints, not the sampled curves.
+            for that branch — exact breakpoints, not the sampled curves. An arm whose sets are not
+            computed (the 1-D search's) has no shading, and its last panel shows the within-limit runs of the
+            samples instead, titled as such (:func:`qpik.plots.feasible.sampled_panel`).
         num: parameter samples over [-π, π] for the curves.
         project: project a non-orthonormal rotation onto SO(3).
 
@@ -101,15 +105,18 @@ def selfmotion_map(
     feasible set of every branch as bars.
     """
     sols = selfmotion_samples(robot, pose, num, project)
-    fi = feasible_intervals(robot, pose, project=project)
+    try:
+        fi: FeasibleIntervals | None = feasible_intervals(robot, pose, project=project)
+    except NoClosedFormError:  # the 1-D search's arms: no sets (qpik.analytic.search_solver)
+        fi = None
     ids = [int(b) for b in sols.branch]
     draw = ids if branches is None else [int(b) for b in branches]
     shade = draw[0] if shade_branch is None else int(shade_branch)
     colors = branch_colors(ids)
     x = np.asarray(sols.param)
     sym = symbol(sols.param_name)
-    spans = infeasible_spans(fi[shade])
-    singular = sorted({float(s) for b in draw for s in fi.singular[fi.index(b)]}) if fi.singular else []
+    spans = [] if fi is None else infeasible_spans(fi[shade])
+    singular = sorted({float(s) for b in draw for s in fi.singular[fi.index(b)]}) if fi and fi.singular else []
 
     fig = Figure(figsize=(12, 13), layout="constrained")
     axes = fig.subplots(4, 2, sharex=True)
@@ -131,7 +138,10 @@ def selfmotion_map(
         ax.set_ylim(-3.3, 3.3)
         ax.set_ylabel(f"θ{j + 1} [rad]" if sols.param_name == "delta" else f"q{j + 1} [rad]")
         ax.grid(alpha=0.3)
-    feasible_panel(axes.flat[7], fi, draw, shade, colors)
+    if fi is None:
+        sampled_panel(axes.flat[7], sols, draw, colors)
+    else:
+        feasible_panel(axes.flat[7], fi, draw, shade, colors)
     for ax in axes[-1]:
         ax.set_xlabel(f"{sym} [rad]")
         ax.set_xlim(-PI, PI)
@@ -142,26 +152,6 @@ def selfmotion_map(
     fig.suptitle(title or f"{robot.name}: self-motion in {sym} at p = ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m",
                  fontsize=11)  # fmt: skip
     return fig
-
-
-def feasible_panel(ax: Axes, fi: FeasibleIntervals, draw: list[int], shade: int, colors: dict) -> None:
-    """Bars of the feasible parameter set of each drawn branch (exact intervals), its singular values as black ticks
-    (explained in the panel's legend)."""
-    marked = False
-    for k, b in enumerate(draw):
-        segs = [(lo, hi - lo) for lo, hi in fi[b]]
-        ax.broken_barh(segs, (k - 0.35, 0.7), color=colors[b], alpha=1.0 if b == shade else 0.6)
-        for s in fi.singular[fi.index(b)] if fi.singular else []:
-            label = None if marked else f"singular {symbol(fi.param_name)} of the branch"
-            ax.plot([s, s], [k - 0.45, k + 0.45], color="k", lw=1.5, label=label)
-            marked = True
-    if marked:
-        ax.legend(loc="lower right", fontsize=7, framealpha=0.9)
-    ax.set_yticks(range(len(draw)), [str(b) for b in draw], fontsize=7)
-    ax.set_ylim(len(draw) - 0.5, -0.5)
-    ax.set_ylabel("branch")
-    ax.set_title(f"feasible {symbol(fi.param_name)} per branch (within limits)", fontsize=9)
-    ax.grid(alpha=0.3, axis="x")
 
 
 def sweep_figure(

@@ -17,7 +17,8 @@ from qpik.analytic.api import feasible_intervals, ik
 from qpik.core.errors import InputError
 from qpik.nlp.best import solve_best
 from qpik.nlp.best_result import BestResult
-from qpik.plots.closed_form import PI, branch_colors, feasible_panel, symbol
+from qpik.plots.closed_form import PI, branch_colors, symbol
+from qpik.plots.feasible import feasible_panel
 from qpik.scene import Scene
 
 OPTIMUM_GID = "optimum"  # gid of the star at the answer (for readers of the figure)

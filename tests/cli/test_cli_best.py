@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import model_robot
 from PIL import Image
 
 import qpik
@@ -39,8 +40,6 @@ def test_best_errors_are_one_line_with_exit_2(capsys):
     assert main(["best", "-r", "iiwa14", "--position", "0.4 0.2 nan"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("qpik best: pose")
-    assert main(["best", "-r", "zheng7", "--position", "0.4 0.2 0.5"]) == 2
-    assert "no closed-form" in capsys.readouterr().err
     assert main(["best", "-r", "iiwa14", "--position", "0.4 0.2 0.5", "--objective", "distance"]) == 2
     assert "q_ref" in capsys.readouterr().err
     assert main(["best", "-r", "iiwa14", "--position", "0.4 0.2 0.5", "--sphere", "1,2,3"]) == 2
@@ -86,3 +85,31 @@ def test_best_prints_the_margin_itself_and_says_what_is_minimised(capsys):
     assert printed > 0 and printed == pytest.approx(margin, abs=1e-6)  # q printed to 6 decimals
     rows = [ln.split() for ln in out.splitlines() if ln.split() and ln.split()[0].isdigit() and ln.split()[1] == "yes"]
     assert all(float(r[3]) > 0 for r in rows) and max(float(r[3]) for r in rows) == pytest.approx(printed, rel=1e-7)
+
+
+@pytest.mark.parametrize("key", ["zheng7", "erd_baxter"])
+def test_best_on_an_arm_without_a_closed_form_runs_the_joint_space_nlp_and_says_it_is_not_certified(
+    capsys, tmp_path, key
+):
+    """zheng7 (no closed form) and Baxter's right arm (the 1-D search): the joint-space NLP's answer reaches the pose
+    inside the limits, and the margin printed is the margin of the printed q (computed here from the limits)."""
+    if key == "zheng7":
+        robot, model = qpik.load_robot("zheng7"), ["-r", "zheng7"]
+    else:
+        robot = model_robot(key)
+        model = ["-r", str(robot.model.path), "--base", "right_arm_mount", "--tip", "right_wrist"]
+    q = np.random.default_rng(6).uniform(0.7 * robot.q_min, 0.7 * robot.q_max)
+    T = robot.fk(q)
+    pose = ["--position", " ".join(repr(float(v)) for v in T[:3, 3]),
+            "--rotation", " ".join(repr(float(v)) for v in T[:3, :3].ravel())]  # fmt: skip
+    assert main(["best", *model, *pose, "--plot", str(tmp_path / "ignored.png")]) == 0
+    out = capsys.readouterr().out
+    assert "no search over the redundancy parameter" in out and "not certified" in out and "ignored here: --plot" in out
+    assert not (tmp_path / "ignored.png").exists()
+    qs = _q_star(out)
+    assert np.abs(robot.fk(qs) - T).max() < 1e-5  # printed to 6 decimals
+    assert robot.within_limits(qs, tol=1e-6)
+    half = 0.5 * (robot.q_max - robot.q_min)
+    margin = float(np.min(np.minimum(qs - robot.q_min, robot.q_max - qs) / half))
+    shown = float(next(ln for ln in out.splitlines() if ln.startswith("best: margin")).split()[2].rstrip(","))
+    assert abs(shown - margin) < 1e-5

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import model_robot
 
 import qpik
 from qpik.cli import main
@@ -39,6 +40,30 @@ def test_ik_prints_every_branch_with_fk_residual(capsys, name: str, count: int) 
         assert np.linalg.norm(robot.fk(_q(r))[:3, 3] - T[:3, 3]) < 5e-3
     # the parameter of q was used, so one printed branch is q itself (to the printed precision)
     assert min(np.abs(_q(r) - q).max() for r in valid) < 1e-3
+
+
+@pytest.mark.parametrize("key, count, last", [
+    ("erd_xarm7", 8, "branches with a feasible q7 range inside the limits: "),
+    ("erd_baxter", 16, "feasible q1 ranges: "),
+])  # fmt: skip
+def test_ik_on_model_files_prints_branches_on_the_pose_and_what_it_knows_of_the_sets(capsys, key, count, last):
+    """A near member (the xArm7: its sets are not proved, and the line says so) and an arm of the 1-D search
+    (Baxter's right arm: no sets, said in a line, exit 0): q is among the printed branches, which reach the pose by
+    the file's FK."""
+    robot = model_robot(key)
+    files = ["--base", "right_arm_mount", "--tip", "right_wrist"] if key == "erd_baxter" else []
+    q = np.random.default_rng(7).uniform(0.7 * robot.q_min, 0.7 * robot.q_max)
+    assert main(["ik", "-r", str(robot.model.path), *files, "--q", " ".join(repr(float(v)) for v in q)]) == 0
+    out = capsys.readouterr().out
+    rows = _rows(out)
+    valid = [r for r in rows if r[8] == "yes"]
+    assert len(rows) == count and valid
+    T = robot.fk(q)
+    assert all(np.linalg.norm(robot.fk(_q(r))[:3, 3] - T[:3, 3]) < 5e-3 for r in valid)
+    assert min(np.abs(np.angle(np.exp(1j * (_q(r) - q)))).max() for r in valid) < 1e-3  # modulo 2π: limits past ±π
+    tail = out.strip().splitlines()[-1]
+    assert tail.startswith(last)
+    assert ("not proved" in tail) == (key == "erd_xarm7") and ("not computed" in tail) == (key == "erd_baxter")
 
 
 def test_ik_position_rotation_with_projection(capsys) -> None:
