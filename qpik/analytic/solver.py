@@ -41,6 +41,11 @@ from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
 from qpik.core.errors import NoClosedFormError
 from qpik.native.compiled import Compiled
 
+KERNEL_LARGE = 4_000_000
+"""Bytes of C up to which the single-pose kernel (:meth:`AnalyticSolver.checked`, every :func:`qpik.ik` call of one
+pose) is compiled at ``-O2`` (:func:`qpik.native.build.optimisation`): a near member's kernel, whose corrections and
+polish (:mod:`qpik.analytic.locked_joint`) make it megabytes of C, runs faster than at ``-O1`` for a compile of
+seconds more, once per machine."""
 SWEEP_CHUNKS = (32, 8)
 """Parameters per call of the compiled sweeps of :meth:`AnalyticSolver.solve_many`: the large one while
 more than 3/4 of it would be used, then the small one (so that 38 parameters cost 40 evaluations, not 64)."""
@@ -297,9 +302,10 @@ class AnalyticSolver(BranchSolver):
         return ca.Function(name, [T, param, lo, hi], [Q.T, ca.vertcat(valid, singular, within)])
 
     def checked(self, rows: int) -> Compiled:
-        """The compiled :meth:`_checked_function` of the first ``rows`` branches at one parameter (cached)."""
+        """The compiled :meth:`_checked_function` of the first ``rows`` branches at one parameter (cached; ``-O2`` up
+        to :data:`KERNEL_LARGE`, with the inlining flags)."""
         if rows not in self._checked:
-            self._checked[rows] = Compiled(self._checked_function(rows))
+            self._checked[rows] = Compiled(self._checked_function(rows), large=KERNEL_LARGE, inline=True)
         return self._checked[rows]
 
     @cached_property

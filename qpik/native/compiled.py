@@ -34,6 +34,8 @@ class Compiled:
             virtual machine (same results).
         library: the shared library of ``fn`` already built by :func:`native_library`
             (then ``compile`` is not consulted).
+        large, inline: as :func:`native_library`'s (a kernel called often enough to repay ``-O2`` on a large source
+            and the inlining flags).
 
     Attributes:
         library: the shared library exporting the function as ``fn.name()`` (the C
@@ -51,8 +53,15 @@ class Compiled:
     they must outlive it.
     """
 
-    def __init__(self, fn: ca.Function, compile: bool = True, library: Path | None = None):
-        lib = library if library is not None else native_library(fn) if compile else None
+    def __init__(
+        self,
+        fn: ca.Function,
+        compile: bool = True,
+        library: Path | None = None,
+        large: int | None = None,
+        inline: bool = False,
+    ):
+        lib = library if library is not None else native_library(fn, large=large, inline=inline) if compile else None
         self.fn = load(fn, lib)
         self.library = lib if self.fn is not fn else None
         fn = self.fn
