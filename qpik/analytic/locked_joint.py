@@ -88,6 +88,7 @@ import numpy as np
 from qpik.algebra import symbolic as sy
 from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
 from qpik.analytic.polish import RESIDUAL_TOL, polish
+from qpik.analytic.set_ends import refine_ends
 from qpik.analytic.solver import AnalyticSolver, Branches
 from qpik.analytic.trig import EPS, angle
 from qpik.core.errors import NoClosedFormError
@@ -260,6 +261,12 @@ class LockedJointSolver(AnalyticSolver):
             q.append([ops.wrap(x) for x in qk[:6]] + qk[6:])
             valid.append(residual <= RESIDUAL_TOL)
         return Branches(q, valid, br.singular)
+
+    def feasible_intervals(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
+        """The sets of :meth:`~qpik.analytic.solver.BranchSolver.feasible_intervals`; a near member's (:attr:`polished`)
+        with their ends moved onto its own chain (:func:`qpik.analytic.set_ends.refine_ends`)."""
+        fi = super().feasible_intervals(T, margin)
+        return fi if self.polished is None else refine_ends(fi, self, T, margin)
 
     @property
     def sets_proved(self) -> bool:

@@ -23,9 +23,11 @@ from qpik.core.errors import InputError
 
 BATCH = 2000
 DENSE = 20_000
-NEAR_END = 1e-4
-"""rad: a near member's set ends are the ideal chain's, off from the file's by the polish's change of a joint over
-that joint's rate along q7."""
+NEAR_END = 1e-9
+"""rad: a near member's set ends are moved onto the file's chain to this (qpik.analytic.set_ends)..."""
+FOLD_END = 1e-6
+"""rad: ... but for an end where the file's branch stops being valid (a fold of its chain, where two of its solutions
+meet): there the polish's residual decides the branch's validity, which flickers within about 1e-7 of the fold."""
 PROPERTY = settings(max_examples=3, deadline=None)
 PANDA = qpik.load_robot("panda")
 
@@ -218,28 +220,40 @@ def test_ik_of_the_xarm7_holds_q_and_every_valid_branch_reaches_the_pose_by_mujo
 
 
 @pytest.mark.parametrize("margin", [0.0, 0.3])
-def test_the_xarm7s_sets_claim_no_proof_and_match_dense_sampling_of_its_file(margin):
-    """A near member's sets (the ideal chain's breakpoints, the gaps classified by the polished IK) are not proved;
-    every one of DENSE random q7 farther than NEAR_END from a set end is in the set iff the compiled IK's branch
-    is valid with every joint inside the limits shrunk by ``margin``, and every valid branch reaches the pose by the
-    file's FK to 1e-10. One pose per margin (four in the large run)."""
-    robot = model_robot("erd_xarm7")
+@pytest.mark.parametrize("key", ["erd_xarm7", "robosuite_gen3"])
+def test_a_near_members_sets_claim_no_proof_and_match_dense_sampling_of_its_file_to_1e_9(key, margin):
+    """A near member's sets (the ideal chain's breakpoints, the gaps classified by the polished IK, the ends moved
+    onto the file's chain) are not proved; every one of DENSE random parameters farther than NEAR_END from a set end
+    (FOLD_END from an end where the branch stops being valid) is in the set iff the compiled IK's branch is valid with
+    every joint inside the limits shrunk by ``margin``, and so are the parameters 10 NEAR_END either side of every
+    end where the branch stays valid, but where the polished branch is invalid (near a singular configuration, which the
+    sets do not see: at most 0.1% of the samples); every valid branch reaches the pose by the file's FK to 1e-10. One
+    pose per arm and margin (four in the large run)."""
+    robot = model_robot(key)
     solver = closed_form_for(robot)
     assert not solver.sets_proved
     lo, hi = shrunk_limits(robot.q_min, robot.q_max, margin)
-    q7 = np.random.default_rng(3).uniform(-np.pi, np.pi, DENSE)
+    dense = np.random.default_rng(3).uniform(-np.pi, np.pi, DENSE)
     q = np.random.default_rng(20).uniform(lo, hi, (4 if LARGE else 1, 7))  # inside the shrunk limits
     for T, param, branch in zip(robot.fk(q), *qpik.redundancy_parameter(robot, q)):
         fi = qpik.feasible_intervals(robot, T, margin=margin)
         assert not fi.proved and fi.contains(int(branch), param)
-        sols = [solver.solve_one(T, x) for x in q7]
+        every = np.array([x for k in range(8) for iv in fi[k] for x in iv])
+        beside = np.concatenate([every - 10 * NEAR_END, every + 10 * NEAR_END])
+        x = np.concatenate([dense, beside[np.abs(beside) < np.pi]])
+        sols = [solver.solve_one(T, v) for v in x]
         Q, valid = np.stack([s.q for s in sols]), np.stack([s.valid for s in sols])
         assert np.abs(robot.fk(Q[valid]) - T).max() < 1e-10
         inside = valid & np.all((lo <= Q) & (hi >= Q), axis=-1)
         for k in range(8):
-            ends = np.array([x for iv in fi[k] for x in iv])
-            near = np.abs(q7[:, None] - ends[None, :]).min(axis=1, initial=np.inf) < NEAR_END
-            assert np.array_equal(fi.contains(k, q7)[~near], inside[~near, k]), f"branch {k}: {fi[k]}"
+            ends = np.array([v for iv in fi[k] for v in iv])
+            fold = [solver.solve_one(T, e - FOLD_END).valid[k] != solver.solve_one(T, e + FOLD_END).valid[k]
+                    for e in ends]  # fmt: skip
+            width = np.where(fold, FOLD_END, NEAR_END)
+            near = (np.abs(x[:, None] - ends[None, :]) < width[None, :]).any(axis=1)
+            wrong = (fi.contains(k, x) != inside[:, k]) & ~near
+            assert not (wrong & valid[:, k]).any(), f"branch {k}: {fi[k]}"
+            assert wrong.sum() <= len(x) // 1000  # where the polish stops short near a singular configuration
 
 
 @pytest.mark.parametrize("key, locked", [("erd_xarm7", 6), ("robosuite_gen3", 0)])
