@@ -112,11 +112,12 @@ class Q7Intervals:
         one = ((sign[0],), (sign[1],), (sign[2],))  # the branch of these signs, chosen at run time
         (row,), (valid,) = solver.joint_trig(R, p, q7, sy.CASADI, one), solver.validity(R, p, q7, sy.CASADI, one)
         out = ca.vertcat(*[row[j][0] for j in self._joints], *[row[j][1] for j in self._joints], valid)
-        columns = ca.Function(f"columns_{solver.kind}", [T, q7, sign], [out])
+        columns = ca.Function(f"columns_{solver.kind}", [T, q7, sign], [out], {"cse": True})
         self._model = RowMap(taylor_function(columns, [1]), shared=[0], threads=cores(), inline=True)
         """The Taylor models of one branch's outputs (inputs: T, the centre of a cell of q7, the branch's
         :data:`SIGNS`, then the cell's half-width, radius 0 and its ends) over rows of cells and branches, the
-        rows of a round shared among the cores."""
+        rows of a round shared among the cores. The joints and the validity trace the closed form twice: ``cse``
+        merges the copies, so a row solves the branch once."""
         self._last: tuple[bytes, float, FeasibleIntervals] | None = None
         self._cols: tuple[float, tuple[np.ndarray, ...]] | None = None
         """The last margin and its columns (:meth:`_columns`)."""
