@@ -29,8 +29,13 @@ then lie where :math:`|f_0 + f_1 t| \le r + ` :data:`SLACK` (a Newton step with 
 interval Newton method, Moore 1966): the cell is discarded when that is empty (or
 the bounds exclude 0, or, for a joint, the branch's validity is below 0 over it), replaced by that window when
 the window is at most half as wide (near a simple root the window shrinks quadratically from round to round), else
-halved. A window narrower than :data:`WINDOW` is a breakpoint (its centre); so are the ends of a cell over which a
-column stays within :data:`TOUCH` of 0 (a tangency: a joint touching a level over a whole cell, to round-off).
+halved. A joint's column is modelled twice, both models from one row: from the unit pair, and scaled, as
+:math:`\rho_j \sin(q_j - L)` from the pair before its division by :math:`\rho_j \ge 0` (``joint_trig(scaled=True)``:
+no division, so a tighter model over a wide cell; the same roots where :math:`\rho_j > 0`, and a root where the
+joint is free, :math:`\rho_j = 0`); its window is the intersection of the two windows, and either model's bounds
+may discard the cell. A window narrower than :data:`WINDOW` is a breakpoint (its centre); so are the ends of a cell
+over which a column (unit pair) stays within :data:`TOUCH` of 0 (a tangency: a joint touching a level over a whole
+cell, to round-off).
 The search starts from :data:`CELLS` cells over the circle, less those where the elbow surely cannot reach
 (:math:`|c(q_7)| > r(1 +` :data:`REACH`) over the cell, from the sinusoid's exact range: every branch's validity is
 below 0 there, so no column has a root of interest), and stops after :data:`ROUNDS` rounds or above
@@ -111,13 +116,15 @@ class Q7Intervals:
         R, p = sy.frame_of_batch(T)
         one = ((sign[0],), (sign[1],), (sign[2],))  # the branch of these signs, chosen at run time
         (row,), (valid,) = solver.joint_trig(R, p, q7, sy.CASADI, one), solver.validity(R, p, q7, sy.CASADI, one)
-        out = ca.vertcat(*[row[j][0] for j in self._joints], *[row[j][1] for j in self._joints], valid)
+        (scaled,) = solver.joint_trig(R, p, q7, sy.CASADI, one, scaled=True)
+        out = ca.vertcat(*[pairs[j][i] for pairs in (row, scaled) for i in (0, 1) for j in self._joints], valid)
         columns = ca.Function(f"columns_{solver.kind}", [T, q7, sign], [out], {"cse": True})
         self._model = RowMap(taylor_function(columns, [1]), shared=[0], threads=cores(), inline=True)
         """The Taylor models of one branch's outputs (inputs: T, the centre of a cell of q7, the branch's
         :data:`SIGNS`, then the cell's half-width, radius 0 and its ends) over rows of cells and branches, the
-        rows of a round shared among the cores. The joints and the validity trace the closed form twice: ``cse``
-        merges the copies, so a row solves the branch once."""
+        rows of a round shared among the cores. The outputs: the joints' cos q_j, then sin q_j, then both scaled
+        (``joint_trig(scaled=True)``), then the validity. They trace the closed form thrice: ``cse`` merges the
+        copies, so a row solves the branch once."""
         self._last: tuple[bytes, float, FeasibleIntervals] | None = None
         self._cols: tuple[float, tuple[np.ndarray, ...]] | None = None
         """The last margin and its columns (:meth:`_columns`)."""
@@ -152,12 +159,13 @@ class Q7Intervals:
         return FeasibleIntervals(s.param_name, s.branch_array, sets, sing, proved=not left.size and s.polished is None)
 
     def _columns(self, levels: list[np.ndarray]) -> tuple[np.ndarray, ...]:
-        """The columns, (F,) each: the branch, and weights of its compiled outputs (cos q_j of the joints, their
-        sin q_j, its validity): column k is ``w1[k]·out[i1[k]] + w2[k]·out[i2[k]]`` (sin q_j cos L − cos q_j sin L
-        for a joint j and a level L of ``levels``, or the validity out[i1]), joint (False: validity); where
-        cos(q_j − L) ``= w1[k]·out[i2[k]] − w2[k]·out[i1[k]]`` is negative its root is L + π, no level."""
+        """The columns, (F,) each: the branch, and weights of its compiled outputs (:attr:`_model`'s, of the unit
+        pairs): column k is ``w1[k]·out[i1[k]] + w2[k]·out[i2[k]]`` (sin q_j cos L − cos q_j sin L for a joint j and
+        a level L of ``levels``, or the validity out[i1]), joint (False: validity); where cos(q_j − L)
+        ``= w1[k]·out[i2[k]] − w2[k]·out[i1[k]]`` is negative its root is L + π, no level. The scaled column is the
+        same combination of the outputs 2J further on (J joints)."""
         B, J = self._solver.n_branches, len(self._joints)
-        br, i1, w1, i2, w2 = [np.arange(B)], [np.full(B, 2 * J)], [np.ones(B)], [np.zeros(B, int)], [np.zeros(B)]
+        br, i1, w1, i2, w2 = [np.arange(B)], [np.full(B, 4 * J)], [np.ones(B)], [np.zeros(B, int)], [np.zeros(B)]
         for k, j in enumerate(self._joints):
             L = levels[j]
             br.append(np.repeat(np.arange(B), L.size))
@@ -195,12 +203,12 @@ class Q7Intervals:
                 t1, t2 = (-f0 - rest) / f1, (-f0 + rest) / f1
             flat = ~(np.abs(f1) > 0) | ~np.isfinite(rest)  # no slope, or no model: the whole cell
             t1, t2 = np.where(flat, -1.0, np.minimum(t1, t2)), np.where(flat, 1.0, np.maximum(t1, t2))
-            t1, t2 = np.maximum(t1, -1.0), np.minimum(t2, 1.0)
+            t1, t2 = np.maximum(t1.max(axis=0), -1.0), np.minimum(t2.min(axis=0), 1.0)  # both models' windows
             m, h = 0.5 * (a + b), 0.5 * (b - a)
             x1, x2 = m + h * t1, m + h * t2
-            gone = (t1 > t2) | outside | (flat & (np.abs(f0) > rest))
+            gone = (t1 > t2) | outside | (flat & (np.abs(f0) > rest)).any(axis=0)
             done = ~gone & (x2 - x1 <= WINDOW)
-            touch = ~gone & ~done & (np.abs(f0) + np.abs(f1) + rest <= TOUCH)
+            touch = ~gone & ~done & (np.abs(f0[0]) + np.abs(f1[0]) + rest[0] <= TOUCH)
             found += [0.5 * (x1 + x2)[done], a[touch], b[touch]]
             live = ~gone & ~done & ~touch
             narrow = live & (x2 - x1 <= h)  # at most half the cell: the window is the next cell
@@ -222,13 +230,14 @@ class Q7Intervals:
     ) -> tuple[np.ndarray, ...] | None:
         """Over the cells [a, b] (K,) of the columns ``cols`` (:meth:`_packed`, with K columns): the columns that may
         have a root of interest (indices, (K',): not those of a joint of a branch surely invalid over the cell), and
-        for them the Taylor model ``f0 + f1·t ± rest`` (t ∈ [−1, 1]; rest with :data:`SLACK`) and where the column
-        surely has no root of interest (its bounds exclude 0, or cos(q_j − L) < 0); None above :data:`MAX_CELLS`
+        for them the Taylor models ``f0 + f1·t ± rest`` (t ∈ [−1, 1]; rest with :data:`SLACK`) of the column and of
+        its scaled column ((2, K') each) and where the column surely has no root of interest (the bounds of either
+        exclude 0, or cos(q_j − L) < 0); None above :data:`MAX_CELLS`
         cells (of all the branches). ``Tf``: the pose, column-major (16,). One call of the model for the distinct
         (branch, cell) pairs: ``rows`` (one column of each, (R,); each column's row, (K,)) when known, else found
         by sorting."""
         (br, i1, i2), w, joint = cols
-        P = 2 * len(self._joints) + 1  # outputs per branch, its validity last
+        P = 4 * len(self._joints) + 1  # outputs per branch, its validity last
         if rows is None:
             keys = np.stack([b, a, br])
             order = np.lexsort(keys)  # by branch, then a, then b
@@ -251,16 +260,21 @@ class Q7Intervals:
         for v, o in zip(vals, out):
             v[:end] = o.ravel()
         vals[:, end] = 0.0
-        g = np.take(vals, np.stack([row * P + i1, np.where(joint, row * P + i2, end)]), axis=1)  # (5, 2, K')
+        first_out = row * P + i1, np.where(joint, row * P + i2, end)
+        scaled = np.where(joint, 2 * len(self._joints), 0)  # a joint's scaled outputs; the validity's own
+        idx = np.stack([*first_out, first_out[0] + scaled, np.where(joint, first_out[1] + scaled, end)])
+        g = np.take(vals, idx, axis=1).reshape(5, 2, 2, -1)  # (part, model, output, K')
         with np.errstate(invalid="ignore", over="ignore"):  # inf or nan (a free joint): the cell stays undecided
             c0, c1, lo, hi = w * g[[0, 1, 3, 4]]
             r = np.abs(w) * g[2]
             low, high = np.minimum(lo, hi), np.maximum(lo, hi)
-            cos_hi = np.maximum(w[0] * g[3, 1], w[0] * g[4, 1]) + np.maximum(-w[1] * g[3, 0], -w[1] * g[4, 0])
-            f0, f1, rest = c0[0] + c0[1], c1[0] + c1[1], r[0] + r[1] + SLACK
-            low, high = low[0] + low[1], high[0] + high[1]
+            cos_hi = np.maximum(w[0] * g[3, :, 1], w[0] * g[4, :, 1]) + np.maximum(
+                -w[1] * g[3, :, 0], -w[1] * g[4, :, 0]
+            )
+            f0, f1, rest = c0.sum(axis=1), c1.sum(axis=1), r.sum(axis=1) + SLACK
+            low, high = low.sum(axis=1), high.sum(axis=1)
         far = joint & (cos_hi < -SLACK)
-        return kept, f0, f1, rest, far | (low > SLACK) | (high < -SLACK)
+        return kept, f0, f1, rest, (far | (low > SLACK) | (high < -SLACK)).any(axis=0)
 
     @staticmethod
     def _packed(cols: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:

@@ -58,8 +58,9 @@ def assert_roots_real(T: np.ndarray, margin: float) -> None:
     x = np.concatenate([found - 1e-9, found, found + 1e-9])
     R, p = sy.frame_of_batch(np.broadcast_to(T, (x.size, 4, 4)))
     pairs, valid = SOLVER.joint_trig(R, p, x, sy.NUMPY), SOLVER.validity(R, p, x, sy.NUMPY)
-    out = np.array([[*(row[j][0] for j in sets._joints), *(row[j][1] for j in sets._joints), v]
-                    for row, v in zip(pairs, valid)])  # fmt: skip
+    scaled = SOLVER.joint_trig(R, p, x, sy.NUMPY, scaled=True)
+    out = np.array([[*(pair[j][i] for pair in (row, srow) for i in (0, 1) for j in sets._joints), v]
+                    for row, srow, v in zip(pairs, scaled, valid)])  # fmt: skip
     br, i1, w1, i2, w2, _ = cols
     f = (w1[:, None] * out[br, i1] + w2[:, None] * out[br, i2]).reshape(br.size, 3, found.size)
     crossing = (f[:, 0] * f[:, 2] <= 0.0) | (np.abs(f[:, 1]) <= 1e-9)
@@ -94,7 +95,8 @@ def test_sets_at_special_configurations(joint, value):
 @pytest.mark.parametrize("key", ["erd_panda", "pybullet_panda"] if LARGE else ["erd_panda"])
 def test_the_columns_are_the_joints_cosines_and_sines_and_file_arms_sets_are_proved(key):
     """On the Panda files (their joints mapped to the table's): joint_trig is (cos q_j, sin q_j) of the IK's joints
-    wherever the branch is valid; in the large run, the sets of two poses are proved and agree with dense sampling
+    wherever the branch is valid, and its scaled pairs are those times their length (a positive multiple); in the
+    large run, the sets of two poses are proved and agree with dense sampling
     (each file arm compiles its own Taylor models)."""
     robot = model_robot(key)
     solver = closed_form_for(robot)
@@ -102,6 +104,7 @@ def test_the_columns_are_the_joints_cosines_and_sines_and_file_arms_sets_are_pro
     T = robot.fk(q)
     R, p = sy.frame_of_batch(T)
     pairs = solver.joint_trig(R, p, q[:, 6], sy.NUMPY)
+    scaled = solver.joint_trig(R, p, q[:, 6], sy.NUMPY, scaled=True)
     sol = solver.solve_batch(T, q[:, 6])
     for k in range(8):
         ok = sol.valid[:, k]
@@ -109,6 +112,11 @@ def test_the_columns_are_the_joints_cosines_and_sines_and_file_arms_sets_are_pro
             c, s = (np.broadcast_to(x, ok.shape)[ok] for x in pairs[k][j])
             np.testing.assert_allclose(c, np.cos(sol.q[ok, k, j]), atol=1e-9)
             np.testing.assert_allclose(s, np.sin(sol.q[ok, k, j]), atol=1e-9)
+            x, y = (np.broadcast_to(v, ok.shape)[ok] for v in scaled[k][j])
+            rho = np.hypot(x, y)
+            assert np.all(rho > 1e-9), (k, j)  # random configurations: no joint free
+            np.testing.assert_allclose(x, rho * np.cos(sol.q[ok, k, j]), atol=1e-9)
+            np.testing.assert_allclose(y, rho * np.sin(sol.q[ok, k, j]), atol=1e-9)
     for pose in T[: 2 if LARGE else 0]:
         fi = qpik.feasible_intervals(robot, pose)
         assert fi.proved
