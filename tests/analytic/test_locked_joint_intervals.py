@@ -58,11 +58,16 @@ def assert_roots_real(T: np.ndarray, margin: float) -> None:
     x = np.concatenate([found - 1e-9, found, found + 1e-9])
     R, p = sy.frame_of_batch(np.broadcast_to(T, (x.size, 4, 4)))
     pairs, valid = SOLVER.joint_trig(R, p, x, sy.NUMPY), SOLVER.validity(R, p, x, sy.NUMPY)
-    scaled = SOLVER.joint_trig(R, p, x, sy.NUMPY, scaled=True)
-    out = np.array([[*(pair[j][i] for pair in (row, srow) for i in (0, 1) for j in sets._joints), v]
-                    for row, srow, v in zip(pairs, scaled, valid)])  # fmt: skip
-    br, i1, w1, i2, w2, _ = cols
-    f = (w1[:, None] * out[br, i1] + w2[:, None] * out[br, i2]).reshape(br.size, 3, found.size)
+    br, slot, trig, joints, _ = cols
+    cos_l, sin_l = trig[0::2], trig[1::2]
+    f = []
+    for k, i in zip(br, slot):  # the validity (slot 0), or sin(q_j − L) of the slot's joint and level
+        if i == 0:
+            f.append(valid[k])
+        else:
+            c, s = pairs[k][sets._joints[joints[i - 1]]]
+            f.append(s * cos_l[i - 1] - c * sin_l[i - 1])
+    f = np.array(f).reshape(br.size, 3, found.size)
     crossing = (f[:, 0] * f[:, 2] <= 0.0) | (np.abs(f[:, 1]) <= 1e-9)
     assert crossing.any(axis=0).all(), found[~crossing.any(axis=0)]
 
