@@ -274,8 +274,11 @@ class LockedJointSolver(AnalyticSolver):
         :math:`\sin q = s \sin(q^{DH} - c)`. A representative :math:`q + 2\pi k` has the same pair. ``signs``: the
         branches (:data:`ALL`: 0-7). ``scaled``: the pairs :math:`\rho_j (\cos q_j, \sin q_j)` instead, the vectors
         of :func:`plane_vector` before their division by :math:`\rho_j \ge 0` (m² for q5, q6, 1 for q4, unitless for
-        q1-q3; 0 where the joint is free), of the same signs and roots of :math:`\sin(q_j - L)`, and smoother."""
-        out = self._solve(R, p, param, ops, signs)[3 if scaled else 2]
+        q1-q3; 0 where the joint is free), of the same signs and roots of :math:`\sin(q_j - L)`, and smoother; q3's
+        from the other end of the shoulder, :math:`R(h_3, q_3)\,R_H^T h_1 = R(h_2, -q_2)\,h_1` (subproblem 2, its γ
+        of the opposite sign: :math:`(h_2\times h_3)\cdot R(h_2,-q_2) h_1 = -(h_2\times h_1)\cdot R(h_2,q_2) h_3`),
+        which needs neither q1 nor q2."""
+        out = self._solve(R, p, param, ops, signs, scaled)[3 if scaled else 2]
         if self.joint_map is None:
             return out
         turned = []
@@ -288,11 +291,11 @@ class LockedJointSolver(AnalyticSolver):
         return turned
 
     def _solve(
-        self, R: Mat, p: Vec, param: Scalar, ops: Ops, signs: BranchSigns = ALL
+        self, R: Mat, p: Vec, param: Scalar, ops: Ops, signs: BranchSigns = ALL, scaled: bool = False
     ) -> tuple[Branches, list[Scalar], list[list], list[list]]:
         """The branches of ``signs`` (:data:`BranchSigns`), their validity measures (:meth:`validity` without the
-        EPS), the cosines and sines of their joints 1-6 in the table's angles (:meth:`joint_trig`) and those pairs
-        before their normalisation (``scaled``)."""
+        EPS), the cosines and sines of their joints 1-6 in the table's angles (:meth:`joint_trig`) and, with
+        ``scaled``, those pairs before their normalisation (:meth:`joint_trig`'s ``scaled``; else None)."""
         shoulders, elbows, wrists = signs
         h = self.h
         c7, s7 = ops.cos(param), ops.sin(param)
@@ -330,6 +333,10 @@ class LockedJointSolver(AnalyticSolver):
 
                 t, ta = back(h[2]), back(self.a3)
                 v_s = subproblem2(h[1], h[2], h[0], t, ops, shoulders)
+                if scaled:  # R(h3, q3) R_H^T h1 = R(h2, −q2) h1: q3 by subproblem 2 without q1, q2 (γ of opposite sign)
+                    u = sy.matvec(sy.transpose(RG), h[0])
+                    u = rotate(h[3], c4, s4, rotate(h[4], c5, s5, rotate(h[5], c6, s6, u)))
+                    v_3 = subproblem2(h[1], h[0], h[2], u, ops, tuple(-x for x in shoulders))[0]
                 for s, vs in enumerate(v_s[0]):
                     v2, v1 = plane_vector(h[1], h[2], vs), plane_vector(h[0], vs, t)
                     (q2, c2, s2), (q1, c1, s1) = unit(*v2, ops), unit(*v1, ops)
@@ -339,7 +346,8 @@ class LockedJointSolver(AnalyticSolver):
                     k = (s * len(elbows) + e) * len(wrists) + w
                     q[k] = [q1, q2, q3, q4, q5, q6, ops.wrap(param)]
                     trig[k] = [(c1, s1), (c2, s2), (c3, s3), (c4, s4), (c5, s5), (c6, s6)]
-                    vectors[k] = [v1, v2, v3, (c4, s4), v5, v6]
+                    if scaled:
+                        vectors[k] = [v1, v2, plane_vector(h[2], u, v_3[s]), (c4, s4), v5, v6]
                     measure[k] = ops.fmin(ops.fmin(m4, v_w[1]), v_s[1])
                     valid[k] = measure[k] >= -EPS
                     singular[k] = ops.fmax(ops.fmax(close4, v_w[2]), v_s[2])
