@@ -264,6 +264,11 @@ class LockedJointSolver(AnalyticSolver):
         branches (:data:`ALL`: 0-7)."""
         return [m + EPS for m in self._solve(R, p, param, ops, signs)[1]]
 
+    def arm_validity(self, R: Mat, p: Vec, param: Scalar, ops: Ops, elbows: Signs = BOTH) -> list[Scalar]:
+        """Per elbow sign of ``elbows``, :meth:`validity` without the shoulder's discriminant: min(elbow, wrist) +
+        EPS, at least the validity of each of the elbow's four branches (where it is below 0, so are theirs)."""
+        return [m + EPS for m in self._solve(R, p, param, ops, ((1.0,), elbows, (1.0,)))[4]]
+
     def joint_trig(
         self, R: Mat, p: Vec, param: Scalar, ops: Ops, signs: BranchSigns = ALL, scaled: bool = False
     ) -> list[list[tuple[Scalar, Scalar]]]:
@@ -292,10 +297,11 @@ class LockedJointSolver(AnalyticSolver):
 
     def _solve(
         self, R: Mat, p: Vec, param: Scalar, ops: Ops, signs: BranchSigns = ALL, scaled: bool = False
-    ) -> tuple[Branches, list[Scalar], list[list], list[list]]:
+    ) -> tuple[Branches, list[Scalar], list[list], list[list], list[Scalar]]:
         """The branches of ``signs`` (:data:`BranchSigns`), their validity measures (:meth:`validity` without the
         EPS), the cosines and sines of their joints 1-6 in the table's angles (:meth:`joint_trig`) and, with
-        ``scaled``, those pairs before their normalisation (:meth:`joint_trig`'s ``scaled``; else None)."""
+        ``scaled``, those pairs before their normalisation (:meth:`joint_trig`'s ``scaled``; else None); per elbow
+        sign, the least of the elbow's and the wrist's measures (:meth:`arm_validity`)."""
         shoulders, elbows, wrists = signs
         h = self.h
         c7, s7 = ops.cos(param), ops.sin(param)
@@ -317,10 +323,12 @@ class LockedJointSolver(AnalyticSolver):
         close4 = m4 < BRANCH_TOL
         n = len(shoulders) * len(elbows) * len(wrists)
         q, valid, singular, measure, trig, vectors = ([None] * n for _ in range(6))
+        arm: list[Scalar] = []
         for e, sign in enumerate(elbows):
             q4, c4, s4 = ops.wrap(self.phi + sign * beta), cp * cb - sp * (sign * sb), sp * cb + cp * (sign * sb)
             y = sy.vsub(rotate(h[3], c4, sy.neg(s4), self.s4), self.w4)
             v_w = subproblem2(h[5], x, h[4], y, ops, wrists)
+            arm.append(ops.fmin(m4, v_w[1]))
             for w, v in enumerate(v_w[0]):
                 v6, v5 = plane_vector(h[5], x, v), plane_vector(h[4], v, y)
                 (q6, c6, s6), (q5, c5, s5) = unit(*v6, ops), unit(*v5, ops)
@@ -351,7 +359,7 @@ class LockedJointSolver(AnalyticSolver):
                     measure[k] = ops.fmin(ops.fmin(m4, v_w[1]), v_s[1])
                     valid[k] = measure[k] >= -EPS
                     singular[k] = ops.fmax(ops.fmax(close4, v_w[2]), v_s[2])
-        return Branches(q, valid, singular), measure, trig, vectors
+        return Branches(q, valid, singular), measure, trig, vectors, arm
 
     def table_parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
         """q7 (rad) and the branch id ``4·shoulder + 2·elbow + wrist`` of the configuration ``q`` (7 scalars)."""

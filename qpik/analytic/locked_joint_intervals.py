@@ -39,7 +39,10 @@ over which a column (unit pair) stays within :data:`TOUCH` of 0 (a tangency: a j
 cell, to round-off).
 The search starts from :data:`CELLS` cells over the circle, less those where the elbow surely cannot reach
 (:math:`|c(q_7)| > r(1 +` :data:`REACH`) over the cell, from the sinusoid's exact range: every branch's validity is
-below 0 there, so no column has a root of interest), and stops after :data:`ROUNDS` rounds or above
+below 0 there, so no column has a root of interest) and, in each cell left, the branches of an elbow whose wrist
+surely cannot reach over it (the Taylor model of its
+:meth:`~qpik.analytic.locked_joint.LockedJointSolver.arm_validity`, a bound of its branches' validity, below 0:
+:meth:`Q7Intervals._arm_reach`), and stops after :data:`ROUNDS` rounds or above
 :data:`MAX_CELLS` cells in a round: then the cells left are breakpoints too (their ends), and the answer is not
 proved. The gaps between the breakpoints are classified as for the other families
 (:class:`~qpik.analytic.intervals.SetAssembler`: one IK evaluation at each midpoint).
@@ -117,6 +120,13 @@ class Q7Intervals:
         """Per tuple of the joint columns' joints (:meth:`_columns`), one round of the search on every column of a
         branch over a cell (:meth:`_step_function`) over rows of cells and branches, the rows of a round shared
         among the cores; compiled on first use (one tuple for every margin of most arms)."""
+        T, q7, sign = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("sign")
+        (arm,) = solver.arm_validity(*sy.frame_of_batch(T), q7, sy.CASADI, (sign,))
+        arm_fn = ca.Function(f"arm_{solver.kind}", [T, q7, sign], [arm])
+        self._arm = RowMap(taylor_function(arm_fn, [1]), shared=[0], threads=cores(), inline=True)
+        """The Taylor models of the :meth:`~qpik.analytic.locked_joint.LockedJointSolver.arm_validity` of an
+        elbow (inputs: T, the centre of a cell of q7, the elbow's sign, then the cell's half-width, radius 0 and
+        its ends) over rows of cells and elbows (:meth:`_arm_reach`)."""
         self._last: tuple[bytes, float, FeasibleIntervals] | None = None
         self._cols: tuple[float, tuple[np.ndarray, ...]] | None = None
         """The last margin and its columns (:meth:`_columns`)."""
@@ -213,12 +223,16 @@ class Q7Intervals:
         near = self._reach(T, edges[:-1], edges[1:])
         br, slot, trig, _, step = cols
         n, F, B = int(near.sum()), br.size, self._solver.n_branches
-        a, b, k = np.repeat(edges[:-1][near], F), np.repeat(edges[1:][near], F), np.tile(np.arange(F), n)
-        # the first round's rows: (cell, branch) in that order, one column of each (its validity, the first)
-        rows = (np.arange(n)[:, None] * F + np.searchsorted(br, np.arange(B))).ravel(), np.repeat(np.arange(n) * B, F)
-        rows = rows[0], rows[1] + np.tile(br, n)
-        found = []
         Tf = np.asarray(T, float).reshape(-1, order="F")
+        pairs = self._arm_reach(Tf, edges[:-1][near], edges[1:][near]).ravel()  # (cell, branch) in that order
+        cell, col = np.repeat(np.arange(n), F), np.tile(np.arange(F), n)
+        keep = pairs[cell * B + br[col]]
+        a, b, k = edges[:-1][near][cell[keep]], edges[1:][near][cell[keep]], col[keep]
+        # the first round's rows: the pairs kept, one column of each (its validity, the branch's first)
+        at = np.cumsum(keep) - 1  # a kept column's index
+        first = at[(np.arange(n)[:, None] * F + np.searchsorted(br, np.arange(B))).ravel()[pairs]]
+        rows = first, (np.cumsum(pairs) - 1)[cell[keep] * B + br[k]]
+        found = []
         for _ in range(self._rounds):
             if not a.size:
                 break
@@ -269,6 +283,18 @@ class Q7Intervals:
         C, flat = out.shape[1] // 3, out.ravel()
         at = row * (3 * C) + slot
         return flat[at], flat[at + C], flat[at + 2 * C]
+
+    def _arm_reach(self, Tf: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Over the cells [a, b] (K,) of q7 (rad), per branch (K, B), False where its elbow's
+        :meth:`~qpik.analytic.locked_joint.LockedJointSolver.arm_validity` is surely below 0 (the wrist cannot
+        reach; :attr:`_arm`'s model): so is the branch's validity, so none of its columns has a root of interest.
+        ``Tf``: the pose, column-major (16,)."""
+        if not a.size:
+            return np.zeros((0, self._solver.n_branches), bool)
+        x, y = np.repeat(a, 2)[:, None], np.repeat(b, 2)[:, None]
+        sign = np.tile([1.0, -1.0], a.size)[:, None]  # the elbows of bit 1 = 0, 1 of a branch id
+        hi = self._arm(Tf, 0.5 * (x + y), sign, 0.5 * (y - x), np.zeros_like(x), x, y)[4].reshape(-1, 2)
+        return ~(hi < -SLACK)[:, (np.arange(self._solver.n_branches) >> 1) & 1]  # a branch's elbow: its bit 1
 
     def _reach(self, T: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Over the cells [a, b] (K,) of q7 (rad, within [−π, π]), False where the elbow surely cannot reach: the

@@ -147,7 +147,8 @@ def test_joint_trig_follows_a_joint_map():
 def test_a_search_without_budget_is_not_proved_and_nothing_claims_a_proof(monkeypatch):
     """Three rounds cannot isolate the roots from the first cells: the answer says it is not proved; solve_best then
     certifies nothing. With no round at all, a pose beyond the elbow's reach is proved unreachable (no start cell is
-    left), and without that filter it is not proved, and solve_full does not call it "unreachable"."""
+    left), and without the start filters (_reach, _arm_reach) it is not proved, and solve_full does not call it
+    "unreachable"."""
     weak = copy.copy(SOLVER._sets)  # the compiled model shared, the budget and the kept answer its own
     weak._rounds, weak._last = 3, None
     T = PANDA.fk(random_q(PANDA, 1, 11))[0]
@@ -162,6 +163,7 @@ def test_a_search_without_budget_is_not_proved_and_nothing_claims_a_proof(monkey
     monkeypatch.setattr(weak, "_rounds", 0)
     assert weak(far).proved and not any(weak(far)[k] for k in range(8))  # every start cell beyond the elbow's reach
     monkeypatch.setattr(weak, "_reach", lambda T, a, b: np.ones(a.size, bool))
+    monkeypatch.setattr(weak, "_arm_reach", lambda Tf, a, b: np.ones((a.size, 8), bool))
     weak._last = None
     assert not weak(far).proved
     res = solve_full(PANDA, far, options=FullOptions(max_starts=2))
@@ -170,9 +172,10 @@ def test_a_search_without_budget_is_not_proved_and_nothing_claims_a_proof(monkey
 
 def test_the_reach_filter_leaves_out_only_cells_where_no_branch_is_valid():
     """The start cells the search leaves out (Q7Intervals._reach, exact for the elbow) hold no q7 where a branch is
-    valid, by dense sampling of the numpy validity, at random poses and at poses near the edge of the workspace (the
+    valid, and neither do the branches it leaves out of a start cell (_arm_reach, where an elbow's wrist cannot
+    reach), by dense sampling of the numpy validity, at random poses and at poses near the edge of the workspace (the
     elbow stretched, the position scaled by 0.999 or 1.001: the elbow reaches over few cells); and the search with
-    and without the filter finds the same breakpoints."""
+    and without the filters finds the same breakpoints."""
     sets = SOLVER._sets
     q = random_q(PANDA, 40 if LARGE else 12, 21)
     q[::2, 3] = PANDA.q_max[3]
@@ -184,13 +187,19 @@ def test_the_reach_filter_leaves_out_only_cells_where_no_branch_is_valid():
     cols = sets._columns(_levels(PANDA.q_min, PANDA.q_max))
     everywhere = copy.copy(sets)
     everywhere._reach = lambda T, a, b: np.ones(a.size, bool)
-    left_out = 0
+    everywhere._arm_reach = lambda Tf, a, b: np.ones((a.size, 8), bool)
+    left_out = arm_out = 0
     for pose in T:
         near = sets._reach(pose, edges[:-1], edges[1:])
         R, p = sy.frame_of_batch(np.broadcast_to(pose, (x[~near].size, 4, 4)))
         assert not (np.array(SOLVER.validity(R, p, x[~near].ravel(), sy.NUMPY)) >= 0.0).any()
         left_out += (~near).sum()
+        arm = sets._arm_reach(pose.reshape(-1, order="F"), edges[:-1], edges[1:])  # (cells, branches)
+        R, p = sy.frame_of_batch(np.broadcast_to(pose, (x.size, 4, 4)))
+        valid = np.array(SOLVER.validity(R, p, x.ravel(), sy.NUMPY)).reshape(8, *x.shape)
+        assert not (valid[~arm.T] >= 0.0).any()
+        arm_out += (~arm & near[:, None]).sum()
         found, left = sets._isolate(pose, cols)
         found_all, left_all = everywhere._isolate(pose, cols)
         assert np.array_equal(np.sort(found), np.sort(found_all)) and np.array_equal(left, left_all)
-    assert left_out > 0
+    assert left_out > 0 and arm_out > 0
