@@ -128,7 +128,7 @@ class Q7Intervals:
         elbow (inputs: T, the centre of a cell of q7, the elbow's sign, then the cell's half-width, radius 0 and
         its ends) over rows of cells and elbows (:meth:`_arm_reach`)."""
         self._last: tuple[bytes, float, FeasibleIntervals] | None = None
-        self._cols: tuple[float, tuple[np.ndarray, ...]] | None = None
+        self._cols: tuple[float, tuple] | None = None
         """The last margin and its columns (:meth:`_columns`)."""
 
     def _step_function(self, joints: tuple[int, ...]) -> ca.Function:
@@ -218,7 +218,8 @@ class Q7Intervals:
         """The breakpoints of the columns ``cols`` (:meth:`_columns`) at the pose T: the centres of the windows of
         their roots (rad, wrapped), and the ends of the cells left when the budget ran out (empty: proved). The
         start cells where the elbow surely cannot reach (:meth:`_reach`: no branch is valid, so no column has a root
-        of interest) are left out."""
+        of interest) are left out, and so are the branches of a start cell whose wrist surely cannot reach
+        (:meth:`_arm_reach`)."""
         edges = np.linspace(-np.pi, np.pi, CELLS + 1)
         near = self._reach(T, edges[:-1], edges[1:])
         br, slot, trig, _, step = cols
