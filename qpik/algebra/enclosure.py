@@ -189,7 +189,14 @@ GONE, DONE, TOUCHED, NARROW, HALVE = range(5)
 
 
 def isolation_step(
-    a: ca.SX, b: ca.SX, model: tuple[ca.SX, ...], away: ca.SX, slack: float, window: float, touch: float
+    a: ca.SX,
+    b: ca.SX,
+    model: tuple[ca.SX, ...],
+    away: ca.SX,
+    slack: float,
+    window: float,
+    touch: float,
+    also: Sequence[tuple[ca.SX, ...]] = (),
 ) -> tuple[ca.SX, ca.SX, ca.SX]:
     r"""One round of the isolation of the roots of a function f over the cell [a, b] (Moore 1966; Makino & Berz
     2003), in SX: its window and its fate.
@@ -201,17 +208,24 @@ def isolation_step(
     centre), and the fate :data:`GONE` (the window is empty, or the bounds exclude 0 by more than ``slack``, or
     ``away``), :data:`DONE` (the window is at most ``window`` wide: it holds the roots), :data:`TOUCHED` (:math:`|f|
     \le` ``touch`` over the cell: its ends are roots), :data:`NARROW` (the window is at most half the cell: the next
-    cell) or :data:`HALVE` (the window's halves are the next cells). Returns :math:`(x_1, x_2,` fate).
+    cell) or :data:`HALVE` (the window's halves are the next cells). ``also``: models, in the same form, of functions
+    with the same roots of interest in the cell (f times a factor > 0, say): the window is then the intersection of
+    every model's, and the cell is gone where any one's window is empty or bounds exclude 0 (the touch is f's).
+    Returns :math:`(x_1, x_2,` fate).
     """
-    f0, f1, rest, lo, hi = model[0], model[1], model[2] + slack, model[3], model[4]
     m, w = 0.5 * (a + b), 0.5 * (b - a)
-    t1, t2 = (-f0 - rest) / f1, (-f0 + rest) / f1
-    flat = ca.logic_or(ca.logic_not(ca.fabs(f1) > 0), ca.logic_not(ca.fabs(rest) < ca.inf))
-    t1, t2 = ca.if_else(flat, -1.0, ca.fmin(t1, t2)), ca.if_else(flat, 1.0, ca.fmax(t1, t2))
-    t1, t2 = ca.fmax(t1, -1.0), ca.fmin(t2, 1.0)
+    t1, t2, outside = -1.0, 1.0, away
+    for f0, f1, r, lo, hi in (model, *also):
+        rest = r + slack
+        u1, u2 = (-f0 - rest) / f1, (-f0 + rest) / f1
+        flat = ca.logic_or(ca.logic_not(ca.fabs(f1) > 0), ca.logic_not(ca.fabs(rest) < ca.inf))
+        t1 = ca.fmax(t1, ca.if_else(flat, -1.0, ca.fmin(u1, u2)))
+        t2 = ca.fmin(t2, ca.if_else(flat, 1.0, ca.fmax(u1, u2)))
+        empty = ca.logic_and(flat, ca.fabs(f0) > rest)
+        outside = ca.logic_or(outside, ca.logic_or(ca.logic_or(lo > slack, hi < -slack), empty))
     x1, x2 = m + w * t1, m + w * t2
-    outside = ca.logic_or(ca.logic_or(lo > slack, hi < -slack), away)
-    gone = ca.logic_or(ca.logic_or(t1 > t2, outside), ca.logic_and(flat, ca.fabs(f0) > rest))
+    gone = ca.logic_or(t1 > t2, outside)
+    f0, f1, rest = model[0], model[1], model[2] + slack
     small = ca.if_else(ca.fabs(f0) + ca.fabs(f1) + rest <= touch, TOUCHED, ca.if_else(x2 - x1 <= w, NARROW, HALVE))
     return x1, x2, ca.if_else(gone, GONE, ca.if_else(x2 - x1 <= window, DONE, small))
 

@@ -159,9 +159,20 @@ def subproblem1(k: Vec, p: Vec, q: Vec, ops: Ops) -> tuple[Scalar, Scalar, Scala
     :math:`p_\perp = p - (k\cdot p)k`: the projections are formed first, so that a p or q close to k (a near-singular
     joint) keeps its relative precision. cos θ, sin θ = (x, y)/|(x, y)| (a square root instead of two trigonometric
     calls); θ = 0, cos θ = 1 when p or q lies on k."""
+    return unit(*plane_vector(k, p, q), ops)
+
+
+def plane_vector(k: Vec, p: Vec, q: Vec) -> tuple[Scalar, Scalar]:
+    r""":func:`subproblem1`'s :math:`(x, y) = \rho\,(\cos\theta, \sin\theta)`, :math:`\rho = |p_\perp|\,|q_\perp|`
+    (the units of p times those of q; 0 where p or q lies on k)."""
     pp = sy.vsub(p, sy.vscale(sy.dot(k, p), k))
     qq = sy.vsub(q, sy.vscale(sy.dot(k, q), k))
-    y, x = sy.dot(k, sy.cross(pp, qq)), sy.dot(pp, qq)
+    return sy.dot(pp, qq), sy.dot(k, sy.cross(pp, qq))
+
+
+def unit(x: Scalar, y: Scalar, ops: Ops) -> tuple[Scalar, Scalar, Scalar]:
+    """θ = atan2(y, x) in (−π, π] and cos θ, sin θ = (x, y)/|(x, y)| (:func:`subproblem1`); θ = 0, cos θ = 1 at
+    (0, 0)."""
     rho = ops.sqrt(x * x + y * y)
     some = rho > 1e-300
     inv = 1.0 / ops.fmax(rho, 1e-300)
@@ -282,16 +293,26 @@ class LockedJointSolver(AnalyticSolver):
         branches (:data:`ALL`: 0-7)."""
         return [m + EPS for m in self._solve(R, p, param, ops, signs)[1]]
 
+    def arm_validity(self, R: Mat, p: Vec, param: Scalar, ops: Ops, elbows: Signs = BOTH) -> list[Scalar]:
+        """Per elbow sign of ``elbows``, :meth:`validity` without the shoulder's discriminant: min(elbow, wrist) +
+        EPS, at least the validity of each of the elbow's four branches (where it is below 0, so are theirs)."""
+        return [m + EPS for m in self._solve(R, p, param, ops, ((1.0,), elbows, (1.0,)))[4]]
+
     def joint_trig(
-        self, R: Mat, p: Vec, param: Scalar, ops: Ops, signs: BranchSigns = ALL
+        self, R: Mat, p: Vec, param: Scalar, ops: Ops, signs: BranchSigns = ALL, scaled: bool = False
     ) -> list[list[tuple[Scalar, Scalar]]]:
         r"""Per branch, :math:`(\cos q_j, \sin q_j)` of the robot's joints 1-6 at q7 = ``param`` (rad) for the pose
         ``(R, p)`` (base frame): the unit vectors the subproblems return (:func:`subproblem1`), not functions of the
         angles, so continuous wherever the joint is not free (no cut at ±π); through the joint map
         :math:`q = s\,(q^{DH} - c)` (:class:`~qpik.analytic.solver.AnalyticSolver`): :math:`\cos q = \cos(q^{DH} - c)`,
         :math:`\sin q = s \sin(q^{DH} - c)`. A representative :math:`q + 2\pi k` has the same pair. ``signs``: the
-        branches (:data:`ALL`: 0-7)."""
-        out = self._solve(R, p, param, ops, signs)[2]
+        branches (:data:`ALL`: 0-7). ``scaled``: the pairs :math:`\rho_j (\cos q_j, \sin q_j)` instead, the vectors
+        of :func:`plane_vector` before their division by :math:`\rho_j \ge 0` (m² for q5, q6, 1 for q4, unitless for
+        q1-q3; 0 where the joint is free), of the same signs and roots of :math:`\sin(q_j - L)`, and smoother; q3's
+        from the other end of the shoulder, :math:`R(h_3, q_3)\,R_H^T h_1 = R(h_2, -q_2)\,h_1` (subproblem 2, its γ
+        of the opposite sign: :math:`(h_2\times h_3)\cdot R(h_2,-q_2) h_1 = -(h_2\times h_1)\cdot R(h_2,q_2) h_3`),
+        which needs neither q1 nor q2."""
+        out = self._solve(R, p, param, ops, signs, scaled)[3 if scaled else 2]
         if self.joint_map is None:
             return out
         turned = []
@@ -304,10 +325,12 @@ class LockedJointSolver(AnalyticSolver):
         return turned
 
     def _solve(
-        self, R: Mat, p: Vec, param: Scalar, ops: Ops, signs: BranchSigns = ALL
-    ) -> tuple[Branches, list[Scalar], list[list]]:
+        self, R: Mat, p: Vec, param: Scalar, ops: Ops, signs: BranchSigns = ALL, scaled: bool = False
+    ) -> tuple[Branches, list[Scalar], list[list], list[list], list[Scalar]]:
         """The branches of ``signs`` (:data:`BranchSigns`), their validity measures (:meth:`validity` without the
-        EPS) and the cosines and sines of their joints 1-6 in the table's angles (:meth:`joint_trig`)."""
+        EPS), the cosines and sines of their joints 1-6 in the table's angles (:meth:`joint_trig`) and, with
+        ``scaled``, those pairs before their normalisation (:meth:`joint_trig`'s ``scaled``; else None); per elbow
+        sign, the least of the elbow's and the wrist's measures (:meth:`arm_validity`)."""
         shoulders, elbows, wrists = signs
         h = self.h
         c7, s7 = ops.cos(param), ops.sin(param)
@@ -328,14 +351,16 @@ class LockedJointSolver(AnalyticSolver):
         m4 = disc / (r * r)
         close4 = m4 < BRANCH_TOL
         n = len(shoulders) * len(elbows) * len(wrists)
-        q, valid, singular, measure, trig = [None] * n, [None] * n, [None] * n, [None] * n, [None] * n
+        q, valid, singular, measure, trig, vectors = ([None] * n for _ in range(6))
+        arm: list[Scalar] = []
         for e, sign in enumerate(elbows):
             q4, c4, s4 = ops.wrap(self.phi + sign * beta), cp * cb - sp * (sign * sb), sp * cb + cp * (sign * sb)
             y = sy.vsub(rotate(h[3], c4, sy.neg(s4), self.s4), self.w4)
             v_w = subproblem2(h[5], x, h[4], y, ops, wrists)
+            arm.append(ops.fmin(m4, v_w[1]))
             for w, v in enumerate(v_w[0]):
-                q6, c6, s6 = subproblem1(h[5], x, v, ops)
-                q5, c5, s5 = subproblem1(h[4], v, y, ops)
+                v6, v5 = plane_vector(h[5], x, v), plane_vector(h[4], v, y)
+                (q6, c6, s6), (q5, c5, s5) = unit(*v6, ops), unit(*v5, ops)
 
                 def back(u: Vec, c4=c4, s4=s4, c5=c5, s5=s5, c6=c6, s6=s6) -> Vec:
                     """R_H u = R_G R(h6, −q6) R(h5, −q5) R(h4, −q4) u."""
@@ -345,18 +370,25 @@ class LockedJointSolver(AnalyticSolver):
 
                 t, ta = back(h[2]), back(self.a3)
                 v_s = subproblem2(h[1], h[2], h[0], t, ops, shoulders)
+                if scaled:  # R(h3, q3) R_H^T h1 = R(h2, −q2) h1: q3 by subproblem 2 without q1, q2 (γ of opposite sign)
+                    u = sy.matvec(sy.transpose(RG), h[0])
+                    u = rotate(h[3], c4, s4, rotate(h[4], c5, s5, rotate(h[5], c6, s6, u)))
+                    v_3 = subproblem2(h[1], h[0], h[2], u, ops, tuple(-x for x in shoulders))[0]
                 for s, vs in enumerate(v_s[0]):
-                    q2, c2, s2 = subproblem1(h[1], h[2], vs, ops)
-                    q1, c1, s1 = subproblem1(h[0], vs, t, ops)
+                    v2, v1 = plane_vector(h[1], h[2], vs), plane_vector(h[0], vs, t)
+                    (q2, c2, s2), (q1, c1, s1) = unit(*v2, ops), unit(*v1, ops)
                     b = rotate(h[1], c2, sy.neg(s2), rotate(h[0], c1, sy.neg(s1), ta))
-                    q3, c3, s3 = subproblem1(h[2], self.a3, b, ops)
+                    v3 = plane_vector(h[2], self.a3, b)
+                    q3, c3, s3 = unit(*v3, ops)
                     k = (s * len(elbows) + e) * len(wrists) + w
                     q[k] = [q1, q2, q3, q4, q5, q6, ops.wrap(param)]
                     trig[k] = [(c1, s1), (c2, s2), (c3, s3), (c4, s4), (c5, s5), (c6, s6)]
+                    if scaled:
+                        vectors[k] = [v1, v2, plane_vector(h[2], u, v_3[s]), (c4, s4), v5, v6]
                     measure[k] = ops.fmin(ops.fmin(m4, v_w[1]), v_s[1])
                     valid[k] = measure[k] >= -EPS
                     singular[k] = ops.fmax(ops.fmax(close4, v_w[2]), v_s[2])
-        return Branches(q, valid, singular), measure, trig
+        return Branches(q, valid, singular), measure, trig, vectors, arm
 
     def table_parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
         """q7 (rad) and the branch id ``4·shoulder + 2·elbow + wrist`` of the configuration ``q`` (7 scalars)."""

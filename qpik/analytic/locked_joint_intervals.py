@@ -22,18 +22,27 @@ sets change only at
 
 The last two are *columns*, functions of q7 whose roots are found by Taylor-model root isolation (Berz & Makino
 1998; Makino & Berz 2003): over a cell :math:`[a, b] = \{m + h t : t \in [-1, 1]\}` of q7, the first-order Taylor
-model of every column (:func:`qpik.algebra.enclosure.taylor_function` of the compiled columns of one branch, whose
-shoulder, elbow and wrist signs are inputs: one compiled function for every branch, one call for all the cells of a
-round) is :math:`f(m + h t) \in f_0 + f_1 t + [-r, r]`, beside interval bounds. The column's roots in the cell
-then lie where :math:`|f_0 + f_1 t| \le r + ` :data:`SLACK` (a Newton step with its remainder enclosed, as in the
-interval Newton method, Moore 1966): the cell is discarded when that is empty (or
-the bounds exclude 0, or, for a joint, the branch's validity is below 0 over it), replaced by that window when
-the window is at most half as wide (near a simple root the window shrinks quadratically from round to round), else
-halved. A window narrower than :data:`WINDOW` is a breakpoint (its centre); so are the ends of a cell over which a
-column stays within :data:`TOUCH` of 0 (a tangency: a joint touching a level over a whole cell, to round-off).
+model of every column (:func:`qpik.algebra.enclosure.taylor_function`) is :math:`f(m + h t) \in f_0 + f_1 t +
+[-r, r]`, beside interval bounds. One compiled row per cell and branch (whose shoulder, elbow and wrist signs are
+inputs: one function for every branch, one call for all the rows of a round) solves the branch once, forms every
+column's models and takes the round's step on each (:func:`~qpik.algebra.enclosure.isolation_step`): what
+follows. The column's roots in the cell then lie where :math:`|f_0 + f_1 t| \le r + ` :data:`SLACK` (a Newton step
+with its remainder enclosed, as in the interval Newton method, Moore 1966): the cell is discarded when that is
+empty (or the bounds exclude 0, or, for a joint, the branch's validity is below 0 over it), replaced by that window
+when the window is at most half as wide (near a simple root the window shrinks quadratically from round to round),
+else halved. A joint's column is modelled twice, both models from one row: from the unit pair, and scaled, as
+:math:`\rho_j \sin(q_j - L)` from the pair before its division by :math:`\rho_j \ge 0` (``joint_trig(scaled=True)``:
+no division, so a tighter model over a wide cell; the same roots where :math:`\rho_j > 0`, and a root where the
+joint is free, :math:`\rho_j = 0`); its window is the intersection of the two windows, and either model's bounds
+may discard the cell. A window narrower than :data:`WINDOW` is a breakpoint (its centre); so are the ends of a cell
+over which a column (unit pair) stays within :data:`TOUCH` of 0 (a tangency: a joint touching a level over a whole
+cell, to round-off).
 The search starts from :data:`CELLS` cells over the circle, less those where the elbow surely cannot reach
 (:math:`|c(q_7)| > r(1 +` :data:`REACH`) over the cell, from the sinusoid's exact range: every branch's validity is
-below 0 there, so no column has a root of interest), and stops after :data:`ROUNDS` rounds or above
+below 0 there, so no column has a root of interest) and, in each cell left, the branches of an elbow whose wrist
+surely cannot reach over it (the Taylor model of its
+:meth:`~qpik.analytic.locked_joint.LockedJointSolver.arm_validity`, a bound of its branches' validity, below 0:
+:meth:`Q7Intervals._arm_reach`), and stops after :data:`ROUNDS` rounds or above
 :data:`MAX_CELLS` cells in a round: then the cells left are breakpoints too (their ends), and the answer is not
 proved. The gaps between the breakpoints are classified as for the other families
 (:class:`~qpik.analytic.intervals.SetAssembler`: one IK evaluation at each midpoint).
@@ -61,7 +70,7 @@ import casadi as ca
 import numpy as np
 
 from qpik.algebra import symbolic as sy
-from qpik.algebra.enclosure import taylor_function
+from qpik.algebra.enclosure import DONE, HALVE, NARROW, TOUCHED, isolation_step, taylor_function
 from qpik.analytic import trig
 from qpik.analytic.intervals import FeasibleIntervals, SetAssembler, shrunk_limits, wrap
 from qpik.native.compiled import RowMap, cores
@@ -107,19 +116,61 @@ class Q7Intervals:
         self._assemble = SetAssembler(solver, solver.n_branches)
         self._n = solver.robot.dof
         self._joints = [j for j in range(self._n - 1) if j != ELBOW]
+        self._steps: dict[tuple[int, ...], RowMap] = {}
+        """Per tuple of the joint columns' joints (:meth:`_columns`), one round of the search on every column of a
+        branch over a cell (:meth:`_step_function`) over rows of cells and branches, the rows of a round shared
+        among the cores; compiled on first use (one tuple for every margin of most arms)."""
+        T, q7, sign = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("sign")
+        (arm,) = solver.arm_validity(*sy.frame_of_batch(T), q7, sy.CASADI, (sign,))
+        arm_fn = ca.Function(f"arm_{solver.kind}", [T, q7, sign], [arm])
+        self._arm = RowMap(taylor_function(arm_fn, [1]), shared=[0], threads=cores(), inline=True)
+        """The Taylor models of the :meth:`~qpik.analytic.locked_joint.LockedJointSolver.arm_validity` of an
+        elbow (inputs: T, the centre of a cell of q7, the elbow's sign, then the cell's half-width, radius 0 and
+        its ends) over rows of cells and elbows (:meth:`_arm_reach`)."""
+        self._last: tuple[bytes, float, FeasibleIntervals] | None = None
+        self._cols: tuple[float, tuple] | None = None
+        """The last margin and its columns (:meth:`_columns`)."""
+
+    def _step_function(self, joints: tuple[int, ...]) -> ca.Function:
+        """One round of the search on every column of a branch over a cell, its joint columns those of the joints
+        ``joints`` (indices into :attr:`_joints`, one per column) at levels given at run time: the Taylor models (in
+        q7 over the cell) of the branch's cos q_j and sin q_j for the joints of :attr:`_joints`, of both scaled
+        (``joint_trig(scaled=True)``) and of its validity (one compiled function for every branch: its signs are
+        inputs; the joints and the validity trace the closed form thrice, and ``cse`` merges the copies), combined
+        into each column's two models and :func:`~qpik.algebra.enclosure.isolation_step` (the joints' columns also
+        gone where the validity is below 0 over the cell or cos(q_j − L) < 0).
+
+        Inputs: T (4, 4), the levels' (cos L, sin L) (2, F), the cell's ends a < b (rad), the branch's
+        :data:`SIGNS`. Output (3C,) over the C = F + 1 slots (0: the validity; i: the joint column of level i − 1):
+        every slot's window start x1, then every slot's window end x2 (rad), then every slot's fate
+        (:data:`~qpik.algebra.enclosure.GONE` ...)."""
+        s, J = self._solver, len(self._joints)
         T, q7, sign = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("sign", 3)
         R, p = sy.frame_of_batch(T)
         one = ((sign[0],), (sign[1],), (sign[2],))  # the branch of these signs, chosen at run time
-        (row,), (valid,) = solver.joint_trig(R, p, q7, sy.CASADI, one), solver.validity(R, p, q7, sy.CASADI, one)
-        out = ca.vertcat(*[row[j][0] for j in self._joints], *[row[j][1] for j in self._joints], valid)
-        columns = ca.Function(f"columns_{solver.kind}", [T, q7, sign], [out])
-        self._model = RowMap(taylor_function(columns, [1]), shared=[0], threads=cores(), inline=True)
-        """The Taylor models of one branch's outputs (inputs: T, the centre of a cell of q7, the branch's
-        :data:`SIGNS`, then the cell's half-width, radius 0 and its ends) over rows of cells and branches, the
-        rows of a round shared among the cores."""
-        self._last: tuple[bytes, float, FeasibleIntervals] | None = None
-        self._cols: tuple[float, tuple[np.ndarray, ...]] | None = None
-        """The last margin and its columns (:meth:`_columns`)."""
+        (unit,), (valid,) = s.joint_trig(R, p, q7, sy.CASADI, one), s.validity(R, p, q7, sy.CASADI, one)
+        (scaled,) = s.joint_trig(R, p, q7, sy.CASADI, one, scaled=True)
+        out = ca.vertcat(*[pair[j][i] for pair in (unit, scaled) for i in (0, 1) for j in self._joints], valid)
+        columns = ca.Function(f"columns_{s.kind}", [T, q7, sign], [out], {"cse": True})
+        levels, a, b = ca.SX.sym("levels", 2, len(joints)), ca.SX.sym("a"), ca.SX.sym("b")
+        parts = taylor_function(columns, [1])(T, 0.5 * (a + b), sign, 0.5 * (b - a), 0.0, a, b)
+
+        def model(i: int) -> tuple[ca.SX, ...]:
+            return tuple(x[i] for x in parts)
+
+        steps = [isolation_step(a, b, model(4 * J), False, SLACK, WINDOW, TOUCH)]
+        invalid = parts[4][4 * J] < -SLACK
+        for i, k in enumerate(joints):
+            c, s_ = levels[0, i], levels[1, i]
+            models, away = [], invalid
+            for o in (k, 2 * J + k):  # the unit pair's cos q_j, then the scaled one's
+                cos_q, sin_q = model(o), model(o + J)
+                models.append(_combined(c, sin_q, -s_, cos_q))  # sin(q_j − L)
+                away = ca.logic_or(away, _combined(c, cos_q, s_, sin_q)[4] < -SLACK)  # cos(q_j − L) < 0
+            steps.append(isolation_step(a, b, models[0], away, SLACK, WINDOW, TOUCH, also=models[1:]))
+        x1, x2, fate = zip(*steps)
+        name = f"step_{s.kind}_{''.join(map(str, joints))}"
+        return ca.Function(name, [T, levels, a, b, sign], [ca.vertcat(*x1, *x2, *fate)])
 
     def native_sets(self) -> None:
         """No single C call for this family."""
@@ -150,60 +201,50 @@ class Q7Intervals:
         sets, sing = self._assemble(T, breaks, found, (lo, hi))
         return FeasibleIntervals(s.param_name, s.branch_array, sets, sing, proved=not left.size and s.polished is None)
 
-    def _columns(self, levels: list[np.ndarray]) -> tuple[np.ndarray, ...]:
-        """The columns, (F,) each: the branch, and weights of its compiled outputs (cos q_j of the joints, their
-        sin q_j, its validity): column k is ``w1[k]·out[i1[k]] + w2[k]·out[i2[k]]`` (sin q_j cos L − cos q_j sin L
-        for a joint j and a level L of ``levels``, or the validity out[i1]), joint (False: validity); where
-        cos(q_j − L) ``= w1[k]·out[i2[k]] − w2[k]·out[i1[k]]`` is negative its root is L + π, no level."""
-        B, J = self._solver.n_branches, len(self._joints)
-        br, i1, w1, i2, w2 = [np.arange(B)], [np.full(B, 2 * J)], [np.ones(B)], [np.zeros(B, int)], [np.zeros(B)]
-        for k, j in enumerate(self._joints):
-            L = levels[j]
-            br.append(np.repeat(np.arange(B), L.size))
-            i1.append(np.full(B * L.size, J + k))
-            w1.append(np.tile(np.cos(L), B))
-            i2.append(np.full(B * L.size, k))
-            w2.append(np.tile(-np.sin(L), B))
-        out = tuple(np.concatenate(x) for x in (br, i1, w1, i2, w2))
-        return (*out, np.arange(out[0].size) >= B)
+    def _columns(self, levels: list[np.ndarray]) -> tuple:
+        """The columns, branch by branch: their branches and slots (F,) each (slot 0: the branch's validity; slot
+        i > 0: sin(q_j − L) for the joint j of :attr:`_joints` index ``joints[i − 1]`` and a level L of
+        ``levels``); the levels' cosines and sines as the step reads them (column-major (2, C − 1)), ``joints`` and
+        the step (:meth:`_step_function`, C slots)."""
+        joints = tuple(k for k, j in enumerate(self._joints) for _ in levels[j])
+        L = np.concatenate([levels[j] for j in self._joints])
+        if joints not in self._steps:
+            self._steps[joints] = RowMap(self._step_function(joints), shared=[0, 1], threads=cores(), inline=True)
+        C, B = len(joints) + 1, self._solver.n_branches
+        trig = np.stack([np.cos(L), np.sin(L)], axis=1).ravel()
+        return np.repeat(np.arange(B), C), np.tile(np.arange(C), B), trig, joints, self._steps[joints]
 
     def _isolate(self, T: np.ndarray, cols: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray]:
         """The breakpoints of the columns ``cols`` (:meth:`_columns`) at the pose T: the centres of the windows of
         their roots (rad, wrapped), and the ends of the cells left when the budget ran out (empty: proved). The
         start cells where the elbow surely cannot reach (:meth:`_reach`: no branch is valid, so no column has a root
-        of interest) are left out."""
+        of interest) are left out, and so are the branches of a start cell whose wrist surely cannot reach
+        (:meth:`_arm_reach`)."""
         edges = np.linspace(-np.pi, np.pi, CELLS + 1)
         near = self._reach(T, edges[:-1], edges[1:])
-        n, F, B = int(near.sum()), cols[0].size, self._solver.n_branches
-        a, b, k = np.repeat(edges[:-1][near], F), np.repeat(edges[1:][near], F), np.tile(np.arange(F), n)
-        # the first round's rows: (cell, branch) in that order; column b of a cell is branch b's validity
-        rows = (np.arange(n)[:, None] * F + np.arange(B)).ravel(), np.repeat(np.arange(n) * B, F) + np.tile(cols[0], n)
-        found = []
+        br, slot, trig, _, step = cols
+        n, F, B = int(near.sum()), br.size, self._solver.n_branches
         Tf = np.asarray(T, float).reshape(-1, order="F")
-        ints, w, joint = self._packed(cols)
+        pairs = self._arm_reach(Tf, edges[:-1][near], edges[1:][near]).ravel()  # (cell, branch) in that order
+        cell, col = np.repeat(np.arange(n), F), np.tile(np.arange(F), n)
+        keep = pairs[cell * B + br[col]]
+        a, b, k = edges[:-1][near][cell[keep]], edges[1:][near][cell[keep]], col[keep]
+        # the first round's rows: the pairs kept, one column of each (its validity, the branch's first)
+        at = np.cumsum(keep) - 1  # a kept column's index
+        first = at[(np.arange(n)[:, None] * F + np.searchsorted(br, np.arange(B))).ravel()[pairs]]
+        rows = first, (np.cumsum(pairs) - 1)[cell[keep] * B + br[k]]
+        found = []
         for _ in range(self._rounds):
             if not a.size:
                 break
-            bounds = self._bounds(Tf, a, b, (ints[:, k], w[:, k], joint[k]), rows)
-            if bounds is None:
+            windows = self._round(step, (Tf, trig), a, b, br[k], slot[k], rows)
+            if windows is None:
                 break
             rows = None
-            kept, f0, f1, rest, outside = bounds
-            a, b, k = a[kept], b[kept], k[kept]
-            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-                t1, t2 = (-f0 - rest) / f1, (-f0 + rest) / f1
-            flat = ~(np.abs(f1) > 0) | ~np.isfinite(rest)  # no slope, or no model: the whole cell
-            t1, t2 = np.where(flat, -1.0, np.minimum(t1, t2)), np.where(flat, 1.0, np.maximum(t1, t2))
-            t1, t2 = np.maximum(t1, -1.0), np.minimum(t2, 1.0)
-            m, h = 0.5 * (a + b), 0.5 * (b - a)
-            x1, x2 = m + h * t1, m + h * t2
-            gone = (t1 > t2) | outside | (flat & (np.abs(f0) > rest))
-            done = ~gone & (x2 - x1 <= WINDOW)
-            touch = ~gone & ~done & (np.abs(f0) + np.abs(f1) + rest <= TOUCH)
+            x1, x2, fate = windows
+            done, touch = fate == DONE, fate == TOUCHED
             found += [0.5 * (x1 + x2)[done], a[touch], b[touch]]
-            live = ~gone & ~done & ~touch
-            narrow = live & (x2 - x1 <= h)  # at most half the cell: the window is the next cell
-            halve = live & ~narrow
+            narrow, halve = fate == NARROW, fate == HALVE
             mid = 0.5 * (x1 + x2)[halve]
             a = np.concatenate([x1[narrow], x1[halve], mid])
             b = np.concatenate([x2[narrow], mid, x2[halve]])
@@ -211,23 +252,21 @@ class Q7Intervals:
         found = wrap(np.concatenate(found)) if found else np.zeros(0)
         return found, wrap(np.concatenate([a, b]))
 
-    def _bounds(
+    def _round(
         self,
-        Tf: np.ndarray,
+        step: RowMap,
+        shared: tuple[np.ndarray, np.ndarray],
         a: np.ndarray,
         b: np.ndarray,
-        cols: tuple[np.ndarray, np.ndarray, np.ndarray],
+        br: np.ndarray,
+        slot: np.ndarray,
         rows: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> tuple[np.ndarray, ...] | None:
-        """Over the cells [a, b] (K,) of the columns ``cols`` (:meth:`_packed`, with K columns): the columns that may
-        have a root of interest (indices, (K',): not those of a joint of a branch surely invalid over the cell), and
-        for them the Taylor model ``f0 + f1·t ± rest`` (t ∈ [−1, 1]; rest with :data:`SLACK`) and where the column
-        surely has no root of interest (its bounds exclude 0, or cos(q_j − L) < 0); None above :data:`MAX_CELLS`
-        cells (of all the branches). ``Tf``: the pose, column-major (16,). One call of the model for the distinct
-        (branch, cell) pairs: ``rows`` (one column of each, (R,); each column's row, (K,)) when known, else found
-        by sorting."""
-        (br, i1, i2), w, joint = cols
-        P = 2 * len(self._joints) + 1  # outputs per branch, its validity last
+        """One round of the search over the cells [a, b] (K,) of the columns of branches ``br`` and slots ``slot``
+        (K,): each column's window (x1, x2, rad) and fate (K,) each, from ``step`` (:meth:`_columns`'); None above
+        :data:`MAX_CELLS` cells (of all the branches). ``shared``: the pose, column-major (16,), and the levels'
+        cosines and sines (:meth:`_columns`). One row for each distinct (branch, cell) pair: ``rows`` (one column of
+        each, (R,); each column's row, (K,)) when known, else found by sorting."""
         if rows is None:
             keys = np.stack([b, a, br])
             order = np.lexsort(keys)  # by branch, then a, then b
@@ -241,32 +280,22 @@ class Q7Intervals:
             first, row = rows
         if first.size > MAX_CELLS:
             return None
-        x, y = a[first, None], b[first, None]
-        out = self._model(Tf, 0.5 * (x + y), SIGNS[br[first]], 0.5 * (y - x), np.zeros_like(x), x, y)
-        kept = np.flatnonzero(~joint | ~(out[4][row, P - 1] < -SLACK))  # where the branch may be valid
-        row, i1, i2, w, joint = row[kept], i1[kept], i2[kept], w[:, kept], joint[kept]
-        end = first.size * P
-        vals = np.empty((5, end + 1))  # the flattened (rows, P) results, then 0: a validity's second output
-        for v, o in zip(vals, out):
-            v[:end] = o.ravel()
-        vals[:, end] = 0.0
-        g = np.take(vals, np.stack([row * P + i1, np.where(joint, row * P + i2, end)]), axis=1)  # (5, 2, K')
-        with np.errstate(invalid="ignore", over="ignore"):  # inf or nan (a free joint): the cell stays undecided
-            c0, c1, lo, hi = w * g[[0, 1, 3, 4]]
-            r = np.abs(w) * g[2]
-            low, high = np.minimum(lo, hi), np.maximum(lo, hi)
-            cos_hi = np.maximum(w[0] * g[3, 1], w[0] * g[4, 1]) + np.maximum(-w[1] * g[3, 0], -w[1] * g[4, 0])
-            f0, f1, rest = c0[0] + c0[1], c1[0] + c1[1], r[0] + r[1] + SLACK
-            low, high = low[0] + low[1], high[0] + high[1]
-        far = joint & (cos_hi < -SLACK)
-        return kept, f0, f1, rest, far | (low > SLACK) | (high < -SLACK)
+        (out,) = step(*shared, a[first, None], b[first, None], SIGNS[br[first]])
+        C, flat = out.shape[1] // 3, out.ravel()
+        at = row * (3 * C) + slot
+        return flat[at], flat[at + C], flat[at + 2 * C]
 
-    @staticmethod
-    def _packed(cols: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
-        """:meth:`_columns` as the search gathers them: the branches and the two outputs' indices (3, F), the weights
-        (2, F; a validity's second weight +0), joint (F,)."""
-        br, i1, w1, i2, w2, joint = cols
-        return np.stack([br, i1, i2]), np.stack([w1, np.where(joint, w2, 0.0)]), joint
+    def _arm_reach(self, Tf: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Over the cells [a, b] (K,) of q7 (rad), per branch (K, B), False where its elbow's
+        :meth:`~qpik.analytic.locked_joint.LockedJointSolver.arm_validity` is surely below 0 (the wrist cannot
+        reach; :attr:`_arm`'s model): so is the branch's validity, so none of its columns has a root of interest.
+        ``Tf``: the pose, column-major (16,)."""
+        if not a.size:
+            return np.zeros((0, self._solver.n_branches), bool)
+        x, y = np.repeat(a, 2)[:, None], np.repeat(b, 2)[:, None]
+        sign = np.tile([1.0, -1.0], a.size)[:, None]  # the elbows of bit 1 = 0, 1 of a branch id
+        hi = self._arm(Tf, 0.5 * (x + y), sign, 0.5 * (y - x), np.zeros_like(x), x, y)[4].reshape(-1, 2)
+        return ~(hi < -SLACK)[:, (np.arange(self._solver.n_branches) >> 1) & 1]  # a branch's elbow: its bit 1
 
     def _reach(self, T: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Over the cells [a, b] (K,) of q7 (rad, within [−π, π]), False where the elbow surely cannot reach: the
@@ -311,3 +340,14 @@ def _levels(lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
         levels = [lj, uj] + ([np.pi] if lj <= -np.pi or uj >= np.pi else [])
         out.append(wrap(np.array(levels)))
     return out
+
+
+def _combined(w1: ca.SX, m1: tuple[ca.SX, ...], w2: ca.SX, m2: tuple[ca.SX, ...]) -> tuple[ca.SX, ...]:
+    """The Taylor model (centre, slope, remainder, lo, hi) of ``w1·f1 + w2·f2`` from those of f1 and f2 (same t)."""
+    return (
+        w1 * m1[0] + w2 * m2[0],
+        w1 * m1[1] + w2 * m2[1],
+        ca.fabs(w1) * m1[2] + ca.fabs(w2) * m2[2],
+        ca.fmin(w1 * m1[3], w1 * m1[4]) + ca.fmin(w2 * m2[3], w2 * m2[4]),
+        ca.fmax(w1 * m1[3], w1 * m1[4]) + ca.fmax(w2 * m2[3], w2 * m2[4]),
+    )

@@ -58,10 +58,16 @@ def assert_roots_real(T: np.ndarray, margin: float) -> None:
     x = np.concatenate([found - 1e-9, found, found + 1e-9])
     R, p = sy.frame_of_batch(np.broadcast_to(T, (x.size, 4, 4)))
     pairs, valid = SOLVER.joint_trig(R, p, x, sy.NUMPY), SOLVER.validity(R, p, x, sy.NUMPY)
-    out = np.array([[*(row[j][0] for j in sets._joints), *(row[j][1] for j in sets._joints), v]
-                    for row, v in zip(pairs, valid)])  # fmt: skip
-    br, i1, w1, i2, w2, _ = cols
-    f = (w1[:, None] * out[br, i1] + w2[:, None] * out[br, i2]).reshape(br.size, 3, found.size)
+    br, slot, trig, joints, _ = cols
+    cos_l, sin_l = trig[0::2], trig[1::2]
+    f = []
+    for k, i in zip(br, slot):  # the validity (slot 0), or sin(q_j − L) of the slot's joint and level
+        if i == 0:
+            f.append(valid[k])
+        else:
+            c, s = pairs[k][sets._joints[joints[i - 1]]]
+            f.append(s * cos_l[i - 1] - c * sin_l[i - 1])
+    f = np.array(f).reshape(br.size, 3, found.size)
     crossing = (f[:, 0] * f[:, 2] <= 0.0) | (np.abs(f[:, 1]) <= 1e-9)
     assert crossing.any(axis=0).all(), found[~crossing.any(axis=0)]
 
@@ -94,7 +100,8 @@ def test_sets_at_special_configurations(joint, value):
 @pytest.mark.parametrize("key", ["erd_panda", "pybullet_panda"] if LARGE else ["erd_panda"])
 def test_the_columns_are_the_joints_cosines_and_sines_and_file_arms_sets_are_proved(key):
     """On the Panda files (their joints mapped to the table's): joint_trig is (cos q_j, sin q_j) of the IK's joints
-    wherever the branch is valid; in the large run, the sets of two poses are proved and agree with dense sampling
+    wherever the branch is valid, and its scaled pairs are those times their length (a positive multiple); in the
+    large run, the sets of two poses are proved and agree with dense sampling
     (each file arm compiles its own Taylor models)."""
     robot = model_robot(key)
     solver = closed_form_for(robot)
@@ -102,6 +109,7 @@ def test_the_columns_are_the_joints_cosines_and_sines_and_file_arms_sets_are_pro
     T = robot.fk(q)
     R, p = sy.frame_of_batch(T)
     pairs = solver.joint_trig(R, p, q[:, 6], sy.NUMPY)
+    scaled = solver.joint_trig(R, p, q[:, 6], sy.NUMPY, scaled=True)
     sol = solver.solve_batch(T, q[:, 6])
     for k in range(8):
         ok = sol.valid[:, k]
@@ -109,6 +117,11 @@ def test_the_columns_are_the_joints_cosines_and_sines_and_file_arms_sets_are_pro
             c, s = (np.broadcast_to(x, ok.shape)[ok] for x in pairs[k][j])
             np.testing.assert_allclose(c, np.cos(sol.q[ok, k, j]), atol=1e-9)
             np.testing.assert_allclose(s, np.sin(sol.q[ok, k, j]), atol=1e-9)
+            x, y = (np.broadcast_to(v, ok.shape)[ok] for v in scaled[k][j])
+            rho = np.hypot(x, y)
+            assert np.all(rho > 1e-9), (k, j)  # random configurations: no joint free
+            np.testing.assert_allclose(x, rho * np.cos(sol.q[ok, k, j]), atol=1e-9)
+            np.testing.assert_allclose(y, rho * np.sin(sol.q[ok, k, j]), atol=1e-9)
     for pose in T[: 2 if LARGE else 0]:
         fi = qpik.feasible_intervals(robot, pose)
         assert fi.proved
@@ -134,7 +147,8 @@ def test_joint_trig_follows_a_joint_map():
 def test_a_search_without_budget_is_not_proved_and_nothing_claims_a_proof(monkeypatch):
     """Three rounds cannot isolate the roots from the first cells: the answer says it is not proved; solve_best then
     certifies nothing. With no round at all, a pose beyond the elbow's reach is proved unreachable (no start cell is
-    left), and without that filter it is not proved, and solve_full does not call it "unreachable"."""
+    left), and without the start filters (_reach, _arm_reach) it is not proved, and solve_full does not call it
+    "unreachable"."""
     weak = copy.copy(SOLVER._sets)  # the compiled model shared, the budget and the kept answer its own
     weak._rounds, weak._last = 3, None
     T = PANDA.fk(random_q(PANDA, 1, 11))[0]
@@ -149,6 +163,7 @@ def test_a_search_without_budget_is_not_proved_and_nothing_claims_a_proof(monkey
     monkeypatch.setattr(weak, "_rounds", 0)
     assert weak(far).proved and not any(weak(far)[k] for k in range(8))  # every start cell beyond the elbow's reach
     monkeypatch.setattr(weak, "_reach", lambda T, a, b: np.ones(a.size, bool))
+    monkeypatch.setattr(weak, "_arm_reach", lambda Tf, a, b: np.ones((a.size, 8), bool))
     weak._last = None
     assert not weak(far).proved
     res = solve_full(PANDA, far, options=FullOptions(max_starts=2))
@@ -157,9 +172,10 @@ def test_a_search_without_budget_is_not_proved_and_nothing_claims_a_proof(monkey
 
 def test_the_reach_filter_leaves_out_only_cells_where_no_branch_is_valid():
     """The start cells the search leaves out (Q7Intervals._reach, exact for the elbow) hold no q7 where a branch is
-    valid, by dense sampling of the numpy validity, at random poses and at poses near the edge of the workspace (the
+    valid, and neither do the branches it leaves out of a start cell (_arm_reach, where an elbow's wrist cannot
+    reach), by dense sampling of the numpy validity, at random poses and at poses near the edge of the workspace (the
     elbow stretched, the position scaled by 0.999 or 1.001: the elbow reaches over few cells); and the search with
-    and without the filter finds the same breakpoints."""
+    and without the filters finds the same breakpoints."""
     sets = SOLVER._sets
     q = random_q(PANDA, 40 if LARGE else 12, 21)
     q[::2, 3] = PANDA.q_max[3]
@@ -171,13 +187,19 @@ def test_the_reach_filter_leaves_out_only_cells_where_no_branch_is_valid():
     cols = sets._columns(_levels(PANDA.q_min, PANDA.q_max))
     everywhere = copy.copy(sets)
     everywhere._reach = lambda T, a, b: np.ones(a.size, bool)
-    left_out = 0
+    everywhere._arm_reach = lambda Tf, a, b: np.ones((a.size, 8), bool)
+    left_out = arm_out = 0
     for pose in T:
         near = sets._reach(pose, edges[:-1], edges[1:])
         R, p = sy.frame_of_batch(np.broadcast_to(pose, (x[~near].size, 4, 4)))
         assert not (np.array(SOLVER.validity(R, p, x[~near].ravel(), sy.NUMPY)) >= 0.0).any()
         left_out += (~near).sum()
+        arm = sets._arm_reach(pose.reshape(-1, order="F"), edges[:-1], edges[1:])  # (cells, branches)
+        R, p = sy.frame_of_batch(np.broadcast_to(pose, (x.size, 4, 4)))
+        valid = np.array(SOLVER.validity(R, p, x.ravel(), sy.NUMPY)).reshape(8, *x.shape)
+        assert not (valid[~arm.T] >= 0.0).any()
+        arm_out += (~arm & near[:, None]).sum()
         found, left = sets._isolate(pose, cols)
         found_all, left_all = everywhere._isolate(pose, cols)
         assert np.array_equal(np.sort(found), np.sort(found_all)) and np.array_equal(left, left_all)
-    assert left_out > 0
+    assert left_out > 0 and arm_out > 0
