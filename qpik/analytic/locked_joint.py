@@ -18,7 +18,8 @@ in the wrist point W), in the product-of-exponentials form and the subproblems o
 **Wrist q5, q6 (subproblem 2).** :math:`e_5 e_6 (G^{-1} S) = e_4^{-1} S`, about W:
 :math:`R(h_5, q_5) R(h_6, q_6)\,x = y`, :math:`x = R_G^T (S - G W)`, :math:`y = R(h_4, -q_4)\,s - (W - o_4)`.
 The common vector :math:`v = R(h_6, q_6) x = R(h_5, -q_5) y` is :math:`v = \alpha h_6 + \beta h_5 + \gamma\,(h_6
-\times h_5)` (:func:`subproblem2`), two signs of γ; q6 and q5 then follow by subproblem 1 (:func:`subproblem1`).
+\times h_5)` (:func:`~qpik.analytic.subproblems.subproblem2`), two signs of γ; q6 and q5 then follow by subproblem 1
+(:func:`~qpik.analytic.subproblems.subproblem1`).
 
 **Shoulder q1, q2, q3 (subproblems 2 and 1).** :math:`R(h_1,q_1) R(h_2,q_2) R(h_3,q_3) = R_H :=
 R_G R(h_6,-q_6) R(h_5,-q_5) R(h_4,-q_4)`: subproblem 2 on :math:`R(h_2,q_2) h_3 = R(h_1,-q_1) R_H h_3`
@@ -38,8 +39,8 @@ R_G R(h_6,-q_6) R(h_5,-q_5) R(h_4,-q_4)`: subproblem 2 on :math:`R(h_2,q_2) h_3 
 On the Panda (the catalog's table and the Panda files of example-robot-data and pybullet, whose axes point the
 same way): φ = 2.6746 rad, so *elbow* = 1 iff q4 > φ − π = −0.4670 rad (the elbow bent less than where the
 shoulder-wrist distance is largest; Franka's q4 range is [−3.0718, −0.0698]); *shoulder* = 1 iff q2 < 0;
-*wrist* = 1 iff :math:`\cos q_5 > 0` (|q5| < π/2) for every q4 in (−π, 0), Franka's range (there S lies on one
-side of the forearm axis; the side changes at q4 = 0 and 2.6308 rad).
+*wrist* = 1 iff :math:`\cos q_5 > 0` (:math:`|q_5| < \pi/2`) for every q4 in (−π, 0), Franka's range (there S lies on
+one side of the forearm axis; the side changes at q4 = 0 and 2.6308 rad).
 
 The parameter is q7 itself: :meth:`LockedJointSolver.table_parameter_expr` returns it with the bits above.
 
@@ -90,7 +91,18 @@ from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
 from qpik.analytic.polish import RESIDUAL_TOL, polish
 from qpik.analytic.set_ends import refine_ends
 from qpik.analytic.solver import AnalyticSolver, Branches
-from qpik.analytic.trig import EPS, angle
+from qpik.analytic.subproblems import (
+    BOTH,
+    BRANCH_TOL,
+    Signs,
+    constant,
+    plane_vector,
+    rotate,
+    rotation,
+    subproblem2,
+    unit,
+)
+from qpik.analytic.trig import EPS
 from qpik.core.errors import NoClosedFormError
 from qpik.robots.locked_joint import ChainGap, find_locked_joint, reversed_chain
 from qpik.robots.recognize import Canonical
@@ -123,90 +135,12 @@ def correction_rounds(deviation: float) -> int:
     return int(min(MAX_ROUNDS, max(1, math.ceil(math.log(RESIDUAL_TOL / deviation) / math.log(kappa)))))
 
 
-BRANCH_TOL = 1e-13
-"""Relative squared distance between two roots (of one subproblem) below which they are one: ``singular``."""
-Signs = tuple[Scalar, ...]
-"""Signs (±1) of the roots of a subproblem to take, in order; a symbol stands for a sign given at run time."""
-BOTH: Signs = (1.0, -1.0)
-"""Both roots of a subproblem: a branch bit 0, then 1."""
 BranchSigns = tuple[Signs, Signs, Signs]
-"""The signs of the shoulder's, the elbow's and the wrist's roots (:data:`Signs`): the branches
-``(4·shoulder + 2·elbow + wrist)`` of every combination, numbered in that order; one sign each is one branch."""
+"""The signs of the shoulder's, the elbow's and the wrist's roots (:data:`~qpik.analytic.subproblems.Signs`): the
+branches ``(4·shoulder + 2·elbow + wrist)`` of every combination, numbered in that order; one sign each is one
+branch."""
 ALL: BranchSigns = (BOTH, BOTH, BOTH)
 """The 8 branches, ids 0-7."""
-
-
-def _v(x: np.ndarray) -> Vec:
-    return tuple(sy.snap(float(c)) for c in x)  # type: ignore[return-value]
-
-
-def rotate(k: Vec, c: Scalar, s: Scalar, v: Vec) -> Vec:
-    r""":math:`R(k, \theta)\,v = v\cos\theta + (k\times v)\sin\theta + k\,(k\cdot v)(1-\cos\theta)` (k unit)."""
-    kv = sy.mul(sy.dot(k, v), sy.sub(1.0, c))
-    kxv = sy.cross(k, v)
-    return tuple(sy.lin((v[i], c), (kxv[i], s), (k[i], kv)) for i in range(3))  # type: ignore[return-value]
-
-
-def rotation(k: Vec, c: Scalar, s: Scalar) -> Mat:
-    """The matrix :math:`R(k, \\theta)` (columns: the unit vectors turned)."""
-    cols = [rotate(k, c, s, e) for e in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))]
-    return sy.transpose(tuple(cols))  # type: ignore[arg-type]
-
-
-def subproblem1(k: Vec, p: Vec, q: Vec, ops: Ops) -> tuple[Scalar, Scalar, Scalar]:
-    r"""θ in (−π, π] with :math:`R(k, \theta) p = q` (best fit), and cos θ, sin θ: θ = atan2(y, x),
-    :math:`y = k\cdot(p_\perp\times q_\perp)`, :math:`x = p_\perp\cdot q_\perp` (Elias & Wen 2022, subproblem 1),
-    :math:`p_\perp = p - (k\cdot p)k`: the projections are formed first, so that a p or q close to k (a near-singular
-    joint) keeps its relative precision. cos θ, sin θ = (x, y)/|(x, y)| (a square root instead of two trigonometric
-    calls); θ = 0, cos θ = 1 when p or q lies on k."""
-    return unit(*plane_vector(k, p, q), ops)
-
-
-def plane_vector(k: Vec, p: Vec, q: Vec) -> tuple[Scalar, Scalar]:
-    r""":func:`subproblem1`'s :math:`(x, y) = \rho\,(\cos\theta, \sin\theta)`, :math:`\rho = |p_\perp|\,|q_\perp|`
-    (the units of p times those of q; 0 where p or q lies on k)."""
-    pp = sy.vsub(p, sy.vscale(sy.dot(k, p), k))
-    qq = sy.vsub(q, sy.vscale(sy.dot(k, q), k))
-    return sy.dot(pp, qq), sy.dot(k, sy.cross(pp, qq))
-
-
-def unit(x: Scalar, y: Scalar, ops: Ops) -> tuple[Scalar, Scalar, Scalar]:
-    """θ = atan2(y, x) in (−π, π] and cos θ, sin θ = (x, y)/|(x, y)| (:func:`subproblem1`); θ = 0, cos θ = 1 at
-    (0, 0)."""
-    rho = ops.sqrt(x * x + y * y)
-    some = rho > 1e-300
-    inv = 1.0 / ops.fmax(rho, 1e-300)
-    return angle(y, x, ops), ops.where(some, x * inv, 1.0), y * inv
-
-
-def subproblem2(ka: Vec, pa: Vec, kb: Vec, pb: Vec, ops: Ops, signs: Signs = BOTH) -> tuple[list[Vec], Scalar, Scalar]:
-    r"""The two vectors :math:`v_\pm = R(k_a, \theta_a) p_a = R(k_b, \theta_b) p_b` (Elias & Wen 2022, subproblem 2;
-    :math:`k_a, k_b` constant unit vectors, not parallel; :math:`|p_a| = |p_b|`).
-
-    :math:`v = \alpha k_a + \beta k_b \pm \gamma\,n`, :math:`n = k_a \times k_b`, from
-    :math:`k_a\cdot v = k_a\cdot p_a`, :math:`k_b\cdot v = k_b\cdot p_b` and :math:`|v| = |p_a|`, in the form
-    :math:`\gamma^2 (1 - c^2) = |p_b \times k_b|^2 - \alpha^2 (1 - c^2)`, :math:`c = k_a\cdot k_b` (the part of v off
-    :math:`k_b` is that of :math:`p_b`): where :math:`p_b` nears :math:`k_b` (the shoulder singularity, axes 1 and 3
-    aligned) and :math:`\alpha` is fixed (the Panda's :math:`\alpha = h_2\cdot h_3 = 0`) no difference of near
-    equal numbers is formed, so q2 there keeps its absolute precision instead of the square root of it.
-    Returns ``(v, measure, close)``: ``v`` the vectors :math:`\alpha k_a + \beta k_b + \sigma\gamma\,n` for the
-    signs σ of ``signs`` (:data:`BOTH`: :math:`v_+, v_-`); ``measure`` :math:`= \gamma^2 (1 - c^2)/|p_a|^2`,
-    continuous in the inputs, solvable where it is :math:`\ge -` EPS; ``close`` where :math:`\gamma^2 <` BRANCH_TOL
-    :math:`|p_a|^2`.
-    """
-    c = float(np.dot(ka, kb))
-    s2 = 1.0 - c * c
-    n = sy.cross(ka, kb)
-    A, B = sy.dot(ka, pa), sy.dot(kb, pb)
-    al, be = (A - c * B) / s2, (B - c * A) / s2
-    norm2 = sy.dot(pa, pa)
-    pxk = sy.cross(pb, kb)
-    g2s = sy.dot(pxk, pxk) - s2 * al * al  # γ² s2 = |v × k_b|² − α² s2, and |v × k_b| = |p_b × k_b|
-    g = ops.safe_sqrt(g2s / s2)
-    base = sy.vadd(sy.vscale(al, ka), sy.vscale(be, kb))
-    measure = g2s / ops.fmax(norm2, 1e-300)
-    close = measure < BRANCH_TOL * s2
-    return [sy.vadd(base, sy.vscale(sign * g, n)) for sign in signs], measure, close
 
 
 class LockedJointSolver(AnalyticSolver):
@@ -235,15 +169,15 @@ class LockedJointSolver(AnalyticSolver):
         self.gap = None if self.polished is None else ChainGap.between(self.polished, self.table)
         """A near member's :class:`~qpik.robots.locked_joint.ChainGap` of its chain over :attr:`table`."""
         h, o, S, W = g.h, g.o, g.shoulder, g.wrist
-        self.h = [_v(x) for x in h]
+        self.h = [constant(x) for x in h]
         Rm, pm = g.home[:3, :3], g.home[:3, 3]
-        self.k7 = _v(Rm.T @ h[6])  # axis 7 in the home flange frame
-        self.c7 = _v(Rm.T @ (o[6] - pm))
-        self.w7 = _v(Rm.T @ (W - o[6]))
-        self.Rm_t = tuple(_v(r) for r in Rm.T)  # M's rotation, transposed
-        self.S = _v(S)
+        self.k7 = constant(Rm.T @ h[6])  # axis 7 in the home flange frame
+        self.c7 = constant(Rm.T @ (o[6] - pm))
+        self.w7 = constant(Rm.T @ (W - o[6]))
+        self.Rm_t = tuple(constant(r) for r in Rm.T)  # M's rotation, transposed
+        self.S = constant(S)
         w, s = W - o[3], S - o[3]
-        self.s4, self.w4 = _v(s), _v(w)
+        self.s4, self.w4 = constant(s), constant(w)
         hw, hs = float(h[3] @ w), float(h[3] @ s)
         self.a4 = float(s @ w - hs * hw)
         self.b4 = float(s @ np.cross(h[3], w))
@@ -252,7 +186,7 @@ class LockedJointSolver(AnalyticSolver):
         self.phi = float(np.arctan2(self.b4, self.a4))
         """φ (rad): the elbow roots are φ ± atan2(√(r²−c²), c)."""
         a = np.cross(h[1], h[2])
-        self.a3 = _v(a / np.linalg.norm(a))  # a unit vector ⊥ h3 for q3's subproblem 1
+        self.a3 = constant(a / np.linalg.norm(a))  # a unit vector ⊥ h3 for q3's subproblem 1
 
     def table_branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
         """All 8 branches at q7 = ``param`` (rad) for the pose ``(R, p)`` (base frame); for a near member
@@ -275,9 +209,10 @@ class LockedJointSolver(AnalyticSolver):
 
     def feasible_intervals(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
         """The sets of :meth:`~qpik.analytic.solver.BranchSolver.feasible_intervals`; a near member's (:attr:`polished`)
-        with their ends moved onto its own chain (:func:`qpik.analytic.set_ends.refine_ends`)."""
+        with their ends moved onto its own chain (:func:`qpik.analytic.set_ends.refine_ends`, about D/:data:`SCALE`
+        rad away: the joints' change by the correction, over joint rates of order 1)."""
         fi = super().feasible_intervals(T, margin)
-        return fi if self.polished is None else refine_ends(fi, self, T, margin)
+        return fi if self.polished is None else refine_ends(fi, self, T, margin, self.gap.bound / SCALE)
 
     @property
     def sets_proved(self) -> bool:
@@ -288,8 +223,9 @@ class LockedJointSolver(AnalyticSolver):
     def validity(self, R: Mat, p: Vec, param: Scalar, ops: Ops, signs: BranchSigns = ALL) -> list[Scalar]:
         r"""Per branch, a continuous function of the pose and q7 whose sign is the branch's ``valid`` flag:
         :math:`\min(\text{elbow}, \text{wrist}, \text{shoulder}) + ` EPS, each subproblem's discriminant relative to
-        its scale (:func:`subproblem2`; the elbow's :math:`(r^2 - c^2)/r^2`), clamped nowhere. For the feasible
-        sets (:mod:`qpik.analytic.locked_joint_intervals`), whose validity changes are its roots. ``signs``: the
+        its scale (:func:`~qpik.analytic.subproblems.subproblem2`; the elbow's :math:`(r^2 - c^2)/r^2`), clamped
+        nowhere. For the feasible sets (:mod:`qpik.analytic.locked_joint_intervals`), whose validity changes are its
+        roots. ``signs``: the
         branches (:data:`ALL`: 0-7)."""
         return [m + EPS for m in self._solve(R, p, param, ops, signs)[1]]
 
@@ -302,16 +238,18 @@ class LockedJointSolver(AnalyticSolver):
         self, R: Mat, p: Vec, param: Scalar, ops: Ops, signs: BranchSigns = ALL, scaled: bool = False
     ) -> list[list[tuple[Scalar, Scalar]]]:
         r"""Per branch, :math:`(\cos q_j, \sin q_j)` of the robot's joints 1-6 at q7 = ``param`` (rad) for the pose
-        ``(R, p)`` (base frame): the unit vectors the subproblems return (:func:`subproblem1`), not functions of the
-        angles, so continuous wherever the joint is not free (no cut at ±π); through the joint map
-        :math:`q = s\,(q^{DH} - c)` (:class:`~qpik.analytic.solver.AnalyticSolver`): :math:`\cos q = \cos(q^{DH} - c)`,
+        ``(R, p)`` (base frame): the unit vectors the subproblems return
+        (:func:`~qpik.analytic.subproblems.subproblem1`), not functions of the angles, so continuous wherever the joint
+        is not free (no cut at ±π); through the joint map :math:`q = s\,(q^{DH} - c)`
+        (:class:`~qpik.analytic.solver.AnalyticSolver`): :math:`\cos q = \cos(q^{DH} - c)`,
         :math:`\sin q = s \sin(q^{DH} - c)`. A representative :math:`q + 2\pi k` has the same pair. ``signs``: the
         branches (:data:`ALL`: 0-7). ``scaled``: the pairs :math:`\rho_j (\cos q_j, \sin q_j)` instead, the vectors
-        of :func:`plane_vector` before their division by :math:`\rho_j \ge 0` (m² for q5, q6, 1 for q4, unitless for
-        q1-q3; 0 where the joint is free), of the same signs and roots of :math:`\sin(q_j - L)`, and smoother; q3's
-        from the other end of the shoulder, :math:`R(h_3, q_3)\,R_H^T h_1 = R(h_2, -q_2)\,h_1` (subproblem 2, its γ
-        of the opposite sign: :math:`(h_2\times h_3)\cdot R(h_2,-q_2) h_1 = -(h_2\times h_1)\cdot R(h_2,q_2) h_3`),
-        which needs neither q1 nor q2."""
+        of :func:`~qpik.analytic.subproblems.plane_vector` before their division by :math:`\rho_j \ge 0` (m² for q5,
+        q6, 1 for q4, unitless for q1-q3; 0 where the joint is free), of the same signs and roots of
+        :math:`\sin(q_j - L)`, and smoother; q3's from the other end of the shoulder,
+        :math:`R(h_3, q_3)\,R_H^T h_1 = R(h_2, -q_2)\,h_1` (subproblem 2, its γ of the opposite sign:
+        :math:`(h_2\times h_3)\cdot R(h_2,-q_2) h_1 = -(h_2\times h_1)\cdot R(h_2,q_2) h_3`), which needs neither q1
+        nor q2."""
         out = self._solve(R, p, param, ops, signs, scaled)[3 if scaled else 2]
         if self.joint_map is None:
             return out

@@ -69,8 +69,8 @@ import numpy as np
 from qpik.algebra import symbolic as sy
 from qpik.algebra.enclosure import DONE, HALVE, NARROW, TOUCHED, isolation_step, taylor_function
 from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
-from qpik.analytic.locked_joint import _v, rotate, rotation, subproblem1, subproblem2
 from qpik.analytic.polish import RESIDUAL_TOL, polish
+from qpik.analytic.subproblems import constant, rotate, rotation, subproblem1, subproblem2
 from qpik.analytic.trig import EPS
 from qpik.core.errors import NoClosedFormError
 from qpik.core.validate import number, single_pose
@@ -167,14 +167,14 @@ class LockedSearch:
         """The arm's chain in the search's order (reversed where :attr:`reversed`): the polish's."""
         g = geometry
         h, o, S, W = g.h, g.o, g.shoulder, g.wrist
-        self.h = [_v(x) for x in h]
-        self.o3, self.S = _v(o[2]), _v(S)
-        self.o4, self.w4 = _v(o[3]), _v(W - o[3])
+        self.h = [constant(x) for x in h]
+        self.o3, self.S = constant(o[2]), constant(S)
+        self.o4, self.w4 = constant(o[3]), constant(W - o[3])
         Rm, pm = g.home[:3, :3], g.home[:3, 3]
-        self.k7, self.c7, self.w7 = _v(Rm.T @ h[6]), _v(Rm.T @ (o[6] - pm)), _v(Rm.T @ (W - o[6]))
-        self.Rm_t = tuple(_v(r) for r in Rm.T)
+        self.k7, self.c7, self.w7 = constant(Rm.T @ h[6]), constant(Rm.T @ (o[6] - pm)), constant(Rm.T @ (W - o[6]))
+        self.Rm_t = tuple(constant(r) for r in Rm.T)
         a = np.cross(h[4], h[5])
-        self.a6 = _v(a / np.linalg.norm(a))  # a unit vector ⊥ h6 for q6's subproblem 1
+        self.a6 = constant(a / np.linalg.norm(a))  # a unit vector ⊥ h6 for q6's subproblem 1
         self.h56 = float(h[4] @ h[5])
         T, q7, x, sign = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("x"), ca.SX.sym("sign", 2)
         R, p = sy.frame_of_batch(T)

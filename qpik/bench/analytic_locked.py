@@ -46,7 +46,7 @@ import numpy as np
 
 from qpik.analytic.api import ik
 from qpik.analytic.intervals import wrap
-from qpik.analytic.locked_joint import rotation
+from qpik.analytic.subproblems import rotation
 from qpik.bench import Row, cycle, import_peer, time_interleaved
 from qpik.core.errors import QpikError
 from qpik.robots.loader import load_robot
