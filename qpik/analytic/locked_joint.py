@@ -167,6 +167,8 @@ class LockedJointSolver(AnalyticSolver):
         """The chain the branches are polished on (:mod:`qpik.analytic.polish`): the robot's own, where
         :attr:`table` is its nearest ideal chain (a near member, :func:`qpik.robots.locked_joint.ideal_chain`)."""
         self.gap = None if self.polished is None else ChainGap.between(self.polished, self.table)
+        self._refined: tuple[FeasibleIntervals, FeasibleIntervals] | None = None
+        """A near member's last sets (:meth:`feasible_intervals`): as given, and with their ends moved."""
         """A near member's :class:`~qpik.robots.locked_joint.ChainGap` of its chain over :attr:`table`."""
         h, o, S, W = g.h, g.o, g.shoulder, g.wrist
         self.h = [constant(x) for x in h]
@@ -212,7 +214,11 @@ class LockedJointSolver(AnalyticSolver):
         with their ends moved onto its own chain (:func:`qpik.analytic.set_ends.refine_ends`, about D/:data:`SCALE`
         rad away: the joints' change by the correction, over joint rates of order 1)."""
         fi = super().feasible_intervals(T, margin)
-        return fi if self.polished is None else refine_ends(fi, self, T, margin, self.gap.bound / SCALE)
+        if self.polished is None:
+            return fi
+        if self._refined is None or self._refined[0] is not fi:  # the sets keep their last answer: so does this
+            self._refined = (fi, refine_ends(fi, self, T, margin, self.gap.bound / SCALE))
+        return self._refined[1]
 
     @property
     def sets_proved(self) -> bool:
