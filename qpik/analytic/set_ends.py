@@ -75,13 +75,14 @@ def refine_ends(
     new = [list(x) for x in fi.intervals]
     if ends:
         k = np.array([e[0] for e in ends])
-        end, a, c = (np.array([e[j] for e in ends]) for j in (3, 4, 5))
+        at, far_a, far_c = (np.array([e[j] for e in ends]) for j in (3, 4, 5))
+        a, c = at + np.clip(far_a - at, -reach, reach), at + np.clip(far_c - at, -reach, reach)
         (in_a, fa), (in_c, fc) = state(a, k), state(c, k)
         ok = ~in_a & in_c
-        near_a, near_c = end + np.clip(a - end, -reach, reach), end + np.clip(c - end, -reach, reach)
-        (in_na, fna), (in_nc, fnc) = state(near_a, k), state(near_c, k)
-        close = ok & ~in_na & in_nc  # the bracket within ``reach`` of the end holds: start from it
-        a[close], fa[close], c[close], fc[close] = near_a[close], fna[close], near_c[close], fnc[close]
+        if (wide := np.flatnonzero(~ok)).size:  # the bracket within ``reach`` does not hold: the middles'
+            a[wide], c[wide] = far_a[wide], far_c[wide]
+            (in_a, fa[wide]), (in_c, fc[wide]) = state(a[wide], k[wide]), state(c[wide], k[wide])
+            ok[wide] = ~in_a & in_c
         last = np.zeros(len(ends), int)  # +1: c moved last, -1: a moved last (Illinois halves the other's value)
         for step in range(STEPS):
             live = np.flatnonzero(ok & (np.abs(c - a) > WIDTH))
@@ -105,7 +106,7 @@ def refine_ends(
         for (b, i, side, *_), good, x, y in zip(ends, ok, a, c):
             if good:
                 lo, hi = new[b][i]
-                end = 0.5 * (x + y)
-                new[b][i] = (end, hi) if side == 0 else (lo, end)
+                moved = 0.5 * (x + y)
+                new[b][i] = (moved, hi) if side == 0 else (lo, moved)
     intervals: list[list[Interval]] = [[(float(lo), float(hi)) for lo, hi in x] for x in new]
     return FeasibleIntervals(fi.param_name, fi.branch, intervals, fi.singular, proved=False)
