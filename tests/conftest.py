@@ -172,6 +172,7 @@ MODELS: dict[str, Callable[[], tuple[Path, dict]]] = {
     "pybullet_panda": lambda: (packaged("pybullet/panda"), {}),
     "erd_panda": lambda: (packaged("erd/panda"), {}),
     "erd_xarm7": lambda: (packaged("erd/xarm7"), {}),
+    "erd_talos": lambda: (packaged("erd/talos"), {"base": "torso_2_link", "tip": "arm_left_7_link"}),
     "erd_baxter": lambda: (packaged("erd/baxter"), {"base": "right_arm_mount", "tip": "right_wrist"}),
     "robosuite_iiwa": lambda: robosuite("iiwa"),
     "robosuite_gen3": lambda: robosuite("gen3"),

@@ -104,7 +104,7 @@ def test_the_q1_override():
 
 @PROPERTY
 @given(seed=SEEDS)
-@pytest.mark.parametrize("key", ["gen3_spherical", "robosuite_jaco"])
+@pytest.mark.parametrize("key", ["gen3_spherical", "robosuite_jaco", "erd_talos"])
 def test_ik_of_an_exact_member_holds_q_and_every_branch_reaches_the_pose(key, seed):
     """The exact members: ``ik(fk(q), q1)`` holds q as branch ``redundancy_parameter(q)`` to 1e-9 rad (or 1e-14/σ_min
     where the 6-R chain of joints 2-7 is that close to singular), within limits; every valid branch reaches the pose
@@ -178,7 +178,7 @@ def dense_mismatch(robot: qpik.Robot, T: np.ndarray, fi, margin: float, near_end
 
 
 @pytest.mark.parametrize("margin", [0.0, 0.3])
-@pytest.mark.parametrize("key", ["gen3_spherical", "robosuite_jaco", "robosuite_gen3"])
+@pytest.mark.parametrize("key", ["gen3_spherical", "robosuite_jaco", "erd_talos", "robosuite_gen3"])
 def test_the_feasible_q1_sets_match_dense_sampling(key, margin):
     """The sets of the exact member are proved and exact to 1e-9 rad at their ends; the file's (a near member) are
     not proved, exact away from NEAR_END of their ends (their ends moved onto the file's chain) but where the polished
