@@ -173,6 +173,7 @@ MODELS: dict[str, Callable[[], tuple[Path, dict]]] = {
     "erd_panda": lambda: (packaged("erd/panda"), {}),
     "erd_xarm7": lambda: (packaged("erd/xarm7"), {}),
     "erd_talos": lambda: (packaged("erd/talos"), {"base": "torso_2_link", "tip": "arm_left_7_link"}),
+    "erd_tiago_pro": lambda: (packaged("erd/tiago_pro"), {"base": "torso_lift_link", "tip": "arm_left_tool_link"}),
     "erd_baxter": lambda: (packaged("erd/baxter"), {"base": "right_arm_mount", "tip": "right_wrist"}),
     "robosuite_iiwa": lambda: robosuite("iiwa"),
     "robosuite_gen3": lambda: robosuite("gen3"),
