@@ -79,7 +79,7 @@ from qpik.native.compiled import RowMap
 from qpik.robots.chain import SerialChain
 from qpik.robots.locked_joint import find_locked_joint, ideal_chain, reversed_chain
 
-CELLS = 64
+CELLS = 192
 """Cells of x = q4 over the circle at the start of the search."""
 WINDOW = 1e-10
 """Width (rad) of a window of roots that is a candidate."""
