@@ -89,7 +89,7 @@ TOUCH = 4 * SLACK
 r"""An error function within this of 0 over a whole cell makes the cell's ends candidates: its model
 :math:`|f_0| + |f_1| + r` then lies within the round-off :data:`SLACK` of each of its terms and of the window's test,
 so that no round can tell the cell from a root (a double root, where the window stays the whole cell however it is
-halved; above :data:`SLACK`, so that such a cell is touched before it is cut to nothing)."""
+cut; above :data:`SLACK`, so that such a cell is touched before it is cut to nothing)."""
 NEAR_WINDOW = 1e-3
 """Width (rad) of a window of roots that is a candidate on a near member's ideal chain: its roots are not the file's,
 and each candidate is polished on the file's chain from the root of the window's linear model."""
