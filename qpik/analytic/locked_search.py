@@ -12,7 +12,8 @@ variable :math:`x = q_4`:
   (two roots, sign :math:`\sigma_3`; :math:`a\cos q_3 + b\sin q_3 = c`, :math:`\cos q_3 = (ac - \sigma_3 b\sqrt{r^2 -
   c^2})/r^2`, :math:`\sin q_3 = (bc + \sigma_3 a\sqrt{r^2-c^2})/r^2`, no angle formed);
 - :math:`R(h_1, q_1) R(h_2, q_2)\,u = v`, :math:`u = e_3 P - S`, :math:`v = G W - S`: q1, q2 by subproblem 2
-  (sign :math:`\sigma_{12}`) and subproblem 1;
+  (sign :math:`\sigma_{12}`) and subproblem 1 (:func:`turn_between`: no square root, whose Taylor model widens fast
+  where its argument nears 0);
 - what is left, :math:`R(h_5, q_5) R(h_6, q_6) = R_4^T R_G` (:math:`R_4 = R(h_1,q_1)\cdots R(h_4, x)`), exists iff
   axis 6 turned by it keeps its angle to axis 5: the **error function**
 
@@ -23,25 +24,25 @@ variable :math:`x = q_4`:
   of :math:`e_b` where :math:`v_b \ge 0` is an IK solution; q5 and q6 then follow by subproblem 1.
 
 **Every root.** :math:`e_b` and :math:`v_b` are written once against :mod:`qpik.algebra.symbolic`; their first-order
-Taylor models over cells of x (:func:`qpik.algebra.enclosure.taylor_function`, compiled and mapped over rows of
-cells and branches, :class:`~qpik.native.compiled.RowMap`) isolate the roots as
-:mod:`qpik.analytic.locked_joint_intervals` does (Moore 1966; Makino & Berz 2003): from :data:`CELLS` cells over the
-circle, less those where the Taylor model of q3's relative discriminant (:meth:`LockedSearch.reach`, a bound of every
-branch's validity) is below 0 (no branch has a q3 there: the elbow cannot reach the wrist; most of the circle), a
-cell is discarded where the model's window :math:`|f_0 + f_1 t| \le r +` :data:`SLACK` is empty or the bounds
-exclude 0 or the branch's validity is below 0 over the cell, replaced by that window where it is at most half as
-wide, else halved; a window narrower than :data:`WINDOW` holds a root (its centre), and so do the ends of a cell where
-:math:`|e_b|` stays within :data:`TOUCH` of 0 (a double root, where the window stays the whole cell however often it
-is halved: such a cell is a few µm wide when it is touched). Every root of every :math:`e_b` is then within
-:data:`WINDOW` of a candidate, or inside a touched cell whose ends are candidates, unless the search ran out of its
-budget (:data:`ROUNDS`, :data:`MAX_CELLS`; ``proved`` False). Where the validity vanishes inside a window the square
-roots of the subproblems have no slope and the cell is halved down to :data:`WINDOW` like any other.
+Taylor models over cells of x (:func:`qpik.algebra.enclosure.taylor_function`, compiled and mapped over rows of cells
+and branches, :class:`~qpik.native.compiled.RowMap`) isolate the roots as :mod:`qpik.analytic.locked_joint_intervals`
+does (Moore 1966; Makino & Berz 2003): from :data:`CELLS` cells over the circle, less those where the Taylor model of
+q3's relative discriminant (:meth:`LockedSearch.reach`, a bound of every branch's validity) is below 0 (no branch has a
+q3 there: the elbow cannot reach the wrist; most of the circle), a cell is discarded where the model's window
+:math:`|f_0 + f_1 t| \le r +` :data:`SLACK` is empty or the bounds exclude 0 or the branch's validity is below 0 over
+the cell, replaced by that window where it is at most half as wide, else by the window cut in :data:`SPLIT` equal parts;
+a window narrower than :data:`WINDOW` holds a root (its centre), and so do the ends of a cell where :math:`|e_b|` stays
+within :data:`TOUCH` of 0 (a double root, where the window stays the whole cell however often it is cut: such a cell is
+a few µm wide when it is touched). Every root of every :math:`e_b` is then within :data:`WINDOW` of a candidate, or
+inside a touched cell whose ends are candidates, unless the search ran out of its budget (:data:`ROUNDS`,
+:data:`MAX_CELLS`; ``proved`` False). Where the validity vanishes inside a window the square roots of the subproblems
+have no slope and the cell is cut down to :data:`WINDOW` like any other.
 
-**Machine precision.** Each candidate's joints (q5, q6 by subproblem 1 on the rotation left) start :data:`POLISH`
-rounds of Newton on the arm's own chain, the locked joint held (:func:`qpik.analytic.polish.polish`, compiled and
-mapped over the candidates); a candidate is a solution where the residual is at most
-:data:`~qpik.analytic.polish.RESIDUAL_TOL`, and solutions within
-:data:`SAME` rad of each other are one.
+**Machine precision.** The joints of each candidate (each once: two cells may end at one point; q5, q6 by subproblem
+1 on the rotation left) start :data:`POLISH` rounds of Newton on the arm's own chain, the locked joint held
+(:func:`qpik.analytic.polish.polish`, compiled and mapped over the candidates); a candidate is a solution where the
+residual is at most :data:`~qpik.analytic.polish.RESIDUAL_TOL`, and solutions within :data:`SAME` rad of each other are
+one.
 
 **Near members.** A file whose axes miss the geometry by at most :data:`~qpik.robots.locked_joint.NEAR_TOL` (the
 Sawyer's axes 6-7: 0.8 µm) is searched on its nearest ideal chain (:func:`~qpik.robots.locked_joint.ideal_chain`),
@@ -78,7 +79,7 @@ from qpik.native.compiled import RowMap
 from qpik.robots.chain import SerialChain
 from qpik.robots.locked_joint import find_locked_joint, ideal_chain, reversed_chain
 
-CELLS = 64
+CELLS = 192
 """Cells of x = q4 over the circle at the start of the search."""
 WINDOW = 1e-10
 """Width (rad) of a window of roots that is a candidate."""
@@ -88,7 +89,7 @@ TOUCH = 4 * SLACK
 r"""An error function within this of 0 over a whole cell makes the cell's ends candidates: its model
 :math:`|f_0| + |f_1| + r` then lies within the round-off :data:`SLACK` of each of its terms and of the window's test,
 so that no round can tell the cell from a root (a double root, where the window stays the whole cell however it is
-halved; above :data:`SLACK`, so that such a cell is touched before it is halved to nothing)."""
+cut; above :data:`SLACK`, so that such a cell is touched before it is cut to nothing)."""
 NEAR_WINDOW = 1e-3
 """Width (rad) of a window of roots that is a candidate on a near member's ideal chain: its roots are not the file's,
 and each candidate is polished on the file's chain from the root of the window's linear model."""
@@ -97,6 +98,8 @@ r"""Safety factor on the first-order bound :math:`D\,|\nabla_p e_b|_1` (at a cel
 function of a near member between its ideal chain and the file's (:attr:`LockedSearch.deviation`)."""
 ROUNDS = 80
 """Rounds of the search before the answer is left unproved."""
+SPLIT = 3
+"""Parts (of equal width) a cell's window is cut into where it is more than half the cell's width."""
 MAX_CELLS = 4096
 """Cells (of all branches) in a round above which the answer is left unproved."""
 CHUNKS = (64, 16, 4)
@@ -188,8 +191,8 @@ class LockedSearch:
             grad = ca.jacobian(e, ca.vertcat(T[0, 3], T[1, 3], T[2, 3]))
             gain = ca.Function("locked_search_gain", [T, q7, x, sign], [ca.sum2(ca.fabs(grad))])
         self._step = RowMap(step_function(model, gain, self.deviation), shared=[0, 1], chunks=CHUNKS, inline=True)
-        """One round's step of a cell of a branch (:func:`step_function`), compiled, over rows of cells (the pose and
-        the locked angle shared)."""
+        """One round's step of a cell of a branch (:func:`step_function`), compiled, over rows of cells (a, b, b's
+        index; the pose and the locked angle shared)."""
         reach = ca.Function("locked_search_reach", [T, q7, x], [self.reach(R, p, q7, x, sy.CASADI)])
         a, b = ca.SX.sym("a"), ca.SX.sym("b")
         top = [taylor_function(reach, [2])(T, q7, 0.5 * (a + b), 0.5 * (b - a), 0.0, a, b)[4] + EPS]
@@ -265,8 +268,8 @@ class LockedSearch:
         s3 = (b * c + signs[0] * a * root) * inv
         u = sy.vsub(sy.vadd(self.o3, rotate(k, c3, s3, pp)), self.S)
         (w,), m12, _ = subproblem2(h[1], u, h[0], v, ops, (signs[1],))
-        _, c2, s2 = subproblem1(h[1], u, w, ops)
-        _, c1, s1 = subproblem1(h[0], w, v, ops)
+        c2, s2 = turn_between(h[1], u, w, ops)
+        c1, s1 = turn_between(h[0], w, v, ops)
 
         def turn(y: Vec) -> Vec:
             """R_4 y = R(h1, q1) R(h2, q2) R(h3, q3) R(h4, x) y."""
@@ -311,14 +314,20 @@ class LockedSearch:
             own, validity = self.branch_of(Ts, param, q)
             double = (validity - EPS <= DOUBLE) | (own != branch)
             branch = own
-        keep = np.zeros(0, int)
-        for i in np.lexsort((residual, branch)):  # against those kept (the smaller b first): one numpy pass each
-            apart = np.abs(sy.NUMPY.wrap(q[keep] - q[i])).max(axis=1) if keep.size else np.ones(1)
-            if apart.min() > SAME:
-                keep = np.append(keep, i)
-            elif branch[j := keep[np.argmin(apart)]] != branch[i]:  # the same root of two error functions
-                double[j] = True
-        keep.sort()
+        order = np.lexsort((residual, branch))  # the smaller b first, then the smaller residual
+        q, branch, residual, double = q[order], branch[order], residual[order], double[order]
+        left, keep = np.ones(len(q), bool), []
+        while left.any():  # the first left is kept, and those within SAME of it are not
+            keep.append(i := int(np.argmax(left)))
+            left &= apart(q, q[i]) > SAME
+        if len(keep) < len(q):  # the same root of two error functions where the nearest kept before it is of another b
+            kept, dropped = np.array(keep), np.ones(len(q), bool)
+            dropped[kept] = False
+            dropped = np.flatnonzero(dropped)
+            gap = np.where(kept < dropped[:, None], apart(q[dropped, None], q[kept]), np.inf)
+            j = kept[np.argmin(gap, axis=1)]
+            double[j[branch[j] != branch[dropped]]] = True
+        keep = sorted(keep, key=order.__getitem__)  # in the candidates' order
         q = q[keep]
         return SearchSolutions(q[:, ::-1] if self.reversed else q, branch[keep], residual[keep], proved,
                                double[keep])  # fmt: skip
@@ -333,53 +342,86 @@ class LockedSearch:
         return b, out[np.arange(len(q)), 2 * b + 1]
 
     def _isolate(self, Ts: np.ndarray, q7: float, rounds: int) -> tuple[np.ndarray, np.ndarray, bool]:
-        """The candidates (centres of windows of roots, rad), their branches, and whether cells were left when the
-        budget ran out."""
+        """The candidates (centres of windows of roots, rad; each once), their branches (in increasing order of branch
+        and candidate), and whether cells were left when the budget ran out."""
         edges = np.linspace(-np.pi, np.pi, CELLS + 1)
         Tf, angle = Ts.reshape(-1, order="F"), np.array([q7])
         (top,) = self._reach(Tf, angle, edges[:-1], edges[1:])
         near = ~(top[:, 0] < -SLACK)  # not surely out of reach for every branch
-        B, n = len(SIGNS), int(near.sum())
-        a, b, k = np.repeat(edges[:-1][near], B), np.repeat(edges[1:][near], B), np.tile(np.arange(B), n)
+        B = len(SIGNS)
+        cells = np.empty((int(near.sum()), B, 3))  # rows (a, b, branch), each cell for every branch
+        cells[..., 0], cells[..., 1], cells[..., 2] = edges[:-1][near, None], edges[1:][near, None], np.arange(B)
+        cells = cells.reshape(-1, 3)
+        ends = np.linspace(0.0, 1.0, SPLIT + 1)  # a window's parts: [x1 + (x2 − x1) ends[j], ... ends[j + 1]]
         found, which = [], []
         for _ in range(rounds):
-            if not a.size or a.size > MAX_CELLS:
+            if not len(cells) or len(cells) > MAX_CELLS:
                 break
-            (out,) = self._step(Tf, angle, a, b, SIGNS[k])
-            x1, x2, fate, best = out.T
-            done, touch = fate == DONE, fate == TOUCHED
-            if self.exact:
-                found += [0.5 * (x1 + x2)[done], a[touch], b[touch]]
-                which += [k[done], k[touch], k[touch]]
-            else:  # the ideal chain's roots and near-roots: where the file's may be
-                ended = done | touch
-                found += [best[ended], x1[ended], x2[ended]]
-                which += [k[ended]] * 3
-            narrow, halve = fate == NARROW, fate == HALVE
-            mid = 0.5 * (x1 + x2)[halve]
-            a = np.concatenate([x1[narrow], x1[halve], mid])
-            b = np.concatenate([x2[narrow], mid, x2[halve]])
-            k = np.concatenate([k[narrow], k[halve], k[halve]])
-        if a.size:  # the budget ran out: the cells left are candidates too
-            found += [0.5 * (a + b)]
-            which += [k]
-        if not found:
-            return np.zeros(0), np.zeros(0, int), bool(a.size)
-        return np.concatenate(found), np.concatenate(which).astype(int), bool(a.size)
+            (out,) = self._step(Tf, angle, cells)
+            order = np.argsort(out[:, 3], kind="stable")  # by fate: GONE, DONE, TOUCHED, NARROW, HALVE
+            out, cells = out[order], cells[order]
+            gone, done, touched, narrow = np.searchsorted(out[:, 3], (DONE, TOUCHED, NARROW, HALVE)).tolist()  # ends
+            if touched > gone:
+                x1, x2, k, _, best = out[gone:touched].T
+                if self.exact:  # a window's centre, a touched cell's ends
+                    found += [0.5 * (x1 + x2)[: done - gone], cells[done:touched, 0], cells[done:touched, 1]]
+                    which += [k[: done - gone], k[done - gone :], k[done - gone :]]
+                else:  # the ideal chain's roots and near-roots: where the file's may be
+                    found += [best, x1, x2]
+                    which += [k] * 3
+            wide = out[narrow:]
+            cells = np.empty((narrow - touched + SPLIT * len(wide), 3))
+            cells[: narrow - touched] = out[touched:narrow, :3]
+            parts = cells[narrow - touched :].reshape(-1, SPLIT, 3)
+            cut = wide[:, :1] + (wide[:, 1:2] - wide[:, :1]) * ends
+            cut[:, -1] = wide[:, 1]  # the window's end itself: the parts cover it
+            parts[..., 0], parts[..., 1], parts[..., 2] = cut[:, :-1], cut[:, 1:], wide[:, 2:3]
+        if len(cells):  # the budget ran out: the cells left are candidates too
+            found += [0.5 * (cells[:, 0] + cells[:, 1])]
+            which += [cells[:, 2]]
+        x, k = (np.concatenate(v) if v else np.zeros(0) for v in (found, which))
+        order = np.lexsort((x, k))  # by branch and x: the same candidate twice (an end of two cells) polished once
+        x, k = x[order], k[order]
+        once = np.ones(len(x), bool)
+        once[1:] = (np.diff(x) != 0) | (np.diff(k) != 0)
+        return x[once], k[once].astype(int), bool(len(cells))
+
+
+def apart(q: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The largest difference (rad, modulo 2π) over the last axis of joints ``q`` and ``r`` (broadcast; both wrapped to
+    (−π, π])."""
+    d = np.abs(q - r)
+    return np.minimum(d, 2.0 * np.pi - d).max(axis=-1)
+
+
+def turn_between(k: Vec, p: Vec, q: Vec, ops: Ops) -> tuple[Scalar, Scalar]:
+    r"""cos θ, sin θ of the turn θ about the unit vector ``k`` that takes ``p`` to ``q``, where their parts
+    :math:`p_\perp, q_\perp` across k are equally long (subproblem 1 where it has an exact solution):
+    :math:`(p_\perp\cdot q_\perp,\ k\cdot(p_\perp\times q_\perp))/|p_\perp|^2`, no square root (whose Taylor
+    model's remainder grows fast where its argument's bounds near 0); (1, 0) where p lies on k."""
+    pp = sy.vsub(p, sy.vscale(sy.dot(k, p), k))
+    qq = sy.vsub(q, sy.vscale(sy.dot(k, q), k))
+    n2 = sy.dot(pp, pp)
+    inv = 1.0 / ops.fmax(n2, 1e-300)
+    return ops.where(n2 > 1e-300, sy.dot(pp, qq) * inv, 1.0), sy.dot(k, sy.cross(pp, qq)) * inv
 
 
 def step_function(model: ca.Function, gain: ca.Function | None = None, deviation: float = 0.0) -> ca.Function:
     r"""One round of the search on a cell of a branch (:func:`~qpik.algebra.enclosure.isolation_step` with
     :data:`SLACK`, :data:`WINDOW`, :data:`TOUCH`; gone too where :math:`v_b < 0` over the cell) from ``model``, the
     Taylor models in x of :math:`(e_b, v_b)` of inputs (T, q7, x, signs). Inputs: T (4, 4; the search's pose,
-    column-major), q7 (rad), the cell's ends a < b (rad), the signs (σ3, σ12). Output (4,): the window's ends (rad),
-    the cell's fate, and the point of the window where the model's linear part :math:`|f_0 + f_1 t|` is least (rad).
+    column-major), q7 (rad), the cell (3,): its ends a < b (rad) and its branch b (0-3, the signs (σ3, σ12) of its row
+    of :data:`SIGNS`). Output (5,): the window's ends (rad), the branch, the cell's fate, and the point of the window
+    where the model's linear part :math:`|f_0 + f_1 t|` is least (rad): its first three entries are the next cell's
+    where the window is that.
 
     A near member (``gain``, :math:`|\nabla_p e_b|_1` of the same inputs, and ``deviation`` D > 0, m): the file's
     roots are the roots of the ideal chain's :math:`e_b` at a pose whose position is at most D away, so its slack and
     touch are :data:`SLACK` + :data:`NEAR_GAIN` :math:`D\,|\nabla_p e_b|_1` at the cell's centre (a cell goes only
     where the file's :math:`e_b` has no root either, to first order in D) and its window :data:`NEAR_WINDOW`."""
-    T, q7, a, b, sign = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("a"), ca.SX.sym("b"), ca.SX.sym("sign", 2)
+    T, q7, cell = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("cell", 3)
+    a, b, k = ca.vertsplit(cell)
+    sign = ca.vertcat(ca.if_else(k < 1.5, 1.0, -1.0), ca.if_else(ca.fmod(k, 2.0) < 0.5, 1.0, -1.0))
     c, s, r, lo, hi = model(T, q7, 0.5 * (a + b), sign, 0.5 * (b - a), 0.0, a, b)
     if gain is None:
         slack, window, touch = SLACK, WINDOW, TOUCH
@@ -390,7 +432,7 @@ def step_function(model: ca.Function, gain: ca.Function | None = None, deviation
     m, w = 0.5 * (a + b), 0.5 * (b - a)
     t = ca.if_else(ca.fabs(s[0]) > 0, -c[0] / s[0], 0.0)
     best = ca.fmin(ca.fmax(m + w * t, x1), x2)
-    return ca.Function("locked_search_step", [T, q7, a, b, sign], [ca.vertcat(x1, x2, fate, best)])
+    return ca.Function("locked_search_step", [T, q7, cell], [ca.vertcat(x1, x2, k, fate, best)])
 
 
 def deviation(chain: SerialChain, ideal: SerialChain) -> float:
