@@ -12,8 +12,8 @@ variable :math:`x = q_4`:
   (two roots, sign :math:`\sigma_3`; :math:`a\cos q_3 + b\sin q_3 = c`, :math:`\cos q_3 = (ac - \sigma_3 b\sqrt{r^2 -
   c^2})/r^2`, :math:`\sin q_3 = (bc + \sigma_3 a\sqrt{r^2-c^2})/r^2`, no angle formed);
 - :math:`R(h_1, q_1) R(h_2, q_2)\,u = v`, :math:`u = e_3 P - S`, :math:`v = G W - S`: q1, q2 by subproblem 2
-  (sign :math:`\sigma_{12}`) and subproblem 1 (:func:`turn_between`: no square root, whose Taylor model widens fast
-  where its argument nears 0);
+  (sign :math:`\sigma_{12}`) and subproblem 1 (:func:`~qpik.analytic.subproblems.turn_between`: no square root,
+  whose Taylor model widens fast where its argument nears 0);
 - what is left, :math:`R(h_5, q_5) R(h_6, q_6) = R_4^T R_G` (:math:`R_4 = R(h_1,q_1)\cdots R(h_4, x)`), exists iff
   axis 6 turned by it keeps its angle to axis 5: the **error function**
 
@@ -45,16 +45,16 @@ residual is at most :data:`~qpik.analytic.polish.RESIDUAL_TOL`, and solutions wi
 one.
 
 **Near members.** A file whose axes miss the geometry by at most :data:`~qpik.robots.locked_joint.NEAR_TOL` (the
-Sawyer's axes 6-7: 0.8 µm) is searched on its nearest ideal chain (:func:`~qpik.robots.locked_joint.ideal_chain`),
-the candidates then polished on the file's: ``proved`` is then False. The ideal chain's rotations are the file's at
-every q and its end's position at most :attr:`LockedSearch.deviation` D away (:func:`deviation`), so the file's
-roots are the roots of the ideal chain's :math:`e_b` at a pose whose position is at most D away: within
+Sawyer's axes 6-7: 0.8 µm) is searched on its nearest ideal chain (:func:`~qpik.robots.locked_joint.ideal_chain`), the
+candidates then polished on the file's: ``proved`` is then False. The ideal chain's rotations are the file's at every q
+and its end's position at most :attr:`LockedSearch.deviation` D away (:class:`~qpik.robots.locked_joint.ChainGap`), so
+the file's roots are the roots of the ideal chain's :math:`e_b` at a pose whose position is at most D away: within
 :math:`D\,|\nabla_p e_b|_1` of 0 on the ideal chain, to first order. Near a fold of :math:`e_b` (a double root) the
 file's chain may have two roots where the ideal chain's :math:`e_b` only nears 0, or none where it has two. So the
 search keeps every cell where :math:`|e_b|` may be within that bound (times :data:`NEAR_GAIN`, the gradient at the
-cell's centre) of 0, its slack and touch, and a window of :data:`NEAR_WINDOW` ends the cell: its candidates are the
-root of the window's linear model and the window's two ends (a touched cell's likewise), each polished on the file's
-chain, which decides (a candidate whose polish does not reach the pose is dropped).
+cell's centre) of 0, its slack and touch, and a window of :data:`NEAR_WINDOW` ends the cell: its candidates are the root
+of the window's linear model and the window's two ends (a touched cell's likewise), each polished on the file's chain,
+which decides (a candidate whose polish does not reach the pose is dropped).
 
 **Behind** :func:`qpik.ik`: :mod:`qpik.analytic.search_solver` puts the solutions in 16 slots with identities along
 the parameter.
@@ -71,13 +71,13 @@ from qpik.algebra import symbolic as sy
 from qpik.algebra.enclosure import DONE, HALVE, NARROW, TOUCHED, isolation_step, taylor_function
 from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
 from qpik.analytic.polish import RESIDUAL_TOL, polish
-from qpik.analytic.subproblems import constant, rotate, rotation, subproblem1, subproblem2
+from qpik.analytic.subproblems import constant, rotate, rotation, subproblem1, subproblem2, turn_between
 from qpik.analytic.trig import EPS
 from qpik.core.errors import NoClosedFormError
 from qpik.core.validate import number, single_pose
 from qpik.native.compiled import RowMap
 from qpik.robots.chain import SerialChain
-from qpik.robots.locked_joint import find_locked_joint, ideal_chain, reversed_chain
+from qpik.robots.locked_joint import ChainGap, find_locked_joint, ideal_chain, reversed_chain
 
 CELLS = 192
 """Cells of x = q4 over the circle at the start of the search."""
@@ -183,9 +183,9 @@ class LockedSearch:
         R, p = sy.frame_of_batch(T)
         e, valid, _ = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)
         model = taylor_function(ca.Function("locked_search", [T, q7, x, sign], [ca.vertcat(e, valid)]), [2])
-        self.deviation = 0.0 if self.exact else deviation(turned, table)
+        self.deviation = 0.0 if self.exact else ChainGap.between(turned, table).bound
         """m: a bound of the change of the end's position between the file's chain and the ideal one the search runs
-        on, at every q (0 for an exact member; :func:`deviation`)."""
+        on, at every q (0 for an exact member; :attr:`~qpik.robots.locked_joint.ChainGap.bound`)."""
         gain = None
         if not self.exact:  # |∂e_b/∂p|_1: the file's roots are those of the ideal chain's e_b at a pose D away
             grad = ca.jacobian(e, ca.vertcat(T[0, 3], T[1, 3], T[2, 3]))
@@ -394,18 +394,6 @@ def apart(q: np.ndarray, r: np.ndarray) -> np.ndarray:
     return np.minimum(d, 2.0 * np.pi - d).max(axis=-1)
 
 
-def turn_between(k: Vec, p: Vec, q: Vec, ops: Ops) -> tuple[Scalar, Scalar]:
-    r"""cos θ, sin θ of the turn θ about the unit vector ``k`` that takes ``p`` to ``q``, where their parts
-    :math:`p_\perp, q_\perp` across k are equally long (subproblem 1 where it has an exact solution):
-    :math:`(p_\perp\cdot q_\perp,\ k\cdot(p_\perp\times q_\perp))/|p_\perp|^2`, no square root (whose Taylor
-    model's remainder grows fast where its argument's bounds near 0); (1, 0) where p lies on k."""
-    pp = sy.vsub(p, sy.vscale(sy.dot(k, p), k))
-    qq = sy.vsub(q, sy.vscale(sy.dot(k, q), k))
-    n2 = sy.dot(pp, pp)
-    inv = 1.0 / ops.fmax(n2, 1e-300)
-    return ops.where(n2 > 1e-300, sy.dot(pp, qq) * inv, 1.0), sy.dot(k, sy.cross(pp, qq)) * inv
-
-
 def step_function(model: ca.Function, gain: ca.Function | None = None, deviation: float = 0.0) -> ca.Function:
     r"""One round of the search on a cell of a branch (:func:`~qpik.algebra.enclosure.isolation_step` with
     :data:`SLACK`, :data:`WINDOW`, :data:`TOUCH`; gone too where :math:`v_b < 0` over the cell) from ``model``, the
@@ -433,14 +421,3 @@ def step_function(model: ca.Function, gain: ca.Function | None = None, deviation
     t = ca.if_else(ca.fabs(s[0]) > 0, -c[0] / s[0], 0.0)
     best = ca.fmin(ca.fmax(m + w * t, x1), x2)
     return ca.Function("locked_search_step", [T, q7, cell], [ca.vertcat(x1, x2, k, fate, best)])
-
-
-def deviation(chain: SerialChain, ideal: SerialChain) -> float:
-    r"""A bound (m) of :math:`|p(q) - p'(q)|` over every q, the end's positions by ``chain`` and by ``ideal``, a chain
-    that differs from it only in the translations of its joints' ``pre`` and ``post`` transforms, base and tool
-    (:func:`~qpik.robots.locked_joint.ideal_chain`): the rotations are the same at every q, and each translation
-    changed by :math:`d_k` moves the end by :math:`|d_k|`, turned."""
-    pairs = [(x.pre, y.pre) for x, y in zip(chain.joints, ideal.joints)]
-    pairs += [(x.post, y.post) for x, y in zip(chain.joints, ideal.joints)]
-    pairs += [(chain.tool, ideal.tool), (chain.base, ideal.base)]
-    return float(sum(np.linalg.norm(x[:3, 3] - y[:3, 3]) for x, y in pairs))

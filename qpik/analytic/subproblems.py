@@ -52,8 +52,28 @@ def subproblem1(k: Vec, p: Vec, q: Vec, ops: Ops) -> tuple[Scalar, Scalar, Scala
 def plane_vector(k: Vec, p: Vec, q: Vec) -> tuple[Scalar, Scalar]:
     r""":func:`subproblem1`'s :math:`(x, y) = \rho\,(\cos\theta, \sin\theta)`, :math:`\rho = |p_\perp|\,|q_\perp|`
     (the units of p times those of q; 0 where p or q lies on k)."""
-    pp = sy.vsub(p, sy.vscale(sy.dot(k, p), k))
-    qq = sy.vsub(q, sy.vscale(sy.dot(k, q), k))
+    return _plane(k, _across(k, p), _across(k, q))
+
+
+def turn_between(k: Vec, p: Vec, q: Vec, ops: Ops) -> tuple[Scalar, Scalar]:
+    r"""cos θ, sin θ of the turn θ about the unit vector ``k`` that takes ``p`` to ``q``, where their parts
+    :math:`p_\perp, q_\perp` across k are equally long (subproblem 1 where it has an exact solution):
+    :math:`(p_\perp\cdot q_\perp,\ k\cdot(p_\perp\times q_\perp))/|p_\perp|^2`, no square root (whose Taylor
+    model's remainder grows fast where its argument's bounds near 0); (1, 0) where p lies on k."""
+    pp, qq = _across(k, p), _across(k, q)
+    x, y = _plane(k, pp, qq)
+    n2 = sy.dot(pp, pp)
+    inv = 1.0 / ops.fmax(n2, 1e-300)
+    return ops.where(n2 > 1e-300, x * inv, 1.0), y * inv
+
+
+def _across(k: Vec, v: Vec) -> Vec:
+    r"""The part of v across the unit vector k: :math:`v - (k\cdot v)\,k`."""
+    return sy.vsub(v, sy.vscale(sy.dot(k, v), k))
+
+
+def _plane(k: Vec, pp: Vec, qq: Vec) -> tuple[Scalar, Scalar]:
+    r""":math:`(p_\perp\cdot q_\perp,\ k\cdot(p_\perp\times q_\perp))` of the parts across k."""
     return sy.dot(pp, qq), sy.dot(k, sy.cross(pp, qq))
 
 
