@@ -108,3 +108,15 @@ def test_plot_selfmotion_and_branches_write_pngs(tmp_path, capsys) -> None:
         == 0
     )
     assert a.stat().st_size > 10_000 and b.stat().st_size > 10_000
+
+
+def test_plot_branches_with_q_and_no_param_draws_them_at_qs_own_parameter(tmp_path, capsys) -> None:
+    """As ``qpik ik``: without ``--param`` the parameter of ``--q`` is used, and the line says which."""
+    q = np.array([0.3, 0.5, -0.2, -1.2, 0.4, 0.9, 0.1])
+    out = tmp_path / "br.png"
+    assert main(["plot", "branches", "-r", "iiwa14", "--q", " ".join(map(str, q)), "-o", str(out)]) == 0
+    line = capsys.readouterr().out.strip().splitlines()[-1]
+    psi = float(qpik.redundancy_parameter(qpik.load_robot("iiwa14"), q)[0])
+    assert f"at {psi:.4f} rad" in line and out.stat().st_size > 10_000
+    assert main(["plot", "branches", "-r", "iiwa14", "--position", "0.4 0.2 0.5", "-o", str(out)]) == 2
+    assert "--param is required" in capsys.readouterr().err
