@@ -105,6 +105,12 @@ def wrap(x: np.ndarray | float) -> np.ndarray:
     return sy.NUMPY.wrap(np.asarray(x, dtype=float))
 
 
+def apart(q: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The largest difference (rad, modulo 2π) over the last axis of joint angles ``q`` and ``r`` (broadcast; any
+    representatives): how far apart two configurations are on the torus."""
+    return np.abs(wrap(np.asarray(q, dtype=float) - r)).max(axis=-1)
+
+
 class Flagging(Protocol):
     """What the breakpoint sets read of a closed-form solver (:class:`~qpik.analytic.solver.AnalyticSolver`)."""
 

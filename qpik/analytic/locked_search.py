@@ -70,6 +70,7 @@ import numpy as np
 from qpik.algebra import symbolic as sy
 from qpik.algebra.enclosure import DONE, HALVE, NARROW, TOUCHED, isolation_step, taylor_function
 from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
+from qpik.analytic.intervals import apart
 from qpik.analytic.polish import RESIDUAL_TOL, polish
 from qpik.analytic.subproblems import constant, rotate, rotation, subproblem1, subproblem2, turn_between
 from qpik.analytic.trig import EPS
@@ -387,13 +388,6 @@ class LockedSearch:
         return x[once], k[once].astype(int), bool(len(cells))
 
 
-def apart(q: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """The largest difference (rad, modulo 2π) over the last axis of joints ``q`` and ``r`` (broadcast; both wrapped to
-    (−π, π])."""
-    d = np.abs(q - r)
-    return np.minimum(d, 2.0 * np.pi - d).max(axis=-1)
-
-
 def step_function(model: ca.Function, gain: ca.Function | None = None, deviation: float = 0.0) -> ca.Function:
     r"""One round of the search on a cell of a branch (:func:`~qpik.algebra.enclosure.isolation_step` with
     :data:`SLACK`, :data:`WINDOW`, :data:`TOUCH`; gone too where :math:`v_b < 0` over the cell) from ``model``, the
@@ -409,7 +403,7 @@ def step_function(model: ca.Function, gain: ca.Function | None = None, deviation
     where the file's :math:`e_b` has no root either, to first order in D) and its window :data:`NEAR_WINDOW`."""
     T, q7, cell = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("cell", 3)
     a, b, k = ca.vertsplit(cell)
-    sign = ca.vertcat(ca.if_else(k < 1.5, 1.0, -1.0), ca.if_else(ca.fmod(k, 2.0) < 0.5, 1.0, -1.0))
+    sign = sum((ca.fabs(k - i) < 0.5) * ca.DM(row) for i, row in enumerate(SIGNS))  # the signs of row k of SIGNS
     c, s, r, lo, hi = model(T, q7, 0.5 * (a + b), sign, 0.5 * (b - a), 0.0, a, b)
     if gain is None:
         slack, window, touch = SLACK, WINDOW, TOUCH

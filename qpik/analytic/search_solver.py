@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from qpik.algebra import symbolic as sy
+from qpik.analytic.intervals import apart
 from qpik.analytic.locked_search import LockedSearch, SearchSolutions
 from qpik.analytic.solver import BranchSolver, Solved
 from qpik.core.errors import NoClosedFormError
@@ -140,6 +141,5 @@ class SearchSolver(BranchSolver):
         for i, (Ti, qi) in enumerate(zip(self.robot.fk(q), q)):
             sol = self.solve_one(Ti, float(param[i]))
             if sol.valid.any():
-                apart = np.abs(sy.NUMPY.wrap(sol.q - qi)).max(axis=1)
-                branch[i] = int(np.argmin(np.where(sol.valid, apart, np.inf)))
+                branch[i] = int(np.argmin(np.where(sol.valid, apart(sol.q, qi), np.inf)))
         return param, branch

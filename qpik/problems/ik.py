@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from qpik.analytic.api import IKSolutions, ik, redundancy_parameter, symbol
-from qpik.analytic.intervals import wrap
+from qpik.analytic.intervals import apart, wrap
 from qpik.core.errors import ProblemFileError
 from qpik.problems.runners import runner
 from qpik.robots.robot import Robot
@@ -198,7 +198,7 @@ def _recovery(problem: Problem, poses: np.ndarray) -> tuple[list[str], tuple[str
     tol = problem.expected_number("tolerance", 1e-9)
     par, br = redundancy_parameter(robot, qt)
     sols = ik(robot, poses, np.asarray(par))
-    err = np.abs(wrap(sols.q - qt[:, None, :])).max(axis=-1)
+    err = apart(sols.q, qt[:, None, :])
     err[~sols.valid] = np.inf
     best = err.min(axis=1)
     hit = sols.branch[err.argmin(axis=1)]

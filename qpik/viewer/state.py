@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from qpik.analytic import FeasibleIntervals, IKSolutions, feasible_intervals, ik
-from qpik.analytic.intervals import wrap
+from qpik.analytic.intervals import apart
 from qpik.geometry.distance import Distances, ObstacleSet, distances
 from qpik.nlp import BestResult, solve_best
 from qpik.nlp.best import build_search
@@ -87,8 +87,7 @@ def solve_view(
         best = solve_best(robot, pose, objective, obstacles, q_ref, d_safe=d_safe, options=BestOptions(certify=certify))
         q = best.q
     elif branches is not None and branches.within_limits.any():
-        apart = np.abs(wrap(branches.q - seed)).max(axis=1)
-        slot = int(np.argmin(np.where(branches.within_limits, apart, np.inf)))
+        slot = int(np.argmin(np.where(branches.within_limits, apart(branches.q, seed), np.inf)))
         q = branches.q[slot]
     else:
         numerical = ik_solver(robot).solve(pose, seed)  # its iteration budget, not a time: the same answer anywhere
