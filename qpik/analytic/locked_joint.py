@@ -167,9 +167,9 @@ class LockedJointSolver(AnalyticSolver):
         """The chain the branches are polished on (:mod:`qpik.analytic.polish`): the robot's own, where
         :attr:`table` is its nearest ideal chain (a near member, :func:`qpik.robots.locked_joint.ideal_chain`)."""
         self.gap = None if self.polished is None else ChainGap.between(self.polished, self.table)
+        """A near member's :class:`~qpik.robots.locked_joint.ChainGap` of its chain over :attr:`table`."""
         self._refined: tuple[FeasibleIntervals, FeasibleIntervals] | None = None
         """A near member's last sets (:meth:`feasible_intervals`): as given, and with their ends moved."""
-        """A near member's :class:`~qpik.robots.locked_joint.ChainGap` of its chain over :attr:`table`."""
         h, o, S, W = g.h, g.o, g.shoulder, g.wrist
         self.h = [constant(x) for x in h]
         Rm, pm = g.home[:3, :3], g.home[:3, 3]
@@ -231,8 +231,7 @@ class LockedJointSolver(AnalyticSolver):
         :math:`\min(\text{elbow}, \text{wrist}, \text{shoulder}) + ` EPS, each subproblem's discriminant relative to
         its scale (:func:`~qpik.analytic.subproblems.subproblem2`; the elbow's :math:`(r^2 - c^2)/r^2`), clamped
         nowhere. For the feasible sets (:mod:`qpik.analytic.locked_joint_intervals`), whose validity changes are its
-        roots. ``signs``: the
-        branches (:data:`ALL`: 0-7)."""
+        roots. ``signs``: the branches (:data:`ALL`: 0-7)."""
         return [m + EPS for m in self._solve(R, p, param, ops, signs)[1]]
 
     def arm_validity(self, R: Mat, p: Vec, param: Scalar, ops: Ops, elbows: Signs = BOTH) -> list[Scalar]:

@@ -256,31 +256,32 @@ class ChainGap:
 
     :math:`R_k` the rotation of link frame k (the same on both chains), :math:`S_k` the rotation of joint k's
     ``post`` and the d's the differences of the translations (base frame for :math:`d_0`, each transform's own
-    parent frame otherwise). Attributes: ``base`` (3,) m; ``pre``, ``post``: (k, d) pairs (1-based joints, d (3,) m)
-    of the joints whose translations differ; ``tool`` (3,) m."""
+    parent frame otherwise). Attributes: ``base`` (3,) m; ``pre``: (k, d) pairs (1-based joints, d (3,) m) of the
+    joints whose ``pre`` translations differ; ``post``: likewise, (k, :math:`S_k^T d^{post}_k`), in link frame k;
+    ``tool`` (3,) m."""
 
     base: np.ndarray
     pre: tuple[tuple[int, np.ndarray], ...]
-    post: tuple[tuple[int, np.ndarray, np.ndarray], ...]
+    post: tuple[tuple[int, np.ndarray], ...]
     tool: np.ndarray
 
     @classmethod
     def between(cls, chain: SerialChain, ideal: SerialChain) -> ChainGap:
         """The gap of ``chain`` over ``ideal`` (same joints, rotations and types; translations may differ)."""
-        pre = [(k, x.pre[:3, 3] - y.pre[:3, 3]) for k, (x, y) in enumerate(zip(chain.joints, ideal.joints), 1)]
-        post = [(k, x.post[:3, 3] - y.post[:3, 3], x.post[:3, :3]) for k, (x, y) in
-                enumerate(zip(chain.joints, ideal.joints), 1)]  # fmt: skip
+        pairs = list(enumerate(zip(chain.joints, ideal.joints), 1))
+        pre = [(k, x.pre[:3, 3] - y.pre[:3, 3]) for k, (x, y) in pairs]
+        post = [(k, x.post[:3, :3].T @ (x.post[:3, 3] - y.post[:3, 3])) for k, (x, y) in pairs]
         return cls(
             chain.base[:3, 3] - ideal.base[:3, 3],
             tuple((k, d) for k, d in pre if d.any()),
-            tuple((k, d, S) for k, d, S in post if d.any()),
+            tuple((k, d) for k, d in post if d.any()),
             chain.tool[:3, 3] - ideal.tool[:3, 3],
         )
 
     @property
     def bound(self) -> float:
         r"""m: a bound of :math:`|\Delta(q)|` over every q, the sum of the differences' lengths (each is turned)."""
-        parts = [self.base, self.tool, *(d for _, d in self.pre), *(d for _, d, _ in self.post)]
+        parts = [self.base, self.tool, *(d for _, d in self.pre), *(d for _, d in self.post)]
         return float(sum(np.linalg.norm(d) for d in parts))
 
     def expr(self, frames: list[Frame]) -> Vec:
@@ -289,8 +290,8 @@ class ChainGap:
         out: Vec = tuple(float(x) for x in self.base)  # type: ignore[assignment]
         for k, d in self.pre:
             out = sy.vadd(out, sy.matvec(frames[k - 1][0], tuple(float(x) for x in d)))
-        for k, d, S in self.post:
-            out = sy.vadd(out, sy.matvec(frames[k][0], tuple(float(x) for x in S.T @ d)))
+        for k, d in self.post:
+            out = sy.vadd(out, sy.matvec(frames[k][0], tuple(float(x) for x in d)))
         if self.tool.any():
             out = sy.vadd(out, sy.matvec(frames[-2][0], tuple(float(x) for x in self.tool)))
         return out
