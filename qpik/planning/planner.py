@@ -181,13 +181,10 @@ def _plan_closed_form(setup: Setup, resolution: int, window: float, branches, fe
     nlp = PathNLP(setup.scene, setup.poses, setup.tr, continuous, grid, result.rows)
     out = nlp.solve(grid.values[result.index])
     plan.timings["nlp"] = out.time
-    if out.cost < result.cost - IMPROVED * max(1.0, abs(result.cost)):
-        rows = result.rows
-        branch, param = grid.public(rows, out.param)
-        better = make_plan(setup, out.q, "optimal", param=param, branch=branch, param_name=sym, cost=out.cost,
-                           dp_cost=result.cost, reconfigurations=result.reconfigurations, timings=plan.timings,
-                           profile=plan.profile, label="NLP", dp_plan=plan)  # fmt: skip
-        measure(better, mujoco)
+    if _lower(out.cost, result.cost):
+        branch, param = grid.public(result.rows, out.param)
+        better = _refined(setup, plan, result, out.q, out.cost, "NLP", mujoco, param=param, branch=branch,
+                          timings=plan.timings)  # fmt: skip
         if better.ok:
             return better
     return plan
@@ -202,23 +199,35 @@ def _refine_joints(setup: Setup, plan: Plan, result: dp.DPResult, continuous: np
     out = nlp.solve(result.q)
     plan.timings["nlp"] = out.time
     best = plan
-    if out.cost < result.cost - IMPROVED * max(1.0, abs(result.cost)):
-        better = make_plan(setup, out.q, "optimal", **_slots(setup, out.q), param_name=plan.param_name,
-                           cost=out.cost, dp_cost=result.cost, reconfigurations=result.reconfigurations,
-                           timings=plan.timings, profile=plan.profile, label="NLP", dp_plan=plan)  # fmt: skip
-        measure(better, mujoco)
+    if _lower(out.cost, result.cost):
+        better = _refined(setup, plan, result, out.q, out.cost, "NLP", mujoco, **_slots(setup, out.q),
+                          timings=plan.timings)  # fmt: skip
         best = better if better.ok else plan
     if result.reconfigurations:
         return best
     other = _plan_joints(setup, True, mujoco)
-    if not other.ok or other.cost >= best.cost - IMPROVED * max(1.0, abs(best.cost)):
+    if not other.ok or not _lower(other.cost, best.cost):
         return best
     timings = {**plan.timings, **{f"second start: {k}": v for k, v in other.timings.items()}}
-    second = make_plan(setup, other.q, "optimal", **_slots(setup, other.q), param_name=plan.param_name,
-                       cost=other.cost, dp_cost=result.cost, timings=timings, profile=plan.profile,
-                       label="NLP from the QP controller's run", dp_plan=plan)  # fmt: skip
-    measure(second, mujoco)
+    second = _refined(setup, plan, result, other.q, other.cost, "NLP from the QP controller's run", mujoco,
+                      **_slots(setup, other.q), timings=timings)  # fmt: skip
     return second if second.ok else best
+
+
+def _lower(cost: float, than: float) -> bool:
+    """Whether ``cost`` is below ``than`` by more than :data:`IMPROVED` (relative)."""
+    return cost < than - IMPROVED * max(1.0, abs(than))
+
+
+def _refined(setup: Setup, dp_plan: Plan, result: dp.DPResult, q: np.ndarray, cost: float, label: str, mujoco: bool,
+             **kw) -> Plan:  # fmt: skip
+    """A refinement of the DP's plan ``dp_plan`` (of ``result``): the ``"optimal"`` plan of configurations q (K, n)
+    at the objective ``cost``, measured; ``kw``: its ``param``, ``branch`` and ``timings``."""
+    out = make_plan(setup, q, "optimal", param_name=dp_plan.param_name, cost=cost, dp_cost=result.cost,
+                    reconfigurations=result.reconfigurations, profile=dp_plan.profile, label=label, dp_plan=dp_plan,
+                    **kw)  # fmt: skip
+    measure(out, mujoco)
+    return out
 
 
 def _slots(setup: Setup, q: np.ndarray) -> dict[str, np.ndarray]:
