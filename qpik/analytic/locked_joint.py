@@ -89,7 +89,7 @@ import numpy as np
 from qpik.algebra import symbolic as sy
 from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
 from qpik.analytic.polish import RESIDUAL_TOL, polish
-from qpik.analytic.set_ends import refine_ends
+from qpik.analytic.set_ends import refine_ends, resample
 from qpik.analytic.solver import AnalyticSolver, Branches
 from qpik.analytic.subproblems import (
     BOTH,
@@ -117,6 +117,13 @@ SCALE = 0.1
 for (smaller ones, near a singular configuration, get the same rounds, which then remove less)."""
 MAX_ROUNDS = 8
 """The most rounds :func:`correction_rounds` gives."""
+THIN = 2.0
+r"""A near member's branch is sampled on the file's chain (:func:`qpik.analytic.set_ends.resample`) where its ideal
+chain's validity lies in :math:`[0, (\text{THIN}\,D/\text{SCALE})^2)` (:attr:`LockedJointSolver.thin`): a validity
+is a relative discriminant, the square of an angle of order D/:data:`SCALE` where two solutions of a subproblem are
+that close, so that the file's chain, D away, may have none there (a fold of the file's chain the ideal one misses)."""
+SPACING = 1.0 / 16.0
+"""The samples of a thin stretch of a near member's branch are :data:`SPACING` D/:data:`SCALE` rad apart."""
 
 
 def correction_rounds(deviation: float) -> int:
@@ -168,6 +175,9 @@ class LockedJointSolver(AnalyticSolver):
         :attr:`table` is its nearest ideal chain (a near member, :func:`qpik.robots.locked_joint.ideal_chain`)."""
         self.gap = None if self.polished is None else ChainGap.between(self.polished, self.table)
         """A near member's :class:`~qpik.robots.locked_joint.ChainGap` of its chain over :attr:`table`."""
+        self.thin = None if self.gap is None else (THIN * self.gap.bound / SCALE) ** 2
+        """A near member's validity below which its branch is sampled on its own chain (:data:`THIN`); None for an
+        exact member."""
         self._refined: tuple[FeasibleIntervals, FeasibleIntervals] | None = None
         """A near member's last sets (:meth:`feasible_intervals`): as given, and with their ends moved."""
         h, o, S, W = g.h, g.o, g.shoulder, g.wrist
@@ -212,12 +222,15 @@ class LockedJointSolver(AnalyticSolver):
     def feasible_intervals(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
         """The sets of :meth:`~qpik.analytic.solver.BranchSolver.feasible_intervals`; a near member's (:attr:`polished`)
         with their ends moved onto its own chain (:func:`qpik.analytic.set_ends.refine_ends`, about D/:data:`SCALE`
-        rad away: the joints' change by the correction, over joint rates of order 1)."""
+        rad away: the joints' change by the correction, over joint rates of order 1), then sampled on its chain where
+        the ideal chain's validity is below :attr:`thin` (:func:`qpik.analytic.set_ends.resample`, :data:`SPACING`)."""
         fi = super().feasible_intervals(T, margin)
         if self.polished is None:
             return fi
         if self._refined is None or self._refined[0] is not fi:  # the sets keep their last answer: so does this
-            self._refined = (fi, refine_ends(fi, self, T, margin, self.gap.bound / SCALE))
+            angle = self.gap.bound / SCALE
+            moved = refine_ends(fi, self, T, margin, angle)
+            self._refined = (fi, resample(moved, self, T, margin, self._sets.thin(T, margin), SPACING * angle))
         return self._refined[1]
 
     @property

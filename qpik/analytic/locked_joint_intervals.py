@@ -72,7 +72,7 @@ import numpy as np
 from qpik.algebra import symbolic as sy
 from qpik.algebra.enclosure import DONE, HALVE, NARROW, TOUCHED, isolation_step, taylor_function
 from qpik.analytic import trig
-from qpik.analytic.intervals import FeasibleIntervals, SetAssembler, shrunk_limits, wrap
+from qpik.analytic.intervals import FeasibleIntervals, Interval, SetAssembler, gaps, shrunk_limits, wrap
 from qpik.native.compiled import RowMap, cores
 
 if TYPE_CHECKING:
@@ -127,7 +127,7 @@ class Q7Intervals:
         """The Taylor models of the :meth:`~qpik.analytic.locked_joint.LockedJointSolver.arm_validity` of an
         elbow (inputs: T, the centre of a cell of q7, the elbow's sign, then the cell's half-width, radius 0 and
         its ends) over rows of cells and elbows (:meth:`_arm_reach`)."""
-        self._last: tuple[bytes, float, FeasibleIntervals] | None = None
+        self._last: tuple[bytes, float, FeasibleIntervals, list[list[Interval]]] | None = None
         self._cols: tuple[float, tuple] | None = None
         """The last margin and its columns (:meth:`_columns`)."""
 
@@ -141,9 +141,10 @@ class Q7Intervals:
         gone where the validity is below 0 over the cell or cos(q_j − L) < 0).
 
         Inputs: T (4, 4), the levels' (cos L, sin L) (2, F), the cell's ends a < b (rad), the branch's
-        :data:`SIGNS`. Output (3C,) over the C = F + 1 slots (0: the validity; i: the joint column of level i − 1):
-        every slot's window start x1, then every slot's window end x2 (rad), then every slot's fate
-        (:data:`~qpik.algebra.enclosure.GONE` ...)."""
+        :data:`SIGNS`. Output (3C,) over the C = F + 1 slots (0: the validity; i: the joint column of level i − 1),
+        for a near member C = F + 2 (slot F + 1: the validity less the solver's
+        :attr:`~qpik.analytic.locked_joint.LockedJointSolver.thin`): every slot's window start x1, then every slot's
+        window end x2 (rad), then every slot's fate (:data:`~qpik.algebra.enclosure.GONE` ...)."""
         s, J = self._solver, len(self._joints)
         T, q7, sign = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("sign", 3)
         R, p = sy.frame_of_batch(T)
@@ -168,8 +169,12 @@ class Q7Intervals:
                 models.append(_combined(c, sin_q, -s_, cos_q))  # sin(q_j − L)
                 away = ca.logic_or(away, _combined(c, cos_q, s_, sin_q)[4] < -SLACK)  # cos(q_j − L) < 0
             steps.append(isolation_step(a, b, models[0], away, SLACK, WINDOW, TOUCH, also=models[1:]))
+        if s.thin is not None:
+            c, slope, r, lo, hi = model(4 * J)
+            steps.append(isolation_step(a, b, (c - s.thin, slope, r, lo - s.thin, hi - s.thin), False, SLACK, WINDOW,
+                                        TOUCH))  # fmt: skip
         x1, x2, fate = zip(*steps)
-        name = f"step_{s.kind}_{''.join(map(str, joints))}"
+        name = f"step_{s.kind}_{''.join(map(str, joints))}{'' if s.thin is None else '_thin'}"
         return ca.Function(name, [T, levels, a, b, sign], [ca.vertcat(*x1, *x2, *fate)])
 
     def native_sets(self) -> None:
@@ -180,26 +185,41 @@ class Q7Intervals:
         """Per branch, the q7 (rad) where every joint lies in the limits shrunk by ``margin``; ``T`` (4, 4). The
         last answer is kept: the same pose and margin again (a viewer's sets, then its best answer's level sets)
         return the same object."""
-        key = np.asarray(T, float).tobytes()
-        if self._last is not None and self._last[0] == key and self._last[1] == margin:
-            return self._last[2]
-        out = self._sets(T, margin)
-        self._last = (key, margin, out)
-        return out
+        return self._answer(T, margin)[0]
 
-    def _sets(self, T: np.ndarray, margin: float) -> FeasibleIntervals:
+    def thin(self, T: np.ndarray, margin: float = 0.0) -> list[list[Interval]]:
+        """Per branch, the q7 (rad) where a near member's ideal chain's validity lies in [0,
+        :attr:`~qpik.analytic.locked_joint.LockedJointSolver.thin`): sorted disjoint intervals, split at ±π, from
+        the roots of its validity and of the validity less that (the search's, kept with the last answer); empty for
+        an exact member. ``T``, ``margin`` as :meth:`__call__`'s."""
+        return self._answer(T, margin)[1]
+
+    def _answer(self, T: np.ndarray, margin: float) -> tuple[FeasibleIntervals, list[list[Interval]]]:
+        """The sets and the thin stretches (:meth:`thin`), computed once per pose and margin."""
+        key = np.asarray(T, float).tobytes()
+        if self._last is None or self._last[0] != key or self._last[1] != margin:
+            self._last = (key, margin, *self._sets(T, margin))
+        return self._last[2], self._last[3]
+
+    def _sets(self, T: np.ndarray, margin: float) -> tuple[FeasibleIntervals, list[list[Interval]]]:
         s = self._solver
+        none: list[list[Interval]] = [[] for _ in s.branch_ids]
         if margin > 1.0:
-            return FeasibleIntervals(s.param_name, s.branch_array, [[] for _ in s.branch_ids],
-                                     [[] for _ in s.branch_ids])  # fmt: skip
+            return FeasibleIntervals(s.param_name, s.branch_array, none, [[] for _ in s.branch_ids]), none
         lo, hi = shrunk_limits(s.robot.q_min, s.robot.q_max, margin)
         levels = _levels(lo, hi)
         if self._cols is None or self._cols[0] != margin:
             self._cols = (margin, self._columns(levels))
-        found, left = self._isolate(T, self._cols[1])
+        found, col, left = self._isolate(T, self._cols[1])
+        br, slot, _, joints, _ = self._cols[1]
+        edge = slot[col] == len(joints) + 1  # roots of the validity less ``thin`` (a near member's only)
+        ends = edge | (slot[col] == 0)
+        thin = none if s.thin is None else self._thin(T, found[ends], br[col[ends]])
+        found = found[~edge]
         breaks = np.concatenate([found, left, self._elbow_roots(T, levels[ELBOW]), levels[-1]])
         sets, sing = self._assemble(T, breaks, found, (lo, hi))
-        return FeasibleIntervals(s.param_name, s.branch_array, sets, sing, proved=not left.size and s.polished is None)
+        proved = not left.size and s.polished is None
+        return FeasibleIntervals(s.param_name, s.branch_array, sets, sing, proved=proved), thin
 
     def _columns(self, levels: list[np.ndarray]) -> tuple:
         """The columns, branch by branch: their branches and slots (F,) each (slot 0: the branch's validity; slot
@@ -210,13 +230,14 @@ class Q7Intervals:
         L = np.concatenate([levels[j] for j in self._joints])
         if joints not in self._steps:
             self._steps[joints] = RowMap(self._step_function(joints), shared=[0, 1], threads=cores(), inline=True)
-        C, B = len(joints) + 1, self._solver.n_branches
+        C, B = len(joints) + (1 if self._solver.thin is None else 2), self._solver.n_branches
         trig = np.stack([np.cos(L), np.sin(L)], axis=1).ravel()
         return np.repeat(np.arange(B), C), np.tile(np.arange(C), B), trig, joints, self._steps[joints]
 
-    def _isolate(self, T: np.ndarray, cols: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray]:
+    def _isolate(self, T: np.ndarray, cols: tuple[np.ndarray, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The breakpoints of the columns ``cols`` (:meth:`_columns`) at the pose T: the centres of the windows of
-        their roots (rad, wrapped), and the ends of the cells left when the budget ran out (empty: proved). The
+        their roots (rad, wrapped), the column of each (an index into ``cols``' branches and slots), and the ends of
+        the cells left when the budget ran out (empty: proved). The
         start cells where the elbow surely cannot reach (:meth:`_reach`: no branch is valid, so no column has a root
         of interest) are left out, and so are the branches of a start cell whose wrist surely cannot reach
         (:meth:`_arm_reach`)."""
@@ -233,7 +254,7 @@ class Q7Intervals:
         at = np.cumsum(keep) - 1  # a kept column's index
         first = at[(np.arange(n)[:, None] * F + np.searchsorted(br, np.arange(B))).ravel()[pairs]]
         rows = first, (np.cumsum(pairs) - 1)[cell[keep] * B + br[k]]
-        found = []
+        found, which = [], []
         for _ in range(self._rounds):
             if not a.size:
                 break
@@ -244,13 +265,32 @@ class Q7Intervals:
             x1, x2, fate = windows
             done, touch = fate == DONE, fate == TOUCHED
             found += [0.5 * (x1 + x2)[done], a[touch], b[touch]]
+            which += [k[done], k[touch], k[touch]]
             narrow, halve = fate == NARROW, fate == HALVE
             mid = 0.5 * (x1 + x2)[halve]
             a = np.concatenate([x1[narrow], x1[halve], mid])
             b = np.concatenate([x2[narrow], mid, x2[halve]])
             k = np.concatenate([k[narrow], k[halve], k[halve]])
-        found = wrap(np.concatenate(found)) if found else np.zeros(0)
-        return found, wrap(np.concatenate([a, b]))
+        if not found:
+            return np.zeros(0), np.zeros(0, int), wrap(np.concatenate([a, b]))
+        return wrap(np.concatenate(found)), np.concatenate(which), wrap(np.concatenate([a, b]))
+
+    def _thin(self, T: np.ndarray, roots: np.ndarray, branch: np.ndarray) -> list[list[Interval]]:
+        """:meth:`thin` from the roots (rad) of the branches ``branch`` (both (K,)) of their validity and of their
+        validity less ``thin``: per branch, the gaps between its roots (and ±π) whose middle's validity (numpy,
+        :meth:`~qpik.analytic.locked_joint.LockedJointSolver.validity`) lies in [0, ``thin``)."""
+        s = self._solver
+        R, p = np.asarray(T, float)[:3, :3], np.asarray(T, float)[:3, 3]
+        out: list[list[Interval]] = []
+        for k in range(s.n_branches):
+            lo, hi = gaps(np.concatenate([[np.pi], roots[branch == k]]))
+            sign = tuple((float(x),) for x in SIGNS[k])
+            (v,) = s.validity(R, p, wrap(0.5 * (lo + hi)), sy.NUMPY, sign)
+            thin = (v >= 0.0) & (v < s.thin)
+            pieces = [(float(a), float(min(b, np.pi))) for a, b in zip(lo[thin], hi[thin]) if a < np.pi]
+            pieces += [(-np.pi, float(b - 2.0 * np.pi)) for b in hi[thin] if b > np.pi]  # split at ±π
+            out.append(sorted(pieces))
+        return out
 
     def _round(
         self,

@@ -53,7 +53,7 @@ def assert_roots_real(T: np.ndarray, margin: float) -> None:
     validity changing; and the search ends."""
     sets = SOLVER._sets
     cols = sets._columns(_levels(*shrunk_limits(PANDA.q_min, PANDA.q_max, margin)))
-    found, left = sets._isolate(T, cols)
+    found, _, left = sets._isolate(T, cols)
     assert not left.size
     x = np.concatenate([found - 1e-9, found, found + 1e-9])
     R, p = sy.frame_of_batch(np.broadcast_to(T, (x.size, 4, 4)))
@@ -199,7 +199,7 @@ def test_the_reach_filter_leaves_out_only_cells_where_no_branch_is_valid():
         valid = np.array(SOLVER.validity(R, p, x.ravel(), sy.NUMPY)).reshape(8, *x.shape)
         assert not (valid[~arm.T] >= 0.0).any()
         arm_out += (~arm & near[:, None]).sum()
-        found, left = sets._isolate(pose, cols)
-        found_all, left_all = everywhere._isolate(pose, cols)
+        found, _, left = sets._isolate(pose, cols)
+        found_all, _, left_all = everywhere._isolate(pose, cols)
         assert np.array_equal(np.sort(found), np.sort(found_all)) and np.array_equal(left, left_all)
     assert left_out > 0 and arm_out > 0
