@@ -21,7 +21,7 @@ _SOLVERS = {  # family -> (solver, its feasible sets), each as (module, class or
     "srs": (("qpik.analytic.srs", "SRSSolver"), ("qpik.analytic.srs_intervals", "PsiIntervals")),
     "locked_joint": (("qpik.analytic.locked_joint", "locked_joint_solver"),
                      ("qpik.analytic.locked_joint_intervals", "Q7Intervals")),
-    "locked_search": (("qpik.analytic.search_solver", "SearchSolver"), None),
+    "locked_search": (("qpik.analytic.search_solver", "SearchSolver"), ("qpik.analytic.search_sets", "SearchSets")),
 }  # fmt: skip
 SYMBOL = {"delta": "δ", "psi": "ψ"}
 """The Greek letter of each redundancy parameter name (:attr:`IKSolutions.param_name`)."""
@@ -51,7 +51,7 @@ def _new_solver(robot: Robot) -> BranchSolver:
         )
         raise NoClosedFormError(f"{robot.name} has no closed-form IK ({why}); use qpik.solve_ik instead")
     (module, cls), sets = _SOLVERS[robot.closed_form]
-    make_sets = None if sets is None else getattr(importlib.import_module(sets[0]), sets[1])
+    make_sets = getattr(importlib.import_module(sets[0]), sets[1])
     return getattr(importlib.import_module(module), cls)(robot, sets=make_sets)
 
 

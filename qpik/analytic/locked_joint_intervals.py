@@ -50,8 +50,12 @@ proved. The gaps between the breakpoints are classified as for the other familie
 **Near members** (:attr:`~qpik.analytic.locked_joint.LockedJointSolver.polished`): the columns are those of the
 ideal chain's closed form, the gaps classified by the polished IK of the file's chain. The ends of the sets are
 then those of the ideal chain, off from the file's by about the polish's change of the joints, until the solver
-moves them onto the file's chain (:mod:`qpik.analytic.set_ends`); a validity change of the polish (where it stops
-short of the pose, near a singular Jacobian) is no breakpoint: the answers are not proved (``proved`` False).
+moves them onto the file's chain (:mod:`qpik.analytic.set_ends`). A validity change of the polish (where it stops
+short of the pose, near a singular Jacobian: a fold of the file's chain that the ideal one does not have) is no
+breakpoint; the search also isolates the roots of each branch's validity less the solver's
+:attr:`~qpik.analytic.locked_joint.LockedJointSolver.thin`, which bound the stretches where such a fold may lie
+(:meth:`Q7Intervals.thin`), and the solver samples its branches there (:func:`qpik.analytic.set_ends.resample`).
+The answers are not proved (``proved`` False).
 
 **Proved:** when the search ends with no cell left, every root of every column lies within :data:`WINDOW` of a
 breakpoint or in a cell where the column is within :data:`TOUCH` of 0, so the sets are exact except within

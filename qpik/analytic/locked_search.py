@@ -109,9 +109,20 @@ POLISH = 3
 """Rounds of :func:`~qpik.analytic.polish.polish` (each of its Newton steps) from a candidate."""
 SAME = 1e-8
 """rad: solutions this close in every joint are one."""
+MOST = 16
+"""The most isolated solutions of a 6-R chain (Lee & Liang 1988): more is a continuum."""
+VALLEY = 1e-2
+"""rad: solutions of one error function this close are one where their midpoint reaches the pose
+(:meth:`LockedSearch._valleys`)."""
 DOUBLE = 1e-9
 """A root where the validity :math:`v_b` (the subproblems' smaller discriminant, relative) is at most this is at a
 double root of a subproblem (:attr:`SearchSolutions.double`)."""
+TIE = 1e-9
+"""rad: joints 1-3 of two error functions' subproblems this much nearer to a solution are as near
+(:meth:`LockedSearch.branch_of`)."""
+PARTNER = 1e-3
+"""rad: at a double root of a subproblem, the joints 1-3 of the two roots' b are this close
+(:meth:`LockedSearch.branch_of`)."""
 SIGNS = np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]])
 """Per branch b, the signs (σ3, σ12) of its subproblems' roots."""
 
@@ -184,7 +195,8 @@ class LockedSearch:
         R, p = sy.frame_of_batch(T)
         e, valid, _ = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)
         model = taylor_function(ca.Function("locked_search", [T, q7, x, sign], [ca.vertcat(e, valid)]), [2])
-        self.deviation = 0.0 if self.exact else ChainGap.between(turned, table).bound
+        gap = None if self.exact else ChainGap.between(turned, table)
+        self.deviation = 0.0 if gap is None else gap.bound
         """m: a bound of the change of the end's position between the file's chain and the ideal one the search runs
         on, at every q (0 for an exact member; :attr:`~qpik.robots.locked_joint.ChainGap.bound`)."""
         gain = None
@@ -200,19 +212,20 @@ class LockedSearch:
         self._reach = RowMap(ca.Function("locked_search_reach_cells", [T, q7, a, b], top), [0, 1], CHUNKS, inline=True)
         """The upper bound over a cell [a, b] of x of :meth:`reach` + :data:`~qpik.analytic.trig.EPS` (its Taylor
         model's), which bounds every branch's validity: compiled, over rows of cells."""
-        self._branches = None
-        """Per row of (x, the search's joints 1-3 of a solution at its x = q4): for each branch b, the largest
-        difference (modulo 2π) of its subproblems' joints 1-3 at x from the solution's, and its validity (8,); compiled,
-        over rows of solutions (the pose and the locked angle shared); a near member's only (:meth:`branch_of`)."""
-        if not self.exact:
-            own, rows = ca.SX.sym("own", 3), []
-            for s3, s12 in SIGNS:
-                _, v_b, trig_b = self.error(R, p, q7, x, (s3, s12), sy.CASADI)
-                turns = [ca.atan2(sn * ca.cos(o) - c * ca.sin(o), c * ca.cos(o) + sn * ca.sin(o))
-                         for (c, sn), o in zip(trig_b[:3], ca.vertsplit(own))]  # fmt: skip
-                rows += [ca.mmax(ca.fabs(ca.vertcat(*turns))), v_b]
-            fn = ca.Function("locked_search_branches", [T, q7, x, own], [ca.vertcat(*rows)])
-            self._branches = RowMap(fn, shared=[0, 1])
+        q, rows = ca.vertsplit(ca.SX.sym("q", 7)), []
+        moved = p if gap is None else sy.vsub(p, gap.expr(self.own.frames_expr(q, sy.CASADI)))  # q exact there
+        for s3, s12 in SIGNS:
+            _, v_b, trig_b = self.error(R, moved, q7, q[3], (s3, s12), sy.CASADI)
+            turns = [ca.atan2(sn * ca.cos(o) - c * ca.sin(o), c * ca.cos(o) + sn * ca.sin(o))
+                     for (c, sn), o in zip(trig_b[:3], q[:3])]  # fmt: skip
+            rows += [ca.mmax(ca.fabs(ca.vertcat(*turns))), v_b]
+        fn = ca.Function("locked_search_branches", [T, q7, ca.vertcat(*q)], [ca.vertcat(*rows)])
+        self._branches = RowMap(fn, shared=[0, 1])
+        """Per row of a solution q (7,; rad, the search's order): for each branch b, the largest difference (modulo
+        2π) of its subproblems' joints 1-3 at q's x = q4 from q's, and its validity (8,), on the ideal chain at the
+        pose where q is an exact solution of it (a near member's pose moved by the chains' gap at q,
+        :meth:`~qpik.robots.locked_joint.ChainGap.expr`); compiled, over rows of solutions (the pose and the locked
+        angle shared; :meth:`branch_of`)."""
         _, _, trig = self.error(R, p, q7, x, (sign[0], sign[1]), sy.CASADI)
         joints, residual = [ca.atan2(s, c) for c, s in trig] + [q7], None
         for _ in range(POLISH):
@@ -310,11 +323,12 @@ class LockedSearch:
         q, residual, valid = self._polished(Ts.reshape(-1, order="F"), np.array([param]), found, SIGNS[branch])
         ok = residual[:, 0] <= RESIDUAL_TOL
         q, branch, residual = sy.NUMPY.wrap(q[ok]), branch[ok], residual[ok, 0]
-        double = valid[ok, 0] - EPS <= DOUBLE
-        if not self.exact and q.size:  # the polish may take a candidate of one b to a root of another
+        if q.size:  # the polish may take a candidate of one b to a root of another: b is the solution's own
             own, validity = self.branch_of(Ts, param, q)
-            double = (validity - EPS <= DOUBLE) | (own != branch)
+            double = validity - EPS <= DOUBLE
             branch = own
+        else:
+            double = valid[ok, 0] - EPS <= DOUBLE
         order = np.lexsort((residual, branch))  # the smaller b first, then the smaller residual
         q, branch, residual, double = q[order], branch[order], residual[order], double[order]
         left, keep = np.ones(len(q), bool), []
@@ -328,19 +342,53 @@ class LockedSearch:
             gap = np.where(kept < dropped[:, None], apart(q[dropped, None], q[kept]), np.inf)
             j = kept[np.argmin(gap, axis=1)]
             double[j[branch[j] != branch[dropped]]] = True
+        if len(keep) <= MOST:  # more is a continuum, each of whose solutions reaches the pose: kept as they are
+            keep = self._valleys(Ts, q, branch, keep, double)
         keep = sorted(keep, key=order.__getitem__)  # in the candidates' order
         q = q[keep]
         return SearchSolutions(q[:, ::-1] if self.reversed else q, branch[keep], residual[keep], proved,
                                double[keep])  # fmt: skip
 
+    def _valleys(
+        self, Ts: np.ndarray, q: np.ndarray, branch: np.ndarray, keep: list[int], double: np.ndarray
+    ) -> list[int]:
+        """``keep`` (indices of solutions ``q`` (K, 7), rad, the search's order, of the pose ``Ts``) less each solution
+        whose midpoint with one kept before it, of the same error function ``branch`` and within :data:`VALLEY`,
+        reaches the pose to :data:`~qpik.analytic.polish.RESIDUAL_TOL` by the chain's FK; that one is marked
+        ``double`` (changed in place). Near a double root of :math:`e_b` (a fold) the residual is flat along one
+        direction and Newton stalls anywhere in that valley: candidates polished from several windows stop at points
+        more than :data:`SAME` apart, where no FK at the tolerance tells them apart."""
+        out: list[int] = []
+        for i in keep:
+            for j in out:
+                if branch[j] == branch[i] and apart(q[i], q[j]) < VALLEY:
+                    mid = q[j] + 0.5 * sy.NUMPY.wrap(q[i] - q[j])
+                    if np.abs(self.own.fk(mid)[:3] - Ts[:3]).max() <= RESIDUAL_TOL:
+                        double[j] = True
+                        break
+            else:
+                out.append(i)
+        return out
+
     def branch_of(self, Ts: np.ndarray, q7: float, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The error function b (K,) of solutions ``q`` (K, 7; rad, the search's order) of the search's pose ``Ts``
         (4, 4) at the locked angle ``q7`` (rad), and its validity :math:`v_b` (K,) there: the b whose subproblems at
-        each solution's q4 give the joints 1-3 nearest to its own (largest difference, modulo 2π)."""
-        assert self._branches is not None
-        (out,) = self._branches(Ts.reshape(-1, order="F"), np.array([q7]), q[:, 3], q[:, :3])
-        b = np.argmin(out[:, 0::2], axis=1)
-        return b, out[np.arange(len(q)), 2 * b + 1]
+        each solution's q4 give the joints 1-3 nearest to its own (largest difference, modulo 2π; on a near member's
+        ideal chain at the pose where the solution is exact: :attr:`_branches`). Where another valid b's joints are as
+        near, to :data:`TIE`, or the solution is at a double root of a subproblem (:data:`DOUBLE`)
+        where another b's joints are within :data:`PARTNER` and its validity is that small too (the two roots' b give
+        the same joints to round-off, and either may be the nearer), the smallest such b: so that a solution's b does
+        not change with the round-off of the pose."""
+        (out,) = self._branches(Ts.reshape(-1, order="F"), np.array([q7]), q)
+        diff, validity = out[:, 0::2], out[:, 1::2] - EPS
+        rows = np.arange(len(q))
+        best = np.argmin(diff, axis=1)
+        small = validity <= DOUBLE
+        tie = (diff <= diff[rows, best, None] + TIE) & (validity >= 0.0)
+        tie |= small & small[rows, best, None] & (diff <= PARTNER)
+        tie[rows, best] = True
+        b = np.argmax(tie, axis=1)
+        return b, out[rows, 2 * b + 1]
 
     def _isolate(self, Ts: np.ndarray, q7: float, rounds: int) -> tuple[np.ndarray, np.ndarray, bool]:
         """The candidates (centres of windows of roots, rad; each once), their branches (in increasing order of branch

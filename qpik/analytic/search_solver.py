@@ -20,8 +20,8 @@ its error functions with it.
 More than 16 solutions is a continuum (the Sawyer at q = 0, two axes aligned with q1 fixed: the search then runs
 out of its budget with thousands of candidates): 16 of them fill the slots (4 per b, then the lowest slots left, in
 the order of b and q4), each ``singular``. The branch of a configuration (:meth:`SearchSolver.parameter`) is the
-slot of the solution nearest to it at its own pose and locked angle. The feasible sets of the parameter are not
-computed for this family (:meth:`SearchSolver.feasible_intervals` raises).
+slot of the solution nearest to it at its own pose and locked angle. The feasible sets of the parameter are sampled,
+not proved (:mod:`qpik.analytic.search_sets`).
 """
 
 from __future__ import annotations
@@ -32,19 +32,19 @@ import numpy as np
 
 from qpik.algebra import symbolic as sy
 from qpik.analytic.intervals import apart
-from qpik.analytic.locked_search import LockedSearch, SearchSolutions
+from qpik.analytic.locked_search import MOST, LockedSearch, SearchSolutions
 from qpik.analytic.solver import BranchSolver, Solved
 from qpik.core.errors import NoClosedFormError
 
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    from qpik.analytic.intervals import FeasibleIntervals, ParameterSets
+    from qpik.analytic.intervals import ParameterSets
     from qpik.robots.robot import Robot
 
 SLOTS = 4
 """Slots of :class:`SearchSolver` per error function: ids 4 b to 4 b + 3 (module docstring)."""
-BRANCHES = 16
+BRANCHES = MOST
 """Slots of :class:`SearchSolver` per pose: the most solutions a 6-R chain has."""
 
 
@@ -92,14 +92,6 @@ class SearchSolver(BranchSolver):
     def solve_one(self, T: np.ndarray, param: float) -> Solved:
         """One pose (4, 4), one parameter (rad): q (B, n), valid, singular, within_limits (B,) bool."""
         return self.place(self.search.solve(T, param), param)
-
-    def feasible_intervals(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
-        """Not computed for this family: raises :class:`~qpik.core.errors.NoClosedFormError` (the sets' ends are roots
-        of 2-D systems in the locked angle and q4, which no module isolates yet)."""
-        raise NoClosedFormError(
-            f"{self.robot.name}: the feasible {self.param_name} sets of the 1-D search's branches are not computed "
-            "(qpik.analytic.search_solver); qpik.ik and qpik.redundancy_parameter are"
-        )
 
     def place(self, sol: SearchSolutions, param: float) -> Solved:
         """The solutions ``sol`` of the locked angle ``param`` (rad) in their slots (:func:`slots`): q (B, n) (each

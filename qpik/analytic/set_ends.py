@@ -14,7 +14,12 @@ whose bracket does not hold those states is left where it was. Each step keeps t
 (regula falsi where the end is a joint reaching a limit, else bisection; :func:`refine_ends`), so the end found is
 where the state changes, to :data:`WIDTH`; where the file's branch enters and leaves the limits more than once in the
 bracket, it finds one of the changes. Ends at ±π where a set that wraps through them is split are not ends and stay.
-The answer stays unproved (``proved`` False).
+
+Where the ideal chain's branch is close to a fold (two solutions of a subproblem meet), the file's chain, a little
+apart, may fold elsewhere, or have a hole where the ideal chain has none: its branch then stops being valid inside an
+interval of the ideal chain's sets, away from every end. :func:`resample` takes the sets inside such stretches from
+the file's answers at samples, each change between two samples moved onto the file's chain as an end is. The answer
+stays unproved (``proved`` False).
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from qpik.analytic.intervals import FeasibleIntervals, Interval, gaps, merge, shrunk_limits, wrap
+from qpik.core.progress import Progress
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -34,6 +40,16 @@ WIDTH = 1e-11
 """rad: the width of a bracket at which the end is its middle."""
 STEPS = 96
 """Most steps per end: every second step halves the bracket, and halving one of 2π to below :data:`WIDTH` takes 40."""
+LADDER = np.concatenate([-(4.0 ** -np.arange(1, 5)), 4.0 ** -np.arange(1, 5)])
+"""Offsets (in samples' spacings) from a change found by :func:`resample` at which it samples again: ±1/4 to
+±1/256."""
+ROUNDS = 16
+"""Rounds of :func:`resample`'s closing on the changes between neighbouring samples."""
+FINE = 1.0 / 64.0
+"""Neighbouring samples of :func:`resample` where another branch's validity differs are parted down to this many
+spacings."""
+CHUNK = 64
+"""Parameters per call of the solver's ``solve_many``."""
 FLAT = 1e-15
 """rad: a step whose joint-limit margin is this close to 0 is the end itself."""
 
@@ -69,14 +85,14 @@ def refine_ends(
         k = np.array([e[0] for e in ends])
         at, far_a, far_c = (np.array([e[j] for e in ends]) for j in (3, 4, 5))
         a, c = at + np.clip(far_a - at, -reach, reach), at + np.clip(far_c - at, -reach, reach)
-        (in_a, fa), (in_c, fc) = state(a, k), state(c, k)
+        (in_a, fa, _), (in_c, fc, _) = state(a, k), state(c, k)
         ok = ~in_a & in_c
         if (wide := np.flatnonzero(~ok)).size:  # the bracket within ``reach`` does not hold: the middles'
             a[wide], c[wide] = far_a[wide], far_c[wide]
-            (in_a, fa[wide]), (in_c, fc[wide]) = state(a[wide], k[wide]), state(c[wide], k[wide])
+            (in_a, fa[wide], _), (in_c, fc[wide], _) = state(a[wide], k[wide]), state(c[wide], k[wide])
             ok[wide] = ~in_a & in_c
-        moved = _close(state, k, a, c, fa, fc, ok)
-        for (b, i, side, *_), good, x in zip(ends, ok, moved):
+        a, c = _close(state, k, a, c, fa, fc, ok)
+        for (b, i, side, *_), good, x in zip(ends, ok, 0.5 * (a + c)):
             if good:
                 lo, hi = new[b][i]
                 new[b][i] = (x, hi) if side == 0 else (lo, x)
@@ -91,43 +107,86 @@ def resample(
     margin: float,
     pieces: list[list[Interval]],
     spacing: float,
+    progress: str | None = None,
 ) -> FeasibleIntervals:
     """``fi`` (as :func:`refine_ends`'s) with each branch's set inside its ``pieces`` (per branch of ``fi``'s order,
-    sorted disjoint intervals of the parameter, rad) taken from the solver's answers: sampled at its ends and at the
-    multiples of ``spacing`` (rad) between them (the pieces of several branches share their samples), every change
-    of state between two neighbouring samples moved onto the answers as :func:`refine_ends` moves an end (the two
-    samples its bracket); outside the pieces as ``fi``. A stretch where the state changes twice between two samples
-    is not seen. ``proved`` False."""
+    sorted disjoint intervals of the parameter, rad) taken from the solver's answers, outside them as ``fi``;
+    ``proved`` False.
+
+    The answers are sampled at the ends of each piece and at the multiples of ``spacing`` (rad) between them (the
+    pieces of several branches share their samples). Then, for at most :data:`ROUNDS` rounds: every change of a
+    branch's state between two neighbouring samples more than :data:`WIDTH` apart is closed on as
+    :func:`refine_ends` closes on an end, its bracket's two ends and the values :data:`LADDER` (times ``spacing``)
+    from it becoming samples of every piece that holds them; and two neighbouring samples where the branch's state
+    is the same but another branch's validity differs (an error function's roots appear, vanish or pass to another,
+    renumbering its branches) more than :data:`FINE` spacings apart get a sample between them. Every branch's state
+    is taken at every sample: a branch whose state changes at the same value as another's, or between two of the
+    other's changes, or soon after one (two solutions appearing together at a fold, one of them leaving the limits
+    just after), so shows its change to the next round. A stretch where no branch's validity and state differ
+    between two neighbouring samples but one changes twice between them is not seen. ``progress``: the work's words
+    for lines on stderr (:class:`~qpik.core.progress.Progress`: the samples, then each round's steps); None: no
+    lines."""
     t, k, piece = [], [], []
+    spans = []  # per piece: its branch, its ends
     for b, stretch in enumerate(pieces):
         for lo, hi in stretch:
             grid = np.arange(np.floor(lo / spacing) + 1, np.ceil(hi / spacing)) * spacing  # shared by the pieces
             x = np.concatenate([[lo], grid[(grid > lo) & (grid < hi)], [hi]])
             t.append(x)
             k.append(np.full(len(x), b))
-            piece.append(np.full(len(x), len(piece)))
+            piece.append(np.full(len(x), len(spans)))
+            spans.append((b, lo, hi))
     if not t:
         return fi
     state = _state(solver, T, margin)
     t, k, piece = np.concatenate(t), np.concatenate(k), np.concatenate(piece)
-    inside, mu = state(t, k)
-    i = np.flatnonzero((piece[1:] == piece[:-1]) & (inside[1:] != inside[:-1]))  # a change after sample i
-    out = np.where(inside[i], i + 1, i)  # the sample outside, then the one inside
-    into = np.where(inside[i], i, i + 1)
-    change = np.full(len(t), np.nan)  # after sample i: where the state changes
-    change[i] = _close(state, k[i], t[out], t[into], mu[out], mu[into], np.ones(len(i), bool))
+    said = Progress(f"{progress}: samples", len(np.unique(t)), progress is not None)
+    inside, mu, every = state(t, k, said)
+    said.finish()
+    for r in range(ROUNDS):
+        order = np.lexsort((t, piece))
+        t, k, piece, inside, mu, every = t[order], k[order], piece[order], inside[order], mu[order], every[order]
+        gap = np.where(piece[1:] == piece[:-1], t[1:] - t[:-1], 0.0)
+        i = np.flatnonzero((inside[1:] != inside[:-1]) & (gap > WIDTH))
+        j = np.flatnonzero((every[1:] != every[:-1]).any(axis=1) & (inside[1:] == inside[:-1]) & (gap > FINE * spacing))
+        new = [0.5 * (t[j] + t[j + 1])]  # another branch's validity changes in there: a look at its middle
+        if i.size:
+            out, into = np.where(inside[i], i + 1, i), np.where(inside[i], i, i + 1)  # the sample outside, inside
+            words = f"{progress}: round {r + 1}, {len(i)} ends, step (at most {STEPS})"
+            said = Progress(words, STEPS, progress is not None)
+            a, c = _close(state, k[i], t[out], t[into], mu[out], mu[into], np.ones(len(i), bool), said)
+            new += [
+                a,
+                c,
+                (0.5 * (a + c)[:, None] + spacing * LADDER).ravel(),
+            ]  # narrow stretches cluster beside a change
+        new = np.unique(np.concatenate(new))
+        at = [(p, x) for p, (b, lo, hi) in enumerate(spans) for x in new[(new >= lo) & (new <= hi)]]
+        if not at:
+            break
+        p_new, t_new = (np.array(x) for x in zip(*at))
+        k_new = np.array([spans[p][0] for p in p_new])
+        in_new, mu_new, every_new = state(t_new, k_new)
+        t, k, piece = np.concatenate([t, t_new]), np.concatenate([k, k_new]), np.concatenate([piece, p_new])
+        inside, mu, every = (
+            np.concatenate([inside, in_new]),
+            np.concatenate([mu, mu_new]),
+            np.concatenate([every, every_new]),
+        )
+    order = np.lexsort((t, piece))
+    t, k, piece, inside = t[order], k[order], piece[order], inside[order]
     intervals = [list(x) for x in fi.intervals]
     for b, stretch in enumerate(pieces):
         if not stretch:
             continue
-        mine = np.flatnonzero(k == b)
-        runs, start = [], None  # the runs of the samples inside, their ends moved
-        for j in mine:
-            if start is None and inside[j]:
-                start = t[j] if j == mine[0] or piece[j - 1] != piece[j] else change[j - 1]
-            if start is not None and (j == mine[-1] or piece[j + 1] != piece[j] or not inside[j + 1]):
-                runs.append((start, t[j] if j == mine[-1] or piece[j + 1] != piece[j] else change[j]))
-                start = None
+        runs = []  # the runs of the samples inside, each end the middle of its last bracket
+        for p in {int(x) for x in piece[k == b]}:
+            x, ok = t[piece == p], inside[piece == p]
+            edges = np.flatnonzero(ok[1:] != ok[:-1])
+            cut = 0.5 * (x[edges] + x[edges + 1])
+            starts = np.concatenate([[x[0]] if ok[0] else [], cut[ok[edges + 1]]])
+            stops = np.concatenate([cut[ok[edges]], [x[-1]] if ok[-1] else []])
+            runs += list(zip(starts.tolist(), stops.tolist()))
         every = [x for iv in intervals[b] + runs + stretch for x in iv]
         lo, hi = gaps(np.array(every))
         mid = wrap(0.5 * (lo + hi))
@@ -145,18 +204,27 @@ def _within(intervals: list[Interval], x: np.ndarray) -> np.ndarray:
     return out
 
 
-def _state(solver: BranchSolver, T: np.ndarray, margin: float) -> Callable[[np.ndarray, np.ndarray], tuple]:
+def _state(solver: BranchSolver, T: np.ndarray, margin: float) -> Callable[..., tuple]:
     """The state of ``solver``'s branches at the pose ``T`` under the limits shrunk by ``margin``: a function of
     parameters t (M,) rad and branches k (M,) (indices of the sets' order) giving inside (valid and within the
-    shrunk limits) and the margin μ (rad; NaN where the branch is not valid), (M,) each."""
+    shrunk limits) and the margin μ (rad; NaN where the branch is not valid), (M,) each, and every branch's valid
+    flag at each t (M, B); the solver answers each parameter once, :data:`CHUNK` at a time, each chunk told to a
+    :class:`~qpik.core.progress.Progress` if given."""
     lo_q, hi_q = shrunk_limits(solver.robot.q_min, solver.robot.q_max, margin)
 
-    def state(t: np.ndarray, k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def state(t: np.ndarray, k: np.ndarray, said: Progress | None = None) -> tuple[np.ndarray, ...]:
         u, rows = np.unique(t, return_inverse=True)  # branches sampled at one parameter: one answer
-        s = solver.solve_many(T, u)
-        q, valid = s.q[rows, k], s.valid[rows, k]
+        q, valid = [], []
+        for start in range(0, len(u), CHUNK):
+            s = solver.solve_many(T, u[start : start + CHUNK])
+            q.append(s.q)
+            valid.append(s.valid)
+            if said is not None:
+                said(start + len(s.q))
+        every = np.concatenate(valid)[rows]
+        q, valid = np.concatenate(q)[rows, k], every[np.arange(len(t)), k]
         mu = np.where(valid, np.minimum(q - lo_q, hi_q - q).min(axis=-1), np.nan)
-        return valid & (mu >= 0), mu
+        return valid & (mu >= 0), mu, every
 
     return state
 
@@ -169,16 +237,20 @@ def _close(
     fa: np.ndarray,
     fc: np.ndarray,
     ok: np.ndarray,
-) -> np.ndarray:
-    """The middles (rad, (M,)) of the brackets [a, c] (a outside, c inside, (M,) each; μ there ``fa``, ``fc``) of
-    branches ``k`` once each is at most :data:`WIDTH` wide (:func:`refine_ends`' steps); only where ``ok``, the others
-    as given."""
+    said: Progress | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The brackets [a, c] (a outside, c inside, rad, (M,) each; μ there ``fa``, ``fc``) of branches ``k`` closed on
+    their ends until each is at most :data:`WIDTH` wide (:func:`refine_ends`' steps): their ends a, c; only where
+    ``ok``, the others as given; each step told to ``said``, the last as its
+    :meth:`~qpik.core.progress.Progress.finish`."""
     a, c, fa, fc = (np.array(x, float) for x in (a, c, fa, fc))
     last = np.zeros(len(a), int)  # +1: c moved last, -1: a moved last (Illinois halves the other's value)
     for step in range(STEPS):
         live = np.flatnonzero(ok & (np.abs(c - a) > WIDTH))
         if not live.size:
             break
+        if said is not None:
+            said(step)
         A, C, FA, FC = a[live], c[live], fa[live], fc[live]
         t = 0.5 * (A + C)
         falsi = np.isfinite(FA) & np.isfinite(FC) & (FC > FA) & (step % 2 == 0)
@@ -186,7 +258,7 @@ def _close(
             guess = (A * FC - C * FA) / (FC - FA)
         use = falsi & (np.minimum(A, C) < guess) & (guess < np.maximum(A, C))
         t[use] = guess[use]
-        now, mu = state(t, k[live])
+        now, mu, _ = state(t, k[live])
         fa[live[now & (last[live] == 1)]] *= 0.5  # c moves a second time in a row: halve a's value (Illinois)
         fc[live[~now & (last[live] == -1)]] *= 0.5  # a moves a second time in a row: halve c's value
         into, out = live[now], live[~now]
@@ -194,4 +266,6 @@ def _close(
         a[out], fa[out], last[out] = t[~now], mu[~now], -1
         flat = np.abs(np.nan_to_num(mu, nan=1.0)) <= FLAT
         a[live[flat]] = c[live[flat]] = t[flat]  # a step onto the end itself: the bracket closes on it
-    return 0.5 * (a + c)
+    if said is not None:
+        said.finish(step)
+    return a, c

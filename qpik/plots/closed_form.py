@@ -29,9 +29,8 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from qpik.analytic.api import IKSolutions, feasible_intervals, ik, symbol
-from qpik.analytic.intervals import FeasibleIntervals, Interval, wrap
-from qpik.core.errors import NoClosedFormError
-from qpik.plots.feasible import feasible_panel, sampled_panel
+from qpik.analytic.intervals import Interval, wrap
+from qpik.plots.feasible import feasible_panel
 from qpik.plots.files import save
 from qpik.robots.robot import Robot
 
@@ -93,9 +92,8 @@ def selfmotion_map(
         shade_branch: the branch whose infeasible parameter ranges are shaded
             (grey spans, ``gid="infeasible"``; default: the first drawn branch).
             They are the complement in [-π, π] of ``feasible_intervals(robot, pose)``
-            for that branch — exact breakpoints, not the sampled curves. An arm whose sets are not
-            computed (the 1-D search's) has no shading, and its last panel shows the within-limit runs of the
-            samples instead, titled as such (:func:`qpik.plots.feasible.sampled_panel`).
+            for that branch — its breakpoints, not the sampled curves (not proved for some arms, and the last
+            panel's title then says so: :func:`qpik.plots.feasible.feasible_panel`).
         num: parameter samples over [-π, π] for the curves.
         project: project a non-orthonormal rotation onto SO(3).
 
@@ -105,18 +103,15 @@ def selfmotion_map(
     feasible set of every branch as bars.
     """
     sols = selfmotion_samples(robot, pose, num, project)
-    try:
-        fi: FeasibleIntervals | None = feasible_intervals(robot, pose, project=project)
-    except NoClosedFormError:  # the 1-D search's arms: no sets (qpik.analytic.search_solver)
-        fi = None
+    fi = feasible_intervals(robot, pose, project=project)
     ids = [int(b) for b in sols.branch]
     draw = ids if branches is None else [int(b) for b in branches]
     shade = draw[0] if shade_branch is None else int(shade_branch)
     colors = branch_colors(ids)
     x = np.asarray(sols.param)
     sym = symbol(sols.param_name)
-    spans = [] if fi is None else infeasible_spans(fi[shade])
-    singular = sorted({float(s) for b in draw for s in fi.singular[fi.index(b)]}) if fi and fi.singular else []
+    spans = infeasible_spans(fi[shade])
+    singular = sorted({float(s) for b in draw for s in fi.singular[fi.index(b)]}) if fi.singular else []
 
     fig = Figure(figsize=(12, 13), layout="constrained")
     axes = fig.subplots(4, 2, sharex=True)
@@ -138,10 +133,7 @@ def selfmotion_map(
         ax.set_ylim(-3.3, 3.3)
         ax.set_ylabel(f"θ{j + 1} [rad]" if sols.param_name == "delta" else f"q{j + 1} [rad]")
         ax.grid(alpha=0.3)
-    if fi is None:
-        sampled_panel(axes.flat[7], sols, draw, colors)
-    else:
-        feasible_panel(axes.flat[7], fi, draw, shade, colors)
+    feasible_panel(axes.flat[7], fi, draw, shade, colors)
     for ax in axes[-1]:
         ax.set_xlabel(f"{sym} [rad]")
         ax.set_xlim(-PI, PI)

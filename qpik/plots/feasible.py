@@ -1,19 +1,18 @@
 """The panel of the redundancy parameter's feasible set per branch, in the pictures of :mod:`qpik.plots.closed_form`
-and :mod:`qpik.plots.objective`: the exact sets (:func:`qpik.feasible_intervals`), or, for an arm whose sets are not
-computed (the 1-D search's, :mod:`qpik.analytic.search_solver`), the runs of sampled values within the limits."""
+and :mod:`qpik.plots.objective`: the sets of :func:`qpik.feasible_intervals`, its title saying where they are not
+proved (a near member's, the 1-D search's sampled ones)."""
 
 from __future__ import annotations
 
-import numpy as np
 from matplotlib.axes import Axes
 
-from qpik.analytic.api import IKSolutions, symbol
+from qpik.analytic.api import symbol
 from qpik.analytic.intervals import FeasibleIntervals
 
 
 def feasible_panel(ax: Axes, fi: FeasibleIntervals, draw: list[int], shade: int, colors: dict) -> None:
-    """Bars of the feasible parameter set of each drawn branch (exact intervals), its singular values as black ticks
-    (explained in the panel's legend)."""
+    """Bars of the feasible parameter set of each drawn branch (the intervals of ``fi``; the title says "not proved"
+    where ``fi.proved`` is False), its singular values as black ticks (explained in the panel's legend)."""
     marked = False
     for k, b in enumerate(draw):
         segs = [(lo, hi - lo) for lo, hi in fi[b]]
@@ -24,23 +23,8 @@ def feasible_panel(ax: Axes, fi: FeasibleIntervals, draw: list[int], shade: int,
             marked = True
     if marked:
         ax.legend(loc="lower right", fontsize=7, framealpha=0.9)
-    _branch_axis(ax, draw, f"feasible {symbol(fi.param_name)} per branch (within limits)")
-
-
-def sampled_panel(ax: Axes, sols: IKSolutions, draw: list[int], colors: dict) -> None:
-    """Bars of the runs of samples where each drawn branch is within the limits: ``sols`` is a batched
-    :class:`~qpik.analytic.api.IKSolutions` over increasing parameters (num,) rad, and a run is drawn from its first
-    sample to its last (not exact sets: ends are known to the samples' spacing, and a run between two samples is
-    missed; the title says so)."""
-    x = np.asarray(sols.param, dtype=float)
-    ids = [int(b) for b in sols.branch]
-    for k, b in enumerate(draw):
-        inside = sols.within_limits[:, ids.index(b)].astype(int)
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], inside, [0]])))
-        segs = [(x[lo], x[hi - 1] - x[lo]) for lo, hi in zip(edges[::2], edges[1::2])]
-        ax.broken_barh(segs, (k - 0.35, 0.7), color=colors[b], alpha=0.8)
-    sym = symbol(sols.param_name)
-    _branch_axis(ax, draw, f"within limits at {len(x)} sampled {sym} (no exact sets for this arm)")
+    proof = "" if fi.proved else ", not proved"
+    _branch_axis(ax, draw, f"feasible {symbol(fi.param_name)} per branch (within limits{proof})")
 
 
 def _branch_axis(ax: Axes, draw: list[int], title: str) -> None:

@@ -271,8 +271,8 @@ def test_a_slot_keeps_its_solution_along_the_parameter():
 def test_the_searched_family_says_what_it_does_not_serve():
     """An unreachable pose: 16 invalid finite slots; the home pose, q = 0, where a continuum of configurations reaches
     it at q1 = 0: 16 valid singular slots, each reaching it by MuJoCo's FK. solve_best needs branches as expressions of
-    the parameter: it says the arm's branches are found by a search; feasible_intervals says that it has no sets for
-    them. load_robot's override: asked for ψ, the Sawyer has no closed form."""
+    the parameter: it says the arm's branches are found by a search. load_robot's override: asked for ψ, the Sawyer
+    has no closed form."""
     robot = model_robot("robosuite_sawyer")
     T = robot.fk(robot.q_home)
     T[:3, 3] = (2.0, 0.0, 0.5)
@@ -280,8 +280,6 @@ def test_the_searched_family_says_what_it_does_not_serve():
     assert not sols.valid.any() and np.isfinite(sols.q).all() and np.all(sols.q[:, 0] == 0.3)
     with pytest.raises(NoClosedFormError, match="found by a 1-D search"):
         qpik.solve_best(robot, robot.fk(robot.q_home))
-    with pytest.raises(NoClosedFormError, match="feasible q1 sets of the 1-D search's branches are not computed"):
-        qpik.feasible_intervals(robot, robot.fk(robot.q_home))
     home = mujoco_poses(robot, robot.q_home[None])[0]  # q = 0: axes aligned, a continuum of solutions at q1 = 0
     sols = qpik.ik(robot, home, 0.0)
     assert sols.valid.all() and sols.singular.all()

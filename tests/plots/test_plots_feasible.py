@@ -1,5 +1,6 @@
-"""The feasible-set panel of an arm whose sets are not computed (the 1-D search's Baxter): its bars are the runs of
-samples where each branch is within the limits, by single-pose IK calls and the file's limits."""
+"""The feasible-set panel of an arm whose sets are sampled, not proved (the 1-D search's Baxter): its bars are the
+sets of qpik.feasible_intervals, its title says they are not proved, the shading of the first branch is their
+complement, and single-pose IK calls inside and outside the bars agree with them by the file's limits."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from matplotlib.axes import Axes
 import qpik
 from qpik.plots import closed_form as plots
 
-NUM = 121
+NUM = 61
 
 
 def _bars(ax: Axes) -> dict[int, list[tuple[float, float]]]:
@@ -24,30 +25,27 @@ def _bars(ax: Axes) -> dict[int, list[tuple[float, float]]]:
     return {k: sorted(b) for k, b in rows.items()}
 
 
-def test_the_sampled_panel_bars_the_within_limit_runs_of_a_searched_arm_and_nothing_is_shaded():
+def test_the_panel_of_a_searched_arm_bars_its_sampled_sets_and_says_they_are_not_proved():
     robot = model_robot("erd_baxter")
     q = np.random.default_rng(8).uniform(0.8 * robot.q_min, 0.8 * robot.q_max)
     T = robot.fk(q)
     fig = plots.selfmotion_map(robot, T, num=NUM)
     panel = fig.axes[7]
-    assert "no exact sets" in panel.get_title()
-    assert not any(p.get_gid() == plots.INFEASIBLE_GID for ax in fig.axes for p in ax.patches)
+    assert "not proved" in panel.get_title()
     assert not missing_labels(fig) and not unexplained(fig)
-    x = np.linspace(-np.pi, np.pi, NUM)
-    inside = []
-    for value in x:
-        sol = qpik.ik(robot, T, float(value))
-        within = np.all((sol.q >= robot.q_min) & (sol.q <= robot.q_max), axis=1) & sol.valid
-        inside.append(within)
-    inside = np.array(inside)
+    fi = qpik.feasible_intervals(robot, T)
+    assert not fi.proved
     bars = _bars(panel)
-    assert inside.any() and bars
-    for k in range(inside.shape[1]):
-        runs, start = [], None
-        for i, flag in enumerate(inside[:, k]):
-            if flag and start is None:
-                start = i
-            if start is not None and (not flag or i == NUM - 1):
-                runs.append((x[start], x[i if flag else i - 1]))
-                start = None
-        np.testing.assert_allclose(bars.get(k, []), runs, atol=1e-12)
+    assert bars
+    for k in range(16):
+        np.testing.assert_allclose(bars.get(k, []), fi[k], atol=1e-12)
+    shaded = sorted({(p.get_x(), p.get_x() + p.get_width()) for p in fig.axes[0].patches
+                     if p.get_gid() == plots.INFEASIBLE_GID})  # fmt: skip
+    np.testing.assert_allclose(shaded, plots.infeasible_spans(fi[0]), atol=1e-12)
+    x = np.linspace(-np.pi, np.pi, NUM)[1:-1]
+    inside = np.array([qpik.ik(robot, T, float(v)).within_limits for v in x])
+    assert inside.any()
+    for k in range(16):
+        ends = np.array([e for iv in fi[k] for e in iv])
+        far = ~(np.abs(x[:, None] - ends[None, :]) < 1e-6).any(axis=1) if ends.size else np.ones(len(x), bool)
+        np.testing.assert_array_equal(fi.contains(k, x)[far], inside[far, k])
