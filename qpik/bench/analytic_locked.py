@@ -24,6 +24,8 @@ interleaved, blocks of :data:`~qpik.bench.analytic.BLOCK` calls, fewer samples t
 takes milliseconds):
 
 - ``qpik.ik`` (all 16 slots at the configuration's q1; its note gives the configurations found of the poses);
+- ``qpik.feasible_intervals`` (sampled, not proved: :mod:`qpik.analytic.search_sets`) on :data:`SET_POSES` of the
+  poses, one call each (no peer computes feasible sets);
 - ik-geo's ``Robot.two_intersecting`` (the 6R family of IK-Geo whose axes 5 and 6 meet, solved by a 1-D search over
   its q4) of joints 2-7 at q1 = 0, built once; each pose turned about axis 1 by −q1 before the timing (the locked
   joint folded into the pose), then ``get_ik``. The installed ik-geo (PyPI ``ik-geo`` 1.0.3, the Rust crate 0.1.2)
@@ -44,10 +46,10 @@ import itertools
 
 import numpy as np
 
-from qpik.analytic.api import ik
+from qpik.analytic.api import feasible_intervals, ik
 from qpik.analytic.intervals import wrap
 from qpik.analytic.subproblems import rotation
-from qpik.bench import Row, cycle, import_peer, time_interleaved
+from qpik.bench import Row, cycle, import_peer, time_calls, time_interleaved
 from qpik.core.errors import QpikError
 from qpik.robots.loader import load_robot
 
@@ -139,6 +141,8 @@ def _beside_ssik(arm: str, robot, ssik, samples: int, block: int, row) -> list[R
     return [row(ours, t["qpik"], theirs, notes["qpik"]), row(theirs, t["ssik"], None, notes["ssik"])]
 
 
+SET_POSES = 4
+"""Poses of the 1-D search's feasible-sets row, one call each (a call takes seconds)."""
 SEARCHED = ("erd/baxter", {"base": "right_arm_mount", "tip": "right_wrist"})
 """The arm of the 1-D search's rows: example-robot-data's Baxter, its right arm (packaged model key, load options)."""
 
@@ -181,7 +185,10 @@ def search_rows(repeat: int, block: int, row) -> list[Row]:
     ours = "baxter q1 locked: qpik.ik, 16 slots (certified 1-D search)"
     theirs = "baxter q1 locked: ik-geo two_intersecting get_ik (6R, 1-D search by NLopt MLSL)"
     rows = [row(ours, t["qpik"], theirs if "geo" in t else None, notes["qpik"])]
-    return rows + ([row(theirs, t["geo"], None, notes["geo"])] if "geo" in t else [])
+    rows += [row(theirs, t["geo"], None, notes["geo"])] if "geo" in t else []
+    sets = time_calls(cycle(lambda i: feasible_intervals(robot, T[i]), range(SET_POSES)), SET_POSES, warmup=1)
+    label = "baxter q1 locked: qpik.feasible_intervals, 16 slots (sampled, not proved)"
+    return [*rows, row(label, sets, None, f"({SET_POSES} poses, one call each; no peer computes feasible sets)")]
 
 
 def _worst(robot, T: np.ndarray, q: np.ndarray, answers) -> str:

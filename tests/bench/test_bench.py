@@ -35,6 +35,7 @@ EXPECTED = {
         "xArm7: ssik solve (q7 sampled)",
         "baxter q1 locked: qpik.ik, 16 slots (certified 1-D search)",
         "baxter q1 locked: ik-geo two_intersecting get_ik (6R, 1-D search by NLopt MLSL)",
+        "baxter q1 locked: qpik.feasible_intervals, 16 slots (sampled, not proved)",
     ],
     "controller": [
         "no obstacles, hot: mink + osqp (rebuilt each call)",
@@ -137,7 +138,9 @@ def test_bench_prints_every_row(name, monkeypatch):
         for xarm in (row for row in rows if row.label.startswith("xArm7 q7 locked")):  # every branch checked by FK
             good, total = map(int, re.search(r"\((\d+)/(\d+) solutions", xarm.note).groups())
             assert good == total > 0 and "q among them 64/64" in xarm.note
-        searched = [row for row in rows if row.label.startswith("baxter q1 locked")]
+        searched = [row for row in rows if row.label.startswith("baxter q1 locked") and "feasible" not in row.label]
+        sets = [row for row in rows if row.label.startswith("baxter q1 locked: qpik.feasible_intervals")]
+        assert len(sets) == 1 and "no peer computes feasible sets" in sets[0].note
         for row in searched:  # every answer of both searches checked by FK, q's count given
             assert re.search(r"\(\d+/\d+ solutions of 64 poses reach the pose to 1e-9 by qpik's FK; q among", row.note)
         good, total = map(int, re.search(r"\((\d+)/(\d+) solutions", searched[0].note).groups())
