@@ -68,7 +68,6 @@ def pose_from_args(args: argparse.Namespace, robot) -> np.ndarray:
 def _run(args: argparse.Namespace) -> int:
     from qpik import feasible_intervals, ik, redundancy_parameter
     from qpik.analytic.api import symbol
-    from qpik.core.errors import NoClosedFormError
     from qpik.core.validate import pose as check_pose
     from qpik.problems.ik import branch_table
 
@@ -85,11 +84,7 @@ def _run(args: argparse.Namespace) -> int:
     p = np.array2string(T[:3, 3], precision=4)
     print(f"{robot.name}: {len(sols)} branches at {sym} = {param:.6f} rad; p = {p} m")
     print(branch_table(robot, sols, T))
-    try:
-        fi = feasible_intervals(robot, T)
-    except NoClosedFormError as exc:
-        print(f"feasible {sym} ranges: {exc}")
-        return 0
+    fi = feasible_intervals(robot, T)
     ok = [f"{b}" for b in fi.branch if fi.measure(int(b)) > 0]
     proof = "" if fi.proved else " (not proved: qpik.feasible_intervals)"
     print(f"branches with a feasible {sym} range inside the limits: {', '.join(ok) or 'none'}{proof}")
