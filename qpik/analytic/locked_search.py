@@ -29,14 +29,15 @@ and branches, :class:`~qpik.native.compiled.RowMap`) isolate the roots as :mod:`
 does (Moore 1966; Makino & Berz 2003): from :data:`CELLS` cells over the circle, less those where the Taylor model of
 q3's relative discriminant (:meth:`LockedSearch.reach`, a bound of every branch's validity) is below 0 (no branch has a
 q3 there: the elbow cannot reach the wrist; most of the circle), a cell is discarded where the model's window
-:math:`|f_0 + f_1 t| \le r +` :data:`SLACK` is empty or the bounds exclude 0 or the branch's validity is below 0 over
-the cell, replaced by that window where it is at most half as wide, else by the window cut in :data:`SPLIT` equal parts;
-a window narrower than :data:`WINDOW` holds a root (its centre), and so do the ends of a cell where :math:`|e_b|` stays
-within :data:`TOUCH` of 0 (a double root, where the window stays the whole cell however often it is cut: such a cell is
-a few µm wide when it is touched). Every root of every :math:`e_b` is then within :data:`WINDOW` of a candidate, or
-inside a touched cell whose ends are candidates, unless the search ran out of its budget (:data:`ROUNDS`,
-:data:`MAX_CELLS`; ``proved`` False). Where the validity vanishes inside a window the square roots of the subproblems
-have no slope and the cell is cut down to :data:`WINDOW` like any other.
+:math:`|f_0 + f_1 t| \le r +` :data:`~qpik.analytic.search_step.SLACK` is empty or the bounds exclude 0 or the branch's
+validity is below 0 over the cell, replaced by that window where it is at most half as wide, else by the window cut in
+:data:`SPLIT` equal parts; a window narrower than :data:`~qpik.analytic.search_step.WINDOW` holds a root (its centre),
+and so do the ends of a cell where :math:`|e_b|` stays within :data:`~qpik.analytic.search_step.TOUCH` of 0 (a double
+root, where the window stays the whole cell however often it is cut: such a cell is a few µm wide when it is touched).
+Every root of every :math:`e_b` is then within :data:`~qpik.analytic.search_step.WINDOW` of a candidate, or inside a
+touched cell whose ends are candidates, unless the search ran out of its budget (:data:`ROUNDS`, :data:`MAX_CELLS`;
+``proved`` False). Where the validity vanishes inside a window the square roots of the subproblems have no slope and
+the cell is cut down to :data:`~qpik.analytic.search_step.WINDOW` like any other.
 
 **Machine precision.** The joints of each candidate (each once: two cells may end at one point; q5, q6 by subproblem
 1 on the rotation left) start :data:`POLISH` rounds of Newton on the arm's own chain, the locked joint held
@@ -51,10 +52,11 @@ and its end's position at most :attr:`LockedSearch.deviation` D away (:class:`~q
 the file's roots are the roots of the ideal chain's :math:`e_b` at a pose whose position is at most D away: within
 :math:`D\,|\nabla_p e_b|_1` of 0 on the ideal chain, to first order. Near a fold of :math:`e_b` (a double root) the
 file's chain may have two roots where the ideal chain's :math:`e_b` only nears 0, or none where it has two. So the
-search keeps every cell where :math:`|e_b|` may be within that bound (times :data:`NEAR_GAIN`, the gradient at the
-cell's centre) of 0, its slack and touch, and a window of :data:`NEAR_WINDOW` ends the cell: its candidates are the root
-of the window's linear model and the window's two ends (a touched cell's likewise), each polished on the file's chain,
-which decides (a candidate whose polish does not reach the pose is dropped).
+search keeps every cell where :math:`|e_b|` may be within that bound (times
+:data:`~qpik.analytic.search_step.NEAR_GAIN`, the gradient at the cell's centre) of 0, its slack and touch, and a
+window of :data:`~qpik.analytic.search_step.NEAR_WINDOW` ends the cell: its candidates are the root of the window's
+linear model and the window's two ends (a touched cell's likewise), each polished on the file's chain, which decides (a
+candidate whose polish does not reach the pose is dropped).
 
 **Behind** :func:`qpik.ik`: :mod:`qpik.analytic.search_solver` puts the solutions in 16 slots with identities along
 the parameter.
@@ -68,10 +70,11 @@ import casadi as ca
 import numpy as np
 
 from qpik.algebra import symbolic as sy
-from qpik.algebra.enclosure import DONE, HALVE, NARROW, TOUCHED, isolation_step, taylor_function
+from qpik.algebra.enclosure import DONE, HALVE, NARROW, TOUCHED, taylor_function
 from qpik.algebra.symbolic import Mat, Ops, Scalar, Vec
 from qpik.analytic.intervals import apart
 from qpik.analytic.polish import RESIDUAL_TOL, polish
+from qpik.analytic.search_step import SIGNS, SLACK, step_function
 from qpik.analytic.subproblems import constant, rotate, rotation, subproblem1, subproblem2, turn_between
 from qpik.analytic.trig import EPS
 from qpik.core.errors import NoClosedFormError
@@ -82,21 +85,6 @@ from qpik.robots.locked_joint import ChainGap, find_locked_joint, ideal_chain, r
 
 CELLS = 192
 """Cells of x = q4 over the circle at the start of the search."""
-WINDOW = 1e-10
-"""Width (rad) of a window of roots that is a candidate."""
-SLACK = 1e-12
-"""Added to every remainder: the round-off of the enclosures of values of order 1."""
-TOUCH = 4 * SLACK
-r"""An error function within this of 0 over a whole cell makes the cell's ends candidates: its model
-:math:`|f_0| + |f_1| + r` then lies within the round-off :data:`SLACK` of each of its terms and of the window's test,
-so that no round can tell the cell from a root (a double root, where the window stays the whole cell however it is
-cut; above :data:`SLACK`, so that such a cell is touched before it is cut to nothing)."""
-NEAR_WINDOW = 1e-3
-"""Width (rad) of a window of roots that is a candidate on a near member's ideal chain: its roots are not the file's,
-and each candidate is polished on the file's chain from the root of the window's linear model."""
-NEAR_GAIN = 2.0
-r"""Safety factor on the first-order bound :math:`D\,|\nabla_p e_b|_1` (at a cell's centre) of the change of an error
-function of a near member between its ideal chain and the file's (:attr:`LockedSearch.deviation`)."""
 ROUNDS = 80
 """Rounds of the search before the answer is left unproved."""
 SPLIT = 3
@@ -123,8 +111,6 @@ TIE = 1e-9
 PARTNER = 1e-3
 """rad: at a double root of a subproblem, the joints 1-3 of the two roots' b are this close
 (:meth:`LockedSearch.branch_of`)."""
-SIGNS = np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]])
-"""Per branch b, the signs (σ3, σ12) of its subproblems' roots."""
 
 
 @dataclass(frozen=True)
@@ -204,8 +190,8 @@ class LockedSearch:
             grad = ca.jacobian(e, ca.vertcat(T[0, 3], T[1, 3], T[2, 3]))
             gain = ca.Function("locked_search_gain", [T, q7, x, sign], [ca.sum2(ca.fabs(grad))])
         self._step = RowMap(step_function(model, gain, self.deviation), shared=[0, 1], chunks=CHUNKS, inline=True)
-        """One round's step of a cell of a branch (:func:`step_function`), compiled, over rows of cells (a, b, b's
-        index; the pose and the locked angle shared)."""
+        """One round's step of a cell of a branch (:func:`~qpik.analytic.search_step.step_function`), compiled, over
+        rows of cells (a, b, b's index; the pose and the locked angle shared)."""
         reach = ca.Function("locked_search_reach", [T, q7, x], [self.reach(R, p, q7, x, sy.CASADI)])
         a, b = ca.SX.sym("a"), ca.SX.sym("b")
         top = [taylor_function(reach, [2])(T, q7, 0.5 * (a + b), 0.5 * (b - a), 0.0, a, b)[4] + EPS]
@@ -434,32 +420,3 @@ class LockedSearch:
         once = np.ones(len(x), bool)
         once[1:] = (np.diff(x) != 0) | (np.diff(k) != 0)
         return x[once], k[once].astype(int), bool(len(cells))
-
-
-def step_function(model: ca.Function, gain: ca.Function | None = None, deviation: float = 0.0) -> ca.Function:
-    r"""One round of the search on a cell of a branch (:func:`~qpik.algebra.enclosure.isolation_step` with
-    :data:`SLACK`, :data:`WINDOW`, :data:`TOUCH`; gone too where :math:`v_b < 0` over the cell) from ``model``, the
-    Taylor models in x of :math:`(e_b, v_b)` of inputs (T, q7, x, signs). Inputs: T (4, 4; the search's pose,
-    column-major), q7 (rad), the cell (3,): its ends a < b (rad) and its branch b (0-3, the signs (σ3, σ12) of its row
-    of :data:`SIGNS`). Output (5,): the window's ends (rad), the branch, the cell's fate, and the point of the window
-    where the model's linear part :math:`|f_0 + f_1 t|` is least (rad): its first three entries are the next cell's
-    where the window is that.
-
-    A near member (``gain``, :math:`|\nabla_p e_b|_1` of the same inputs, and ``deviation`` D > 0, m): the file's
-    roots are the roots of the ideal chain's :math:`e_b` at a pose whose position is at most D away, so its slack and
-    touch are :data:`SLACK` + :data:`NEAR_GAIN` :math:`D\,|\nabla_p e_b|_1` at the cell's centre (a cell goes only
-    where the file's :math:`e_b` has no root either, to first order in D) and its window :data:`NEAR_WINDOW`."""
-    T, q7, cell = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("cell", 3)
-    a, b, k = ca.vertsplit(cell)
-    sign = sum((ca.fabs(k - i) < 0.5) * ca.DM(row) for i, row in enumerate(SIGNS))  # the signs of row k of SIGNS
-    c, s, r, lo, hi = model(T, q7, 0.5 * (a + b), sign, 0.5 * (b - a), 0.0, a, b)
-    if gain is None:
-        slack, window, touch = SLACK, WINDOW, TOUCH
-    else:
-        slack = SLACK + NEAR_GAIN * deviation * gain(T, q7, 0.5 * (a + b), sign)
-        window, touch = NEAR_WINDOW, slack
-    x1, x2, fate = isolation_step(a, b, (c[0], s[0], r[0], lo[0], hi[0]), hi[1] < -SLACK, slack, window, touch)
-    m, w = 0.5 * (a + b), 0.5 * (b - a)
-    t = ca.if_else(ca.fabs(s[0]) > 0, -c[0] / s[0], 0.0)
-    best = ca.fmin(ca.fmax(m + w * t, x1), x2)
-    return ca.Function("locked_search_step", [T, q7, cell], [ca.vertcat(x1, x2, k, fate, best)])

@@ -114,18 +114,18 @@ def resample(
     ``proved`` False.
 
     The answers are sampled at the ends of each piece and at the multiples of ``spacing`` (rad) between them (the
-    pieces of several branches share their samples). Then, for at most :data:`ROUNDS` rounds: every change of a
-    branch's state between two neighbouring samples more than :data:`WIDTH` apart is closed on as
-    :func:`refine_ends` closes on an end, its bracket's two ends and the values :data:`LADDER` (times ``spacing``)
-    from it becoming samples of every piece that holds them; and two neighbouring samples where the branch's state
-    is the same but another branch's validity differs (an error function's roots appear, vanish or pass to another,
-    renumbering its branches) more than :data:`FINE` spacings apart get a sample between them. Every branch's state
-    is taken at every sample: a branch whose state changes at the same value as another's, or between two of the
-    other's changes, or soon after one (two solutions appearing together at a fold, one of them leaving the limits
-    just after), so shows its change to the next round. A stretch where no branch's validity and state differ
-    between two neighbouring samples but one changes twice between them is not seen. ``progress``: the work's words
-    for lines on stderr (:class:`~qpik.core.progress.Progress`: the samples, then each round's steps); None: no
-    lines."""
+    pieces of several branches share their samples). Then, for at most :data:`ROUNDS` rounds: a change of a branch's
+    state between two neighbouring samples more than :data:`WIDTH` apart (one per pair of samples: an event that
+    changes several branches at once is closed on once) is closed on as :func:`refine_ends` closes on an end, its
+    bracket's two ends and the values :data:`LADDER` (times ``spacing``) from it becoming samples of every piece
+    that holds them; and two neighbouring samples where the branch's state is the same but another branch's validity
+    differs (an error function's roots appear, vanish or pass to another, renumbering its branches) more than
+    :data:`FINE` spacings apart get a sample between them. Every branch's state is taken at every sample: a branch
+    whose state changes at the same value as another's, or between two of the other's changes, or soon after one
+    (two solutions appearing together at a fold, one of them leaving the limits just after), so shows its change to
+    the next round. A stretch where no branch's validity and state differ between two neighbouring samples but one
+    changes twice between them is not seen. ``progress``: the work's words for lines on stderr
+    (:class:`~qpik.core.progress.Progress`: the samples, then each round's steps); None: no lines."""
     t, k, piece = [], [], []
     spans = []  # per piece: its branch, its ends
     for b, stretch in enumerate(pieces):
@@ -148,6 +148,8 @@ def resample(
         t, k, piece, inside, mu, every = t[order], k[order], piece[order], inside[order], mu[order], every[order]
         gap = np.where(piece[1:] == piece[:-1], t[1:] - t[:-1], 0.0)
         i = np.flatnonzero((inside[1:] != inside[:-1]) & (gap > WIDTH))
+        if i.size:  # one per pair of samples: one event often changes several branches, closed on together
+            i = i[np.unique(np.stack([t[i], t[i + 1]]), axis=1, return_index=True)[1]]
         j = np.flatnonzero((every[1:] != every[:-1]).any(axis=1) & (inside[1:] == inside[:-1]) & (gap > FINE * spacing))
         new = [0.5 * (t[j] + t[j + 1])]  # another branch's validity changes in there: a look at its middle
         if i.size:
@@ -215,12 +217,12 @@ def _state(solver: BranchSolver, T: np.ndarray, margin: float) -> Callable[..., 
     def state(t: np.ndarray, k: np.ndarray, said: Progress | None = None) -> tuple[np.ndarray, ...]:
         u, rows = np.unique(t, return_inverse=True)  # branches sampled at one parameter: one answer
         q, valid = [], []
-        for start in range(0, len(u), CHUNK):
-            s = solver.solve_many(T, u[start : start + CHUNK])
+        for part in np.array_split(u, -(-len(u) // CHUNK)):
+            s = solver.solve_many(T, part)
             q.append(s.q)
             valid.append(s.valid)
             if said is not None:
-                said(start + len(s.q))
+                said(sum(len(x) for x in q))
         every = np.concatenate(valid)[rows]
         q, valid = np.concatenate(q)[rows, k], every[np.arange(len(t)), k]
         mu = np.where(valid, np.minimum(q - lo_q, hi_q - q).min(axis=-1), np.nan)

@@ -19,7 +19,8 @@ from hypothesis import given, settings
 
 import qpik
 from qpik.algebra import symbolic as sy
-from qpik.analytic.locked_search import SIGNS, LockedSearch
+from qpik.analytic.locked_search import LockedSearch
+from qpik.analytic.search_step import SIGNS
 from qpik.analytic.trig import EPS
 from qpik.core.errors import InputError, NoClosedFormError
 from qpik.robots.model_files import MeshOptions
