@@ -131,6 +131,12 @@ class Q7Intervals:
         """The Taylor models of the :meth:`~qpik.analytic.locked_joint.LockedJointSolver.arm_validity` of an
         elbow (inputs: T, the centre of a cell of q7, the elbow's sign, then the cell's half-width, radius 0 and
         its ends) over rows of cells and elbows (:meth:`_arm_reach`)."""
+        self._validity = None
+        """A near member's :meth:`~qpik.analytic.locked_joint.LockedJointSolver.validity` of every branch (8,) at T
+        and q7, compiled, over rows of q7 (:meth:`_thin`)."""
+        if solver.thin is not None:
+            every = solver.validity(*sy.frame_of_batch(T), q7, sy.CASADI)
+            self._validity = RowMap(ca.Function(f"validity_{solver.kind}", [T, q7], [ca.vertcat(*every)]), [0])
         self._last: tuple[bytes, float, FeasibleIntervals, list[list[Interval]]] | None = None
         self._cols: tuple[float, tuple] | None = None
         """The last margin and its columns (:meth:`_columns`)."""
@@ -281,16 +287,17 @@ class Q7Intervals:
 
     def _thin(self, T: np.ndarray, roots: np.ndarray, branch: np.ndarray) -> list[list[Interval]]:
         """:meth:`thin` from the roots (rad) of the branches ``branch`` (both (K,)) of their validity and of their
-        validity less ``thin``: per branch, the gaps between its roots (and ±π) whose middle's validity (numpy,
-        :meth:`~qpik.analytic.locked_joint.LockedJointSolver.validity`) lies in [0, ``thin``)."""
+        validity less ``thin``: per branch, the gaps between its roots (and ±π) whose middle's validity
+        (:attr:`_validity`) lies in [0, ``thin``)."""
         s = self._solver
-        R, p = np.asarray(T, float)[:3, :3], np.asarray(T, float)[:3, 3]
+        assert self._validity is not None
+        cuts = [gaps(np.concatenate([[np.pi], roots[branch == k]])) for k in range(s.n_branches)]
+        mids = np.concatenate([wrap(0.5 * (lo + hi)) for lo, hi in cuts])
+        (every,) = self._validity(np.asarray(T, float).reshape(-1, order="F"), mids)  # (all middles, B)
+        own = np.split(every, np.cumsum([len(lo) for lo, _ in cuts])[:-1])  # per branch: its middles
         out: list[list[Interval]] = []
-        for k in range(s.n_branches):
-            lo, hi = gaps(np.concatenate([[np.pi], roots[branch == k]]))
-            sign = tuple((float(x),) for x in SIGNS[k])
-            (v,) = s.validity(R, p, wrap(0.5 * (lo + hi)), sy.NUMPY, sign)
-            thin = (v >= 0.0) & (v < s.thin)
+        for k, ((lo, hi), v) in enumerate(zip(cuts, own)):
+            thin = (v[:, k] >= 0.0) & (v[:, k] < s.thin)
             pieces = [(float(a), float(min(b, np.pi))) for a, b in zip(lo[thin], hi[thin]) if a < np.pi]
             pieces += [(-np.pi, float(b - 2.0 * np.pi)) for b in hi[thin] if b > np.pi]  # split at ±π
             out.append(sorted(pieces))

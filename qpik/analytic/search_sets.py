@@ -66,7 +66,7 @@ class SearchSets:
             return none
         span = locked_span(lo, hi)
         words = f"the feasible {s.param_name} sets of {s.robot.name} (1-D search)"
-        return resample(none, s, T, margin, [span] * len(s.branch_ids), 2.0 * np.pi / SAMPLES, words)
+        return resample(none, s, T, margin, [span] * len(s.branch_ids), 2.0 * np.pi / SAMPLES, words, renumbered=True)
 
 
 def locked_span(lo: float, hi: float) -> list[Interval]:

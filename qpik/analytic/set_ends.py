@@ -108,24 +108,26 @@ def resample(
     pieces: list[list[Interval]],
     spacing: float,
     progress: str | None = None,
+    renumbered: bool = False,
 ) -> FeasibleIntervals:
     """``fi`` (as :func:`refine_ends`'s) with each branch's set inside its ``pieces`` (per branch of ``fi``'s order,
     sorted disjoint intervals of the parameter, rad) taken from the solver's answers, outside them as ``fi``;
     ``proved`` False.
 
     The answers are sampled at the ends of each piece and at the multiples of ``spacing`` (rad) between them (the
-    pieces of several branches share their samples). Then, for at most :data:`ROUNDS` rounds: a change of a branch's
+    pieces of several branches share their samples). Then, for at most :data:`ROUNDS` rounds, a change of a branch's
     state between two neighbouring samples more than :data:`WIDTH` apart (one per pair of samples: an event that
     changes several branches at once is closed on once) is closed on as :func:`refine_ends` closes on an end, its
-    bracket's two ends and the values :data:`LADDER` (times ``spacing``) from it becoming samples of every piece
-    that holds them; and two neighbouring samples where the branch's state is the same but another branch's validity
-    differs (an error function's roots appear, vanish or pass to another, renumbering its branches) more than
-    :data:`FINE` spacings apart get a sample between them. Every branch's state is taken at every sample: a branch
-    whose state changes at the same value as another's, or between two of the other's changes, or soon after one
-    (two solutions appearing together at a fold, one of them leaving the limits just after), so shows its change to
-    the next round. A stretch where no branch's validity and state differ between two neighbouring samples but one
-    changes twice between them is not seen. ``progress``: the work's words for lines on stderr
-    (:class:`~qpik.core.progress.Progress`: the samples, then each round's steps); None: no lines."""
+    bracket's two ends becoming samples of every piece that holds them, every branch's state taken there: a branch
+    whose state changes at the same value as another's, or between two of the other's changes, so shows its change
+    to the next round. ``renumbered``: the solver's branches are renumbered where another's validity changes (the
+    1-D search's slots, :mod:`qpik.analytic.search_sets`): the values :data:`LADDER` (times ``spacing``) beside each
+    change become samples too (two solutions appearing together at a fold, one of them leaving the limits just
+    after), and two neighbouring samples where a branch's state is the same but another's validity differs, more
+    than :data:`FINE` spacings apart, get a sample between them. A stretch where no branch's state (nor, with
+    ``renumbered``, validity) differs between two neighbouring samples but one changes twice between them is not
+    seen. ``progress``: the work's words for lines on stderr (:class:`~qpik.core.progress.Progress`: the samples,
+    then each round's steps); None: no lines."""
     t, k, piece = [], [], []
     spans = []  # per piece: its branch, its ends
     for b, stretch in enumerate(pieces):
@@ -150,18 +152,20 @@ def resample(
         i = np.flatnonzero((inside[1:] != inside[:-1]) & (gap > WIDTH))
         if i.size:  # one per pair of samples: one event often changes several branches, closed on together
             i = i[np.unique(np.stack([t[i], t[i + 1]]), axis=1, return_index=True)[1]]
-        j = np.flatnonzero((every[1:] != every[:-1]).any(axis=1) & (inside[1:] == inside[:-1]) & (gap > FINE * spacing))
-        new = [0.5 * (t[j] + t[j + 1])]  # another branch's validity changes in there: a look at its middle
+        new = []
+        if renumbered:  # another branch's validity changes in there: a look at its middle
+            j = (every[1:] != every[:-1]).any(axis=1) & (inside[1:] == inside[:-1]) & (gap > FINE * spacing)
+            new.append(0.5 * (t[:-1] + t[1:])[j])
         if i.size:
             out, into = np.where(inside[i], i + 1, i), np.where(inside[i], i, i + 1)  # the sample outside, inside
             words = f"{progress}: round {r + 1}, {len(i)} ends, step (at most {STEPS})"
             said = Progress(words, STEPS, progress is not None)
             a, c = _close(state, k[i], t[out], t[into], mu[out], mu[into], np.ones(len(i), bool), said)
-            new += [
-                a,
-                c,
-                (0.5 * (a + c)[:, None] + spacing * LADDER).ravel(),
-            ]  # narrow stretches cluster beside a change
+            new += [a, c]
+            if renumbered:  # narrow stretches cluster beside a change
+                new.append((0.5 * (a + c)[:, None] + spacing * LADDER).ravel())
+        if not new:
+            break
         new = np.unique(np.concatenate(new))
         at = [(p, x) for p, (b, lo, hi) in enumerate(spans) for x in new[(new >= lo) & (new <= hi)]]
         if not at:
@@ -210,14 +214,14 @@ def _state(solver: BranchSolver, T: np.ndarray, margin: float) -> Callable[..., 
     """The state of ``solver``'s branches at the pose ``T`` under the limits shrunk by ``margin``: a function of
     parameters t (M,) rad and branches k (M,) (indices of the sets' order) giving inside (valid and within the
     shrunk limits) and the margin μ (rad; NaN where the branch is not valid), (M,) each, and every branch's valid
-    flag at each t (M, B); the solver answers each parameter once, :data:`CHUNK` at a time, each chunk told to a
-    :class:`~qpik.core.progress.Progress` if given."""
+    flag at each t (M, B); the solver answers each parameter once, in one call, or :data:`CHUNK` at a time, each
+    chunk told to a :class:`~qpik.core.progress.Progress` if one is given."""
     lo_q, hi_q = shrunk_limits(solver.robot.q_min, solver.robot.q_max, margin)
 
     def state(t: np.ndarray, k: np.ndarray, said: Progress | None = None) -> tuple[np.ndarray, ...]:
         u, rows = np.unique(t, return_inverse=True)  # branches sampled at one parameter: one answer
         q, valid = [], []
-        for part in np.array_split(u, -(-len(u) // CHUNK)):
+        for part in np.array_split(u, 1 if said is None else -(-len(u) // CHUNK)):
             s = solver.solve_many(T, part)
             q.append(s.q)
             valid.append(s.valid)
