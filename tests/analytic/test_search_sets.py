@@ -30,12 +30,12 @@ def test_the_searched_sets_are_not_proved_and_match_the_searchs_answers(key, mar
     """At DENSE random values of the locked joint and BESIDE either side of every end of every slot's set, a slot is
     in its set iff the search finds it valid with every joint inside the limits shrunk by ``margin``, except within
     END of an end of its own set (FOLD_END where the slot's validity differs FOLD_END either side); the
-    configuration's own slot holds its locked angle. One pose per case (three in the large run)."""
+    configuration's own slot holds its locked angle. One pose per case (six in the large run)."""
     robot = model_robot(key)
     solver = closed_form_for(robot)
     assert not solver.sets_proved
     lo, hi = shrunk_limits(robot.q_min, robot.q_max, margin)
-    q = np.random.default_rng(20).uniform(lo, hi, (3 if LARGE else 1, 7))
+    q = np.random.default_rng(20).uniform(lo, hi, (6 if LARGE else 1, 7))
     for T, param, branch in zip(robot.fk(q), *qpik.redundancy_parameter(robot, q)):
         fi = qpik.feasible_intervals(robot, T, margin=margin)
         assert not fi.proved and fi.contains(int(branch), param)
