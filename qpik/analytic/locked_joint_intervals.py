@@ -54,8 +54,10 @@ moves them onto the file's chain (:mod:`qpik.analytic.set_ends`). A validity cha
 short of the pose, near a singular Jacobian: a fold of the file's chain that the ideal one does not have) is no
 breakpoint; the search also isolates the roots of each branch's validity less the solver's
 :attr:`~qpik.analytic.locked_joint.LockedJointSolver.thin`, which bound the stretches where such a fold may lie
-(:meth:`Q7Intervals.thin`), and the solver samples its branches there (:func:`qpik.analytic.set_ends.resample`).
-The answers are not proved (``proved`` False).
+(:meth:`Q7Intervals.thin`). They are breakpoints too, so that no gap is classified at a middle inside such a
+stretch (where the polished branch may be invalid for a few milliradians while it is valid on the rest of the gap),
+and the solver samples its branches there (:func:`qpik.analytic.set_ends.resample`). The answers are not proved
+(``proved`` False).
 
 **Proved:** when the search ends with no cell left, every root of every column lies within :data:`WINDOW` of a
 breakpoint or in a cell where the column is within :data:`TOUCH` of 0, so the sets are exact except within
@@ -225,9 +227,8 @@ class Q7Intervals:
         edge = slot[col] == len(joints) + 1  # roots of the validity less ``thin`` (a near member's only)
         ends = edge | (slot[col] == 0)
         thin = none if s.thin is None else self._thin(T, found[ends], br[col[ends]])
-        found = found[~edge]
         breaks = np.concatenate([found, left, self._elbow_roots(T, levels[ELBOW]), levels[-1]])
-        sets, sing = self._assemble(T, breaks, found, (lo, hi))
+        sets, sing = self._assemble(T, breaks, found[~edge], (lo, hi))  # a thin stretch is no gap's middle's
         proved = not left.size and s.polished is None
         return FeasibleIntervals(s.param_name, s.branch_array, sets, sing, proved=proved), thin
 
