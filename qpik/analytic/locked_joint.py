@@ -119,9 +119,11 @@ MAX_ROUNDS = 8
 """The most rounds :func:`correction_rounds` gives."""
 THIN = 2.0
 r"""A near member's branch is sampled on the file's chain (:func:`qpik.analytic.set_ends.resample`) where its ideal
-chain's validity lies in :math:`[0, (\text{THIN}\,D/\text{SCALE})^2)` (:attr:`LockedJointSolver.thin`): a validity
-is a relative discriminant, the square of an angle of order D/:data:`SCALE` where two solutions of a subproblem are
-that close, so that the file's chain, D away, may have none there (a fold of the file's chain the ideal one misses)."""
+chain's validity lies within :math:`(\text{THIN}\,D/\text{SCALE})^2` of 0 (:attr:`LockedJointSolver.thin`): a
+validity is a relative discriminant, the square of an angle of order D/:data:`SCALE` where two solutions of a
+subproblem are that close, so that the file's chain, D away, may have none there, or have two where the ideal chain
+has none (a fold of the file's chain the ideal one misses; the polish starts from the ideal chain's branch clamped
+at its double root, and may reach the file's)."""
 SPACING = 1.0 / 16.0
 """The samples of a thin stretch of a near member's branch are :data:`SPACING` D/:data:`SCALE` rad apart."""
 
@@ -223,7 +225,8 @@ class LockedJointSolver(AnalyticSolver):
         """The sets of :meth:`~qpik.analytic.solver.BranchSolver.feasible_intervals`; a near member's (:attr:`polished`)
         with their ends moved onto its own chain (:func:`qpik.analytic.set_ends.refine_ends`, about D/:data:`SCALE`
         rad away: the joints' change by the correction, over joint rates of order 1), then sampled on its chain where
-        the ideal chain's validity is below :attr:`thin` (:func:`qpik.analytic.set_ends.resample`, :data:`SPACING`)."""
+        the ideal chain's validity is within :attr:`thin` of 0 (:func:`qpik.analytic.set_ends.resample`,
+        :data:`SPACING`)."""
         fi = super().feasible_intervals(T, margin)
         if self.polished is None:
             return fi

@@ -52,7 +52,7 @@ ideal chain's closed form, the gaps classified by the polished IK of the file's 
 then those of the ideal chain, off from the file's by about the polish's change of the joints, until the solver
 moves them onto the file's chain (:mod:`qpik.analytic.set_ends`). A validity change of the polish (where it stops
 short of the pose, near a singular Jacobian: a fold of the file's chain that the ideal one does not have) is no
-breakpoint; the search also isolates the roots of each branch's validity less the solver's
+breakpoint; the search also isolates the roots of each branch's validity ∓ the solver's
 :attr:`~qpik.analytic.locked_joint.LockedJointSolver.thin`, which bound the stretches where such a fold may lie
 (:meth:`Q7Intervals.thin`). They are breakpoints too, so that no gap is classified at a middle inside such a
 stretch (where the polished branch may be invalid for a few milliradians while it is valid on the rest of the gap),
@@ -154,7 +154,7 @@ class Q7Intervals:
 
         Inputs: T (4, 4), the levels' (cos L, sin L) (2, F), the cell's ends a < b (rad), the branch's
         :data:`SIGNS`. Output (3C,) over the C = F + 1 slots (0: the validity; i: the joint column of level i − 1),
-        for a near member C = F + 2 (slot F + 1: the validity less the solver's
+        for a near member C = F + 3 (slots F + 1, F + 2: the validity less and plus the solver's
         :attr:`~qpik.analytic.locked_joint.LockedJointSolver.thin`): every slot's window start x1, then every slot's
         window end x2 (rad), then every slot's fate (:data:`~qpik.algebra.enclosure.GONE` ...)."""
         s, J = self._solver, len(self._joints)
@@ -181,10 +181,10 @@ class Q7Intervals:
                 models.append(_combined(c, sin_q, -s_, cos_q))  # sin(q_j − L)
                 away = ca.logic_or(away, _combined(c, cos_q, s_, sin_q)[4] < -SLACK)  # cos(q_j − L) < 0
             steps.append(isolation_step(a, b, models[0], away, SLACK, WINDOW, TOUCH, also=models[1:]))
-        if s.thin is not None:
+        if s.thin is not None:  # the validity ∓ thin: the ends of its thin stretches
             c, slope, r, lo, hi = model(4 * J)
-            steps.append(isolation_step(a, b, (c - s.thin, slope, r, lo - s.thin, hi - s.thin), False, SLACK, WINDOW,
-                                        TOUCH))  # fmt: skip
+            for d in (s.thin, -s.thin):
+                steps.append(isolation_step(a, b, (c - d, slope, r, lo - d, hi - d), False, SLACK, WINDOW, TOUCH))
         x1, x2, fate = zip(*steps)
         name = f"step_{s.kind}_{''.join(map(str, joints))}{'' if s.thin is None else '_thin'}"
         return ca.Function(name, [T, levels, a, b, sign], [ca.vertcat(*x1, *x2, *fate)])
@@ -200,10 +200,11 @@ class Q7Intervals:
         return self._answer(T, margin)[0]
 
     def thin(self, T: np.ndarray, margin: float = 0.0) -> list[list[Interval]]:
-        """Per branch, the q7 (rad) where a near member's ideal chain's validity lies in [0,
-        :attr:`~qpik.analytic.locked_joint.LockedJointSolver.thin`): sorted disjoint intervals, split at ±π, from
-        the roots of its validity and of the validity less that (the search's, kept with the last answer); empty for
-        an exact member. ``T``, ``margin`` as :meth:`__call__`'s."""
+        """Per branch, the q7 (rad) where a near member's ideal chain's validity lies within
+        :attr:`~qpik.analytic.locked_joint.LockedJointSolver.thin` of 0 (either side: the polish of a branch the
+        ideal chain has not may still reach the pose on the file's chain): sorted disjoint intervals, split at ±π,
+        from the roots of its validity and of the validity ∓ that (the search's, kept with the last answer); empty
+        for an exact member. ``T``, ``margin`` as :meth:`__call__`'s."""
         return self._answer(T, margin)[1]
 
     def _answer(self, T: np.ndarray, margin: float) -> tuple[FeasibleIntervals, list[list[Interval]]]:
@@ -224,7 +225,7 @@ class Q7Intervals:
             self._cols = (margin, self._columns(levels))
         found, col, left = self._isolate(T, self._cols[1])
         br, slot, _, joints, _ = self._cols[1]
-        edge = slot[col] == len(joints) + 1  # roots of the validity less ``thin`` (a near member's only)
+        edge = slot[col] > len(joints)  # roots of the validity ∓ ``thin`` (a near member's only)
         ends = edge | (slot[col] == 0)
         thin = none if s.thin is None else self._thin(T, found[ends], br[col[ends]])
         breaks = np.concatenate([found, left, self._elbow_roots(T, levels[ELBOW]), levels[-1]])
@@ -241,7 +242,7 @@ class Q7Intervals:
         L = np.concatenate([levels[j] for j in self._joints])
         if joints not in self._steps:
             self._steps[joints] = RowMap(self._step_function(joints), shared=[0, 1], threads=cores(), inline=True)
-        C, B = len(joints) + (1 if self._solver.thin is None else 2), self._solver.n_branches
+        C, B = len(joints) + (1 if self._solver.thin is None else 3), self._solver.n_branches
         trig = np.stack([np.cos(L), np.sin(L)], axis=1).ravel()
         return np.repeat(np.arange(B), C), np.tile(np.arange(C), B), trig, joints, self._steps[joints]
 
@@ -288,8 +289,8 @@ class Q7Intervals:
 
     def _thin(self, T: np.ndarray, roots: np.ndarray, branch: np.ndarray) -> list[list[Interval]]:
         """:meth:`thin` from the roots (rad) of the branches ``branch`` (both (K,)) of their validity and of their
-        validity less ``thin``: per branch, the gaps between its roots (and ±π) whose middle's validity
-        (:attr:`_validity`) lies in [0, ``thin``)."""
+        validity ∓ ``thin``: per branch, the gaps between its roots (and ±π) whose middle's validity
+        (:attr:`_validity`) lies within ``thin`` of 0."""
         s = self._solver
         assert self._validity is not None
         cuts = [gaps(np.concatenate([[np.pi], roots[branch == k]])) for k in range(s.n_branches)]
@@ -298,7 +299,7 @@ class Q7Intervals:
         own = np.split(every, np.cumsum([len(lo) for lo, _ in cuts])[:-1])  # per branch: its middles
         out: list[list[Interval]] = []
         for k, ((lo, hi), v) in enumerate(zip(cuts, own)):
-            thin = (v[:, k] >= 0.0) & (v[:, k] < s.thin)
+            thin = np.abs(v[:, k]) < s.thin
             pieces = [(float(a), float(min(b, np.pi))) for a, b in zip(lo[thin], hi[thin]) if a < np.pi]
             pieces += [(-np.pi, float(b - 2.0 * np.pi)) for b in hi[thin] if b > np.pi]  # split at ±π
             out.append(sorted(pieces))

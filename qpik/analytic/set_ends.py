@@ -118,16 +118,16 @@ def resample(
     pieces of several branches share their samples). Then, for at most :data:`ROUNDS` rounds, a change of a branch's
     state between two neighbouring samples more than :data:`WIDTH` apart (one per pair of samples: an event that
     changes several branches at once is closed on once) is closed on as :func:`refine_ends` closes on an end, its
-    bracket's two ends becoming samples of every piece that holds them, every branch's state taken there: a branch
-    whose state changes at the same value as another's, or between two of the other's changes, so shows its change
-    to the next round. ``renumbered``: the solver's branches are renumbered where another's validity changes (the
-    1-D search's slots, :mod:`qpik.analytic.search_sets`): the values :data:`LADDER` (times ``spacing``) beside each
-    change become samples too (two solutions appearing together at a fold, one of them leaving the limits just
-    after), and two neighbouring samples where a branch's state is the same but another's validity differs, more
-    than :data:`FINE` spacings apart, get a sample between them. A stretch where no branch's state (nor, with
-    ``renumbered``, validity) differs between two neighbouring samples but one changes twice between them is not
-    seen. ``progress``: the work's words for lines on stderr (:class:`~qpik.core.progress.Progress`: the samples,
-    then each round's steps); None: no lines."""
+    bracket's two ends and the values :data:`LADDER` (times ``spacing``) beside it becoming samples of every piece
+    that holds them, every branch's state taken there: a branch whose state changes at the same value as another's,
+    between two of the other's changes, or soon after one (two solutions appearing together at a fold, one of them
+    leaving the limits just after, where the joints move fast), so shows its change to the next round.
+    ``renumbered``: the solver's branches are renumbered where another's validity changes (the 1-D search's slots,
+    :mod:`qpik.analytic.search_sets`), and two neighbouring samples where a branch's state is the same but another's
+    validity differs, more than :data:`FINE` spacings apart, get a sample between them. A stretch where no branch's
+    state (nor, with ``renumbered``, validity) differs between two neighbouring samples but one changes twice
+    between them is not seen. ``progress``: the work's words for lines on stderr
+    (:class:`~qpik.core.progress.Progress`: the samples, then each round's steps); None: no lines."""
     t, k, piece = [], [], []
     spans = []  # per piece: its branch, its ends
     for b, stretch in enumerate(pieces):
@@ -161,9 +161,7 @@ def resample(
             words = f"{progress}: round {r + 1}, {len(i)} ends, step (at most {STEPS})"
             said = Progress(words, STEPS, progress is not None)
             a, c = _close(state, k[i], t[out], t[into], mu[out], mu[into], np.ones(len(i), bool), said)
-            new += [a, c]
-            if renumbered:  # narrow stretches cluster beside a change
-                new.append((0.5 * (a + c)[:, None] + spacing * LADDER).ravel())
+            new += [a, c, (0.5 * (a + c)[:, None] + spacing * LADDER).ravel()]  # narrow stretches cluster beside one
         if not new:
             break
         new = np.unique(np.concatenate(new))
