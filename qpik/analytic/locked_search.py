@@ -217,7 +217,7 @@ class LockedSearch:
         for _ in range(POLISH):
             joints, residual = polish(self.own, R, p, joints, sy.CASADI)
         self._polished = RowMap(ca.Function("locked_search_polish", [T, q7, x, sign],
-                                            [ca.vertcat(*joints), residual, valid]), shared=[0, 1])  # fmt: skip
+                                            [ca.vertcat(*joints), residual]), shared=[0, 1])  # fmt: skip
         """The solution of a candidate: its joints by the subproblems (:meth:`error`) at the candidate's x and signs,
         then :data:`POLISH` rounds of :func:`~qpik.analytic.polish.polish`; compiled, over rows of candidates (the
         pose and the locked angle shared)."""
@@ -304,17 +304,16 @@ class LockedSearch:
         Ts = np.linalg.inv(T) if self.reversed else T
         found, branch, left = self._isolate(Ts, param, rounds)
         proved = not left and self.exact
+        none = SearchSolutions(np.zeros((0, 7)), np.zeros(0, int), np.zeros(0), proved, np.zeros(0, bool))
         if not found.size:
-            return SearchSolutions(np.zeros((0, 7)), np.zeros(0, int), np.zeros(0), proved, np.zeros(0, bool))
-        q, residual, valid = self._polished(Ts.reshape(-1, order="F"), np.array([param]), found, SIGNS[branch])
+            return none
+        q, residual = self._polished(Ts.reshape(-1, order="F"), np.array([param]), found, SIGNS[branch])
         ok = residual[:, 0] <= RESIDUAL_TOL
-        q, branch, residual = sy.NUMPY.wrap(q[ok]), branch[ok], residual[ok, 0]
-        if q.size:  # the polish may take a candidate of one b to a root of another: b is the solution's own
-            own, validity = self.branch_of(Ts, param, q)
-            double = validity - EPS <= DOUBLE
-            branch = own
-        else:
-            double = valid[ok, 0] - EPS <= DOUBLE
+        if not ok.any():
+            return none
+        q, residual = sy.NUMPY.wrap(q[ok]), residual[ok, 0]
+        branch, validity = self.branch_of(Ts, param, q)  # the polish may take a candidate of one b to another's root
+        double = validity - EPS <= DOUBLE
         order = np.lexsort((residual, branch))  # the smaller b first, then the smaller residual
         q, branch, residual, double = q[order], branch[order], residual[order], double[order]
         left, keep = np.ones(len(q), bool), []
