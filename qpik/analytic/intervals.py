@@ -75,11 +75,7 @@ class FeasibleIntervals:
 
     def contains(self, b: int, value: float | np.ndarray, tol: float = 0.0) -> np.ndarray | bool:
         """Whether ``value`` (rad, any shape) lies in branch ``b``'s feasible set."""
-        v = finite_array(value, "value")
-        tol = number(tol, "tol")
-        out = np.zeros(v.shape, dtype=bool)
-        for lo, hi in self[b]:
-            out |= (v >= lo - tol) & (v <= hi + tol)
+        out = within(self[b], finite_array(value, "value"), number(tol, "tol"))
         return bool(out) if out.ndim == 0 else out
 
     def measure(self, b: int) -> float:
@@ -98,6 +94,15 @@ def shrunk_limits(q_min: np.ndarray, q_max: np.ndarray, margin: float) -> tuple[
     lo, hi = np.asarray(q_min, dtype=float), np.asarray(q_max, dtype=float)
     half = margin * 0.5 * (hi - lo)
     return lo + half, hi - half
+
+
+def within(intervals: list[Interval], x: np.ndarray, tol: float = 0.0) -> np.ndarray:
+    """Whether each of ``x`` (rad, any shape) lies in one of the closed ``intervals``, widened by ``tol`` (rad) each
+    side."""
+    out = np.zeros(np.shape(x), dtype=bool)
+    for lo, hi in intervals:
+        out |= (x >= lo - tol) & (x <= hi + tol)
+    return out
 
 
 def wrap(x: np.ndarray | float) -> np.ndarray:

@@ -78,7 +78,7 @@ import numpy as np
 from qpik.algebra import symbolic as sy
 from qpik.algebra.enclosure import DONE, HALVE, NARROW, TOUCHED, isolation_step, taylor_function
 from qpik.analytic import trig
-from qpik.analytic.intervals import FeasibleIntervals, Interval, SetAssembler, gaps, shrunk_limits, wrap
+from qpik.analytic.intervals import FeasibleIntervals, Interval, SetAssembler, gaps, merge, shrunk_limits, wrap
 from qpik.native.compiled import RowMap, cores
 
 if TYPE_CHECKING:
@@ -289,21 +289,15 @@ class Q7Intervals:
 
     def _thin(self, T: np.ndarray, roots: np.ndarray, branch: np.ndarray) -> list[list[Interval]]:
         """:meth:`thin` from the roots (rad) of the branches ``branch`` (both (K,)) of their validity and of their
-        validity ∓ ``thin``: per branch, the gaps between its roots (and ±π) whose middle's validity
-        (:attr:`_validity`) lies within ``thin`` of 0."""
+        validity ∓ ``thin``: per branch, the runs of the gaps between its roots (and ±π) whose middle's validity
+        (:attr:`_validity`) lies within ``thin`` of 0 (:func:`~qpik.analytic.intervals.merge`)."""
         s = self._solver
         assert self._validity is not None
         cuts = [gaps(np.concatenate([[np.pi], roots[branch == k]])) for k in range(s.n_branches)]
         mids = np.concatenate([wrap(0.5 * (lo + hi)) for lo, hi in cuts])
         (every,) = self._validity(np.asarray(T, float).reshape(-1, order="F"), mids)  # (all middles, B)
         own = np.split(every, np.cumsum([len(lo) for lo, _ in cuts])[:-1])  # per branch: its middles
-        out: list[list[Interval]] = []
-        for k, ((lo, hi), v) in enumerate(zip(cuts, own)):
-            thin = np.abs(v[:, k]) < s.thin
-            pieces = [(float(a), float(min(b, np.pi))) for a, b in zip(lo[thin], hi[thin]) if a < np.pi]
-            pieces += [(-np.pi, float(b - 2.0 * np.pi)) for b in hi[thin] if b > np.pi]  # split at ±π
-            out.append(sorted(pieces))
-        return out
+        return [merge(lo, hi, np.abs(v[:, k, None]) < s.thin)[0] for k, ((lo, hi), v) in enumerate(zip(cuts, own))]
 
     def _round(
         self,

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from qpik.analytic.intervals import FeasibleIntervals, Interval, gaps, merge, shrunk_limits, wrap
+from qpik.analytic.intervals import FeasibleIntervals, Interval, gaps, merge, shrunk_limits, within, wrap
 from qpik.core.progress import Progress
 
 if TYPE_CHECKING:
@@ -191,21 +191,13 @@ def resample(
             starts = np.concatenate([[x[0]] if ok[0] else [], cut[ok[edges + 1]]])
             stops = np.concatenate([cut[ok[edges]], [x[-1]] if ok[-1] else []])
             runs += list(zip(starts.tolist(), stops.tolist()))
-        every = [x for iv in intervals[b] + runs + stretch for x in iv]
-        lo, hi = gaps(np.array(every))
+        bounds = [x for iv in intervals[b] + runs + stretch for x in iv]
+        lo, hi = gaps(np.array(bounds))
         mid = wrap(0.5 * (lo + hi))
-        ok = np.where(_within(stretch, mid), _within(runs, mid), _within(intervals[b], mid))
+        ok = np.where(within(stretch, mid), within(runs, mid), within(intervals[b], mid))
         intervals[b] = merge(lo, hi, ok[:, None])[0]
     out_sets = [[(float(lo), float(hi)) for lo, hi in x] for x in intervals]
     return FeasibleIntervals(fi.param_name, fi.branch, out_sets, fi.singular, proved=False)
-
-
-def _within(intervals: list[Interval], x: np.ndarray) -> np.ndarray:
-    """Whether each of ``x`` (M,) rad lies in one of the closed ``intervals``."""
-    out = np.zeros(len(x), bool)
-    for lo, hi in intervals:
-        out |= (lo <= x) & (x <= hi)
-    return out
 
 
 def _state(solver: BranchSolver, T: np.ndarray, margin: float) -> Callable[..., tuple]:
