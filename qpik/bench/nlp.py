@@ -30,6 +30,15 @@ peers, each stopping at its first start that reaches the pose to 1e-9:
   has no solution counts as failed).
 
 Rows: seconds per pose (median; p95 in the note) and the success rate over the poses.
+
+Part 3, an arm of the 1-D search (example-robot-data's Baxter, right arm, q1 locked), the margin on the same poses:
+
+- ``solve_best`` (:mod:`qpik.nlp.best_sampled`: every slot sampled along q1, the best minima narrowed and polished by
+  IPOPT; not certified);
+- ``solve_full`` (IPOPT from the search's branches at eight values of q1, then seeded random starts: the best of
+  :class:`~qpik.nlp.options.FullOptions`' default 8 starts that reach the pose).
+
+The note counts the poses where each answer's margin is the larger by more than 1e-9.
 """
 
 from __future__ import annotations
@@ -105,7 +114,7 @@ def run(args: argparse.Namespace) -> list[Row]:
         rows.append(Row(f"solve_best margin, batched, per pose ({name})", per, r, note=note))
     for name in ("zheng7", "panda"):
         rows += _full_rows(name, max(10, repeat))
-    return rows
+    return rows + _searched_rows(max(5, repeat // 5))
 
 
 def _ms(s: float) -> str:
@@ -163,6 +172,34 @@ def _full_rows(name: str, n: int) -> list[Row]:
         t, ok = np.array(out[peer][0]), np.array(out[peer][1])
         note = f"p95 {_ms(np.percentile(t, 95))}; reached 1e-9 on {ok.mean():.1%} of {n} poses"
         rows.append(Row(labels[peer], float(np.median(t)), labels["mink"] if peer == "qpik" else None, note=note))
+    return rows
+
+
+def _searched_rows(n: int) -> list[Row]:
+    """solve_best (sampled) and solve_full on ``n`` poses of the 1-D search's arm, the margin (module docstring)."""
+    import time
+
+    from qpik.bench.analytic_locked import SEARCHED
+    from qpik.robots.packaged import packaged_model
+
+    key, options = SEARCHED
+    robot = load_robot(str(packaged_model(key)), **options)
+    T = robot.fk(np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (n, robot.dof)))
+    solve_best(robot, T[0]), solve_full(robot, T[0], "margin")  # builds and compiles
+    times, margins = {"best": [], "full": []}, {"best": [], "full": []}
+    for pose in T:
+        for peer, solve in (("best", solve_best), ("full", solve_full)):
+            t0 = time.perf_counter()
+            res = solve(robot, pose, "margin")
+            times[peer].append(time.perf_counter() - t0)
+            margins[peer].append(-res.objective if res.status == "optimal" else -np.inf)
+    labels = {"full": "solve_full margin, IPOPT multi-start (baxter, 1-D search)",
+              "best": "solve_best margin, sampled + polished, not certified (baxter, 1-D search)"}  # fmt: skip
+    rows = []
+    for peer, other in (("full", "best"), ("best", "full")):
+        t, m, o = np.array(times[peer]), np.array(margins[peer]), np.array(margins[other])
+        note = f"p95 {_ms(np.percentile(t, 95))}; margin larger than {other}'s on {int((m > o + 1e-9).sum())} of {n}"
+        rows.append(Row(labels[peer], float(np.median(t)), labels["full"] if peer == "best" else None, note=note))
     return rows
 
 

@@ -99,7 +99,7 @@ class CrossCheck:
         quantity = self.best.quantity
         f = quantity.minimised or quantity.name
         lines = [
-            f"(a) closed form + 1-D search: {self.best.summary()}",
+            f"(a) solve_best: {self.best.summary()}",
             f"(b) full-joint NLP from (a): max |Δq| = {self.q_gap:.2e} rad, |Δf| = {self.f_gap:.2e} (f = {f},"
             f" minimised), KKT residual {self.kkt:.2e}",
             f"(c) QP controller at (a): max |v| = {self.speed:.2e} rad/s",

@@ -5,9 +5,10 @@ The pose options are those of ``qpik ik``. Obstacles come from a problem file (`
 its obstacles only) or from ``--sphere x,y,z,r`` options (m, world frame). ``--plot FILE``
 also draws the objective against the parameter for every branch (:mod:`qpik.plots.objective`).
 
-An arm whose branches are not expressions of the parameter (no closed form, or the 1-D search's arms) gets the
-joint-space NLP instead (:func:`qpik.nlp.solve_full`: the best of its starts, a local optimum, never certified), and
-the output says so and why.
+The 1-D search's arms (the Sawyer, Baxter) are sampled along their locked joint and polished, never certified
+(:mod:`qpik.nlp.best_sampled`). An arm without a closed form gets the joint-space NLP instead
+(:func:`qpik.nlp.solve_full`: the best of its starts, a local optimum, never certified), and the output says so and
+why.
 """
 
 from __future__ import annotations
@@ -106,7 +107,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _joint_space(scene: Scene, T, head: str, why: Exception, args: argparse.Namespace) -> int:
-    """``qpik best`` on an arm whose branches are not expressions of the parameter: :func:`qpik.nlp.solve_full`."""
+    """``qpik best`` on an arm without a closed form: :func:`qpik.nlp.solve_full`."""
     import numpy as np
 
     from qpik.nlp import solve_full

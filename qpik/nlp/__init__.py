@@ -1,6 +1,7 @@
 """Optimisation over the self-motion and over the joints.
 
-- :func:`solve_best`: the best closed-form branch and δ/ψ for a pose, certified (:mod:`qpik.nlp.best`);
+- :func:`solve_best`: the best closed-form branch and δ/ψ for a pose, certified (:mod:`qpik.nlp.best`; on the 1-D
+  search's arms sampled and polished, :mod:`qpik.nlp.best_sampled`);
 - :func:`solve_full`: the full-joint NLP (7 variables, pose equality) for every arm (:mod:`qpik.nlp.full`);
 - :class:`BestOptions`, :class:`FullOptions`, :class:`IKOptions`: their solver settings (:mod:`qpik.nlp.options`);
 - :func:`solve_ik`: numerical inverse kinematics for every arm (:mod:`qpik.nlp.ik`).

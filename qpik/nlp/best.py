@@ -26,6 +26,7 @@ says so). Every other pose is solved again with the pairs as constraints, by the
 Statuses: ``"optimal"`` (the best point found; :attr:`~qpik.nlp.best_result.BestResult.certified`
 says whether it is proved global), ``"unreachable"`` (no branch reaches the pose at any parameter),
 ``"no feasible branch"`` (reachable, but not inside the limits and clear of the obstacles and of itself),
+``"not found"`` (the 1-D search's arms, :mod:`qpik.nlp.best_sampled`: no feasible point found, nothing proved),
 ``"solver failed"`` (a numerical failure, or an answer that fails its own check at q: FK, limits,
 clearance, self-clearance; the reason in :attr:`~qpik.nlp.best_result.BestResult.message`).
 Every result's q is a finite configuration: for a status other than ``"optimal"`` it is the
@@ -44,12 +45,15 @@ from functools import partial
 
 import numpy as np
 
+from qpik.analytic.api import closed_form_for
 from qpik.core.errors import InputError, NoClosedFormError
 from qpik.core.stopwatch import Stopwatch
 from qpik.core.validate import finite_array, flag, number
 from qpik.core.validate import pose as check_pose
 from qpik.nlp.best_result import BestResult, BestResults
+from qpik.nlp.best_sampled import solve_sampled
 from qpik.nlp.best_search import solve_poses
+from qpik.nlp.full import full_nlp
 from qpik.nlp.least_violating import build_sweep, least_violating
 from qpik.nlp.levelset import margin_weight
 from qpik.nlp.options import BestOptions
@@ -80,8 +84,10 @@ def solve_best(
     """The best branch and δ/ψ for ``pose`` under ``objective``; see the module docstring.
 
     Args:
-        robot: an arm with a closed form (``nammoto7``: δ, ``iiwa14``: ψ), or a :class:`~qpik.scene.Scene` of one
-            (then ``objective``, ``obstacles``, ``d_safe`` and a single ``q_ref`` are the scene's).
+        robot: an arm with a closed form (``nammoto7``: δ, ``iiwa14``: ψ, ``panda``: q7, ...) or whose branches the
+            1-D search finds (the Sawyer, Baxter: sampled along the locked joint, never certified,
+            :mod:`qpik.nlp.best_sampled`), or a :class:`~qpik.scene.Scene` of one (then ``objective``,
+            ``obstacles``, ``d_safe`` and a single ``q_ref`` are the scene's).
         pose: end-effector pose (4, 4) in the base frame, or a batch (N, 4, 4).
         objective: an :class:`~qpik.objectives.Objective` or a name of
             :func:`qpik.objectives.resolve` (``"margin"``, ``"manipulability"``, ...); default: the margin.
@@ -97,7 +103,7 @@ def solve_best(
         A :class:`~qpik.nlp.best_result.BestResult`, or :class:`~qpik.nlp.best_result.BestResults` for a batch.
 
     Raises:
-        NoClosedFormError: the robot has no closed form (use :func:`qpik.nlp.solve_full`).
+        NoClosedFormError: the robot has neither a closed form nor the 1-D search (use :func:`qpik.nlp.solve_full`).
         InputError: NaN/inf or wrong shapes (the message names the argument), unknown objective
             or method.
     """
@@ -109,8 +115,9 @@ def solve_best(
     problem = scene_of(robot, obstacles, d_safe, objective, None if per_pose else q_ref).with_objective("margin")
     robot, obj, obs = problem.robot, problem.objective, problem.obstacles
     q_ref = q_ref if per_pose else problem.q_ref
-    if not robot.branch_functions:
-        raise NoClosedFormError(f"{robot.name} has {_why_not(robot)}; use qpik.nlp.solve_full (7 joint variables)")
+    if robot.closed_form is None:
+        raise NoClosedFormError(f"{robot.name} has no closed-form IK, so no parameter to search; use "
+                                "qpik.nlp.solve_full (7 joint variables)")  # fmt: skip
     T, batched = check_pose(pose, "pose", project)
     T = T if batched else T[None]
     n = robot.dof
@@ -130,6 +137,14 @@ def solve_best(
     certify = flag(certify, "certify")
     if not isinstance(method, str) or method not in METHODS:
         raise InputError(f"method: expected one of {list(METHODS)}, got {method!r}")
+    if not robot.branch_functions:  # the 1-D search's slots: sampled along the locked joint
+        if method == "levelset":
+            raise InputError("method: 'levelset' needs branches in closed form; this arm's are found by a 1-D search")
+        results = solve_sampled(problem, T, ref, _ids(branches, list(closed_form_for(robot).branch_ids)))
+        for r, Tk in zip(results, T):
+            _verify(problem, Tk, r)
+            r.quantity = obj.quantity
+        return BestResults(results, n) if batched else results[0]
     sm = selfmotion_of(robot)
     weight = margin_weight(obj, obs, sm)
     if method == "levelset" and weight is None:
@@ -172,11 +187,15 @@ def build_search(
     :func:`solve_best` builds only what it uses, so without this the first pose that needs the other pass (one the
     level sets do not settle, or whose answer comes too close to itself) would build it inside its call."""
     problem = scene_of(robot, obstacles, d_safe, objective, q_ref).with_objective("margin")
-    if not problem.robot.branch_functions:
-        raise NoClosedFormError(f"{problem.robot.name} has {_why_not(problem.robot)} to build")
+    if problem.robot.closed_form is None:
+        raise NoClosedFormError(f"{problem.robot.name} has no closed-form IK, so no parameter to search")
     T = check_pose(pose, "pose")[0]
     if T.ndim != 2:
         raise InputError(f"pose: expected one pose (4, 4), got shape {T.shape}")
+    if not problem.robot.branch_functions:  # the 1-D search's arms: the objective's values and the full-joint NLP
+        problem.evaluator.build()
+        full_nlp(problem.robot, problem.objective, problem.obstacles, problem.self_pairs)
+        return
     ref = np.zeros((1, problem.robot.dof)) if problem.q_ref is None else finite_array(problem.q_ref, "q_ref")[None]
     sm = selfmotion_of(problem.robot)
     scenes = [problem.replace(self_collision=False)] + ([problem] if problem.self_pairs else [])
@@ -186,14 +205,6 @@ def build_search(
         build_sweep(sm.solver, T)
         if problem.self_pairs:
             problem.self_distances.build()
-
-
-def _why_not(robot: Robot) -> str:
-    """Why :func:`solve_best` does not take ``robot``: no closed form, or branches found by a search (no expressions
-    of the parameter to search over)."""
-    if robot.closed_form is None:
-        return "no closed-form IK, so no δ/ψ to search"
-    return "branches found by a 1-D search (qpik.ik), not expressions of the parameter to search over"
 
 
 def _solve(
@@ -264,19 +275,26 @@ def _verify(scene: Scene, T: np.ndarray, r: BestResult) -> None:
         r.message = "the answer fails its check: " + "; ".join(fails)
 
 
-def _rows(sm, branches) -> list[int]:
-    """The searched rows of the closed form for the public ids ``branches`` (None: all)."""
-    all_rows = list(range(sm.searched))
+def _ids(branches, known: list[int]) -> list[int]:
+    """The public ids ``branches`` checked against the arm's ``known`` ones (None: all of them)."""
     if branches is None:
-        return all_rows
+        return known
     try:
         ids = [operator.index(b) for b in np.atleast_1d(np.asarray(branches, dtype=object)).ravel()]
     except TypeError:
         raise InputError(f"branches: expected branch ids (integers), got {branches!r}"[:200]) from None
-    known = sm.branch_ids.tolist()
     bad = [b for b in ids if b not in known]
     if bad:
         raise InputError(f"branches: unknown branch id(s) {bad}; the branches are {known}")
+    return ids
+
+
+def _rows(sm, branches) -> list[int]:
+    """The searched rows of the closed form for the public ids ``branches`` (None: all)."""
+    if branches is None:
+        return list(range(sm.searched))
+    known = sm.branch_ids.tolist()
+    ids = _ids(branches, known)
     rows = set()
     for b in ids:
         k = known.index(b)

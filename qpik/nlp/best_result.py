@@ -18,7 +18,7 @@ import numpy as np
 from qpik.analytic.intervals import wrap
 from qpik.objectives import Quantity
 
-STATUSES = ("optimal", "unreachable", "no feasible branch", "solver failed")
+STATUSES = ("optimal", "unreachable", "no feasible branch", "not found", "solver failed")
 
 
 @dataclass
@@ -108,7 +108,8 @@ class BestResult:
         self_collision: how the scene's capsule pairs (:attr:`~qpik.scene.Scene.self_pairs`) were kept ≥ d_s apart
             (:mod:`qpik.nlp.best`): ``"off"`` (the scene has none), ``"clear"`` (the answer solved without them
             keeps them apart, so it is the answer with them), ``"re-solved"`` (the pose was solved again with them
-            as constraints: its answer without them came closer, or was not optimal).
+            as constraints: its answer without them came closer, or was not optimal), ``"constrained"`` (one pass
+            with them as constraints: the 1-D search's arms, :mod:`qpik.nlp.best_sampled`).
         time: seconds of the solve, without building or compiling its functions (done before the clock starts;
             a batch: the solve's time divided by the number of poses).
         rows: what :attr:`branches` is built from (None: an empty table).

@@ -133,6 +133,13 @@ class FullNLP:
             else None
         )
 
+    def parameters(self, T: np.ndarray, q_ref: np.ndarray, d_safe: float, objective: Objective | None,
+                   obstacles: ObstacleSet) -> np.ndarray:  # fmt: skip
+        """The NLP's parameter vector: the pose ``T`` (4, 4), the parameters of ``objective`` (of this NLP's form), the
+        reference ``q_ref`` (n,) rad, the geometry of ``obstacles`` (of this NLP's families) and ``d_safe`` (m)."""
+        weights = np.zeros(0) if objective is None else objective.params(self.robot)
+        return np.concatenate([np.asarray(T, float).T.ravel(), weights, q_ref, obstacles.params, [d_safe]])
+
 
 def full_nlp(robot: Robot, objective: Objective | None, obstacles: ObstacleSet,
              self_pairs: tuple[Pair, ...] = ()) -> FullNLP:  # fmt: skip
@@ -189,7 +196,7 @@ def solve_full(
     first = np.zeros((0, n)) if q0 is None else np.atleast_2d(joint_vector(q0, n, "q0")[0])
     nlp = full_nlp(robot, obj, obs, scene.self_pairs)
     t0 = time.perf_counter()  # the solve's clock: the NLP and its IPOPT solver are built above (cached per form)
-    p = np.concatenate([T.T.ravel(), nlp.params if obj is None else obj.params(robot), ref, obs.params, [d_safe]])
+    p = nlp.parameters(T, ref, d_safe, obj, obs)
     queue = _starts(robot, T, first, seed)
     best, best_err, tried, iters = None, np.inf, 0, 0
     wanted = 1 if obj is None else starts
@@ -199,7 +206,7 @@ def solve_full(
             break
         tried += 1
         try:
-            out = _solve_from(nlp, q_start, p)
+            out = solve_from(nlp, q_start, p)
         except RuntimeError as exc:  # an evaluation error inside IPOPT: the next start
             failure = f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
             continue
@@ -264,14 +271,19 @@ def _starts(robot: Robot, T: np.ndarray, first: np.ndarray, seed: int):
         yield rng.uniform(robot.q_min, robot.q_max)
 
 
-def _solve_from(nlp: FullNLP, q_start: np.ndarray, p: np.ndarray) -> tuple:
-    """``(q, objective, pose error, iterations, kkt, clearance)`` of IPOPT started at ``q_start``."""
+def solve_from(
+    nlp: FullNLP, q_start: np.ndarray, p: np.ndarray, box: tuple[np.ndarray, np.ndarray] | None = None
+) -> tuple:
+    """``(q, objective, pose error, iterations, kkt, clearance)`` of IPOPT started at ``q_start`` (n,) rad, with the
+    parameters ``p`` (:meth:`FullNLP.parameters`); ``box``: bounds (n,) each of q, rad, inside the joint limits
+    (default: the limits)."""
     with nlp.lock:  # one IPOPT solve of this NLP at a time (its memory and stats are the solver's)
         robot = nlp.robot
+        lo, hi = (robot.q_min, robot.q_max) if box is None else box
         t0 = np.asarray(nlp.start_t(q_start, p)).ravel() + 1e-3 if nlp.start_t is not None else np.zeros(0)
         x0 = np.concatenate([q_start, t0])
-        lbx = np.concatenate([robot.q_min, np.full(nlp.n_t, -np.inf)])
-        ubx = np.concatenate([robot.q_max, np.full(nlp.n_t, np.inf)])
+        lbx = np.concatenate([lo, np.full(nlp.n_t, -np.inf)])
+        ubx = np.concatenate([hi, np.full(nlp.n_t, np.inf)])
         n_g = nlp.solver.size1_out("g")
         lbg = np.concatenate([np.zeros(nlp.n_eq), np.full(n_g - nlp.n_eq, -np.inf)])
         ubg = np.zeros(n_g)
@@ -279,7 +291,7 @@ def _solve_from(nlp: FullNLP, q_start: np.ndarray, p: np.ndarray) -> tuple:
         sol = nlp.solver(x0=x0, p=p, **bounds)
         iters = int(nlp.solver.stats().get("iter_count", 0))
         x = np.asarray(sol["x"]).ravel()
-        q = np.clip(x[: robot.dof], robot.q_min, robot.q_max)
+        q = np.clip(x[: robot.dof], lo, hi)
         T = np.asarray(p[:16]).reshape(4, 4).T
         err = float(np.linalg.norm(pose_error(T, robot.fk(q))))
         value, clear = (float(v) for v in nlp.value(q, p))

@@ -16,9 +16,10 @@ answer. Otherwise, one of two ways:
   ~1e-12 and, while s₀ stays in b₀'s set, continuous in the pose (away from singular
   configurations, near which q moves fast with the pose at fixed δ/ψ) and equal to q₀ at
   q₀'s own pose. If b₀'s set is empty, the same two ends on every branch compete. If every
-  set is empty, no configuration inside the limits reaches the pose (up to the sets' 1e-9 rad resolution); one
-  Levenberg–Marquardt attempt from q₀ then gives the smallest error to report (or the
-  answer, should it find one).
+  set is empty and the sets are proved, no configuration inside the limits reaches the pose (up to the sets' 1e-9
+  rad resolution, ``"unreachable"``); one Levenberg–Marquardt attempt from q₀ then gives the smallest error to report
+  (or the answer, should it find one). Where they are not proved (a near member's, the 1-D search's sampled ones)
+  a failed attempt is ``"not found"``.
 - **Levenberg–Marquardt** (the default for ``zheng7`` and ``panda``, see :data:`CLOSED_FORM_DEFAULT`; possible on
   every arm).
   With :math:`G = -\partial e/\partial q = [J_v;\ J_l^{-1}(-\omega) J_\omega]` (6, n) (geometric
@@ -247,25 +248,27 @@ class IKSolver:
                     return IKResult(q.copy(), "ok", residual, method)
             if method == "levenberg-marquardt":
                 return self._levenberg_marquardt(T, start, tol, int(max_iters), deadline, seed)
-            found, feasible = self._closed_form(T, q)
+            found, feasible, proved = self._closed_form(T, q)
             if found is not None and found.residual <= tol:
                 return found
             if found is not None:  # a singular case of the closed form, or tol below its accuracy: polish
                 return self._levenberg_marquardt(T, found.q, tol, int(max_iters), deadline, seed)
             if feasible:  # a feasible set whose candidates all failed the limit test: iterate instead
                 return self._levenberg_marquardt(T, start, tol, int(max_iters), deadline, seed)
-            # no branch is feasible: nothing inside the limits reaches the pose (up to the sets' resolution);
-            # one attempt from q0 gives the smallest error to report
+            # no branch is feasible: where the sets are proved, nothing inside the limits reaches the pose (up to
+            # their 1e-9 rad resolution); one attempt from q0 gives the smallest error to report
             res = self._levenberg_marquardt(T, start, tol, min(int(max_iters), ATTEMPT_ITERS), deadline, seed)
-            if res.status != "ok":
+            if res.status != "ok" and proved:
                 res.status = "unreachable"
             return res
 
     # ---- closed form ------------------------------------------------------------
 
-    def _closed_form(self, T: np.ndarray, q0: np.ndarray) -> tuple[IKResult | None, bool]:
-        """The closed-form answer chosen from q0's branch and parameter (module docstring), or None; and whether
-        any branch has a feasible set. ``T`` (4, 4) is a checked pose (not checked again here)."""
+    def _closed_form(self, T: np.ndarray, q0: np.ndarray) -> tuple[IKResult | None, bool, bool]:
+        """The closed-form answer chosen from q0's branch and parameter (module docstring), or None; whether any
+        branch has a feasible set; and whether the sets are proved (``FeasibleIntervals.proved``: a near member's or
+        the 1-D search's are not, so their being empty proves nothing). ``T`` (4, 4) is a checked pose (not checked
+        again here)."""
         robot = self.robot
         solver = closed_form_solver(robot)
         with solver.lock:  # its compiled calls' buffers, shared with the public closed-form functions
@@ -275,7 +278,7 @@ class IKSolver:
         rows = [k0] if sets.intervals[k0] else [k for k, iv in enumerate(sets.intervals) if iv]
         cands = [(k, param, iv) for k in rows for param, iv in _candidates(sets.intervals[k], param0)]
         if not cands:
-            return None, False
+            return None, False, sets.proved
         params = np.array([param for _, param, _ in cands])
         with solver.lock:
             sol = solver.solve_many(T, params)  # every branch at each candidate parameter, one call
@@ -292,10 +295,10 @@ class IKSolver:
             if best is None or dist < best[0]:
                 best = (dist, k, param, q.copy())
         if best is None:
-            return None, True
+            return None, True, sets.proved
         _, k, param, q = best
         res = IKResult(q, "ok", self.residual(q, T), "closed form", branch=int(sets.branch[k]), param=param)
-        return res, True
+        return res, True, sets.proved
 
     # ---- Levenberg–Marquardt ----------------------------------------------------
 

@@ -142,8 +142,8 @@ class Page:
         self.symbol = symbol
         kind = {"srs": "S-R-S, closed form in the arm angle ψ", "offset_shoulder": "offset shoulder, closed form in δ",
                 "locked_joint": f"closed form with {symbol} locked",
-                "locked_search": f"no closed form: qpik.ik's branches by a 1-D search at {symbol} (no feasible sets, "
-                                 "no certified best answer)"}  # fmt: skip
+                "locked_search": f"no closed form: qpik.ik's branches by a 1-D search at {symbol} (its sampled "
+                                 "feasible sets and best answer take seconds a pose: not drawn here)"}  # fmt: skip
         what = kind.get(robot.closed_form or "", "no closed form")
         gui.add_markdown(f"**{robot.name}** ({robot.dof} joints): {what}")
         with gui.add_folder("Branches", visible=branches):

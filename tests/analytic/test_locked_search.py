@@ -271,16 +271,13 @@ def test_a_slot_keeps_its_solution_along_the_parameter():
 
 def test_the_searched_family_says_what_it_does_not_serve():
     """An unreachable pose: 16 invalid finite slots; the home pose, q = 0, where a continuum of configurations reaches
-    it at q1 = 0: 16 valid singular slots, each reaching it by MuJoCo's FK. solve_best needs branches as expressions of
-    the parameter: it says the arm's branches are found by a search. load_robot's override: asked for ψ, the Sawyer
-    has no closed form."""
+    it at q1 = 0: 16 valid singular slots, each reaching it by MuJoCo's FK. load_robot's override: asked for ψ, the
+    Sawyer has no closed form."""
     robot = model_robot("robosuite_sawyer")
     T = robot.fk(robot.q_home)
     T[:3, 3] = (2.0, 0.0, 0.5)
     sols = qpik.ik(robot, T, 0.3)
     assert not sols.valid.any() and np.isfinite(sols.q).all() and np.all(sols.q[:, 0] == 0.3)
-    with pytest.raises(NoClosedFormError, match="found by a 1-D search"):
-        qpik.solve_best(robot, robot.fk(robot.q_home))
     home = mujoco_poses(robot, robot.q_home[None])[0]  # q = 0: axes aligned, a continuum of solutions at q1 = 0
     sols = qpik.ik(robot, home, 0.0)
     assert sols.valid.all() and sols.singular.all()

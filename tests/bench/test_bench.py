@@ -68,6 +68,8 @@ EXPECTED = {
         "solve_best margin, batched, per pose (iiwa14)",
         "solve_full, IPOPT (panda)",
         "mink.solve_ik iterated, daqp (zheng7)",
+        "solve_best margin, sampled + polished, not certified (baxter, 1-D search)",
+        "solve_full margin, IPOPT multi-start (baxter, 1-D search)",
     ],
     "plan": ["DP, 1 obstacle (iiwa14)", "NLP from the DP, 1 obstacle (iiwa14)", "DP, no obstacle (iiwa14)"],
     "batch": [

@@ -1,4 +1,4 @@
-"""qpik.checks.crosscheck: closed form + 1-D search, full-joint NLP and QP controller agree on seeded random poses.
+"""qpik.checks.crosscheck: solve_best, the full-joint NLP and the QP controller agree on seeded random poses.
 
 (a) is checked against dense sampling in tests/nlp/test_nlp_best.py; here (b) and (c) must confirm it
 (same q to 1e-6 rad, same objective to 1e-8, KKT residual ≤ 1e-8, QP velocity ≤ 1e-6 rad/s), with
@@ -33,6 +33,20 @@ def test_three_way_agreement(name, objective, obstacles):
     for c in applicable:
         assert c.passed, c.report()
         assert c.q_gap <= 1e-6 and c.f_gap <= 1e-8 and c.kkt <= 1e-8 and c.speed <= 1e-6
+
+
+def test_three_way_agreement_on_an_arm_of_the_1d_search():
+    """Baxter's right arm (example-robot-data; its slots found by the 1-D search, solve_best sampled and polished): (b)
+    and (c) confirm (a) on seeded poses, with a sphere beside the arm on the second half of them."""
+    from conftest import model_robot
+
+    robot = model_robot("erd_baxter")
+    T = robot.fk(random_q(robot, 4, 32))
+    for k, pose in enumerate(T):
+        obstacles = [Sphere(pose[:3, 3] + (0.0, 0.0, 0.25), 0.08)] if k >= 2 else []
+        c = crosscheck(robot, pose, "smooth-margin", obstacles)
+        assert c.applicable and c.passed, c.report()
+        assert "not certified (sampled" in c.report() and c.q_gap <= 1e-6 and c.speed <= 1e-6
 
 
 def test_three_way_agreement_with_self_collision_active():

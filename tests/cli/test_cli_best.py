@@ -87,17 +87,10 @@ def test_best_prints_the_margin_itself_and_says_what_is_minimised(capsys):
     assert all(float(r[3]) > 0 for r in rows) and max(float(r[3]) for r in rows) == pytest.approx(printed, rel=1e-7)
 
 
-@pytest.mark.parametrize("key", ["zheng7", "erd_baxter"])
-def test_best_on_an_arm_without_a_closed_form_runs_the_joint_space_nlp_and_says_it_is_not_certified(
-    capsys, tmp_path, key
-):
-    """zheng7 (no closed form) and Baxter's right arm (the 1-D search): the joint-space NLP's answer reaches the pose
-    inside the limits, and the margin printed is the margin of the printed q (computed here from the limits)."""
-    if key == "zheng7":
-        robot, model = qpik.load_robot("zheng7"), ["-r", "zheng7"]
-    else:
-        robot = model_robot(key)
-        model = ["-r", str(robot.model.path), "--base", "right_arm_mount", "--tip", "right_wrist"]
+def test_best_on_an_arm_without_a_closed_form_runs_the_joint_space_nlp_and_says_it_is_not_certified(capsys, tmp_path):
+    """zheng7 (no closed form): the joint-space NLP's answer reaches the pose inside the limits, and the margin printed
+    is the margin of the printed q (computed here from the limits)."""
+    robot, model = qpik.load_robot("zheng7"), ["-r", "zheng7"]
     q = np.random.default_rng(6).uniform(0.7 * robot.q_min, 0.7 * robot.q_max)
     T = robot.fk(q)
     pose = ["--position", " ".join(repr(float(v)) for v in T[:3, 3]),
@@ -113,3 +106,24 @@ def test_best_on_an_arm_without_a_closed_form_runs_the_joint_space_nlp_and_says_
     margin = float(np.min(np.minimum(qs - robot.q_min, robot.q_max - qs) / half))
     shown = float(next(ln for ln in out.splitlines() if ln.startswith("best: margin")).split()[2].rstrip(","))
     assert abs(shown - margin) < 1e-5
+
+
+def test_best_on_an_arm_of_the_1d_search_samples_its_slots_and_says_it_is_not_certified(capsys):
+    """Baxter's right arm (the 1-D search, q1 locked): the slots' table, a summary that says "not certified", and a
+    printed q that reaches the pose inside the limits with the printed margin (computed here from the limits)."""
+    robot = model_robot("erd_baxter")
+    model = ["-r", str(robot.model.path), "--base", "right_arm_mount", "--tip", "right_wrist"]
+    T = robot.fk(np.random.default_rng(6).uniform(0.7 * robot.q_min, 0.7 * robot.q_max))
+    pose = ["--position", " ".join(repr(float(v)) for v in T[:3, 3]),
+            "--rotation", " ".join(repr(float(v)) for v in T[:3, :3].ravel())]  # fmt: skip
+    assert main(["best", *model, *pose]) == 0
+    out = capsys.readouterr().out
+    assert "q1* [rad]" in out and "not certified (sampled" in out and "no search over" not in out
+    qs = _q_star(out)
+    assert np.abs(robot.fk(qs) - T).max() < 1e-5  # printed to 6 decimals
+    assert robot.within_limits(qs, tol=1e-6)
+    half = 0.5 * (robot.q_max - robot.q_min)
+    summary = next(ln for ln in out.splitlines() if ln.startswith("best: branch"))
+    assert float(summary.split("margin ")[1].split(",")[0]) == pytest.approx(
+        np.min(np.minimum(qs - robot.q_min, robot.q_max - qs) / half), abs=1e-5
+    )

@@ -136,9 +136,9 @@ def test_threads_sharing_an_nlp_get_the_answers_of_one_thread() -> None:
 
 
 def test_an_arm_of_the_search_starts_from_its_branches():
-    """The Sawyer's branches are found by the 1-D search (no feasible sets): after q0, solve_full's starts are
-    qpik.ik's within-limits branches at the parameters of SEARCHED, in that order, each reaching the pose by MuJoCo's
-    FK of the file, before any random start; and an answer from them reaches the pose too."""
+    """The Sawyer's branches are found by the 1-D search (no expressions of the parameter): after q0, solve_full's
+    starts are qpik.ik's within-limits branches at the parameters of SEARCHED, in that order, each reaching the pose
+    by MuJoCo's FK of the file, before any random start; and an answer from them reaches the pose too."""
     from conftest import mujoco_poses
 
     from qpik.nlp.full import SEARCHED, _starts

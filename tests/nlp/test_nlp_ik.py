@@ -163,6 +163,17 @@ def test_reachable_only_outside_the_limits_is_unreachable() -> None:
         solve_ik(robot, robot.fk(q), robot.q_home)
 
 
+@pytest.mark.parametrize("key", ["erd_xarm7", "erd_baxter"])
+def test_the_closed_form_path_says_unreachable_only_where_the_sets_are_proved(key: str) -> None:
+    """A near member's sets and the 1-D search's are not proved: a pose they find no branch for, out of reach here,
+    is "not found", never "unreachable" (the Panda's proved sets say "unreachable" for the same kind of pose)."""
+    from conftest import model_robot
+
+    for robot, status in ((model_robot(key), "not found"), (qpik.load_robot("panda"), "unreachable")):
+        res = IKSolver(robot).solve(_far_pose(robot), robot.q_home, max_iters=200, method="closed form")
+        assert res.status == status and res.residual > 1.0 and robot.within_limits(res.q)
+
+
 @pytest.mark.parametrize("name", ("iiwa14", "panda"))
 def test_controller_solve_ik_delegates(name: str) -> None:
     robot = qpik.load_robot(name)
