@@ -60,7 +60,10 @@ def refine_ends(
     r"""``fi``, the sets of ``solver`` at the pose ``T`` (4, 4) under the limits shrunk by ``margin``
     (:func:`~qpik.analytic.intervals.shrunk_limits`), with every end moved onto the solver's answers (module
     docstring); the same branches, as many intervals, ``proved`` False. ``reach`` (rad): about how far an end may
-    move; an end's bracket is first the one within ``reach`` of it, where that holds the states it must.
+    move; an end's bracket is first the one within ``reach`` of it, where that holds the states it must. An end moved
+    to where the branch stops being valid (a fold of the file's chain, where dq/dt is unbounded) is also listed among
+    the branch's singular values (``FeasibleIntervals.singular``), which :func:`qpik.solve_best`'s search samples
+    closely.
 
     Each bracket [a, c] (a outside, c inside) shrinks by one answer per step, every end's at once. Where the branch
     is valid at both ends, the end is a joint reaching a limit, and every second step is the Illinois variant of
@@ -81,6 +84,7 @@ def refine_ends(
             if hi < np.pi:
                 ends.append((k, i, 1, hi, 0.5 * (hi + after), mid))
     new = [list(x) for x in fi.intervals]
+    folds: list[list[float]] = [[] for _ in fi.intervals]  # the ends moved where the branch stops being valid
     if ends:
         k = np.array([e[0] for e in ends])
         at, far_a, far_c = (np.array([e[j] for e in ends]) for j in (3, 4, 5))
@@ -91,13 +95,16 @@ def refine_ends(
             a[wide], c[wide] = far_a[wide], far_c[wide]
             (in_a, fa[wide], _), (in_c, fc[wide], _) = state(a[wide], k[wide]), state(c[wide], k[wide])
             ok[wide] = ~in_a & in_c
-        a, c = _close(state, k, a, c, fa, fc, ok)
-        for (b, i, side, *_), good, x in zip(ends, ok, 0.5 * (a + c)):
-            if good:
-                lo, hi = new[b][i]
-                new[b][i] = (x, hi) if side == 0 else (lo, x)
+        a, c, fa = _close(state, k, a, c, fa, fc, ok)
+        for (b, i, side, *_), good, x, fold in zip(ends, ok, 0.5 * (a + c), np.isnan(fa)):
+            if not good:
+                continue
+            lo, hi = new[b][i]
+            new[b][i] = (x, hi) if side == 0 else (lo, x)
+            if fold:
+                folds[b].append(float(x))
     intervals: list[list[Interval]] = [[(float(lo), float(hi)) for lo, hi in x] for x in new]
-    return FeasibleIntervals(fi.param_name, fi.branch, intervals, fi.singular, proved=False)
+    return FeasibleIntervals(fi.param_name, fi.branch, intervals, _with(fi.singular, folds), proved=False)
 
 
 def resample(
@@ -126,7 +133,9 @@ def resample(
     :mod:`qpik.analytic.search_sets`), and two neighbouring samples where a branch's state is the same but another's
     validity differs, more than :data:`FINE` spacings apart, get a sample between them. A stretch where no branch's
     state (nor, with ``renumbered``, validity) differs between two neighbouring samples but one changes twice
-    between them is not seen. ``progress``: the work's words for lines on stderr
+    between them is not seen. Without ``renumbered``, a change between two samples where the branch's validity
+    changes is a singular value too (as :func:`refine_ends` lists them). ``progress``: the work's words for lines on
+    stderr
     (:class:`~qpik.core.progress.Progress`: the samples, then each round's steps); None: no lines."""
     t, k, piece = [], [], []
     spans = []  # per piece: its branch, its ends
@@ -160,7 +169,7 @@ def resample(
             out, into = np.where(inside[i], i + 1, i), np.where(inside[i], i, i + 1)  # the sample outside, inside
             words = f"{progress}: round {r + 1}, {len(i)} ends, step (at most {STEPS})"
             said = Progress(words, STEPS, progress is not None)
-            a, c = _close(state, k[i], t[out], t[into], mu[out], mu[into], np.ones(len(i), bool), said)
+            a, c, _ = _close(state, k[i], t[out], t[into], mu[out], mu[into], np.ones(len(i), bool), said)
             new += [a, c, (0.5 * (a + c)[:, None] + spacing * LADDER).ravel()]  # narrow stretches cluster beside one
         if not new:
             break
@@ -178,16 +187,19 @@ def resample(
             np.concatenate([every, every_new]),
         )
     order = np.lexsort((t, piece))
-    t, k, piece, inside = t[order], k[order], piece[order], inside[order]
+    t, k, piece, inside, every = t[order], k[order], piece[order], inside[order], every[order]
     intervals = [list(x) for x in fi.intervals]
+    folds: list[list[float]] = [[] for _ in fi.intervals]
     for b, stretch in enumerate(pieces):
         if not stretch:
             continue
         runs = []  # the runs of the samples inside, each end the middle of its last bracket
         for p in {int(x) for x in piece[k == b]}:
-            x, ok = t[piece == p], inside[piece == p]
+            x, ok, valid = t[piece == p], inside[piece == p], every[piece == p, b]
             edges = np.flatnonzero(ok[1:] != ok[:-1])
             cut = 0.5 * (x[edges] + x[edges + 1])
+            if not renumbered:  # a change of the branch's validity: where it stops being valid, a singular end
+                folds[b] += cut[valid[edges] != valid[edges + 1]].tolist()
             starts = np.concatenate([[x[0]] if ok[0] else [], cut[ok[edges + 1]]])
             stops = np.concatenate([cut[ok[edges]], [x[-1]] if ok[-1] else []])
             runs += list(zip(starts.tolist(), stops.tolist()))
@@ -197,7 +209,12 @@ def resample(
         ok = np.where(within(stretch, mid), within(runs, mid), within(intervals[b], mid))
         intervals[b] = merge(lo, hi, ok[:, None])[0]
     out_sets = [[(float(lo), float(hi)) for lo, hi in x] for x in intervals]
-    return FeasibleIntervals(fi.param_name, fi.branch, out_sets, fi.singular, proved=False)
+    return FeasibleIntervals(fi.param_name, fi.branch, out_sets, _with(fi.singular, folds), proved=False)
+
+
+def _with(singular: list[list[float]], folds: list[list[float]]) -> list[list[float]]:
+    """The singular values (rad, per branch, sorted) of ``singular`` and ``folds``."""
+    return [sorted(set(old) | set(new)) for old, new in zip(singular, folds)]
 
 
 def _state(solver: BranchSolver, T: np.ndarray, margin: float) -> Callable[..., tuple]:
@@ -236,9 +253,9 @@ def _close(
     said: Progress | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The brackets [a, c] (a outside, c inside, rad, (M,) each; μ there ``fa``, ``fc``) of branches ``k`` closed on
-    their ends until each is at most :data:`WIDTH` wide (:func:`refine_ends`' steps): their ends a, c; only where
-    ``ok``, the others as given; each step told to ``said``, the last as its
-    :meth:`~qpik.core.progress.Progress.finish`."""
+    their ends until each is at most :data:`WIDTH` wide (:func:`refine_ends`' steps): their ends a, c and μ at a
+    (NaN where the branch is not valid there: the end is where it stops being valid); only where ``ok``, the others
+    as given; each step told to ``said``, the last as its :meth:`~qpik.core.progress.Progress.finish`."""
     a, c, fa, fc = (np.array(x, float) for x in (a, c, fa, fc))
     last = np.zeros(len(a), int)  # +1: c moved last, -1: a moved last (Illinois halves the other's value)
     for step in range(STEPS):
@@ -264,4 +281,4 @@ def _close(
         a[live[flat]] = c[live[flat]] = t[flat]  # a step onto the end itself: the bracket closes on it
     if said is not None:
         said.finish(step)
-    return a, c
+    return a, c, fa

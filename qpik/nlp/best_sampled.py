@@ -9,13 +9,14 @@ search over expressions with its certificate (:mod:`qpik.nlp.best_search`) appli
 2. at every sample where a searched slot is valid with every joint inside the limits, the objective and the clearances
    (:meth:`qpik.scene.evaluator.Evaluator.value_rows`); a sample is feasible where the clearances are ≥ d_s;
 3. the feasible samples that are local minima of their slot's objective along t (a neighbour that is not feasible
-   counts as +inf), the :data:`STARTS` best of them, each start IPOPT on the full-joint NLP (:mod:`qpik.nlp.full`:
-   the pose an equality, the limits and clearances constraints, exact derivatives) with the locked joint held
-   between the start's two neighbouring samples: each polish climbs down the self-motion manifold to the minimum
-   beside its sample (IPOPT left free may cross a fold into another slot's basin and miss a better minimum beside
-   the fold), whatever slot it ends in;
-4. the best polished point that reaches the pose inside the limits and clear, or else the best sample, is the answer;
-   its slot is the search's for its q (:meth:`~qpik.analytic.search_solver.SearchSolver.parameter`).
+   counts as +inf), the :data:`STARTS` best of them: each is narrowed by :data:`GOLDEN` golden-section steps on its
+   own slot between its two neighbouring samples, then polished by IPOPT on the full-joint NLP (:mod:`qpik.nlp.full`:
+   the pose an equality, the limits and clearances constraints, exact derivatives) with the locked joint held inside
+   the narrowed bracket. Left free, IPOPT may cross a fold into another slot's basin and miss a better minimum beside
+   the fold; held, it climbs down to the minimum beside its start, whatever slot that is;
+4. the best of the feasible samples and of the polished points that reach the pose inside the limits and clear is
+   the answer; a polished point's slot is the search's for its q
+   (:meth:`~qpik.analytic.search_solver.SearchSolver.parameter`).
 
 A basin of the objective narrower than the spacing, or a feasible stretch of a slot between two samples, can be
 missed: the answer is the best point found (``certified`` False). Where no sample is feasible and no polish reaches a

@@ -42,8 +42,10 @@ SAMPLE_STEP = 0.1
 END = 2e-9
 """The first and last samples lie this far (rad) inside a feasible interval: its ends are exact to
 :data:`qpik.analytic.intervals.SAME` (1e-9), and the branch may stop reaching the pose just beyond."""
-ENDS = (1e-3, 4e-3, 1.6e-2)
-"""Extra samples (rad) inside each singular end of a feasible interval (see :func:`sample`)."""
+ENDS = (1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 4e-3, 1.6e-2)
+"""Extra samples (rad) inside each singular end of a feasible interval (see :func:`sample`): near a fold the joints
+move as the square root of the distance to it, and the objective's best can lie microradians from the end (a
+bracket reaches no further than the last sample where the branch is valid)."""
 SINGULAR_END = 1e-7
 """An end of a feasible interval this close (rad) to a singular parameter of its branch is singular."""
 PSI_TOL = 1e-13
@@ -52,7 +54,7 @@ NOISE = 1e-15
 """Relative rounding of an objective value: values closer than this count as equal in :func:`polish_minima`."""
 MAX_ROUNDS = 60
 """Most rounds of :func:`polish_minima` or :func:`roots`."""
-POLISHED_PER_BRANCH = 1
+POLISHED_PER_BRANCH = 2
 """Candidates polished per (pose, branch): its best discrete local minima."""
 POLISHED_PER_POSE = 4
 """Further candidates polished per pose: the best ones left."""

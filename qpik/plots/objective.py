@@ -30,7 +30,8 @@ def objective_map(
     """The objective against δ/ψ for every branch, the feasible sets shaded, the optimum marked.
 
     Args:
-        scene: the arm (with a closed form), its obstacles, d_safe, objective (default: the margin) and q_ref
+        scene: the arm (with a closed form, or the 1-D search's: then each of the ``num`` samples is one search, and
+            its sets are sampled, seconds in all), its obstacles, d_safe, objective (default: the margin) and q_ref
             (:class:`~qpik.scene.Scene`), as :func:`qpik.solve_best` takes them.
         pose: (4, 4) end-effector pose, base frame.
         result: the answer to mark (default: :func:`qpik.solve_best` of the same problem).

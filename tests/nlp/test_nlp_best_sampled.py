@@ -20,8 +20,8 @@ from qpik.nlp import solve_best
 from qpik.nlp.options import BestOptions
 from qpik.scene import Scene
 
-DENSE = 8001 if LARGE else 2001
-CASES = [("erd_baxter", k) for k in range(20 if LARGE else 3)]
+DENSE = 8001 if LARGE else 1001
+CASES = [("erd_baxter", k) for k in range(20 if LARGE else 2)]
 CASES += [("robosuite_sawyer", k) for k in range(6 if LARGE else 1)]
 
 
@@ -67,7 +67,7 @@ def test_the_best_margin_is_at_least_the_densely_sampled_best(key, seed):
 def test_the_best_distance_to_a_reference_is_at_least_the_densely_sampled_best():
     """A smooth objective whose minimum often lies at the end of a slot's feasible stretch: ½|q − q_ref|²."""
     robot = model_robot("erd_baxter")
-    for seed in range(4 if LARGE else 2):
+    for seed in range(4 if LARGE else 1):
         q, q_ref = random_q(robot, 2, 200 + seed)
         T = mujoco_poses(robot, q[None])[0]
         res = solve_best(robot, T, "distance", q_ref=q_ref)

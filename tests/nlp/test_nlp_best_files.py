@@ -1,0 +1,53 @@
+"""qpik.solve_best on the locked-joint families' model files from PyPI packages against dense sampling of the locked
+joint: example-robot-data's Panda (exact, q7), xArm7 (a near member, q7) and TALOS's left arm (exact, q1), robosuite's
+Jaco (exact, q1) and Gen3 (a near member, q1).
+
+The reference is independent of the search: every branch of the compiled IK at 20,001 values of the locked joint
+over its limits, the margin computed here from the limits, and the answer's q checked by MuJoCo's FK of the file.
+Self-collision is off in the dense check's problem (the samples do not model the capsule pairs). A near member's
+sets are not proved, so its answers are never certified; an exact member's are, where its sets are proved.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import LARGE, model_robot, mujoco_poses, random_q
+
+import qpik
+from qpik.analytic.api import closed_form_for
+from qpik.nlp import solve_best
+
+DENSE = 20_001
+POSES = 20 if LARGE else 3
+NEAR = ("erd_xarm7", "robosuite_gen3")
+
+
+def dense_best(robot: qpik.Robot, T: np.ndarray) -> float:
+    """The largest margin over every branch at DENSE values of the locked joint (its limits within [−π, π]) where the
+    branch is valid inside the limits; −inf where there is none."""
+    solver = closed_form_for(robot)
+    j = int(solver.param_name[1:]) - 1
+    t = np.linspace(max(robot.q_min[j], -np.pi), min(robot.q_max[j], np.pi), DENSE)
+    sol = solver.solve_many(T, t)
+    q = sol.q[sol.valid & sol.within_limits]
+    half = 0.5 * (robot.q_max - robot.q_min)
+    return float(np.min(np.minimum(q - robot.q_min, robot.q_max - q) / half, axis=1).max(initial=-np.inf))
+
+
+@pytest.mark.parametrize("key", ["erd_panda", "erd_xarm7", "erd_talos", "robosuite_jaco", "robosuite_gen3"])
+def test_the_best_margin_is_at_least_the_densely_sampled_best(key):
+    robot = model_robot(key)
+    scene = qpik.Scene.of(robot, objective="margin", self_collision=False)
+    half = 0.5 * (robot.q_max - robot.q_min)
+    for k, q in enumerate(random_q(robot, POSES, 300)):
+        T = mujoco_poses(robot, q[None])[0]
+        res = solve_best(scene, T)
+        assert res.status == "optimal", (k, res.message)
+        np.testing.assert_allclose(mujoco_poses(robot, res.q[None])[0], T, atol=1e-9)
+        assert robot.within_limits(res.q)
+        own = float(np.min(np.minimum(res.q - robot.q_min, robot.q_max - res.q) / half))
+        assert res.reported == pytest.approx(own, abs=1e-12)
+        assert res.reported >= dense_best(robot, T) - 1e-8, k
+        if key in NEAR:
+            assert not res.certified and "not proved" in res.message
