@@ -24,7 +24,8 @@ Part 2, the full-joint NLP on ``zheng7`` and ``panda`` (no closed form): the sam
 same starts (``q0``, then the seeded random starts of :func:`qpik.nlp.solve_full`) for both
 peers, each stopping at its first start that reaches the pose to 1e-9:
 
-- ``solve_full`` (IPOPT, exact derivatives, pose as an equality, joint limits as bounds);
+- ``solve_full`` (IPOPT, exact derivatives, pose as an equality, joint limits as bounds; self-collision off, as mink
+  has none here);
 - ``mink.solve_ik`` iterated on the MJCF twin (FrameTask gain 1, dt = 1, daqp, ConfigurationLimit)
   until the pose error is below 1e-9 or :data:`MINK_ITERS` iterations, per start (a start whose QP
   has no solution counts as failed).
@@ -54,6 +55,7 @@ from qpik.nlp import solve_best, solve_full
 from qpik.nlp.full import REACHED
 from qpik.nlp.options import BestOptions, FullOptions
 from qpik.robots.loader import load_robot
+from qpik.scene import Scene
 
 TITLE = "NLP: best branch and δ/ψ (solve_best) and the full-joint NLP"
 SSIK = "ssik iiwa14_ik.solve (16 ψ × 8 branches)"
@@ -155,11 +157,12 @@ def _full_rows(name: str, n: int) -> list[Row]:
     starts = rng.uniform(robot.q_min, robot.q_max, (n, robot.dof))
     T = robot.fk(Q)
     mink_solve = _mink(robot)
-    solve_full(robot, T[0], options=FullOptions(q0=starts[0]))
+    scene = Scene.of(robot, self_collision=False)
+    solve_full(scene, T[0], options=FullOptions(q0=starts[0]))
     out = {"qpik": ([], []), "mink": ([], [])}
     for k in range(n):
         t0 = time.perf_counter()
-        res = solve_full(robot, T[k], options=FullOptions(q0=starts[k], seed=k, max_starts=MAX_STARTS))
+        res = solve_full(scene, T[k], options=FullOptions(q0=starts[k], seed=k, max_starts=MAX_STARTS))
         out["qpik"][0].append(time.perf_counter() - t0)
         out["qpik"][1].append(res.status == "optimal" and robot.within_limits(res.q))
         t0 = time.perf_counter()
