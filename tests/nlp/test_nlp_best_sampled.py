@@ -21,7 +21,7 @@ from qpik.nlp.options import BestOptions
 from qpik.scene import Scene
 
 DENSE = 8001 if LARGE else 1001
-CASES = [("erd_baxter", k) for k in range(20 if LARGE else 2)]
+CASES = [("erd_baxter", k) for k in range(20 if LARGE else 1)]
 CASES += [("robosuite_sawyer", k) for k in range(6 if LARGE else 1)]
 
 
