@@ -114,7 +114,10 @@ def _one(pp: PoseProblem) -> BestResult:
     for q0, a, c in _narrow(pp, got, starts):
         lo, hi = robot.q_min.copy(), robot.q_max.copy()  # the locked joint inside the start's bracket
         lo[solver.locked], hi[solver.locked] = a, c
-        qs, value, err, iters, _, d = solve_from(nlp, q0, p, (lo, hi))
+        try:
+            qs, value, err, iters, _, d = solve_from(nlp, q0, p, (lo, hi))
+        except RuntimeError:  # an evaluation error inside IPOPT: the start's sample stands
+            continue
         if not (err < REACHED and d >= scene.d_safe - CLEAR):
             continue
         k = int(solver.parameter(qs[None])[1][0])  # the search's slot of the polished point
