@@ -37,13 +37,13 @@ def test_three_way_agreement(name, objective, obstacles):
 
 def test_three_way_agreement_on_an_arm_of_the_1d_search():
     """Baxter's right arm (example-robot-data; its slots found by the 1-D search, solve_best sampled and polished): (b)
-    and (c) confirm (a) on seeded poses, with a sphere beside the arm on the second half of them."""
+    and (c) confirm (a) on two seeded poses, the second with a sphere beside the arm."""
     from conftest import model_robot
 
     robot = model_robot("erd_baxter")
-    T = robot.fk(random_q(robot, 4, 32))
+    T = robot.fk(random_q(robot, 4, 32)[[0, 2]])
     for k, pose in enumerate(T):
-        obstacles = [Sphere(pose[:3, 3] + (0.0, 0.0, 0.25), 0.08)] if k >= 2 else []
+        obstacles = [Sphere(pose[:3, 3] + (0.0, 0.0, 0.25), 0.08)] if k >= 1 else []
         c = crosscheck(robot, pose, "smooth-margin", obstacles)
         assert c.applicable and c.passed, c.report()
         assert "not certified (sampled" in c.report() and c.q_gap <= 1e-6 and c.speed <= 1e-6

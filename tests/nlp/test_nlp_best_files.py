@@ -21,8 +21,8 @@ from qpik.nlp import solve_best
 DENSE = 20_001
 POSES = 20 if LARGE else 2
 NEAR = ("erd_xarm7", "robosuite_gen3")
-ARMS = ["robosuite_jaco", *NEAR] + (["erd_panda", "erd_talos"] if LARGE else [])
-"""The Panda and TALOS files in the large run only: each arm's first call compiles its functions."""
+ARMS = ["robosuite_jaco", "robosuite_gen3"] + (["erd_xarm7", "erd_panda", "erd_talos"] if LARGE else [])
+"""The xArm7, Panda and TALOS files in the large run only: each arm's first call compiles its functions."""
 
 
 def dense_best(robot: qpik.Robot, T: np.ndarray) -> float:
