@@ -24,9 +24,12 @@ says so). Every other pose is solved again with the pairs as constraints, by the
 ``"re-solved"``.
 
 Statuses: ``"optimal"`` (the best point found; :attr:`~qpik.nlp.best_result.BestResult.certified`
-says whether it is proved global), ``"unreachable"`` (no branch reaches the pose at any parameter),
-``"no feasible branch"`` (reachable, but not inside the limits and clear of the obstacles and of itself),
-``"not found"`` (the 1-D search's arms, :mod:`qpik.nlp.best_sampled`: no feasible point found, nothing proved),
+says whether it is proved global), ``"unreachable"`` (no configuration inside the limits reaches the pose, proved
+by empty feasible sets, and no branch reaches it at any of 720 sampled parameters, limits aside),
+``"no feasible branch"`` (reachable, but not inside the limits and clear of the obstacles and of itself: proved,
+by empty feasible sets or by the certificate cutting off every feasible interval by its clearances),
+``"not found"`` (no feasible point found, and nothing proved: the feasible sets are not proved, the certificate
+could not prove the absence or was not asked for, or the arm is one of the 1-D search's, :mod:`qpik.nlp.best_sampled`),
 ``"solver failed"`` (a numerical failure, or an answer that fails its own check at q: FK, limits,
 clearance, self-clearance; the reason in :attr:`~qpik.nlp.best_result.BestResult.message`).
 Every result's q is a finite configuration: for a status other than ``"optimal"`` it is the

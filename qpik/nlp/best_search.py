@@ -9,7 +9,10 @@ polished around their local minima (:mod:`qpik.nlp.search`), or solved by IPOPT 
 certificate (:mod:`qpik.nlp.certificate`) then proves the best value per pose to a tolerance, or
 returns better points, which are searched again with samples 4 times closer (at most
 :data:`RETRIES` times). A pose without any feasible point gets
-:func:`~qpik.nlp.least_violating.least_violating`'s answer.
+:func:`~qpik.nlp.least_violating.least_violating`'s answer. Its status claims that none exists only with a proof:
+the feasible sets are empty, or the certificate, run with :math:`f^* = +\infty`, cuts off every cell of every
+feasible interval by its clearance (a clearance whose upper bound over the cell is below d_s). Otherwise it is
+``"not found"``, with the reason.
 """
 
 from __future__ import annotations
@@ -30,9 +33,12 @@ from qpik.nlp.selfmotion import SelfMotion
 
 RETRIES = 2
 """Searches again (with samples 4x closer each time) when the certificate finds a better point."""
-UNPROVED_SETS = "the feasible sets at this pose are not proved, so no maximum is"
+UNPROVED_SETS = "the feasible sets at this pose are not proved"
 """The message of an answer over feasible sets that are not proved (``AnalyticSolver.sets_proved``,
 ``FeasibleIntervals.proved``)."""
+NONE_FOUND = "no feasible point was found, and that none exists is not proved"
+"""The message of ``"not found"``: the search found no feasible point and the certificate could not prove its
+absence (the reason follows)."""
 
 
 def solve_poses(
@@ -72,14 +78,20 @@ def solve_poses(
         best.update(*solve_pieces(scene, pieces))
     elif len(pieces):
         best.update_from(*_search(scene, pieces, SAMPLE_STEP))
-    todo = np.setdiff1d(np.flatnonzero(best.found() & certify & ~cert_ok), unproved)
+    searched = np.zeros(N, bool)
+    searched[pieces.pose] = True
+    for i in left[~best.found()[left] & ~searched[left]].tolist():
+        cert_ok[i], reason[i] = fis[i].proved, ""  # empty sets: nothing inside the limits reaches the pose
+    # a pose without a feasible point is certified too: with f* = +inf, every cell must be cut off by its clearance
+    todo = np.setdiff1d(np.flatnonzero((best.found() | searched) & certify & ~cert_ok), unproved)
     for attempt in range(RETRIES + 1):
         if not len(todo):
             break
         value = best.pose_value()
         top = np.argmin(best.f, axis=1)
         focus = top, best.psi[np.arange(len(top)), top]
-        cert = prove(scene, pieces, value, tol * np.maximum(1.0, np.abs(value)), todo, focus)
+        slack = np.where(np.isfinite(value), tol * np.maximum(1.0, np.abs(value)), 0.0)
+        cert = prove(scene, pieces, value, slack, todo, focus)
         for i in todo:
             cert_ok[i], bound[i], reason[i] = cert.certified[i], cert.bound[i], cert.reason[i]
         if cert.better is None or attempt == RETRIES:
@@ -223,8 +235,10 @@ def _answers(
     for i, (f, psi, rounds, counts, q, clear, proved, low, why, how) in enumerate(poses):
         rows = BranchRows(columns, f, psi, q, rounds, counts)
         value = min(f)
-        if value == math.inf:
+        if value == math.inf and proved:
             result = least_violating(scene, i, rows)
+        elif value == math.inf:
+            result = least_violating(scene, i, rows, "not found", f"{NONE_FOUND} ({why})")
         else:
             r = f.index(value)
             result = BestResult("optimal", ids[r], psi[r], q[r].copy(), value, proved,

@@ -92,7 +92,8 @@ def test_margin_is_global_on_random_poses_with_and_without_obstacles(name):
     certified = 0
     for k, (q, ok) in enumerate(_dense(robot, T)):
         if not ok.any():  # every configuration of the pose brings two capsules closer than d_s
-            assert free[k].status == blocked[k].status == "no feasible branch", free[k].summary()
+            assert free[k].status == "no feasible branch", free[k].summary()  # proved by the certificate
+            assert blocked[k].status == "not found", blocked[k].summary()  # certify=False: nothing proved
             continue
         f = np.where(ok, _margin(robot, q), np.inf)
         res = free[k]
@@ -106,7 +107,7 @@ def test_margin_is_global_on_random_poses_with_and_without_obstacles(name):
         if res.status == "optimal":
             _check_answer(robot, T[k], res, OBSTACLES)
         else:
-            assert res.status == "no feasible branch" and res.violation > 0, res.summary()
+            assert res.status == "not found" and res.violation > 0 and "certify=False" in res.message, res.summary()
         better = np.argwhere(f < (res.objective if res.status == "optimal" else np.inf) - 1e-8)
         if len(better):  # every configuration better than the answer must come closer than d_s
             d = clearance(q[better[:, 0], better[:, 1]])[2]
@@ -133,7 +134,7 @@ def test_other_objectives_against_dense_samples(name, objective):
     ev = Evaluator(robot, resolve(objective), obstacles)
     for k, ((q, ok), res) in enumerate(zip(_dense(robot, T, num=3000), results)):
         if not ok.any():  # every configuration of the pose brings two capsules closer than d_s
-            assert res.status == "no feasible branch", (k, res.summary())
+            assert res.status == "not found", (k, res.summary())  # certify=False: nothing proved
             continue
         f, _, d, _ = ev(q[ok], robot.q_home)
         clear = d.min(axis=1) >= D_SAFE if d.shape[1] else np.ones(len(f), bool)
@@ -254,6 +255,25 @@ def test_statuses_and_the_least_violating_branch():
     # inside the limits, but an obstacle around the whole arm: the least violating clearance
     res = solve_best(robot, robot.fk(robot.q_home), obstacles=[Sphere((0, 0, 0.6), 0.5)], d_safe=0.01)
     assert res.status == "no feasible branch" and res.violation > 0.01
+
+
+def test_no_feasible_branch_is_claimed_only_with_a_proof(monkeypatch):
+    """Poses every configuration of which brings two capsules closer than d_s: ``"no feasible branch"`` comes with the
+    certificate's proof (run with f* = +inf, every cell cut off by a clearance), which dense samples confirm; a
+    certificate that cannot finish leaves ``"not found"`` with its reason."""
+    import qpik.nlp.certificate as certificate
+
+    robot = qpik.load_robot("nammoto7")
+    T = _poses(robot, 100, 0)
+    found = solve_best(robot, T)
+    none = [k for k, r in enumerate(found) if r.status != "optimal"]
+    assert none and all(found[k].status == "no feasible branch" for k in none), [found[k].summary() for k in none]
+    for k, (_, ok) in zip(none, _dense(robot, T[none])):
+        assert not ok.any(), k
+    monkeypatch.setattr(certificate, "MAX_CELLS", 1)
+    for res in solve_best(robot, T[none]):
+        assert res.status == "not found" and "within 1 cells" in res.message, res.summary()
+        assert np.isfinite(res.q).all() and res.objective == np.inf
 
 
 @pytest.mark.parametrize("method", ["levelset", "search"])

@@ -53,3 +53,17 @@ def test_the_best_margin_is_at_least_the_densely_sampled_best(key):
         assert res.reported >= dense_best(robot, T) - 1e-8, k
         if key in NEAR:
             assert not res.certified and "not proved" in res.message
+
+
+def test_a_near_member_claims_no_infeasibility_it_cannot_prove():
+    """The Gen3 file (a near member, sets not proved) at a pose only reached with q6 past its limit: no branch is
+    valid inside the limits at any dense sample, and ``solve_best`` says ``"not found"``, never "no feasible branch"
+    or "unreachable", which would claim a proof."""
+    robot = model_robot("robosuite_gen3")
+    q = robot.q_home.copy()
+    q[5] = robot.q_max[5] + 0.3
+    T = mujoco_poses(robot, q[None])[0]
+    assert dense_best(robot, T) == -np.inf
+    res = solve_best(qpik.Scene.of(robot, objective="margin", self_collision=False), T)
+    assert res.status == "not found" and "not proved" in res.message, res.summary()
+    assert np.isfinite(res.q).all() and res.objective == np.inf
