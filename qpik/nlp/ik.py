@@ -11,7 +11,8 @@ answer. Otherwise, one of two ways:
 - **Closed form** (the default where ``robot.closed_form`` is set: ``nammoto7`` in δ,
   ``iiwa14`` in ψ). q₀'s branch b₀ and parameter s₀ (δ or ψ, :func:`qpik.redundancy_parameter`),
   and the exact feasible set of every branch for the pose (:func:`qpik.feasible_intervals`) give
-  the answer: ``qpik.ik`` on b₀ at s₀ itself if s₀ lies in b₀'s set, else at whichever of the
+  the answer: ``qpik.ik`` on b₀ at s₀ itself if s₀ lies in b₀'s set (tried first, without the sets: b₀ valid
+  inside the limits at s₀), else at whichever of the
   two ends of the gap around s₀ (:data:`EDGE` inside) gives the q nearer q₀. It is exact to
   ~1e-12 and, while s₀ stays in b₀'s set, continuous in the pose (away from singular
   configurations, near which q moves fast with the pose at fixed δ/ψ) and equal to q₀ at
@@ -272,8 +273,15 @@ class IKSolver:
         robot = self.robot
         solver = closed_form_solver(robot)
         with solver.lock:  # its compiled calls' buffers, shared with the public closed-form functions
-            sets = solver.feasible_intervals(T)
             param0, branch0 = (x[0] for x in solver.parameter(q0[None]))
+        at = ik(robot, T, float(param0))
+        here = np.flatnonzero(at.branch == branch0)
+        if here.size and at.valid[here[0]] and at.within_limits[here[0]]:  # s0 lies in b0's set: no sets needed
+            q = at.q[here[0]].copy()
+            res = IKResult(q, "ok", self.residual(q, T), "closed form", branch=int(branch0), param=float(at.param))
+            return res, True, True
+        with solver.lock:
+            sets = solver.feasible_intervals(T)
         k0 = sets.index(branch0)
         rows = [k0] if sets.intervals[k0] else [k for k, iv in enumerate(sets.intervals) if iv]
         cands = [(k, param, iv) for k in rows for param, iv in _candidates(sets.intervals[k], param0)]

@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 
 import qpik
 from qpik.algebra.lie import pose_error
+from qpik.analytic.api import closed_form_for
 from qpik.core.errors import InputError, NoClosedFormError, RotationError, UnreachableError
 from qpik.nlp.ik import ATTEMPT_ITERS, CLOSED_FORM_DEFAULT, IKSolver, ik_solver_for, residual_expr, solve_ik
 from qpik.nlp.options import IKOptions
@@ -172,6 +173,28 @@ def test_the_closed_form_path_says_unreachable_only_where_the_sets_are_proved(ke
     for robot, status in ((model_robot(key), "not found"), (qpik.load_robot("panda"), "unreachable")):
         res = IKSolver(robot).solve(_far_pose(robot), robot.q_home, max_iters=200, method="closed form")
         assert res.status == status and res.residual > 1.0 and robot.within_limits(res.q)
+
+
+def test_a_start_parameter_inside_its_set_needs_no_sets(monkeypatch) -> None:
+    """Baxter's right arm (the 1-D search, whose sets take seconds): starts near configurations of random poses, with
+    their q1 (the locked joint), keep their own q1 and slot, found by ``qpik.ik`` at q0's q1 without the feasible sets
+    (which would raise here), and the answer reaches the pose by MuJoCo's FK of the file."""
+    from conftest import model_robot, mujoco_poses
+
+    robot = model_robot("erd_baxter")
+    solver = closed_form_for(robot)
+    monkeypatch.setattr(solver, "feasible_intervals", lambda *a, **k: pytest.fail("the sets were computed"))
+    q_goal = random_q(robot, 3, 21, margin=0.3)
+    q0 = q_goal.copy()
+    q0[:, 1:] += np.random.default_rng(21).uniform(-0.01, 0.01, (3, 6))
+    for qg, start in zip(q_goal, q0):
+        T = mujoco_poses(robot, qg[None])[0]
+        res = IKSolver(robot).solve(T, start, method="closed form")
+        param0, branch0 = qpik.redundancy_parameter(robot, start)
+        assert res.status == "ok" and res.method == "closed form", res
+        assert res.branch == branch0 and res.param == pytest.approx(param0, abs=1e-15)
+        np.testing.assert_allclose(mujoco_poses(robot, res.q[None])[0], T, atol=1e-9)
+        assert robot.within_limits(res.q)
 
 
 @pytest.mark.parametrize("name", ("iiwa14", "panda"))
