@@ -105,6 +105,13 @@ def within(intervals: list[Interval], x: np.ndarray, tol: float = 0.0) -> np.nda
     return out
 
 
+def spaced(lo: float, hi: float, spacing: float) -> np.ndarray:
+    """Samples of the interval [``lo``, ``hi``] (rad): its two ends and the multiples of ``spacing`` (rad) strictly
+    between them, sorted (the same multiples for every interval, so that neighbouring pieces share them)."""
+    inner = np.arange(np.floor(lo / spacing) + 1, np.ceil(hi / spacing)) * spacing
+    return np.concatenate([[lo], inner[(inner > lo) & (inner < hi)], [hi]])
+
+
 def wrap(x: np.ndarray | float) -> np.ndarray:
     """Wrap angles (rad, any shape) to (-pi, pi]: :meth:`qpik.algebra.symbolic.Ops.wrap` on a float array."""
     return sy.NUMPY.wrap(np.asarray(x, dtype=float))

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from qpik.analytic.intervals import FeasibleIntervals, Interval, gaps, merge, shrunk_limits, within, wrap
+from qpik.analytic.intervals import FeasibleIntervals, Interval, gaps, merge, shrunk_limits, spaced, within, wrap
 from qpik.core.progress import Progress
 
 if TYPE_CHECKING:
@@ -141,8 +141,7 @@ def resample(
     spans = []  # per piece: its branch, its ends
     for b, stretch in enumerate(pieces):
         for lo, hi in stretch:
-            grid = np.arange(np.floor(lo / spacing) + 1, np.ceil(hi / spacing)) * spacing  # shared by the pieces
-            x = np.concatenate([[lo], grid[(grid > lo) & (grid < hi)], [hi]])
+            x = spaced(lo, hi, spacing)
             t.append(x)
             k.append(np.full(len(x), b))
             piece.append(np.full(len(x), len(spans)))

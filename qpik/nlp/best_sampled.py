@@ -35,6 +35,7 @@ import numpy as np
 
 from qpik.algebra.lie import tracking_errors
 from qpik.analytic.api import closed_form_for
+from qpik.analytic.intervals import spaced
 from qpik.analytic.search_sets import locked_span
 from qpik.core.progress import Progress
 from qpik.nlp.best_result import BestResult, BranchRows
@@ -96,11 +97,7 @@ def solve_sampled(scene: Scene, T: np.ndarray, q_ref: np.ndarray, branches: list
 def grid(lo: float, hi: float) -> np.ndarray:
     """The values (rad, sorted, in [−π, π]) of a joint with limits [``lo``, ``hi``] (rad) at which it is sampled: the
     multiples of 2π/:data:`SAMPLES` inside them, and the limits themselves (wrapped)."""
-    spacing, out = 2.0 * np.pi / SAMPLES, []
-    for a, b in locked_span(lo, hi):
-        inner = np.arange(np.ceil(a / spacing), np.floor(b / spacing) + 1) * spacing
-        out.append(np.concatenate([[a], inner[(inner > a) & (inner < b)], [b]]))
-    return np.unique(np.concatenate(out))
+    return np.unique(np.concatenate([spaced(a, b, 2.0 * np.pi / SAMPLES) for a, b in locked_span(lo, hi)]))
 
 
 def _one(pp: PoseProblem) -> BestResult:

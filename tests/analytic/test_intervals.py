@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 import qpik
 from qpik.analytic import closed_form_for
-from qpik.analytic.intervals import SAME, FeasibleIntervals, gaps, merge, shift, shrunk_limits, wrap
+from qpik.analytic.intervals import SAME, FeasibleIntervals, gaps, merge, shift, shrunk_limits, spaced, wrap
 
 PROBE = np.linspace(-np.pi, np.pi, 20_001)
 
@@ -202,3 +202,18 @@ def test_native_sets_with_a_region_are_the_sets_without_it(name):
         if len(region):
             assert not any(len(x) for x in run(T, m2, np.zeros((0, 2))))
     assert checked > 50
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    lo=st.floats(-np.pi, np.pi),
+    width=st.floats(0.0, 2 * np.pi),
+    count=st.integers(1, 4096),
+)
+def test_spaced_samples_are_the_ends_and_every_multiple_between(lo, width, count):
+    """Against the multiples of the spacing counted one by one over the circle."""
+    hi, spacing = lo + width, 2 * np.pi / count
+    x = spaced(lo, hi, spacing)
+    assert x[0] == lo and x[-1] == hi and (np.diff(x) >= 0).all()
+    every = np.arange(-count - 1, 2 * count + 2) * spacing
+    np.testing.assert_array_equal(x[1:-1], every[(every > lo) & (every < hi)])
