@@ -7,7 +7,9 @@ every pair of :attr:`~qpik.scene.Scene.self_pairs` at least :math:`d_s` apart ha
 branch and bound over the exact feasible intervals (:func:`qpik.feasible_intervals`, whose ends are
 the analytic limit crossings):
 
-1. Cover every interval with cells of width :data:`FIRST_CELL` or less.
+1. Move every interval's ends onto its feasible side (:func:`inside_ends`: an end exact to 1e-9 rad may lie past
+   where a joint leaves its limits, where the joint is already its other representative q ± 2π), then cover every
+   interval with cells of width :data:`FIRST_CELL` or less.
 2. For each cell [a, b], the Taylor model of the branch's closed form over it
    (:meth:`~qpik.nlp.selfmotion.SelfMotion.models`: with :math:`t = (\psi - \psi_{mid})/h`, every
    joint lies within :math:`c + s\,t \pm r` and within [lo, hi] for every ψ of the cell), composed
@@ -31,7 +33,9 @@ which then certifies again.
 What the proof assumes: the feasible intervals are exact (up to :data:`qpik.analytic.intervals.SAME`,
 1e-9 rad, below which a gap is not classified); the closed form is continuous on each interval
 (it is, between the analytic breakpoints, where every joint crossing a limit or wrapping through
-±π is a breakpoint); the Taylor models are evaluated in round-to-nearest arithmetic (their bounds
+±π is a breakpoint; a joint whose limits span a whole turn has no breakpoint where it wraps, and a cell holding
+that jump gets the bounds of both sides at once: sound, but loose enough to leave an answer uncertified); the
+Taylor models are evaluated in round-to-nearest arithmetic (their bounds
 may be off by a few units in the last place, far below ε); the objective is
 :attr:`~qpik.objectives.Objective.bounded` and every operation of it has a Taylor-model rule
 (:func:`qpik.algebra.enclosure.taylor_function`; otherwise it is never certified, and the reason says so:
@@ -44,6 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from qpik.analytic.intervals import SAME
 from qpik.nlp.run import BestRun, Points
 from qpik.nlp.search import Pieces
 from qpik.scene.bounds import BoundFunction
@@ -58,6 +63,10 @@ SMALLEST_CELL = 1e-9
 """Cells are not cut below this width (rad): one kept there leaves the answer uncertified."""
 MAX_CELLS = 3_000
 """Most cells examined per pose."""
+INWARD_STEPS = 40
+"""Bisections of :func:`inside_ends` (from SAME = 1e-9 rad, 40 reach below the spacing of doubles near π)."""
+INSET = 1e-12
+"""rad: how far inside its set :func:`inside_ends` puts every end, beyond the last feasible value."""
 BISECTIONS = 20
 """Bisection steps of :func:`lower_bound` on t ∈ [−1, 1]."""
 NO_BOUND = "the objective has no lower bound (the manipulability, or an operation without a Taylor-model rule)"
@@ -171,13 +180,14 @@ def certify(
             reason[i] = NO_BOUND
         return Certificate(certified, np.full(N, -np.inf), cells_used, reason, None)
     sel = todo[pieces.pose]
-    width = pieces.hi[sel] - pieces.lo[sel]
+    first, last = inside_ends(scene, pieces.pose[sel], pieces.row[sel], pieces.lo[sel], pieces.hi[sel])
+    width = last - first
     count = np.maximum(1, np.ceil(width / FIRST_CELL).astype(int))
     pose = np.repeat(pieces.pose[sel], count)
     row = np.repeat(pieces.row[sel], count)
     j = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    lo = np.repeat(pieces.lo[sel], count) + j * np.repeat(width / count, count)
-    hi = np.minimum(lo + np.repeat(width / count, count), np.repeat(pieces.hi[sel], count))
+    lo = np.repeat(first, count) + j * np.repeat(width / count, count)
+    hi = np.minimum(lo + np.repeat(width / count, count), np.repeat(last, count))
     if focus is not None:
         at = (row == focus[0][pose]) & (lo <= focus[1][pose]) & (focus[1][pose] <= hi)
         parts = np.where(at, SPLIT**FOCUS_LEVELS, 1)
@@ -224,6 +234,41 @@ def certify(
             reason[i] = "a feasible point better than the answer was found"
     bound[~certified] = -np.inf
     return Certificate(certified, bound, cells_used, reason, Points.join(better) if better else None)
+
+
+def inside_ends(
+    scene: BestRun, pose: np.ndarray, row: np.ndarray, lo: np.ndarray, hi: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The ends ``lo``, ``hi`` (M,) of pieces (pose, branch row (M,)) moved onto their feasible side.
+
+    An end is exact to :data:`~qpik.analytic.intervals.SAME` (1e-9 rad) on either side of where the branch leaves
+    the limits. On the far side a joint is already past its limit, where the closed form gives another representative
+    (q ± 2π) of the joint, and a cell reaching there holds that jump: its bounds stay loose at any width. An end whose
+    configuration is not valid inside the limits is moved by :data:`INWARD_STEPS` bisections to the last value of
+    [end ∓ SAME, end] that is (an end whose neighbour SAME inside is not either stays). Every end then moves
+    :data:`INSET` further inside: a joint at its limit to rounding still lets a cell's model (whose radius is a few
+    rounding errors) reach past it. The certificate covers the pieces up to these ends; what it leaves out lies
+    within the sets' own accuracy (SAME), which the proof assumes (module docstring)."""
+    robot, n = scene.robot, len(lo)
+    P, R = np.tile(pose, 2), np.tile(row, 2)
+    t = np.concatenate([lo, hi])
+    inward = np.concatenate([np.ones(n), -np.ones(n)]) * np.tile(np.minimum(SAME, 0.5 * (hi - lo)), 2)
+
+    def feasible(k: np.ndarray, x: np.ndarray) -> np.ndarray:
+        pts = scene.values(P[k], R[k], x)
+        return pts.valid & ((pts.q >= robot.q_min) & (pts.q <= robot.q_max)).all(axis=1)
+
+    every = np.arange(2 * n)
+    out = np.flatnonzero(~feasible(every, t))
+    move = out[feasible(out, t[out] + inward[out])]
+    a, b = t[move] + inward[move], t[move]  # feasible, not
+    for _ in range(INWARD_STEPS):
+        m = 0.5 * (a + b)
+        ok = feasible(move, m)
+        a, b = np.where(ok, m, a), np.where(ok, b, m)
+    t[move] = a
+    t += np.sign(inward) * np.minimum(INSET, 0.25 * np.abs(inward))
+    return t[:n], t[n:]
 
 
 def cell_bounds(

@@ -12,13 +12,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import random_q
+from conftest import model_robot, mujoco_poses, random_q
 
 import qpik
+from qpik.analytic import closed_form_for
+from qpik.analytic.intervals import SAME
 from qpik.geometry import Sphere
 from qpik.geometry.distance import ObstacleSet
 from qpik.nlp import solve_best
-from qpik.nlp.certificate import certify
+from qpik.nlp.certificate import INSET, certify, inside_ends
 from qpik.nlp.options import BestOptions
 from qpik.nlp.run import BestRun
 from qpik.nlp.search import Pieces
@@ -68,3 +70,32 @@ def test_false_claims_are_refuted_and_true_ones_proved(name, objective, focused)
     true = certify(scene, pieces, f, tol, np.arange(len(ok)), focus)
     assert true.certified.mean() >= 0.8, [r for r, c in zip(true.reason, true.certified) if not c]
     assert np.all(f[true.certified] - true.bound[true.certified] <= tol[true.certified])
+
+
+def test_piece_ends_move_onto_their_feasible_side_and_the_answers_are_proved():
+    """robosuite's Jaco file (limits narrower than a turn, so a joint past its limit is given as its other
+    representative, q ± 2π): its sets' ends are exact to SAME on either side of where a joint meets its limit, and a
+    cell reaching past it holds that jump. ``inside_ends`` moves every end inside, by INSET to SAME + INSET, to where
+    the compiled IK's branch is valid inside the limits; some ends of 20 poses needed the move. The margins found,
+    which tests/nlp/test_nlp_best_files.py checks against dense sampling, are then proved on all of them (19 with the
+    ends where they were: a cell at an end past a limit kept its bound below the answer down to 1e-9 rad)."""
+    robot = model_robot("robosuite_jaco")
+    T = mujoco_poses(robot, random_q(robot, 20, 400))
+    scene, pieces = _scene(robot, T, "margin")
+    first, last = inside_ends(scene, pieces.pose, pieces.row, pieces.lo, pieces.hi)
+    for moved in (first - pieces.lo, pieces.hi - last):
+        narrow = pieces.hi - pieces.lo < 8 * INSET
+        assert np.all(narrow | ((moved >= 0.5 * INSET) & (moved <= SAME + 2 * INSET))), moved.max()
+    solver = closed_form_for(robot)
+    before, after = 0, 0
+    for i, (pose, row) in enumerate(zip(pieces.pose, pieces.row)):
+        old = solver.solve_many(T[pose], np.array([pieces.lo[i], pieces.hi[i]])).within_limits[:, row]
+        new = solver.solve_many(T[pose], np.array([first[i], last[i]])).within_limits[:, row]
+        before, after = before + int((~old).sum()), after + int((~new).sum())
+    assert before > 0 and after == 0, (before, after)
+    res = solve_best(Scene.of(robot, objective="margin", self_collision=False), T, options=BestOptions(certify=False))
+    f = np.array([r.objective for r in res])
+    run = BestRun(Scene.of(robot, objective="margin", self_collision=False), selfmotion_of(robot), T,
+                  np.zeros((len(T), robot.dof)))  # fmt: skip
+    proof = certify(run, pieces, f, TOL * np.maximum(1.0, np.abs(f)), np.arange(len(T)))
+    assert proof.certified.all(), [r for r, c in zip(proof.reason, proof.certified) if not c]
