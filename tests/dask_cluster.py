@@ -34,7 +34,17 @@ class Cluster:
 
 
 def _env() -> dict[str, str]:
-    keep = ("PATH", "HOME", "QPIK_CACHE", "QPIK_NATIVE", "MUJOCO_GL", "PYOPENGL_PLATFORM", "LANG", "TMPDIR")
+    keep = (
+        "PATH",
+        "HOME",
+        "QPIK_CACHE",
+        "QPIK_NATIVE",
+        "QPIK_OPTIMISE",
+        "MUJOCO_GL",
+        "PYOPENGL_PLATFORM",
+        "LANG",
+        "TMPDIR",
+    )
     env = {k: os.environ[k] for k in keep if k in os.environ}
     env["PYTHONPATH"] = str(PACKAGE)
     env["DASK_DISTRIBUTED__WORKER__DAEMON"] = "False"

@@ -110,8 +110,13 @@ def test_bench_prints_every_row(name, monkeypatch):
             monkeypatch.setattr(module, "_arms", lambda: [arm for arm in arms() if arm[0] not in VIEW_LARGE])
             expected = [label for label in expected if label.split(": pose")[0] not in VIEW_LARGE]
     if name == "analytic" and not LARGE:  # the xArm7 beside ssik (3 ms a solve) in the large run only
-        monkeypatch.setattr(importlib.import_module("qpik.bench.analytic_locked"), "SSIK_ARMS", {})
+        locked = importlib.import_module("qpik.bench.analytic_locked")
+        monkeypatch.setattr(locked, "SSIK_ARMS", {})
+        monkeypatch.setattr(locked, "SET_POSES", 1)  # Baxter's sampled sets: seconds a pose
         expected = [label for label in expected if not label.startswith("xArm7")]
+    if name == "nlp" and not LARGE:  # Baxter's sampled solve_best: a second a pose
+        searched = module._searched_rows
+        monkeypatch.setattr(module, "_searched_rows", lambda n: searched(3))
     if name == "controller" and not LARGE:  # the URDF's rows (not in EXPECTED) in the large run only
         monkeypatch.setattr(module, "LOADED", "pybullet/no such arm")
     args = argparse.Namespace(repeat=20, client="socket") if name == "view" else argparse.Namespace(repeat=100)
