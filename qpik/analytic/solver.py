@@ -26,6 +26,7 @@ found as roots, no expressions) another.
 
 from __future__ import annotations
 
+import math
 import threading
 from abc import ABC, abstractmethod
 from collections.abc import Callable
@@ -130,10 +131,19 @@ class BranchSolver(ABC):
 
     def representative(self, j: int, x: Scalar, ops: Ops) -> Scalar:
         """The robot's joint j at the angle x (rad, wrapped): x itself, or for a joint whose limits reach past ±π the
-        representative x + 2πk inside them where x is outside (the nearest; see the class docstring)."""
+        representative x + 2πk inside them where x is outside (the nearest; see the class docstring).
+
+        Limits narrower than a turn hold at most one representative: the smallest x + 2πk ≥ l, written as
+        ``where(x > c, x + α, x + α + 2π)`` with c = l − α in (−π, π] (one ulp lower, so that x = c gives l), the
+        form whose Taylor model :mod:`qpik.algebra.angle_tags` keeps continuous where x wraps through ±π."""
         if not self._wide[j]:
             return x
         lo, hi, turn = float(self.robot.q_min[j]), float(self.robot.q_max[j]), 2.0 * np.pi
+        if hi - lo < turn:
+            alpha = turn * math.ceil((lo - np.pi) / turn)
+            cut = float(np.nextafter(lo - alpha, -np.inf))
+            x = ops.wrap(x)
+            return ops.where(x > cut, x + alpha, x + (alpha + turn))
         x = ops.where(x > hi, x + turn * ops.floor((hi - x) / turn), x)  # the largest x - 2πk <= hi
         return ops.where(x < lo, x - turn * ops.floor((x - lo) / turn), x)  # the smallest x + 2πk >= lo
 
