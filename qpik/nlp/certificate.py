@@ -63,8 +63,8 @@ SMALLEST_CELL = 1e-9
 """Cells are not cut below this width (rad): one kept there leaves the answer uncertified."""
 MAX_CELLS = 3_000
 """Most cells examined per pose."""
-INWARD_STEPS = 40
-"""Bisections of :func:`inside_ends` (from SAME = 1e-9 rad, 40 reach below the spacing of doubles near π)."""
+INWARD_RUNGS = 24
+"""Values :func:`inside_ends` tries inside an end: SAME · 2^-k for k < 24, down to 1.2e-16 rad (one call)."""
 INSET = 1e-12
 """rad: how far inside its set :func:`inside_ends` puts every end, beyond the last feasible value."""
 BISECTIONS = 20
@@ -244,11 +244,12 @@ def inside_ends(
     An end is exact to :data:`~qpik.analytic.intervals.SAME` (1e-9 rad) on either side of where the branch leaves
     the limits. On the far side a joint is already past its limit, where the closed form gives another representative
     (q ± 2π) of the joint, and a cell reaching there holds that jump: its bounds stay loose at any width. An end whose
-    configuration is not valid inside the limits is moved by :data:`INWARD_STEPS` bisections to the last value of
-    [end ∓ SAME, end] that is (an end whose neighbour SAME inside is not either stays). Every end then moves
+    configuration is not valid inside the limits is moved to the nearest of the values end ∓ SAME · 2^-k
+    (:data:`INWARD_RUNGS`) that is, all of them in one call (an end where none is stays). Every end then moves
     :data:`INSET` further inside: a joint at its limit to rounding still lets a cell's model (whose radius is a few
-    rounding errors) reach past it. The certificate covers the pieces up to these ends; what it leaves out lies
-    within the sets' own accuracy (SAME), which the proof assumes (module docstring)."""
+    rounding errors) reach past it. Ends at ±π, where a set wrapping through them is split, are not ends and stay.
+    The certificate covers the pieces up to these ends; what it leaves out lies within the sets' own accuracy
+    (SAME), which the proof assumes (module docstring)."""
     robot, n = scene.robot, len(lo)
     P, R = np.tile(pose, 2), np.tile(row, 2)
     t = np.concatenate([lo, hi])
@@ -258,16 +259,15 @@ def inside_ends(
         pts = scene.values(P[k], R[k], x)
         return pts.valid & ((pts.q >= robot.q_min) & (pts.q <= robot.q_max)).all(axis=1)
 
-    every = np.arange(2 * n)
-    out = np.flatnonzero(~feasible(every, t))
-    move = out[feasible(out, t[out] + inward[out])]
-    a, b = t[move] + inward[move], t[move]  # feasible, not
-    for _ in range(INWARD_STEPS):
-        m = 0.5 * (a + b)
-        ok = feasible(move, m)
-        a, b = np.where(ok, m, a), np.where(ok, b, m)
-    t[move] = a
-    t += np.sign(inward) * np.minimum(INSET, 0.25 * np.abs(inward))
+    seam = np.abs(t) == np.pi  # a set wrapping through ±π is split there: not an end
+    out = np.flatnonzero(~seam & ~feasible(np.arange(2 * n), t))
+    rungs = 0.5 ** np.arange(INWARD_RUNGS)  # the fractions of [end ∓ SAME, end] tried, from the far end in
+    k = np.repeat(out, INWARD_RUNGS)
+    ok = feasible(k, t[k] + np.tile(rungs, len(out)) * inward[k]).reshape(len(out), INWARD_RUNGS)
+    last = INWARD_RUNGS - 1 - np.argmax(ok[:, ::-1], axis=1)  # the rung nearest the end that is feasible
+    move = ok.any(axis=1)
+    t[out[move]] += rungs[last[move]] * inward[out[move]]
+    t += np.where(seam, 0.0, np.sign(inward) * np.minimum(INSET, 0.25 * np.abs(inward)))
     return t[:n], t[n:]
 
 
