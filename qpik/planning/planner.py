@@ -46,7 +46,6 @@ from qpik.core.errors import InputError, UnreachableError
 from qpik.core.stopwatch import Stopwatch
 from qpik.core.validate import finite_array, flag, number
 from qpik.geometry.paths import TimedPath
-from qpik.nlp.options import BestOptions
 from qpik.objectives import Objective
 from qpik.planning import dp
 from qpik.planning.grid import Grid
@@ -298,14 +297,14 @@ def _profile(grid: Grid, result: dp.DPResult) -> Profile:
 
 
 def _least_violating(setup: Setup, k: int) -> str:
-    """What :func:`qpik.solve_best` says about waypoint k: unreachable, or the least-violating branch (nothing for an
-    arm of the 1-D search, which it does not serve)."""
+    """What :func:`qpik.solve_best` says about waypoint k: unreachable, or the least-violating branch, each proved, or
+    that it found no feasible point without a proof that none exists (nothing for an arm of the 1-D search, whose
+    branches are not expressions of the locked joint)."""
     if not setup.robot.branch_functions:
         return ""
     from qpik.nlp import solve_best
 
-    best = solve_best(setup.scene.replace(objective="margin"), setup.poses[k], options=BestOptions(certify=False))
-    return best.summary()
+    return solve_best(setup.scene.replace(objective="margin"), setup.poses[k]).summary()
 
 
 def _plan_joints(setup: Setup, refine: bool, mujoco: bool) -> Plan:

@@ -56,6 +56,8 @@ def test_obstacle_blocking_every_configuration_is_named():
     plan = qpik.plan_self_motion(IIWA, T, obstacles=[Sphere(hand, 0.05)], options=qpik.PlanOptions(mujoco=False))
     assert plan.status == "failed" and plan.failure_waypoint == 0  # the ball covers the hand everywhere near it
     assert "closer than d_s" in plan.failure
+    # solve_best's word on the waypoint, proved by its certificate (every cell's clearance below d_s)
+    assert plan.least_violating.startswith("no feasible branch: least violating is branch"), plan.least_violating
 
 
 @pytest.mark.parametrize("bad, match", [
