@@ -142,7 +142,7 @@ class BranchSolver(ABC):
         if hi - lo < turn:
             alpha = turn * math.ceil((lo - np.pi) / turn)
             cut = float(np.nextafter(lo - alpha, -np.inf))
-            x = ops.wrap(x)
+            x = ops.wrap(x)  # the form holds for x in (−π, π] only (a wrapped x stays as it is)
             return ops.where(x > cut, x + alpha, x + (alpha + turn))
         x = ops.where(x > hi, x + turn * ops.floor((hi - x) / turn), x)  # the largest x - 2πk <= hi
         return ops.where(x < lo, x - turn * ops.floor((x - lo) / turn), x)  # the smallest x + 2πk >= lo

@@ -256,8 +256,11 @@ def inside_ends(
     inward = np.concatenate([np.ones(n), -np.ones(n)]) * np.tile(np.minimum(SAME, 0.5 * (hi - lo)), 2)
 
     def feasible(k: np.ndarray, x: np.ndarray) -> np.ndarray:
-        pts = scene.values(P[k], R[k], x)
-        return pts.valid & ((pts.q >= robot.q_min) & (pts.q <= robot.q_max)).all(axis=1)
+        """The branch valid with every joint inside the limits (the closed form alone: no objective, no clearance)."""
+        if not len(x):
+            return np.zeros(0, bool)
+        q, valid = scene.selfmotion.values(R[k], scene.columns[P[k]], x)
+        return valid & ((q >= robot.q_min) & (q <= robot.q_max)).all(axis=1)
 
     seam = np.abs(t) == np.pi  # a set wrapping through ±π is split there: not an end
     out = np.flatnonzero(~seam & ~feasible(np.arange(2 * n), t))
