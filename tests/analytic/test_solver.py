@@ -13,6 +13,7 @@ import qpik
 from qpik.algebra import symbolic as sy
 from qpik.algebra.enclosure import taylor_function
 from qpik.analytic import closed_form_for
+from qpik.analytic.intervals import wrap
 
 PANDA = qpik.load_robot("panda")
 """q6 in [−0.0175, 3.7525] rad: its representative changes where the wrapped angle passes π."""
@@ -24,7 +25,7 @@ def test_the_representative_is_the_one_inside_the_limits_else_the_smallest_above
     robot = PANDA if key == "panda" else model_robot(key)
     solver = closed_form_for(robot)
     x = np.random.default_rng(seed).uniform(-np.pi, np.pi, 200)
-    x = np.concatenate([x, np.clip(wrap_all(np.concatenate([robot.q_min, robot.q_max])), -np.pi + 1e-15, np.pi)])
+    x = np.concatenate([x, wrap(np.concatenate([robot.q_min, robot.q_max]))])
     k = np.arange(-3, 4)[:, None]
     wide = (robot.q_min < -np.pi) | (robot.q_max > np.pi)
     assert wide.any()
@@ -43,10 +44,6 @@ def test_the_representative_is_the_one_inside_the_limits_else_the_smallest_above
             assert ((got >= lo) & (got <= hi))[some].all()
 
 
-def wrap_all(x: np.ndarray) -> np.ndarray:
-    return (x + np.pi) % (2 * np.pi) - np.pi
-
-
 def test_the_model_of_a_joint_whose_representative_changes_at_pi_stays_continuous():
     """The Panda's q6 at the angle t of a unit vector, over cells of t around π (where the wrapped angle jumps from
     π to −π and the representative back to π): the Taylor model's bounds are as wide as the samples' range to second
@@ -59,7 +56,7 @@ def test_the_model_of_a_joint_whose_representative_changes_at_pi_stays_continuou
         for centre in (np.pi, np.pi - 0.3 * half, np.pi + 0.7 * half):
             c, s, r, lo, hi = (float(v) for v in model(centre, half, 0.0, centre - half, centre + half))
             samples = np.linspace(centre - half, centre + half, 101)
-            values = solver.representative(5, wrap_all(samples), sy.NUMPY)
+            values = solver.representative(5, wrap(samples), sy.NUMPY)
             assert np.all(values >= lo - 1e-12) and np.all(values <= hi + 1e-12)
             assert np.all(np.abs(values - (c + s * np.linspace(-1, 1, 101))) <= r + 1e-12)
             assert hi - lo <= 2 * half + 4 * half**2, (half, centre, lo, hi)  # second order
