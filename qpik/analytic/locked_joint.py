@@ -13,7 +13,9 @@ in the wrist point W), in the product-of-exponentials form and the subproblems o
 :math:`a\cos q_4 + b\sin q_4 = c`, :math:`a = s\cdot w - (h_4\cdot s)(h_4\cdot w)`,
 :math:`b = s\cdot(h_4\times w)` (constants of the arm), :math:`c = (|w|^2 + |s|^2 - D^2)/2 - (h_4\cdot s)(h_4\cdot w)`;
 :math:`q_4 = \varphi \pm \mathrm{atan2}(\sqrt{r^2 - c^2}, c)`, :math:`\varphi = \mathrm{atan2}(b, a)`,
-:math:`r^2 = a^2 + b^2`, with :math:`r^2 - c^2 = (r - c)(r + c)`.
+:math:`r^2 = a^2 + b^2`, with :math:`r^2 - c^2 = (r - c)(r + c)`, evaluated as
+:math:`(\varphi \pm \pi/2) + \mathrm{atan2}(\mp c, \sqrt{r^2 - c^2})`, whose vector stays off atan2's cut where the
+elbow stretches or folds (:math:`c = \pm r`).
 
 **Wrist q5, q6 (subproblem 2).** :math:`e_5 e_6 (G^{-1} S) = e_4^{-1} S`, about W:
 :math:`R(h_5, q_5) R(h_6, q_6)\,x = y`, :math:`x = R_G^T (S - G W)`, :math:`y = R(h_4, -q_4)\,s - (W - o_4)`.
@@ -303,7 +305,6 @@ class LockedJointSolver(AnalyticSolver):
         r = self.r4
         disc = (r - cc) * (r + cc)
         sb = ops.safe_sqrt(disc)
-        beta = ops.atan2(sb, cc)
         rho = ops.sqrt(cc * cc + sb * sb)  # r where the elbow reaches, |c| > r where not: never 0
         cb, sb = cc / rho, sb / rho
         cp, sp = float(np.cos(self.phi)), float(np.sin(self.phi))
@@ -313,7 +314,11 @@ class LockedJointSolver(AnalyticSolver):
         q, valid, singular, measure, trig, vectors = ([None] * n for _ in range(6))
         arm: list[Scalar] = []
         for e, sign in enumerate(elbows):
-            q4, c4, s4 = ops.wrap(self.phi + sign * beta), cp * cb - sp * (sign * sb), sp * cb + cp * (sign * sb)
+            # φ ± atan2(√(r²−c²), c) as (φ ± π/2) + atan2(∓c, √(r²−c²)): that vector never lies on atan2's cut (its x
+            # is ≥ 0, and y = ∓c ≠ 0 where x = 0), so its Taylor model stays continuous where the elbow stretches or
+            # folds (the angle tags of :mod:`qpik.algebra.angle_tags` follow an atan2 plus a constant)
+            q4 = ops.wrap(self.phi + sign * 0.5 * np.pi + ops.atan2(-sign * cb, sb))
+            c4, s4 = cp * cb - sp * (sign * sb), sp * cb + cp * (sign * sb)
             y = sy.vsub(rotate(h[3], c4, sy.neg(s4), self.s4), self.w4)
             v_w = subproblem2(h[5], x, h[4], y, ops, wrists)
             arm.append(ops.fmin(m4, v_w[1]))

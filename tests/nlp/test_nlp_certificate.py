@@ -24,7 +24,7 @@ from qpik.nlp.certificate import INSET, certify, inside_ends
 from qpik.nlp.options import BestOptions
 from qpik.nlp.run import BestRun
 from qpik.nlp.search import Pieces
-from qpik.nlp.selfmotion import selfmotion_of
+from qpik.nlp.selfmotion import columns, selfmotion_of
 from qpik.scene import Scene
 
 POSES = 30
@@ -102,3 +102,25 @@ def test_piece_ends_move_onto_their_feasible_side_and_the_answers_are_proved():
                   np.zeros((len(T), robot.dof)))  # fmt: skip
     proof = certify(run, pieces, f, TOL * np.maximum(1.0, np.abs(f)), np.arange(len(T)))
     assert proof.certified.all(), [r for r, c in zip(proof.reason, proof.certified) if not c]
+
+
+@pytest.mark.parametrize(("key", "poses"), [("erd_panda", [63, 99]), ("erd_talos", [4, 69, 83])])
+def test_answers_beside_a_stretched_or_folded_elbow_are_proved(key, poses):
+    """Poses of example-robot-data's Panda and TALOS arm (of 200 drawn inside the limits) whose sets end where the
+    elbow stretches or folds (q4's subproblem 3 at r² = c²). There q4 = φ ± atan2(√(r² − c²), c) sits on atan2's cut
+    (the vector (c, 0), c < 0), and a Taylor model over a cell touching that end spanned the whole turn, leaving a
+    bound far below the answer at 1e-9 rad. The margins found (checked against dense samples in
+    tests/nlp/test_nlp_best_files.py) are now proved on every one of them, and q4's bounds over a cell of 4e-9 rad at
+    every end stay within 1e-3 rad (its change there is of order the square root of the width)."""
+    robot = model_robot(key)
+    T = mujoco_poses(robot, random_q(robot, 200, 400)[poses])
+    res = solve_best(Scene.of(robot, objective="margin", self_collision=False), T)
+    assert all(r.certified for r in res), [r.summary() for r in res]
+    sm, elbow = selfmotion_of(robot), 3
+    for pose in T:
+        fi, cols = sm.solver.feasible_intervals(pose), columns(pose[None])
+        for b in range(sm.searched):
+            ends = [(a, a + 4e-9) for a, _ in fi.intervals[b]] + [(c - 4e-9, c) for _, c in fi.intervals[b]]
+            for a, c in ends:
+                low, high = (x[0, elbow] for x in sm.models(np.array([b]), cols, np.array([a]), np.array([c]))[3:])
+                assert high - low < 1e-3, (key, b, a, c, low, high)
