@@ -33,8 +33,9 @@ which then certifies again.
 What the proof assumes: the feasible intervals are exact (up to :data:`qpik.analytic.intervals.SAME`,
 1e-9 rad, below which a gap is not classified); the closed form is continuous on each interval
 (it is, between the analytic breakpoints, where every joint crossing a limit or wrapping through
-±π is a breakpoint; a joint whose limits span a whole turn has no breakpoint where it wraps, and a cell holding
-that jump gets the bounds of both sides at once: sound, but loose enough to leave an answer uncertified); the
+±π is a breakpoint; a joint whose limits hold every angle of (−π, π] has no breakpoint where it wraps: in a cell
+where one such joint passes ±π, its value is its angle θ in (0, 2π] or θ − 2π at every ψ, both continuous, and the
+cell's bound is the smaller of the two bounds, :func:`cell_bounds`); the
 Taylor models are evaluated in round-to-nearest arithmetic (their bounds
 may be off by a few units in the last place, far below ε); the objective is
 :attr:`~qpik.objectives.Objective.bounded` and every operation of it has a Taylor-model rule
@@ -285,12 +286,38 @@ def cell_bounds(
 ) -> tuple[np.ndarray, np.ndarray]:
     """For cells (pose, branch row, [lo, hi]) (M,): the lower bound of f (:func:`lower_bound`, refined until it
     decides whether it is below ``decide`` (M,)) and whether the clearance constraint surely fails on the whole
-    cell (some clearance's upper bound below d_s: a capsule–obstacle pair or a pair of the arm's own capsules)."""
-    M = len(lo)
-    c, s, r, q_lo, q_hi = scene.selfmotion.models(row, scene.columns[pose], lo, hi)
-    models = scene.bound_rows(bounds, c, s, r, q_lo, q_hi, pose)
+    cell (some clearance's upper bound below d_s: a capsule–obstacle pair or a pair of the arm's own capsules).
+    A cell where one joint of :attr:`~qpik.nlp.selfmotion.SelfMotion.turned` passes ±π (its bounds more than π
+    apart) is also bounded with that joint's angle θ in (0, 2π] and with θ − 2π: the smaller bound holds too."""
+    q = scene.selfmotion.models(row, scene.columns[pose], lo, hi)
+    lb, blocked = _bounds(scene, bounds, q, pose, decide)
+    turned = scene.selfmotion.turned
+    jumps = (q[4][:, turned] - q[3][:, turned] > np.pi) if turned.size else np.zeros((len(lo), 0), bool)
+    cells = np.flatnonzero(jumps.sum(axis=1) == 1)
+    if cells.size:
+        # one joint of the cell passes ±π, where its wrapped angle jumps by 2π: at every ψ it is θ or θ − 2π, θ its
+        # angle in (0, 2π] (continuous there), so f is at least the smaller of the two bounds
+        j = turned[jumps[cells].argmax(axis=1)]
+        theta = scene.selfmotion.models(row[cells], scene.columns[pose[cells]], lo[cells], hi[cells], turned=True)
+        sides = []
+        for shift in (0.0, -2.0 * np.pi):
+            side = [x[cells].copy() for x in q]
+            for k, (a, b) in enumerate(zip(side, theta)):
+                a[np.arange(cells.size), j] = b[np.arange(cells.size), j] + (shift if k in (0, 3, 4) else 0.0)
+            sides.append(_bounds(scene, bounds, side, pose[cells], decide[cells]))
+        (lb1, blocked1), (lb2, blocked2) = sides
+        lb[cells] = np.maximum(lb[cells], np.minimum(lb1, lb2))
+        blocked[cells] |= blocked1 & blocked2
+    return lb, blocked
+
+
+def _bounds(
+    scene: BestRun, bounds: BoundFunction, q: list[np.ndarray], pose: np.ndarray, decide: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`cell_bounds` from the joints' Taylor models ``q`` (centre, slope, radius, lo, hi; (M, n) each)."""
+    models = scene.bound_rows(bounds, *q, pose)
     lb = lower_bound(models, bounds.sizes, decide)
     if not bounds.n_clear:
-        return lb, np.zeros(M, bool)
+        return lb, np.zeros(len(lb), bool)
     d_hi = models[4][:, -bounds.n_clear :]
     return lb, (d_hi < scene.d_safe).any(axis=1)

@@ -11,6 +11,8 @@ row functions (:class:`~qpik.native.compiled.RowMap`, one row = a pose and a par
   :math:`t = (\psi - \psi_{mid})/h` (h the half width): centre, slope, radius and bounds (n each) such
   that every q over the range lies within them (:meth:`SelfMotion.taylor_function`,
   :func:`qpik.algebra.enclosure.taylor_function` of the same closed form); a switch over the branches too.
+  A joint whose limits hold every wrapped angle (:attr:`SelfMotion.turned`) is that angle itself, which jumps by 2π
+  where it passes ±π; ``turned=True`` gives its model as the same angle in (0, 2π] instead, continuous there.
 
 Offset-shoulder arms have 16 branches, but branch k + 8 at δ is branch k at δ + π
 (Nammoto & Kosuge 2012, eq. 7: θ1[2] = θ1[1] + π with the rest following), so only the
@@ -25,6 +27,7 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
+from qpik.algebra import symbolic as sy
 from qpik.algebra.enclosure import taylor_function
 from qpik.analytic import closed_form_for
 from qpik.native.build import concurrently
@@ -55,6 +58,9 @@ class SelfMotion:
         self.searched = MIRRORED.get(self.solver.kind, self.solver.n_branches)
         self.whole_turn = bool(np.any(np.asarray(robot.q_max) - np.asarray(robot.q_min) >= 2.0 * np.pi))
         """Some joint's range spans a whole turn (its configurations are the IK's representatives q + 2πk)."""
+        self.turned = np.flatnonzero((np.asarray(robot.q_min) <= -np.pi) & (np.asarray(robot.q_max) >= np.pi))
+        """The joints whose limits hold every angle of (−π, π]: the IK gives that angle, which jumps by 2π where the
+        joint passes ±π (:meth:`models` with ``turned``)."""
         self._sets_built = False
 
     def build_sets(self, T: np.ndarray) -> None:
@@ -84,12 +90,17 @@ class SelfMotion:
         out = ca.densify(ca.vertcat(Q[b, :].T, valid[b]))
         return ca.Function(f"selfmotion_value_{self.solver.kind}_{b}", [T, psi], [out])
 
-    def taylor_function(self, b: int) -> ca.Function:
+    def taylor_function(self, b: int, turned: bool = False) -> ca.Function:
         """Branch row b: the Taylor model of q over a range of ψ, ``(T, ψ centre, ψ slope, 0, lo, hi) ->
-        (centre, slope, radius, lo, hi)`` of q (n each) (:func:`qpik.algebra.enclosure.taylor_function`)."""
+        (centre, slope, radius, lo, hi)`` of q (n each) (:func:`qpik.algebra.enclosure.taylor_function`); with
+        ``turned``, the joints of :attr:`turned` as their angle in (0, 2π] (the joint is that angle or 2π less)."""
         T, psi, Q, _ = self._symbols
-        fn = ca.Function(f"selfmotion_q_{self.solver.kind}_{b}", [T, psi], [ca.densify(Q[b, :].T)])
-        return taylor_function(fn, [1], name=f"selfmotion_taylor_{self.solver.kind}_{b}")
+        q = [Q[b, j] for j in range(self.robot.dof)]
+        if turned:
+            q = [sy.CASADI.wrap(x - np.pi) + np.pi if j in self.turned else x for j, x in enumerate(q)]
+        name = f"{self.solver.kind}_{b}" + ("_turned" if turned else "")
+        fn = ca.Function(f"selfmotion_q_{name}", [T, psi], [ca.densify(ca.vertcat(*q))])
+        return taylor_function(fn, [1], name=f"selfmotion_taylor_{name}")
 
     @cached_property
     def _point_map(self) -> RowMap:
@@ -105,6 +116,11 @@ class SelfMotion:
     def _model_map(self) -> RowMap:
         rows = [self.taylor_function(b) for b in range(self.searched)]
         return RowMap(_switch(f"selfmotion_taylor_{self.solver.kind}", rows), chunks=MODEL_CHUNKS)
+
+    @cached_property
+    def _turned_model_map(self) -> RowMap:
+        rows = [self.taylor_function(b, turned=True) for b in range(self.searched)]
+        return RowMap(_switch(f"selfmotion_taylor_{self.solver.kind}_turned", rows), chunks=MODEL_CHUNKS)
 
     @cached_property
     def point_call(self) -> Compiled:
@@ -136,11 +152,15 @@ class SelfMotion:
         (out,) = self._value_map(np.asarray(b, float), T, psi)
         return out[:, :-1], out[:, -1] > 0.5
 
-    def models(self, b: np.ndarray, T: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
+    def models(
+        self, b: np.ndarray, T: np.ndarray, lo: np.ndarray, hi: np.ndarray, turned: bool = False
+    ) -> list[np.ndarray]:
         """Branch rows b (M,) at poses T (M, 16) (:func:`columns`) over ψ ∈ [lo, hi] (M,): the Taylor models of q in
-        t = (ψ − mid)/half, ``[centre, slope, radius, lo, hi]``, each (M, n)."""
+        t = (ψ − mid)/half, ``[centre, slope, radius, lo, hi]``, each (M, n); with ``turned``, the joints of
+        :attr:`turned` as their angle in (0, 2π] (:meth:`taylor_function`; compiled on first use)."""
         mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
-        return self._model_map(np.asarray(b, float), T, mid, half, np.zeros(len(lo)), lo, hi)
+        fn = self._turned_model_map if turned else self._model_map
+        return fn(np.asarray(b, float), T, mid, half, np.zeros(len(lo)), lo, hi)
 
     def mirror(self, b: int) -> tuple[int, float] | None:
         """``(row, shift)`` when branch row b is row ``row`` at the parameter + ``shift`` (rad), else None."""

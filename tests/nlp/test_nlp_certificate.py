@@ -124,3 +124,41 @@ def test_answers_beside_a_stretched_or_folded_elbow_are_proved(key, poses):
             for a, c in ends:
                 low, high = (x[0, elbow] for x in sm.models(np.array([b]), cols, np.array([a]), np.array([c]))[3:])
                 assert high - low < 1e-3, (key, b, a, c, low, high)
+
+
+def test_answers_where_a_whole_turn_joint_passes_pi_are_proved():
+    """robosuite's Jaco file, whose joints 1, 3, 5 and 7 have the limits ±2π: the IK gives each as its wrapped angle,
+    which jumps by 2π where the joint passes ±π inside a feasible set (no breakpoint there). Three poses of 200 drawn
+    inside the limits had a cell across such a jump whose bound (the hull of both sides) stayed below the answer at
+    1e-9 rad. Across every such jump of those poses, found by sampling and bisection, the joint's model with
+    ``turned`` (its angle in (0, 2π]) is as narrow as the cell and holds the joint's values at both ends (modulo 2π),
+    while the plain model spans the jump; and the margins found (checked against dense samples in
+    tests/nlp/test_nlp_best_files.py) are proved on all three."""
+    robot = model_robot("robosuite_jaco")
+    T = mujoco_poses(robot, random_q(robot, 200, 400)[[26, 119, 122]])
+    res = solve_best(Scene.of(robot, objective="margin", self_collision=False), T)
+    assert all(r.certified for r in res), [r.summary() for r in res]
+    sm = selfmotion_of(robot)
+    assert list(sm.turned) == [0, 2, 4, 6]
+    jumps = 0
+    for pose in T:
+        fi, cols = sm.solver.feasible_intervals(pose), columns(pose[None])
+        for b in range(sm.searched):
+            for lo, hi in fi.intervals[b]:
+                psi = np.linspace(lo, hi, 2001)
+                q = sm.values(np.full(psi.size, b), np.repeat(cols, psi.size, 0), psi)[0][:, sm.turned]
+                for i, k in zip(*np.nonzero(np.abs(np.diff(q, axis=0)) > np.pi)):
+                    a, c = psi[i], psi[i + 1]
+                    while c - a > 1e-9:  # the jump stays inside [a, c]
+                        m = 0.5 * (a + c)
+                        qa, qm = sm.values(np.full(2, b), np.repeat(cols, 2, 0), np.array([a, m]))[0][:, sm.turned[k]]
+                        a, c = (a, m) if abs(qm - qa) > np.pi else (m, c)
+                    ends = sm.values(np.full(2, b), np.repeat(cols, 2, 0), np.array([a, c]))[0][:, sm.turned[k]]
+                    plain = sm.models(np.array([b]), cols, np.array([a]), np.array([c]))
+                    turned = sm.models(np.array([b]), cols, np.array([a]), np.array([c]), turned=True)
+                    low, high = turned[3][0, sm.turned[k]], turned[4][0, sm.turned[k]]
+                    assert plain[4][0, sm.turned[k]] - plain[3][0, sm.turned[k]] > np.pi
+                    assert high - low < 1e-6
+                    assert np.all((np.mod(ends, 2 * np.pi) >= low - 1e-12) & (np.mod(ends, 2 * np.pi) <= high + 1e-12))
+                    jumps += 1
+    assert jumps >= 3
