@@ -112,6 +112,14 @@ def fmt_time(s: float) -> str:
     return f"{s:9.3f} s "
 
 
+def ratio_text(ref_seconds: float, seconds: float, ref: str) -> str:
+    """How a row of ``seconds`` compares with its reference ``ref`` of ``ref_seconds``: "N.NNx faster than ref", or
+    "N.NNx slower than ref" where it is slower (never a ratio below 1 called faster)."""
+    if seconds <= ref_seconds:
+        return f"{ref_seconds / seconds:6.2f}x faster than {ref}"
+    return f"{seconds / ref_seconds:6.2f}x slower than {ref}"
+
+
 def render(title: str, rows: list[Row]) -> str:
     """The rows as a text table, with the ratio to each row's reference."""
     by = {r.label: r for r in rows}
@@ -119,7 +127,7 @@ def render(title: str, rows: list[Row]) -> str:
     for r in rows:
         ratio = ""
         if r.ref and r.ref in by:
-            ratio = f"{by[r.ref].seconds / r.seconds:6.2f}x faster than {r.ref}"
+            ratio = ratio_text(by[r.ref].seconds, r.seconds, r.ref)
         p99 = fmt_time(r.p99) if r.p99 is not None else ""
         worst = fmt_time(r.worst) if r.worst is not None else ""
         lines.append(f"{r.label:44} {fmt_time(r.seconds):>12} {p99:>12} {worst:>12}  {ratio} {r.note}".rstrip())

@@ -180,3 +180,13 @@ def test_placo_peer_steps_toward_the_target_within_its_limits():
         q = q + v * DT
     assert np.all((q >= robot.q_min - 1e-9) & (q <= robot.q_max + 1e-9))
     assert np.linalg.norm(robot.fk(q)[:3, 3] - target[:3, 3]) < 0.5 * start
+
+
+def test_a_slower_row_is_called_slower_never_a_fraction_faster():
+    """The ratio column compares each row with its reference as the larger over the smaller: a row taking twice its
+    reference's time is "2.00x slower", not "0.50x faster"."""
+    rows = [Row("ref", 1e-3, None), Row("quick", 0.25e-3, "ref"), Row("slow", 2e-3, "ref"), Row("tie", 1e-3, "ref")]
+    lines = render("t", rows).splitlines()[2:]
+    assert "4.00x faster than ref" in lines[1]
+    assert "2.00x slower than ref" in lines[2] and "faster" not in lines[2]
+    assert "1.00x faster than ref" in lines[3]
