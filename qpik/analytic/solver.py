@@ -136,9 +136,11 @@ class BranchSolver(ABC):
         Limits narrower than a turn hold at most one representative: the smallest x + 2πk ≥ l, written as
         ``where(x > c, x + α, x + α + 2π)`` with c = l − α in (−π, π] (one ulp lower, so that x = c gives l), the
         form whose Taylor model :mod:`qpik.algebra.angle_tags` keeps continuous where x wraps through ±π."""
+        if not self._wide[j]:
+            return x
         lo, hi, turn = float(self.robot.q_min[j]), float(self.robot.q_max[j]), 2.0 * np.pi
-        if not self._wide[j] or (lo <= -np.pi and hi >= np.pi):
-            return x  # no wrapped angle lies outside the limits (the angle tags follow x unchanged)
+        if lo <= -np.pi and hi >= np.pi:
+            return ops.wrap(x)  # every wrapped angle lies inside the limits (the angle tags follow a wrap)
         if hi - lo < turn:
             alpha = turn * math.ceil((lo - np.pi) / turn)
             cut = float(np.nextafter(lo - alpha, -np.inf))
