@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import model_robot, mujoco_poses, random_q
+from conftest import LARGE, model_robot, mujoco_poses, random_q
 
 import qpik
 from qpik.analytic import closed_form_for
@@ -104,7 +104,12 @@ def test_piece_ends_move_onto_their_feasible_side_and_the_answers_are_proved():
     assert proof.certified.all(), [r for r, c in zip(proof.reason, proof.certified) if not c]
 
 
-@pytest.mark.parametrize(("key", "poses"), [("erd_panda", [63, 99]), ("erd_talos", [4, 69, 83])])
+ELBOW_POSES = [("erd_panda", [63, 99])] + ([("erd_talos", [4, 69, 83])] if LARGE else [])
+"""The poses of the Panda and (in the large run: seconds of compiles) the TALOS file whose answers lay beside an end
+where the elbow stretches or folds."""
+
+
+@pytest.mark.parametrize(("key", "poses"), ELBOW_POSES)
 def test_answers_beside_a_stretched_or_folded_elbow_are_proved(key, poses):
     """Poses of example-robot-data's Panda and TALOS arm (of 200 drawn inside the limits) whose sets end where the
     elbow stretches or folds (q4's subproblem 3 at r² = c²). There q4 = φ ± atan2(√(r² − c²), c) sits on atan2's cut
