@@ -154,7 +154,7 @@ def recognize(chain: SerialChain, redundancy: str | None = None) -> tuple[Canoni
             continue
         found, why = _fit(chain, kind, pattern)
         if found is not None:
-            return found, ""
+            return replace(found, notes=_pattern_notes(kind, found.table, chain)), ""
         reasons.append(f"not {kind.replace('_', '-')}: {why}")
     directions = {"q7": (False,), "q1": (True,)}.get(redundancy or "", (True, False))
     if wanted in (None, "locked_joint"):
@@ -168,6 +168,22 @@ def recognize(chain: SerialChain, redundancy: str | None = None) -> tuple[Canoni
         return None, why
     words = f"served by a certified 1-D search over q4 with q{1 if searched.reversed else 7} locked"
     return replace(searched, notes=f"{words} (qpik.analytic.locked_search), no closed form: {why}"), ""
+
+
+def _pattern_notes(kind: str, table: SerialChain, chain: SerialChain) -> str:
+    """The geometry of a :data:`PATTERNS` family found in ``chain`` (its table ``table``, a :class:`DHChain`) in
+    words, with its lengths in mm, and the solver that serves it."""
+    d, a = np.abs(np.asarray(table.d)), np.abs(np.asarray(table.a))  # type: ignore[attr-defined]
+    arm = [("base to shoulder", d[0]), ("shoulder to elbow", d[2]), ("elbow to wrist", d[4]), ("wrist to flange", d[6])]
+    if kind == "srs":
+        head = "the arm angle ψ (parameter psi, 8 branches; Shimizu et al. 2008, qpik.analytic.srs)"
+        shape = "axes 1-2-3 meet (spherical shoulder), axes 5-6-7 meet (spherical wrist), axis 4 meets axes 3 and 5"
+    else:
+        head = "δ (parameter delta, 16 branches; Nammoto & Kosuge 2012, qpik.analytic.offset_shoulder)"
+        shape = "axes 2-3 meet, axes 5-6-7 meet (spherical wrist), axis 4 meets axes 3 and 5, axis 1 offset from axis 2"
+        arm.insert(0, ("shoulder offset", a[0]))
+    said = ", ".join(f"{name} {1e3 * x:.4g} mm" for name, x in arm)
+    return f"closed form along {head}: {shape}; {said} ({layout_words(chain)})"
 
 
 def _searched(chain: SerialChain, directions: tuple[bool, ...]) -> Canonical | None:

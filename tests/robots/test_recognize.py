@@ -145,3 +145,49 @@ def test_limit_overrides_keep_the_map():
     narrow = dataclasses.replace(robot, q_max=robot.q_max * 0.5, q_min=robot.q_min * 0.5)
     T = robot.fk(robot.q_home + 0.3)
     assert qpik.ik(narrow, T, 0.2).within_limits.sum() <= qpik.ik(robot, T, 0.2).within_limits.sum()
+
+
+def _meeting_point(model, data, i: int, j: int) -> np.ndarray:
+    """The midpoint of the common normal of joints i and j's axis lines (0-based, MuJoCo's world frame)."""
+    p, u, q, v = data.xanchor[i], data.xaxis[i], data.xanchor[j], data.xaxis[j]
+    A = np.array([[u @ u, -(u @ v)], [u @ v, -(v @ v)]])
+    s, t = np.linalg.solve(A, [(q - p) @ u, (q - p) @ v])
+    return 0.5 * (p + s * u + q + t * v)
+
+
+@pytest.mark.parametrize("key", ["pybullet_iiwa", "robosuite_iiwa"])
+def test_an_srs_files_notes_give_its_lengths(key):
+    """The notes of a loaded S-R-S arm name the family, its parameter and solver, and its upper arm and forearm in mm:
+    the distances between the points where axes 1 and 2, 3 and 4, 5 and 6 meet, by MuJoCo's own axes at q = 0."""
+    import mujoco  # here: qpik chooses MuJoCo's GL backend before mujoco is imported
+
+    robot = model_robot(key)
+    model = robot.mj_model()
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    ids = [model.joint(n).id for n in robot.joint_names]
+    S, E, W = (_meeting_point(model, data, ids[i], ids[i + 1]) for i in (0, 2, 4))
+    assert robot.notes.startswith("closed form along the arm angle ψ (parameter psi, 8 branches")
+    assert "qpik.analytic.srs" in robot.notes
+    for name, length in (("shoulder to elbow", np.linalg.norm(E - S)), ("elbow to wrist", np.linalg.norm(W - E))):
+        said = float(robot.notes.split(f"{name} ")[1].split(" mm")[0])
+        assert said == pytest.approx(1e3 * length, abs=0.05), (name, said, length)
+
+
+def test_an_offset_shoulder_files_notes_give_its_offset():
+    """The gymnasium pusher's notes name the offset-shoulder family, δ and its solver, and the offset in mm: the
+    length of the common normal of axes 1 and 2 by MuJoCo's own axes at q = 0."""
+    import mujoco
+
+    robot = model_robot("pusher")
+    model = robot.mj_model()
+    data = mujoco.MjData(model)
+    mujoco.mj_kinematics(model, data)
+    i, j = (model.joint(n).id for n in robot.joint_names[:2])
+    u, v = data.xaxis[i], data.xaxis[j]
+    n = np.cross(u, v)
+    offset = abs((data.xanchor[j] - data.xanchor[i]) @ n) / np.linalg.norm(n)
+    assert robot.notes.startswith("closed form along δ (parameter delta, 16 branches")
+    assert "qpik.analytic.offset_shoulder" in robot.notes
+    said = float(robot.notes.split("shoulder offset ")[1].split(" mm")[0])
+    assert said == pytest.approx(1e3 * offset, abs=0.05)
