@@ -21,9 +21,10 @@ arm) and ik-geo (``Robot.spherical_two_intersecting`` of EAIK's remodelled axes,
 rotation convention converted before timing), and the batched calls (EAIK's ``IK_batched`` with
 :data:`EAIK_THREADS` threads). Every peer's answers are first checked by qpik's FK: the rows say
 how many of a peer's solutions reach the pose to 1e-9. A peer that is not installed (the test
-extra) is left out with a note. Then the Panda beside frankik, GeoFIK and ssik, and the other arms with a locked
-q7 beside ssik; last, an arm that needs the 1-D search (example-robot-data's Baxter, right arm, q1 locked: all 16
-slots) beside ik-geo's 1-D search of the same 6R problem (:mod:`qpik.bench.analytic_locked`).
+extra) is left out with a note. Then the Panda beside frankik, GeoFIK and ssik, and every 7-R arm that ssik ships
+with a closed form or the 1-D search, on ssik's own kinematics, beside ssik (:mod:`qpik.bench.ssik_arms`); last, an
+arm that needs the 1-D search (example-robot-data's Baxter, right arm, q1 locked: all 16 slots) beside ik-geo's
+1-D search of the same 6R problem (:mod:`qpik.bench.analytic_locked`).
 
 Targets (issue): single ≤ 3 µs and faster than EAIK, with a numpy scalar parameter within 10 % of a float;
 batched ≤ 3 µs/pose; intervals ≤ 50 µs/pose for both arms; the 1-D search ≤ 100 µs a pose, all 16 slots. Nammoto &
@@ -38,7 +39,8 @@ import numpy as np
 
 from qpik.analytic.api import closed_form_for, feasible_intervals, ik, redundancy_parameter, symbol
 from qpik.bench import Row, cycle, time_calls, time_interleaved
-from qpik.bench.analytic_locked import panda_rows, search_rows, ssik_rows
+from qpik.bench.analytic_locked import panda_rows, search_rows
+from qpik.bench.ssik_arms import ssik_rows
 from qpik.robots.loader import load_robot
 
 BLOCK = 20

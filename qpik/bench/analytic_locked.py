@@ -12,11 +12,6 @@ uniformly inside Franka's limits (seed 2), each solved at its own q7. Timed inte
   0.1034 m along it; up to 8 solutions, NaN entries outside the limits);
 - ssik's ``panda_ik.solve(T)`` (it samples q7: a larger question, the issue's reference for speed).
 
-**Other arms beside ssik** (:func:`ssik_rows`): every arm of :data:`SSIK_ARMS` whose model file is installed (the
-test extra) and whose ssik solver imports: ``qpik.ik`` (all 8 branches at the configuration's q7) and ssik's
-``solve(T)`` (its prebuilt solver of the same arm, which samples q7: the issue's reference for speed), on ``fk(q)`` of
-the file's arm for configurations drawn inside its limits (seed 3), timed interleaved.
-
 **The 1-D search** (:func:`search_rows`): example-robot-data's Baxter, its right arm (:data:`SEARCHED`; left out with
 a note when the package is not installed), served by the certified 1-D search over q4 with q1 locked
 (:mod:`qpik.analytic.locked_search`). Poses are ``fk(q)`` for configurations drawn inside its limits (seed 4), timed
@@ -73,7 +68,7 @@ def panda_rows(repeat: int, block: int, row) -> list[Row]:
     q = np.random.default_rng(2).uniform(robot.q_min, robot.q_max, (POSES, robot.dof))
     T = robot.fk(q)
     E = T @ _hand()
-    peers: dict[str, tuple] = {"qpik": (lambda i: ik(robot, T[i], float(q[i, 6])), _qpik_solutions)}
+    peers: dict[str, tuple] = {"qpik": (lambda i: ik(robot, T[i], float(q[i, 6])), qpik_solutions)}
     missing = []
     try:
         frankik = import_peer("frankik")
@@ -93,7 +88,7 @@ def panda_rows(repeat: int, block: int, row) -> list[Row]:
         missing.append(f"ssik ({exc})")
     if missing:
         print("qpik bench analytic: Panda peers left out: " + "; ".join(missing))
-    notes = {key: _check(robot, T, q, fn, solutions) for key, (fn, solutions) in peers.items()}
+    notes = {key: check_note(robot, T, q, fn, solutions) for key, (fn, solutions) in peers.items()}
     calls = {key: cycle(fn, list(range(POSES))) for key, (fn, _) in peers.items()}
     t = time_interleaved(calls, max(20, repeat // block), block=block)
     labels = {
@@ -105,40 +100,6 @@ def panda_rows(repeat: int, block: int, row) -> list[Row]:
     fastest = min((k for k in ("frankik", "geofik") if k in t), key=lambda k: np.median(t[k]), default=None)
     ref = None if fastest is None else labels[fastest]
     return [row(labels[k], t[k], None if k == fastest or k == "ssik" else ref, notes[k]) for k in peers]
-
-
-SSIK_ARMS = {"xArm7": ("erd/xarm7", "ssik.prebuilt.ufactory.xarm7_ik")}
-"""Arm → (packaged model key, ssik's module of the same arm, whose FK matches the file's)."""
-
-
-def ssik_rows(repeat: int, block: int, row) -> list[Row]:
-    """The rows of :data:`SSIK_ARMS` (module docstring); ``row(label, seconds, ref, note)`` makes one."""
-    from qpik.robots.packaged import packaged_model
-
-    rows = []
-    for arm, (key, module) in SSIK_ARMS.items():
-        try:
-            robot = load_robot(str(packaged_model(key)))
-            ssik = import_peer(module)
-        except (QpikError, ImportError) as exc:
-            print(f"qpik bench analytic: {arm} beside ssik left out: {exc}")
-            continue
-        rows += _beside_ssik(arm, robot, ssik, max(20, repeat // block), block, row)
-    return rows
-
-
-def _beside_ssik(arm: str, robot, ssik, samples: int, block: int, row) -> list[Row]:
-    """qpik.ik and ssik's ``solve`` on the same poses of ``robot``, checked, then timed interleaved."""
-    q = np.random.default_rng(3).uniform(robot.q_min, robot.q_max, (POSES, robot.dof))
-    T = robot.fk(q)
-    peers = {
-        "qpik": (lambda i: ik(robot, T[i], float(q[i, 6])), _qpik_solutions),
-        "ssik": (lambda i: ssik.solve(T[i]), lambda out: [s.q for s in out]),
-    }
-    notes = {k: _check(robot, T, q, fn, solutions) for k, (fn, solutions) in peers.items()}
-    t = time_interleaved({k: cycle(fn, list(range(POSES))) for k, (fn, _) in peers.items()}, samples, block=block)
-    ours, theirs = f"{arm} q7 locked: qpik.ik, 8 branches", f"{arm}: ssik solve (q7 sampled)"
-    return [row(ours, t["qpik"], theirs, notes["qpik"]), row(theirs, t["ssik"], None, notes["ssik"])]
 
 
 SET_POSES = 4
@@ -160,7 +121,7 @@ def search_rows(repeat: int, block: int, row) -> list[Row]:
     q = np.random.default_rng(4).uniform(robot.q_min, robot.q_max, (POSES, robot.dof))
     T = robot.fk(q)
     calls = {"qpik": lambda i: ik(robot, T[i], float(q[i, 0]))}
-    notes = {"qpik": _check(robot, T, q, calls["qpik"], _qpik_solutions)}
+    notes = {"qpik": check_note(robot, T, q, calls["qpik"], qpik_solutions)}
     try:
         geo, poses = _geo_locked_q1(robot, T, q[:, 0], import_peer("ik_geo"))
         calls["geo"] = lambda i: geo.get_ik(*poses[i])
@@ -175,7 +136,7 @@ def search_rows(repeat: int, block: int, row) -> list[Row]:
             max(np.abs(np.asarray(geo.forward_kinematics(q[i, 1:])[k]) - poses[i][k]).max() for k in (0, 1))
             for i in range(POSES)
         )
-        notes["geo"] = _check(robot, T, q, answers, list) + _worst(robot, T, q, answers)
+        notes["geo"] = check_note(robot, T, q, answers, list) + _worst(robot, T, q, answers)
         notes["geo"] += f" (flagged least-squares by ik-geo: {flagged}; its FK at q: the pose given to {fk:.0e})"
     except ImportError as exc:
         print(f"qpik bench analytic: ik-geo left out of the 1-D search's rows ({exc})")
@@ -227,11 +188,12 @@ def _geo_locked_q1(robot, T: np.ndarray, q1: np.ndarray, ik_geo) -> tuple:
     return geo, poses
 
 
-def _qpik_solutions(sols) -> list[np.ndarray]:
+def qpik_solutions(sols) -> list[np.ndarray]:
+    """The valid branches' configurations of a :class:`qpik.IKSolutions`."""
     return list(sols.q[sols.valid])
 
 
-def _check(robot, T: np.ndarray, q: np.ndarray, fn, solutions) -> str:
+def check_note(robot, T: np.ndarray, q: np.ndarray, fn, solutions) -> str:
     """How many of a peer's finite solutions reach their pose by qpik's FK, and how often q is among them."""
     good = total = found = 0
     for i in range(len(T)):
