@@ -59,7 +59,8 @@ def refine_ends(
 ) -> FeasibleIntervals:
     r"""``fi``, the sets of ``solver`` at the pose ``T`` (4, 4) under the limits shrunk by ``margin``
     (:func:`~qpik.analytic.intervals.shrunk_limits`), with every end moved onto the solver's answers (module
-    docstring); the same branches, as many intervals, ``proved`` False. ``reach`` (rad): about how far an end may
+    docstring); the same branches, ``proved`` False. An end may move past ±π, where the set is then split (as the sets
+    are), and intervals that come to overlap are one. ``reach`` (rad): about how far an end may
     move; an end's bracket is first the one within ``reach`` of it, where that holds the states it must. An end moved
     to where the branch stops being valid (a fold of the file's chain, where dq/dt is unbounded) is also listed among
     the branch's singular values (``FeasibleIntervals.singular``), which :func:`qpik.solve_best`'s search samples
@@ -77,8 +78,8 @@ def refine_ends(
     for k, intervals in enumerate(fi.intervals):
         for i, (lo, hi) in enumerate(intervals):
             mid = 0.5 * (lo + hi)
-            before = intervals[i - 1][1] if i else -np.pi
-            after = intervals[i + 1][0] if i + 1 < len(intervals) else np.pi
+            before = intervals[i - 1][1] if i else intervals[-1][1] - 2.0 * np.pi  # around the circle
+            after = intervals[i + 1][0] if i + 1 < len(intervals) else intervals[0][0] + 2.0 * np.pi
             if lo > -np.pi:
                 ends.append((k, i, 0, lo, 0.5 * (before + lo), mid))
             if hi < np.pi:
@@ -103,8 +104,28 @@ def refine_ends(
             new[b][i] = (x, hi) if side == 0 else (lo, x)
             if fold:
                 folds[b].append(float(x))
-    intervals: list[list[Interval]] = [[(float(lo), float(hi)) for lo, hi in x] for x in new]
+    intervals = [_on_circle(x) for x in new]
     return FeasibleIntervals(fi.param_name, fi.branch, intervals, _with(fi.singular, folds), proved=False)
+
+
+def _on_circle(intervals: list[tuple[float, float]]) -> list[Interval]:
+    """Intervals (rad) of one branch, an end of which may have moved past ±π, as the sets give them: split at ±π,
+    sorted, those that overlap or touch merged."""
+    turn, pieces = 2.0 * np.pi, []
+    for lo, hi in intervals:
+        if hi > np.pi:
+            pieces += [(lo, np.pi), (-np.pi, hi - turn)]
+        elif lo < -np.pi:
+            pieces += [(lo + turn, np.pi), (-np.pi, hi)]
+        else:
+            pieces.append((lo, hi))
+    out: list[Interval] = []
+    for lo, hi in sorted(pieces):
+        if out and lo <= out[-1][1]:
+            out[-1] = (out[-1][0], max(out[-1][1], float(hi)))
+        else:
+            out.append((float(lo), float(hi)))
+    return out
 
 
 def resample(
