@@ -13,17 +13,18 @@ import qpik
 from qpik.analytic.intervals import wrap
 
 arms = pytest.importorskip("qpik.bench.ssik_arms")
-MODULES = [m for m in arms.seven_r_arms() if LARGE or arms.arm_name(m) in ("kuka/iiwa7", "franka/fr3", "abb/yumi_left")]
+DEFAULT = ("KUKA iiwa LBR 7", "Franka Research 3", "ABB YuMi (IRB 14000) left")
+ARMS = [arm for arm in arms.seven_r_arms() if LARGE or arm.name in DEFAULT]
 POSES = 40 if LARGE else 12
 
 
-@pytest.mark.skipif(not MODULES, reason="ssik (the test extra) is not installed")
-@pytest.mark.parametrize("module", MODULES, ids=arms.arm_name)
-def test_ssiks_arms_load_with_its_fk_and_their_closed_forms_find_every_configuration(module, tmp_path):
-    robot = arms.load_arm(module, tmp_path)
+@pytest.mark.skipif(not ARMS, reason="ssik (the test extra) is not installed")
+@pytest.mark.parametrize("ssik_arm", ARMS, ids=lambda arm: arm.name)
+def test_ssiks_arms_load_with_its_fk_and_their_closed_forms_find_every_configuration(ssik_arm, tmp_path):
+    robot = arms.load_arm(ssik_arm, tmp_path)
     q = np.random.default_rng(5).uniform(robot.q_min, robot.q_max, (POSES, robot.dof))
     T = mujoco_poses(robot, q)
-    ssik = np.array([module.fk(x) for x in q])
+    ssik = np.array([ssik_arm.arm.fk(x) for x in q])
     np.testing.assert_allclose(T, ssik, atol=1e-9)  # the file is ssik's arm (MuJoCo's FK)
     if robot.closed_form is None:
         assert robot.notes.startswith("no closed form: ")
