@@ -363,17 +363,27 @@ _RUN = re.compile(b"\x01+")
 
 def shift(intervals: list[Interval], by: float) -> list[Interval]:
     """The set ``intervals`` (sorted, disjoint, in [−π, π]) moved by ``by`` ∈ [0, 2π) on the circle, same form."""
-    moved: list[Interval] = []
-    for a, b in intervals:
-        a, b = a + by, b + by
+    return on_circle([(a + by, b + by) for a, b in intervals])
+
+
+def on_circle(pieces: list[tuple[float, float]]) -> list[Interval]:
+    """Intervals (rad, each shorter than a turn) whose ends may lie past ±π, in the form of the sets: one that starts
+    past π moved back a turn, one that passes ±π split there, sorted, those that overlap or touch merged (pieces that
+    met at ±π meet inside)."""
+    split: list[tuple[float, float]] = []
+    for a, b in pieces:
         if a > np.pi:
             a, b = a - TWO_PI, b - TWO_PI
-        moved += [(a, np.pi), (-np.pi, b - TWO_PI)] if b > np.pi else [(a, b)]
-    moved.sort()
-    out: list[Interval] = []
-    for a, b in moved:  # pieces that met at ±π before the move meet inside now
-        if out and a <= out[-1][1]:
-            out[-1] = (out[-1][0], max(out[-1][1], b))
+        if b > np.pi:
+            split += [(a, np.pi), (-np.pi, b - TWO_PI)]
+        elif a < -np.pi:
+            split += [(a + TWO_PI, np.pi), (-np.pi, b)]
         else:
-            out.append((a, b))
+            split.append((a, b))
+    out: list[Interval] = []
+    for a, b in sorted(split):
+        if out and a <= out[-1][1]:
+            out[-1] = (out[-1][0], max(out[-1][1], float(b)))
+        else:
+            out.append((float(a), float(b)))
     return out

@@ -28,7 +28,17 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from qpik.analytic.intervals import FeasibleIntervals, Interval, gaps, merge, shrunk_limits, spaced, within, wrap
+from qpik.analytic.intervals import (
+    FeasibleIntervals,
+    Interval,
+    gaps,
+    merge,
+    on_circle,
+    shrunk_limits,
+    spaced,
+    within,
+    wrap,
+)
 from qpik.core.progress import Progress
 
 if TYPE_CHECKING:
@@ -104,28 +114,8 @@ def refine_ends(
             new[b][i] = (x, hi) if side == 0 else (lo, x)
             if fold:
                 folds[b].append(float(x))
-    intervals = [_on_circle(x) for x in new]
+    intervals = [on_circle(x) for x in new]
     return FeasibleIntervals(fi.param_name, fi.branch, intervals, _with(fi.singular, folds), proved=False)
-
-
-def _on_circle(intervals: list[tuple[float, float]]) -> list[Interval]:
-    """Intervals (rad) of one branch, an end of which may have moved past ±π, as the sets give them: split at ±π,
-    sorted, those that overlap or touch merged."""
-    turn, pieces = 2.0 * np.pi, []
-    for lo, hi in intervals:
-        if hi > np.pi:
-            pieces += [(lo, np.pi), (-np.pi, hi - turn)]
-        elif lo < -np.pi:
-            pieces += [(lo + turn, np.pi), (-np.pi, hi)]
-        else:
-            pieces.append((lo, hi))
-    out: list[Interval] = []
-    for lo, hi in sorted(pieces):
-        if out and lo <= out[-1][1]:
-            out[-1] = (out[-1][0], max(out[-1][1], float(hi)))
-        else:
-            out.append((float(lo), float(hi)))
-    return out
 
 
 def resample(
