@@ -114,6 +114,8 @@ class BranchSolver(ABC):
         self._make_sets = sets
         lo, hi = np.asarray(robot.q_min, float), np.asarray(robot.q_max, float)
         self._wide = (lo < -np.pi) | (hi > np.pi)  # joints whose representatives are chosen
+        self.full_turn = (lo <= -np.pi) & (hi >= np.pi)
+        """Per joint, whether its limits hold every wrapped angle: its value is that angle (:meth:`representative`)."""
         self.lock = threading.RLock()
         """Held by the public functions (:mod:`qpik.analytic.api`) around the solver's calls: its compiled functions
         evaluate in buffers of their own, which two threads must not use at once."""
@@ -139,7 +141,7 @@ class BranchSolver(ABC):
         if not self._wide[j]:
             return x
         lo, hi, turn = float(self.robot.q_min[j]), float(self.robot.q_max[j]), 2.0 * np.pi
-        if lo <= -np.pi and hi >= np.pi:
+        if self.full_turn[j]:
             return ops.wrap(x)  # every wrapped angle lies inside the limits (the angle tags follow a wrap)
         if hi - lo < turn:
             alpha = turn * math.ceil((lo - np.pi) / turn)

@@ -58,7 +58,7 @@ class SelfMotion:
         self.searched = MIRRORED.get(self.solver.kind, self.solver.n_branches)
         self.whole_turn = bool(np.any(np.asarray(robot.q_max) - np.asarray(robot.q_min) >= 2.0 * np.pi))
         """Some joint's range spans a whole turn (its configurations are the IK's representatives q + 2πk)."""
-        self.turned = np.flatnonzero((np.asarray(robot.q_min) <= -np.pi) & (np.asarray(robot.q_max) >= np.pi))
+        self.turned = np.flatnonzero(self.solver.full_turn)
         """The joints whose limits hold every angle of (−π, π]: the IK gives that angle, which jumps by 2π where the
         joint passes ±π (:meth:`models` with ``turned``)."""
         self._sets_built = False
