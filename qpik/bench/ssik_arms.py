@@ -23,6 +23,7 @@ import re
 import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 from xml.sax.saxutils import quoteattr
@@ -32,7 +33,7 @@ import numpy as np
 from qpik.analytic.api import closed_form_for, ik, redundancy_parameter, symbol
 from qpik.bench import Row, cycle, import_peer, time_interleaved
 from qpik.bench.analytic_locked import POSES, check_note, qpik_solutions
-from qpik.core.errors import QpikError
+from qpik.core.errors import InputError, QpikError
 from qpik.robots.loader import load_robot
 from qpik.robots.robot import Robot
 
@@ -42,32 +43,36 @@ TIP = "tip"
 
 @dataclass(frozen=True)
 class SsikArm:
-    """One arm that ssik ships: ``name`` (ssik's display name), ``arm`` (its ``ssik.Manipulator``)."""
+    """One arm that ssik ships: ``name`` (ssik's display name), ``key`` (the name in ``ssik.list_arms()``)."""
 
     name: str
-    arm: Any
+    key: str
+
+    @cached_property
+    def arm(self) -> Any:
+        """Its ``ssik.Manipulator`` (which imports the arm's prebuilt module), made on first use."""
+        return import_peer("ssik").Manipulator.from_prebuilt(self.key)
 
 
 def seven_r_arms() -> list[SsikArm]:
-    """The arms ssik ships with 7 revolute joints, in its list's order ([] without ssik)."""
+    """The arms ssik ships with 7 joints, in its list's order, from its catalog alone ([] without ssik)."""
     try:
         ssik = import_peer("ssik")
     except ImportError:
         return []
-    out = []
-    for entry in ssik.list_arms():
-        if entry.dof != 7:
-            continue
-        arm = ssik.Manipulator.from_prebuilt(entry.name)
-        if all(joint.joint_type == "revolute" for joint in arm.kinbody.joints):
-            out.append(SsikArm(entry.display_name, arm))
-    return out
+    return [SsikArm(entry.display_name, entry.name) for entry in ssik.list_arms() if entry.dof == 7]
 
 
 def mjcf(ssik_arm: SsikArm) -> str:
     """The MJCF text of an arm of ssik's (module docstring): body k at ``T_right(k−1) · T_left(k)`` in body k − 1 with
-    joint k about its axis, and the site :data:`TIP` at ``T_right(7)`` in body 7."""
+    joint k about its axis, and the site :data:`TIP` at ``T_right(7)`` in body 7.
+
+    Raises:
+        InputError: a joint of the arm is not revolute (the file has hinges only).
+    """
     joints = ssik_arm.arm.kinbody.joints
+    if any(joint.joint_type != "revolute" for joint in joints):
+        raise InputError(f"{ssik_arm.name}: ssik's chain has a joint that is not revolute")
     lines = [f"<mujoco model={quoteattr(ssik_arm.name)}>", '<compiler angle="radian"/>', "<worldbody>"]
     before = np.eye(4)
     for k, joint in enumerate(joints):
