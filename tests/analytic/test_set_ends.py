@@ -42,12 +42,13 @@ def test_an_end_moves_past_pi_and_the_set_is_split_there():
         hi = next(hi for _, hi in fi.intervals[k] if -np.pi < hi < np.pi)
         for sign in (1.0, -1.0):  # the parameter moves with the turn one way or the other
             Tt = _turned(robot, T, sign * float(wrap(-np.pi + PAST - hi)))
-            true = qpik.feasible_intervals(robot, Tt).intervals[k]
+            turned = qpik.feasible_intervals(robot, Tt)
+            true = turned.intervals[k]
             if not (true[0][0] == -np.pi and abs(true[0][1] - (-np.pi + PAST)) < 1e-9 and true[-1][1] == np.pi):
                 continue
-            cut = [list(x) for x in qpik.feasible_intervals(robot, Tt).intervals]
+            cut = [list(x) for x in turned.intervals]
             cut[k] = [*true[1:-1], (true[-1][0], np.pi - CUT)]  # ends before π; the piece past −π gone
-            fi_cut = FeasibleIntervals(fi.param_name, fi.branch, cut, [[] for _ in cut])
+            fi_cut = FeasibleIntervals(turned.param_name, turned.branch, cut, [[] for _ in cut])
             got = refine_ends(fi_cut, solver, Tt, 0.0, 2.0 * (PAST + CUT)).intervals[k]
             assert len(got) == len(true) and got[0][0] == -np.pi and got[-1][1] == np.pi, (got, true)
             np.testing.assert_allclose(np.array(got), np.array(true), atol=1e-9)  # every end where it truly is
