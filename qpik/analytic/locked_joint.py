@@ -146,6 +146,9 @@ def correction_rounds(deviation: float) -> int:
     return int(min(MAX_ROUNDS, max(1, math.ceil(math.log(RESIDUAL_TOL / deviation) / math.log(kappa)))))
 
 
+SIGNS = np.array([[1 - 2 * (k >> bit & 1) for bit in (2, 1, 0)] for k in range(8)], float)
+"""Per branch id ``4·shoulder + 2·elbow + wrist``, the signs of its shoulder's, elbow's and wrist's roots (8, 3)
+(:data:`BranchSigns`)."""
 BranchSigns = tuple[Signs, Signs, Signs]
 """The signs of the shoulder's, the elbow's and the wrist's roots (:data:`~qpik.analytic.subproblems.Signs`): the
 branches ``(4·shoulder + 2·elbow + wrist)`` of every combination, numbered in that order; one sign each is one
@@ -162,6 +165,7 @@ class LockedJointSolver(AnalyticSolver):
     param_name = "q7"
     branch_ids = tuple(range(8))
     closed_form_sets = False  # the sets are isolated by Taylor models (qpik.analytic.locked_joint_intervals)
+    branch_signs = SIGNS
 
     def __init__(
         self, robot: Robot, sets: Callable[[AnalyticSolver], ParameterSets] | None = None, param_name: str = "q7"
@@ -207,21 +211,38 @@ class LockedJointSolver(AnalyticSolver):
     def table_branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
         """All 8 branches at q7 = ``param`` (rad) for the pose ``(R, p)`` (base frame); for a near member
         (:attr:`polished`), each polished on the robot's chain and valid where the polish reaches the pose
-        (:data:`~qpik.analytic.polish.RESIDUAL_TOL`), whatever the ideal chain's discriminants say."""
+        (:data:`~qpik.analytic.polish.RESIDUAL_TOL`), whatever the ideal chain's discriminants say
+        (:meth:`_corrected`)."""
         br = self._solve(R, p, param, ops)[0]
         if self.polished is None:
             return br
-        q, valid = [], []
+        signs = [tuple((float(x),) for x in row) for row in SIGNS]
+        rows = [self._corrected(R, p, param, row, signs[k], ops) for k, row in enumerate(br.q)]
+        return Branches([q for q, _ in rows], [valid for _, valid in rows], br.singular)
+
+    def one_branch(self, R: Mat, p: Vec, param: Scalar, signs: list[Scalar], ops: Ops) -> Branches | None:
+        """A near member's (:attr:`polished`) branch of the roots ``signs`` (shoulder, elbow, wrist: ±1, or symbols)
+        at q7 = ``param`` (rad) for the pose ``(R, p)``, in the robot's angles: the row of :meth:`table_branches`
+        of those signs (:meth:`~qpik.analytic.solver.AnalyticSolver.one_branch`); None for an exact member, whose
+        branches share most of their work."""
+        if self.polished is None:
+            return None
+        sg = tuple((x,) for x in signs)
+        br = self._solve(R, p, param, ops, sg)[0]
+        q, valid = self._corrected(R, p, param, br.q[0], sg, ops)
+        return Branches([self.robot_row(q, ops)], [valid], br.singular)
+
+    def _corrected(
+        self, R: Mat, p: Vec, param: Scalar, row: list[Scalar], signs: BranchSigns, ops: Ops
+    ) -> tuple[list[Scalar], Scalar]:
+        """A near member's branch of ``signs`` (one sign each) on the robot's chain from the ideal chain's ``row``
+        (module docstring): its joints (wrapped but q7) and whether the polish reaches the pose."""
         rounds = correction_rounds(self.gap.bound)
-        for k, row in enumerate(br.q):
-            signs = ((BOTH[k // 4],), (BOTH[k // 2 % 2],), (BOTH[k % 2],))
-            for _ in range(rounds):  # the fixed point of q -> the ideal chain's branch at p - Δ(q)
-                moved = sy.vsub(p, self.gap.expr(self.polished.frames_expr(row, ops)))
-                row = self._solve(R, moved, param, ops, signs)[0].q[0]
-            qk, residual = polish(self.polished, R, p, row, ops, 2 * rounds)
-            q.append([ops.wrap(x) for x in qk[:6]] + qk[6:])
-            valid.append(residual <= RESIDUAL_TOL)
-        return Branches(q, valid, br.singular)
+        for _ in range(rounds):  # the fixed point of q -> the ideal chain's branch at p - Δ(q)
+            moved = sy.vsub(p, self.gap.expr(self.polished.frames_expr(row, ops)))
+            row = self._solve(R, moved, param, ops, signs)[0].q[0]
+        qk, residual = polish(self.polished, R, p, row, ops, 2 * rounds)
+        return [ops.wrap(x) for x in qk[:6]] + qk[6:], residual <= RESIDUAL_TOL
 
     def feasible_intervals(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
         """The sets of :meth:`~qpik.analytic.solver.BranchSolver.feasible_intervals`; a near member's (:attr:`polished`)
@@ -387,6 +408,7 @@ class ReversedLockedJointSolver(AnalyticSolver):
     param_name = "q1"
     branch_ids = tuple(range(8))
     closed_form_sets = False
+    branch_signs = SIGNS
 
     def __init__(self, robot: Robot, sets: Callable[[AnalyticSolver], ParameterSets] | None = None):
         super().__init__(robot)
@@ -411,6 +433,14 @@ class ReversedLockedJointSolver(AnalyticSolver):
         inverse pose, joints in the arm's order."""
         br = self.inner.branches(*_inverse(R, p), param, ops)
         return Branches([row[::-1] for row in br.q], br.valid, br.singular)
+
+    def one_branch(self, R: Mat, p: Vec, param: Scalar, signs: list[Scalar], ops: Ops) -> Branches | None:
+        """The inner solver's branch of ``signs`` (:meth:`LockedJointSolver.one_branch`) at the inverse pose, in the
+        arm's order and angles; None for an exact member."""
+        br = self.inner.one_branch(*_inverse(R, p), param, signs, ops)
+        if br is None:
+            return None
+        return Branches([self.robot_row(br.q[0][::-1], ops)], br.valid, br.singular)
 
     def table_parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
         """q1 (rad) and the branch id of the configuration ``q`` (7 scalars, the arm's order)."""

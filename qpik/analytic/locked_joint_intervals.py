@@ -79,6 +79,7 @@ from qpik.algebra import symbolic as sy
 from qpik.algebra.enclosure import DONE, HALVE, NARROW, TOUCHED, isolation_step, taylor_function
 from qpik.analytic import trig
 from qpik.analytic.intervals import FeasibleIntervals, Interval, SetAssembler, gaps, merge, shrunk_limits, wrap
+from qpik.analytic.locked_joint import SIGNS
 from qpik.native.compiled import RowMap, cores
 
 if TYPE_CHECKING:
@@ -102,9 +103,6 @@ REACH = 1e-6
 cell out of the search (every branch invalid over it, with room for round-off)."""
 ELBOW = 3
 """Index of q4, whose levels are solved exactly."""
-SIGNS = np.array([[1 - 2 * (k >> bit & 1) for bit in (2, 1, 0)] for k in range(8)], float)
-"""Per branch id ``4·shoulder + 2·elbow + wrist``, the signs of its shoulder's, elbow's and wrist's roots (8, 3)
-(:data:`qpik.analytic.locked_joint.BranchSigns`)."""
 
 
 class Q7Intervals:
@@ -153,8 +151,8 @@ class Q7Intervals:
         gone where the validity is below 0 over the cell or cos(q_j − L) < 0).
 
         Inputs: T (4, 4), the levels' (cos L, sin L) (2, F), the cell's ends a < b (rad), the branch's
-        :data:`SIGNS`. Output (3C,) over the C = F + 1 slots (0: the validity; i: the joint column of level i − 1),
-        for a near member C = F + 3 (slots F + 1, F + 2: the validity less and plus the solver's
+        :data:`~qpik.analytic.locked_joint.SIGNS`. Output (3C,) over the C = F + 1 slots (0: the validity; i: the joint
+        column of level i − 1), for a near member C = F + 3 (slots F + 1, F + 2: the validity less and plus the solver's
         :attr:`~qpik.analytic.locked_joint.LockedJointSolver.thin`): every slot's window start x1, then every slot's
         window end x2 (rad), then every slot's fate (:data:`~qpik.algebra.enclosure.GONE` ...)."""
         s, J = self._solver, len(self._joints)

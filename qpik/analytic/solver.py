@@ -45,7 +45,7 @@ from qpik.native.compiled import Compiled
 KERNEL_LARGE = 4_000_000
 """Bytes of C up to which the single-pose kernel (:meth:`AnalyticSolver.checked`, every :func:`qpik.ik` call of one
 pose) is compiled at ``-O2`` (:func:`qpik.native.build.optimisation`): a near member's kernel, whose corrections and
-polish (:mod:`qpik.analytic.locked_joint`) make it megabytes of C, runs faster than at ``-O1`` for a compile of
+polish (:mod:`qpik.analytic.locked_joint`) make it hundreds of kB of C, runs faster than at ``-O1`` for a compile of
 seconds more, once per machine."""
 SWEEP_CHUNKS = (32, 8)
 """Parameters per call of the compiled sweeps of :meth:`AnalyticSolver.solve_many`: the large one while
@@ -221,6 +221,9 @@ class AnalyticSolver(BranchSolver):
     (:meth:`BranchSolver.representative`).
     """
 
+    branch_signs: np.ndarray | None = None
+    """Per branch, the roots its subproblems take (B, k), where the family has :meth:`one_branch`."""
+
     def __init__(self, robot: Robot, sets: Callable[[BranchSolver], ParameterSets] | None = None):
         super().__init__(robot, sets)
         canonical = robot.canonical
@@ -241,9 +244,19 @@ class AnalyticSolver(BranchSolver):
     def branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
         """All branches for end-effector rotation ``R`` and position ``p`` (world frame), in the robot's angles."""
         br = self.table_branches(R, p, param, ops)
+        return Branches([self.robot_row(row, ops) for row in br.q], br.valid, br.singular)
+
+    def one_branch(self, R: Mat, p: Vec, param: Scalar, signs: list[Scalar], ops: Ops) -> Branches | None:
+        """The branch of :meth:`branches` whose subproblems take the roots ``signs`` (a row of :data:`SIGNS` of the
+        family, or symbols) alone, for a family whose single-pose kernel loops over its branches (:meth:`checked`);
+        None (here) where all branches are one expression."""
+        return None
+
+    def robot_row(self, row: list[Scalar], ops: Ops) -> list[Scalar]:
+        """The robot's joints from a row of :attr:`table`'s angles (see the class docstring)."""
         if self.joint_map is None and not self._wide.any():
-            return br
-        return Branches([[self._joint(j, x, ops) for j, x in enumerate(row)] for row in br.q], br.valid, br.singular)
+            return row
+        return [self._joint(j, x, ops) for j, x in enumerate(row)]
 
     def _joint(self, j: int, x: Scalar, ops: Ops) -> Scalar:
         """The robot's joint j from the table's angle x (see the class docstring)."""
@@ -303,17 +316,42 @@ class AnalyticSolver(BranchSolver):
         :attr:`casadi_function` plus the limit test: ``flags`` stacks ``valid``,
         ``singular`` and ``within_limits = valid ∧ ∀j q_min_j <= q_j <= q_max_j``
         (1.0 or 0.0), so that no numpy pass over the joints is needed. Q is
-        transposed so that a mapped evaluation writes (pose, branch, joint) in C order.
+        transposed so that a mapped evaluation writes (pose, branch, joint) in C order. A family with
+        :meth:`one_branch` instead maps the function of one branch over the rows of :attr:`branch_signs` (a loop in C,
+        its body once: a near member's 8 corrected branches written out are several times the size of an instruction
+        cache, and run slower than the loop).
         """
         n = self.robot.dof
-        T, param = ca.SX.sym("T", 4, 4), ca.SX.sym(self.param_name)
-        lo, hi = ca.SX.sym("q_min", 1, n), ca.SX.sym("q_max", 1, n)
-        Q, valid, singular = (x[:rows, :] for x in self.casadi_function(T, param))
+        name = f"ik_{self.kind}_checked" + ("" if rows == self.n_branches else f"_{rows}")
+        body = self._branch_function
+        if body is None:
+            T, param = ca.SX.sym("T", 4, 4), ca.SX.sym(self.param_name)
+            lo, hi = ca.SX.sym("q_min", 1, n), ca.SX.sym("q_max", 1, n)
+            Q, valid, singular = (x[:rows, :] for x in self.casadi_function(T, param))
+            Qt, valid, singular = Q.T, valid.T, singular.T
+        else:
+            T, param = ca.MX.sym("T", 4, 4), ca.MX.sym(self.param_name)
+            lo, hi = ca.MX.sym("q_min", 1, n), ca.MX.sym("q_max", 1, n)
+            loop = body.map(f"{name}_branches", "serial", rows, [0, 1], [])
+            Qt, valid, singular = loop(T, param, ca.DM(self.branch_signs[:rows].T))
         within = valid
         for j in range(n):
-            within = within * (Q[:, j] >= lo[j]) * (Q[:, j] <= hi[j])
-        name = f"ik_{self.kind}_checked" + ("" if rows == self.n_branches else f"_{rows}")
-        return ca.Function(name, [T, param, lo, hi], [Q.T, ca.vertcat(valid, singular, within)])
+            within = within * (Qt[j, :] >= lo[j]) * (Qt[j, :] <= hi[j])
+        return ca.Function(name, [T, param, lo, hi], [Qt, ca.vertcat(valid.T, singular.T, within.T)])
+
+    @cached_property
+    def _branch_function(self) -> ca.Function | None:
+        """:meth:`one_branch` as ``(T (4, 4), param, signs) -> (q (n,), valid, singular)``, or None."""
+        if self.branch_signs is None:
+            return None
+        T, param = ca.SX.sym("T", 4, 4), ca.SX.sym(self.param_name)
+        signs = ca.SX.sym("signs", self.branch_signs.shape[1])
+        R, p = sy.frame_of_batch(T)
+        br = self.one_branch(R, p, param, [signs[i] for i in range(signs.numel())], sy.CASADI)
+        if br is None:
+            return None
+        out = [ca.vertcat(*br.q[0]), br.valid[0], br.singular[0]]
+        return ca.Function(f"ik_{self.kind}_branch", [T, param, signs], out)
 
     def checked(self, rows: int) -> Compiled:
         """The compiled :meth:`_checked_function` of the first ``rows`` branches at one parameter (cached; ``-O2`` up
