@@ -193,7 +193,11 @@ def scene_of(
         given = {"obstacles": obstacles, "d_safe": d_safe, "objective": objective, "q_ref": q_ref}
         for name, value in given.items():
             if value is not None:
-                raise InputError(f"{name}: given twice, in the Scene and here; use scene.replace({name}=...)")
+                held = f"{getattr(robot, name)!r:.60}"
+                raise InputError(
+                    f"{name}: a Scene carries its own (here {held}); give it with scene.replace({name}=...), not also "
+                    "as an argument"
+                )
         return robot
     return Scene.of(robot, () if obstacles is None else obstacles, d_safe=0.02 if d_safe is None else d_safe,
                     objective=objective, q_ref=q_ref)  # fmt: skip

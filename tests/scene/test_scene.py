@@ -86,7 +86,7 @@ def test_the_solvers_take_the_scene_or_its_pieces_never_both():
     )
     assert p.status == r.status and np.allclose(p.q, r.q, atol=1e-12)
     for name, value in (("objective", "margin"), ("obstacles", []), ("d_safe", 0.05)):
-        with pytest.raises(InputError, match=f"{name}: given twice"):
+        with pytest.raises(InputError, match=f"{name}: a Scene carries its own"):
             qpik.solve_best(scene, pose, **{name: value})
 
 
