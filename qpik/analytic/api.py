@@ -8,8 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from qpik.analytic.branch_solver import BranchSolver
 from qpik.analytic.intervals import FeasibleIntervals, wrap
-from qpik.analytic.solver import BranchSolver
 from qpik.core.errors import InputError, NoClosedFormError
 from qpik.core.validate import finite_array, joint_vector, number
 from qpik.core.validate import pose as check_pose
@@ -19,7 +19,7 @@ _SOLVERS = {  # family -> (solver, its feasible sets), each as (module, class or
     "offset_shoulder": (("qpik.analytic.offset_shoulder", "OffsetShoulderSolver"),
                         ("qpik.analytic.offset_shoulder_intervals", "DeltaIntervals")),
     "srs": (("qpik.analytic.srs", "SRSSolver"), ("qpik.analytic.srs_intervals", "PsiIntervals")),
-    "locked_joint": (("qpik.analytic.locked_joint", "locked_joint_solver"),
+    "locked_joint": (("qpik.analytic.locked_joint_reversed", "locked_joint_solver"),
                      ("qpik.analytic.locked_joint_intervals", "Q7Intervals")),
     "locked_search": (("qpik.analytic.search_solver", "SearchSolver"), ("qpik.analytic.search_sets", "SearchSets")),
 }  # fmt: skip

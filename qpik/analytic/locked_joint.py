@@ -70,14 +70,15 @@ D).
 An unreachable pose gives ``valid = 0`` (a negative discriminant beyond round-off, ``EPS`` relative); the square
 roots are clamped at 0, so q stays finite.
 
-**Read from the flange** (:class:`ReversedLockedJointSolver`; the Kinova Gen3): an arm whose axes 7-6-5 meet and
-whose axes 3-2 meet is of this geometry read backwards (:func:`~qpik.robots.locked_joint.reversed_chain`: joint k is
-the arm's joint 8 − k at the same angle, FK inverted; ``robot.canonical.reversed``, its ``table`` that chain). Its
-solver is this one on that chain (:attr:`ReversedLockedJointSolver.inner`, a robot with the limits reversed) at
-:math:`T^{-1}`, the rows reversed: the parameter is the arm's q1 (``param_name`` ``"q1"``), the branch ids are
-the inner solver's (*shoulder* the arm's wrist 7-6-5, *wrist* its axes 3-2), and the feasible sets are the inner
-solver's (:mod:`qpik.analytic.locked_joint_intervals` unchanged, its limits and levels those of the reversed robot,
-its q7 the arm's q1). :func:`locked_joint_solver` picks the solver of a robot.
+**Read from the flange** (:class:`~qpik.analytic.locked_joint_reversed.ReversedLockedJointSolver`; the Kinova Gen3): an
+arm whose axes 7-6-5 meet and whose axes 3-2 meet is of this geometry read backwards
+(:func:`~qpik.robots.locked_joint.reversed_chain`: joint k is the arm's joint 8 − k at the same angle, FK inverted;
+``robot.canonical.reversed``, its ``table`` that chain). Its solver is this one on that chain
+(:attr:`~qpik.analytic.locked_joint_reversed.ReversedLockedJointSolver.inner`, a robot with the limits reversed) at
+:math:`T^{-1}`, the rows reversed: the parameter is the arm's q1 (``param_name`` ``"q1"``), the branch ids are the inner
+solver's (*shoulder* the arm's wrist 7-6-5, *wrist* its axes 3-2), and the feasible sets are the inner solver's
+(:mod:`qpik.analytic.locked_joint_intervals` unchanged, its limits and levels those of the reversed robot, its q7 the
+arm's q1). :func:`~qpik.analytic.locked_joint_reversed.locked_joint_solver` picks the solver of a robot.
 """
 
 from __future__ import annotations
@@ -106,13 +107,11 @@ from qpik.analytic.subproblems import (
 )
 from qpik.analytic.trig import EPS
 from qpik.core.errors import NoClosedFormError
-from qpik.robots.locked_joint import ChainGap, find_locked_joint, reversed_chain
-from qpik.robots.recognize import Canonical
+from qpik.robots.locked_joint import ChainGap, find_locked_joint
 from qpik.robots.robot import Robot
 
 if TYPE_CHECKING:
     from qpik.analytic.intervals import FeasibleIntervals, ParameterSets
-    from qpik.analytic.native_sets import NativeSets
 
 SCALE = 0.1
 """m per rad: the singular value of the six joints' position Jacobian that :func:`correction_rounds` sizes the rounds
@@ -172,7 +171,8 @@ class LockedJointSolver(AnalyticSolver):
     ):
         super().__init__(robot, sets)
         self.param_name = param_name
-        """The parameter's name: q7, or q1 where this solver serves a :class:`ReversedLockedJointSolver`."""
+        """The parameter's name: q7, or q1 where this solver serves a
+        :class:`~qpik.analytic.locked_joint_reversed.ReversedLockedJointSolver`."""
         g, why = find_locked_joint(self.table)
         if g is None:
             raise NoClosedFormError(f"the locked-q7 closed form does not apply: {why}")
@@ -245,10 +245,10 @@ class LockedJointSolver(AnalyticSolver):
         return [ops.wrap(x) for x in qk[:6]] + qk[6:], residual <= RESIDUAL_TOL
 
     def feasible_intervals(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
-        """The sets of :meth:`~qpik.analytic.solver.BranchSolver.feasible_intervals`; a near member's (:attr:`polished`)
-        with their ends moved onto its own chain (:func:`qpik.analytic.set_ends.refine_ends`, about D/:data:`SCALE`
-        rad away: the joints' change by the correction, over joint rates of order 1), then sampled on its chain where
-        the ideal chain's validity is within :attr:`thin` of 0 (:func:`qpik.analytic.set_ends.resample`,
+        """The sets of :meth:`~qpik.analytic.branch_solver.BranchSolver.feasible_intervals`; a near member's
+        (:attr:`polished`) with their ends moved onto its own chain (:func:`qpik.analytic.set_ends.refine_ends`, about
+        D/:data:`SCALE` rad away: the joints' change by the correction, over joint rates of order 1), then sampled on
+        its chain where the ideal chain's validity is within :attr:`thin` of 0 (:func:`qpik.analytic.set_ends.resample`,
         :data:`SPACING`)."""
         fi = super().feasible_intervals(T, margin)
         if self.polished is None:
@@ -386,83 +386,3 @@ class LockedJointSolver(AnalyticSolver):
         vs = rotate(h[1], ops.cos(q[1]), ops.sin(q[1]), h[2])
         shoulder = ops.where(sy.dot(sy.cross(h[1], h[0]), vs) < 0, 4.0, 0.0)
         return q[6], shoulder + elbow + wrist
-
-
-def _inverse(R: Mat, p: Vec) -> tuple[Mat, Vec]:
-    """The inverse of the pose ``(R, p)``: :math:`(R^T, -R^T p)`."""
-    Rt = sy.transpose(R)
-    return Rt, sy.vscale(-1.0, sy.matvec(Rt, p))
-
-
-class ReversedLockedJointSolver(AnalyticSolver):
-    r"""Closed-form IK with q1 locked, for an arm whose :func:`~qpik.robots.locked_joint.reversed_chain` is of the
-    locked-q7 family (axes 7-6-5 meet, axes 3-2 meet; the Kinova Gen3): a :class:`LockedJointSolver` of the arm read
-    from the flange (:attr:`inner`), whose joint k is the arm's joint 8 − k at the same angle and whose pose is the
-    inverse, :math:`T' = T^{-1}`. Its q7 is the arm's q1 (the parameter, ``"q1"``); the branch ids are the inner
-    solver's (``4·shoulder + 2·elbow + wrist``, its shoulder the arm's wrist 7-6-5, its wrist the arm's axes 3-2,
-    the signs of its module docstring with the arm's axis k for the inner's 8 − k). The feasible sets are the inner
-    solver's (:class:`~qpik.analytic.locked_joint_intervals.Q7Intervals` of the inner arm, whose limits are the
-    arm's reversed) at :math:`T^{-1}`, unchanged: the same parameter, branches and limits."""
-
-    kind = "locked_joint"
-    param_name = "q1"
-    branch_ids = tuple(range(8))
-    closed_form_sets = False
-    branch_signs = SIGNS
-
-    def __init__(self, robot: Robot, sets: Callable[[AnalyticSolver], ParameterSets] | None = None):
-        super().__init__(robot)
-        canonical = robot.canonical
-        if canonical is None or not canonical.reversed:
-            raise NoClosedFormError(f"{robot.name} is not of the locked-q1 (reversed) family")
-        turned = Robot(
-            name=f"{robot.name} from the flange",
-            chain=reversed_chain(robot.chain),
-            q_min=robot.q_min[::-1].copy(),
-            q_max=robot.q_max[::-1].copy(),
-            v_max=robot.v_max[::-1].copy(),
-            q_home=robot.q_home[::-1].copy(),
-            closed_form="locked_joint",
-            canonical=Canonical("locked_joint", canonical.table, canonical.joints, exact=canonical.exact),
-        )
-        self.inner = LockedJointSolver(turned, sets, param_name=self.param_name)
-        """The locked-q7 solver of the arm read from the flange."""
-
-    def table_branches(self, R: Mat, p: Vec, param: Scalar, ops: Ops) -> Branches:
-        """All 8 branches at q1 = ``param`` (rad) for the pose ``(R, p)`` (base frame): the inner solver's at the
-        inverse pose, joints in the arm's order."""
-        br = self.inner.branches(*_inverse(R, p), param, ops)
-        return Branches([row[::-1] for row in br.q], br.valid, br.singular)
-
-    def one_branch(self, R: Mat, p: Vec, param: Scalar, signs: list[Scalar], ops: Ops) -> Branches | None:
-        """The inner solver's branch of ``signs`` (:meth:`LockedJointSolver.one_branch`) at the inverse pose, in the
-        arm's order and angles; None for an exact member."""
-        br = self.inner.one_branch(*_inverse(R, p), param, signs, ops)
-        if br is None:
-            return None
-        return Branches([self.robot_row(br.q[0][::-1], ops)], br.valid, br.singular)
-
-    def table_parameter_expr(self, q: list[Scalar], ops: Ops) -> tuple[Scalar, Scalar]:
-        """q1 (rad) and the branch id of the configuration ``q`` (7 scalars, the arm's order)."""
-        return self.inner.table_parameter_expr(q[::-1], ops)
-
-    def feasible_intervals(self, T: np.ndarray, margin: float = 0.0) -> FeasibleIntervals:
-        """The inner solver's sets at :math:`T^{-1}` (:meth:`AnalyticSolver.feasible_intervals`)."""
-        return self.inner.feasible_intervals(np.linalg.inv(np.asarray(T, float)), margin)
-
-    @property
-    def sets_proved(self) -> bool:
-        """The inner solver's (:meth:`LockedJointSolver.sets_proved`)."""
-        return self.inner.sets_proved
-
-    def native_sets(self) -> NativeSets | None:
-        """None: the sets are found by a search (:mod:`qpik.analytic.locked_joint_intervals`), no single C call."""
-        return None
-
-
-def locked_joint_solver(robot: Robot, sets: Callable[[AnalyticSolver], ParameterSets] | None = None) -> AnalyticSolver:
-    """The locked-joint solver of ``robot``: :class:`ReversedLockedJointSolver` where its closed form was found with
-    the chain read from the flange (``robot.canonical.reversed``), else :class:`LockedJointSolver`."""
-    if robot.canonical is not None and robot.canonical.reversed:
-        return ReversedLockedJointSolver(robot, sets)
-    return LockedJointSolver(robot, sets)

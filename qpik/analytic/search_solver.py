@@ -2,24 +2,26 @@ r"""The 1-D search's solutions (:mod:`qpik.analytic.locked_search`) as :func:`qp
 and value of the locked joint, with identities along it.
 
 :class:`SearchSolver` is the solver of the family ``"locked_search"`` of :func:`~qpik.robots.recognize.recognize` (an
-arm of no closed form where the search's geometry holds). The parameter is the
-locked joint (``param_name`` ``"q1"`` for the Sawyer, read from the flange; ``"q7"`` read forwards), and every pose
-has :data:`BRANCHES` slots, public ids 0-15: the roots of error function b take the slots ``4 b + j``, j = 0-3, in
-increasing order of q4 in (−π, π] (the j-th root of :math:`e_b`, the arm's q4 being the search variable in either
-direction). A branch so keeps its id along the parameter while no root of the same :math:`e_b` below it appears or
-vanishes (in pairs at a fold, :math:`e_b = \partial e_b/\partial x = 0`, or one at the edge of the validity, where
-it passes to the error function of the other sign) and none crosses q4 = ±π: roots of one function meet only at a
-fold, so they never swap. An error function with more than 4 roots at one pose and parameter (rare; 6 seen on the
-Sawyer) puts the roots past its fourth in the lowest slots that no root has taken (no more than 16 solutions exist:
-a 6-R chain's bound). The other slots are ``valid`` False, their joints 0 but the locked one (the parameter).
+arm of no closed form where the search's geometry holds). The parameter is the locked joint (``param_name`` ``"q1"`` for
+the Sawyer and Baxter, read from the flange; ``"q7"`` read forwards), and every pose has :data:`BRANCHES` slots, public
+ids 0-15: the roots of error function b take the slots ``4 b + j``, j = 0-3, in increasing order of the search variable
+x in (−π, π] (the j-th root of :math:`e_b`; x is the arm's q4 for
+:class:`~qpik.analytic.search_geometry.ShoulderSearch`, in either direction, and the joint at the flange's end for
+:class:`~qpik.analytic.search_geometry.ElbowSearch`, the Sawyer's q7). A branch so keeps its id along the parameter
+while no root of the same :math:`e_b` below it appears or vanishes (in pairs at a fold, :math:`e_b = \partial
+e_b/\partial x = 0`, or one at the edge of the validity, where it passes to the error function of the other sign) and
+none crosses x = ±π: roots of one function meet only at a fold, so they never swap. An error function with more than 4
+roots at one pose and parameter (rare; 6 seen on the Sawyer) puts the roots past its fourth in the lowest slots that no
+root has taken (no more than 16 solutions exist: a 6-R chain's bound). The other slots are ``valid`` False, their joints
+0 but the locked one (the parameter).
 
-A root where the two roots of a subproblem meet (σ3's or σ12's: it is then a root of two error functions,
+A root where the two roots of a subproblem meet (it is then a root of two error functions,
 :attr:`~qpik.analytic.locked_search.SearchSolutions.double`) is one solution, in the slots of the smaller b where
 both find it, and ``singular``: its b may change with the round-off of the pose, and the slots of the other roots of
 its error functions with it.
 More than 16 solutions is a continuum (the Sawyer at q = 0, two axes aligned with q1 fixed: the search then runs
 out of its budget with thousands of candidates): 16 of them fill the slots (4 per b, then the lowest slots left, in
-the order of b and q4), each ``singular``. The branch of a configuration (:meth:`SearchSolver.parameter`) is the
+the order of b and x), each ``singular``. The branch of a configuration (:meth:`SearchSolver.parameter`) is the
 slot of the solution nearest to it at its own pose and locked angle. The feasible sets of the parameter are sampled,
 not proved (:mod:`qpik.analytic.search_sets`).
 """
@@ -31,9 +33,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from qpik.algebra import symbolic as sy
+from qpik.analytic.branch_solver import BranchSolver, Solved
 from qpik.analytic.intervals import apart
-from qpik.analytic.locked_search import MOST, LockedSearch, SearchSolutions
-from qpik.analytic.solver import BranchSolver, Solved
+from qpik.analytic.locked_search import MOST, SearchSolutions
+from qpik.analytic.search_geometry import search_for
 from qpik.core.errors import NoClosedFormError
 
 if TYPE_CHECKING:
@@ -48,14 +51,14 @@ BRANCHES = MOST
 """Slots of :class:`SearchSolver` per pose: the most solutions a 6-R chain has."""
 
 
-def slots(branch: np.ndarray, q4: np.ndarray) -> np.ndarray:
+def slots(branch: np.ndarray, x: np.ndarray) -> np.ndarray:
     """The slots (K,) of :class:`SearchSolver` of K ≤ :data:`BRANCHES` solutions of error functions ``branch`` (K,)
-    at the arm's q4 (K,) rad: the j-th root of b in increasing q4 takes ``SLOTS·b + j`` for j < :data:`SLOTS`, the
-    others the lowest slots left (module docstring), in the order of b and q4; −1 for those left without (only where
-    K > :data:`BRANCHES`)."""
+    at the search variable x (K,) rad: the j-th root of b in increasing x takes ``SLOTS·b + j`` for j < :data:`SLOTS`,
+    the others the lowest slots left (module docstring), in the order of b and x; −1 for those left without (only
+    where K > :data:`BRANCHES`)."""
     out = np.full(len(branch), -1)
     taken = np.zeros(BRANCHES, bool)
-    order = np.lexsort((q4, branch))
+    order = np.lexsort((x, branch))
     rank = np.zeros(len(branch), int)
     for i, k in enumerate(order[1:], 1):
         rank[k] = rank[order[i - 1]] + 1 if branch[k] == branch[order[i - 1]] else 0
@@ -69,7 +72,7 @@ def slots(branch: np.ndarray, q4: np.ndarray) -> np.ndarray:
 
 class SearchSolver(BranchSolver):
     """:func:`qpik.ik` and :func:`qpik.redundancy_parameter` of an arm of the ``"locked_search"`` family: the
-    :class:`~qpik.analytic.locked_search.LockedSearch` of its chain in the direction recognised
+    :func:`~qpik.analytic.search_geometry.search_for` of its chain in the direction recognised
     (``robot.canonical.reversed``), its solutions in :data:`BRANCHES` slots (module docstring). ``solve_batch`` and
     ``solve_many`` search each pose and parameter in turn."""
 
@@ -83,7 +86,7 @@ class SearchSolver(BranchSolver):
         canonical = robot.canonical
         if canonical is None or canonical.kind != self.kind:
             raise NoClosedFormError(f"{robot.name} is not of the 1-D search's family")
-        self.search = LockedSearch(robot.chain, (canonical.reversed,))
+        self.search = search_for(robot.chain, (canonical.reversed,))
         """The search of the arm's chain."""
         self.param_name = f"q{self.search.locked}"
         self.locked = self.search.locked - 1
@@ -95,13 +98,13 @@ class SearchSolver(BranchSolver):
 
     def place(self, sol: SearchSolutions, param: float) -> Solved:
         """The solutions ``sol`` of the locked angle ``param`` (rad) in their slots (:func:`slots`): q (B, n) (each
-        joint's representative inside its limits, :meth:`~qpik.analytic.solver.BranchSolver.representative`), valid,
-        singular (a root at a subproblem's double root,
+        joint's representative inside its limits, :meth:`~qpik.analytic.branch_solver.BranchSolver.representative`),
+        valid, singular (a root at a subproblem's double root,
         :attr:`~qpik.analytic.locked_search.SearchSolutions.double`; every valid slot where more than :data:`BRANCHES`
         solutions were found: a continuum), within_limits (B,) bool."""
         q = np.zeros((BRANCHES, self.robot.dof))
         q[:, self.locked] = sy.NUMPY.wrap(np.array(float(param)))
-        at = slots(sol.branch, sol.q[:, 3])
+        at = slots(sol.branch, sol.q[:, self.search.variable_joint])
         q[at[at >= 0]] = sol.q[at >= 0]
         for j in np.flatnonzero(self._wide):
             q[:, j] = self.representative(int(j), q[:, j], sy.NUMPY)

@@ -1,6 +1,5 @@
 r"""One round of the certified 1-D search of :mod:`qpik.analytic.locked_search` on a cell of its search variable:
-the isolation step of the error function of a branch over the cell (:func:`step_function`), with its tolerances and
-the branches' signs."""
+the isolation step of the error function of a branch over the cell (:func:`step_function`), with its tolerances."""
 
 from __future__ import annotations
 
@@ -25,18 +24,18 @@ NEAR_GAIN = 2.0
 r"""Safety factor on the first-order bound :math:`D\,|\nabla_p e_b|_1` (at a cell's centre) of the change of an error
 function of a near member between its ideal chain and the file's
 (:attr:`~qpik.analytic.locked_search.LockedSearch.deviation`)."""
-SIGNS = np.array([[1.0, 1.0], [1.0, -1.0], [-1.0, 1.0], [-1.0, -1.0]])
-"""Per branch b, the signs (σ3, σ12) of its subproblems' roots."""
 
 
-def step_function(model: ca.Function, gain: ca.Function | None = None, deviation: float = 0.0) -> ca.Function:
+def step_function(
+    model: ca.Function, signs: np.ndarray, gain: ca.Function | None = None, deviation: float = 0.0
+) -> ca.Function:
     r"""One round of the search on a cell of a branch (:func:`~qpik.algebra.enclosure.isolation_step` with
     :data:`SLACK`, :data:`WINDOW`, :data:`TOUCH`; gone too where :math:`v_b < 0` over the cell) from ``model``, the
     Taylor models in x of :math:`(e_b, v_b)` of inputs (T, q7, x, signs). Inputs: T (4, 4; the search's pose,
-    column-major), q7 (rad), the cell (3,): its ends a < b (rad) and its branch b (0-3, the signs (σ3, σ12) of its row
-    of :data:`SIGNS`). Output (5,): the window's ends (rad), the branch, the cell's fate, and the point of the window
-    where the model's linear part :math:`|f_0 + f_1 t|` is least (rad): its first three entries are the next cell's
-    where the window is that.
+    column-major), q7 (rad), the cell (3,): its ends a < b (rad) and its branch b (a row of ``signs``, (B, 2): the signs
+    of the branch's subproblems' roots). Output (5,): the window's ends (rad), the branch, the cell's fate, and the
+    point of the window where the model's linear part :math:`|f_0 + f_1 t|` is least (rad): its first three entries are
+    the next cell's where the window is that.
 
     A near member (``gain``, :math:`|\nabla_p e_b|_1` of the same inputs, and ``deviation`` D > 0, m): the file's
     roots are the roots of the ideal chain's :math:`e_b` at a pose whose position is at most D away, so its slack and
@@ -44,7 +43,7 @@ def step_function(model: ca.Function, gain: ca.Function | None = None, deviation
     where the file's :math:`e_b` has no root either, to first order in D) and its window :data:`NEAR_WINDOW`."""
     T, q7, cell = ca.SX.sym("T", 4, 4), ca.SX.sym("q7"), ca.SX.sym("cell", 3)
     a, b, k = ca.vertsplit(cell)
-    sign = sum((ca.fabs(k - i) < 0.5) * ca.DM(row) for i, row in enumerate(SIGNS))  # the signs of row k of SIGNS
+    sign = sum((ca.fabs(k - i) < 0.5) * ca.DM(row) for i, row in enumerate(signs))  # the signs of row k of signs
     c, s, r, lo, hi = model(T, q7, 0.5 * (a + b), sign, 0.5 * (b - a), 0.0, a, b)
     if gain is None:
         slack, window, touch = SLACK, WINDOW, TOUCH

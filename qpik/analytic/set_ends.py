@@ -1,12 +1,12 @@
 r"""A near member's feasible sets with their ends moved onto the file's own chain.
 
 A near member's sets (:mod:`qpik.analytic.locked_joint_intervals`) are isolated on its ideal chain, whose branches
-differ from the file's by the correction and polish of :mod:`qpik.analytic.locked_joint`: each end of a set is off
-from the file's by about that change of the joints over the slope of the joint at its level (milliradians on the
-Gen3 file, whose axes miss by 0.35 mm). :func:`refine_ends` moves each end to where the file's branch really enters
-or leaves the (shrunk) limits, on the file's answers: branch b at parameter t is *inside* when it is valid and every
-joint lies within the limits (:meth:`~qpik.analytic.solver.BranchSolver.solve_many`, every end of every branch moved
-at once, one compiled sweep per step).
+differ from the file's by the correction and polish of :mod:`qpik.analytic.locked_joint`: each end of a set is off from
+the file's by about that change of the joints over the slope of the joint at its level (milliradians on the Gen3 file,
+whose axes miss by 0.35 mm). :func:`refine_ends` moves each end to where the file's branch really enters or leaves the
+(shrunk) limits, on the file's answers: branch b at parameter t is *inside* when it is valid and every joint lies within
+the limits (:meth:`~qpik.analytic.branch_solver.BranchSolver.solve_many`, every end of every branch moved at once, one
+compiled sweep per step).
 
 The bracket of an end is first the values ``reach`` either side of it (the caller's estimate of how far it may move),
 else the middle of the gap beside it (outside) and the middle of its own interval (inside), each checked; an end
@@ -44,7 +44,7 @@ from qpik.core.progress import Progress
 if TYPE_CHECKING:
     from collections.abc import Callable
 
-    from qpik.analytic.solver import BranchSolver
+    from qpik.analytic.branch_solver import BranchSolver
 
 WIDTH = 1e-11
 """rad: the width of a bracket at which the end is its middle."""

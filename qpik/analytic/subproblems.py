@@ -86,6 +86,29 @@ def unit(x: Scalar, y: Scalar, ops: Ops) -> tuple[Scalar, Scalar, Scalar]:
     return angle(y, x, ops), ops.where(some, x * inv, 1.0), y * inv
 
 
+def line_root(a: Scalar, b: Scalar, c: Scalar, sign: Scalar, ops: Ops) -> tuple[Scalar, Scalar, Scalar]:
+    r"""The root of sign σ = ``sign`` of :math:`a\cos\theta + b\sin\theta = c` as cos θ, sin θ, and the relative
+    discriminant :math:`(r^2 - c^2)/r^2`, :math:`r^2 = a^2 + b^2` (negative: no root): :math:`\cos\theta = (ac -
+    \sigma b\sqrt{r^2 - c^2})/r^2`, :math:`\sin\theta = (bc + \sigma a\sqrt{r^2 - c^2})/r^2`, no angle formed (the
+    square root clamped at 0; subproblem 3 of Elias & Wen 2022 ends here)."""
+    r2 = a * a + b * b
+    disc = r2 - c * c
+    root = ops.safe_sqrt(disc)
+    inv = 1.0 / ops.fmax(r2, 1e-300)
+    return (a * c - sign * b * root) * inv, (b * c + sign * a * root) * inv, disc * inv
+
+
+def subproblem3(k: Vec, p: Vec, q: Vec, d2: Scalar, sign: Scalar, ops: Ops) -> tuple[Scalar, Scalar, Scalar]:
+    r"""The root of sign σ = ``sign`` of :math:`|R(k, \theta)\,p - q|^2 = d^2` (Elias & Wen 2022, subproblem 3; p and q
+    from one point of the axis, k a unit vector, ``d2`` = :math:`d^2`) as cos θ, sin θ and the relative discriminant
+    (:func:`line_root`): :math:`q\cdot R(k, \theta)\,p = (|p|^2 + |q|^2 - d^2)/2`, linear in cos θ and sin θ."""
+    kp, kq = sy.dot(k, p), sy.dot(k, q)
+    a = sy.dot(p, q) - kp * kq
+    b = sy.dot(q, sy.cross(k, p))
+    c = 0.5 * (sy.dot(p, p) + sy.dot(q, q) - d2) - kp * kq
+    return line_root(a, b, c, sign, ops)
+
+
 def subproblem2(ka: Vec, pa: Vec, kb: Vec, pb: Vec, ops: Ops, signs: Signs = BOTH) -> tuple[list[Vec], Scalar, Scalar]:
     r"""The two vectors :math:`v_\pm = R(k_a, \theta_a) p_a = R(k_b, \theta_b) p_b` (Elias & Wen 2022, subproblem 2;
     :math:`k_a, k_b` constant unit vectors, not parallel; :math:`|p_a| = |p_b|`).

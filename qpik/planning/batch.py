@@ -21,6 +21,7 @@ pass, e.g. a node's disk or memory; qpik's own errors are deterministic, hence t
 
 from __future__ import annotations
 
+import gc
 import multiprocessing
 import os
 import sys
@@ -167,7 +168,11 @@ def connect(scheduler: Any):
     try:
         return Client(scheduler, timeout=CONNECT), True
     except (OSError, ValueError, TypeError) as exc:  # no scheduler there, or not an address
-        raise InputError(f"scheduler: cannot reach the Dask scheduler at {scheduler} ({exc})") from None
+        reason = str(exc)
+    # The half-made client is in reference cycles: collected later, inside another client's start, its finaliser
+    # would wait for the lock that start holds (distributed's LoopRunner), a deadlock. Collected now, it closes.
+    gc.collect()
+    raise InputError(f"scheduler: cannot reach the Dask scheduler at {scheduler} ({reason})")
 
 
 def _dask(fn, args: tuple, items: list, scheduler: Any, retries: int) -> Iterator[tuple[int, Any]]:

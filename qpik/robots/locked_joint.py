@@ -109,12 +109,12 @@ def layout_words(chain: SerialChain) -> str:
     h, o = chain.axes(np.zeros(chain.dof))
     h = h / np.linalg.norm(h, axis=1, keepdims=True)
     n = len(h)
-    feet = [_feet(o[i], h[i], o[i + 1], h[i + 1]) for i in range(n - 1)]
+    normals = [feet(o[i], h[i], o[i + 1], h[i + 1]) for i in range(n - 1)]
     meet, apart, parallel = [], [], []
-    for i, f in enumerate(feet):
+    for i, f in enumerate(normals):
         name = f"{i + 1}-{i + 2}"
         if f is None:
-            parallel.append(f"{name} parallel ({_mm(_off_line(o[i + 1], o[i], h[i]))} apart)")
+            parallel.append(f"{name} parallel ({_mm(off_line(o[i + 1], o[i], h[i]))} apart)")
         elif (gap := float(np.linalg.norm(f[1] - f[0]))) <= MEET_TOL:
             meet.append(name)
         else:
@@ -122,9 +122,9 @@ def layout_words(chain: SerialChain) -> str:
     along = [
         f"axis {k + 1} {_mm(abs(d))}"
         for k in range(1, n - 1)
-        if feet[k - 1] is not None
-        and feet[k] is not None
-        and abs(d := float((feet[k][0] - feet[k - 1][1]) @ h[k])) > MEET_TOL
+        if normals[k - 1] is not None
+        and normals[k] is not None
+        and abs(d := float((normals[k][0] - normals[k - 1][1]) @ h[k])) > MEET_TOL
     ]
     parts = [f"axes {', '.join(meet)} meet"] if meet else []
     parts += [f"axes {x}" for x in apart + parallel]
@@ -133,7 +133,7 @@ def layout_words(chain: SerialChain) -> str:
     return ", ".join(parts)
 
 
-def _feet(p: np.ndarray, u: np.ndarray, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+def feet(p: np.ndarray, u: np.ndarray, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """Feet (on line 1, on line 2) of the common normal of lines p + t u and q + s v; None if parallel."""
     n = np.cross(u, v)
     if np.linalg.norm(n) < PARALLEL_TOL:
@@ -145,7 +145,7 @@ def _feet(p: np.ndarray, u: np.ndarray, q: np.ndarray, v: np.ndarray) -> tuple[n
     return p + t * u, q + s * v
 
 
-def _off_line(x: np.ndarray, p: np.ndarray, u: np.ndarray) -> float:
+def off_line(x: np.ndarray, p: np.ndarray, u: np.ndarray) -> float:
     """Distance (m) of the point x from the line p + t u (u unit)."""
     return float(np.linalg.norm(np.cross(x - p, u)))
 
@@ -161,25 +161,25 @@ def find_locked_joint(
     closed form serves the chain and the search's subproblem 3 about axis 3 degenerates)."""
     h, o = chain.axes(np.zeros(7))
     h = h / np.linalg.norm(h, axis=1, keepdims=True)
-    feet = [_feet(o[i], h[i], o[i + 1], h[i + 1]) for i in range(6)]
-    gap = {i: (np.inf if f is None else float(np.linalg.norm(f[1] - f[0]))) for i, f in enumerate(feet)}
+    normals = [feet(o[i], h[i], o[i + 1], h[i + 1]) for i in range(6)]
+    gap = {i: (np.inf if f is None else float(np.linalg.norm(f[1] - f[0]))) for i, f in enumerate(normals)}
     k = (lambda i: 8 - i) if reversed else (lambda i: i)  # the arm's number of the chain's axis i
 
     def pair(i: int) -> str:
         return f"axes {k(i + 1)}-{k(i + 2)}"
 
     for i in (0, 1, 4) if shoulder == 3 else (0, 4):
-        if feet[i] is None:
+        if normals[i] is None:
             return None, f"{pair(i)} are parallel"
         if gap[i] > tol:
             return None, f"{pair(i)} do not meet ({1000 * gap[i]:.4g} mm apart)"
-    S, W = feet[0][0], feet[4][0]
-    if shoulder == 2 and (d := _off_line(S, o[2], h[2])) <= NEAR_TOL:  # the closed form's; subproblem 3 degenerates
+    S, W = normals[0][0], normals[4][0]
+    if shoulder == 2 and (d := off_line(S, o[2], h[2])) <= NEAR_TOL:  # the closed form's; subproblem 3 degenerates
         return None, f"axis {k(3)} passes {_mm(d)} from the point where axes {k(1)}-{k(2)} meet (the closed form's)"
-    if shoulder == 3 and (d := _off_line(S, o[2], h[2])) > tol:
+    if shoulder == 3 and (d := off_line(S, o[2], h[2])) > tol:
         group = f"axes {k(1)}-{k(2)}-{k(3)}"
         return None, f"{group} do not meet in one point (axis {k(3)} passes {1000 * d:.4g} mm from it)"
-    if min(_off_line(S, o[3], h[3]), _off_line(W, o[3], h[3])) < 1e3 * MEET_TOL:
+    if min(off_line(S, o[3], h[3]), off_line(W, o[3], h[3])) < 1e3 * MEET_TOL:
         return None, "the shoulder or wrist point lies on axis 4"
     offsets = {(i + 1, i + 2): gap[i] for i in range(6) if gap[i] > tol and np.isfinite(gap[i])}
     home = chain.fk(np.zeros(7))
@@ -226,14 +226,14 @@ def ideal_chain(chain: SerialChain, reversed: bool = False, shoulder: int = 3) -
     misses = []
     for a, b, rows, name in ((0, 1, (1, 2, 3)[:shoulder], "wrist" if reversed else "shoulder"),
                              (4, 5, (5, 6), "shoulder" if reversed else "wrist")):  # fmt: skip
-        fa, fb = _feet(o[a], h[a], o[b], h[b])  # type: ignore[misc]
+        fa, fb = feet(o[a], h[a], o[b], h[b])  # type: ignore[misc]
         point = 0.5 * (fa + fb)
         if (gap := float(np.linalg.norm(fb - fa))) > MEET_TOL:
             misses.append(f"axes {n(a + 1)}-{n(b + 1)} pass {1e6 * gap:.4g} µm apart")
         for k in rows:
             v = point - o[k - 1]
             shift[k] = v - (v @ h[k - 1]) * h[k - 1]
-        if a == 0 and shoulder == 3 and (d := _off_line(fa, o[2], h[2])) > MEET_TOL:
+        if a == 0 and shoulder == 3 and (d := off_line(fa, o[2], h[2])) > MEET_TOL:
             misses.append(f"axis {n(3)} passes {1e6 * d:.4g} µm from the {name} point")
     F = chain.frames(np.zeros(7))
     joints = []

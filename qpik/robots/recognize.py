@@ -34,6 +34,7 @@ import numpy as np
 from qpik.core.errors import InputError
 from qpik.robots.chain import SerialChain
 from qpik.robots.dh import DHChain
+from qpik.robots.elbow_search import find_elbow_search
 from qpik.robots.locked_joint import NEAR_TOL, find_locked_joint, ideal_chain, layout_words, reversed_chain
 
 TOL = 1e-9
@@ -166,8 +167,7 @@ def recognize(chain: SerialChain, redundancy: str | None = None) -> tuple[Canoni
     searched = _searched(chain, directions) if wanted in (None, "locked_joint") else None
     if searched is None:
         return None, why
-    words = f"served by a certified 1-D search over q4 with q{1 if searched.reversed else 7} locked"
-    return replace(searched, notes=f"{words} (qpik.analytic.locked_search), no closed form: {why}"), ""
+    return replace(searched, notes=f"{searched.notes}, no closed form: {why}"), ""
 
 
 def _pattern_notes(kind: str, table: SerialChain, chain: SerialChain) -> str:
@@ -187,16 +187,30 @@ def _pattern_notes(kind: str, table: SerialChain, chain: SerialChain) -> str:
 
 
 def _searched(chain: SerialChain, directions: tuple[bool, ...]) -> Canonical | None:
-    """The family of the 1-D search (:mod:`qpik.analytic.locked_search`, ``"locked_search"``) in ``chain``: its
-    geometry (:func:`~qpik.robots.locked_joint.find_locked_joint` with ``shoulder=2``, exactly or within
-    :data:`~qpik.robots.locked_joint.NEAR_TOL`) with q1 locked (``True`` in ``directions``, the chain read from the
-    flange) or q7 locked (``False``), in that order; None where it holds in neither. ``table`` is the chain itself
-    (the search finds its ideal chain), ``exact`` whether the geometry holds without the tolerance."""
-    for rev in directions:
-        turned = reversed_chain(chain) if rev else chain
-        if find_locked_joint(turned, NEAR_TOL, rev, shoulder=2)[0] is not None:
-            exact = find_locked_joint(turned, reversed=rev, shoulder=2)[0] is not None
-            return Canonical("locked_search", chain, JointMap(np.ones(7), np.zeros(7)), exact=exact, reversed=rev)
+    """The family of the 1-D search (:mod:`qpik.analytic.locked_search`, ``"locked_search"``) in ``chain``, its
+    geometries in the order of :func:`qpik.analytic.search_geometry.search_for`: the locked-q7 geometry but for axis 3
+    (:func:`~qpik.robots.locked_joint.find_locked_joint` with ``shoulder=2``) exactly, then the geometry of
+    :func:`~qpik.robots.elbow_search.find_elbow_search`, then the first within
+    :data:`~qpik.robots.locked_joint.NEAR_TOL`, each with q1 locked (``True`` in ``directions``, the chain read from
+    the flange) or q7 locked (``False``), in that order; None where none holds. ``table`` is the chain itself (the
+    search finds its ideal chain), ``exact`` whether the geometry holds without the tolerance, ``notes`` the search in
+    words."""
+    identity = JointMap(np.ones(7), np.zeros(7))
+
+    def found(rev: bool, exact: bool, x: str, module: str) -> Canonical:
+        notes = f"served by a certified 1-D search over {x} with q{1 if rev else 7} locked (qpik.analytic.{module})"
+        return Canonical("locked_search", chain, identity, notes, exact=exact, reversed=rev)
+
+    turned = {rev: reversed_chain(chain) if rev else chain for rev in directions}
+    for rev, c in turned.items():
+        if find_locked_joint(c, reversed=rev, shoulder=2)[0] is not None:
+            return found(rev, True, "q4", "search_geometry.ShoulderSearch")
+    for rev, c in turned.items():
+        if find_elbow_search(c, rev)[0] is not None:
+            return found(rev, True, "q7" if rev else "q1", "search_geometry.ElbowSearch")
+    for rev, c in turned.items():
+        if find_locked_joint(c, NEAR_TOL, rev, shoulder=2)[0] is not None:
+            return found(rev, False, "q4", "search_geometry.ShoulderSearch, on its nearest ideal chain")
     return None
 
 
@@ -206,10 +220,7 @@ def _search(chain: SerialChain) -> str:
     found = _searched(chain, (True, False))
     if found is None:
         return ""
-    return (
-        f"; IK by a certified 1-D search over q4 with q{1 if found.reversed else 7} locked "
-        "(qpik.analytic.locked_search.LockedSearch; qpik.ik uses the closed form)"
-    )
+    return f"; IK by {found.notes.removeprefix('served by ')}; qpik.ik uses the closed form"
 
 
 def _locked(chain: SerialChain, directions: tuple[bool, ...]) -> tuple[Canonical | None, str]:

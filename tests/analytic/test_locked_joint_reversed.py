@@ -1,4 +1,5 @@
-"""The locked-joint closed form read from the flange (q1 locked; qpik.analytic.locked_joint.ReversedLockedJointSolver)
+"""The locked-joint closed form read from the flange (q1 locked;
+qpik.analytic.locked_joint_reversed.ReversedLockedJointSolver)
 on robosuite's Kinova Gen3 and Jaco, against MuJoCo's FK of the model files: the Gen3 file itself (a near member: its
 axes 5 and 7 pass 0.35 mm apart), the Gen3 file with a spherical wrist and the Jaco file (exact members, proved
 feasible sets); and the notes of the Gen3, the Jaco and the Sawyer (no closed form), with their real offsets. 200
@@ -14,7 +15,7 @@ from hypothesis import given, settings
 import qpik
 from qpik.analytic.api import closed_form_for
 from qpik.analytic.intervals import shrunk_limits
-from qpik.analytic.locked_joint import ReversedLockedJointSolver
+from qpik.analytic.locked_joint_reversed import ReversedLockedJointSolver
 from qpik.analytic.polish import RESIDUAL_TOL
 from qpik.core.errors import InputError
 from qpik.robots.locked_joint import reversed_chain
@@ -71,12 +72,14 @@ def test_the_gen3_notes_name_its_offsets_and_the_reversed_closed_form():
 
 def test_the_sawyer_notes_name_its_offsets_and_why_no_closed_form():
     """The Sawyer: axis 1 81 mm from axis 2, every other consecutive pair meets, no three in one point: no closed form,
-    served by the 1-D search with q1 locked; asked for q7, the same search with q7 locked."""
+    served by the 1-D search over q7 with q1 locked (its axes 5-4 and 3-2 meet); asked for q7, the search over q1 with
+    q7 locked (its axes 3-4 and 5-6 meet)."""
     robot = model_robot("robosuite_sawyer")
     assert robot.closed_form == "locked_search" and robot.canonical.reversed
     notes = robot.notes
     assert notes.startswith(
-        "served by a certified 1-D search over q4 with q1 locked (qpik.analytic.locked_search), no closed form: "
+        "served by a certified 1-D search over q7 with q1 locked (qpik.analytic.search_geometry.ElbowSearch), no "
+        "closed form: "
         "axes 2-3, 3-4, 4-5, 5-6 meet, axes 1-2 81 mm apart"
     )
     assert "along axis 2 192.5 mm, axis 3 400 mm, axis 4 168.5 mm, axis 5 400 mm, axis 6 136.3 mm" in notes
@@ -87,7 +90,9 @@ def test_the_sawyer_notes_name_its_offsets_and_why_no_closed_form():
     q = random_q(robot, 1, 3)[0]
     assert qpik.ik(robot, robot.fk(q), float(q[0])).param_name == "q1"
     q7 = qpik.load_robot(robot.model.path, redundancy="q7", meshes=MeshOptions(collision_only=True))
-    assert q7.closed_form is None and "not the locked-q7 closed form: axes 1-2 do not meet (81 mm apart)" in q7.notes
+    assert q7.closed_form == "locked_search"
+    assert "not the locked-q7 closed form: axes 1-2 do not meet (81 mm apart)" in q7.notes
+    assert q7.notes.startswith("served by a certified 1-D search over q1 with q7 locked")
 
 
 def test_the_q1_override():

@@ -14,13 +14,14 @@ import re
 
 import numpy as np
 import pytest
-from conftest import LARGE, SEEDS, model_robot, mujoco_poses, random_q
+from conftest import LARGE, MODELS, SEEDS, model_robot, mujoco_poses, random_q
 from hypothesis import given, settings
 
 import qpik
 from qpik.algebra import symbolic as sy
+from qpik.analytic import closed_form_for
 from qpik.analytic.locked_search import LockedSearch
-from qpik.analytic.search_step import SIGNS
+from qpik.analytic.search_geometry import ElbowSearch, ShoulderSearch, search_for
 from qpik.analytic.trig import EPS
 from qpik.core.errors import InputError, NoClosedFormError
 from qpik.robots.model_files import MeshOptions
@@ -32,7 +33,7 @@ _searches: dict[str, LockedSearch] = {}
 
 def search(key: str) -> LockedSearch:
     if key not in _searches:
-        _searches[key] = LockedSearch(model_robot(key).chain)
+        _searches[key] = ShoulderSearch(model_robot(key).chain)
     return _searches[key]
 
 
@@ -64,31 +65,33 @@ def test_the_search_finds_q_and_every_solution_reaches_the_pose_by_mujoco(key):
         assert apart.min() > 1e-8
 
 
+@pytest.mark.parametrize("key", ["sawyer_exact", "robosuite_sawyer"])
 @settings(max_examples=4, deadline=None)
 @given(seed=SEEDS)
-def test_every_sign_change_of_the_error_functions_has_its_solution(seed):
-    """On the exact Sawyer at a random pose and q1: every sign change of e_b between two points of a dense grid of q4
-    where the branch is valid (validity above 1e-6 at both) has a solution of branch b with q4 in that gap, and every
-    solution is a root: e_b within 1e-12 of 0 there."""
-    robot = model_robot("sawyer_exact")
-    s = search("sawyer_exact")
+def test_every_sign_change_of_the_error_functions_has_its_solution(key, seed):
+    """At a random pose (MuJoCo's FK) and q1: every sign change of e_b between two points of a dense grid of the search
+    variable where the branch is valid (validity above 1e-6 at both) has a solution of branch b there, and every
+    solution is a root (e_b within 1e-12 of 0): the search over q4 of the Sawyer unrounded, the search over q7 of
+    robosuite's Sawyer file (search_for's choice)."""
+    robot = model_robot(key)
+    s = search(key) if key == "sawyer_exact" else search_for(robot.chain)
     q = random_q(robot, 1, seed)[0]
-    T = robot.fk(q)
+    T = mujoco_poses(robot, q[None])[0]
     param = float(np.random.default_rng(seed).uniform(-np.pi, np.pi))
     sol = s.solve(T, param)
     assert sol.proved
     x = np.linspace(-np.pi, np.pi, GRID + 1)
     Ts = np.linalg.inv(T)
     R, p = sy.frame_of_batch(np.broadcast_to(Ts, (x.size, 4, 4)))
-    for b, (s3, s12) in enumerate(SIGNS):
-        e, valid, _ = s.error(R, p, param, x, (s3, s12), sy.NUMPY)
+    for b, signs in enumerate(s.signs):
+        e, valid, _ = s.error(R, p, param, x, tuple(signs), sy.NUMPY)
         e, valid = np.broadcast_to(e, x.shape), np.broadcast_to(valid, x.shape)
         change = (np.sign(e[:-1]) != np.sign(e[1:])) & (valid[:-1] > 1e-6) & (valid[1:] > 1e-6)
-        q4 = sol.q[sol.branch == b, 3]
+        roots = sol.q[sol.branch == b, s.variable_joint]
         for i in np.nonzero(change)[0]:
-            assert ((q4 >= x[i] - 1e-9) & (q4 <= x[i + 1] + 1e-9)).any(), (b, x[i], q4)
-        R1, p1 = sy.frame_of_batch(np.broadcast_to(Ts, (q4.size, 4, 4)))
-        at, _, _ = s.error(R1, p1, param, q4, (s3, s12), sy.NUMPY)
+            assert ((roots >= x[i] - 1e-9) & (roots <= x[i + 1] + 1e-9)).any(), (b, x[i], roots)
+        R1, p1 = sy.frame_of_batch(np.broadcast_to(Ts, (roots.size, 4, 4)))
+        at, _, _ = s.error(R1, p1, param, roots, tuple(signs), sy.NUMPY)
         assert np.all(np.abs(at) < 1e-12)
 
 
@@ -106,7 +109,7 @@ def test_the_reach_that_discards_cells_first_holds_every_configuration_and_bound
     R, p = sy.frame_of_batch(np.broadcast_to(Ts[0], (x.size, 4, 4)))
     top = s.reach(R, p, q[0, 0], x, sy.NUMPY)
     assert (top < 0).any() and (top > 0).any()
-    for s3, s12 in SIGNS:
+    for s3, s12 in ShoulderSearch.signs:
         _, valid, _ = s.error(R, p, q[0, 0], x, (s3, s12), sy.NUMPY)
         assert np.all(valid - EPS <= top + 1e-15)
 
@@ -133,7 +136,7 @@ def test_the_search_locks_q7_where_only_the_chain_itself_fits():
     closed form's geometry, no search), but not read forwards (axis 3 passes 11.75 mm from where axes 1-2 meet): q7 is
     locked, and the search finds q. The Panda fits neither way (its axis 3 through that point)."""
     robot = model_robot("gen3_spherical")
-    s = LockedSearch(robot.chain)
+    s = ShoulderSearch(robot.chain)
     assert s.locked == 7 and not s.reversed and s.exact
     q = random_q(robot, 20, 2)
     for qi, Ti in zip(q, mujoco_poses(robot, q)):
@@ -142,7 +145,7 @@ def test_the_search_locks_q7_where_only_the_chain_itself_fits():
         assert np.abs(mujoco_poses(robot, sol.q) - Ti).max() < 1e-10
     why = "q1 locked: axes 7-6 do not meet (88 mm apart); q7 locked: axis 3 passes 0 µm from the point where axes 1-2"
     with pytest.raises(NoClosedFormError, match=re.escape(why)):
-        LockedSearch(model_robot("erd_panda").chain)
+        ShoulderSearch(model_robot("erd_panda").chain)
 
 
 def test_baxter_says_it_is_searched_with_the_offsets_of_its_axes_by_mujoco():
@@ -181,6 +184,43 @@ def test_baxter_says_it_is_searched_with_the_offsets_of_its_axes_by_mujoco():
     assert [round(g * 1e3) for g in gaps[::2]] == [69, 69, 10]
 
 
+def test_the_sawyer_file_is_searched_over_q7_on_its_own_axes_and_agrees_with_its_near_search():
+    """robosuite's Sawyer: its axes 7-6 miss by 0.8 µm, so the search over q4 runs on its ideal chain (a near member),
+    but its axes 5-4 and 3-2 meet: search_for picks the search over q7 (ElbowSearch), exact. Over random q inside the
+    limits, its solutions are proved, hold q to 1e-9 rad, reach the pose to 1e-10 by MuJoCo's FK of the file, and are
+    the near search's solutions (each within 1e-8 rad of one of them, and as many)."""
+    robot = model_robot("robosuite_sawyer")
+    s = search_for(robot.chain)
+    assert isinstance(s, ElbowSearch) and s.exact and s.locked == 1 and s.variable_joint == 6
+    near = search("robosuite_sawyer")
+    assert not near.exact
+    q = random_q(robot, BATCH, 17)
+    for qi, Ti in zip(q, mujoco_poses(robot, q)):
+        sol = s.solve(Ti, qi[0])
+        assert sol.proved and 0 < len(sol.q) <= 16
+        assert angle_diff(sol.q, qi).max(axis=1).min() < 1e-9
+        assert np.abs(mujoco_poses(robot, sol.q) - Ti).max() < 1e-10
+        other = near.solve(Ti, qi[0]).q
+        apart = angle_diff(sol.q[:, None], other[None]).max(axis=2)
+        assert len(other) == len(sol.q) and apart.min(axis=1).max() < 1e-8 and apart.min(axis=0).max() < 1e-8
+
+
+def test_the_sawyer_asked_for_q7_is_searched_over_q1():
+    """The Sawyer file loaded with ``redundancy="q7"``: no closed form, but read forwards its axes 3-4 and 5-6 meet, so
+    the search over q1 with q7 locked serves it; qpik.ik holds random q (to 1e-9 rad) at their own q7, and every valid
+    slot reaches the pose to 1e-10 by MuJoCo's FK of the file."""
+    path, options = MODELS["robosuite_sawyer"]()
+    robot = qpik.load_robot(path, redundancy="q7", **options)
+    assert robot.closed_form == "locked_search" and not robot.canonical.reversed
+    assert robot.notes.startswith("served by a certified 1-D search over q1 with q7 locked")
+    q = random_q(robot, 10, 23)
+    for qi, Ti in zip(q, mujoco_poses(robot, q)):
+        sols = qpik.ik(robot, Ti, float(qi[6]))
+        assert sols.param_name == "q7"
+        assert np.where(sols.valid, angle_diff(sols.q, qi).max(axis=1), np.inf).min() < 1e-9
+        assert np.abs(mujoco_poses(robot, sols.q[sols.valid]) - Ti).max() < 1e-10
+
+
 # ---- behind qpik.ik: the "locked_search" family ---------------------------------
 
 API_BATCH = 2000 if LARGE else 40
@@ -188,22 +228,26 @@ API_BATCH = 2000 if LARGE else 40
 
 @pytest.mark.parametrize("key", ["robosuite_sawyer", "erd_baxter", "xarm7_offset"])
 def test_ik_holds_q_in_its_slot_and_every_valid_slot_reaches_the_pose_by_mujoco(key):
-    """qpik.ik on random q inside the limits (the Sawyer: q1 locked, its file a near member; Baxter's right arm: q1
-    locked, exact; the xArm7 with axis 3 moved 1 mm: q7 locked, exact): 16 finite slots; one valid slot holds q to
+    """qpik.ik on random q inside the limits (the Sawyer: q1 locked, its file served by the search over q7, exact;
+    Baxter's right arm: q1 locked, over q4, exact; the xArm7 with axis 3 moved 1 mm: q7 locked, over q4, exact): 16
+    finite slots; one valid slot holds q to
     1e-9 rad (modulo 2π), within limits, and it is the slot that redundancy_parameter names (from qpik's FK of q, not
     MuJoCo's pose) unless the pose has a singular slot (a root of two error functions, whose b round-off decides);
     every valid slot reaches the pose to 1e-10 by MuJoCo's FK of the file and holds the locked joint at the
-    parameter; the slots hold the search's roots as documented (the j-th of b in increasing q4 in slot 4b + j, those
-    past the fourth in the lowest slots left; singular where the search says a root is double), and on the exact
-    arms (Baxter, the xArm7) every regular root is a root of its e_b: e_b there over its slope (a forward difference)
+    parameter; the slots hold the search's roots as documented (the j-th of b in increasing search variable in slot
+    4b + j, those past the fourth in the lowest slots left; singular where the search says a root is double), and
+    every regular root is a root of its e_b: e_b there over its slope (a forward difference)
     below 1e-7 rad (e_b loses digits near some roots: on Baxter |e_b| 1e-7 at roots that reach their pose to
     1e-10)."""
     robot = model_robot(key)
     locked = 6 if key == "xarm7_offset" else 0
+    x = "q7" if key == "robosuite_sawyer" else "q4"
     assert robot.closed_form == "locked_search" and robot.canonical.reversed == (locked == 0)
-    assert robot.notes.startswith(f"served by a certified 1-D search over q4 with q{locked + 1} locked")
-    assert not robot.branch_functions
-    s = search(key)
+    assert robot.notes.startswith(f"served by a certified 1-D search over {x} with q{locked + 1} locked")
+    assert not robot.branch_functions and robot.canonical.exact
+    s = closed_form_for(robot).search
+    assert isinstance(s, ElbowSearch if key == "robosuite_sawyer" else ShoulderSearch) and s.exact
+    j = s.variable_joint
     q = random_q(robot, API_BATCH, 21)
     T = mujoco_poses(robot, q)
     param, branch = qpik.redundancy_parameter(robot, q)
@@ -221,7 +265,7 @@ def test_ik_holds_q_in_its_slot_and_every_valid_slot_reaches_the_pose_by_mujoco(
         assert np.all(angle_diff(sols.q[:, locked], pi) < 1e-15)
         sol = s.solve(Ti, float(pi))  # the documented numbering of the search's roots
         want, rank, spill = np.full(16, -1), [0] * 4, []
-        for i in sorted(range(len(sol.q)), key=lambda i: (sol.branch[i], sol.q[i, 3])):
+        for i in sorted(range(len(sol.q)), key=lambda i: (sol.branch[i], sol.q[i, j])):
             b = sol.branch[i]
             if rank[b] < 4:
                 want[4 * b + rank[b]] = i
@@ -233,12 +277,12 @@ def test_ik_holds_q_in_its_slot_and_every_valid_slot_reaches_the_pose_by_mujoco(
         assert angle_diff(sols.q[want >= 0], sol.q[want[want >= 0]]).max() < 1e-15
         np.testing.assert_array_equal(sols.singular[want >= 0], sol.double[want[want >= 0]])
         regular = ~sol.double
-        if robot.canonical.exact and regular.any():  # each regular root is a root of its e_b
+        if regular.any():  # each regular root is a root of its e_b
             Ts = np.linalg.inv(Ti) if locked == 0 else Ti
             R, p = sy.frame_of_batch(np.broadcast_to(Ts, (int(regular.sum()), 4, 4)))
-            signs = SIGNS[sol.branch[regular]]
+            signs = s.signs[sol.branch[regular]]
             e, slope = (
-                s.error(R, p, float(pi), sol.q[regular, 3] + h, (signs[:, 0], signs[:, 1]), sy.NUMPY)[0]
+                s.error(R, p, float(pi), sol.q[regular, j] + h, (signs[:, 0], signs[:, 1]), sy.NUMPY)[0]
                 for h in (0.0, 1e-6)
             )
             slope = (slope - e) / 1e-6

@@ -3,6 +3,7 @@ processes, also when a process dies; the context reaches every job."""
 
 from __future__ import annotations
 
+import gc
 import os
 from pathlib import Path
 
@@ -74,3 +75,20 @@ def test_a_job_that_kills_its_process_every_time_fails_after_the_allowed_failure
 def test_bad_arguments_are_named(kwargs, message):
     with pytest.raises(InputError, match=message):
         list(run_batch(_square, [1], **kwargs))
+
+
+def test_an_unreachable_scheduler_leaves_no_half_made_client_to_the_garbage_collector():
+    """A client that could not connect is closed before the error is raised: left to the garbage collector, its
+    finaliser would run at some later allocation, possibly inside another client's start, and wait there for the lock
+    that start holds (a deadlock seen in this suite). With automatic collection off, no unclosed client is left."""
+    from dask.distributed import Client
+
+    gc.collect()
+    gc.disable()
+    try:
+        with pytest.raises(InputError, match="scheduler: cannot reach the Dask scheduler"):
+            list(run_batch(_square, [1], scheduler="no-such-address"))
+        left = [o for o in gc.get_objects() if isinstance(o, Client) and o.status not in ("closed", "newly-created")]
+    finally:
+        gc.enable()
+    assert not left

@@ -38,7 +38,7 @@ def test_the_kuka_urdf_is_the_catalog_iiwa14():
     ("key", "redundancy", "why"),
     [
         ("xarm7_offset", "psi", "not srs: axes 1-2-3 do not intersect"),
-        ("robosuite_sawyer", "q7", "not the locked-q7 closed form: axes 1-2 do not meet (81 mm apart)"),
+        ("erd_tiago_pro", "q7", "not the locked-q7 closed form: axes 1-2 do not meet (20 mm apart)"),
     ],
 )
 def test_other_arms_say_why(key, redundancy, why):
