@@ -113,8 +113,8 @@ class AnalyticSolver(BranchSolver):
         return Branches([self.robot_row(row, ops) for row in br.q], br.valid, br.singular)
 
     def one_branch(self, R: Mat, p: Vec, param: Scalar, signs: list[Scalar], ops: Ops) -> Branches | None:
-        """The branch of :meth:`branches` whose subproblems take the roots ``signs`` (a row of :data:`SIGNS` of the
-        family, or symbols) alone, for a family whose single-pose kernel loops over its branches (:meth:`checked`);
+        """The branch of :meth:`branches` whose subproblems take the roots ``signs`` (a row of :attr:`branch_signs`, or
+        symbols) alone, for a family whose single-pose kernel loops over its branches (:meth:`checked`);
         None (here) where all branches are one expression."""
         return None
 
