@@ -6,8 +6,11 @@ with the notation of :mod:`qpik.analytic.locked_joint` (:math:`G = T M^{-1} e_7^
 (:math:`R_4 = R(h_1,q_1)\cdots R(h_4, q_4)`), exists iff axis 6 turned by it keeps its angle to axis 5: the **error
 function**
 
-.. math:: e_b(x) = (R_4 h_5)\cdot(R_G h_6) - h_5\cdot h_6,
+.. math:: e_b(x) = (R_4 h_5)\cdot(R_G h_6) - h_5\cdot h_6
+   = \big(R(h_3, q_3) R(h_4, q_4) h_5\big)\cdot\big(R(h_2, q_2)^T R(h_1, q_1)^T R_G h_6\big) - h_5\cdot h_6,
 
+evaluated in the second form: a Taylor model's remainder grows with every rotation nested inside another, and the
+rotations split between the two sides halve the depth (fewer cells to isolate the roots);
 and q5, q6 then follow by subproblem 1 (:meth:`WristSearch.wrist`). They differ in how joints 1-4 follow from the
 search variable x, by a subproblem 3 and a subproblem 2 (Elias & Wen 2022), each of two roots: branch
 :math:`b = 2\,[\sigma_{\text{3}} < 0] + [\sigma_{\text{2}} < 0]` (4 error functions of x), valid where both
@@ -113,19 +116,16 @@ class WristSearch(LockedSearch):
         h = self.h
         (c1, s1), (c2, s2), (c3, s3), (c4, s4) = trig
 
-        def turn(y: Vec) -> Vec:
-            """R_4 y = R(h1, q1) R(h2, q2) R(h3, q3) R(h4, q4) y."""
-            y = rotate(h[3], c4, s4, y)
-            return rotate(h[0], c1, s1, rotate(h[1], c2, s2, rotate(h[2], c3, s3, y)))
+        def upper(y: Vec) -> Vec:
+            """R(h2, q2)^T R(h1, q1)^T y."""
+            return rotate(h[1], c2, sy.neg(s2), rotate(h[0], c1, sy.neg(s1), y))
 
         def back(y: Vec) -> Vec:
             """R_4^T y."""
-            y = rotate(h[0], c1, sy.neg(s1), y)
-            y = rotate(h[2], c3, sy.neg(s3), rotate(h[1], c2, sy.neg(s2), y))
-            return rotate(h[3], c4, sy.neg(s4), y)
+            return rotate(h[3], c4, sy.neg(s4), rotate(h[2], c3, sy.neg(s3), upper(y)))
 
         h6 = sy.matvec(RG, h[5])
-        e = sy.dot(turn(h[4]), h6) - self.h56
+        e = sy.dot(rotate(h[2], c3, s3, rotate(h[3], c4, s4, h[4])), upper(h6)) - self.h56
         _, c5, s5 = subproblem1(h[4], h[5], back(h6), ops)
         end = rotate(h[4], c5, sy.neg(s5), back(sy.matvec(RG, self.a6)))
         _, c6, s6 = subproblem1(h[5], self.a6, end, ops)
