@@ -22,6 +22,7 @@ _SOLVERS = {  # family -> (solver, its feasible sets), each as (module, class or
     "locked_joint": (("qpik.analytic.locked_joint_reversed", "locked_joint_solver"),
                      ("qpik.analytic.locked_joint_intervals", "Q7Intervals")),
     "locked_search": (("qpik.analytic.search_solver", "SearchSolver"), ("qpik.analytic.search_sets", "SearchSets")),
+    "locked_general": (("qpik.analytic.general_solver", "GeneralSolver"), ("qpik.analytic.search_sets", "SearchSets")),
 }  # fmt: skip
 SYMBOL = {"delta": "δ", "psi": "ψ"}
 """The Greek letter of each redundancy parameter name (:attr:`IKSolutions.param_name`)."""

@@ -1,19 +1,22 @@
-r"""Feasible sets of the locked joint of the 1-D search's arms (:mod:`qpik.analytic.search_solver`), sampled and not
+r"""Feasible sets of the locked joint of the arms whose slots are found per pose and locked angle (the 1-D search's,
+:mod:`qpik.analytic.search_solver`; the general 6-R's, :mod:`qpik.analytic.general_solver`), sampled and not
 proved.
 
-A slot of :class:`~qpik.analytic.search_solver.SearchSolver` changes its state (valid with every joint inside the
-limits, or not) where one of its joints reaches a limit, where its root of the error function appears or vanishes
-(a fold, :math:`e_b = \partial e_b/\partial q_4 = 0`, or the edge of its validity), or where it takes another root
-(one below it in q4 appears or vanishes, or crosses q4 = ±π). These values are roots of 2-D systems in the locked
-angle and q4, which no module isolates. :class:`SearchSets` therefore samples the search's answers at
-:data:`SAMPLES` values of the locked joint per 2π over its (shrunk) limits, and moves every change of a slot's state
-between two neighbouring samples onto the answers to 1e-11 rad, sampling again beside each change and wherever the
-slots' validity differs between two samples (:func:`qpik.analytic.set_ends.resample`). A slot that enters and
-leaves the limits between two samples where no slot's validity differs (a stretch narrower than 2π/:data:`SAMPLES`,
-away from every other change) is not seen, so the answers are not proved (``proved`` False) and an empty set proves
-nothing. The values where a slot is singular are not listed.
+A slot of a :class:`~qpik.analytic.slot_solver.SlotSolver` changes its state (valid with every joint inside the
+limits, or not) where one of its joints reaches a limit, where its solution appears or vanishes (a fold, where two
+meet; for the search, :math:`e_b = \partial e_b/\partial x = 0` or the edge of its validity), or where it takes
+another solution (one below it in the slots' order appears or vanishes, or crosses ±π). For the search these values
+are roots of 2-D systems in the locked angle and x, which no module isolates; for the general 6-R they are where the
+eigenproblem's real eigenvalues meet. :class:`SearchSets` therefore samples the solver's answers at :data:`SAMPLES`
+values of the locked joint per 2π over its (shrunk) limits, and moves every change of a slot's state between two
+neighbouring samples onto the answers to 1e-11 rad, sampling again beside each change and wherever the slots'
+validity differs between two samples (:func:`qpik.analytic.set_ends.resample`). A slot that enters and leaves the
+limits between two samples where no slot's validity differs (a stretch narrower than 2π/:data:`SAMPLES`, away from
+every other change) is not seen, so the answers are not proved (``proved`` False) and an empty set proves nothing.
+The values where a slot is singular are not listed.
 
-Each sample and each step of a change is one search: seconds per pose, with progress lines on stderr after two.
+Each sample and each step of a change is one solve (milliseconds): seconds per pose, with progress lines on stderr
+after two.
 """
 
 from __future__ import annotations
@@ -26,20 +29,20 @@ from qpik.analytic.intervals import FeasibleIntervals, Interval, shrunk_limits
 from qpik.analytic.set_ends import resample
 
 if TYPE_CHECKING:
-    from qpik.analytic.search_solver import SearchSolver
+    from qpik.analytic.slot_solver import SlotSolver
 
 SAMPLES = 512
 """Values of the locked joint per 2π at which every slot's state is sampled."""
 
 
 class SearchSets:
-    """The feasible sets of a :class:`~qpik.analytic.search_solver.SearchSolver`'s locked joint (a ``ParameterSets``;
+    """The feasible sets of a :class:`~qpik.analytic.slot_solver.SlotSolver`'s locked joint (a ``ParameterSets``;
     module docstring)."""
 
     proved = False
     """Sampled: never proved."""
 
-    def __init__(self, solver: SearchSolver):
+    def __init__(self, solver: SlotSolver):
         self._solver = solver
         self._last: tuple[bytes, float, FeasibleIntervals] | None = None
         """The last pose (bytes), margin and answer."""
@@ -65,7 +68,7 @@ class SearchSets:
         if lo > hi:
             return none
         span = locked_span(lo, hi)
-        words = f"the feasible {s.param_name} sets of {s.robot.name} (1-D search)"
+        words = f"the feasible {s.param_name} sets of {s.robot.name} (sampled)"
         return resample(none, s, T, margin, [span] * len(s.branch_ids), 2.0 * np.pi / SAMPLES, words, renumbered=True)
 
 

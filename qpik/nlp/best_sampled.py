@@ -1,11 +1,12 @@
-r"""``qpik.solve_best`` on the arms of the 1-D search (:mod:`qpik.analytic.search_solver`: the Sawyer, Baxter):
+r"""``qpik.solve_best`` on the arms whose slots are found per pose and locked angle (the 1-D search's,
+:mod:`qpik.analytic.search_solver`: the Sawyer, Baxter; the general 6-R's, :mod:`qpik.analytic.general_solver`):
 sampled along the locked joint and polished, never certified.
 
-Their slots are roots found by a search, not expressions of the locked angle t, so neither the level sets nor the
-search over expressions with its certificate (:mod:`qpik.nlp.best_search`) applies. Instead, per pose:
+Their slots are found per pose and locked angle, not expressions of the locked angle t, so neither the level sets nor
+the search over expressions with its certificate (:mod:`qpik.nlp.best_search`) applies. Instead, per pose:
 
 1. every slot's answer at the multiples of 2π/:data:`SAMPLES` inside the locked joint's limits and at the limits
-   themselves (one search each, :meth:`~qpik.analytic.search_solver.SearchSolver.solve_many`);
+   themselves (one solve each, :meth:`~qpik.analytic.slot_solver.SlotSolver.solve_many`);
 2. at every sample where a searched slot is valid with every joint inside the limits, the objective and the clearances
    (:meth:`qpik.scene.evaluator.Evaluator.value_rows`); a sample is feasible where the clearances are ≥ d_s;
 3. the feasible samples that are local minima of their slot's objective along t (a neighbour that is not feasible
@@ -16,7 +17,7 @@ search over expressions with its certificate (:mod:`qpik.nlp.best_search`) appli
    the fold; held, it climbs down to the minimum beside its start, whatever slot that is;
 4. the best of the feasible samples and of the polished points that reach the pose inside the limits and clear is
    the answer; a polished point's slot is the search's for its q
-   (:meth:`~qpik.analytic.search_solver.SearchSolver.parameter`).
+   (:meth:`~qpik.analytic.slot_solver.SlotSolver.parameter`).
 
 A basin of the objective narrower than the spacing, or a feasible stretch of a slot between two samples, can be
 missed: the answer is the best point found (``certified`` False). Where no sample is feasible and no polish reaches a
@@ -42,7 +43,7 @@ from qpik.nlp.best_result import BestResult, BranchRows
 from qpik.nlp.full import REACHED, full_nlp, solve_from
 
 if TYPE_CHECKING:
-    from qpik.analytic.search_solver import SearchSolver
+    from qpik.analytic.slot_solver import SlotSolver
     from qpik.scene.scene import Scene
 
 SAMPLES = 512
@@ -66,7 +67,7 @@ class PoseProblem:
     base frame, the reference ``ref`` (n,) rad and the public ids of the slots searched."""
 
     scene: Scene
-    solver: SearchSolver
+    solver: SlotSolver
     T: np.ndarray
     ref: np.ndarray
     branches: list[int]
@@ -89,7 +90,7 @@ class Samples:
 def solve_sampled(scene: Scene, T: np.ndarray, q_ref: np.ndarray, branches: list[int]) -> list[BestResult]:
     """The answers for the poses ``T`` (N, 4, 4), base frame, with references ``q_ref`` (N, n) rad, searching the slots
     ``branches`` (public ids) of ``scene``'s arm (module docstring)."""
-    solver: SearchSolver = closed_form_for(scene.robot)
+    solver: SlotSolver = closed_form_for(scene.robot)
     with solver.lock:
         return [_one(PoseProblem(scene, solver, Tk, ref, branches)) for Tk, ref in zip(T, q_ref)]
 
@@ -138,7 +139,7 @@ def _sample(pp: PoseProblem) -> Samples:
     with the objective and the clearances where it is valid inside the limits and searched."""
     robot, solver = pp.scene.robot, pp.solver
     t = grid(float(robot.q_min[solver.locked]), float(robot.q_max[solver.locked]))
-    said = Progress(f"qpik.solve_best on {robot.name}: {solver.param_name} samples (1-D search)", len(t))
+    said = Progress(f"qpik.solve_best on {robot.name}: {solver.param_name} samples", len(t))
     parts = []
     for part in np.array_split(t, -(-len(t) // CHUNK)):
         parts.append(solver.solve_many(pp.T, part))

@@ -31,6 +31,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from qpik.algebra.loop6r import Loop6R
 from qpik.core.errors import InputError
 from qpik.robots.chain import SerialChain
 from qpik.robots.dh import DHChain
@@ -129,7 +130,8 @@ class Canonical:
 
 REDUNDANCY = {"psi": "srs", "delta": "offset_shoulder", "q7": "locked_joint", "q1": "locked_joint"}
 """The redundancy parameters a user can ask for (``load_robot(..., redundancy=)``) and their family (q7, q1: the
-locked-joint closed form, else the 1-D search of the same locked joint, ``"locked_search"``)."""
+locked-joint closed form, else the 1-D search of the same locked joint, ``"locked_search"``, else the general 6-R
+left, ``"locked_general"``)."""
 
 
 def recognize(chain: SerialChain, redundancy: str | None = None) -> tuple[Canonical | None, str]:
@@ -137,8 +139,9 @@ def recognize(chain: SerialChain, redundancy: str | None = None) -> tuple[Canoni
     then q7 locked, then q1 locked (the chain read from the flange; :mod:`qpik.robots.locked_joint`), exactly or as a
     near member (its axes miss by at most
     :data:`~qpik.robots.locked_joint.NEAR_TOL`: the closed form of its ideal chain, polished on its own), then the
-    1-D search's geometry (``"locked_search"``, q1 locked, then q7; :func:`_searched`), whose notes say that it is
-    served by the search and why there is no closed form. ``redundancy`` (a key of :data:`REDUNDANCY`) tries only the
+    1-D search's geometry (``"locked_search"``, q1 locked, then q7; :func:`_searched`), then a general 6-R chain left
+    with q7 or q1 locked (``"locked_general"``, :func:`_general`), whose notes say what serves it and why there is no
+    closed form. ``redundancy`` (a key of :data:`REDUNDANCY`) tries only the
     family of that parameter (and for q1 or q7, the search with that joint locked)."""
     if redundancy is not None and redundancy not in REDUNDANCY:
         raise InputError(f"redundancy: expected one of {', '.join(REDUNDANCY)} or None, got {redundancy!r}"[:200])
@@ -164,10 +167,14 @@ def recognize(chain: SerialChain, redundancy: str | None = None) -> tuple[Canoni
             return found, ""
         reasons.append(why)
     why = f"{layout_words(chain)}; " + "; ".join(reasons)
-    searched = _searched(chain, directions) if wanted in (None, "locked_joint") else None
-    if searched is None:
+    if wanted not in (None, "locked_joint"):
         return None, why
-    return replace(searched, notes=f"{searched.notes}, no closed form: {why}"), ""
+    found = _searched(chain, directions)
+    if found is None:
+        found, general = _general(chain, directions[::-1])
+        if found is None:
+            return None, f"{why}; {general}"
+    return replace(found, notes=f"{found.notes}, no closed form: {why}"), ""
 
 
 def _pattern_notes(kind: str, table: SerialChain, chain: SerialChain) -> str:
@@ -212,6 +219,28 @@ def _searched(chain: SerialChain, directions: tuple[bool, ...]) -> Canonical | N
         if find_locked_joint(c, NEAR_TOL, rev, shoulder=2)[0] is not None:
             return found(rev, False, "q4", "search_geometry.ShoulderSearch, on its nearest ideal chain")
     return None
+
+
+def _general(chain: SerialChain, directions: tuple[bool, ...]) -> tuple[Canonical | None, str]:
+    """The general family (``"locked_general"``, :mod:`qpik.analytic.general_solver`) in ``chain``: q7 locked
+    (``False`` in ``directions``) or q1 (``True``, the chain read from the flange), in that order, where a window of
+    the elimination of joints 1-6 holds (:meth:`qpik.algebra.loop6r.Loop6R.of`); None and the reasons otherwise."""
+    reasons = []
+    for rev in directions:
+        turned = reversed_chain(chain) if rev else chain
+        h, o = turned.axes(np.zeros(7))
+        loop, why = Loop6R.of(h[:6], o[:6])
+        locked = 1 if rev else 7
+        if loop is not None:
+            w = loop.window
+            joints = "-".join(str(8 - (j + 1) if rev else j + 1) for j in (*w.left, w.gone))
+            notes = (f"served with q{locked} locked by elimination of the 6-R chain left to one eigenproblem of size "
+                     f"24 (Raghavan & Roth 1993; Manocha & Canny 1994; joints {joints}; qpik.algebra.loop6r), each "
+                     "solution polished on the file's chain, not proved (qpik.analytic.general_solver)")  # fmt: skip
+            identity = JointMap(np.ones(7), np.zeros(7))
+            return Canonical("locked_general", chain, identity, notes, reversed=rev), ""
+        reasons.append(f"q{locked} locked: {why}")
+    return None, "no elimination: " + "; ".join(reasons)
 
 
 def _search(chain: SerialChain) -> str:

@@ -28,7 +28,7 @@ if TYPE_CHECKING:
 
     from qpik.robots.recognize import Canonical
 
-ClosedForm = Literal["offset_shoulder", "srs", "locked_joint", "locked_search"] | None
+ClosedForm = Literal["offset_shoulder", "srs", "locked_joint", "locked_search", "locked_general"] | None
 
 
 @dataclass(frozen=True)
@@ -61,7 +61,8 @@ class Robot:
         closed_form: which analytic IK applies: ``"offset_shoulder"`` (δ),
             ``"srs"`` (ψ), ``"locked_joint"`` (q7 locked, or q1 where ``canonical.reversed``), ``"locked_search"``
             (q1 or q7 locked, no closed form: the branches found by a certified 1-D search,
-            :mod:`qpik.analytic.locked_search`) or ``None``.
+            :mod:`qpik.analytic.locked_search`), ``"locked_general"`` (q7 or q1 locked, a general 6-R chain left: its
+            branches from one eigenproblem, :mod:`qpik.analytic.general_solver`) or ``None``.
         source: where the numbers come from.
         model: the MJCF/URDF model of a loaded robot (:func:`qpik.robots.loader.load_robot`),
             or None for a catalog arm (whose MuJoCo model is the twin).
@@ -91,10 +92,10 @@ class Robot:
     @property
     def branch_functions(self) -> bool:
         """Whether the arm's analytic IK gives its branches as expressions of the pose and parameter (every family but
-        ``"locked_search"``, whose branches are roots of a search): what the path NLP and DP of
-        :func:`qpik.plan_self_motion` and :func:`qpik.solve_best` differentiate. Without, they treat the arm as one of
-        no closed form."""
-        return self.closed_form is not None and self.closed_form != "locked_search"
+        ``"locked_search"`` and ``"locked_general"``, whose branches are found per pose and parameter): what the path
+        NLP and DP of :func:`qpik.plan_self_motion` and :func:`qpik.solve_best` differentiate. Without, they treat the
+        arm as one of no closed form."""
+        return self.closed_form is not None and self.closed_form not in ("locked_search", "locked_general")
 
     @property
     def dof(self) -> int:

@@ -143,7 +143,10 @@ class Page:
         kind = {"srs": "S-R-S, closed form in the arm angle ψ", "offset_shoulder": "offset shoulder, closed form in δ",
                 "locked_joint": f"closed form with {symbol} locked",
                 "locked_search": f"no closed form: qpik.ik's branches by a 1-D search at {symbol} (its sampled "
-                                 "feasible sets and best answer take seconds a pose: not drawn here)"}  # fmt: skip
+                                 "feasible sets and best answer take seconds a pose: not drawn here)",
+                "locked_general": f"a general 6-R with {symbol} locked: qpik.ik's branches from one eigenproblem "
+                                  "(its sampled feasible sets and best answer take seconds a pose: not drawn "
+                                  "here)"}  # fmt: skip
         what = kind.get(robot.closed_form or "", "no closed form")
         gui.add_markdown(f"**{robot.name}** ({robot.dof} joints): {what}")
         with gui.add_folder("Branches", visible=branches):

@@ -1,5 +1,5 @@
-"""qpik.solve_best on the 1-D search's arms (qpik.nlp.best_sampled): Baxter's right arm and the Sawyer, files from
-example-robot-data and robosuite.
+"""qpik.solve_best on the arms whose slots are found per pose (qpik.nlp.best_sampled): Baxter's right arm and the Sawyer
+(the 1-D search), the TIAGo Pro's arm (the general 6-R), files from example-robot-data and robosuite.
 
 The reference is independent of the module: every slot of qpik.ik at a dense grid of the locked joint (this file's
 own, 2001 values over its limits; 8001 in the large run), the margin or the distance computed here from the
@@ -23,6 +23,7 @@ from qpik.scene import Scene
 DENSE = 8001 if LARGE else 1001
 CASES = [("erd_baxter", k) for k in range(20 if LARGE else 1)]
 CASES += [("robosuite_sawyer", k) for k in range(6 if LARGE else 0)]
+CASES += [("erd_tiago_pro", k) for k in range(10 if LARGE else 1)]
 """The Sawyer (a near member: a search of milliseconds at the suite's -O0, 1,001 of them) in the large run only."""
 
 

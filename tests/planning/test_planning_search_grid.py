@@ -1,7 +1,8 @@
 """The DP's grid of an arm whose branches the 1-D search finds (qpik.planning.search_grid) on robosuite's Sawyer:
 every state reaches its pose by MuJoCo's FK of the file at its grid value of q1, its feasibility is the joint limits and
 the clearance by qpik.geometry's distances (numpy), its objective the joint-limit margin computed here; the DP on it
-equals the minimum found by enumerating every sequence of states; plan_self_motion uses it and follows the path."""
+equals the minimum found by enumerating every sequence of states; plan_self_motion uses it and follows the path, there
+and on example-robot-data's TIAGo Pro arm (the general 6-R's family)."""
 
 from __future__ import annotations
 
@@ -72,19 +73,22 @@ def test_the_dp_on_the_search_grid_equals_the_brute_force_minimum():
     assert res.failure is None and res.cost == pytest.approx(c[live].min(), abs=1e-12)
 
 
-def test_plan_self_motion_on_the_sawyer_runs_the_dp_and_follows_the_path():
-    robot = model_robot(SAWYER)
+@pytest.mark.parametrize("key, locked", [(SAWYER, "q1"), ("erd_tiago_pro", "q7")])
+def test_plan_self_motion_runs_the_dp_and_follows_the_path(key, locked):
+    """On the Sawyer (the 1-D search) and example-robot-data's TIAGo Pro arm (the general 6-R with q7 locked)."""
+    robot = model_robot(key)
     _, path = _path(robot, 8, 13)
     plan = qpik.plan_self_motion(robot, path, "margin", options=qpik.PlanOptions(mujoco=False, resolution=16))
     assert plan.status in ("optimal", "dp") and plan.ok, plan.summary()
-    assert plan.param_name == "q1" and "dp" in plan.timings
+    assert plan.param_name == locked and "dp" in plan.timings
     dp_plan = plan if plan.status == "dp" else plan.dp_plan
     assert dp_plan.label == "DP" and plan.cost <= dp_plan.cost
     np.testing.assert_allclose(mujoco_poses(robot, plan.q), path, atol=1e-9)
     assert robot.within_limits(plan.q).all()
-    np.testing.assert_allclose(plan.param, (plan.q[:, 0] + np.pi) % (2 * np.pi) - np.pi, atol=1e-15)
+    j = int(locked[1:]) - 1
+    np.testing.assert_allclose(plan.param, (plan.q[:, j] + np.pi) % (2 * np.pi) - np.pi, atol=1e-15)
     for k in range(len(path)):  # each waypoint's slot holds its configuration
-        sols = qpik.ik(robot, path[k], plan.q[k, 0])
+        sols = qpik.ik(robot, path[k], plan.q[k, j])
         assert np.abs((sols.q[plan.branch[k]] - plan.q[k] + np.pi) % (2 * np.pi) - np.pi).max() < 1e-9
     assert (np.abs(np.diff(plan.q, axis=0)) <= 0.1 + 1e-9).all()
 

@@ -38,11 +38,12 @@ def test_the_kuka_urdf_is_the_catalog_iiwa14():
     ("key", "redundancy", "why"),
     [
         ("xarm7_offset", "psi", "not srs: axes 1-2-3 do not intersect"),
-        ("erd_tiago_pro", "q7", "not the locked-q7 closed form: axes 1-2 do not meet (20 mm apart)"),
+        ("erd_tiago_pro", "delta", "not offset-shoulder: axes 1-2-3 do not intersect (offsets 0.02 m)"),
     ],
 )
 def test_other_arms_say_why(key, redundancy, why):
-    """Asked for a parameter of no family they fit (neither a closed form nor the 1-D search), arms say why."""
+    """Asked for a parameter of a family they do not fit, arms say why (the TIAGo Pro's own family is the general one,
+    :mod:`qpik.analytic.general_solver`)."""
     path, options = (MODELS | MADE)[key]()
     robot = qpik.load_robot(path, redundancy=redundancy, **options)
     assert robot.closed_form is None and why in robot.notes
