@@ -10,11 +10,11 @@ continuous joint unlimited, a site ``tip`` at the flange), which :func:`qpik.loa
 family is recognised from the axes, as for any file. Every arm's FK is checked against ssik's own ``fk`` before it is
 used (the rows' notes give the agreement).
 
-:func:`ssik_rows`: for each such arm with a closed form or the 1-D search, poses ``fk(q)`` for configurations drawn
-inside its limits (seed 3), ``qpik.ik`` (every branch at the configuration's own parameter) and ssik's ``solve(T)``
-(its prebuilt solver of the same arm: it samples the self-motion, a larger question, and the issue's reference for
-speed), each answer checked by qpik's FK, then timed interleaved. The files are written to a temporary folder that is
-removed when the rows are done.
+:func:`ssik_rows`: for each such arm of a family (a closed form, the 1-D search or the general 6-R), poses ``fk(q)`` for
+configurations drawn inside its limits (seed 3), ``qpik.ik`` (every branch at the configuration's own parameter) and
+ssik's ``solve(T)`` (its prebuilt solver of the same arm: it samples the self-motion, a larger question, and the issue's
+reference for speed), each answer checked by qpik's FK, then timed interleaved. The files are written to a temporary
+folder that is removed when the rows are done.
 """
 
 from __future__ import annotations
@@ -103,7 +103,7 @@ def fk_agreement(robot: Robot, ssik_arm: SsikArm, q: np.ndarray) -> float:
 
 
 def ssik_rows(repeat: int, block: int, row: Callable[..., Row]) -> list[Row]:
-    """The rows of every arm of :func:`seven_r_arms` with a closed form or the 1-D search (module docstring);
+    """The rows of every arm of :func:`seven_r_arms` of a family (module docstring);
     ``row(label, seconds, ref, note)`` makes one."""
     rows: list[Row] = []
     with tempfile.TemporaryDirectory() as folder:

@@ -1,7 +1,7 @@
 """qpik.bench.ssik_arms: the 7-R arms that ssik ships, written as MJCF files from ssik's own kinematics and loaded as a
-user's file: MuJoCo's FK of the file is ssik's ``fk``; an arm with a closed form or the 1-D search gets every
-configuration back from ``qpik.ik`` at its own parameter, each valid branch reaching the pose by MuJoCo's FK; one
-without says why. Three arms by default (an S-R-S, a locked-q7 and one of no family), all of them in the large run."""
+user's file: MuJoCo's FK of the file is ssik's ``fk``; an arm of a family gets every configuration back from
+``qpik.ik`` at its own parameter, each valid branch reaching the pose by MuJoCo's FK; one without says why. Three arms
+by default (an S-R-S, a locked-q7 and the YuMi, of the general 6-R family), all of them in the large run."""
 
 from __future__ import annotations
 
