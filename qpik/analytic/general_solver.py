@@ -64,14 +64,12 @@ class GeneralSolver(SlotSolver):
     """
 
     kind = "locked_general"
+    family = "the general 6-R family"
     param_name = "q7"
 
     def __init__(self, robot: Robot, sets: Callable[[BranchSolver], ParameterSets] | None = None):
         super().__init__(robot, sets)
-        canonical = robot.canonical
-        if canonical is None or canonical.kind != self.kind:
-            raise NoClosedFormError(f"{robot.name} is not of the general 6-R family")
-        self.reversed = canonical.reversed
+        self.reversed = robot.canonical.reversed
         self.chain = reversed_chain(robot.chain) if self.reversed else robot.chain
         """The arm's chain in the search's order (read from the flange where :attr:`reversed`)."""
         h, o = self.chain.axes(np.zeros(7))

@@ -36,7 +36,6 @@ from qpik.analytic.branch_solver import Solved
 from qpik.analytic.locked_search import SearchSolutions
 from qpik.analytic.search_geometry import search_for
 from qpik.analytic.slot_solver import BRANCHES, SlotSolver, ranked
-from qpik.core.errors import NoClosedFormError
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -55,14 +54,12 @@ class SearchSolver(SlotSolver):
     (``robot.canonical.reversed``), its solutions in 16 slots (module docstring)."""
 
     kind = "locked_search"
+    family = "the 1-D search's family"
     param_name = "q1"
 
     def __init__(self, robot: Robot, sets: Callable[[BranchSolver], ParameterSets] | None = None):
         super().__init__(robot, sets)
-        canonical = robot.canonical
-        if canonical is None or canonical.kind != self.kind:
-            raise NoClosedFormError(f"{robot.name} is not of the 1-D search's family")
-        self.search = search_for(robot.chain, (canonical.reversed,))
+        self.search = search_for(robot.chain, (robot.canonical.reversed,))
         """The search of the arm's chain."""
         self.param_name = f"q{self.search.locked}"
         self.locked = self.search.locked - 1

@@ -5,12 +5,20 @@ and value of a locked joint, filled by the solutions found there (the 1-D search
 from __future__ import annotations
 
 from abc import abstractmethod
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from qpik.algebra import symbolic as sy
 from qpik.analytic.branch_solver import BranchSolver, Solved
 from qpik.analytic.intervals import apart
+from qpik.core.errors import NoClosedFormError
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from qpik.analytic.intervals import ParameterSets
+    from qpik.robots.robot import Robot
 
 BRANCHES = 16
 """Slots per pose: the most isolated solutions a 6-R chain has (Lee & Liang 1988)."""
@@ -26,6 +34,15 @@ class SlotSolver(BranchSolver):
     closed_form_sets = False
     locked: int
     """The locked joint's index (0-based): the parameter."""
+    family: str
+    """The family in words, for the error where the robot is not of it."""
+
+    def __init__(self, robot: Robot, sets: Callable[[BranchSolver], ParameterSets] | None = None):
+        """Raises :class:`~qpik.core.errors.NoClosedFormError` where ``robot`` is not of the solver's family
+        (``robot.canonical.kind``)."""
+        super().__init__(robot, sets)
+        if robot.canonical is None or robot.canonical.kind != self.kind:
+            raise NoClosedFormError(f"{robot.name} is not of {self.family}")
 
     @abstractmethod
     def solve_one(self, T: np.ndarray, param: float) -> Solved:
