@@ -77,6 +77,10 @@ from qpik.robots.model_source import ModelSource
 from qpik.robots.recognize import REDUNDANCY, recognize
 from qpik.robots.robot import Robot
 
+_ASKED: dict[tuple[str, str], Robot] = {}
+"""A catalog arm of no family asked for a locked joint (``load_robot("zheng7", redundancy="q7")``), once per arm and
+parameter (as the catalog's own)."""
+
 if TYPE_CHECKING:
     import mujoco
 
@@ -127,7 +131,9 @@ def load_robot(
             (:class:`~qpik.robots.model_files.MeshOptions`; default its defaults).
         redundancy: the closed form's parameter, ``"psi"``, ``"delta"``, ``"q7"`` (q7 locked) or ``"q1"`` (q1
             locked, the chain read from the flange), instead of the first family that fits
-            (:func:`~qpik.robots.recognize.recognize`); a catalog arm takes only its own (none locks q1).
+            (:func:`~qpik.robots.recognize.recognize`); a catalog arm takes only its own (none locks q1), but one of no
+            family (``zheng7``) takes ``"q7"`` or ``"q1"`` where its file would be of a family with that joint locked
+            (the 1-D search's or the general 6-R's): the same arm, with that family.
 
     Raises:
         UnknownRobotError: neither a catalog name nor an existing file; a name that looks like a file
@@ -149,11 +155,17 @@ def load_robot(
         if any(o is not None for o in options):
             raise InputError(f"load_robot: {text!r} is a catalog arm; the options are for model files")
         robot = catalog_robot(text)
-        if redundancy is not None and (REDUNDANCY[redundancy] != robot.closed_form or redundancy == "q1"):
-            raise InputError(
-                f"redundancy: {text!r} has no closed form in {redundancy} (its family: {robot.closed_form})"
-            )
-        return robot
+        if redundancy is None or (REDUNDANCY[redundancy] == robot.closed_form and redundancy != "q1"):
+            return robot
+        if robot.closed_form is None:  # an arm of no family here: the one its file would get, asked for
+            found, why = recognize(robot.chain, redundancy)
+            if found is not None:
+                key = (text, redundancy)
+                if key not in _ASKED:
+                    _ASKED[key] = replace(robot, closed_form=found.kind, canonical=found,
+                                          notes=f"{found.notes}; {robot.notes}")  # fmt: skip
+                return _ASKED[key]
+        raise InputError(f"redundancy: {text!r} has no closed form in {redundancy} (its family: {robot.closed_form})")
     path = Path(text)
     if not path.is_file():
         known = ", ".join(CATALOG)

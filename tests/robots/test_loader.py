@@ -14,6 +14,7 @@ import pytest
 from conftest import MODEL_DIR, fd, fd_geometric_jacobian, model_robot, mujoco_poses, random_q
 
 import qpik
+from qpik.analytic.intervals import wrap
 from qpik.core.errors import InputError, UnknownRobotError
 from qpik.robots.model_files import MeshOptions
 from qpik.robots.mujoco_backend import MjKinematics
@@ -262,3 +263,31 @@ def _segment_distance(a: np.ndarray, b: np.ndarray, pts: np.ndarray) -> np.ndarr
     L2 = ab @ ab
     t = np.zeros(len(pts)) if L2 == 0 else np.clip((pts - a) @ ab / L2, 0, 1)
     return np.linalg.norm(pts - a - t[:, None] * ab, axis=1)
+
+
+def test_the_catalog_zheng7_asked_for_q7_gives_the_answers_of_its_mjcf_twin(tmp_path):
+    """The catalog's zheng7 keeps no family (the arm of no closed form of the suite and the problem files); asked for
+    q7 it is of the family its MJCF twin (the arm written by ``to_mjcf`` and loaded as a file) gets by default, the
+    1-D search over q4 with q7 locked, with the same slots to 1e-9 rad at the same poses and parameters, each holding
+    the configuration; asked for q1 it is of the general 6-R family with q1 locked; ψ is refused."""
+    plain = qpik.load_robot("zheng7")
+    assert plain.closed_form is None
+    robot = qpik.load_robot("zheng7", redundancy="q7")
+    assert robot.closed_form == "locked_search" and qpik.load_robot("zheng7", redundancy="q7") is robot
+    path = tmp_path / "zheng7.xml"
+    path.write_text(plain.to_mjcf())
+    twin = qpik.load_robot(path, tip="ee")
+    assert twin.closed_form == "locked_search"
+    q = np.random.default_rng(12).uniform(robot.q_min, robot.q_max, (20, robot.dof))
+    np.testing.assert_allclose(twin.fk(q), robot.fk(q), atol=1e-12)
+    for qk, T in zip(q, robot.fk(q)):
+        mine, theirs = qpik.ik(robot, T, float(qk[6])), qpik.ik(twin, T, float(qk[6]))
+        assert np.array_equal(mine.valid, theirs.valid)
+        assert np.abs(wrap(mine.q[mine.valid] - theirs.q[theirs.valid])).max() < 1e-9
+        assert np.abs(wrap(mine.q[mine.valid] - qk)).max(axis=1).min() < 1e-9
+    other = qpik.load_robot("zheng7", redundancy="q1")  # the general 6-R with q1 locked
+    assert other.closed_form == "locked_general" and other.notes.startswith("served with q1 locked")
+    sol = qpik.ik(other, other.fk(q[0]), float(q[0, 0]))
+    assert np.abs(wrap(sol.q[sol.valid] - q[0])).max(axis=1).min() < 1e-9
+    with pytest.raises(qpik.InputError, match="redundancy: 'zheng7' has no closed form in psi"):
+        qpik.load_robot("zheng7", redundancy="psi")

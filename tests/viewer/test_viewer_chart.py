@@ -94,12 +94,13 @@ def test_view_state_of_an_arm_without_closed_form_is_the_numerical_ik():
     np.testing.assert_allclose(robot.fk(st.q), robot.fk(q), atol=1e-8)
 
 
-@pytest.mark.parametrize("key", ["robosuite_sawyer", "xarm7_offset"])
+@pytest.mark.parametrize("key", ["robosuite_sawyer", "xarm7_offset", "erd_tiago_pro"])
 def test_view_state_of_a_searched_arm_is_the_branch_nearest_the_last_configuration(key):
-    """An arm whose branches the 1-D search finds (robosuite's Sawyer, q1; the xArm7 with axis 3 moved 1 mm, q7):
-    the ghosts are qpik.ik's branches at the parameter, each valid one reaching the pose by MuJoCo's FK of the file;
-    the solid configuration is, among those inside the limits, the one nearest the seed (brute force over the
-    slots), here the configuration the pose came from; no feasible sets, no best answer."""
+    """An arm whose branches are found per pose (the 1-D search: robosuite's Sawyer, q1; the xArm7 with axis 3 moved 1
+    mm, q7; the general 6-R: example-robot-data's TIAGo Pro arm, q7): the ghosts are qpik.ik's branches at the
+    parameter, each valid one reaching the pose by MuJoCo's FK of the file; the solid configuration is, among those
+    inside the limits, the one nearest the seed (brute force over the slots), here the configuration the pose came from;
+    no feasible sets, no best answer."""
     from conftest import mujoco_poses
 
     robot = model_robot(key)
