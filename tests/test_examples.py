@@ -650,3 +650,32 @@ def test_baxter_search_plan(run_example) -> None:
     lo, hi = (np.array([float(limits[n].get(k)) for n in names]) for k in ("lower", "upper"))
     assert np.all(q >= lo - 1e-12) and np.all(q <= hi + 1e-12)
     assert np.all(np.abs(np.diff(q, axis=0)) <= 0.1 + 1e-9)
+
+
+# ---- examples/tiago_general_arm.py ----------------------------------------------------------------------------
+
+
+def test_tiago_general_arm(run_example) -> None:
+    """The TIAGo Pro's left arm (the general 6-R family): every slot of its CSV reaches the pose of the example's
+    configuration by MuJoCo's kinematics of the URDF to 1e-10, the configuration itself among them; the printed
+    sets say they are sampled; the best answer's CSV row reaches the pose inside the limits, its margin (computed
+    here) the one printed and at least the configuration's own."""
+    from conftest import model_robot, mujoco_poses
+
+    result = run_example("tiago_general_arm")
+    out = result.stdout
+    assert "family locked_general" in out and "sampled, not proved" in out and "not certified" in out
+    robot = model_robot("erd_tiago_pro")
+    q0 = np.array([0.4, -0.6, 0.8, 1.1, -0.5, 0.7, 0.3])
+    T = mujoco_poses(robot, q0[None])[0]
+    slots = np.loadtxt(result.out / "tiago_slots.csv", delimiter=",", skiprows=1, ndmin=2)
+    q = slots[:, 1:8]
+    np.testing.assert_allclose(mujoco_poses(robot, q), np.broadcast_to(T, (len(q), 4, 4)), atol=1e-10)
+    assert np.abs((q - q0 + np.pi) % (2 * np.pi) - np.pi).max(axis=1).min() < 1e-9
+    best = np.loadtxt(result.out / "tiago_best.csv", delimiter=",", skiprows=1)
+    np.testing.assert_allclose(mujoco_poses(robot, best[None])[0], T, atol=1e-9)
+    half = 0.5 * (robot.q_max - robot.q_min)
+    margin = np.min(np.minimum(best - robot.q_min, robot.q_max - best) / half)
+    printed = float(re.search(rf"margin ({FLOAT})", out).group(1))
+    assert margin == pytest.approx(printed, abs=1e-9) and margin >= 0.0
+    assert margin >= np.min(np.minimum(q0 - robot.q_min, robot.q_max - q0) / half) - 1e-9
