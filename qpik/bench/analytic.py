@@ -39,7 +39,7 @@ import numpy as np
 
 from qpik.analytic.api import closed_form_for, feasible_intervals, ik, redundancy_parameter, symbol
 from qpik.bench import Row, cycle, time_calls, time_interleaved
-from qpik.bench.analytic_locked import panda_rows, search_rows
+from qpik.bench.analytic_locked import general_rows, panda_rows, search_rows
 from qpik.bench.ssik_arms import ssik_rows
 from qpik.robots.loader import load_robot
 
@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> list[Row]:
     for name in ARMS:
         rows += _arm_rows(name, repeat, SSIK if name == "iiwa14" and ssik_row is not None else None)
     rows += _locked_rows(repeat) + panda_rows(repeat, BLOCK, _row) + ssik_rows(repeat, BLOCK, _row)
-    return rows + search_rows(repeat, BLOCK, _row)
+    return rows + search_rows(repeat, BLOCK, _row) + general_rows(repeat, BLOCK, _row)
 
 
 def _arm_rows(name: str, repeat: int, ref: str | None) -> list[Row]:

@@ -1,4 +1,4 @@
-"""Bench rows of the locked-q7 closed form and of the 1-D search beside others' solvers of the same arms
+"""Bench rows of the locked-q7 closed form, the 1-D search and the general 6-R beside others' solvers of the same arms
 (``qpik bench analytic``).
 
 **The Panda** (:func:`panda_rows`). Poses are ``fk(q)`` of the catalog Panda's flange for configurations drawn
@@ -28,6 +28,14 @@ takes milliseconds):
   runs) over budgets of 50, 200, 1,000 and 2,000 evaluations, stopping at the first budget that finds a root, and
   keeps at most one root per branch whose squared error is below 1e-8: neither a fixed grid nor a certificate.
   qpik's search is certified (every root of every branch, or says it is not proved).
+
+**The general 6-R** (:func:`general_rows`): example-robot-data's TIAGo Pro, its left arm (:data:`GENERAL`), q7
+locked, served by elimination to one eigenproblem (:mod:`qpik.analytic.general_solver`). Poses as above (seed 5):
+
+- ``qpik.ik`` (all 16 slots at the configuration's q7);
+- ik-geo's ``Robot.gen_six_dof`` (IK-Geo's general 6R, solved by a 2-D search) of joints 1-6 at q7 = 0, built once;
+  each pose's flange moved by :math:`M^{-1} E_7(q_7)^{-1} M` before the timing (the locked joint folded into the
+  pose), then ``get_ik``.
 
 Every peer's answers are first checked by qpik's FK: each row's note says how many of its finite solutions reach the
 pose to 1e-9, and how many of the generating configurations are among them (ik-geo's also gives the FK errors of its
@@ -106,50 +114,78 @@ SET_POSES = 4
 """Poses of the 1-D search's feasible-sets row, one call each (a call takes seconds)."""
 SEARCHED = ("erd/baxter", {"base": "right_arm_mount", "tip": "right_wrist"})
 """The arm of the 1-D search's rows: example-robot-data's Baxter, its right arm (packaged model key, load options)."""
+GENERAL = ("erd/tiago_pro", {"base": "torso_lift_link", "tip": "arm_left_tool_link"})
+"""The arm of the general 6-R's rows: example-robot-data's TIAGo Pro, its left arm."""
 
 
 def search_rows(repeat: int, block: int, row) -> list[Row]:
     """The rows of the 1-D search (module docstring); ``row(label, seconds, ref, note)`` makes one."""
-    from qpik.robots.packaged import packaged_model
-
-    key, options = SEARCHED
-    try:
-        robot = load_robot(str(packaged_model(key)), **options)
-    except QpikError as exc:
-        print(f"qpik bench analytic: the 1-D search's rows left out: {exc}")
+    robot = _packaged(SEARCHED, "the 1-D search's rows")
+    if robot is None:
         return []
     q = np.random.default_rng(4).uniform(robot.q_min, robot.q_max, (POSES, robot.dof))
+    labels = ("baxter q1 locked: qpik.ik, 16 slots (certified 1-D search)",
+              "baxter q1 locked: ik-geo two_intersecting get_ik (6R, 1-D search by NLopt MLSL)")  # fmt: skip
+    rows = _beside_geo(robot, q, 0, labels, (max(10, repeat // (10 * block)), block), row)
+    T = robot.fk(q[:SET_POSES])
+    sets = time_calls(cycle(lambda i: feasible_intervals(robot, T[i]), range(SET_POSES)), SET_POSES, warmup=1)
+    label = "baxter q1 locked: qpik.feasible_intervals, 16 slots (sampled, not proved)"
+    return [*rows, row(label, sets, None, f"({SET_POSES} poses, one call each; no peer computes feasible sets)")]
+
+
+def general_rows(repeat: int, block: int, row) -> list[Row]:
+    """The rows of the general 6-R (module docstring); ``row(label, seconds, ref, note)`` makes one."""
+    robot = _packaged(GENERAL, "the general 6-R's rows")
+    if robot is None:
+        return []
+    q = np.random.default_rng(5).uniform(robot.q_min, robot.q_max, (POSES, robot.dof))
+    labels = ("tiago pro q7 locked: qpik.ik, 16 slots (general 6-R: one eigenproblem)",
+              "tiago pro q7 locked: ik-geo gen_six_dof get_ik (6R, 2-D search)")  # fmt: skip
+    return _beside_geo(robot, q, 6, labels, (max(10, repeat // (10 * block)), block), row)
+
+
+def _packaged(which: tuple[str, dict], rows: str):
+    """The arm of a packaged model (key, load options), or None with a note where it does not load."""
+    from qpik.robots.packaged import packaged_model
+
+    key, options = which
+    try:
+        return load_robot(str(packaged_model(key)), **options)
+    except QpikError as exc:
+        print(f"qpik bench analytic: {rows} left out: {exc}")
+        return None
+
+
+def _beside_geo(robot, q: np.ndarray, locked: int, labels: tuple[str, str], timing: tuple[int, int], row) -> list[Row]:
+    """``qpik.ik`` at the configurations' own locked joint (0: q1, 6: q7) beside ik-geo's solver of the other six
+    joints (:func:`_geo_locked`), both checked by qpik's FK, then timed interleaved (``timing``: samples, block)."""
     T = robot.fk(q)
-    calls = {"qpik": lambda i: ik(robot, T[i], float(q[i, 0]))}
+    calls = {"qpik": lambda i: ik(robot, T[i], float(q[i, locked]))}
     notes = {"qpik": check_note(robot, T, q, calls["qpik"], qpik_solutions)}
     try:
-        geo, poses = _geo_locked_q1(robot, T, q[:, 0], import_peer("ik_geo"))
+        geo, poses = _geo_locked(robot, T, q[:, locked], locked, import_peer("ik_geo"))
         calls["geo"] = lambda i: geo.get_ik(*poses[i])
 
         solved = [calls["geo"](i) for i in range(POSES)]  # its answers, once per pose: every note reads the same
 
         def answers(i: int) -> list[np.ndarray]:
-            return [np.insert(np.asarray(x, float), 0, q[i, 0]) for x, _ in solved[i]]
+            return [np.insert(np.asarray(x, float), locked, q[i, locked]) for x, _ in solved[i]]
 
         flagged = sum(ls for sols in solved for _, ls in sols)
+        free = [j for j in range(robot.dof) if j != locked]
         fk = max(  # ik-geo's own FK at q against the pose it is given: the conversion, checked
-            max(np.abs(np.asarray(geo.forward_kinematics(q[i, 1:])[k]) - poses[i][k]).max() for k in (0, 1))
+            max(np.abs(np.asarray(geo.forward_kinematics(q[i, free])[k]) - poses[i][k]).max() for k in (0, 1))
             for i in range(POSES)
         )
         notes["geo"] = check_note(robot, T, q, answers, list) + _worst(robot, T, q, answers)
         notes["geo"] += f" (flagged least-squares by ik-geo: {flagged}; its FK at q: the pose given to {fk:.0e})"
     except ImportError as exc:
-        print(f"qpik bench analytic: ik-geo left out of the 1-D search's rows ({exc})")
-    t = time_interleaved(
-        {k: cycle(fn, list(range(POSES))) for k, fn in calls.items()}, max(10, repeat // (10 * block)), block=block
-    )
-    ours = "baxter q1 locked: qpik.ik, 16 slots (certified 1-D search)"
-    theirs = "baxter q1 locked: ik-geo two_intersecting get_ik (6R, 1-D search by NLopt MLSL)"
+        print(f"qpik bench analytic: ik-geo left out beside {robot.name} ({exc})")
+    samples, block = timing
+    t = time_interleaved({k: cycle(fn, list(range(POSES))) for k, fn in calls.items()}, samples, block=block)
+    ours, theirs = labels
     rows = [row(ours, t["qpik"], theirs if "geo" in t else None, notes["qpik"])]
-    rows += [row(theirs, t["geo"], None, notes["geo"])] if "geo" in t else []
-    sets = time_calls(cycle(lambda i: feasible_intervals(robot, T[i]), range(SET_POSES)), SET_POSES, warmup=1)
-    label = "baxter q1 locked: qpik.feasible_intervals, 16 slots (sampled, not proved)"
-    return [*rows, row(label, sets, None, f"({SET_POSES} poses, one call each; no peer computes feasible sets)")]
+    return rows + ([row(theirs, t["geo"], None, notes["geo"])] if "geo" in t else [])
 
 
 def _worst(robot, T: np.ndarray, q: np.ndarray, answers) -> str:
@@ -165,25 +201,30 @@ def _worst(robot, T: np.ndarray, q: np.ndarray, answers) -> str:
     return f" (FK error median {np.median(errors):.0e}, max {max(errors):.0e}; q within 1e-3 rad {near}/{len(T)})"
 
 
-def _geo_locked_q1(robot, T: np.ndarray, q1: np.ndarray, ik_geo) -> tuple:
-    """ik-geo's ``two_intersecting`` robot of the arm's joints 2-7 at q1 = 0 (product of exponentials: axes and the
-    offsets between points on them, base frame; the points of axes 6 and 7 where they meet) and the poses turned about
-    axis 1 by −q1 (the locked joint folded into the pose, outside the timing), as ``get_ik`` takes them: rotation
-    relative to the flange's at q = 0, transposed (its convention), and position."""
+def _geo_locked(robot, T: np.ndarray, angles: np.ndarray, locked: int, ik_geo) -> tuple:
+    """ik-geo's robot of the arm's other six joints with the locked one (0: q1, ``two_intersecting``, whose axes 5 and
+    6 meet; 6: q7, ``gen_six_dof``) at 0 (product of exponentials: axes and the offsets between points on them, base
+    frame; the points of the last two axes where they meet for ``two_intersecting``), and the poses with the locked
+    joint at ``angles`` folded in (outside the timing) as ``get_ik`` takes them: rotation relative to the flange's at
+    q = 0, transposed (its convention), and position. q1 turns the pose about axis 1 by −q1; q7 moves the flange
+    by :math:`M^{-1} E_7(q_7)^{-1} M` (M the flange's pose at q = 0)."""
     zero = np.zeros(robot.dof)
     h, o = robot.chain.axes(zero)
-    s, t = np.linalg.lstsq(np.stack([h[5], -h[6]], axis=1), o[6] - o[5], rcond=None)[0]
-    wrist = 0.5 * (o[5] + s * h[5] + o[6] + t * h[6])
-    points = [o[1], o[2], o[3], o[4], wrist, wrist]
     home = robot.fk(zero)
+    free = [j for j in range(robot.dof) if j != locked]
+    points = [o[j] for j in free]
+    if locked == 0:
+        s, t = np.linalg.lstsq(np.stack([h[5], -h[6]], axis=1), o[6] - o[5], rcond=None)[0]
+        points[-2:] = [0.5 * (o[5] + s * h[5] + o[6] + t * h[6])] * 2
     offsets = [points[0]] + [b - a for a, b in itertools.pairwise(points)] + [home[:3, 3] - points[-1]]
-    geo = ik_geo.Robot.two_intersecting(np.array(h[1:]), np.array(offsets))
+    make = ik_geo.Robot.two_intersecting if locked == 0 else ik_geo.Robot.gen_six_dof
+    geo = make(np.array(h[free]), np.array(offsets))
     poses = []
-    for Ti, a in zip(T, q1):
+    for Ti, a in zip(T, angles):
         M = np.eye(4)
-        M[:3, :3] = np.array(rotation(tuple(h[0]), np.cos(a), -np.sin(a)), float)
-        M[:3, 3] = o[0] - M[:3, :3] @ o[0]
-        Tz = M @ Ti
+        M[:3, :3] = np.array(rotation(tuple(h[locked]), np.cos(a), -np.sin(a)), float)
+        M[:3, 3] = o[locked] - M[:3, :3] @ o[locked]  # E(−a) about the locked axis
+        Tz = M @ Ti if locked == 0 else Ti @ np.linalg.inv(home) @ M @ home
         poses.append(((Tz[:3, :3] @ home[:3, :3].T).T.copy(), Tz[:3, 3].copy()))
     return geo, poses
 

@@ -38,6 +38,8 @@ EXPECTED = {
         "baxter q1 locked: qpik.ik, 16 slots (certified 1-D search)",
         "baxter q1 locked: ik-geo two_intersecting get_ik (6R, 1-D search by NLopt MLSL)",
         "baxter q1 locked: qpik.feasible_intervals, 16 slots (sampled, not proved)",
+        "tiago pro q7 locked: qpik.ik, 16 slots (general 6-R: one eigenproblem)",
+        "tiago pro q7 locked: ik-geo gen_six_dof get_ik (6R, 2-D search)",
     ],
     "controller": [
         "no obstacles, hot: mink + osqp (rebuilt each call)",
@@ -156,6 +158,11 @@ def test_bench_prints_every_row(name, monkeypatch):
             assert re.search(r"\(\d+/\d+ solutions of 64 poses reach the pose to 1e-9 by qpik's FK; q among", row.note)
         good, total = map(int, re.search(r"\((\d+)/(\d+) solutions", searched[0].note).groups())
         assert good == total > 0 and "q among them 64/64" in searched[0].note  # qpik's search: all, and q every time
+        general = [row for row in rows if row.label.startswith("tiago pro q7 locked")]
+        for row in general:  # both sides checked by FK; qpik's slots: every one reaches the pose, q every time
+            assert re.search(r"\(\d+/\d+ solutions of 64 poses reach the pose to 1e-9 by qpik's FK; q among", row.note)
+        good, total = map(int, re.search(r"\((\d+)/(\d+) solutions", general[0].note).groups())
+        assert good == total > 0 and "q among them 64/64" in general[0].note
     if name == "view":  # every arm's drag updates were timed, with their p95 against the 50 ms budget
         assert all("p95" in row.note and "/20 ≤ 50 ms" in row.note and "/20 poses reached" in row.note for row in rows)
         assert all("CPU of the update median" in row.note for row in rows)
