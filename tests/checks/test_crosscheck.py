@@ -35,12 +35,14 @@ def test_three_way_agreement(name, objective, obstacles):
         assert c.q_gap <= 1e-6 and c.f_gap <= 1e-8 and c.kkt <= 1e-8 and c.speed <= 1e-6
 
 
-def test_three_way_agreement_on_an_arm_of_the_1d_search():
-    """Baxter's right arm (example-robot-data; its slots found by the 1-D search, solve_best sampled and polished): (b)
-    and (c) confirm (a) on two seeded poses, the second with a sphere beside the arm."""
+@pytest.mark.parametrize("key", ["erd_baxter", "erd_tiago_pro"])
+def test_three_way_agreement_on_an_arm_whose_slots_are_found_per_pose(key):
+    """Baxter's right arm (example-robot-data; its slots found by the 1-D search) and the TIAGo Pro's left arm (the
+    general 6-R), solve_best sampled and polished: (b) and (c) confirm (a) on two seeded poses, the second with a
+    sphere beside the arm."""
     from conftest import model_robot
 
-    robot = model_robot("erd_baxter")
+    robot = model_robot(key)
     T = robot.fk(random_q(robot, 4, 32)[[0, 2]])
     for k, pose in enumerate(T):
         obstacles = [Sphere(pose[:3, 3] + (0.0, 0.0, 0.25), 0.08)] if k >= 1 else []
