@@ -18,28 +18,27 @@ import numpy as np
 import qpik
 from qpik.robots.packaged import packaged_model
 
-out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("qpik-out/examples/tiago_general_arm")
-out.mkdir(parents=True, exist_ok=True)
 
-try:
-    robot = qpik.load_robot(packaged_model("erd/tiago_pro"), base="torso_lift_link", tip="arm_left_tool_link")
-except qpik.InputError as error:  # example-robot-data not installed: say so in one line
-    sys.exit(f"{Path(__file__).name}: {error}")
+def left_arm() -> qpik.Robot:
+    """The TIAGo Pro's left arm, from the torso lift to the tool; where example-robot-data is not installed, the
+    script ends with one line saying so."""
+    try:
+        return qpik.load_robot(packaged_model("erd/tiago_pro"), base="torso_lift_link", tip="arm_left_tool_link")
+    except qpik.InputError as error:
+        sys.exit(f"{Path(__file__).name}: {error}")
+
+
+robot = left_arm()
 print(f"{robot.name}, family {robot.closed_form}:\n  {robot.notes.split(', no closed form')[0]}")
 
-# 1. every solution at the configuration's own q7
+# 1. every solution at the configuration's own q7: qpik.ik's table, then each valid slot's FK residual
 q = np.array([0.4, -0.6, 0.8, 1.1, -0.5, 0.7, 0.3])
-T = robot.fk(q)
-sols = qpik.ik(robot, T, q[6])
-print(f"\nqpik.ik at q7 = {q[6]} rad: {int(sols.valid.sum())} of 16 slots reach the pose, "
-      f"{int(sols.within_limits.sum())} inside the joint limits")  # fmt: skip
-rows = []
-for b, qb, ok, inside in zip(sols.branch, sols.q, sols.valid, sols.within_limits):
-    if ok:
-        error = float(np.abs(robot.fk(qb) - T).max())
-        rows.append([b, *qb, error, inside])
-        print(f"  slot {b:2d}: q = {np.array2string(qb, precision=3)}, FK error {error:.1e}"
-              f"{'' if inside else ' (outside the limits)'}")  # fmt: skip
+T, q7 = robot.fk(q), q[6]
+sols = qpik.ik(robot, T, q7)
+print(f"\nqpik.ik at q7 = {q7} rad:\n{sols.table()}")
+fk_error = np.abs(robot.fk(sols.q) - T).max(axis=(1, 2))
+print("FK residual of every valid slot: " + ", ".join(f"{e:.0e}" for e in fk_error[sols.valid]))
+rows = np.column_stack([sols.branch, sols.q, fk_error, sols.within_limits])[sols.valid]
 
 # 2. the slots' feasible q7 (sampled at 512 values per turn, every change moved onto the answers)
 fi = qpik.feasible_intervals(robot, T)
@@ -53,8 +52,10 @@ best = qpik.solve_best(robot, T, "margin")
 print(f"\nsolve_best: {best.summary()}")
 
 # 4. files
+out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("qpik-out/examples/tiago_general_arm")
+out.mkdir(parents=True, exist_ok=True)
 header = "slot," + ",".join(f"q{j + 1}" for j in range(7)) + ",fk_error,inside_limits"
-np.savetxt(out / "tiago_slots.csv", np.array(rows, float), delimiter=",", header=header, comments="")
+np.savetxt(out / "tiago_slots.csv", rows, delimiter=",", header=header, comments="")
 np.savetxt(out / "tiago_best.csv", best.q[None], delimiter=",", header=",".join(f"q{j + 1}" for j in range(7)),
            comments="")  # fmt: skip
 print(f"\nslots: {out / 'tiago_slots.csv'}; best answer: tiago_best.csv")

@@ -46,6 +46,7 @@ from the pose it is given: the conversion's check). A peer that does not import 
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -112,22 +113,39 @@ def panda_rows(repeat: int, block: int, row) -> list[Row]:
 
 SET_POSES = 4
 """Poses of the 1-D search's feasible-sets row, one call each (a call takes seconds)."""
-SEARCHED = ("erd/baxter", {"base": "right_arm_mount", "tip": "right_wrist"})
-"""The arm of the 1-D search's rows: example-robot-data's Baxter, its right arm (packaged model key, load options)."""
-GENERAL = ("erd/tiago_pro", {"base": "torso_lift_link", "tip": "arm_left_tool_link"})
-"""The arm of the general 6-R's rows: example-robot-data's TIAGo Pro, its left arm."""
+
+
+@dataclass(frozen=True)
+class PeerArm:
+    """An arm of the rows beside ik-geo (:func:`_beside_geo`): its packaged model (``key``, load ``options``), the
+    locked joint (0: q1, 6: q7), the seed of its configurations, the rows' labels (qpik's, ik-geo's) and their name in
+    a note."""
+
+    key: str
+    options: dict
+    locked: int
+    seed: int
+    labels: tuple[str, str]
+    words: str
+
+
+SEARCHED = PeerArm("erd/baxter", {"base": "right_arm_mount", "tip": "right_wrist"}, 0, 4,
+                   ("baxter q1 locked: qpik.ik, 16 slots (certified 1-D search)",
+                    "baxter q1 locked: ik-geo two_intersecting get_ik (6R, 1-D search by NLopt MLSL)"),
+                   "the 1-D search's rows")  # fmt: skip
+"""The arm of the 1-D search's rows: example-robot-data's Baxter, its right arm, q1 locked."""
+GENERAL = PeerArm("erd/tiago_pro", {"base": "torso_lift_link", "tip": "arm_left_tool_link"}, 6, 5,
+                  ("tiago pro q7 locked: qpik.ik, 16 slots (general 6-R: one eigenproblem)",
+                   "tiago pro q7 locked: ik-geo gen_six_dof get_ik (6R, 2-D search)"),
+                  "the general 6-R's rows")  # fmt: skip
+"""The arm of the general 6-R's rows: example-robot-data's TIAGo Pro, its left arm, q7 locked."""
 
 
 def search_rows(repeat: int, block: int, row) -> list[Row]:
     """The rows of the 1-D search (module docstring); ``row(label, seconds, ref, note)`` makes one."""
-    robot = _packaged(SEARCHED, "the 1-D search's rows")
+    robot, T, rows = _beside_geo(SEARCHED, repeat, block, row)
     if robot is None:
-        return []
-    q = np.random.default_rng(4).uniform(robot.q_min, robot.q_max, (POSES, robot.dof))
-    labels = ("baxter q1 locked: qpik.ik, 16 slots (certified 1-D search)",
-              "baxter q1 locked: ik-geo two_intersecting get_ik (6R, 1-D search by NLopt MLSL)")  # fmt: skip
-    rows = _beside_geo(robot, q, 0, labels, (max(10, repeat // (10 * block)), block), row)
-    T = robot.fk(q[:SET_POSES])
+        return rows
     sets = time_calls(cycle(lambda i: feasible_intervals(robot, T[i]), range(SET_POSES)), SET_POSES, warmup=1)
     label = "baxter q1 locked: qpik.feasible_intervals, 16 slots (sampled, not proved)"
     return [*rows, row(label, sets, None, f"({SET_POSES} poses, one call each; no peer computes feasible sets)")]
@@ -135,30 +153,23 @@ def search_rows(repeat: int, block: int, row) -> list[Row]:
 
 def general_rows(repeat: int, block: int, row) -> list[Row]:
     """The rows of the general 6-R (module docstring); ``row(label, seconds, ref, note)`` makes one."""
-    robot = _packaged(GENERAL, "the general 6-R's rows")
-    if robot is None:
-        return []
-    q = np.random.default_rng(5).uniform(robot.q_min, robot.q_max, (POSES, robot.dof))
-    labels = ("tiago pro q7 locked: qpik.ik, 16 slots (general 6-R: one eigenproblem)",
-              "tiago pro q7 locked: ik-geo gen_six_dof get_ik (6R, 2-D search)")  # fmt: skip
-    return _beside_geo(robot, q, 6, labels, (max(10, repeat // (10 * block)), block), row)
+    return _beside_geo(GENERAL, repeat, block, row)[2]
 
 
-def _packaged(which: tuple[str, dict], rows: str):
-    """The arm of a packaged model (key, load options), or None with a note where it does not load."""
+def _beside_geo(arm: PeerArm, repeat: int, block: int, row) -> tuple:
+    """The arm of ``arm`` (None with a note where its package is not installed), its poses (POSES, 4, 4) of
+    configurations drawn inside its limits, and the rows of ``qpik.ik`` at their own locked joint beside ik-geo's
+    solver of the other six joints (:func:`_geo_locked`; left out with a note where ik-geo is not installed), both
+    checked by qpik's FK, then timed interleaved (fewer samples than the closed forms: a call takes milliseconds)."""
     from qpik.robots.packaged import packaged_model
 
-    key, options = which
     try:
-        return load_robot(str(packaged_model(key)), **options)
+        robot = load_robot(str(packaged_model(arm.key)), **arm.options)
     except QpikError as exc:
-        print(f"qpik bench analytic: {rows} left out: {exc}")
-        return None
-
-
-def _beside_geo(robot, q: np.ndarray, locked: int, labels: tuple[str, str], timing: tuple[int, int], row) -> list[Row]:
-    """``qpik.ik`` at the configurations' own locked joint (0: q1, 6: q7) beside ik-geo's solver of the other six
-    joints (:func:`_geo_locked`), both checked by qpik's FK, then timed interleaved (``timing``: samples, block)."""
+        print(f"qpik bench analytic: {arm.words} left out: {exc}")
+        return None, None, []
+    locked = arm.locked
+    q = np.random.default_rng(arm.seed).uniform(robot.q_min, robot.q_max, (POSES, robot.dof))
     T = robot.fk(q)
     calls = {"qpik": lambda i: ik(robot, T[i], float(q[i, locked]))}
     notes = {"qpik": check_note(robot, T, q, calls["qpik"], qpik_solutions)}
@@ -180,12 +191,12 @@ def _beside_geo(robot, q: np.ndarray, locked: int, labels: tuple[str, str], timi
         notes["geo"] = check_note(robot, T, q, answers, list) + _worst(robot, T, q, answers)
         notes["geo"] += f" (flagged least-squares by ik-geo: {flagged}; its FK at q: the pose given to {fk:.0e})"
     except ImportError as exc:
-        print(f"qpik bench analytic: ik-geo left out beside {robot.name} ({exc})")
-    samples, block = timing
+        print(f"qpik bench analytic: ik-geo left out of {arm.words} ({exc})")
+    samples = max(10, repeat // (10 * block))
     t = time_interleaved({k: cycle(fn, list(range(POSES))) for k, fn in calls.items()}, samples, block=block)
-    ours, theirs = labels
+    ours, theirs = arm.labels
     rows = [row(ours, t["qpik"], theirs if "geo" in t else None, notes["qpik"])]
-    return rows + ([row(theirs, t["geo"], None, notes["geo"])] if "geo" in t else [])
+    return robot, T, rows + ([row(theirs, t["geo"], None, notes["geo"])] if "geo" in t else [])
 
 
 def _worst(robot, T: np.ndarray, q: np.ndarray, answers) -> str:

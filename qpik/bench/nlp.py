@@ -185,8 +185,7 @@ def _searched_rows(n: int) -> list[Row]:
     from qpik.bench.analytic_locked import SEARCHED
     from qpik.robots.packaged import packaged_model
 
-    key, options = SEARCHED
-    robot = load_robot(str(packaged_model(key)), **options)
+    robot = load_robot(str(packaged_model(SEARCHED.key)), **SEARCHED.options)
     T = robot.fk(np.random.default_rng(0).uniform(robot.q_min, robot.q_max, (n, robot.dof)))
     solve_best(robot, T[0]), solve_full(robot, T[0], "margin")  # builds and compiles
     times, margins = {"best": [], "full": []}, {"best": [], "full": []}
