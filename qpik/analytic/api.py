@@ -21,8 +21,9 @@ _SOLVERS = {  # family -> (solver, its feasible sets), each as (module, class or
     "srs": (("qpik.analytic.srs", "SRSSolver"), ("qpik.analytic.srs_intervals", "PsiIntervals")),
     "locked_joint": (("qpik.analytic.locked_joint_reversed", "locked_joint_solver"),
                      ("qpik.analytic.locked_joint_intervals", "Q7Intervals")),
-    "locked_search": (("qpik.analytic.search_solver", "SearchSolver"), ("qpik.analytic.search_sets", "SearchSets")),
-    "locked_general": (("qpik.analytic.general_solver", "GeneralSolver"), ("qpik.analytic.search_sets", "SearchSets")),
+    "locked_search": (("qpik.analytic.search_solver", "SearchSolver"), ("qpik.analytic.sampled_sets", "SampledSets")),
+    "locked_general": (("qpik.analytic.general_solver", "GeneralSolver"),
+                       ("qpik.analytic.sampled_sets", "SampledSets")),
 }  # fmt: skip
 SYMBOL = {"delta": "δ", "psi": "ψ"}
 """The Greek letter of each redundancy parameter name (:attr:`IKSolutions.param_name`)."""

@@ -19,7 +19,7 @@ Per pose T and locked angle t, in the search's order (joint 7 locked):
 
 Not proved: an eigenvalue taken for complex by round-off (:data:`~qpik.algebra.loop6r.REAL`) near a fold, where two
 solutions meet, or an eigenvector of a double eigenvalue, may lose a solution there. The feasible sets of the
-parameter are sampled (:mod:`qpik.analytic.search_sets`).
+parameter are sampled (:mod:`qpik.analytic.sampled_sets`).
 """
 
 from __future__ import annotations

@@ -23,7 +23,7 @@ More than 16 solutions is a continuum (the Sawyer at q = 0, two axes aligned wit
 out of its budget with thousands of candidates): 16 of them fill the slots (4 per b, then the lowest slots left, in
 the order of b and x), each ``singular``. The branch of a configuration (:meth:`SearchSolver.parameter`) is the
 slot of the solution nearest to it at its own pose and locked angle. The feasible sets of the parameter are sampled,
-not proved (:mod:`qpik.analytic.search_sets`).
+not proved (:mod:`qpik.analytic.sampled_sets`).
 """
 
 from __future__ import annotations

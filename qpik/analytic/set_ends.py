@@ -141,7 +141,7 @@ def resample(
     between two of the other's changes, or soon after one (two solutions appearing together at a fold, one of them
     leaving the limits just after, where the joints move fast), so shows its change to the next round.
     ``renumbered``: the solver's branches are renumbered where another's validity changes (the 1-D search's slots,
-    :mod:`qpik.analytic.search_sets`), and two neighbouring samples where a branch's state is the same but another's
+    :mod:`qpik.analytic.sampled_sets`), and two neighbouring samples where a branch's state is the same but another's
     validity differs, more than :data:`FINE` spacings apart, get a sample between them. A stretch where no branch's
     state (nor, with ``renumbered``, validity) differs between two neighbouring samples but one changes twice
     between them is not seen. Without ``renumbered``, a change between two samples where the branch's validity

@@ -19,7 +19,7 @@ interleaved, blocks of :data:`~qpik.bench.analytic.BLOCK` calls, fewer samples t
 takes milliseconds):
 
 - ``qpik.ik`` (all 16 slots at the configuration's q1; its note gives the configurations found of the poses);
-- ``qpik.feasible_intervals`` (sampled, not proved: :mod:`qpik.analytic.search_sets`) on :data:`SET_POSES` of the
+- ``qpik.feasible_intervals`` (sampled, not proved: :mod:`qpik.analytic.sampled_sets`) on :data:`SET_POSES` of the
   poses, one call each (no peer computes feasible sets);
 - ik-geo's ``Robot.two_intersecting`` (the 6R family of IK-Geo whose axes 5 and 6 meet, solved by a 1-D search over
   its q4) of joints 2-7 at q1 = 0, built once; each pose turned about axis 1 by −q1 before the timing (the locked

@@ -37,7 +37,7 @@ import numpy as np
 from qpik.algebra.lie import tracking_errors
 from qpik.analytic.api import closed_form_for
 from qpik.analytic.intervals import spaced
-from qpik.analytic.search_sets import locked_span
+from qpik.analytic.sampled_sets import locked_span
 from qpik.core.progress import Progress
 from qpik.nlp.best_result import BestResult, BranchRows
 from qpik.nlp.full import REACHED, full_nlp, solve_from

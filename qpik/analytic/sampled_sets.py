@@ -7,7 +7,7 @@ limits, or not) where one of its joints reaches a limit, where its solution appe
 meet; for the search, :math:`e_b = \partial e_b/\partial x = 0` or the edge of its validity), or where it takes
 another solution (one below it in the slots' order appears or vanishes, or crosses ±π). For the search these values
 are roots of 2-D systems in the locked angle and x, which no module isolates; for the general 6-R they are where the
-eigenproblem's real eigenvalues meet. :class:`SearchSets` therefore samples the solver's answers at :data:`SAMPLES`
+eigenproblem's real eigenvalues meet. :class:`SampledSets` therefore samples the solver's answers at :data:`SAMPLES`
 values of the locked joint per 2π over its (shrunk) limits, and moves every change of a slot's state between two
 neighbouring samples onto the answers to 1e-11 rad, sampling again beside each change and wherever the slots'
 validity differs between two samples (:func:`qpik.analytic.set_ends.resample`). A slot that enters and leaves the
@@ -35,7 +35,7 @@ SAMPLES = 512
 """Values of the locked joint per 2π at which every slot's state is sampled."""
 
 
-class SearchSets:
+class SampledSets:
     """The feasible sets of a :class:`~qpik.analytic.slot_solver.SlotSolver`'s locked joint (a ``ParameterSets``;
     module docstring)."""
 
