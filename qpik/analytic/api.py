@@ -49,7 +49,7 @@ def _new_solver(robot: Robot) -> BranchSolver:
         why = (
             robot.notes
             if robot.notes.startswith("no closed form")
-            else "only offset-shoulder, S-R-S, locked-q7 and locked-q1 arms and those of the 1-D search do"
+            else "only offset-shoulder, S-R-S, locked-q7 and locked-q1 arms, the 1-D search's and the general 6-R's do"
         )
         raise NoClosedFormError(f"{robot.name} has no closed-form IK ({why}); use qpik.solve_ik instead")
     (module, cls), sets = _SOLVERS[robot.closed_form]
@@ -68,8 +68,8 @@ class IKSolutions:
         within_limits: (B,) or (N, B) bool, valid and inside the joint limits.
         singular: (B,) or (N, B) bool, a singular case (defined, documented result).
         branch: (B,) public branch ids (Nammoto & Kosuge 2012 Table 2 numbers 1-16, S-R-S 0-7, locked joint 0-7,
-            or the 1-D search's slots 0-15, :mod:`qpik.analytic.locked_search`); read-only, shared by every result of
-            the arm.
+            or the slots 0-15 of the 1-D search, :mod:`qpik.analytic.locked_search`, and of the general 6-R,
+            :mod:`qpik.analytic.general_solver`); read-only, shared by every result of the arm.
         param: the redundancy parameter (rad): float or (N,).
         param_name: ``"delta"``, ``"psi"``, or the locked joint ``"q7"`` or ``"q1"``.
     """
@@ -104,7 +104,8 @@ def ik(robot: Robot, pose: np.ndarray, param: float | np.ndarray, project: bool 
     Args:
         robot: an arm with a closed form (``nammoto7``: δ, ``iiwa14``: ψ, ``panda``: q7) or served by the 1-D search
             (``robot.closed_form`` ``"locked_search"``, the Sawyer: q1; the branches are its roots, milliseconds per
-            pose, :mod:`qpik.analytic.locked_search`).
+            pose, :mod:`qpik.analytic.locked_search`) or by the general 6-R (``"locked_general"``, the YuMi, TIAGo
+            Pro: q7; one eigenproblem per pose, :mod:`qpik.analytic.general_solver`).
         pose: end-effector pose in the base frame, (4, 4) or (N, 4, 4).
         param: δ or ψ in rad: a real number (a float or an int, a numpy scalar, a 0-d array: one compiled
             path for all), or (N,) for a batch (a number is broadcast over the batch).

@@ -29,7 +29,7 @@ by empty feasible sets, and no branch reaches it at any of 720 sampled parameter
 ``"no feasible branch"`` (reachable, but not inside the limits and clear of the obstacles and of itself: proved,
 by empty feasible sets or by the certificate cutting off every feasible interval by its clearances),
 ``"not found"`` (no feasible point found, and nothing proved: the feasible sets are not proved, the certificate
-could not prove the absence or was not asked for, or the arm is one of the 1-D search's, :mod:`qpik.nlp.best_sampled`),
+could not prove the absence or was not asked for, or the arm's slots are found per pose, :mod:`qpik.nlp.best_sampled`),
 ``"solver failed"`` (a numerical failure, or an answer that fails its own check at q: FK, limits,
 clearance, self-clearance; the reason in :attr:`~qpik.nlp.best_result.BestResult.message`).
 Every result's q is a finite configuration: for a status other than ``"optimal"`` it is the
@@ -88,8 +88,8 @@ def solve_best(
 
     Args:
         robot: an arm with a closed form (``nammoto7``: δ, ``iiwa14``: ψ, ``panda``: q7, ...) or whose branches the
-            1-D search finds (the Sawyer, Baxter: sampled along the locked joint, never certified,
-            :mod:`qpik.nlp.best_sampled`), or a :class:`~qpik.scene.Scene` of one (then ``objective``,
+            1-D search or the general 6-R finds (the Sawyer, Baxter, YuMi: sampled along the locked joint, never
+            certified, :mod:`qpik.nlp.best_sampled`), or a :class:`~qpik.scene.Scene` of one (then ``objective``,
             ``obstacles``, ``d_safe`` and a single ``q_ref`` are the scene's).
         pose: end-effector pose (4, 4) in the base frame, or a batch (N, 4, 4).
         objective: an :class:`~qpik.objectives.Objective` or a name of
@@ -142,7 +142,7 @@ def solve_best(
         raise InputError(f"method: expected one of {list(METHODS)}, got {method!r}")
     if not robot.branch_functions:  # the 1-D search's slots: sampled along the locked joint
         if method == "levelset":
-            raise InputError("method: 'levelset' needs branches in closed form; this arm's are found by a 1-D search")
+            raise InputError("method: 'levelset' needs branches in closed form; this arm's are found per pose")
         results = solve_sampled(problem, T, ref, _ids(branches, list(closed_form_for(robot).branch_ids)))
         for r, Tk in zip(results, T):
             _verify(problem, Tk, r)

@@ -15,10 +15,10 @@ Closed-form arms (``nammoto7`` in δ, ``iiwa14`` in ψ, and loaded arms of those
 
 Every configuration is the closed form at its waypoint, so the path is followed exactly.
 
-Arms whose branches :func:`qpik.ik` finds by the 1-D search (the Sawyer, Baxter: no expressions of the parameter,
-no feasible sets): the same DP over the branches the search finds inside the limits at every grid value of the locked
-joint (:class:`~qpik.planning.search_grid.SearchGrid`; ``"infeasible"`` is then never proved), refined by the NLP over
-the joints.
+Arms whose branches :func:`qpik.ik` finds per pose (the 1-D search: the Sawyer, Baxter; the general 6-R: the YuMi, TIAGo
+Pro; no expressions of the parameter, no feasible sets): the same DP over the branches the search finds inside the
+limits at every grid value of the locked joint (:class:`~qpik.planning.search_grid.SearchGrid`; ``"infeasible"`` is then
+never proved), refined by the NLP over the joints.
 
 Arms of no family (``zheng7``): the QP controller tracks the path
 (:func:`qpik.planning.track.track`, also the online baseline), and the same NLP over the joints, with the pose as

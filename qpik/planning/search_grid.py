@@ -1,6 +1,7 @@
-r"""The DP's states for an arm whose branches :func:`qpik.ik` finds by the 1-D search (the ``"locked_search"`` family,
-:mod:`qpik.analytic.locked_search`): the same grid of the parameter (the locked joint) on every slot at every waypoint
-as :class:`~qpik.planning.grid.Grid`'s, its states found by one search per waypoint and grid value.
+r"""The DP's states for an arm whose branches :func:`qpik.ik` finds per pose (the 1-D search's ``"locked_search"``
+family, :mod:`qpik.analytic.locked_search`, and the general 6-R's ``"locked_general"``): the same grid of the parameter
+(the locked joint) on every slot at every waypoint as :class:`~qpik.planning.grid.Grid`'s, its states found by one
+search per waypoint and grid value.
 
 The family has no expressions of the parameter and no feasible sets, so a state (k, b, i) is *inside* where the
 search finds slot b at waypoint k and grid value i within the joint limits (not the grid values inside an exact set:
@@ -41,7 +42,7 @@ class SearchGrid(Grid):
         N, B, G, n = len(self.poses), self.rows, self.G, self.robot.dof
         self._q = np.zeros((N, B, G, n))
         inside = np.zeros((N, B, G), bool)
-        said = Progress(f"the 1-D search at {G} values of {self.param_name} per waypoint, waypoint", N, self._progress)
+        said = Progress(f"qpik.ik at {G} values of {self.param_name} per waypoint, waypoint", N, self._progress)
         for k, T in enumerate(self.poses):
             said(k)
             sol = self.solver.solve_many(T, self.values)  # (G, B, n), (G, B)
