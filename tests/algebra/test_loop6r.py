@@ -80,3 +80,28 @@ def test_a_chain_of_three_parallel_axes_is_refused_with_its_reason():
     loop, why = Loop6R.of(h, o)
     assert loop is None
     assert why.startswith("the elimination of every window is singular") and why.count(f"/{CHECKS}") == len(WINDOWS)
+
+
+@pytest.mark.parametrize(
+    "a, d, alpha",
+    [  # Puma 560 (Craig's standard table) and UR5 (Universal Robots' published DH): wrist-partitioned, not general
+        ((0.0, 0.4318, 0.0203, 0.0, 0.0, 0.0), (0.0, 0.0, 0.15, 0.4318, 0.0, 0.0),
+         (np.pi / 2, 0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, 0.0)),
+        ((0.0, -0.425, -0.39225, 0.0, 0.0, 0.0), (0.089159, 0.0, 0.0, 0.10915, 0.09465, 0.0823),
+         (np.pi / 2, 0.0, 0.0, np.pi / 2, -np.pi / 2, 0.0)),
+    ],
+    ids=["puma560", "ur5"],
+)  # fmt: skip
+def test_special_industrial_chains_are_held_by_some_window(a, d, alpha):
+    """Chains of special geometry that some window still solves (a spherical wrist; three parallel axes and an offset
+    wrist): every configuration of 20 random ones is among the candidates, and its candidate reaches the pose."""
+    chain = _chain(a, d, alpha)
+    h, o = chain.axes(np.zeros(6))
+    loop, why = Loop6R.of(h, o)
+    assert loop is not None, why
+    q = np.random.default_rng(21).uniform(-np.pi, np.pi, (20, 6))
+    for G, qk in zip(_home_removed(chain, q), q):
+        found = loop.solve(G)
+        gap = np.abs((found - qk + np.pi) % (2 * np.pi) - np.pi).max(axis=1)
+        assert gap.min() < HELD, gap.min()
+        assert np.abs(_home_removed(chain, found[np.argmin(gap)][None])[0] - G).max() < REACH
