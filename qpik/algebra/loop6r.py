@@ -131,6 +131,11 @@ class Loop6R:
     def __init__(self, h: np.ndarray, o: np.ndarray, window: Window):
         self.h, self.o, self.window = np.asarray(h, float), np.asarray(o, float), window
         self._origin = self.o[window.left[0]].copy()
+        k = self.h[window.gone]
+        across = np.cross(k, np.eye(3)[int(np.argmin(np.abs(k)))])
+        self._across = across / np.linalg.norm(across)
+        self._quarter = np.cross(k, self._across)
+        """Unit vectors a and k × a across the eliminated joint's axis k (its angle's subproblem 1, :meth:`_gone`)."""
         """The left side's frame: the world's moved to a point of its first axis."""
         local = self.o - self._origin
         self._moves = [lambda t, j=j: turns(self.h[j], local[j], t) for j in range(6)]
@@ -210,23 +215,23 @@ class Loop6R:
         Q, constant = coef[:8].T, coef[8]
         P0 = self._P[0].copy()
         P0[:, 8] -= constant
-        U, sv, _ = np.linalg.svd(Q)
+        U, sv, Vt = np.linalg.svd(Q, full_matrices=True)
         if sv[-1] <= 1e-12 * max(1.0, sv[0]):
             return np.zeros((0, 6))
         N = U[:, 8:].T
         S0, S1, S2 = N @ P0, N @ self._P[1], N @ self._P[2]
         A = [_grown(C @ TANGENT) for C in (S0 + S2, 2.0 * S1, S0 - S2)]  # × x_a^0, x_a^1, x_a^2
-        Z, I = np.zeros((12, 12)), np.eye(12)
-        lam, vec = sl.eig(np.block([[Z, I], [-A[0], -A[1]]]), np.block([[I, Z], [Z, A[2]]]))
-        real = np.flatnonzero(np.isfinite(lam) & (np.abs(lam.imag) <= REAL * (1.0 + np.abs(lam))))
-        z = vec[:12, real].real.T.reshape(-1, 4, 3)  # z[k, i, j] ∝ x_b^i x_c^j
+        lam, vec = _pencil(*A)
+        real = np.flatnonzero(np.abs(lam.imag) <= REAL * (1.0 + np.abs(lam)))
+        z = vec[:12, real].T.reshape(-1, 4, 3)  # z[k, i, j] ∝ x_b^i x_c^j
         rows = np.arange(len(real))
         i, j = np.unravel_index(np.abs(z[:, :3]).reshape(-1, 9).argmax(axis=1), (3, 3))
         m, n = np.unravel_index(np.abs(z[:, :, :2]).reshape(-1, 8).argmax(axis=1), (4, 2))
         u = 2.0 * np.arctan(np.stack([lam[real].real, z[rows, i + 1, j] / z[rows, i, j],
                                       z[rows, m, n + 1] / z[rows, m, n]], axis=1))  # fmt: skip
         P = P0 + np.sin(u[:, :1, None]) * self._P[1] + np.cos(u[:, :1, None]) * self._P[2]
-        x2 = (P @ _products(u[:, 1], u[:, 2])[..., None])[..., 0] @ np.linalg.pinv(Q).T
+        rhs = (P @ _products(u[:, 1], u[:, 2])[..., None])[..., 0]
+        x2 = ((rhs @ U[:, :8]) / sv) @ Vt  # least squares by Q's SVD
         q = np.zeros((len(real), 6))
         q[:, list(w.left)] = u  # the left side turns by −u where read backwards: E(−θ) = E(θ)⁻¹
         q[:, w.right[0]], q[:, w.right[1]] = np.arctan2(x2[:, 4], x2[:, 5]), np.arctan2(x2[:, 6], x2[:, 7])
@@ -243,11 +248,34 @@ class Loop6R:
         for j in range(d + 1, 6):
             after = after @ turns(self.h[j], self.o[j], q[:, j])
         R = (np.linalg.inv(before) @ G @ np.linalg.inv(after))[:, :3, :3]
-        k = self.h[d]
-        a = np.cross(k, np.eye(3)[int(np.argmin(np.abs(k)))])
-        a /= np.linalg.norm(a)
-        b = R @ a
-        return np.arctan2(np.cross(a, b) @ k, b @ a)
+        b = R @ self._across  # a turned by the joint: its angle is atan2((a × b)·k, a·b) = atan2(b·(k × a), b·a)
+        return np.arctan2(b @ self._quarter, b @ self._across)
+
+
+def _pencil(A0: np.ndarray, A1: np.ndarray, A2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    r"""The finite eigenvalues λ (complex, (M,)) of :math:`(A_2 \lambda^2 + A_1 \lambda + A_0) z = 0` (each (12, 12))
+    and the real parts of their eigenvectors (24, M) of the linearisation :math:`[0, I; -A_0, -A_1] v = \lambda
+    [I, 0; 0, A_2] v`, :math:`v = (z, \lambda z)`, by LAPACK's QZ (``dggev``; :func:`scipy.linalg.eig` where it fails).
+    A complex pair's two vectors have one real part."""
+    alphar, alphai, beta, _, vr, _, info = sl.lapack.dggev(*_linearised(A0, A1, A2), compute_vl=0, overwrite_a=1,
+                                                           overwrite_b=1)  # fmt: skip
+    if info != 0:
+        lam, vec = sl.eig(*_linearised(A0, A1, A2))
+        finite = np.isfinite(lam)
+        return lam[finite], vec[:, finite].real
+    finite = beta != 0.0
+    first = np.arange(len(beta)) - (alphai < 0.0)  # the column of a pair's real part
+    lam = (alphar + 1j * alphai)[finite] / beta[finite]
+    return lam, vr[:, first[finite]]
+
+
+def _linearised(A0: np.ndarray, A1: np.ndarray, A2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:math:`[0, I; -A_0, -A_1]` and :math:`[I, 0; 0, A_2]` (each (24, 24), column-major, for LAPACK)."""
+    n = len(A0)
+    a, b = np.zeros((2 * n, 2 * n), order="F"), np.zeros((2 * n, 2 * n), order="F")
+    a[:n, n:], a[n:, :n], a[n:, n:] = np.eye(n), -A0, -A1
+    b[:n, :n], b[n:, n:] = np.eye(n), A2
+    return a, b
 
 
 def _grown(C: np.ndarray) -> np.ndarray:

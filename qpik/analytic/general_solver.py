@@ -117,7 +117,7 @@ class GeneralSolver(SlotSolver):
                 turn = target_R @ T[:3, :3].T  # R* R^T, the rotation left (world)
                 w = 0.5 * np.array([turn[2, 1] - turn[1, 2], turn[0, 2] - turn[2, 0], turn[1, 0] - turn[0, 1]])
                 x = x.copy()
-                x[:6] += np.linalg.lstsq(J[:, :6], np.concatenate([target_p - T[:3, 3], w]), rcond=None)[0]
+                x[:6] += _step(J[:, :6], np.concatenate([target_p - T[:3, 3], w]))
             if error <= RESIDUAL_TOL:
                 reached.append(sy.NUMPY.wrap(x))
                 sigma.append(np.linalg.svd(J[:, :6], compute_uv=False)[-1])
@@ -127,3 +127,12 @@ class GeneralSolver(SlotSolver):
             if all(apart(reached[i], reached[k]) > SAME for k in keep):
                 keep.append(int(i))
         return np.array([reached[k] for k in keep]).reshape(-1, 7), np.array([sigma[k] < SINGULAR for k in keep], bool)
+
+
+def _step(J: np.ndarray, error: np.ndarray) -> np.ndarray:
+    """Newton's step (6,) rad of the six joints' Jacobian ``J`` (6, 6) toward the pose error ``error`` (6,): the
+    linear solve, or least squares where J is singular."""
+    try:
+        return np.linalg.solve(J, error)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(J, error, rcond=None)[0]
