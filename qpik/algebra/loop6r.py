@@ -27,7 +27,7 @@ joints out: :math:`N P(\theta_a) x_1 = 0` (the constant column moved to the left
 :math:`x = \tan(\theta/2)` and the equations times :math:`(1 + x_a^2)(1 + x_b^2)(1 + x_c^2)`, these are 6 equations,
 quadratic in :math:`x_a`, in the 9 monomials :math:`x_b^i x_c^j` (i, j ≤ 2); with the same times :math:`x_b`, 12
 equations in 12 monomials, :math:`(A_2 x_a^2 + A_1 x_a + A_0) z = 0`: a quadratic eigenproblem of size 12, solved as
-a generalised one of size 24 (:func:`scipy.linalg.eig`). Its 24 eigenvalues hold the 16 solutions of the chain
+a generalised one of size 24 (LAPACK's QZ, ``dggev``). Its 24 eigenvalues hold the 16 solutions of the chain
 (complex ones and 8 at :math:`\pm i` have no real configuration); each real eigenvalue gives :math:`\theta_a`, its
 eigenvector :math:`\theta_b, \theta_c` (ratios of its entries), the right side's products the two other joints
 (least squares), and the rotation left over :math:`\theta_d` (subproblem 1).
@@ -44,6 +44,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sl
+
+from qpik.algebra import symbolic as sy
 
 WINDOWS = ((2, False), (0, False), (1, False), (0, True), (1, True), (2, True))
 """The windows tried (:meth:`Loop6R.of`): the first joint s (0-based) of the four s..s+3, and whether they are read
@@ -131,12 +133,12 @@ class Loop6R:
     def __init__(self, h: np.ndarray, o: np.ndarray, window: Window):
         self.h, self.o, self.window = np.asarray(h, float), np.asarray(o, float), window
         self._origin = self.o[window.left[0]].copy()
+        """The left side's frame: the world's moved to a point of its first axis."""
         k = self.h[window.gone]
         across = np.cross(k, np.eye(3)[int(np.argmin(np.abs(k)))])
         self._across = across / np.linalg.norm(across)
         self._quarter = np.cross(k, self._across)
         """Unit vectors a and k × a across the eliminated joint's axis k (its angle's subproblem 1, :meth:`_gone`)."""
-        """The left side's frame: the world's moved to a point of its first axis."""
         local = self.o - self._origin
         self._moves = [lambda t, j=j: turns(self.h[j], local[j], t) for j in range(6)]
         rng = np.random.default_rng(7)
@@ -171,7 +173,7 @@ class Loop6R:
             ok = 0
             for G, qk in zip(poses, q):
                 found = loop.solve(G)
-                ok += bool(len(found)) and bool((np.abs(_wrap(found - qk)).max(axis=1) <= HELD).any())
+                ok += bool(len(found)) and bool((np.abs(sy.NUMPY.wrap(found - qk)).max(axis=1) <= HELD).any())
             if ok == CHECKS:
                 return loop, ""
             held.append(f"joints {start + 1}-{start + 4}{' backwards' if backwards else ''} {ok}/{CHECKS}")
@@ -284,8 +286,3 @@ def _grown(C: np.ndarray) -> np.ndarray:
     A = np.zeros((12, 12))
     A[:6, :9], A[6:, 3:] = C, C
     return A
-
-
-def _wrap(x: np.ndarray) -> np.ndarray:
-    """Angles (rad) wrapped to [−π, π)."""
-    return (x + np.pi) % (2.0 * np.pi) - np.pi

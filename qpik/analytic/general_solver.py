@@ -8,9 +8,9 @@ Per pose T and locked angle t, in the search's order (joint 7 locked):
 1. :math:`G = T\,(E_7(t)\,M)^{-1}`, the pose of joints 1-6 (M the end's pose at q = 0, :math:`E_7` the locked joint's
    motion);
 2. the candidates of :meth:`~qpik.algebra.loop6r.Loop6R.solve` (one per real eigenvalue, at most 16);
-3. at most :data:`POLISH` Newton steps on the arm's chain (its FK and Jacobian, the locked joint held); a candidate
-   whose residual is then above :data:`~qpik.analytic.polish.RESIDUAL_TOL` is dropped, and solutions within
-   :data:`SAME` rad of each other are one;
+3. :data:`POLISH` Newton steps on the arm's chain, the locked joint held (:func:`qpik.analytic.polish.polish`, compiled
+   and mapped over the candidates); a candidate whose residual is then above
+   :data:`~qpik.analytic.polish.RESIDUAL_TOL` is dropped, and solutions within :data:`SAME` rad of each other are one;
 4. the slots: the j-th solution in increasing order of the eigenproblem's joint (the first of its window's left side,
    :attr:`GeneralSolver.ranked_joint`) takes slot j (:func:`~qpik.analytic.slot_solver.ranked`). A slot so keeps its
    id along the parameter while no solution below it in that joint appears or vanishes (in pairs, at a fold) and none
@@ -26,16 +26,18 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import casadi as ca
 import numpy as np
 
 from qpik.algebra import symbolic as sy
 from qpik.algebra.loop6r import Loop6R, turns
 from qpik.analytic.branch_solver import Solved
 from qpik.analytic.intervals import apart
-from qpik.analytic.polish import RESIDUAL_TOL
+from qpik.analytic.polish import RESIDUAL_TOL, polish
 from qpik.analytic.slot_solver import SlotSolver, ranked
 from qpik.core.errors import NoClosedFormError
 from qpik.core.validate import number, single_pose
+from qpik.native.compiled import RowMap
 from qpik.robots.locked_joint import reversed_chain
 
 if TYPE_CHECKING:
@@ -46,9 +48,7 @@ if TYPE_CHECKING:
     from qpik.robots.robot import Robot
 
 POLISH = 4
-"""Most Newton steps on the arm's chain from each candidate."""
-CONVERGED = 1e-14
-"""A candidate's residual (m and rotation entries) at which its Newton steps stop."""
+"""Newton steps (:func:`qpik.analytic.polish.polish`) on the arm's chain from each candidate."""
 SAME = 1e-8
 """rad: solutions this close in every joint are one."""
 SINGULAR = 1e-6
@@ -80,6 +80,15 @@ class GeneralSolver(SlotSolver):
         """The elimination of joints 1-6 (search's order)."""
         self._last = (h[6], o[6], self.chain.fk(np.zeros(7)))
         """The locked joint's axis (direction, point) and the end's pose at q = 0, search's order."""
+        T, q = ca.SX.sym("T", 4, 4), ca.SX.sym("q", 7)
+        joints, residual = polish(self.chain, *sy.frame_of_batch(T), ca.vertsplit(q), sy.CASADI, POLISH)
+        jv, jw = self.chain.jacobian_expr(self.chain.frames_expr(joints, sy.CASADI))
+        columns = [x for j in range(6) for x in (*jv[j], *jw[j])]
+        self._polish = RowMap(ca.Function("general_polish", [T, q], [ca.vertcat(*joints), residual,
+                                                                     ca.vertcat(*columns)]), shared=[0])  # fmt: skip
+        """:data:`POLISH` steps of :func:`~qpik.analytic.polish.polish` from a candidate q (7,; rad, search's order)
+        toward the pose T (4, 4; column-major, shared): the joints (7,), the residual (1,) and the Jacobian's columns
+        1-6 there (36,; ``[v; ω]`` each); compiled, over rows of candidates."""
         self.locked = 0 if self.reversed else 6
         self.param_name = f"q{self.locked + 1}"
         first = loop.window.left[0]
@@ -104,35 +113,16 @@ class GeneralSolver(SlotSolver):
 
     def _polished(self, Ts: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The candidates ``q`` (K, 7) rad (search's order) after :data:`POLISH` Newton steps on the chain toward the
-        pose ``Ts`` (4, 4; search's order), the locked joint held: those that reach it, each once (wrapped), and whether
-        each is singular."""
-        target_R, target_p = Ts[:3, :3], Ts[:3, 3]
-        reached, sigma, residual = [], [], []
-        for x in q:
-            for step in range(POLISH + 1):
-                T, J = self.chain.fk_jacobian(x)  # one configuration: the compiled call
-                error = max(np.abs(T[:3, 3] - target_p).max(), np.abs(T[:3, :3] - target_R).max())
-                if step == POLISH or error <= CONVERGED:
-                    break
-                turn = target_R @ T[:3, :3].T  # R* R^T, the rotation left (world)
-                w = 0.5 * np.array([turn[2, 1] - turn[1, 2], turn[0, 2] - turn[2, 0], turn[1, 0] - turn[0, 1]])
-                x = x.copy()
-                x[:6] += _step(J[:, :6], np.concatenate([target_p - T[:3, 3], w]))
-            if error <= RESIDUAL_TOL:
-                reached.append(sy.NUMPY.wrap(x))
-                sigma.append(np.linalg.svd(J[:, :6], compute_uv=False)[-1])
-                residual.append(error)
+        pose ``Ts`` (4, 4; search's order), the locked joint held (:attr:`_polish`): those that reach it, each once
+        (wrapped), and whether each is singular."""
+        if not len(q):
+            return np.zeros((0, 7)), np.zeros(0, bool)
+        q, residual, J = self._polish(Ts.reshape(-1, order="F"), q)
+        ok = residual[:, 0] <= RESIDUAL_TOL
+        q, residual = sy.NUMPY.wrap(q[ok]), residual[ok, 0]
+        sigma = np.linalg.svd(J[ok].reshape(-1, 6, 6), compute_uv=False)[:, -1]  # the rows are J's columns
         keep: list[int] = []
         for i in np.argsort(residual, kind="stable"):
-            if all(apart(reached[i], reached[k]) > SAME for k in keep):
+            if all(apart(q[i], q[k]) > SAME for k in keep):
                 keep.append(int(i))
-        return np.array([reached[k] for k in keep]).reshape(-1, 7), np.array([sigma[k] < SINGULAR for k in keep], bool)
-
-
-def _step(J: np.ndarray, error: np.ndarray) -> np.ndarray:
-    """Newton's step (6,) rad of the six joints' Jacobian ``J`` (6, 6) toward the pose error ``error`` (6,): the
-    linear solve, or least squares where J is singular."""
-    try:
-        return np.linalg.solve(J, error)
-    except np.linalg.LinAlgError:
-        return np.linalg.lstsq(J, error, rcond=None)[0]
+        return q[keep], sigma[keep] < SINGULAR
