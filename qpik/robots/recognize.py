@@ -233,7 +233,7 @@ def _general(chain: SerialChain, directions: tuple[bool, ...]) -> tuple[Canonica
         locked = 1 if rev else 7
         if loop is not None:
             w = loop.window
-            joints = "-".join(str(8 - (j + 1) if rev else j + 1) for j in (*w.left, w.gone))
+            joints = "-".join(str(7 - j if rev else j + 1) for j in (*w.left, w.gone))  # the arm's numbers
             notes = (f"served with q{locked} locked by elimination of the 6-R chain left to one eigenproblem of size "
                      f"24 (Raghavan & Roth 1993; Manocha & Canny 1994; joints {joints}; qpik.algebra.loop6r), each "
                      "solution polished on the file's chain, not proved (qpik.analytic.general_solver)")  # fmt: skip
